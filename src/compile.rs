@@ -1,0 +1,439 @@
+//! Scene compiler: turns a validated [`Scene`] into a [`CompiledScene`] of plain
+//! immutable arrays. Runs off the audio thread (it allocates and runs
+//! eigensolvers); the engine only reads its output.
+//!
+//! What it builds (paper sections 2.1-2.3, NUMERICS.md section 2):
+//! - the free phase of the struck object in real 2x2 blocks (closed form per
+//!   mode for modal objects; checked eigen blocks or dense fallback for lumped
+//!   objects), the hammer in closed form (never diagonalised);
+//! - the contact phase of object + hammer + spring-damper, decomposed and
+//!   checked the same way;
+//! - the changes of basis between the two phases (O(N^2) per switch) and the
+//!   output rows (O(N) per sample);
+//! - gravity as a shift to the contact phase's static equilibrium, so stepping
+//!   stays homogeneous (no affine term per sample).
+
+use crate::physics::decomp::{self, DecompDiagnostics, Form, PhaseDecomp};
+use crate::physics::model::{contact_system, ContactLayout, ContactParams, ObjectModel};
+use crate::scene::{ObjectSpec, Quantity, Scene, Switching};
+use nalgebra::{DMatrix, DVector};
+use std::fmt;
+
+/// Largest contact-system dimension the compiler attempts (2 * 2000 + 2):
+/// beyond it the eigensolver takes far too long for an interactive instrument.
+pub const MAX_CONTACT_DIM: usize = 4002;
+
+/// Why a scene could not be compiled.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompileError(pub String);
+
+impl fmt::Display for CompileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "cannot compile scene: {}", self.0)
+    }
+}
+
+impl std::error::Error for CompileError {}
+
+/// Output rows of one phase, over that phase's coordinates.
+#[derive(Debug, Clone)]
+pub struct PhaseRows {
+    /// Displacement of the contact point.
+    pub x_c: Vec<f64>,
+    /// Velocity of the contact point.
+    pub v_c: Vec<f64>,
+    /// Displacement pickups mixed for the left / right channel.
+    pub disp_l: Vec<f64>,
+    /// See `disp_l`.
+    pub disp_r: Vec<f64>,
+    /// Velocity pickups mixed for the left / right channel.
+    pub vel_l: Vec<f64>,
+    /// See `vel_l`.
+    pub vel_r: Vec<f64>,
+    /// Contact phase only: `pi = sqrt(k) p_eff`.
+    pub pi: Vec<f64>,
+    /// Contact phase only: `eta = sqrt(m_h) v_h`.
+    pub eta: Vec<f64>,
+}
+
+/// Constants added to the contact rows (the static equilibrium under gravity).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RowOffsets {
+    /// Added to `x_c`.
+    pub x_c: f64,
+    /// Added to `v_c` (0 at equilibrium, kept for clarity).
+    pub v_c: f64,
+    /// Added to the mixed outputs.
+    pub disp_l: f64,
+    /// See `disp_l`.
+    pub disp_r: f64,
+    /// Added to `pi`.
+    pub pi: f64,
+    /// Added to `eta`.
+    pub eta: f64,
+}
+
+/// One phase, ready for the engine.
+#[derive(Debug, Clone)]
+pub struct CompiledPhase {
+    /// State dimension (even).
+    pub dim: usize,
+    /// Block generators (when advanced in blocks).
+    pub gens: Option<Vec<[f64; 4]>>,
+    /// Dense generator and its propagator over one sample (fallback).
+    pub dense: Option<(DMatrix<f64>, Vec<f64>)>,
+    /// Phase coordinates to energy coordinates (`y = V s`), for energy/traces.
+    pub v: DMatrix<f64>,
+    /// Output rows.
+    pub rows: PhaseRows,
+    /// Decomposition checks.
+    pub diag: DecompDiagnostics,
+}
+
+/// A compiled scene: everything the engine needs, immutable.
+#[derive(Debug, Clone)]
+pub struct CompiledScene {
+    /// Scene name.
+    pub name: String,
+    /// Sample rate [Hz].
+    pub rate_hz: f64,
+    /// Sample period [s].
+    pub h: f64,
+    /// Switching method.
+    pub switching: Switching,
+    /// Hammer mass [kg].
+    pub m_h: f64,
+    /// Gravity [m/s^2].
+    pub g: f64,
+    /// Initial hammer height [m] and velocity [m/s].
+    pub hammer_x0: f64,
+    /// See `hammer_x0`.
+    pub hammer_v0: f64,
+    /// Contact stiffness [N/m] and its square root.
+    pub k: f64,
+    /// `sqrt(k)`.
+    pub sk: f64,
+    /// Contact damping [N s/m].
+    pub c: f64,
+    /// `sqrt(m_h)`.
+    pub sm: f64,
+    /// Free phase of the struck object (the hammer is separate, closed form).
+    pub free: CompiledPhase,
+    /// Contact phase (object + spring + hammer).
+    pub contact: CompiledPhase,
+    /// Free -> contact: `s_c = W_cf s_f + col_pi pi + col_eta eta - s_star`.
+    pub w_cf: DMatrix<f64>,
+    /// See `w_cf`.
+    pub col_pi: Vec<f64>,
+    /// See `w_cf`.
+    pub col_eta: Vec<f64>,
+    /// Static equilibrium of the contact phase in its coordinates.
+    pub s_star: Vec<f64>,
+    /// Contact -> free: `s_f = W_fc s_c + s_f_star`.
+    pub w_fc: DMatrix<f64>,
+    /// `W_fc s_star`.
+    pub s_f_star: Vec<f64>,
+    /// Constants of the contact rows.
+    pub offsets: RowOffsets,
+    /// Human-readable summary of what was built.
+    pub summary: String,
+}
+
+fn row_vec(row: &DVector<f64>, v: &DMatrix<f64>) -> Vec<f64> {
+    (row.transpose() * v).iter().cloned().collect()
+}
+
+/// Constant-power pan law: gains (left, right) for pan in [-1, 1].
+pub fn pan_gains(pan: f64) -> (f64, f64) {
+    let theta = (pan + 1.0) * std::f64::consts::FRAC_PI_4;
+    (theta.cos(), theta.sin())
+}
+
+/// Compile a scene for a sample rate.
+pub fn compile(scene: &Scene, rate_hz: f64) -> Result<CompiledScene, CompileError> {
+    compile_with(scene, rate_hz, None)
+}
+
+/// Compile, optionally overriding the scene's switching method.
+pub fn compile_with(
+    scene: &Scene,
+    rate_hz: f64,
+    switching: Option<Switching>,
+) -> Result<CompiledScene, CompileError> {
+    scene.validate().map_err(|e| CompileError(e.to_string()))?;
+    if !(rate_hz.is_finite() && (1000.0..=10_000_000.0).contains(&rate_hz)) {
+        return Err(CompileError(format!(
+            "sample rate must be in 1 kHz..10 MHz, got {rate_hz}"
+        )));
+    }
+    let switching = switching.or(scene.contact.switching).unwrap_or_default();
+    if switching == Switching::Exact {
+        return Err(CompileError(
+            "exact switching is not implemented yet; use switching = \"offset-rod\"".into(),
+        ));
+    }
+    let h = 1.0 / rate_hz;
+    let ci = scene
+        .object_index(&scene.contact.object)
+        .ok_or_else(|| CompileError("contact object missing".into()))?;
+    let spec = &scene.object[ci];
+    let obj = ObjectModel::from_spec(spec).map_err(CompileError)?;
+    if 2 * obj.n + 2 > MAX_CONTACT_DIM {
+        return Err(CompileError(format!(
+            "contact system of dimension {} exceeds the limit {MAX_CONTACT_DIM}",
+            2 * obj.n + 2
+        )));
+    }
+    let contact_rows = match &scene.contact.point {
+        Some(p) => Some(
+            obj.point(p)
+                .ok_or_else(|| CompileError(format!("no point {p}")))?
+                .clone(),
+        ),
+        None => None,
+    };
+    let n = obj.n;
+    let params = ContactParams {
+        k: scene.contact.stiffness_n_per_m,
+        c: scene.contact.damping_n_s_per_m,
+        m_h: scene.hammer.mass_kg,
+        g: scene.hammer.gravity_m_per_s2,
+    };
+
+    // --- free phase of the object
+    let free_dec: PhaseDecomp = match &obj.modal_blocks {
+        Some(blocks) => {
+            let pairs: Vec<(usize, usize)> = (0..n).map(|i| (i, n + i)).collect();
+            decomp::from_blocks(blocks.clone(), &pairs, 2 * n, h)
+        }
+        None => decomp::decompose(&obj.a, h).map_err(CompileError)?,
+    };
+
+    // --- contact phase
+    let (a_c, f_c, lay): (DMatrix<f64>, DVector<f64>, ContactLayout) =
+        contact_system(&obj, contact_rows.as_ref().map(|r| &r.vel), &params);
+    let con_dec = decomp::decompose(&a_c, h).map_err(CompileError)?;
+
+    // static equilibrium y* = -A^{-1} f (only with gravity: no affine term otherwise)
+    let y_star: DVector<f64> = if params.g != 0.0 {
+        let lu = a_c.clone().lu();
+        let sol = lu
+            .solve(&(-&f_c))
+            .ok_or_else(|| CompileError("contact system is singular under gravity".into()))?;
+        if sol.iter().any(|x| !x.is_finite()) {
+            return Err(CompileError("static equilibrium is not finite".into()));
+        }
+        sol
+    } else {
+        DVector::zeros(lay.dim())
+    };
+
+    // --- rows in physical (energy) coordinates
+    let dim_f = 2 * n;
+    let dim_c = lay.dim();
+    let zero_f = DVector::zeros(dim_f);
+    let xc_f = contact_rows.as_ref().map_or(zero_f.clone(), |r| r.disp.clone());
+    let vc_f = contact_rows.as_ref().map_or(zero_f.clone(), |r| r.vel.clone());
+    let mut dl = zero_f.clone();
+    let mut dr = zero_f.clone();
+    let mut vl = zero_f.clone();
+    let mut vr = zero_f.clone();
+    let mut dropped_pickups = Vec::new();
+    for (i, p) in scene.pickup.iter().enumerate() {
+        if p.object != scene.contact.object {
+            // Only the struck object is ever excited: a pickup elsewhere is
+            // silent forever, so it is left out (exact saving).
+            dropped_pickups.push(format!(
+                "pickup[{i}] on {:?}: object never excited",
+                p.object
+            ));
+            continue;
+        }
+        let rows = obj.point(&p.point).expect("validated");
+        let (gl, gr) = pan_gains(p.pan);
+        match p.quantity {
+            Quantity::Displacement => {
+                dl += &rows.disp * (p.gain * gl);
+                dr += &rows.disp * (p.gain * gr);
+            }
+            Quantity::Velocity => {
+                vl += &rows.vel * (p.gain * gl);
+                vr += &rows.vel * (p.gain * gr);
+            }
+        }
+    }
+
+    let free_rows = PhaseRows {
+        x_c: row_vec(&xc_f, &free_dec.v),
+        v_c: row_vec(&vc_f, &free_dec.v),
+        disp_l: row_vec(&dl, &free_dec.v),
+        disp_r: row_vec(&dr, &free_dec.v),
+        vel_l: row_vec(&vl, &free_dec.v),
+        vel_r: row_vec(&vr, &free_dec.v),
+        pi: Vec::new(),
+        eta: Vec::new(),
+    };
+    let mut e_pi = DVector::zeros(dim_c);
+    e_pi[lay.pi()] = 1.0;
+    let mut e_eta = DVector::zeros(dim_c);
+    e_eta[lay.eta()] = 1.0;
+    let emb = |r: &DVector<f64>| lay.embed_row(r);
+    let (xc_c, vc_c) = (emb(&xc_f), emb(&vc_f));
+    let (dl_c, dr_c, vl_c, vr_c) = (emb(&dl), emb(&dr), emb(&vl), emb(&vr));
+    let con_rows = PhaseRows {
+        x_c: row_vec(&xc_c, &con_dec.v),
+        v_c: row_vec(&vc_c, &con_dec.v),
+        disp_l: row_vec(&dl_c, &con_dec.v),
+        disp_r: row_vec(&dr_c, &con_dec.v),
+        vel_l: row_vec(&vl_c, &con_dec.v),
+        vel_r: row_vec(&vr_c, &con_dec.v),
+        pi: row_vec(&e_pi, &con_dec.v),
+        eta: row_vec(&e_eta, &con_dec.v),
+    };
+    let offsets = RowOffsets {
+        x_c: xc_c.dot(&y_star),
+        v_c: vc_c.dot(&y_star),
+        disp_l: dl_c.dot(&y_star),
+        disp_r: dr_c.dot(&y_star),
+        pi: y_star[lay.pi()],
+        eta: y_star[lay.eta()],
+    };
+
+    // --- changes of basis
+    // E: z (object) -> y (contact)
+    let mut emb_m = DMatrix::zeros(dim_c, dim_f);
+    for j in 0..dim_f {
+        emb_m[(lay.embed(j), j)] = 1.0;
+    }
+    let w_cf = &con_dec.vinv * &emb_m * &free_dec.v;
+    let col_pi: Vec<f64> = (&con_dec.vinv * &e_pi).iter().cloned().collect();
+    let col_eta: Vec<f64> = (&con_dec.vinv * &e_eta).iter().cloned().collect();
+    let s_star_v = &con_dec.vinv * &y_star;
+    let w_fc = &free_dec.vinv * emb_m.transpose() * &con_dec.v;
+    let s_f_star: Vec<f64> = (&w_fc * &s_star_v).iter().cloned().collect();
+    let s_star: Vec<f64> = s_star_v.iter().cloned().collect();
+
+    let to_phase = |d: PhaseDecomp, rows: PhaseRows| -> Result<CompiledPhase, CompileError> {
+        let dim = d.v.nrows();
+        let (gens, dense) = match d.form {
+            Form::Blocks { gens } => (Some(gens), None),
+            Form::Dense { a } => {
+                let phi = decomp::dense_exp(&a, h).map_err(CompileError)?;
+                // row-major for the engine's mat-vec
+                let flat: Vec<f64> = (0..dim)
+                    .flat_map(|i| (0..dim).map(move |j| (i, j)))
+                    .map(|(i, j)| phi[(i, j)])
+                    .collect();
+                (None, Some((a, flat)))
+            }
+        };
+        Ok(CompiledPhase {
+            dim,
+            gens,
+            dense,
+            v: d.v,
+            rows,
+            diag: d.diag,
+        })
+    };
+    let free = to_phase(free_dec, free_rows)?;
+    let contact = to_phase(con_dec, con_rows)?;
+
+    for (what, ph) in [("free", &free), ("contact", &contact)] {
+        let all_finite = ph.v.iter().all(|x| x.is_finite())
+            && ph.gens.iter().flatten().flatten().all(|x| x.is_finite());
+        if !all_finite {
+            return Err(CompileError(format!("{what} phase has non-finite entries")));
+        }
+    }
+    if w_cf.iter().chain(w_fc.iter()).any(|x| !x.is_finite()) {
+        return Err(CompileError("change of basis has non-finite entries".into()));
+    }
+
+    let mut summary = String::new();
+    {
+        use std::fmt::Write;
+        let kind = match spec {
+            ObjectSpec::Modal(_) => "modal",
+            ObjectSpec::String(_) => "string",
+            ObjectSpec::Wall(_) => "wall",
+        };
+        let _ = writeln!(
+            summary,
+            "scene {:?} at {rate_hz} Hz, switching {}",
+            scene.name,
+            switching.as_str()
+        );
+        let _ = writeln!(
+            summary,
+            "struck object {:?} ({kind}, {n} degrees of freedom); hammer {} kg, g = {} m/s^2",
+            obj.name, params.m_h, params.g
+        );
+        for (what, ph) in [("free", &free), ("contact", &contact)] {
+            let d = &ph.diag;
+            let _ = writeln!(
+                summary,
+                "{what} phase: dim {}, {}, residual {:.1e}, kappa(V) {:.2}, |V exp(Gh) V^-1 - exp(Ah)| {:.1e}, sigma_max(P) - 1 = {:.1e}{}",
+                d.dim,
+                d.method,
+                d.residual,
+                d.kappa,
+                d.expm_rel_diff,
+                d.sigma_max - 1.0,
+                d.fallback_reason
+                    .as_ref()
+                    .map(|r| format!(" (fallback: {r})"))
+                    .unwrap_or_default()
+            );
+        }
+        let _ = writeln!(
+            summary,
+            "gravity: {}",
+            if params.g != 0.0 {
+                "static-equilibrium shift in contact, parabola in flight"
+            } else {
+                "none (homogeneous stepping, no affine term)"
+            }
+        );
+        for d in &dropped_pickups {
+            let _ = writeln!(summary, "dropped {d}");
+        }
+        let cost = |ph: &CompiledPhase| match (&ph.gens, &ph.dense) {
+            (Some(_), _) => format!("{} blocks (~{} flops/sample)", ph.dim / 2, ph.dim * 5),
+            (_, Some(_)) => format!("dense {0}x{0} (~{1} flops/sample)", ph.dim, 2 * ph.dim * ph.dim),
+            _ => "empty".into(),
+        };
+        let _ = writeln!(
+            summary,
+            "cost: free {}, contact {}, switch ~{} flops",
+            cost(&free),
+            cost(&contact),
+            2 * dim_c * dim_f
+        );
+    }
+
+    Ok(CompiledScene {
+        name: scene.name.clone(),
+        rate_hz,
+        h,
+        switching,
+        m_h: params.m_h,
+        g: params.g,
+        hammer_x0: scene.hammer.height_m,
+        hammer_v0: scene.hammer.velocity_m_per_s,
+        k: params.k,
+        sk: params.k.sqrt(),
+        c: params.c,
+        sm: params.m_h.sqrt(),
+        free,
+        contact,
+        w_cf,
+        col_pi,
+        col_eta,
+        s_star,
+        w_fc,
+        s_f_star,
+        offsets,
+        summary,
+    })
+}

@@ -1,0 +1,383 @@
+//! The per-sample engine: steps a [`CompiledScene`] exactly, switching between
+//! the free and the contact phase with the paper's offset rod (section 2.2).
+//!
+//! State is f64 and lives in the current phase's block coordinates; the
+//! physical state is never rebuilt while stepping (only for traces). A step
+//! costs one 2x2 multiply per block plus the rows the decision and the outputs
+//! need (O(N)); a switch costs one change of basis (O(N^2)). Nothing in
+//! [`EngineState::tick`] allocates: all buffers are sized in
+//! [`EngineState::new`].
+//!
+//! Time scaling (pitch): a voice may run the scene with its time axis scaled by
+//! `s` (every frequency times `s`, every decay time over `s`, contact stiffness
+//! times `s^2`, contact damping times `s`, gravity times `s^2`, hammer mass
+//! kept; energies scale by `s^2` at equal displacement). Then the reference system simply steps by `s h`, so the same
+//! decomposition serves every pitch; only the 2x2 block propagators are
+//! recomputed (O(N), no allocation). Velocities in the reference system are
+//! the physical ones divided by `s`.
+
+use crate::compile::{CompiledPhase, CompiledScene};
+use crate::physics::block::{exp2, Mat2};
+
+/// What the trace records per sample (DESIGN.md section 5), physical units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Observation {
+    /// Hammer contact-face height [m].
+    pub x_hammer: f64,
+    /// Hammer velocity [m/s].
+    pub v_hammer: f64,
+    /// Object displacement at the contact point [m].
+    pub x_contact: f64,
+    /// Object velocity at the contact point [m/s].
+    pub v_contact: f64,
+    /// In contact for the step that follows (offset rod) / at this instant (exact).
+    pub in_contact: bool,
+    /// Total energy [J]: object + hammer (kinetic and gravity) + contact spring.
+    pub energy: f64,
+}
+
+/// Why a time scale could not be applied.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TimeScaleError {
+    /// The scale is not finite and positive.
+    Invalid,
+    /// A dense-fallback phase only has its propagator for the base rate.
+    DenseFallback,
+}
+
+/// Mutable per-voice state. Sized for one compiled scene (or larger).
+#[derive(Debug, Clone)]
+pub struct EngineState {
+    s_f: Vec<f64>,
+    s_c: Vec<f64>,
+    scratch: Vec<f64>,
+    p_f: Vec<Mat2>,
+    p_c: Vec<Mat2>,
+    out_f: [Vec<f64>; 2],
+    out_c: [Vec<f64>; 2],
+    out_c_offset: [f64; 2],
+    in_contact: bool,
+    /// Offset rod length [m] (valid in contact).
+    rod_m: f64,
+    /// Hammer height [m] and reference-time velocity (valid in flight).
+    x_h: f64,
+    v_h: f64,
+    /// Time scale `s` (1 = the scene as written).
+    time_scale: f64,
+    /// `s h`.
+    step_s: f64,
+    /// The scene's gravity (reference time; physically `g s^2`).
+    g: f64,
+    /// Number of contact starts since the last reset (diagnostic).
+    pub contacts_started: u64,
+}
+
+impl EngineState {
+    /// Allocate state for `scene` and reset it to the scene's initial state.
+    /// [main-thread / worker]
+    pub fn new(scene: &CompiledScene) -> Self {
+        let df = scene.free.dim;
+        let dc = scene.contact.dim;
+        let mut st = EngineState {
+            s_f: vec![0.0; df],
+            s_c: vec![0.0; dc],
+            scratch: vec![0.0; df.max(dc)],
+            p_f: vec![[0.0; 4]; df / 2],
+            p_c: vec![[0.0; 4]; dc / 2],
+            out_f: [vec![0.0; df], vec![0.0; df]],
+            out_c: [vec![0.0; dc], vec![0.0; dc]],
+            out_c_offset: [0.0; 2],
+            in_contact: false,
+            rod_m: 0.0,
+            x_h: 0.0,
+            v_h: 0.0,
+            time_scale: 1.0,
+            step_s: scene.h,
+            g: scene.g,
+            contacts_started: 0,
+        };
+        st.set_time_scale(scene, 1.0)
+            .expect("time scale 1 is always valid");
+        st.reset(scene);
+        st
+    }
+
+    /// Objects at rest, hammer at the scene's initial height and velocity.
+    /// Does not allocate. [audio-thread]
+    pub fn reset(&mut self, scene: &CompiledScene) {
+        self.s_f.iter_mut().for_each(|x| *x = 0.0);
+        self.s_c.iter_mut().for_each(|x| *x = 0.0);
+        self.in_contact = false;
+        self.rod_m = 0.0;
+        self.x_h = scene.hammer_x0;
+        self.v_h = scene.hammer_v0 / self.time_scale;
+        self.contacts_started = 0;
+    }
+
+    /// Whether the hammer is in contact (for the coming step).
+    pub fn in_contact(&self) -> bool {
+        self.in_contact
+    }
+
+    /// Current time scale.
+    pub fn time_scale(&self) -> f64 {
+        self.time_scale
+    }
+
+    /// Run the scene with its time axis scaled by `s` (pitch ratio). O(N), no
+    /// allocation. [audio-thread]
+    pub fn set_time_scale(&mut self, scene: &CompiledScene, s: f64) -> Result<(), TimeScaleError> {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(TimeScaleError::Invalid);
+        }
+        if s != 1.0 && (scene.free.dense.is_some() || scene.contact.dense.is_some()) {
+            return Err(TimeScaleError::DenseFallback);
+        }
+        // physical velocity is preserved across a change of scale
+        let v_phys = self.v_h * self.time_scale;
+        self.time_scale = s;
+        self.step_s = scene.h * s;
+        self.v_h = v_phys / s;
+        fill_props(&mut self.p_f, &scene.free, self.step_s);
+        fill_props(&mut self.p_c, &scene.contact, self.step_s);
+        // Outputs in physical units: displacement rows as they are, velocity
+        // rows times s (reference velocities are physical / s).
+        for ch in 0..2 {
+            mix_rows(&mut self.out_f[ch], &scene.free, ch, s);
+            mix_rows(&mut self.out_c[ch], &scene.contact, ch, s);
+        }
+        self.out_c_offset = [scene.offsets.disp_l, scene.offsets.disp_r];
+        self.g = scene.g;
+        Ok(())
+    }
+
+    /// Launch the hammer again from `height_m` with `velocity_m_per_s`
+    /// (physical, positive up) while the object keeps its motion: a repeated
+    /// strike hits a moving surface. If the old hammer is still in contact it is
+    /// lifted off first (its spring is cut: that can only remove energy).
+    /// O(N^2) when in contact, else O(1). [audio-thread]
+    pub fn strike(&mut self, scene: &CompiledScene, height_m: f64, velocity_m_per_s: f64) {
+        if self.in_contact {
+            self.leave_contact(scene);
+        }
+        let x_c = dot(&scene.free.rows.x_c, &self.s_f);
+        self.x_h = x_c + height_m.max(0.0);
+        self.v_h = velocity_m_per_s / self.time_scale;
+    }
+
+    /// One sample: decide the phase at the current instant, return the output
+    /// `[left, right]` of the current state, and advance one step.
+    /// Allocation-free, O(N) (O(N^2) on a switch). [audio-thread]
+    #[inline]
+    pub fn tick(&mut self, scene: &CompiledScene) -> [f64; 2] {
+        self.decide(scene);
+        let out = self.output();
+        self.advance(scene);
+        out
+    }
+
+    /// Like [`tick`](Self::tick) but also returns the trace observation taken
+    /// after the switching decision (DESIGN.md section 5). O(N^2): offline only.
+    pub fn tick_observed(&mut self, scene: &CompiledScene) -> ([f64; 2], Observation) {
+        self.decide(scene);
+        let out = self.output();
+        let obs = self.observe(scene);
+        self.advance(scene);
+        (out, obs)
+    }
+
+    /// Fill `left`/`right` with consecutive samples (f64). [audio-thread]
+    pub fn process_block(&mut self, scene: &CompiledScene, left: &mut [f64], right: &mut [f64]) {
+        for (l, r) in left.iter_mut().zip(right.iter_mut()) {
+            let o = self.tick(scene);
+            *l = o[0];
+            *r = o[1];
+        }
+    }
+
+    /// Effective penetration now (`p_eff`, with the rod) [m].
+    pub fn penetration(&self, scene: &CompiledScene) -> f64 {
+        if self.in_contact {
+            (dot(&scene.contact.rows.pi, &self.s_c) + scene.offsets.pi) / scene.sk
+        } else {
+            dot(&scene.free.rows.x_c, &self.s_f) - self.x_h
+        }
+    }
+
+    fn decide(&mut self, scene: &CompiledScene) {
+        if self.in_contact {
+            let p_eff = self.penetration(scene);
+            // Leave at the first sample with p_eff <= 0 (paper 2.2); cutting the
+            // spring there can only lose its energy 0.5 k p_eff^2.
+            if !(p_eff > 0.0) {
+                self.leave_contact(scene);
+            }
+        } else {
+            let p = self.penetration(scene);
+            if p > 0.0 {
+                self.enter_contact(scene, p);
+            }
+        }
+    }
+
+    /// Offset rod: the spring starts unstretched (p_eff = 0), so entering
+    /// contact adds no energy.
+    fn enter_contact(&mut self, scene: &CompiledScene, p: f64) {
+        self.rod_m = p;
+        let eta = scene.sm * self.v_h;
+        let dc = scene.contact.dim;
+        let df = scene.free.dim;
+        for i in 0..dc {
+            let row = scene.w_cf.row(i);
+            let mut acc = scene.col_eta[i] * eta - scene.s_star[i];
+            for j in 0..df {
+                acc += row[j] * self.s_f[j];
+            }
+            self.s_c[i] = acc;
+        }
+        self.in_contact = true;
+        self.contacts_started += 1;
+    }
+
+    fn leave_contact(&mut self, scene: &CompiledScene) {
+        let p_eff = self.penetration(scene);
+        let x_c = dot(&scene.contact.rows.x_c, &self.s_c) + scene.offsets.x_c;
+        let eta = dot(&scene.contact.rows.eta, &self.s_c) + scene.offsets.eta;
+        let df = scene.free.dim;
+        let dc = scene.contact.dim;
+        for i in 0..df {
+            let row = scene.w_fc.row(i);
+            let mut acc = scene.s_f_star[i];
+            for j in 0..dc {
+                acc += row[j] * self.s_c[j];
+            }
+            self.s_f[i] = acc;
+        }
+        self.x_h = x_c - p_eff - self.rod_m;
+        self.v_h = eta / scene.sm;
+        self.rod_m = 0.0;
+        self.in_contact = false;
+    }
+
+    #[inline]
+    fn output(&self) -> [f64; 2] {
+        if self.in_contact {
+            [
+                dot(&self.out_c[0], &self.s_c) + self.out_c_offset[0],
+                dot(&self.out_c[1], &self.s_c) + self.out_c_offset[1],
+            ]
+        } else {
+            [dot(&self.out_f[0], &self.s_f), dot(&self.out_f[1], &self.s_f)]
+        }
+    }
+
+    #[inline]
+    fn advance(&mut self, scene: &CompiledScene) {
+        if self.in_contact {
+            step_phase(&scene.contact, &self.p_c, &mut self.s_c, &mut self.scratch);
+        } else {
+            step_phase(&scene.free, &self.p_f, &mut self.s_f, &mut self.scratch);
+            // Hammer in flight: exact parabola (never diagonalised), in
+            // reference time (step s h, the scene's gravity).
+            let dt = self.step_s;
+            self.x_h += self.v_h * dt - 0.5 * self.g * dt * dt;
+            self.v_h -= self.g * dt;
+        }
+    }
+
+    /// Physical observation of the current state (O(N^2)). [offline]
+    pub fn observe(&self, scene: &CompiledScene) -> Observation {
+        let s = self.time_scale;
+        if self.in_contact {
+            let ph = &scene.contact;
+            let y = energy_coords(ph, &self.s_c, &scene.s_star);
+            let x_c = dot(&ph.rows.x_c, &self.s_c) + scene.offsets.x_c;
+            let v_c = dot(&ph.rows.v_c, &self.s_c) + scene.offsets.v_c;
+            let p_eff = self.penetration(scene);
+            let eta = dot(&ph.rows.eta, &self.s_c) + scene.offsets.eta;
+            let x_h = x_c - p_eff - self.rod_m;
+            let e_ref: f64 = 0.5 * y.iter().map(|v| v * v).sum::<f64>();
+            Observation {
+                x_hammer: x_h,
+                v_hammer: eta / scene.sm * s,
+                x_contact: x_c,
+                v_contact: v_c * s,
+                in_contact: true,
+                energy: s * s * (e_ref + scene.m_h * scene.g * x_h),
+            }
+        } else {
+            let ph = &scene.free;
+            let z = energy_coords(ph, &self.s_f, &[]);
+            let x_c = dot(&ph.rows.x_c, &self.s_f);
+            let v_c = dot(&ph.rows.v_c, &self.s_f);
+            let e_obj: f64 = 0.5 * z.iter().map(|v| v * v).sum::<f64>();
+            let v = self.v_h;
+            Observation {
+                x_hammer: self.x_h,
+                v_hammer: v * s,
+                x_contact: x_c,
+                v_contact: v_c * s,
+                in_contact: false,
+                energy: s * s
+                    * (e_obj + 0.5 * scene.m_h * v * v + scene.m_h * scene.g * self.x_h),
+            }
+        }
+    }
+}
+
+/// `y = V (s + s_star)` (physical energy coordinates).
+fn energy_coords(ph: &CompiledPhase, s: &[f64], s_star: &[f64]) -> Vec<f64> {
+    let mut y = vec![0.0; ph.dim];
+    for i in 0..ph.dim {
+        let mut acc = 0.0;
+        for j in 0..ph.dim {
+            let sj = s[j] + s_star.get(j).copied().unwrap_or(0.0);
+            acc += ph.v[(i, j)] * sj;
+        }
+        y[i] = acc;
+    }
+    y
+}
+
+fn fill_props(p: &mut [Mat2], ph: &CompiledPhase, dt: f64) {
+    if let Some(gens) = &ph.gens {
+        for (dst, g) in p.iter_mut().zip(gens) {
+            *dst = exp2(g, dt);
+        }
+    }
+}
+
+fn mix_rows(dst: &mut [f64], ph: &CompiledPhase, ch: usize, s: f64) {
+    let (d, v) = if ch == 0 {
+        (&ph.rows.disp_l, &ph.rows.vel_l)
+    } else {
+        (&ph.rows.disp_r, &ph.rows.vel_r)
+    };
+    for ((o, a), b) in dst.iter_mut().zip(d).zip(v) {
+        *o = a + b * s;
+    }
+}
+
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+#[inline]
+fn step_phase(ph: &CompiledPhase, p: &[Mat2], s: &mut [f64], scratch: &mut [f64]) {
+    if let Some((_, phi)) = &ph.dense {
+        let n = ph.dim;
+        for i in 0..n {
+            let row = &phi[i * n..(i + 1) * n];
+            scratch[i] = dot(row, s);
+        }
+        s[..n].copy_from_slice(&scratch[..n]);
+    } else {
+        for (k, m) in p.iter().enumerate() {
+            let a = s[2 * k];
+            let b = s[2 * k + 1];
+            s[2 * k] = m[0] * a + m[1] * b;
+            s[2 * k + 1] = m[2] * a + m[3] * b;
+        }
+    }
+}

@@ -1,0 +1,363 @@
+//! Decomposition of a phase generator into real 2x2 blocks, with checks, and
+//! the dense fallback (NUMERICS.md section 2).
+//!
+//! `A = V G V^{-1}` with `G` block diagonal: a complex eigenpair `a +- ib` with
+//! eigenvector `x + iy` contributes the columns `sqrt(2) x, sqrt(2) y` of `V`
+//! and the block `[[a, b], [-b, a]]`; real eigenvalues are paired into
+//! diagonal blocks. The eigenvectors come from faer's real non-symmetric EVD
+//! (nalgebra has none). Each decomposition is checked: the residual
+//! `|A V - V G| / (|A| |V|)`, the condition number of `V`, and the agreement of
+//! `V exp(G h) V^{-1}` with nalgebra's dense Pade `exp(A h)`. When a check
+//! fails (near-defective `A`: exactly critical damping, coalescing
+//! eigenvalues), the phase falls back to the dense propagator `exp(A h)`.
+
+use crate::physics::block::{exp2, Mat2};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::evd::{evd_real, evd_scratch, ComputeEigenvectors};
+use faer::diag::Diag;
+use faer::{Mat, Par};
+use nalgebra::DMatrix;
+
+/// Largest accepted condition number of `V` (energy coordinates give 1-25 on
+/// the prototype scenes, NUMERICS.md P-E6; 1e6 leaves room but stops the
+/// near-defective cases, whose kappa grows like delta^{-1/2}).
+pub const MAX_KAPPA: f64 = 1e6;
+/// Largest accepted relative residual `|A V - V G| / (|A| |V|)`.
+pub const MAX_RESIDUAL: f64 = 1e-11;
+/// Largest accepted relative difference between the block propagator and
+/// nalgebra's dense `exp(A h)`, per unit of `kappa(V)` (rounding in the change
+/// of basis is amplified by kappa).
+pub const MAX_EXPM_DIFF_PER_KAPPA: f64 = 1e-12;
+
+/// How a phase is advanced.
+#[derive(Debug, Clone)]
+pub enum Form {
+    /// Real 2x2 blocks: state `s` with `y = V s`, one `exp2` per block.
+    Blocks {
+        /// Block generators `G_k`.
+        gens: Vec<Mat2>,
+    },
+    /// Dense fallback: state is `y` itself (`V = I`), stepped by `exp(A h)`.
+    Dense {
+        /// The generator, for partial steps and recompiles.
+        a: DMatrix<f64>,
+    },
+}
+
+/// A decomposed phase generator and the numbers that justify it.
+#[derive(Debug, Clone)]
+pub struct PhaseDecomp {
+    /// Blocks or dense.
+    pub form: Form,
+    /// Columns: the phase coordinates in energy coordinates (`y = V s`).
+    pub v: DMatrix<f64>,
+    /// `V^{-1}`.
+    pub vinv: DMatrix<f64>,
+    /// Checks.
+    pub diag: DecompDiagnostics,
+}
+
+/// What the checks measured.
+#[derive(Debug, Clone, Default)]
+pub struct DecompDiagnostics {
+    /// State dimension.
+    pub dim: usize,
+    /// "closed-form modal blocks", "eigen blocks (faer)" or "dense exp(A h)".
+    pub method: String,
+    /// Relative residual of the eigen decomposition (NaN when not computed).
+    pub residual: f64,
+    /// Condition number of `V` (1 for closed forms and dense).
+    pub kappa: f64,
+    /// Relative Frobenius difference between the propagator used and
+    /// nalgebra's `exp(A h)` (NaN when not computed).
+    pub expm_rel_diff: f64,
+    /// Largest singular value of the propagator over one sample in energy
+    /// coordinates (<= 1 for a passive phase, up to rounding).
+    pub sigma_max: f64,
+    /// Why the eigen route was refused, if it was.
+    pub fallback_reason: Option<String>,
+}
+
+/// Largest singular value.
+pub fn sigma_max(m: &DMatrix<f64>) -> f64 {
+    if m.nrows() == 0 {
+        return 0.0;
+    }
+    if m.iter().any(|x| !x.is_finite()) {
+        // nalgebra's SVD sorts with partial_cmp and panics on NaN.
+        return f64::NAN;
+    }
+    m.clone()
+        .svd(false, false)
+        .singular_values
+        .iter()
+        .cloned()
+        .fold(0.0, f64::max)
+}
+
+/// Dense `exp(A t)` with a finiteness guard (nalgebra's `exp` unwraps an LU
+/// solve internally and would panic on NaN input).
+pub fn dense_exp(a: &DMatrix<f64>, t: f64) -> Result<DMatrix<f64>, String> {
+    if a.iter().any(|x| !x.is_finite()) || !t.is_finite() {
+        return Err("generator has non-finite entries".into());
+    }
+    if a.nrows() == 0 {
+        return Ok(DMatrix::zeros(0, 0));
+    }
+    let e = (a * t).exp();
+    if e.iter().any(|x| !x.is_finite()) {
+        return Err("exp(A h) is not finite".into());
+    }
+    Ok(e)
+}
+
+/// `V blockdiag(exp(G_k t)) V^{-1}` as a dense matrix (for checks).
+pub fn blocks_to_dense(gens: &[Mat2], v: &DMatrix<f64>, vinv: &DMatrix<f64>, t: f64) -> DMatrix<f64> {
+    let dim = v.nrows();
+    let mut p = DMatrix::zeros(dim, dim);
+    for (k, g) in gens.iter().enumerate() {
+        let e = exp2(g, t);
+        p[(2 * k, 2 * k)] = e[0];
+        p[(2 * k, 2 * k + 1)] = e[1];
+        p[(2 * k + 1, 2 * k)] = e[2];
+        p[(2 * k + 1, 2 * k + 1)] = e[3];
+    }
+    v * p * vinv
+}
+
+/// Phase from closed-form 2x2 blocks acting on coordinate pairs given by
+/// `pairs[k] = (i, j)` of the energy vector (modal objects: `(xi_k, u_k)`).
+pub fn from_blocks(gens: Vec<Mat2>, pairs: &[(usize, usize)], dim: usize, h: f64) -> PhaseDecomp {
+    let mut v = DMatrix::zeros(dim, dim);
+    for (k, &(i, j)) in pairs.iter().enumerate() {
+        v[(i, 2 * k)] = 1.0;
+        v[(j, 2 * k + 1)] = 1.0;
+    }
+    let vinv = v.transpose();
+    let sig = if dim <= 400 {
+        sigma_max(&blocks_to_dense(&gens, &v, &vinv, h))
+    } else {
+        // A permutation of 2x2 blocks: the norm is the largest block norm.
+        gens.iter()
+            .map(|g| {
+                let e = exp2(g, h);
+                sigma_max(&DMatrix::from_row_slice(2, 2, &e))
+            })
+            .fold(0.0, f64::max)
+    };
+    PhaseDecomp {
+        form: Form::Blocks { gens },
+        v,
+        vinv,
+        diag: DecompDiagnostics {
+            dim,
+            method: "closed-form modal blocks".into(),
+            residual: 0.0,
+            kappa: 1.0,
+            expm_rel_diff: f64::NAN,
+            sigma_max: sig,
+            fallback_reason: None,
+        },
+    }
+}
+
+/// Decompose a general phase generator; falls back to dense when the eigen
+/// route fails its checks. `h` is the sample period used for the checks.
+pub fn decompose(a: &DMatrix<f64>, h: f64) -> Result<PhaseDecomp, String> {
+    let dim = a.nrows();
+    if a.iter().any(|x| !x.is_finite()) {
+        return Err("phase generator has non-finite entries".into());
+    }
+    let reference = dense_exp(a, h)?;
+    match eigen_blocks(a) {
+        Ok((gens, v, vinv, residual, kappa)) => {
+            let p = blocks_to_dense(&gens, &v, &vinv, h);
+            let diff = (&p - &reference).norm() / reference.norm().max(f64::MIN_POSITIVE);
+            let reason = if residual > MAX_RESIDUAL {
+                Some(format!("eigen residual {residual:.1e} > {MAX_RESIDUAL:.0e}"))
+            } else if kappa > MAX_KAPPA {
+                Some(format!("kappa(V) {kappa:.1e} > {MAX_KAPPA:.0e} (near-defective)"))
+            } else if !(diff <= MAX_EXPM_DIFF_PER_KAPPA * kappa.max(1.0) * (dim as f64).sqrt()) {
+                Some(format!(
+                    "V exp(G h) V^-1 differs from exp(A h) by {diff:.1e}"
+                ))
+            } else {
+                None
+            };
+            match reason {
+                None => Ok(PhaseDecomp {
+                    form: Form::Blocks { gens },
+                    diag: DecompDiagnostics {
+                        dim,
+                        method: "eigen blocks (faer)".into(),
+                        residual,
+                        kappa,
+                        expm_rel_diff: diff,
+                        sigma_max: sigma_max(&p),
+                        fallback_reason: None,
+                    },
+                    v,
+                    vinv,
+                }),
+                Some(r) => Ok(dense_phase(a, reference, residual, kappa, Some(r))),
+            }
+        }
+        Err(e) => Ok(dense_phase(a, reference, f64::NAN, f64::NAN, Some(e))),
+    }
+}
+
+fn dense_phase(
+    a: &DMatrix<f64>,
+    reference: DMatrix<f64>,
+    residual: f64,
+    kappa: f64,
+    reason: Option<String>,
+) -> PhaseDecomp {
+    let dim = a.nrows();
+    PhaseDecomp {
+        form: Form::Dense { a: a.clone() },
+        v: DMatrix::identity(dim, dim),
+        vinv: DMatrix::identity(dim, dim),
+        diag: DecompDiagnostics {
+            dim,
+            method: "dense exp(A h)".into(),
+            residual,
+            kappa,
+            expm_rel_diff: 0.0,
+            sigma_max: sigma_max(&reference),
+            fallback_reason: reason,
+        },
+    }
+}
+
+type EigenBlocks = (Vec<Mat2>, DMatrix<f64>, DMatrix<f64>, f64, f64);
+
+/// Real block form from faer's real EVD; returns (gens, V, V^{-1}, residual, kappa).
+fn eigen_blocks(a: &DMatrix<f64>) -> Result<EigenBlocks, String> {
+    let n = a.nrows();
+    if n == 0 {
+        return Ok((Vec::new(), DMatrix::zeros(0, 0), DMatrix::zeros(0, 0), 0.0, 1.0));
+    }
+    let fa = Mat::<f64>::from_fn(n, n, |i, j| a[(i, j)]);
+    let mut s_re = Diag::<f64>::zeros(n);
+    let mut s_im = Diag::<f64>::zeros(n);
+    let mut u = Mat::<f64>::zeros(n, n);
+    let scratch = evd_scratch::<f64>(
+        n,
+        ComputeEigenvectors::No,
+        ComputeEigenvectors::Yes,
+        Par::Seq,
+        Default::default(),
+    );
+    let mut mem = MemBuffer::new(scratch);
+    evd_real(
+        fa.as_ref(),
+        s_re.as_mut(),
+        s_im.as_mut(),
+        None,
+        Some(u.as_mut()),
+        Par::Seq,
+        MemStack::new(&mut mem),
+        Default::default(),
+    )
+    .map_err(|e| format!("eigensolver did not converge: {e:?}"))?;
+
+    let mut v = DMatrix::zeros(n, n);
+    let mut gens: Vec<Mat2> = Vec::with_capacity(n / 2);
+    let mut reals: Vec<(f64, usize)> = Vec::new();
+    let mut col = 0;
+    let mut j = 0;
+    while j < n {
+        let im = s_im[j];
+        if im == 0.0 {
+            reals.push((s_re[j], j));
+            j += 1;
+        } else {
+            if j + 1 >= n {
+                return Err("unpaired complex eigenvalue".into());
+            }
+            // v = x + i y, normalised so |v| = 1; columns sqrt(2) x, sqrt(2) y.
+            let norm: f64 = (0..n)
+                .map(|i| u[(i, j)].powi(2) + u[(i, j + 1)].powi(2))
+                .sum::<f64>()
+                .sqrt();
+            let s = std::f64::consts::SQRT_2 / norm;
+            for i in 0..n {
+                v[(i, col)] = u[(i, j)] * s;
+                v[(i, col + 1)] = u[(i, j + 1)] * s;
+            }
+            let re = s_re[j];
+            gens.push([re, im, -im, re]);
+            col += 2;
+            j += 2;
+        }
+    }
+    if reals.len() % 2 != 0 {
+        return Err("odd number of real eigenvalues".into());
+    }
+    reals.sort_by(|x, y| x.0.total_cmp(&y.0));
+    for pair in reals.chunks(2) {
+        for (off, &(_, jj)) in pair.iter().enumerate() {
+            let norm: f64 = (0..n).map(|i| u[(i, jj)].powi(2)).sum::<f64>().sqrt();
+            for i in 0..n {
+                v[(i, col + off)] = u[(i, jj)] / norm;
+            }
+        }
+        gens.push([pair[0].0, 0.0, 0.0, pair[1].0]);
+        col += 2;
+    }
+    debug_assert_eq!(col, n);
+    if v.iter().any(|x| !x.is_finite()) {
+        return Err("eigenvectors are not finite (defective generator)".into());
+    }
+    let svd = v.clone().svd(false, false);
+    let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
+    let smin = svd.singular_values.iter().cloned().fold(f64::INFINITY, f64::min);
+    let kappa = if smin > 0.0 { smax / smin } else { f64::INFINITY };
+    if !kappa.is_finite() {
+        return Err("eigenvector matrix is singular (defective generator)".into());
+    }
+    let vinv = v
+        .clone()
+        .try_inverse()
+        .ok_or_else(|| "eigenvector matrix is singular".to_string())?;
+    // residual |A V - V G|
+    let mut vg = DMatrix::zeros(n, n);
+    for (k, g) in gens.iter().enumerate() {
+        for i in 0..n {
+            let (x0, x1) = (v[(i, 2 * k)], v[(i, 2 * k + 1)]);
+            vg[(i, 2 * k)] = x0 * g[0] + x1 * g[2];
+            vg[(i, 2 * k + 1)] = x0 * g[1] + x1 * g[3];
+        }
+    }
+    let residual = (a * &v - vg).norm() / (a.norm() * v.norm()).max(f64::MIN_POSITIVE);
+    Ok((gens, v, vinv, residual, kappa))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn critically_damped_two_by_two_falls_back_to_dense() {
+        // Hammer against a rigid wall with exactly critical contact damping:
+        // A = [[0, -w], [w, -2 w]] is a Jordan block (NUMERICS.md X4).
+        let w = 2.0 * std::f64::consts::PI * 3000.0;
+        let a = DMatrix::from_row_slice(2, 2, &[0.0, -w, w, -2.0 * w]);
+        let d = decompose(&a, 1.0 / 44100.0).unwrap();
+        println!("{:?}", d.diag);
+        assert!(matches!(d.form, Form::Dense { .. }), "{:?}", d.diag);
+        assert!(d.diag.fallback_reason.is_some());
+    }
+
+    #[test]
+    fn underdamped_system_uses_blocks_and_matches_expm() {
+        let w = 2.0 * std::f64::consts::PI * 3000.0;
+        let a = DMatrix::from_row_slice(2, 2, &[0.0, -w, w, -0.2 * w]);
+        let d = decompose(&a, 1.0 / 44100.0).unwrap();
+        println!("{:?}", d.diag);
+        assert!(matches!(d.form, Form::Blocks { .. }));
+        assert!(d.diag.expm_rel_diff < 1e-13);
+        assert!(d.diag.kappa < 2.0);
+    }
+}

@@ -1,0 +1,6 @@
+//! Pure f64 math: models, closed-form blocks, decompositions. May allocate;
+//! never runs on the audio thread.
+
+pub mod block;
+pub mod decomp;
+pub mod model;

@@ -1,0 +1,538 @@
+//! Scene files: the editable description of an instrument (DESIGN.md section 5).
+//!
+//! A scene is parsed from TOML with serde (`deny_unknown_fields` everywhere, so a
+//! misspelt key is an error, not silence) and then validated. Every error names
+//! the field by its path and gives the reason, e.g.
+//! `object[0].mode[2].t60_s: must be > 0, got -1`.
+//!
+//! Units are SI and carried in the key names (`_hz`, `_s`, `_kg`, `_n_per_m`, ...).
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::fmt;
+
+/// The only scene file layout version this build reads.
+pub const SCENE_VERSION: u32 = 1;
+/// Largest number of lumped masses in a `kind = "string"` object. The contact
+/// system has `2 * masses + 2` states and is diagonalised off the audio thread;
+/// 2000 masses already take seconds (NUMERICS.md section 2, X9).
+pub const MAX_STRING_MASSES: usize = 2000;
+/// Largest number of modes in one modal object (same reason as above).
+pub const MAX_MODES_PER_OBJECT: usize = 4000;
+/// Frequencies above this are refused as nonsense (10 MHz is far above any
+/// audio rate this plugin runs at; above-Nyquist modes below it are legal).
+pub const MAX_FREQ_HZ: f64 = 1.0e7;
+
+/// A validation or parse error that names the field and the reason.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneError {
+    /// Path of the offending field, e.g. `object[0].mode[2].t60_s` (empty for
+    /// TOML syntax errors, whose message carries the line).
+    pub path: String,
+    /// Why the value is refused.
+    pub reason: String,
+}
+
+impl SceneError {
+    fn new(path: impl Into<String>, reason: impl Into<String>) -> Self {
+        Self {
+            path: path.into(),
+            reason: reason.into(),
+        }
+    }
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.path.is_empty() {
+            write!(f, "{}", self.reason)
+        } else {
+            write!(f, "{}: {}", self.path, self.reason)
+        }
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+/// How the engine switches between the free and the contact phase.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum Switching {
+    /// The paper's method (section 2.2): contact starts at the first sample with
+    /// penetration > 0, with an offset rod so the spring starts unstretched.
+    #[serde(rename = "offset-rod")]
+    #[default]
+    OffsetRod,
+    /// Switch instants located inside the sample on the exact phase solution.
+    #[serde(rename = "exact")]
+    Exact,
+}
+
+impl Switching {
+    /// Parse the command-line / scene spelling.
+    pub fn parse(s: &str) -> Option<Self> {
+        match s {
+            "offset-rod" => Some(Self::OffsetRod),
+            "exact" => Some(Self::Exact),
+            _ => None,
+        }
+    }
+    /// The scene-file spelling.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::OffsetRod => "offset-rod",
+            Self::Exact => "exact",
+        }
+    }
+}
+
+/// A whole scene file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// File layout version; must be [`SCENE_VERSION`].
+    pub version: u32,
+    /// Short name (presets use the file stem).
+    pub name: String,
+    /// Free text.
+    #[serde(default)]
+    pub description: String,
+    /// Default render length [s].
+    #[serde(default = "default_duration_s")]
+    pub duration_s: f64,
+    /// The objects of the scene (at least one).
+    #[serde(default)]
+    pub object: Vec<ObjectSpec>,
+    /// The striking point mass.
+    pub hammer: HammerSpec,
+    /// Which object and point the hammer hits, and the contact spring-damper.
+    pub contact: ContactSpec,
+    /// What is heard.
+    #[serde(default)]
+    pub pickup: Vec<PickupSpec>,
+}
+
+fn default_duration_s() -> f64 {
+    1.0
+}
+
+/// One object; `kind` selects the variant.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind")]
+pub enum ObjectSpec {
+    /// An abstract modal object (paper section 2.3).
+    #[serde(rename = "modal")]
+    Modal(ModalSpec),
+    /// `masses` lumped masses between fixed ends (paper sections 1.2, 2.1).
+    #[serde(rename = "string")]
+    String(StringSpec),
+    /// A rigid, immovable surface at x = 0.
+    #[serde(rename = "wall")]
+    Wall(WallSpec),
+}
+
+impl ObjectSpec {
+    /// The object's name.
+    pub fn name(&self) -> &str {
+        match self {
+            ObjectSpec::Modal(m) => &m.name,
+            ObjectSpec::String(s) => &s.name,
+            ObjectSpec::Wall(w) => &w.name,
+        }
+    }
+    /// Names of the object's points, in the order the object defines them.
+    pub fn point_names(&self) -> Vec<String> {
+        match self {
+            ObjectSpec::Modal(m) => m.points.clone(),
+            ObjectSpec::String(s) => s.points.keys().cloned().collect(),
+            ObjectSpec::Wall(_) => Vec::new(),
+        }
+    }
+}
+
+/// An abstract modal object: modes with frequency, T60 and weights at points.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModalSpec {
+    /// Object name.
+    pub name: String,
+    /// Named points; each mode has one weight per point, in this order.
+    pub points: Vec<String>,
+    /// The modes.
+    #[serde(default)]
+    pub mode: Vec<ModeSpec>,
+}
+
+/// One mode of a modal object.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModeSpec {
+    /// Undamped natural frequency [Hz].
+    pub freq_hz: f64,
+    /// 60 dB decay time [s]; omitted means undamped.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t60_s: Option<f64>,
+    /// Mass-normalised mode shape at each point [1/sqrt(kg)].
+    pub weights: Vec<f64>,
+}
+
+/// A string of lumped masses between fixed ends.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StringSpec {
+    /// Object name.
+    pub name: String,
+    /// Number of masses.
+    pub masses: usize,
+    /// Each mass [kg].
+    pub mass_kg: f64,
+    /// Each of the `masses + 1` springs [N/m].
+    pub spring_n_per_m: f64,
+    /// Rayleigh damping, mass part: `C = alpha M + beta K + dashpots` [1/s].
+    #[serde(default)]
+    pub rayleigh_alpha_per_s: f64,
+    /// Rayleigh damping, stiffness part [s].
+    #[serde(default)]
+    pub rayleigh_beta_s: f64,
+    /// Extra dashpots to ground at single masses (make C not commute with K).
+    #[serde(default)]
+    pub dashpots: Vec<DashpotSpec>,
+    /// Named points: 0-based mass indices.
+    pub points: BTreeMap<String, usize>,
+}
+
+/// A dashpot from one mass to ground.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DashpotSpec {
+    /// 0-based mass index.
+    pub mass: usize,
+    /// Damping coefficient [N s/m].
+    pub n_s_per_m: f64,
+}
+
+/// A rigid wall at x = 0.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WallSpec {
+    /// Object name.
+    pub name: String,
+}
+
+/// The hammer: a point mass moving along the vertical axis (positive up).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HammerSpec {
+    /// Mass [kg].
+    pub mass_kg: f64,
+    /// Initial height of its contact face [m] (>= 0: it starts out of contact).
+    pub height_m: f64,
+    /// Initial velocity [m/s], positive up.
+    #[serde(default)]
+    pub velocity_m_per_s: f64,
+    /// Gravity acting on the hammer [m/s^2] (pulls down); 0 = none.
+    #[serde(default)]
+    pub gravity_m_per_s2: f64,
+}
+
+/// The contact spring-damper (paper eq. 9).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSpec {
+    /// Name of the struck object.
+    pub object: String,
+    /// Name of the struck point (omit for a wall).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub point: Option<String>,
+    /// Contact stiffness k_c [N/m].
+    pub stiffness_n_per_m: f64,
+    /// Contact damping c_c [N s/m].
+    #[serde(default)]
+    pub damping_n_s_per_m: f64,
+    /// Switching method; omitted means the project default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub switching: Option<Switching>,
+}
+
+/// What a pickup measures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Quantity {
+    /// Velocity of the point [m/s] (the default: it weights the highs as the ear does).
+    #[default]
+    Velocity,
+    /// Displacement of the point [m].
+    Displacement,
+}
+
+/// A pickup: a point that is heard.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PickupSpec {
+    /// Object name.
+    pub object: String,
+    /// Point name.
+    pub point: String,
+    /// Velocity or displacement.
+    #[serde(default)]
+    pub quantity: Quantity,
+    /// Linear gain applied to the quantity.
+    #[serde(default = "default_gain")]
+    pub gain: f64,
+    /// Stereo position, -1 (left) .. 1 (right); constant-power pan law.
+    #[serde(default)]
+    pub pan: f64,
+}
+
+fn default_gain() -> f64 {
+    1.0
+}
+
+fn check_finite(path: &str, v: f64) -> Result<(), SceneError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(SceneError::new(path, format!("must be finite, got {v}")))
+    }
+}
+
+fn check_positive(path: &str, v: f64) -> Result<(), SceneError> {
+    check_finite(path, v)?;
+    if v > 0.0 {
+        Ok(())
+    } else {
+        Err(SceneError::new(path, format!("must be > 0, got {v}")))
+    }
+}
+
+fn check_non_negative(path: &str, v: f64) -> Result<(), SceneError> {
+    check_finite(path, v)?;
+    if v >= 0.0 {
+        Ok(())
+    } else {
+        Err(SceneError::new(path, format!("must be >= 0, got {v}")))
+    }
+}
+
+impl Scene {
+    /// Parse and validate a scene from TOML text.
+    pub fn from_toml_str(text: &str) -> Result<Scene, SceneError> {
+        let scene: Scene = toml::from_str(text).map_err(|e| {
+            let msg = e.message().to_string();
+            let loc = e
+                .span()
+                .map(|s| {
+                    let line = text[..s.start.min(text.len())].matches('\n').count() + 1;
+                    format!(" (line {line})")
+                })
+                .unwrap_or_default();
+            SceneError::new("", format!("{msg}{loc}"))
+        })?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Read, parse and validate a scene file.
+    pub fn from_file(path: &std::path::Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| SceneError::new("", format!("cannot read {}: {e}", path.display())))?;
+        Self::from_toml_str(&text)
+    }
+
+    /// Serialise back to TOML.
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string(self).expect("a validated scene always serialises")
+    }
+
+    /// Index of the object named `name`.
+    pub fn object_index(&self, name: &str) -> Option<usize> {
+        self.object.iter().position(|o| o.name() == name)
+    }
+
+    /// Check every value; the first problem found is returned.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        if self.version != SCENE_VERSION {
+            return Err(SceneError::new(
+                "version",
+                format!("must be {SCENE_VERSION}, got {}", self.version),
+            ));
+        }
+        check_positive("duration_s", self.duration_s)?;
+        if self.object.is_empty() {
+            return Err(SceneError::new("object", "at least one object is needed"));
+        }
+        for (i, obj) in self.object.iter().enumerate() {
+            let base = format!("object[{i}]");
+            if obj.name().is_empty() {
+                return Err(SceneError::new(format!("{base}.name"), "must not be empty"));
+            }
+            if self.object[..i].iter().any(|o| o.name() == obj.name()) {
+                return Err(SceneError::new(
+                    format!("{base}.name"),
+                    format!("duplicate object name {:?}", obj.name()),
+                ));
+            }
+            match obj {
+                ObjectSpec::Modal(m) => validate_modal(&base, m)?,
+                ObjectSpec::String(s) => validate_string(&base, s)?,
+                ObjectSpec::Wall(_) => {}
+            }
+        }
+        let h = &self.hammer;
+        check_positive("hammer.mass_kg", h.mass_kg)?;
+        check_non_negative("hammer.height_m", h.height_m)?;
+        check_finite("hammer.velocity_m_per_s", h.velocity_m_per_s)?;
+        check_non_negative("hammer.gravity_m_per_s2", h.gravity_m_per_s2)?;
+
+        let c = &self.contact;
+        let Some(obj_idx) = self.object_index(&c.object) else {
+            return Err(SceneError::new(
+                "contact.object",
+                format!("no object named {:?}", c.object),
+            ));
+        };
+        match (&self.object[obj_idx], &c.point) {
+            (ObjectSpec::Wall(_), Some(_)) => {
+                return Err(SceneError::new(
+                    "contact.point",
+                    "a wall has no points; omit the key",
+                ))
+            }
+            (ObjectSpec::Wall(_), None) => {}
+            (_, None) => return Err(SceneError::new("contact.point", "missing")),
+            (obj, Some(p)) => {
+                if !obj.point_names().contains(p) {
+                    return Err(SceneError::new(
+                        "contact.point",
+                        format!("object {:?} has no point {:?}", c.object, p),
+                    ));
+                }
+            }
+        }
+        check_positive("contact.stiffness_n_per_m", c.stiffness_n_per_m)?;
+        check_non_negative("contact.damping_n_s_per_m", c.damping_n_s_per_m)?;
+
+        for (i, p) in self.pickup.iter().enumerate() {
+            let base = format!("pickup[{i}]");
+            let Some(oi) = self.object_index(&p.object) else {
+                return Err(SceneError::new(
+                    format!("{base}.object"),
+                    format!("no object named {:?}", p.object),
+                ));
+            };
+            if !self.object[oi].point_names().contains(&p.point) {
+                return Err(SceneError::new(
+                    format!("{base}.point"),
+                    format!("object {:?} has no point {:?}", p.object, p.point),
+                ));
+            }
+            check_finite(&format!("{base}.gain"), p.gain)?;
+            check_finite(&format!("{base}.pan"), p.pan)?;
+            if !(-1.0..=1.0).contains(&p.pan) {
+                return Err(SceneError::new(
+                    format!("{base}.pan"),
+                    format!("must be in [-1, 1], got {}", p.pan),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+fn validate_modal(base: &str, m: &ModalSpec) -> Result<(), SceneError> {
+    if m.mode.is_empty() {
+        return Err(SceneError::new(
+            format!("{base}.mode"),
+            "a modal object needs at least one mode",
+        ));
+    }
+    if m.mode.len() > MAX_MODES_PER_OBJECT {
+        return Err(SceneError::new(
+            format!("{base}.mode"),
+            format!(
+                "{} modes is more than the limit of {MAX_MODES_PER_OBJECT}",
+                m.mode.len()
+            ),
+        ));
+    }
+    for (j, p) in m.points.iter().enumerate() {
+        if p.is_empty() {
+            return Err(SceneError::new(
+                format!("{base}.points[{j}]"),
+                "must not be empty",
+            ));
+        }
+        if m.points[..j].contains(p) {
+            return Err(SceneError::new(
+                format!("{base}.points[{j}]"),
+                format!("duplicate point name {p:?}"),
+            ));
+        }
+    }
+    for (k, mode) in m.mode.iter().enumerate() {
+        let mb = format!("{base}.mode[{k}]");
+        check_positive(&format!("{mb}.freq_hz"), mode.freq_hz)?;
+        if mode.freq_hz > MAX_FREQ_HZ {
+            return Err(SceneError::new(
+                format!("{mb}.freq_hz"),
+                format!("must be <= {MAX_FREQ_HZ}, got {}", mode.freq_hz),
+            ));
+        }
+        if let Some(t60) = mode.t60_s {
+            check_positive(&format!("{mb}.t60_s"), t60)?;
+        }
+        if mode.weights.len() != m.points.len() {
+            return Err(SceneError::new(
+                format!("{mb}.weights"),
+                format!(
+                    "needs one weight per point ({}), got {}",
+                    m.points.len(),
+                    mode.weights.len()
+                ),
+            ));
+        }
+        for (j, w) in mode.weights.iter().enumerate() {
+            check_finite(&format!("{mb}.weights[{j}]"), *w)?;
+            if w.abs() > 1e6 {
+                return Err(SceneError::new(
+                    format!("{mb}.weights[{j}]"),
+                    format!("|w| must be <= 1e6 1/sqrt(kg) (an effective mass >= 1e-12 kg), got {w}"),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn validate_string(base: &str, s: &StringSpec) -> Result<(), SceneError> {
+    if s.masses == 0 || s.masses > MAX_STRING_MASSES {
+        return Err(SceneError::new(
+            format!("{base}.masses"),
+            format!("must be in 1..={MAX_STRING_MASSES}, got {}", s.masses),
+        ));
+    }
+    check_positive(&format!("{base}.mass_kg"), s.mass_kg)?;
+    check_positive(&format!("{base}.spring_n_per_m"), s.spring_n_per_m)?;
+    check_non_negative(
+        &format!("{base}.rayleigh_alpha_per_s"),
+        s.rayleigh_alpha_per_s,
+    )?;
+    check_non_negative(&format!("{base}.rayleigh_beta_s"), s.rayleigh_beta_s)?;
+    for (j, d) in s.dashpots.iter().enumerate() {
+        if d.mass >= s.masses {
+            return Err(SceneError::new(
+                format!("{base}.dashpots[{j}].mass"),
+                format!("must be < masses ({}), got {}", s.masses, d.mass),
+            ));
+        }
+        check_non_negative(&format!("{base}.dashpots[{j}].n_s_per_m"), d.n_s_per_m)?;
+    }
+    for (name, &idx) in &s.points {
+        if idx >= s.masses {
+            return Err(SceneError::new(
+                format!("{base}.points.{name}"),
+                format!("must be < masses ({}), got {idx}", s.masses),
+            ));
+        }
+    }
+    Ok(())
+}
