@@ -84,6 +84,8 @@ pub struct CompiledPhase {
     pub dense: Option<(DMatrix<f64>, Vec<f64>)>,
     /// Phase coordinates to energy coordinates (`y = V s`), for energy/traces.
     pub v: DMatrix<f64>,
+    /// `V^{-1}` (energy coordinates to phase coordinates), for rebinding.
+    pub vinv: DMatrix<f64>,
     /// Output rows.
     pub rows: PhaseRows,
     /// Decomposition checks.
@@ -232,8 +234,12 @@ pub fn compile_with(
     let dim_f = 2 * n;
     let dim_c = lay.dim();
     let zero_f = DVector::zeros(dim_f);
-    let xc_f = contact_rows.as_ref().map_or(zero_f.clone(), |r| r.disp.clone());
-    let vc_f = contact_rows.as_ref().map_or(zero_f.clone(), |r| r.vel.clone());
+    let xc_f = contact_rows
+        .as_ref()
+        .map_or(zero_f.clone(), |r| r.disp.clone());
+    let vc_f = contact_rows
+        .as_ref()
+        .map_or(zero_f.clone(), |r| r.vel.clone());
     let mut dl = zero_f.clone();
     let mut dr = zero_f.clone();
     let mut vl = zero_f.clone();
@@ -332,6 +338,7 @@ pub fn compile_with(
             gens,
             dense,
             v: d.v,
+            vinv: d.vinv,
             rows,
             diag: d.diag,
         })
@@ -347,7 +354,9 @@ pub fn compile_with(
         }
     }
     if w_cf.iter().chain(w_fc.iter()).any(|x| !x.is_finite()) {
-        return Err(CompileError("change of basis has non-finite entries".into()));
+        return Err(CompileError(
+            "change of basis has non-finite entries".into(),
+        ));
     }
 
     let mut summary = String::new();
@@ -400,7 +409,11 @@ pub fn compile_with(
         }
         let cost = |ph: &CompiledPhase| match (&ph.gens, &ph.dense) {
             (Some(_), _) => format!("{} blocks (~{} flops/sample)", ph.dim / 2, ph.dim * 5),
-            (_, Some(_)) => format!("dense {0}x{0} (~{1} flops/sample)", ph.dim, 2 * ph.dim * ph.dim),
+            (_, Some(_)) => format!(
+                "dense {0}x{0} (~{1} flops/sample)",
+                ph.dim,
+                2 * ph.dim * ph.dim
+            ),
             _ => "empty".into(),
         };
         let _ = writeln!(

@@ -114,6 +114,18 @@ impl EngineState {
         self.contacts_started = 0;
     }
 
+    /// Free-phase coordinates of the struck object (for tests and tools that
+    /// set an initial vibration; for a modal object entry `2 i` is
+    /// `omega_i q_i` and `2 i + 1` is `q_i'` in reference time).
+    pub fn free_state_mut(&mut self) -> &mut [f64] {
+        &mut self.s_f
+    }
+
+    /// Hammer height [m] and physical velocity [m/s] while in flight.
+    pub fn hammer_in_flight(&self) -> Option<(f64, f64)> {
+        (!self.in_contact).then_some((self.x_h, self.v_h * self.time_scale))
+    }
+
     /// Whether the hammer is in contact (for the coming step).
     pub fn in_contact(&self) -> bool {
         self.in_contact
@@ -133,6 +145,11 @@ impl EngineState {
         if s != 1.0 && (scene.free.dense.is_some() || scene.contact.dense.is_some()) {
             return Err(TimeScaleError::DenseFallback);
         }
+        self.set_time_scale_inner(scene, s);
+        Ok(())
+    }
+
+    fn set_time_scale_inner(&mut self, scene: &CompiledScene, s: f64) {
         // physical velocity is preserved across a change of scale
         let v_phys = self.v_h * self.time_scale;
         self.time_scale = s;
@@ -148,7 +165,6 @@ impl EngineState {
         }
         self.out_c_offset = [scene.offsets.disp_l, scene.offsets.disp_r];
         self.g = scene.g;
-        Ok(())
     }
 
     /// Launch the hammer again from `height_m` with `velocity_m_per_s`
@@ -267,7 +283,10 @@ impl EngineState {
                 dot(&self.out_c[1], &self.s_c) + self.out_c_offset[1],
             ]
         } else {
-            [dot(&self.out_f[0], &self.s_f), dot(&self.out_f[1], &self.s_f)]
+            [
+                dot(&self.out_f[0], &self.s_f),
+                dot(&self.out_f[1], &self.s_f),
+            ]
         }
     }
 
@@ -283,6 +302,83 @@ impl EngineState {
             self.x_h += self.v_h * dt - 0.5 * self.g * dt * dt;
             self.v_h -= self.g * dt;
         }
+    }
+
+    /// Cheap O(N) energy proxy in reference units: `0.5 |s|^2` of the current
+    /// phase plus the hammer's kinetic energy. Exact for modal objects in
+    /// flight (orthonormal blocks); within a factor kappa(V)^2 otherwise.
+    /// Used to stop voices that have decayed. [audio-thread]
+    pub fn energy_proxy(&self, scene: &CompiledScene) -> f64 {
+        if self.in_contact {
+            0.5 * self.s_c.iter().map(|x| x * x).sum::<f64>()
+        } else {
+            0.5 * self.s_f.iter().map(|x| x * x).sum::<f64>()
+                + 0.5 * scene.m_h * self.v_h * self.v_h
+        }
+    }
+
+    /// Carry the running state over to a recompiled scene `new` (same object,
+    /// other parameters), so a parameter change neither resets nor clicks.
+    ///
+    /// The state is taken to energy coordinates with `old` and back to phase
+    /// coordinates with `new`; the energy coordinates themselves are kept, so
+    /// the stored energy `0.5 |y|^2` is unchanged by the swap. In contact this
+    /// keeps the spring coordinate `pi = sqrt(k) p_eff`: with a new stiffness
+    /// `k'` the rod is re-chosen so that `0.5 k' p_eff'^2 = 0.5 k p_eff^2`
+    /// (NUMERICS.md X14), and the hammer keeps its momentum coordinate.
+    /// Returns `false` (state untouched) when the layouts differ (another
+    /// object or another mode count): the caller then resets the voice.
+    /// O(N^2), allocation-free. [audio-thread]
+    pub fn rebind(&mut self, old: &CompiledScene, new: &CompiledScene) -> bool {
+        if old.free.dim != new.free.dim
+            || old.contact.dim != new.contact.dim
+            || self.s_f.len() != new.free.dim
+            || self.s_c.len() != new.contact.dim
+        {
+            return false;
+        }
+        if (new.free.dense.is_some() || new.contact.dense.is_some()) && self.time_scale != 1.0 {
+            return false;
+        }
+        let (ph_old, ph_new, s, star_old, star_new) = if self.in_contact {
+            (
+                &old.contact,
+                &new.contact,
+                &mut self.s_c,
+                &old.s_star[..],
+                &new.s_star[..],
+            )
+        } else {
+            (&old.free, &new.free, &mut self.s_f, &[][..], &[][..])
+        };
+        let dim = ph_old.dim;
+        // y = V_old (s + s*_old)
+        for i in 0..dim {
+            let mut acc = 0.0;
+            for j in 0..dim {
+                acc += ph_old.v[(i, j)] * (s[j] + star_old.get(j).copied().unwrap_or(0.0));
+            }
+            self.scratch[i] = acc;
+        }
+        // s = V_new^{-1} y - s*_new
+        for i in 0..dim {
+            let mut acc = 0.0;
+            for j in 0..dim {
+                acc += ph_new.vinv[(i, j)] * self.scratch[j];
+            }
+            s[i] = acc - star_new.get(i).copied().unwrap_or(0.0);
+        }
+        if self.in_contact {
+            // keep the true penetration p = p_eff + rod: x_h is unchanged
+            // only if the spring length is; choose the rod so p_eff' = pi/sk'.
+            let pi = dot(&new.contact.rows.pi, &self.s_c) + new.offsets.pi;
+            let p_true = self.rod_m + old_p_eff(old, pi);
+            self.rod_m = p_true - pi / new.sk;
+        }
+        let scale = self.time_scale;
+        // re-derive propagators and output rows for the new scene
+        self.set_time_scale_inner(new, scale);
+        true
     }
 
     /// Physical observation of the current state (O(N^2)). [offline]
@@ -318,11 +414,16 @@ impl EngineState {
                 x_contact: x_c,
                 v_contact: v_c * s,
                 in_contact: false,
-                energy: s * s
-                    * (e_obj + 0.5 * scene.m_h * v * v + scene.m_h * scene.g * self.x_h),
+                energy: s * s * (e_obj + 0.5 * scene.m_h * v * v + scene.m_h * scene.g * self.x_h),
             }
         }
     }
+}
+
+/// Effective penetration in `old` for the spring coordinate `pi` (which the
+/// rebind keeps): `p_eff = pi / sqrt(k_old)`.
+fn old_p_eff(old: &CompiledScene, pi: f64) -> f64 {
+    pi / old.sk
 }
 
 /// `y = V (s + s_star)` (physical energy coordinates).

@@ -74,7 +74,11 @@ pub fn render_compiled(compiled: &CompiledScene, n: usize, trace: bool) -> Rende
     let mut st = EngineState::new(compiled);
     let mut left = Vec::with_capacity(n);
     let mut right = Vec::with_capacity(n);
-    let mut rows = if trace { Some(Vec::with_capacity(n)) } else { None };
+    let mut rows = if trace {
+        Some(Vec::with_capacity(n))
+    } else {
+        None
+    };
     for i in 0..n {
         let out = if let Some(rows) = rows.as_mut() {
             let (out, obs) = st.tick_observed(compiled);

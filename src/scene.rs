@@ -317,7 +317,11 @@ impl Scene {
     /// Parse and validate a scene from TOML text.
     pub fn from_toml_str(text: &str) -> Result<Scene, SceneError> {
         let scene: Scene = toml::from_str(text).map_err(|e| {
-            let msg = e.message().to_string();
+            let mut msg = e.message().trim().to_string();
+            if msg.is_empty() {
+                // some syntax errors carry their text only in Display
+                msg = e.to_string().replace('\n', " ");
+            }
             let loc = e
                 .span()
                 .map(|s| {
@@ -495,7 +499,9 @@ fn validate_modal(base: &str, m: &ModalSpec) -> Result<(), SceneError> {
             if w.abs() > 1e6 {
                 return Err(SceneError::new(
                     format!("{mb}.weights[{j}]"),
-                    format!("|w| must be <= 1e6 1/sqrt(kg) (an effective mass >= 1e-12 kg), got {w}"),
+                    format!(
+                        "|w| must be <= 1e6 1/sqrt(kg) (an effective mass >= 1e-12 kg), got {w}"
+                    ),
                 ));
             }
         }

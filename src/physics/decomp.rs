@@ -12,9 +12,9 @@
 //! eigenvalues), the phase falls back to the dense propagator `exp(A h)`.
 
 use crate::physics::block::{exp2, Mat2};
+use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::evd::{evd_real, evd_scratch, ComputeEigenvectors};
-use faer::diag::Diag;
 use faer::{Mat, Par};
 use nalgebra::DMatrix;
 
@@ -112,7 +112,12 @@ pub fn dense_exp(a: &DMatrix<f64>, t: f64) -> Result<DMatrix<f64>, String> {
 }
 
 /// `V blockdiag(exp(G_k t)) V^{-1}` as a dense matrix (for checks).
-pub fn blocks_to_dense(gens: &[Mat2], v: &DMatrix<f64>, vinv: &DMatrix<f64>, t: f64) -> DMatrix<f64> {
+pub fn blocks_to_dense(
+    gens: &[Mat2],
+    v: &DMatrix<f64>,
+    vinv: &DMatrix<f64>,
+    t: f64,
+) -> DMatrix<f64> {
     let dim = v.nrows();
     let mut p = DMatrix::zeros(dim, dim);
     for (k, g) in gens.iter().enumerate() {
@@ -174,9 +179,13 @@ pub fn decompose(a: &DMatrix<f64>, h: f64) -> Result<PhaseDecomp, String> {
             let p = blocks_to_dense(&gens, &v, &vinv, h);
             let diff = (&p - &reference).norm() / reference.norm().max(f64::MIN_POSITIVE);
             let reason = if residual > MAX_RESIDUAL {
-                Some(format!("eigen residual {residual:.1e} > {MAX_RESIDUAL:.0e}"))
+                Some(format!(
+                    "eigen residual {residual:.1e} > {MAX_RESIDUAL:.0e}"
+                ))
             } else if kappa > MAX_KAPPA {
-                Some(format!("kappa(V) {kappa:.1e} > {MAX_KAPPA:.0e} (near-defective)"))
+                Some(format!(
+                    "kappa(V) {kappa:.1e} > {MAX_KAPPA:.0e} (near-defective)"
+                ))
             } else if !(diff <= MAX_EXPM_DIFF_PER_KAPPA * kappa.max(1.0) * (dim as f64).sqrt()) {
                 Some(format!(
                     "V exp(G h) V^-1 differs from exp(A h) by {diff:.1e}"
@@ -236,7 +245,13 @@ type EigenBlocks = (Vec<Mat2>, DMatrix<f64>, DMatrix<f64>, f64, f64);
 fn eigen_blocks(a: &DMatrix<f64>) -> Result<EigenBlocks, String> {
     let n = a.nrows();
     if n == 0 {
-        return Ok((Vec::new(), DMatrix::zeros(0, 0), DMatrix::zeros(0, 0), 0.0, 1.0));
+        return Ok((
+            Vec::new(),
+            DMatrix::zeros(0, 0),
+            DMatrix::zeros(0, 0),
+            0.0,
+            1.0,
+        ));
     }
     let fa = Mat::<f64>::from_fn(n, n, |i, j| a[(i, j)]);
     let mut s_re = Diag::<f64>::zeros(n);
@@ -292,7 +307,7 @@ fn eigen_blocks(a: &DMatrix<f64>) -> Result<EigenBlocks, String> {
             j += 2;
         }
     }
-    if reals.len() % 2 != 0 {
+    if !reals.len().is_multiple_of(2) {
         return Err("odd number of real eigenvalues".into());
     }
     reals.sort_by(|x, y| x.0.total_cmp(&y.0));
@@ -312,8 +327,16 @@ fn eigen_blocks(a: &DMatrix<f64>) -> Result<EigenBlocks, String> {
     }
     let svd = v.clone().svd(false, false);
     let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
-    let smin = svd.singular_values.iter().cloned().fold(f64::INFINITY, f64::min);
-    let kappa = if smin > 0.0 { smax / smin } else { f64::INFINITY };
+    let smin = svd
+        .singular_values
+        .iter()
+        .cloned()
+        .fold(f64::INFINITY, f64::min);
+    let kappa = if smin > 0.0 {
+        smax / smin
+    } else {
+        f64::INFINITY
+    };
     if !kappa.is_finite() {
         return Err("eigenvector matrix is singular (defective generator)".into());
     }

@@ -179,7 +179,8 @@ fn string_model(s: &StringSpec) -> Result<ObjectModel, String> {
     // omega_j = 2 sqrt(k/m) sin(j pi / (2 (n + 1))).
     let freqs = (1..=n)
         .map(|j| {
-            2.0 * (kk / m).sqrt() * (j as f64 * std::f64::consts::PI / (2.0 * (n as f64 + 1.0))).sin()
+            2.0 * (kk / m).sqrt()
+                * (j as f64 * std::f64::consts::PI / (2.0 * (n as f64 + 1.0))).sin()
                 / (2.0 * std::f64::consts::PI)
         })
         .collect();

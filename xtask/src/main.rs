@@ -46,8 +46,30 @@ fn main() -> Result<()> {
             args.remove(1);
             run_render(RenderArgs::parse_from(args))
         }
+        Some("test") => run_tests(&args[2..]),
         _ => nice_plug_xtask::main(),
     }
+}
+
+/// Run a command, failing with its exit status.
+fn run(cmd: &mut std::process::Command) -> Result<()> {
+    eprintln!("+ {cmd:?}");
+    let status = cmd.status().with_context(|| format!("cannot run {cmd:?}"))?;
+    if !status.success() {
+        bail!("{cmd:?} failed: {status}");
+    }
+    Ok(())
+}
+
+/// `cargo xtask test`: every test of the project (the README's test command).
+fn run_tests(extra: &[String]) -> Result<()> {
+    nice_plug_xtask::chdir_workspace_root()?;
+    // The numerical tests run long loops (1e6 samples with per-sample energy
+    // checks): release mode keeps them fast; debug assertions stay on.
+    run(std::process::Command::new("cargo")
+        .args(["test", "--workspace", "--profile", "test-release"])
+        .args(extra))?;
+    Ok(())
 }
 
 fn run_render(a: RenderArgs) -> Result<()> {
@@ -104,7 +126,10 @@ fn run_render(a: RenderArgs) -> Result<()> {
         write_trace_csv(rows, std::io::BufWriter::new(f))?;
         eprintln!("wrote {}", path.display());
     }
-    let plot_path = a.plot.clone().unwrap_or_else(|| a.out.with_extension("svg"));
+    let plot_path = a
+        .plot
+        .clone()
+        .unwrap_or_else(|| a.out.with_extension("svg"));
     plot::plot_trace(rows, &scene.name, &plot_path)?;
     eprintln!("wrote {}", plot_path.display());
     Ok(())

@@ -1,0 +1,186 @@
+//! The paper's two demos (bounce, string) and every preset: parse, compile,
+//! render finite output.
+
+mod common;
+
+use common::*;
+use modal_contact::compile::compile;
+use modal_contact::engine::EngineState;
+use modal_contact::render::{render, RenderOptions};
+use modal_contact::scene::{ObjectSpec, Quantity};
+
+#[test]
+fn paper_bounce_bounces_shrink_and_it_comes_to_rest() {
+    let sc = preset("paper-bounce");
+    let out = render(
+        &sc,
+        &RenderOptions {
+            trace: true,
+            seconds: Some(1.5),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let rows = out.trace.unwrap();
+    // flights: maximal runs out of contact after the first contact
+    let mut flights: Vec<(f64, f64, f64)> = Vec::new(); // (start, end, apex height)
+    let mut cur: Option<(f64, f64)> = None;
+    let mut touched = false;
+    for r in &rows {
+        if r.obs.in_contact {
+            touched = true;
+            if let Some((s, apex)) = cur.take() {
+                flights.push((s, r.t, apex));
+            }
+        } else if touched {
+            cur = Some(match cur {
+                None => (r.t, r.obs.x_hammer),
+                Some((s, a)) => (s, a.max(r.obs.x_hammer)),
+            });
+        }
+    }
+    let drop_height = sc.hammer.height_m;
+    // "big" bounces: apex above 10 % of the drop height
+    let big: Vec<_> = flights
+        .iter()
+        .filter(|f| f.2 > 0.1 * drop_height)
+        .cloned()
+        .collect();
+    println!(
+        "{} flights, {} big; big bounces (start s, flight s, apex m):",
+        flights.len(),
+        big.len()
+    );
+    for f in &big {
+        println!("  {:.4} {:.5} {:.3e}", f.0, f.1 - f.0, f.2);
+    }
+    assert!(big.len() >= 4, "expected several big bounces");
+    for w in big.windows(2) {
+        assert!(
+            w[1].2 < w[0].2,
+            "apex heights must strictly decrease: {w:?}"
+        );
+        assert!(
+            w[1].1 - w[1].0 < w[0].1 - w[0].0,
+            "flight times must shrink: {w:?}"
+        );
+    }
+    // ends resting: in continuous contact for the last 0.3 s
+    let tail = rows.iter().filter(|r| r.t > 1.2);
+    let mut n_tail = 0;
+    for r in tail {
+        n_tail += 1;
+        assert!(r.obs.in_contact, "not resting at t = {}", r.t);
+    }
+    assert!(n_tail > 10000);
+    // and energy ended far below the start (gravity potential of the drop)
+    let e0 = rows[0].obs.energy;
+    let e_end = rows.last().unwrap().obs.energy;
+    println!("E0 = {e0:.3e} J, E_end = {e_end:.3e} J");
+    assert!(e_end < 1e-3 * e0);
+}
+
+#[test]
+fn paper_string_wave_is_causal_and_energy_is_conserved() {
+    let mut sc = preset("paper-string");
+    // lossless copy, displacement pickup at the far end
+    let far = 49usize;
+    if let ObjectSpec::String(s) = &mut sc.object[0] {
+        s.rayleigh_alpha_per_s = 0.0;
+        s.rayleigh_beta_s = 0.0;
+        s.dashpots.clear();
+        s.points.insert("far".into(), far);
+    }
+    sc.contact.damping_n_s_per_m = 0.0;
+    sc.pickup.truncate(1);
+    sc.pickup[0].point = "far".into();
+    sc.pickup[0].quantity = Quantity::Displacement;
+    sc.pickup[0].pan = -1.0;
+    let (contact_idx, masses, m, s) = match &sc.object[0] {
+        ObjectSpec::String(st) => (
+            st.points["contact"],
+            st.masses,
+            st.mass_kg,
+            st.spring_n_per_m,
+        ),
+        _ => unreachable!(),
+    };
+    let rate = 44100.0;
+    let compiled = compile(&sc, rate).unwrap();
+    let mut st = EngineState::new(&compiled);
+    let n = 4410;
+    let mut x_far = Vec::with_capacity(n);
+    let mut first_contact = None;
+    let e0 = st.observe(&compiled).energy;
+    let mut worst_drift = 0.0f64;
+    let mut phase_e = e0;
+    for i in 0..n {
+        let was = st.in_contact();
+        let (out, obs) = st.tick_observed(&compiled);
+        if obs.in_contact && first_contact.is_none() {
+            first_contact = Some(i);
+        }
+        if obs.in_contact != was {
+            phase_e = obs.energy;
+        } else {
+            worst_drift = worst_drift.max((obs.energy - phase_e).abs() / e0);
+        }
+        // pan -1: everything on the left channel (gain cos(0) = 1)
+        x_far.push(out[0]);
+    }
+    let start = first_contact.expect("the hammer hits the string");
+    // Fastest waves on the lattice travel sqrt(s/m) masses per second.
+    let dist = (far - contact_idx) as f64;
+    let travel_samples = dist / (s / m).sqrt() * rate;
+    let peak = x_far.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    // before half the travel time the far mass must be at round-off level
+    let quiet_until = start + (0.5 * travel_samples) as usize;
+    let early = x_far[..quiet_until]
+        .iter()
+        .fold(0.0f64, |a, x| a.max(x.abs()));
+    println!(
+        "string ({masses} masses): contact at sample {start}, wave needs {travel_samples:.1} samples \
+         to mass {far}; max |x_far| before half of that {early:.2e} m vs peak {peak:.2e} m; \
+         worst in-phase energy drift {worst_drift:.2e} E0"
+    );
+    assert!(peak > 0.0);
+    assert!(early <= 1e-12 * peak, "far mass moved too early: {early:e}");
+    // ... and it does move after the wave arrives
+    let late = x_far[start + (1.5 * travel_samples) as usize..]
+        .iter()
+        .fold(0.0f64, |a, x| a.max(x.abs()));
+    assert!(late > 1e-3 * peak);
+    assert!(worst_drift < 1e-9, "energy drift {worst_drift:e}");
+}
+
+#[test]
+fn every_preset_compiles_and_renders_finite_audio() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("presets");
+    let mut count = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().and_then(|e| e.to_str()) != Some("toml") {
+            continue;
+        }
+        let sc = modal_contact::scene::Scene::from_file(&path).unwrap();
+        let stem = path.file_stem().unwrap().to_str().unwrap();
+        assert_eq!(sc.name, stem, "preset name must equal the file stem");
+        let out = render(
+            &sc,
+            &RenderOptions {
+                seconds: Some(0.5),
+                ..Default::default()
+            },
+        )
+        .unwrap_or_else(|e| panic!("{stem}: {e}"));
+        let peak = out.left.iter().chain(&out.right).fold(0.0f64, |a, x| {
+            assert!(x.is_finite(), "{stem}: non-finite sample");
+            a.max(x.abs())
+        });
+        println!("{stem}: peak {peak:.3e}, {} contacts", out.contacts);
+        assert!(peak > 1e-6, "{stem} is silent");
+        assert!(out.contacts >= 1);
+        count += 1;
+    }
+    assert!(count >= 5);
+}
