@@ -10,3 +10,6 @@ pub mod engine;
 pub mod physics;
 pub mod render;
 pub mod scene;
+pub mod instrument;
+pub mod plugin;
+pub mod presets;

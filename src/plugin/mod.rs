@@ -1,0 +1,275 @@
+//! Plugin glue (nice-plug, CLAP + VST3): parameters, MIDI -> [`Event`], the
+//! worker handoff, and the export macros. All voice logic is in
+//! [`crate::instrument`]; this file only moves data between the host and it.
+//!
+//! Threads: `activate`/`deactivate` run on the main thread and may allocate
+//! (the first scene is compiled synchronously in `activate`, so `process`
+//! never runs without one; a sample-rate change arrives as a new `activate`
+//! and recompiles there). `process` runs on the audio thread: it only does
+//! atomic loads of the parameters, lock-free queue operations and the
+//! instrument's allocation-free rendering.
+
+pub mod params;
+pub mod worker;
+
+use crate::instrument::{prepare, Event, Instrument, InstrumentParams, SceneParams};
+use nice_plug::prelude::*;
+use params::ModalContactParams;
+use std::sync::Arc;
+use worker::{CompileRequest, Handoff, Worker};
+
+/// The plugin.
+pub struct ModalContact {
+    params: Arc<ModalContactParams>,
+    /// Audio thread owns it between activate and deactivate.
+    instrument: Option<Instrument>,
+    /// Shared with the worker (queues, counters).
+    handoff: Arc<Handoff>,
+    /// Main thread: spawned in activate, joined in deactivate/drop.
+    worker: Option<Worker>,
+    /// Audio thread: the last parameter set requested (or compiled in activate).
+    requested: SceneParams,
+    /// Audio thread: request revision counter.
+    revision: u64,
+    /// Audio thread: a scene taken from the queue that could not be installed yet.
+    pending: Option<Box<crate::instrument::Prepared>>,
+    rate_hz: f64,
+    #[cfg(feature = "alloc-bug")]
+    leak: Vec<f32>,
+}
+
+impl Default for ModalContact {
+    fn default() -> Self {
+        let params = Arc::new(ModalContactParams::default());
+        let requested = params.scene_params();
+        Self {
+            params,
+            instrument: None,
+            handoff: Handoff::new(),
+            worker: None,
+            requested,
+            revision: 0,
+            pending: None,
+            rate_hz: 0.0,
+            #[cfg(feature = "alloc-bug")]
+            leak: Vec::new(),
+        }
+    }
+}
+
+impl ModalContact {
+    /// Hand retired scenes back, swap in a ready one, and post a request if
+    /// the matrix parameters moved. Lock-free, allocation-free. [audio-thread]
+    fn maybe_swap_and_request(&mut self) {
+        let Some(inst) = self.instrument.as_mut() else {
+            return;
+        };
+        for slot in inst.retired_slots_mut() {
+            if let Some(b) = slot.take() {
+                if let Err(b) = self.handoff.give_back(b) {
+                    *slot = Some(b);
+                }
+            }
+        }
+        if inst.can_install() {
+            let next = self.pending.take().or_else(|| self.handoff.take_ready());
+            if let Some(p) = next {
+                if let Err(p) = inst.install(p) {
+                    self.pending = Some(p);
+                }
+            }
+        }
+        let wanted = self.params.scene_params();
+        if wanted != self.requested {
+            let req = CompileRequest {
+                revision: self.revision + 1,
+                rate_hz: self.rate_hz,
+                params: wanted,
+            };
+            if self.handoff.request(req) {
+                self.revision += 1;
+                self.requested = wanted;
+            }
+        }
+        inst.set_play(self.params.play_params());
+    }
+
+    /// Stop the worker and free the instrument. [main-thread]
+    fn shut_down(&mut self) {
+        if let Some(mut w) = self.worker.take() {
+            w.stop();
+        }
+        self.instrument = None;
+        self.pending = None;
+        self.handoff.drain();
+    }
+}
+
+impl Drop for ModalContact {
+    fn drop(&mut self) {
+        self.shut_down();
+    }
+}
+
+fn note_event(event: &NoteEvent<()>) -> Option<Event> {
+    match *event {
+        NoteEvent::NoteOn { key, velocity, .. } => key.number().map(|key| Event::NoteOn {
+            key,
+            velocity_norm: velocity as f64,
+        }),
+        NoteEvent::NoteOff { key, .. } | NoteEvent::Choke { key, .. } => Some(match key.number() {
+            Some(key) => Event::NoteOff { key },
+            None => Event::AllNotesOff,
+        }),
+        _ => None,
+    }
+}
+
+impl Plugin for ModalContact {
+    const NAME: &'static str = "Modal Contact";
+    const VENDOR: &'static str = "modal_contact";
+    const URL: &'static str = "https://example.invalid/modal_contact";
+    const EMAIL: &'static str = "modal_contact@example.invalid";
+    const VERSION: &'static str = env!("CARGO_PKG_VERSION");
+
+    const AUDIO_IO_LAYOUTS: &'static [AudioIOLayout] = &[AudioIOLayout {
+        main_input_channels: None,
+        main_output_channels: NonZeroU32::new(2),
+        aux_input_ports: &[],
+        aux_output_ports: &[],
+        names: PortNames::const_default(),
+    }];
+
+    const MIDI_INPUT: MidiConfig = MidiConfig::Basic;
+    // The wrapper splits blocks at parameter changes: a change is requested
+    // at its sample (the swap itself follows when the worker is done).
+    const SAMPLE_ACCURATE_AUTOMATION: bool = true;
+
+    type Editor = ();
+    type SysExMessage = ();
+    type BackgroundTask = ();
+
+    fn params(&self) -> Arc<dyn Params> {
+        self.params.clone()
+    }
+
+    /// Compile the current parameters synchronously for the host's sample
+    /// rate and start the worker. [main-thread]
+    fn activate(
+        &mut self,
+        _audio_io_layout: &AudioIOLayout,
+        buffer_config: &BufferConfig,
+        _context: &mut impl ActivateContext<Self>,
+    ) -> bool {
+        self.shut_down();
+        let rate_hz = buffer_config.sample_rate as f64;
+        let ip: InstrumentParams = self.params.instrument_params();
+        let prepared = match prepare(&ip.scene, rate_hz, 0) {
+            Ok(p) => p,
+            Err(e) => {
+                nice_log!("modal_contact: {e}; trying the preset's defaults");
+                let fallback = SceneParams {
+                    preset: ip.scene.preset,
+                    ..SceneParams::default()
+                };
+                match prepare(&fallback, rate_hz, 0) {
+                    Ok(p) => p,
+                    Err(e) => {
+                        nice_log!("modal_contact: cannot compile: {e}");
+                        return false;
+                    }
+                }
+            }
+        };
+        if let Some(note) = &prepared.fallback_note {
+            nice_log!("modal_contact: {note}");
+        }
+        self.requested = prepared.params;
+        self.revision = 0;
+        self.rate_hz = rate_hz;
+        self.instrument = Some(Instrument::new(prepared, ip.play));
+        match Worker::spawn(self.handoff.clone()) {
+            Ok(w) => self.worker = Some(w),
+            Err(e) => {
+                nice_log!("modal_contact: cannot start the compile worker: {e}");
+                return false;
+            }
+        }
+        #[cfg(feature = "alloc-bug")]
+        {
+            self.leak = Vec::new();
+        }
+        true
+    }
+
+    /// Join the worker, free the scenes. [main-thread]
+    fn deactivate(&mut self) {
+        self.shut_down();
+    }
+
+    /// Silence every voice (no allocation: states are reset in place by
+    /// restarting the instrument's voices). [audio-thread]
+    fn reset(&mut self) {
+        if let Some(inst) = self.instrument.as_mut() {
+            inst.silence();
+        }
+    }
+
+    /// Render with sample-accurate note events. [audio-thread]
+    fn process(
+        &mut self,
+        buffer: &mut Buffer,
+        _aux: &mut AuxiliaryBuffers,
+        context: &mut impl ProcessContext<Self>,
+    ) -> ProcessStatus {
+        #[cfg(feature = "alloc-bug")]
+        {
+            // TEST ONLY: deliberate realtime violation (grows a Vec).
+            self.leak.push(0.0);
+        }
+        self.maybe_swap_and_request();
+        let num_samples = buffer.samples();
+        let out = buffer.as_slice();
+        let Some(inst) = self.instrument.as_mut() else {
+            for ch in out.iter_mut() {
+                ch.fill(0.0);
+            }
+            return ProcessStatus::Normal;
+        };
+        let (left, right) = out.split_at_mut(1);
+        let (left, right) = (&mut *left[0], &mut *right[0]);
+        let mut pos = 0usize;
+        while let Some(event) = context.next_event() {
+            let at = (event.timing() as usize).clamp(pos, num_samples);
+            inst.render(&mut left[pos..at], &mut right[pos..at]);
+            pos = at;
+            if let Some(e) = note_event(&event) {
+                inst.handle(e);
+            }
+        }
+        inst.render(&mut left[pos..num_samples], &mut right[pos..num_samples]);
+        ProcessStatus::KeepAlive
+    }
+}
+
+impl ClapPlugin for ModalContact {
+    const CLAP_ID: &'static str = "dev.modal-contact.modal-contact";
+    const CLAP_DESCRIPTION: Option<&'static str> =
+        Some("Energy-stable modal contact percussion (exact piecewise-linear contact)");
+    const CLAP_MANUAL_URL: Option<&'static str> = None;
+    const CLAP_SUPPORT_URL: Option<&'static str> = None;
+    const CLAP_FEATURES: &'static [ClapFeature] = &[
+        ClapFeature::Instrument,
+        ClapFeature::Synthesizer,
+        ClapFeature::Stereo,
+    ];
+}
+
+impl Vst3Plugin for ModalContact {
+    const VST3_CLASS_ID: [u8; 16] = *b"ModalContactRath";
+    const VST3_SUBCATEGORIES: &'static [Vst3SubCategory] =
+        &[Vst3SubCategory::Instrument, Vst3SubCategory::Synth];
+}
+
+nice_export_clap!(ModalContact);
+nice_export_vst3!(ModalContact);
