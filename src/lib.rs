@@ -6,6 +6,7 @@
 //! -> [`engine`] (per sample, allocation-free) ; [`render`] drives it offline.
 
 pub mod compile;
+pub mod competitors;
 pub mod engine;
 pub mod physics;
 pub mod render;
