@@ -22,6 +22,10 @@ use std::fmt;
 /// Largest contact-system dimension the compiler attempts (2 * 2000 + 2):
 /// beyond it the eigensolver takes far too long for an interactive instrument.
 pub const MAX_CONTACT_DIM: usize = 4002;
+/// Largest dense-fallback phase for which exact switching is offered (its
+/// partial steps cost O(dim^2) per Taylor term; near-defective phases are in
+/// practice the 2x2 hammer-on-wall case).
+pub const MAX_DENSE_EXACT_DIM: usize = 16;
 
 /// Why a scene could not be compiled.
 #[derive(Debug, Clone, PartialEq)]
@@ -90,6 +94,49 @@ pub struct CompiledPhase {
     pub rows: PhaseRows,
     /// Decomposition checks.
     pub diag: DecompDiagnostics,
+    /// Event function row for exact switching: free phase `phi = x_h + ev . s`
+    /// (i.e. `-x_c`), contact phase `phi = ev . s + ev_offset` (`p_eff`).
+    pub ev: Vec<f64>,
+    /// `d/dtau` of `ev . s(tau)`: `ev G` (blocks) or `ev A` (dense).
+    pub ev_d: Vec<f64>,
+    /// Second derivative row `ev G^2`.
+    pub ev_dd: Vec<f64>,
+    /// `|ev_dd|_2`: with `|exp(G tau)| <= 1` it bounds `|phi''| <= |ev_dd| |s|`
+    /// over any step (the curvature bound that certifies "no event").
+    pub ev_dd_norm: f64,
+}
+
+/// `row G` for a block-diagonal or dense generator.
+fn row_times_generator(
+    row: &[f64],
+    gens: Option<&Vec<[f64; 4]>>,
+    dense: Option<&DMatrix<f64>>,
+) -> Vec<f64> {
+    let mut out = vec![0.0; row.len()];
+    if let Some(gens) = gens {
+        for (k, g) in gens.iter().enumerate() {
+            let (r0, r1) = (row[2 * k], row[2 * k + 1]);
+            out[2 * k] = r0 * g[0] + r1 * g[2];
+            out[2 * k + 1] = r0 * g[1] + r1 * g[3];
+        }
+    } else if let Some(a) = dense {
+        for j in 0..row.len() {
+            out[j] = (0..row.len()).map(|i| row[i] * a[(i, j)]).sum();
+        }
+    }
+    out
+}
+
+impl CompiledPhase {
+    fn set_event_row(&mut self, ev: Vec<f64>) {
+        let dense = self.dense.as_ref().map(|d| &d.0);
+        let d = row_times_generator(&ev, self.gens.as_ref(), dense);
+        let dd = row_times_generator(&d, self.gens.as_ref(), dense);
+        self.ev_dd_norm = dd.iter().map(|x| x * x).sum::<f64>().sqrt();
+        self.ev = ev;
+        self.ev_d = d;
+        self.ev_dd = dd;
+    }
 }
 
 /// A compiled scene: everything the engine needs, immutable.
@@ -142,7 +189,7 @@ pub struct CompiledScene {
 }
 
 fn row_vec(row: &DVector<f64>, v: &DMatrix<f64>) -> Vec<f64> {
-    (row.transpose() * v).iter().cloned().collect()
+    (0..v.ncols()).map(|j| row.dot(&v.column(j))).collect()
 }
 
 /// Constant-power pan law: gains (left, right) for pan in [-1, 1].
@@ -169,11 +216,6 @@ pub fn compile_with(
         )));
     }
     let switching = switching.or(scene.contact.switching).unwrap_or_default();
-    if switching == Switching::Exact {
-        return Err(CompileError(
-            "exact switching is not implemented yet; use switching = \"offset-rod\"".into(),
-        ));
-    }
     let h = 1.0 / rate_hz;
     let ci = scene
         .object_index(&scene.contact.object)
@@ -311,11 +353,12 @@ pub fn compile_with(
     for j in 0..dim_f {
         emb_m[(lay.embed(j), j)] = 1.0;
     }
-    let w_cf = &con_dec.vinv * &emb_m * &free_dec.v;
+    use crate::physics::linalg::matmul;
+    let w_cf = matmul(&matmul(&con_dec.vinv, &emb_m), &free_dec.v);
     let col_pi: Vec<f64> = (&con_dec.vinv * &e_pi).iter().cloned().collect();
     let col_eta: Vec<f64> = (&con_dec.vinv * &e_eta).iter().cloned().collect();
     let s_star_v = &con_dec.vinv * &y_star;
-    let w_fc = &free_dec.vinv * emb_m.transpose() * &con_dec.v;
+    let w_fc = matmul(&matmul(&free_dec.vinv, &emb_m.transpose()), &con_dec.v);
     let s_f_star: Vec<f64> = (&w_fc * &s_star_v).iter().cloned().collect();
     let s_star: Vec<f64> = s_star_v.iter().cloned().collect();
 
@@ -341,10 +384,33 @@ pub fn compile_with(
             vinv: d.vinv,
             rows,
             diag: d.diag,
+            ev: Vec::new(),
+            ev_d: Vec::new(),
+            ev_dd: Vec::new(),
+            ev_dd_norm: 0.0,
         })
     };
-    let free = to_phase(free_dec, free_rows)?;
-    let contact = to_phase(con_dec, con_rows)?;
+    let mut free = to_phase(free_dec, free_rows)?;
+    let mut contact = to_phase(con_dec, con_rows)?;
+    let sk = params.k.sqrt();
+    free.set_event_row(free.rows.x_c.iter().map(|x| -x).collect());
+    contact.set_event_row(contact.rows.pi.iter().map(|x| x / sk).collect());
+    // Exact switching needs partial steps exp(A tau) for any tau: O(N) in
+    // blocks, but a Taylor series of mat-vecs for a dense fallback phase,
+    // which is only affordable for small dense systems.
+    let mut switching = switching;
+    let mut switching_note = None;
+    if switching == Switching::Exact {
+        for ph in [&free, &contact] {
+            if ph.dense.is_some() && ph.dim > MAX_DENSE_EXACT_DIM {
+                switching = Switching::OffsetRod;
+                switching_note = Some(format!(
+                    "exact switching needs partial dense steps of dimension {} > {MAX_DENSE_EXACT_DIM}: using the offset rod",
+                    ph.dim
+                ));
+            }
+        }
+    }
 
     for (what, ph) in [("free", &free), ("contact", &contact)] {
         let all_finite = ph.v.iter().all(|x| x.is_finite())
@@ -404,6 +470,9 @@ pub fn compile_with(
                 "none (homogeneous stepping, no affine term)"
             }
         );
+        if let Some(n) = &switching_note {
+            let _ = writeln!(summary, "{n}");
+        }
         for d in &dropped_pickups {
             let _ = writeln!(summary, "dropped {d}");
         }

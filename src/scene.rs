@@ -60,10 +60,11 @@ pub enum Switching {
     /// The paper's method (section 2.2): contact starts at the first sample with
     /// penetration > 0, with an offset rod so the spring starts unstretched.
     #[serde(rename = "offset-rod")]
-    #[default]
     OffsetRod,
-    /// Switch instants located inside the sample on the exact phase solution.
+    /// Switch instants located inside the sample on the exact phase solution
+    /// (the default: the offset rod is only first-order accurate).
     #[serde(rename = "exact")]
+    #[default]
     Exact,
 }
 

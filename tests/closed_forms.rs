@@ -70,7 +70,9 @@ fn free_modal_object_matches_damped_sinusoids() {
 /// Contact time and rebound speed of a hammer against a rigid wall.
 fn wall_impact(rate: f64, m: f64, k: f64, c: f64) -> (f64, f64) {
     let v0 = -1.0;
-    let sc = compile(&wall_scene(m, k, c, v0), rate).unwrap();
+    let mut scene = wall_scene(m, k, c, v0);
+    scene.contact.switching = Some(modal_contact::scene::Switching::OffsetRod);
+    let sc = compile(&scene, rate).unwrap();
     let mut st = EngineState::new(&sc);
     let mut start = None;
     for i in 0..(rate as usize) {
@@ -137,5 +139,63 @@ fn rigid_wall_restitution_and_contact_time_converge_to_closed_form() {
             last.0 < first.0 / 8.0 && last.1 < first.1 / 8.0,
             "not first order: {mean:?}"
         );
+    }
+}
+
+/// Exact switching against the rigid-wall closed forms at 44.1 kHz: the
+/// contact starts and ends inside samples, so contact time and restitution
+/// are right to ~1e-9, where the offset rod is off by up to a sample.
+#[test]
+fn exact_switching_hits_rigid_wall_closed_forms_at_44k() {
+    use modal_contact::scene::Switching;
+    let rate = 44100.0;
+    let h = 1.0 / rate;
+    let m: f64 = 0.01;
+    let v0 = -1.0;
+    for (k, zeta) in [(1e6f64, 0.1f64), (1e6, 0.5), (3.3e6, 0.05), (2e5, 0.9)] {
+        let c = zeta * 2.0 * (k * m).sqrt();
+        let w0 = (k / m).sqrt();
+        let wd = w0 * (1.0 - zeta * zeta).sqrt();
+        let t_exact = PI / wd;
+        let e_exact = (-zeta * PI / (1.0 - zeta * zeta).sqrt()).exp();
+        let mut sc = wall_scene(m, k, c, v0);
+        // start 0.37 sample above the wall: the touch is inside a sample
+        let gap = 0.37 * h * -v0;
+        sc.hammer.height_m = gap;
+        sc.contact.switching = Some(Switching::Exact);
+        let compiled = compile(&sc, rate).unwrap();
+        let mut st = EngineState::new(&compiled);
+        let t_in = gap / -v0;
+        let mut was = false;
+        let mut result = None;
+        for i in 0..(rate as usize) {
+            st.tick(&compiled);
+            let t = (i + 1) as f64 * h;
+            if st.in_contact() {
+                was = true;
+            } else if was {
+                // flying freely again: x_h(t) = v_out (t - t_out)
+                let (x, v) = st.hammer_in_flight().unwrap();
+                let t_out = t - x / v;
+                result = Some((t_out - t_in, v / -v0));
+                break;
+            }
+        }
+        let (t_c, e) = result.expect("contact ended");
+        let et = (t_c - t_exact).abs() / t_exact;
+        let ee = (e - e_exact).abs() / e_exact;
+        // offset rod on the same case, for comparison
+        sc.contact.switching = Some(Switching::OffsetRod);
+        let (t_rod, e_rod) = wall_impact(rate, m, k, c);
+        println!(
+            "k {k:e}, zeta {zeta}: exact: contact time rel err {et:.2e}, restitution rel err {ee:.2e} \
+             ({} located switches); offset rod: {:.2e}, {:.2e}",
+            st.exact_stats.located,
+            (t_rod - t_exact).abs() / t_exact,
+            (e_rod - e_exact).abs() / e_exact
+        );
+        assert!(et < 1e-9, "contact time error {et:e}");
+        assert!(ee < 1e-9, "restitution error {ee:e}");
+        assert_eq!(st.exact_stats.rod_fallbacks, 0);
     }
 }

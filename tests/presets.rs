@@ -7,16 +7,24 @@ use common::*;
 use modal_contact::compile::compile;
 use modal_contact::engine::EngineState;
 use modal_contact::render::{render, RenderOptions};
-use modal_contact::scene::{ObjectSpec, Quantity};
+use modal_contact::scene::{ObjectSpec, Quantity, Switching};
 
 #[test]
 fn paper_bounce_bounces_shrink_and_it_comes_to_rest() {
+    for sw in [Switching::Exact, Switching::OffsetRod] {
+        println!("switching {}:", sw.as_str());
+        check_bounce(sw);
+    }
+}
+
+fn check_bounce(sw: Switching) {
     let sc = preset("paper-bounce");
     let out = render(
         &sc,
         &RenderOptions {
             trace: true,
             seconds: Some(1.5),
+            switching: Some(sw),
             ..Default::default()
         },
     )

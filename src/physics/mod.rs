@@ -3,4 +3,5 @@
 
 pub mod block;
 pub mod decomp;
+pub mod linalg;
 pub mod model;

@@ -16,8 +16,13 @@
 //! recomputed (O(N), no allocation). Velocities in the reference system are
 //! the physical ones divided by `s`.
 
+mod exact;
+
+pub use exact::{ExactStats, MAX_SWITCHES_PER_SAMPLE};
+
 use crate::compile::{CompiledPhase, CompiledScene};
 use crate::physics::block::{exp2, Mat2};
+use crate::scene::Switching;
 
 /// What the trace records per sample (DESIGN.md section 5), physical units.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -70,6 +75,10 @@ pub struct EngineState {
     g: f64,
     /// Number of contact starts since the last reset (diagnostic).
     pub contacts_started: u64,
+    /// Scratch vectors for dense partial steps (exact switching).
+    dense_tmp: [Vec<f64>; 3],
+    /// What exact switching did since the last reset (diagnostic).
+    pub exact_stats: ExactStats,
 }
 
 impl EngineState {
@@ -95,6 +104,12 @@ impl EngineState {
             step_s: scene.h,
             g: scene.g,
             contacts_started: 0,
+            dense_tmp: [
+                vec![0.0; df.max(dc)],
+                vec![0.0; df.max(dc)],
+                vec![0.0; df.max(dc)],
+            ],
+            exact_stats: ExactStats::default(),
         };
         st.set_time_scale(scene, 1.0)
             .expect("time scale 1 is always valid");
@@ -112,6 +127,7 @@ impl EngineState {
         self.x_h = scene.hammer_x0;
         self.v_h = scene.hammer_v0 / self.time_scale;
         self.contacts_started = 0;
+        self.exact_stats = ExactStats::default();
     }
 
     /// Free-phase coordinates of the struck object (for tests and tools that
@@ -186,6 +202,11 @@ impl EngineState {
     /// Allocation-free, O(N) (O(N^2) on a switch). [audio-thread]
     #[inline]
     pub fn tick(&mut self, scene: &CompiledScene) -> [f64; 2] {
+        if scene.switching == Switching::Exact {
+            let out = self.output();
+            self.advance_exact(scene);
+            return out;
+        }
         self.decide(scene);
         let out = self.output();
         self.advance(scene);
@@ -195,6 +216,12 @@ impl EngineState {
     /// Like [`tick`](Self::tick) but also returns the trace observation taken
     /// after the switching decision (DESIGN.md section 5). O(N^2): offline only.
     pub fn tick_observed(&mut self, scene: &CompiledScene) -> ([f64; 2], Observation) {
+        if scene.switching == Switching::Exact {
+            let out = self.output();
+            let obs = self.observe(scene);
+            self.advance_exact(scene);
+            return (out, obs);
+        }
         self.decide(scene);
         let out = self.output();
         let obs = self.observe(scene);
@@ -460,7 +487,7 @@ fn mix_rows(dst: &mut [f64], ph: &CompiledPhase, ch: usize, s: f64) {
 }
 
 #[inline]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 

@@ -1,0 +1,411 @@
+//! The stiff and extreme cases of NUMERICS.md section 4, for both switching
+//! modes: the engine never produces NaN/inf and never increases the energy
+//! from one sample to the next (beyond a stated rounding bound).
+
+mod common;
+
+use common::*;
+use modal_contact::compile::{compile, compile_with, CompiledScene};
+use modal_contact::engine::EngineState;
+use modal_contact::scene::{Scene, Switching};
+use std::f64::consts::PI;
+
+const U: f64 = f64::EPSILON / 2.0;
+const MODES: [Switching; 2] = [Switching::OffsetRod, Switching::Exact];
+
+struct RunStats {
+    max_rel_increase: f64,
+    contacts: u64,
+    e0: f64,
+    e_end: f64,
+    located: u64,
+    capped: u64,
+    fallbacks: u64,
+}
+
+/// Run `n` samples with per-sample energy checks. The rounding bound per step
+/// is `64 dim kappa u` relative to the energy scale (|E| plus the gravity
+/// term's magnitude): a row of `dim` terms, each rounded once, amplified by
+/// the condition of the change of basis, with a safety factor.
+fn run_checked(label: &str, sc: &CompiledScene, n: usize, stride: usize) -> RunStats {
+    let mut st = EngineState::new(sc);
+    let kappa = sc.free.diag.kappa.max(sc.contact.diag.kappa);
+    let kappa = if kappa.is_finite() { kappa } else { 1.0 };
+    let bound = 64.0 * sc.contact.dim as f64 * kappa * U;
+    let first = st.observe(sc);
+    let mut prev = first;
+    let mut max_rel = f64::NEG_INFINITY;
+    let mg = sc.m_h * sc.g;
+    for i in 0..n {
+        let out = st.tick(sc);
+        assert!(
+            out[0].is_finite() && out[1].is_finite(),
+            "{label}: non-finite output at {i}"
+        );
+        if i % stride == 0 || i + 1 == n {
+            let obs = st.observe(sc);
+            assert!(obs.energy.is_finite(), "{label}: non-finite energy at {i}");
+            if stride == 1 {
+                let scale = prev.energy.abs() + 2.0 * mg * prev.x_hammer.abs() + 1e-300;
+                let rel = (obs.energy - prev.energy) / scale;
+                max_rel = max_rel.max(rel);
+                assert!(
+                    rel <= bound,
+                    "{label}: energy rose at sample {i}: {:e} -> {:e} (rel {rel:e} > {bound:e})",
+                    prev.energy,
+                    obs.energy
+                );
+            } else {
+                let scale =
+                    first.energy.abs() + 2.0 * mg * (first.x_hammer.abs() + obs.x_hammer.abs());
+                assert!(
+                    obs.energy <= prev.energy + bound * scale * stride as f64,
+                    "{label}: energy rose between samples {} and {i}",
+                    i - stride
+                );
+            }
+            prev = obs;
+        }
+    }
+    RunStats {
+        max_rel_increase: max_rel,
+        contacts: st.contacts_started,
+        e0: first.energy,
+        e_end: prev.energy,
+        located: st.exact_stats.located,
+        capped: st.exact_stats.capped,
+        fallbacks: st.exact_stats.rod_fallbacks,
+    }
+}
+
+fn report(label: &str, s: &RunStats) {
+    let de = if s.max_rel_increase.is_finite() {
+        format!("{:>9.2e}", s.max_rel_increase)
+    } else {
+        "  sampled".to_string()
+    };
+    println!(
+        "{label:<48} contacts {:>5}  located {:>5}  capped {:>3}  rod-fallbacks {:>3}  max dE/E {de}  E_end/E0 {:.3e}",
+        s.contacts, s.located, s.capped, s.fallbacks, s.e_end / s.e0
+    );
+}
+
+#[allow(clippy::too_many_arguments)]
+/// A modal object with `n` modes from `f_lo` to `f_hi` (geometric), T60
+/// falling with frequency (or undamped), struck by a hammer.
+fn modal_scene(
+    n: usize,
+    f_lo: f64,
+    f_hi: f64,
+    damped: bool,
+    m_h: f64,
+    k: f64,
+    c: f64,
+    g: f64,
+) -> Scene {
+    let mut text = String::from(
+        "version = 1\nname = \"x\"\n[[object]]\nname = \"o\"\nkind = \"modal\"\npoints = [\"c\", \"p\"]\n",
+    );
+    for i in 0..n {
+        let f = if n == 1 {
+            f_lo
+        } else {
+            f_lo * (f_hi / f_lo).powf(i as f64 / (n - 1) as f64)
+        };
+        // unit-ish effective masses at the contact, alternating signs at the pickup
+        let w = 1.0 / (1.0 + 0.1 * i as f64).sqrt();
+        let wp = if i % 2 == 0 { 0.7 * w } else { -0.5 * w };
+        text += &format!("[[object.mode]]\nfreq_hz = {f:e}\nweights = [{w:e}, {wp:e}]\n");
+        if damped {
+            text += &format!("t60_s = {:e}\n", 2.0 / (1.0 + f / 1000.0));
+        }
+    }
+    let height = if g > 0.0 { 0.01 } else { 0.0 };
+    let v = if g > 0.0 { 0.0 } else { -1.0 };
+    text += &format!(
+        "[hammer]\nmass_kg = {m_h:e}\nheight_m = {height}\nvelocity_m_per_s = {v}\ngravity_m_per_s2 = {g}\n\
+         [contact]\nobject = \"o\"\npoint = \"c\"\nstiffness_n_per_m = {k:e}\ndamping_n_s_per_m = {c:e}\n\
+         [[pickup]]\nobject = \"o\"\npoint = \"p\"\n"
+    );
+    scene(&text)
+}
+
+#[test]
+fn contact_frequency_up_to_1000x_nyquist() {
+    let rate = 44100.0;
+    let m_h = 0.02;
+    for ratio in [1.0, 10.0, 100.0, 1000.0] {
+        let fc = ratio * rate / 2.0;
+        let k = m_h * (2.0 * PI * fc).powi(2);
+        let c = 0.2 * 2.0 * (k * m_h).sqrt();
+        let sc = modal_scene(20, 200.0, 0.82 * rate / 2.0, true, m_h, k, c, 0.0);
+        for sw in MODES {
+            let compiled = compile_with(&sc, rate, Some(sw)).unwrap();
+            let label = format!("X3 f_c = {ratio}x Nyquist, {}", sw.as_str());
+            let s = run_checked(&label, &compiled, 20_000, 1);
+            report(&label, &s);
+            assert!(s.contacts >= 1);
+        }
+    }
+}
+
+#[test]
+fn zero_damping_everywhere_and_stiff_chattering() {
+    let rate = 44100.0;
+    // X2-like: f_c = 0.45 f_Nyq, mass ratio 0.2; X6: all damping zero
+    let m_h = 0.2;
+    let fc = 0.45 * rate / 2.0;
+    let k = m_h * (2.0 * PI * fc).powi(2);
+    for (damped, c) in [(false, 0.0), (true, 0.3 * 2.0 * (k * m_h).sqrt())] {
+        let sc = modal_scene(20, 200.0, 0.82 * rate / 2.0, damped, m_h, k, c, 0.0);
+        for sw in MODES {
+            let compiled = compile_with(&sc, rate, Some(sw)).unwrap();
+            let label = format!("X2/X6 stiff, damped={damped}, {}", sw.as_str());
+            let s = run_checked(&label, &compiled, 20_000, 1);
+            report(&label, &s);
+            if !damped && sw == Switching::Exact {
+                // lossless and exact: no energy leaves at all
+                let drift = (s.e_end - s.e0).abs() / s.e0;
+                assert!(drift < 1e-9, "lossless exact drift {drift:e}");
+            }
+        }
+    }
+}
+
+#[test]
+fn critical_damping_uses_the_fallback_and_matches_closed_form() {
+    // X4: hammer vs rigid wall with zeta = 1 exactly: A is a Jordan block.
+    // Closed form of the penetration: p(t) = |v0| t e^{-w0 t} (never returns
+    // to zero: critically damped contacts do not release).
+    let rate = 44100.0;
+    let (m, k): (f64, f64) = (0.01, 1e6);
+    let w0 = (k / m).sqrt();
+    let c = 2.0 * (k * m).sqrt();
+    for sw in MODES {
+        let mut sc = wall_scene(m, k, c, -1.0);
+        sc.contact.switching = Some(sw);
+        let compiled = compile(&sc, rate).unwrap();
+        assert!(
+            compiled.contact.dense.is_some(),
+            "fallback did not kick in: {}",
+            compiled.summary
+        );
+        assert!(compiled.contact.diag.fallback_reason.is_some());
+        let mut st = EngineState::new(&compiled);
+        let mut worst: f64 = 0.0;
+        // contact starts at t = 0 (exact) or after one sample (rod)
+        let t0 = if sw == Switching::Exact {
+            0.0
+        } else {
+            1.0 / rate
+        };
+        let mut n_in = 0;
+        for i in 0..2000 {
+            let obs = st.observe(&compiled);
+            let t = i as f64 / rate - t0;
+            if obs.in_contact && t > 0.0 {
+                let p_model = -obs.x_hammer
+                    - if sw == Switching::Exact {
+                        0.0
+                    } else {
+                        1.0 / rate
+                    };
+                let p_exact = t * (-w0 * t).exp();
+                worst = worst.max((p_model - p_exact).abs() / (1.0 / (w0 * std::f64::consts::E)));
+                n_in += 1;
+            }
+            st.tick(&compiled);
+        }
+        println!(
+            "X4 critical damping, {}: dense fallback ({}), worst |p - t e^(-w t)| / max p = {worst:.2e} over {n_in} samples",
+            sw.as_str(),
+            compiled.contact.diag.fallback_reason.as_ref().unwrap()
+        );
+        assert!(n_in > 1000, "critically damped contact must not release");
+        assert!(worst < 1e-9, "{worst:e}");
+        let s = run_checked(
+            &format!("X4 wall zeta=1 {}", sw.as_str()),
+            &compiled,
+            5000,
+            1,
+        );
+        report(&format!("X4 wall zeta=1 {}", sw.as_str()), &s);
+    }
+    // and a single mode with a critically damped contact (coupling splits it)
+    let sc = modal_scene(
+        1,
+        300.0,
+        300.0,
+        false,
+        0.01,
+        1e6,
+        2.0 * (1e6f64 * 0.01).sqrt(),
+        0.0,
+    );
+    for sw in MODES {
+        let compiled = compile_with(&sc, 44100.0, Some(sw)).unwrap();
+        let s = run_checked(
+            &format!("X4 one mode zeta=1 {}", sw.as_str()),
+            &compiled,
+            20_000,
+            1,
+        );
+        report(&format!("X4 one mode zeta=1 {}", sw.as_str()), &s);
+    }
+}
+
+#[test]
+fn modes_above_nyquist_and_overdamped_contacts() {
+    let rate = 44100.0;
+    for sw in MODES {
+        // X8: 40 modes up to 2.7 f_Nyq
+        let sc = modal_scene(40, 150.0, 2.7 * rate / 2.0, true, 0.02, 1e6, 5.0, 0.0);
+        let compiled = compile_with(&sc, rate, Some(sw)).unwrap();
+        let s = run_checked(
+            &format!("X8 modes to 2.7 f_Nyq {}", sw.as_str()),
+            &compiled,
+            20_000,
+            1,
+        );
+        report(&format!("X8 modes to 2.7 f_Nyq {}", sw.as_str()), &s);
+        // X5: overdamped contact, zeta 10 and 1e3
+        for zeta in [10.0, 1e3] {
+            let (m, k): (f64, f64) = (0.02, 1e6);
+            let sc = modal_scene(
+                10,
+                200.0,
+                5000.0,
+                true,
+                m,
+                k,
+                zeta * 2.0 * (k * m).sqrt(),
+                0.0,
+            );
+            let compiled = compile_with(&sc, rate, Some(sw)).unwrap();
+            let label = format!("X5 overdamped zeta={zeta} {}", sw.as_str());
+            let s = run_checked(&label, &compiled, 20_000, 1);
+            report(&label, &s);
+        }
+    }
+}
+
+#[test]
+fn hammer_mass_ratios_from_1e_minus_6_to_1e3() {
+    let rate = 44100.0;
+    // the object's effective mass at the contact point for mode 0 is 1/w^2 = 1 kg
+    for ratio in [1e-6, 1e-3, 1.0, 1e3] {
+        let m_h = ratio;
+        // keep the contact frequency at 2 kHz for every mass
+        let k = m_h * (2.0 * PI * 2000.0f64).powi(2);
+        let sc = modal_scene(
+            10,
+            200.0,
+            8000.0,
+            true,
+            m_h,
+            k,
+            0.1 * 2.0 * (k * m_h).sqrt(),
+            0.0,
+        );
+        for sw in MODES {
+            let compiled = compile_with(&sc, rate, Some(sw)).unwrap();
+            let label = format!("X7 m_h/m_k = {ratio:e} {}", sw.as_str());
+            let s = run_checked(&label, &compiled, 20_000, 1);
+            report(&label, &s);
+            println!("   kappa(V) contact {:.2}", compiled.contact.diag.kappa);
+            assert!(compiled.contact.diag.kappa < 1e3);
+        }
+    }
+}
+
+#[test]
+fn one_to_1000_modes() {
+    let rate = 44100.0;
+    for n in [1usize, 10, 100, 1000] {
+        let sc = modal_scene(n, 100.0, 18000.0, true, 0.03, 1e6, 10.0, 0.0);
+        let t0 = std::time::Instant::now();
+        let compiled = compile_with(&sc, rate, Some(Switching::Exact)).unwrap();
+        let compile_s = t0.elapsed().as_secs_f64();
+        let samples = if n >= 1000 { 2000 } else { 10_000 };
+        for sw in MODES {
+            let compiled = if sw == Switching::Exact {
+                compiled.clone()
+            } else {
+                let mut c = compiled.clone();
+                c.switching = sw;
+                c
+            };
+            // per-sample energy checks are O(N^2): sample them for big scenes
+            let stride = if n >= 1000 { 50 } else { 1 };
+            let label = format!("X9 {n} modes {}", sw.as_str());
+            let s = run_checked(&label, &compiled, samples, stride);
+            report(&label, &s);
+        }
+        println!(
+            "   compile of {n} modes: {compile_s:.2} s, contact {}",
+            compiled.contact.diag.method
+        );
+    }
+}
+
+#[test]
+fn ten_million_samples_of_continuous_contact() {
+    // X12/X13: a heavy ball dropped on a three-mode object settles into
+    // continuous contact and stays there for 1e7 samples (227 s).
+    let rate = 44100.0;
+    let sc = modal_scene(3, 220.0, 3500.0, true, 0.05, 2e5, 5.0, 9.81);
+    for sw in MODES {
+        let compiled = compile_with(&sc, rate, Some(sw)).unwrap();
+        let mut st = EngineState::new(&compiled);
+        let mut prev = st.observe(&compiled);
+        let mg = compiled.m_h * compiled.g;
+        let mut max_rel: f64 = f64::NEG_INFINITY;
+        let mut last_switch = 0usize;
+        let n = 10_000_000;
+        for i in 0..n {
+            let was = st.in_contact();
+            st.tick(&compiled);
+            if st.in_contact() != was {
+                last_switch = i;
+            }
+            if i % 64 == 0 {
+                let obs = st.observe(&compiled);
+                let scale = prev.energy.abs() + 2.0 * mg * prev.x_hammer.abs() + 1e-300;
+                max_rel = max_rel.max((obs.energy - prev.energy) / scale);
+                assert!(obs.energy.is_finite());
+                prev = obs;
+            }
+        }
+        let obs = st.observe(&compiled);
+        // static equilibrium: the ball rests where k p = m g (plus the
+        // object's static deflection under m g)
+        println!(
+            "X12/X13 {}: last switch at sample {last_switch}, in contact {}, x_hammer {:.6e}, energy {:.6e}, max rel dE per 64 samples {max_rel:.2e}",
+            sw.as_str(),
+            st.in_contact(),
+            obs.x_hammer,
+            obs.energy
+        );
+        assert!(st.in_contact());
+        assert!(last_switch < 441_000, "still switching after 10 s");
+        assert!(max_rel <= 1e-12);
+        // the ball sits at rest: velocity ~ 0
+        assert!(obs.v_hammer.abs() < 1e-9, "v = {}", obs.v_hammer);
+    }
+}
+
+#[test]
+fn grazing_contacts_do_not_hang() {
+    // X11: impact speeds down to 1e-9 m/s, for both modes.
+    for v in [1e-3, 1e-6, 1e-9] {
+        let mut sc = modal_scene(5, 300.0, 5000.0, true, 0.01, 1e6, 5.0, 0.0);
+        sc.hammer.velocity_m_per_s = -v;
+        sc.hammer.height_m = 1e-12;
+        for sw in MODES {
+            let compiled = compile_with(&sc, 44100.0, Some(sw)).unwrap();
+            let label = format!("X11 grazing v = {v:e} {}", sw.as_str());
+            let s = run_checked(&label, &compiled, 20_000, 1);
+            report(&label, &s);
+        }
+    }
+}
