@@ -270,6 +270,7 @@ impl EngineState {
                     let (tau, dtau) = self.refine(scene, a, fa, b, fb);
                     self.advance_by(scene, tau, full && tau == rem);
                     t += tau;
+                    self.t_in_step = t;
                     if dtau < 0.0 {
                         if self.in_contact {
                             self.leave_contact(scene);

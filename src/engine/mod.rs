@@ -41,6 +41,20 @@ pub struct Observation {
     pub energy: f64,
 }
 
+/// A phase switch during the last [`EngineState::tick`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SwitchEvent {
+    /// Seconds (physical) after the tick's start instant `t_n` (0 for the
+    /// offset rod, whose switches happen at sample instants).
+    pub after_s: f64,
+    /// `true` when contact started, `false` when it ended.
+    pub entered: bool,
+}
+
+/// Most switches recorded per tick (the exact mode's cap plus the
+/// start-of-sample checks).
+const EVENT_LOG: usize = MAX_SWITCHES_PER_SAMPLE as usize + 2;
+
 /// Why a time scale could not be applied.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TimeScaleError {
@@ -79,6 +93,11 @@ pub struct EngineState {
     dense_tmp: [Vec<f64>; 3],
     /// What exact switching did since the last reset (diagnostic).
     pub exact_stats: ExactStats,
+    /// Switches of the last tick (fixed array: no allocation).
+    events: [SwitchEvent; EVENT_LOG],
+    n_events: usize,
+    /// Reference time consumed in the current step (for event times).
+    t_in_step: f64,
 }
 
 impl EngineState {
@@ -110,6 +129,9 @@ impl EngineState {
                 vec![0.0; df.max(dc)],
             ],
             exact_stats: ExactStats::default(),
+            events: [SwitchEvent::default(); EVENT_LOG],
+            n_events: 0,
+            t_in_step: 0.0,
         };
         st.set_time_scale(scene, 1.0)
             .expect("time scale 1 is always valid");
@@ -202,6 +224,8 @@ impl EngineState {
     /// Allocation-free, O(N) (O(N^2) on a switch). [audio-thread]
     #[inline]
     pub fn tick(&mut self, scene: &CompiledScene) -> [f64; 2] {
+        self.n_events = 0;
+        self.t_in_step = 0.0;
         if scene.switching == Switching::Exact {
             let out = self.output();
             self.advance_exact(scene);
@@ -216,6 +240,8 @@ impl EngineState {
     /// Like [`tick`](Self::tick) but also returns the trace observation taken
     /// after the switching decision (DESIGN.md section 5). O(N^2): offline only.
     pub fn tick_observed(&mut self, scene: &CompiledScene) -> ([f64; 2], Observation) {
+        self.n_events = 0;
+        self.t_in_step = 0.0;
         if scene.switching == Switching::Exact {
             let out = self.output();
             let obs = self.observe(scene);
@@ -280,6 +306,7 @@ impl EngineState {
         }
         self.in_contact = true;
         self.contacts_started += 1;
+        self.log_event(true);
     }
 
     fn leave_contact(&mut self, scene: &CompiledScene) {
@@ -300,6 +327,23 @@ impl EngineState {
         self.v_h = eta / scene.sm;
         self.rod_m = 0.0;
         self.in_contact = false;
+        self.log_event(false);
+    }
+
+    fn log_event(&mut self, entered: bool) {
+        if self.n_events < EVENT_LOG {
+            self.events[self.n_events] = SwitchEvent {
+                after_s: self.t_in_step / self.time_scale,
+                entered,
+            };
+            self.n_events += 1;
+        }
+    }
+
+    /// Phase switches that happened during the last `tick` (offline
+    /// diagnostics: contact start/end times). [any-thread]
+    pub fn switch_events(&self) -> &[SwitchEvent] {
+        &self.events[..self.n_events]
     }
 
     #[inline]
