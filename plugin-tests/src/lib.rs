@@ -1,1 +1,571 @@
+//! Test harness: locates (or builds) the plugin bundles and drives the BUILT
+//! `.clap` through `clack-host` 0.2, offline; also drives the instrument
+//! library directly with the same events, for sample-by-sample comparison.
+//!
+//! Bundles are found like this (first match wins):
+//! 1. env `MODAL_CONTACT_CLAP_<VARIANT>` (`..._RELEASE`, `..._RT_CHECKS`,
+//!    `..._ALLOC_BUG`) = path of a `.clap`: used as is (`cargo xtask test`
+//!    builds the three bundles first and sets these);
+//! 2. otherwise the harness bundles the variant itself, once per process,
+//!    with `CARGO_TARGET_DIR=target/plugin-tests/cargo` (so it never waits on
+//!    the lock of the outer `cargo test`), and copies the result to
+//!    `target/plugin-tests/<variant>/`. `MODAL_CONTACT_SKIP_BUNDLE=1` reuses
+//!    what is there.
 
+use clack_extensions::params::{ParamInfoBuffer, PluginParams};
+use clack_extensions::state::PluginState;
+use clack_host::events::event_types::{NoteOffEvent, NoteOnEvent, ParamValueEvent};
+use clack_host::events::Match;
+use clack_host::prelude::*;
+use modal_contact::instrument::{
+    prepare, Event, Instrument, InstrumentParams, TimedEvent as LibEvent,
+};
+use std::ffi::CString;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Mutex;
+
+/// The plugin's CLAP id.
+pub const PLUGIN_ID: &str = "dev.modal-contact.modal-contact";
+/// Bundle file stem.
+pub const BUNDLE_NAME: &str = "modal_contact";
+
+/// Which build of the plugin.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Variant {
+    /// `--release`, default features (what users install).
+    Release,
+    /// `--profile test-release --features rt-checks`: optimised, debug
+    /// assertions on, so nice-plug's `assert_process_allocs` is active.
+    RtChecks,
+    /// As `RtChecks` plus `alloc-bug` (allocates in `process` on purpose).
+    AllocBug,
+}
+
+impl Variant {
+    /// Directory / env name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Variant::Release => "release",
+            Variant::RtChecks => "rt-checks",
+            Variant::AllocBug => "alloc-bug",
+        }
+    }
+
+    /// Arguments for `cargo xtask bundle modal_contact ...`.
+    pub fn bundle_args(self) -> &'static [&'static str] {
+        match self {
+            Variant::Release => &["--release"],
+            Variant::RtChecks => &["--profile", "test-release", "--features", "rt-checks"],
+            Variant::AllocBug => &[
+                "--profile",
+                "test-release",
+                "--features",
+                "rt-checks,alloc-bug",
+            ],
+        }
+    }
+
+    /// The environment variable that points at a prebuilt `.clap`.
+    pub fn env_var(self) -> String {
+        format!(
+            "MODAL_CONTACT_CLAP_{}",
+            self.name().to_uppercase().replace('-', "_")
+        )
+    }
+}
+
+/// The workspace root.
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("plugin-tests has a parent")
+        .to_path_buf()
+}
+
+/// Where test outputs (WAVs) go.
+pub fn out_dir() -> PathBuf {
+    let d = workspace_root()
+        .join("target")
+        .join("plugin-tests")
+        .join("wav");
+    std::fs::create_dir_all(&d).expect("mkdir target/plugin-tests/wav");
+    d
+}
+
+static BUILT: Mutex<Vec<Variant>> = Mutex::new(Vec::new());
+
+/// Path of the `.clap` of `variant` (built first if needed).
+pub fn clap_bundle(variant: Variant) -> PathBuf {
+    if let Ok(p) = std::env::var(variant.env_var()) {
+        return PathBuf::from(p);
+    }
+    bundle_dir(variant).join(format!("{BUNDLE_NAME}.clap"))
+}
+
+/// Path of the `.vst3` bundle directory of `variant` (built first if needed).
+pub fn vst3_bundle(variant: Variant) -> PathBuf {
+    clap_bundle(variant).with_extension("vst3")
+}
+
+fn bundle_dir(variant: Variant) -> PathBuf {
+    let root = workspace_root();
+    let base = root.join("target").join("plugin-tests");
+    let out = base.join(variant.name());
+    let mut built = BUILT.lock().unwrap_or_else(|e| e.into_inner());
+    let reuse = std::env::var_os("MODAL_CONTACT_SKIP_BUNDLE").is_some()
+        && out.join(format!("{BUNDLE_NAME}.clap")).exists();
+    if built.contains(&variant) || reuse {
+        return out;
+    }
+    let target_dir = base.join("cargo");
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let run = |cmd: &mut Command, what: &str| {
+        let status = cmd
+            .current_dir(&root)
+            .env_remove("CARGO_MANIFEST_DIR")
+            .env("CARGO_TARGET_DIR", &target_dir)
+            .status()
+            .unwrap_or_else(|e| panic!("spawn {what}: {e}"));
+        assert!(status.success(), "{what} failed");
+    };
+    run(
+        Command::new(&cargo).args(["build", "--quiet", "--package", "xtask", "--release"]),
+        "building xtask",
+    );
+    run(
+        Command::new(target_dir.join("release").join("xtask"))
+            .args(["bundle", BUNDLE_NAME])
+            .args(variant.bundle_args()),
+        "cargo xtask bundle",
+    );
+    copy_bundles(&target_dir.join("bundled"), &out);
+    built.push(variant);
+    out
+}
+
+/// Copy `modal_contact.clap` and `modal_contact.vst3/` from `bundled` to `out`.
+pub fn copy_bundles(bundled: &Path, out: &Path) {
+    let _ = std::fs::remove_dir_all(out);
+    copy_tree(
+        &bundled.join(format!("{BUNDLE_NAME}.vst3")),
+        &out.join(format!("{BUNDLE_NAME}.vst3")),
+    );
+    std::fs::copy(
+        bundled.join(format!("{BUNDLE_NAME}.clap")),
+        out.join(format!("{BUNDLE_NAME}.clap")),
+    )
+    .expect("copy .clap");
+}
+
+fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).expect("mkdir");
+    for entry in std::fs::read_dir(from).unwrap_or_else(|e| panic!("{}: {e}", from.display())) {
+        let entry = entry.expect("dir entry");
+        let dest = to.join(entry.file_name());
+        if entry.file_type().expect("file type").is_dir() {
+            copy_tree(&entry.path(), &dest);
+        } else {
+            std::fs::copy(entry.path(), &dest).expect("copy");
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Minimal clack host
+
+/// Host callbacks (all no-ops: the test drives everything itself).
+pub struct TestShared;
+
+impl SharedHandler<'_> for TestShared {
+    fn request_restart(&self) {}
+    fn request_process(&self) {}
+    fn request_callback(&self) {}
+}
+
+/// Host type.
+pub struct TestHost;
+
+impl HostHandlers for TestHost {
+    type Shared<'a> = TestShared;
+    type MainThread<'a> = ();
+    type AudioProcessor<'a> = ();
+}
+
+/// Descriptor data read from the plugin factory.
+#[derive(Debug, Clone)]
+pub struct DescriptorInfo {
+    /// CLAP id.
+    pub id: String,
+    /// Display name.
+    pub name: String,
+    /// Feature strings.
+    pub features: Vec<String>,
+}
+
+/// An event at an absolute sample position of a render.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum HostEvent {
+    /// Note on (velocity 0..1).
+    NoteOn {
+        /// Sample position.
+        at: usize,
+        /// MIDI key.
+        key: u8,
+        /// Velocity 0..1.
+        velocity: f64,
+    },
+    /// Note off.
+    NoteOff {
+        /// Sample position.
+        at: usize,
+        /// MIDI key.
+        key: u8,
+    },
+    /// Parameter value (CLAP value: normalised for continuous parameters,
+    /// step index for enums and bools).
+    Param {
+        /// Sample position.
+        at: usize,
+        /// CLAP param id.
+        id: u32,
+        /// Value.
+        value: f64,
+    },
+}
+
+impl HostEvent {
+    /// Sample position.
+    pub fn at(&self) -> usize {
+        match *self {
+            HostEvent::NoteOn { at, .. }
+            | HostEvent::NoteOff { at, .. }
+            | HostEvent::Param { at, .. } => at,
+        }
+    }
+}
+
+/// nice-plug's string id -> CLAP param id hash.
+pub fn param_id(id: &str) -> u32 {
+    let mut hash: u32 = 0;
+    for b in id.bytes() {
+        hash = hash.wrapping_mul(31).wrapping_add(b as u32);
+    }
+    hash & !(1 << 31)
+}
+
+/// A loaded plugin instance.
+pub struct LoadedPlugin {
+    // Field order matters: the instance is dropped before the entry.
+    instance: PluginInstance<TestHost>,
+    _entry: PluginEntry,
+}
+
+fn host_info() -> HostInfo {
+    HostInfo::new(
+        "modal-contact-test-host",
+        "modal_contact",
+        "https://example.invalid",
+        "0.1.0",
+    )
+    .expect("host info")
+}
+
+/// Entries are never unloaded: dlclose'ing the plugin while a thread that
+/// called into it is alive makes that thread crash at exit (a TLS destructor
+/// registered by the plugin runs after its code was unmapped).
+static KEEP_LOADED: Mutex<Vec<(PathBuf, PluginEntry)>> = Mutex::new(Vec::new());
+
+fn load_entry(bundle: &Path) -> PluginEntry {
+    let mut kept = KEEP_LOADED.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, e)) = kept.iter().find(|(p, _)| p == bundle) {
+        return e.clone();
+    }
+    // SAFETY: loading a dynamic library runs its initialisers; it is our own build.
+    let entry = unsafe { PluginEntry::load(bundle) }
+        .unwrap_or_else(|e| panic!("load CLAP entry {}: {e:?}", bundle.display()));
+    kept.push((bundle.to_path_buf(), entry.clone()));
+    entry
+}
+
+/// The descriptors of the bundle's factory.
+pub fn descriptors(bundle: &Path) -> Vec<DescriptorInfo> {
+    let entry = load_entry(bundle);
+    let factory = entry.get_plugin_factory().expect("plugin factory");
+    factory
+        .plugin_descriptors()
+        .map(|d| DescriptorInfo {
+            id: d.id().expect("id").to_string_lossy().into_owned(),
+            name: d.name().expect("name").to_string_lossy().into_owned(),
+            features: d
+                .features()
+                .map(|f| f.to_string_lossy().into_owned())
+                .collect(),
+        })
+        .collect()
+}
+
+/// How a render is run.
+#[derive(Debug, Clone)]
+pub struct RenderSpec {
+    /// Sample rate [Hz].
+    pub rate_hz: f64,
+    /// Block size (the last block may be shorter).
+    pub max_block: usize,
+    /// Frames to render.
+    pub total: usize,
+    /// Events (any order).
+    pub events: Vec<HostEvent>,
+    /// After the block containing each of these positions, wait this long
+    /// [ms] so the plugin's worker can finish a compile (an offline render
+    /// runs far faster than real time). Not a timing assertion.
+    pub settle_after: Vec<usize>,
+    /// See `settle_after`.
+    pub settle_ms: u64,
+}
+
+impl RenderSpec {
+    /// A render with no settling pauses.
+    pub fn new(rate_hz: f64, max_block: usize, total: usize, events: Vec<HostEvent>) -> Self {
+        Self {
+            rate_hz,
+            max_block,
+            total,
+            events,
+            settle_after: Vec::new(),
+            settle_ms: 0,
+        }
+    }
+}
+
+impl LoadedPlugin {
+    /// Load and instantiate the plugin of `bundle`.
+    pub fn load(bundle: &Path) -> Self {
+        let entry = load_entry(bundle);
+        let id = CString::new(PLUGIN_ID).expect("id");
+        let instance =
+            PluginInstance::<TestHost>::new(|_| TestShared, |_| (), &entry, &id, &host_info())
+                .expect("instantiate plugin");
+        Self {
+            instance,
+            _entry: entry,
+        }
+    }
+
+    /// (id, name) of every parameter, via the params extension.
+    pub fn param_infos(&mut self) -> Vec<(u32, String)> {
+        let handle = self.instance.plugin_handle();
+        let params: PluginParams = handle.get_extension().expect("params extension");
+        let mut out = Vec::new();
+        for i in 0..params.count(&handle) {
+            let mut buf = ParamInfoBuffer::new();
+            if let Some(info) = params.get_info(&handle, i, &mut buf) {
+                out.push((
+                    info.id.get(),
+                    String::from_utf8_lossy(info.name).into_owned(),
+                ));
+            }
+        }
+        out
+    }
+
+    /// A parameter's CLAP value.
+    pub fn param_value(&mut self, id: u32) -> f64 {
+        let handle = self.instance.plugin_handle();
+        let params: PluginParams = handle.get_extension().expect("params extension");
+        params
+            .get_value(&handle, ClapId::new(id))
+            .expect("param value")
+    }
+
+    /// Save the plugin state.
+    pub fn save_state(&mut self) -> Vec<u8> {
+        let handle = self.instance.plugin_handle();
+        let state: PluginState = handle.get_extension().expect("state extension");
+        let mut bytes = Vec::new();
+        state.save(&handle, &mut bytes).expect("save state");
+        bytes
+    }
+
+    /// Load a saved state.
+    pub fn load_state(&mut self, bytes: &[u8]) {
+        let handle = self.instance.plugin_handle();
+        let state: PluginState = handle.get_extension().expect("state extension");
+        state.load(&handle, &mut &bytes[..]).expect("load state");
+    }
+
+    /// Activate, render, deactivate. Returns `[left, right]`.
+    pub fn render(&mut self, spec: &RenderSpec) -> [Vec<f32>; 2] {
+        let config = PluginAudioConfiguration {
+            sample_rate: spec.rate_hz,
+            min_frames_count: 1,
+            max_frames_count: spec.max_block as u32,
+        };
+        let processor = self.instance.activate(|_, _| (), config).expect("activate");
+        let mut processor = processor.start_processing().expect("start processing");
+
+        let mut sorted = spec.events.clone();
+        sorted.sort_by_key(|e| e.at());
+        let total = spec.total;
+        let max_block = spec.max_block;
+        let mut left = vec![0f32; max_block];
+        let mut right = vec![0f32; max_block];
+        let mut out = [Vec::with_capacity(total), Vec::with_capacity(total)];
+        let mut out_ports = AudioPorts::with_capacity(2, 1);
+        let input_audio = InputAudioBuffers::empty();
+        let mut in_events = EventBuffer::with_capacity(256);
+        let mut out_events = EventBuffer::with_capacity(256);
+        let mut next = 0usize;
+        let mut pos = 0usize;
+        while pos < total {
+            let len = max_block.min(total - pos);
+            in_events.clear();
+            out_events.clear();
+            while next < sorted.len() && sorted[next].at() < pos + len {
+                let t = (sorted[next].at() - pos) as u32;
+                match sorted[next] {
+                    HostEvent::NoteOn { key, velocity, .. } => in_events.push(&NoteOnEvent::new(
+                        t,
+                        Pckn::new(0u16, 0u16, key as u16, Match::All),
+                        velocity,
+                    )),
+                    HostEvent::NoteOff { key, .. } => in_events.push(&NoteOffEvent::new(
+                        t,
+                        Pckn::new(0u16, 0u16, key as u16, Match::All),
+                        0.0,
+                    )),
+                    HostEvent::Param { id, value, .. } => in_events.push(&ParamValueEvent::new(
+                        t,
+                        ClapId::new(id),
+                        Pckn::match_all(),
+                        value,
+                    )),
+                }
+                next += 1;
+            }
+            // Poison the buffers: the plugin must overwrite every sample.
+            left[..len].fill(f32::NAN);
+            right[..len].fill(f32::NAN);
+            let mut output_audio = out_ports.with_output_buffers([AudioPortBuffer {
+                latency: 0,
+                channels: AudioPortBufferType::f32_output_only(
+                    [&mut left[..len], &mut right[..len]].into_iter(),
+                ),
+            }]);
+            processor
+                .process(
+                    &input_audio,
+                    &mut output_audio,
+                    &in_events.as_input(),
+                    &mut out_events.as_output(),
+                    Some(pos as u64),
+                    None,
+                )
+                .expect("process");
+            out[0].extend_from_slice(&left[..len]);
+            out[1].extend_from_slice(&right[..len]);
+            if spec.settle_after.iter().any(|&s| s >= pos && s < pos + len) {
+                std::thread::sleep(std::time::Duration::from_millis(spec.settle_ms));
+            }
+            pos += len;
+        }
+        let stopped = processor.stop_processing();
+        self.instance.deactivate(stopped);
+        out
+    }
+}
+
+// ---------------------------------------------------------------------------
+// The same notes through the instrument library, no plugin
+
+/// Render `events` (note events only) with the instrument library directly,
+/// at the plugin's parameter defaults `params`. Velocities are rounded to f32
+/// as nice-plug does. Returns `[left, right]`.
+pub fn library_render(
+    params: &InstrumentParams,
+    rate_hz: f64,
+    total: usize,
+    events: &[HostEvent],
+) -> [Vec<f32>; 2] {
+    let prepared = prepare(&params.scene, rate_hz, 0).expect("compile");
+    let mut inst = Instrument::new(prepared, params.play);
+    let mut sorted: Vec<LibEvent> = events
+        .iter()
+        .filter_map(|e| match *e {
+            HostEvent::NoteOn { at, key, velocity } => Some(LibEvent {
+                offset: at,
+                event: Event::NoteOn {
+                    key,
+                    velocity_norm: velocity as f32 as f64,
+                },
+            }),
+            HostEvent::NoteOff { at, key } => Some(LibEvent {
+                offset: at,
+                event: Event::NoteOff { key },
+            }),
+            HostEvent::Param { .. } => None,
+        })
+        .collect();
+    sorted.sort_by_key(|e| e.offset);
+    let mut l = vec![0.0; total];
+    let mut r = vec![0.0; total];
+    inst.process(&sorted, &mut l, &mut r);
+    [l, r]
+}
+
+// ---------------------------------------------------------------------------
+// Signal helpers
+
+/// Root mean square (0 for empty).
+pub fn rms(x: &[f32]) -> f64 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    (x.iter().map(|&v| (v as f64) * (v as f64)).sum::<f64>() / x.len() as f64).sqrt()
+}
+
+/// Peak magnitude.
+pub fn peak(x: &[f32]) -> f64 {
+    x.iter().fold(0.0f64, |m, v| m.max(v.abs() as f64))
+}
+
+/// Largest sample-to-sample change.
+pub fn max_step(x: &[f32]) -> f64 {
+    x.windows(2)
+        .map(|w| (w[1] as f64 - w[0] as f64).abs())
+        .fold(0.0, f64::max)
+}
+
+/// Index of the first sample whose magnitude exceeds `threshold`.
+pub fn first_above(x: &[f32], threshold: f32) -> Option<usize> {
+    x.iter().position(|v| v.abs() > threshold)
+}
+
+/// Largest absolute difference.
+pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (*x as f64 - *y as f64).abs())
+        .fold(0.0, f64::max)
+}
+
+/// Write a stereo 32-bit float WAV.
+pub fn write_wav(path: &Path, rate_hz: f64, ch: &[Vec<f32>; 2]) {
+    if let Some(d) = path.parent() {
+        std::fs::create_dir_all(d).expect("mkdir");
+    }
+    let spec = hound::WavSpec {
+        channels: 2,
+        sample_rate: rate_hz.round() as u32,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut w = hound::WavWriter::create(path, spec)
+        .unwrap_or_else(|e| panic!("create {}: {e}", path.display()));
+    for (l, r) in ch[0].iter().zip(&ch[1]) {
+        w.write_sample(*l).expect("write");
+        w.write_sample(*r).expect("write");
+    }
+    w.finalize().expect("finalize wav");
+}

@@ -3,8 +3,13 @@
 //! - `cargo xtask bundle modal_contact --release` -> `target/bundled/*.clap, *.vst3`
 //! - `cargo xtask render SCENE.toml --out OUT.wav [--trace OUT.csv] [--plot OUT.svg]
 //!   [--seconds S] [--rate HZ] [--switching offset-rod|exact]` (DESIGN.md section 5)
+//! - `cargo xtask test [CARGO TEST ARGS]`: every test, including the plugin
+//!   tests on the built bundles and the VST3 test through pedalboard
+//! - `cargo xtask demo`: bundle (release) and render a demo through the built
+//!   CLAP plugin into `target/demo/*.wav`
 
 mod plot;
+mod report;
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;
@@ -46,7 +51,9 @@ fn main() -> Result<()> {
             args.remove(1);
             run_render(RenderArgs::parse_from(args))
         }
+        Some("report") => report::run(&args[2..]),
         Some("test") => run_tests(&args[2..]),
+        Some("demo") => run_demo(),
         _ => nice_plug_xtask::main(),
     }
 }
@@ -54,22 +61,164 @@ fn main() -> Result<()> {
 /// Run a command, failing with its exit status.
 fn run(cmd: &mut std::process::Command) -> Result<()> {
     eprintln!("+ {cmd:?}");
-    let status = cmd.status().with_context(|| format!("cannot run {cmd:?}"))?;
+    let status = cmd
+        .status()
+        .with_context(|| format!("cannot run {cmd:?}"))?;
     if !status.success() {
         bail!("{cmd:?} failed: {status}");
     }
     Ok(())
 }
 
-/// `cargo xtask test`: every test of the project (the README's test command).
+/// The plugin bundles the plugin tests use: (directory under
+/// `target/plugin-tests/`, `cargo xtask bundle` arguments). The checked
+/// builds use the `test-release` profile (optimised, debug assertions on, so
+/// nice-plug's `assert_process_allocs` is active) and share its dependencies
+/// with the test build. Release comes last so `target/bundled/` ends up with
+/// the release bundle users install.
+const TEST_BUNDLES: [(&str, &[&str]); 3] = [
+    (
+        "rt-checks",
+        &["--profile", "test-release", "--features", "rt-checks"],
+    ),
+    (
+        "alloc-bug",
+        &[
+            "--profile",
+            "test-release",
+            "--features",
+            "rt-checks,alloc-bug",
+        ],
+    ),
+    ("release", &["--release"]),
+];
+
+/// `cargo xtask bundle modal_contact ARGS` in-process, then copy the result
+/// out of the shared `target/bundled/` to `target/plugin-tests/NAME/`.
+fn bundle_to(name: &str, args: &[&str]) -> Result<PathBuf> {
+    let mut all = vec!["bundle".to_string(), "modal_contact".to_string()];
+    all.extend(args.iter().map(|a| a.to_string()));
+    eprintln!("+ cargo xtask {}", all.join(" "));
+    nice_plug_xtask::main_with_args("cargo xtask", all)?;
+    let out = PathBuf::from("target/plugin-tests").join(name);
+    let _ = std::fs::remove_dir_all(&out);
+    copy_tree(
+        std::path::Path::new("target/bundled/modal_contact.vst3"),
+        &out.join("modal_contact.vst3"),
+    )?;
+    std::fs::copy(
+        "target/bundled/modal_contact.clap",
+        out.join("modal_contact.clap"),
+    )?;
+    Ok(std::fs::canonicalize(&out)?)
+}
+
+fn copy_tree(from: &std::path::Path, to: &std::path::Path) -> Result<()> {
+    std::fs::create_dir_all(to)?;
+    for entry in std::fs::read_dir(from).with_context(|| format!("{}", from.display()))? {
+        let entry = entry?;
+        let dest = to.join(entry.file_name());
+        if entry.file_type()?.is_dir() {
+            copy_tree(&entry.path(), &dest)?;
+        } else {
+            std::fs::copy(entry.path(), &dest)?;
+        }
+    }
+    Ok(())
+}
+
+/// The Python venv for the VST3 test (pedalboard, mido, numpy).
+fn ensure_venv() -> Result<PathBuf> {
+    let python = PathBuf::from("target/venv/bin/python");
+    let ok = python.exists()
+        && std::process::Command::new(&python)
+            .args(["-c", "import pedalboard, mido, numpy"])
+            .status()
+            .map(|s| s.success())
+            .unwrap_or(false);
+    if !ok {
+        run(std::process::Command::new("python3").args(["-m", "venv", "target/venv"]))?;
+        run(std::process::Command::new("target/venv/bin/pip").args([
+            "install",
+            "--quiet",
+            "pedalboard",
+            "mido",
+            "numpy",
+        ]))?;
+    }
+    Ok(python)
+}
+
+/// `cargo xtask test`: every test of the project (the README's test command):
+/// bundles the plugin three ways (release; rt-checks; rt-checks + alloc-bug),
+/// runs the workspace tests (plugin-tests load those bundles), then renders
+/// the VST3 with pedalboard.
 fn run_tests(extra: &[String]) -> Result<()> {
     nice_plug_xtask::chdir_workspace_root()?;
+    let python = ensure_venv()?;
+    let mut dirs = Vec::new();
+    for (name, args) in TEST_BUNDLES {
+        dirs.push((name, bundle_to(name, args)?));
+    }
     // The numerical tests run long loops (1e6 samples with per-sample energy
     // checks): release mode keeps them fast; debug assertions stay on.
-    run(std::process::Command::new("cargo")
-        .args(["test", "--workspace", "--profile", "test-release"])
-        .args(extra))?;
+    let mut cmd = std::process::Command::new("cargo");
+    cmd.args(["test", "--workspace", "--profile", "test-release"])
+        .args(extra);
+    for (name, dir) in &dirs {
+        cmd.env(
+            format!(
+                "MODAL_CONTACT_CLAP_{}",
+                name.to_uppercase().replace('-', "_")
+            ),
+            dir.join("modal_contact.clap"),
+        );
+    }
+    run(&mut cmd)?;
+    // The VST3 test compares with the library through this binary.
+    run(std::process::Command::new("cargo").args([
+        "build",
+        "--package",
+        "plugin-tests",
+        "--profile",
+        "test-release",
+        "--bin",
+        "render-reference",
+    ]))?;
+    let release = &dirs
+        .iter()
+        .find(|(n, _)| *n == "release")
+        .expect("release")
+        .1;
+    run(std::process::Command::new(&python)
+        .arg("plugin-tests/vst3/test_vst3.py")
+        .env("MODAL_CONTACT_VST3", release.join("modal_contact.vst3"))
+        .env(
+            "MODAL_CONTACT_REFERENCE",
+            "target/test-release/render-reference",
+        ))?;
     Ok(())
+}
+
+/// `cargo xtask demo`: bundle the release plugin and render the demo through
+/// the built CLAP plugin (plugin-tests' host) into `target/demo/`.
+fn run_demo() -> Result<()> {
+    nice_plug_xtask::chdir_workspace_root()?;
+    nice_plug_xtask::main_with_args(
+        "cargo xtask",
+        ["bundle", "modal_contact", "--release"].map(String::from),
+    )?;
+    run(std::process::Command::new("cargo").args([
+        "run",
+        "--package",
+        "plugin-tests",
+        "--release",
+        "--bin",
+        "render-demo",
+        "--",
+        "target/bundled/modal_contact.clap",
+        "target/demo",
+    ]))
 }
 
 fn run_render(a: RenderArgs) -> Result<()> {

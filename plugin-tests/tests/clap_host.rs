@@ -1,0 +1,317 @@
+//! Drives the BUILT `.clap` bundles through clack-host: descriptor,
+//! parameters, note timing at 44.1 and 96 kHz, velocity, equality with the
+//! instrument library, a parameter swap in the middle of a render, and state.
+//! Renders go to `target/plugin-tests/wav/`.
+
+use modal_contact::instrument::InstrumentParams;
+use modal_contact::plugin::params::ids;
+use modal_contact::presets;
+use plugin_tests::*;
+
+const ALL_IDS: [&str; 13] = [
+    ids::SCENE,
+    ids::HAMMER_MASS,
+    ids::HARDNESS,
+    ids::CONTACT_DAMPING,
+    ids::STRIKE_CUSTOM,
+    ids::STRIKE_POS,
+    ids::DECAY,
+    ids::DAMPER,
+    ids::PITCH_TRACKING,
+    ids::GRAVITY,
+    ids::DROP_HEIGHT,
+    ids::GAIN,
+    ids::SWITCHING,
+];
+
+fn on(at: usize, key: u8, velocity: f64) -> HostEvent {
+    HostEvent::NoteOn { at, key, velocity }
+}
+
+fn off(at: usize, key: u8) -> HostEvent {
+    HostEvent::NoteOff { at, key }
+}
+
+fn param(at: usize, id: &str, value: f64) -> HostEvent {
+    HostEvent::Param {
+        at,
+        id: param_id(id),
+        value,
+    }
+}
+
+/// A phrase on the default scene (marimba bar, root A3 = 57): a chord, a
+/// repeated note while it rings, a release, more notes than voices.
+fn phrase(rate: f64) -> Vec<HostEvent> {
+    let s = |t: f64| (t * rate) as usize;
+    let mut ev = vec![
+        on(s(0.010) + 3, 57, 0.8),
+        on(s(0.010) + 3, 61, 0.6),
+        on(s(0.010) + 3, 64, 0.7),
+        on(s(0.300), 57, 0.9), // repeated: strikes the ringing bar again
+        on(s(0.301), 57, 0.4),
+        off(s(0.600), 61),
+        off(s(0.700), 57),
+    ];
+    for i in 0..20u8 {
+        ev.push(on(
+            s(0.8) + 977 * i as usize,
+            45 + 2 * i,
+            0.2 + 0.04 * i as f64,
+        ));
+    }
+    ev.push(off(s(1.5), 47));
+    ev
+}
+
+#[test]
+fn descriptor_is_an_instrument() {
+    let d = descriptors(&clap_bundle(Variant::Release));
+    assert_eq!(d.len(), 1);
+    assert_eq!(d[0].id, PLUGIN_ID);
+    assert_eq!(d[0].name, "Modal Contact");
+    for f in ["instrument", "synthesizer", "stereo"] {
+        assert!(d[0].features.iter().any(|x| x == f), "{:?}", d[0].features);
+    }
+}
+
+#[test]
+fn every_parameter_is_exposed_under_its_stable_id() {
+    let mut p = LoadedPlugin::load(&clap_bundle(Variant::Release));
+    let infos = p.param_infos();
+    println!("{} parameters: {infos:?}", infos.len());
+    assert_eq!(infos.len(), ALL_IDS.len());
+    for id in ALL_IDS {
+        assert!(
+            infos.iter().any(|(h, _)| *h == param_id(id)),
+            "{id} missing: {infos:?}"
+        );
+    }
+    // defaults: marimba bar, pitch tracking on, exact switching requested
+    let marimba = presets::index_of("marimba-bar").unwrap() as f64;
+    let expect = [
+        (ids::SCENE, marimba),
+        (ids::PITCH_TRACKING, 1.0),
+        (ids::SWITCHING, 1.0),
+        (ids::STRIKE_CUSTOM, 0.0),
+    ];
+    for (id, v) in expect {
+        let got = p.param_value(param_id(id));
+        assert!((got - v).abs() < 1e-6, "{id}: {got} != {v}");
+    }
+}
+
+fn check_note_timing(variant: Variant, rate: f64, block: usize) {
+    let mut p = LoadedPlugin::load(&clap_bundle(variant));
+    let at = 2 * block + 137; // inside the third block, not on a boundary
+    let total = (rate * 3.0) as usize;
+    let spec = RenderSpec::new(rate, block, total, vec![on(at, 57, 0.8)]);
+    let out = p.render(&spec);
+    write_wav(
+        &out_dir().join(format!("timing-{}-{}.wav", variant.name(), rate as u32)),
+        rate,
+        &out,
+    );
+    let [l, r] = &out;
+    assert_eq!(l.len(), total);
+    assert!(
+        l.iter().chain(r).all(|v| v.is_finite()),
+        "non-finite output"
+    );
+    assert!(
+        l[..at].iter().chain(&r[..at]).all(|&v| v == 0.0),
+        "sound before the note"
+    );
+    let first = first_above(l, 0.0).expect("sound");
+    println!(
+        "{} @ {rate} Hz: note at {at}, first non-zero sample {first}, peak {:.3}",
+        variant.name(),
+        peak(l)
+    );
+    assert!(first > at && first <= at + 3, "first sound at {first}");
+    assert!(rms(&l[at..at + rate as usize]) > 1e-3);
+}
+
+#[test]
+fn notes_start_at_their_sample_44k1() {
+    check_note_timing(Variant::Release, 44_100.0, 512);
+}
+
+#[test]
+fn notes_start_at_their_sample_96k() {
+    check_note_timing(Variant::Release, 96_000.0, 1024);
+}
+
+#[test]
+fn louder_velocity_is_louder() {
+    let bundle = clap_bundle(Variant::Release);
+    let level = |velocity| {
+        let mut p = LoadedPlugin::load(&bundle);
+        let spec = RenderSpec::new(44_100.0, 256, 44_100, vec![on(100, 57, velocity)]);
+        let [l, _] = p.render(&spec);
+        (rms(&l), peak(&l))
+    };
+    let levels: Vec<(f64, f64)> = [0.2, 0.5, 0.8, 1.0].into_iter().map(level).collect();
+    println!("velocity 0.2/0.5/0.8/1.0 -> (rms, peak) {levels:?}");
+    for w in levels.windows(2) {
+        assert!(w[1].0 > w[0].0 * 1.2, "{levels:?}");
+    }
+}
+
+fn check_equals_library(variant: Variant, rate: f64, block: usize) {
+    let bundle = clap_bundle(variant);
+    let mut p = LoadedPlugin::load(&bundle);
+    let events = phrase(rate);
+    let total = (rate * 3.0) as usize;
+    let plugin = p.render(&RenderSpec::new(rate, block, total, events.clone()));
+    let lib = library_render(&InstrumentParams::default(), rate, total, &events);
+    write_wav(
+        &out_dir().join(format!("phrase-{}-{}.wav", variant.name(), rate as u32)),
+        rate,
+        &plugin,
+    );
+    let d = max_abs_diff(&plugin[0], &lib[0]).max(max_abs_diff(&plugin[1], &lib[1]));
+    println!(
+        "{} @ {rate} Hz, block {block}: peak {:.4}, max |plugin - library| = {d:.3e}",
+        variant.name(),
+        peak(&plugin[0])
+    );
+    assert!(plugin[0].iter().chain(&plugin[1]).all(|v| v.is_finite()));
+    assert!(peak(&plugin[0]) > 0.05);
+    assert!(d <= 1e-6, "plugin and library differ by {d}");
+}
+
+#[test]
+fn output_equals_the_instrument_library_44k1() {
+    check_equals_library(Variant::Release, 44_100.0, 512);
+}
+
+#[test]
+fn output_equals_the_instrument_library_96k_odd_blocks() {
+    check_equals_library(Variant::Release, 96_000.0, 333);
+}
+
+/// The rt-checks build (allocation in process aborts) plays the same phrase
+/// with the same result.
+#[test]
+fn rt_checks_build_equals_the_library() {
+    check_equals_library(Variant::RtChecks, 44_100.0, 128);
+}
+
+pub fn check_param_swap(variant: Variant) {
+    let rate = 44_100.0;
+    let total = (rate * 2.5) as usize;
+    let notes = vec![on(100, 57, 0.9), on(130, 64, 0.7), on(5000, 69, 0.8)];
+    let change = 22_050 + 77;
+    // Decay scale 1 -> 0.18 x and hardness up: the worker recompiles, the
+    // audio thread swaps at a block boundary and rebinds the ringing voices.
+    let mut changed = notes.clone();
+    changed.push(param(change, ids::DECAY, 0.3));
+    changed.push(param(change, ids::HARDNESS, 0.5));
+    let mut spec = RenderSpec::new(rate, 256, total, changed);
+    spec.settle_after = vec![change];
+    spec.settle_ms = 300;
+    let bundle = clap_bundle(variant);
+    let mut p = LoadedPlugin::load(&bundle);
+    let with = p.render(&spec);
+    let decay_now = p.param_value(param_id(ids::DECAY));
+    assert!((decay_now - 0.3).abs() < 1e-6, "{decay_now}");
+    let mut q = LoadedPlugin::load(&bundle);
+    let without = q.render(&RenderSpec::new(rate, 256, total, notes));
+    write_wav(
+        &out_dir().join(format!("param-swap-{}.wav", variant.name())),
+        rate,
+        &with,
+    );
+    let l = &with[0];
+    assert!(l.iter().chain(&with[1]).all(|v| v.is_finite()));
+    assert_eq!(
+        &l[..change],
+        &without[0][..change],
+        "nothing changes before the event"
+    );
+    let swap = (change..total)
+        .find(|&k| l[k] != without[0][k])
+        .expect("the new scene was never swapped in");
+    let own = max_step(&l[change - 4410..change]);
+    let at_swap = max_step(&l[swap - 1..swap + 256]);
+    let late = |x: &[f32]| rms(&x[swap + 11_025..swap + 22_050]);
+    println!(
+        "{}: param change at {change}, swapped in at {swap} (+{} samples); \
+         max step around the swap {at_swap:.3e} vs the signal's own {own:.3e}; \
+         late rms {:.3e} (unchanged render {:.3e})",
+        variant.name(),
+        swap - change,
+        late(l),
+        late(&without[0])
+    );
+    assert!(
+        swap < change + (0.3 * rate) as usize,
+        "swap too late to test"
+    );
+    assert!(at_swap <= own, "jump at the swap: {at_swap} > {own}");
+    assert!(late(l) < 0.2 * late(&without[0]), "shorter decay not heard");
+}
+
+#[test]
+fn parameter_change_mid_render_swaps_without_a_jump() {
+    check_param_swap(Variant::Release);
+}
+
+#[test]
+fn parameter_change_mid_render_under_rt_checks() {
+    check_param_swap(Variant::RtChecks);
+}
+
+#[test]
+fn saved_state_restores_every_parameter() {
+    let bundle = clap_bundle(Variant::Release);
+    let mut a = LoadedPlugin::load(&bundle);
+    // Non-default values for all 13, set through process() as automation.
+    let values = [
+        (ids::SCENE, presets::index_of("bell").unwrap() as f64),
+        (ids::HAMMER_MASS, 0.7),
+        (ids::HARDNESS, 0.2),
+        (ids::CONTACT_DAMPING, 0.4),
+        (ids::STRIKE_CUSTOM, 1.0),
+        (ids::STRIKE_POS, 0.25),
+        (ids::DECAY, 0.6),
+        (ids::DAMPER, 0.9),
+        (ids::PITCH_TRACKING, 0.0),
+        (ids::GRAVITY, 0.3),
+        (ids::DROP_HEIGHT, 0.7),
+        (ids::GAIN, 0.8),
+        (ids::SWITCHING, 0.0),
+    ];
+    let events: Vec<HostEvent> = values
+        .iter()
+        .enumerate()
+        .map(|(i, (id, v))| param(i, id, *v))
+        .collect();
+    a.render(&RenderSpec::new(48_000.0, 64, 64, events));
+    let before: Vec<f64> = ALL_IDS
+        .iter()
+        .map(|id| a.param_value(param_id(id)))
+        .collect();
+    for ((id, v), got) in values.iter().zip(&before) {
+        assert!((got - v).abs() < 1e-6, "{id}: set {v}, reads {got}");
+    }
+    let state = a.save_state();
+    println!("state: {} bytes", state.len());
+
+    let mut b = LoadedPlugin::load(&bundle);
+    assert_ne!(b.param_value(param_id(ids::SCENE)), before[0]);
+    b.load_state(&state);
+    let after: Vec<f64> = ALL_IDS
+        .iter()
+        .map(|id| b.param_value(param_id(id)))
+        .collect();
+    assert_eq!(before, after, "restored parameters differ");
+
+    // and the restored instance sounds like the original one
+    let notes = vec![on(10, 69, 0.8), off(2000, 69), on(3000, 72, 0.5)];
+    let ra = a.render(&RenderSpec::new(44_100.0, 512, 22_050, notes.clone()));
+    let rb = b.render(&RenderSpec::new(44_100.0, 512, 22_050, notes));
+    assert!(peak(&ra[0]) > 1e-4);
+    assert_eq!(ra, rb);
+}
