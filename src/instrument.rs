@@ -83,6 +83,7 @@ pub const DEFAULT_ROOT_NOTE: f64 = 60.0;
 pub const RETIRED_SLOTS: usize = 4;
 
 /// Velocity (0..1) to the hammer's impact speed [m/s]: `0.05 + 2.95 vel^2`.
+/// [any-thread]
 pub fn impact_speed_m_per_s(velocity_norm: f64) -> f64 {
     let v = if velocity_norm.is_finite() {
         velocity_norm.clamp(0.0, 1.0)
@@ -302,7 +303,7 @@ pub fn damped_scene(scene: &Scene, damper_norm: f64) -> Scene {
 
 /// Lowest modal frequency of the struck object [Hz], if it has one (a
 /// string's lowest mode from `omega_1 = 2 sqrt(s/m) sin(pi / (2 (n + 1)))`,
-/// damping neglected).
+/// damping neglected). [any-thread]
 pub fn lowest_frequency_hz(scene: &Scene) -> Option<f64> {
     let ci = scene.object_index(&scene.contact.object)?;
     match &scene.object[ci] {
@@ -324,6 +325,7 @@ pub fn lowest_frequency_hz(scene: &Scene) -> Option<f64> {
 }
 
 /// The MIDI note nearest the scene's lowest modal frequency (60 when unknown).
+/// [any-thread]
 pub fn root_note(scene: &Scene) -> f64 {
     match lowest_frequency_hz(scene) {
         Some(f) => (69.0 + 12.0 * (f / 440.0).log2()).round().clamp(0.0, 127.0),
