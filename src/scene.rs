@@ -110,6 +110,25 @@ pub struct Scene {
     /// What is heard.
     #[serde(default)]
     pub pickup: Vec<PickupSpec>,
+    /// Opt-in approximate savings (none by default).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub approximate: Option<ApproxSpec>,
+}
+
+/// Opt-in approximations: each drops modes and adds a (measured) error.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct ApproxSpec {
+    /// Drop modes above this frequency [Hz].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_freq_hz: Option<f64>,
+    /// Drop modes above this fraction of the Nyquist frequency (e.g. 0.9).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nyquist_fraction: Option<f64>,
+    /// Drop modes whose bounded contribution at the pickups is below this
+    /// level relative to the loudest mode [dB, negative, e.g. -80].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quiet_below_db: Option<f64>,
 }
 
 fn default_duration_s() -> f64 {
@@ -380,6 +399,23 @@ impl Scene {
                 ObjectSpec::Modal(m) => validate_modal(&base, m)?,
                 ObjectSpec::String(s) => validate_string(&base, s)?,
                 ObjectSpec::Wall(_) => {}
+            }
+        }
+        if let Some(a) = &self.approximate {
+            if let Some(f) = a.max_freq_hz {
+                check_positive("approximate.max_freq_hz", f)?;
+            }
+            if let Some(f) = a.nyquist_fraction {
+                check_positive("approximate.nyquist_fraction", f)?;
+            }
+            if let Some(db) = a.quiet_below_db {
+                check_finite("approximate.quiet_below_db", db)?;
+                if db >= 0.0 {
+                    return Err(SceneError::new(
+                        "approximate.quiet_below_db",
+                        format!("must be < 0 dB, got {db}"),
+                    ));
+                }
             }
         }
         let h = &self.hammer;

@@ -34,8 +34,10 @@ fn free_modal_object_matches_damped_sinusoids() {
     let mut st = EngineState::new(&sc);
     {
         let s = st.free_state_mut();
-        for i in 0..modes.len() {
-            s[2 * i + 1] = 1.0; // q_i' = 1
+        // structure of arrays: s[i] = omega_i q_i, s[n + i] = q_i'
+        let n = modes.len();
+        for i in 0..n {
+            s[n + i] = 1.0; // q_i' = 1
         }
     }
     let n = 100_000;

@@ -203,10 +203,12 @@ fn compiled_contact_propagator_matches_dense_expm() {
         let mut p = DMatrix::zeros(dim, dim);
         for (k, g) in gens.iter().enumerate() {
             let e = exp2(g, 1.0 / rate);
-            p[(2 * k, 2 * k)] = e[0];
-            p[(2 * k, 2 * k + 1)] = e[1];
-            p[(2 * k + 1, 2 * k)] = e[2];
-            p[(2 * k + 1, 2 * k + 1)] = e[3];
+            // block k acts on (s[k], s[nb + k]) (structure of arrays)
+            let nb = gens.len();
+            p[(k, k)] = e[0];
+            p[(k, nb + k)] = e[1];
+            p[(nb + k, k)] = e[2];
+            p[(nb + k, nb + k)] = e[3];
         }
         let vinv = ph.v.clone().try_inverse().unwrap();
         let ours = &ph.v * p * vinv;

@@ -82,12 +82,21 @@ impl EngineState {
             };
             let gens = ph.gens.as_ref().expect("block phase");
             let (mut f, mut d) = (0.0, 0.0);
-            for k in 0..gens.len() {
-                let p = if full { props[k] } else { exp2(&gens[k], tau) };
-                let (a, b) = (s[2 * k], s[2 * k + 1]);
-                let (x0, x1) = (p[0] * a + p[1] * b, p[2] * a + p[3] * b);
-                f += ph.ev[2 * k] * x0 + ph.ev[2 * k + 1] * x1;
-                d += ph.ev_d[2 * k] * x0 + ph.ev_d[2 * k + 1] * x1;
+            let nb = gens.len();
+            for k in 0..nb {
+                let (a, b) = (s[k], s[nb + k]);
+                let (x0, x1) = if tau == 0.0 {
+                    (a, b)
+                } else {
+                    let p = if full {
+                        props.get(k)
+                    } else {
+                        exp2(&gens[k], tau)
+                    };
+                    (p[0] * a + p[1] * b, p[2] * a + p[3] * b)
+                };
+                f += ph.ev[k] * x0 + ph.ev[nb + k] * x1;
+                d += ph.ev_d[k] * x0 + ph.ev_d[nb + k] * x1;
             }
             (f, d)
         };
@@ -138,11 +147,16 @@ impl EngineState {
             } else {
                 (&mut self.s_f, &self.p_f)
             };
-            for k in 0..gens.len() {
-                let p = if full { props[k] } else { exp2(&gens[k], tau) };
-                let (a, b) = (s[2 * k], s[2 * k + 1]);
-                s[2 * k] = p[0] * a + p[1] * b;
-                s[2 * k + 1] = p[2] * a + p[3] * b;
+            let nb = gens.len();
+            for k in 0..nb {
+                let p = if full {
+                    props.get(k)
+                } else {
+                    exp2(&gens[k], tau)
+                };
+                let (a, b) = (s[k], s[nb + k]);
+                s[k] = p[0] * a + p[1] * b;
+                s[nb + k] = p[2] * a + p[3] * b;
             }
         }
         if !in_contact {

@@ -17,11 +17,14 @@
 //! the physical ones divided by `s`.
 
 mod exact;
+pub mod kernel;
 
 pub use exact::{ExactStats, MAX_SWITCHES_PER_SAMPLE};
+pub use kernel::SimdPath;
+use kernel::{fused_step, rows_of, BlockProps, Rows};
 
 use crate::compile::{CompiledPhase, CompiledScene};
-use crate::physics::block::{exp2, Mat2};
+use crate::physics::block::exp2;
 use crate::scene::Switching;
 
 /// What the trace records per sample (DESIGN.md section 5), physical units.
@@ -69,9 +72,18 @@ pub enum TimeScaleError {
 pub struct EngineState {
     s_f: Vec<f64>,
     s_c: Vec<f64>,
+    /// Double buffers: the fused step writes here, then the vectors swap.
+    s_f_next: Vec<f64>,
+    s_c_next: Vec<f64>,
     scratch: Vec<f64>,
-    p_f: Vec<Mat2>,
-    p_c: Vec<Mat2>,
+    p_f: BlockProps,
+    p_c: BlockProps,
+    /// Kernel variant for this CPU.
+    simd: SimdPath,
+    /// Cached rows of the current state: `[ev . s, left, right]`, valid when
+    /// `cache_ok` (the fused step computes them for the next sample).
+    cache: [f64; 3],
+    cache_ok: bool,
     out_f: [Vec<f64>; 2],
     out_c: [Vec<f64>; 2],
     out_c_offset: [f64; 2],
@@ -109,9 +121,14 @@ impl EngineState {
         let mut st = EngineState {
             s_f: vec![0.0; df],
             s_c: vec![0.0; dc],
+            s_f_next: vec![0.0; df],
+            s_c_next: vec![0.0; dc],
             scratch: vec![0.0; df.max(dc)],
-            p_f: vec![[0.0; 4]; df / 2],
-            p_c: vec![[0.0; 4]; dc / 2],
+            p_f: BlockProps::new(df / 2),
+            p_c: BlockProps::new(dc / 2),
+            simd: SimdPath::detect(),
+            cache: [0.0; 3],
+            cache_ok: false,
             out_f: [vec![0.0; df], vec![0.0; df]],
             out_c: [vec![0.0; dc], vec![0.0; dc]],
             out_c_offset: [0.0; 2],
@@ -150,12 +167,30 @@ impl EngineState {
         self.v_h = scene.hammer_v0 / self.time_scale;
         self.contacts_started = 0;
         self.exact_stats = ExactStats::default();
+        self.cache_ok = false;
+    }
+
+    /// Use the portable kernel instead of the detected SIMD one (benchmarks
+    /// and equivalence tests). [any-thread]
+    pub fn set_simd_path(&mut self, path: SimdPath) {
+        self.simd = if path == SimdPath::Avx2Fma {
+            SimdPath::detect()
+        } else {
+            path
+        };
+    }
+
+    /// The kernel variant in use.
+    pub fn simd_path(&self) -> SimdPath {
+        self.simd
     }
 
     /// Free-phase coordinates of the struck object (for tests and tools that
-    /// set an initial vibration; for a modal object entry `2 i` is
-    /// `omega_i q_i` and `2 i + 1` is `q_i'` in reference time).
+    /// set an initial vibration). Structure of arrays: block `k` is
+    /// `(s[k], s[nb + k])`; for a modal object block `k` is mode `k`, i.e.
+    /// `s[k] = omega_k q_k` and `s[n + k] = q_k'` (reference time).
     pub fn free_state_mut(&mut self) -> &mut [f64] {
+        self.cache_ok = false;
         &mut self.s_f
     }
 
@@ -203,6 +238,7 @@ impl EngineState {
         }
         self.out_c_offset = [scene.offsets.disp_l, scene.offsets.disp_r];
         self.g = scene.g;
+        self.cache_ok = false;
     }
 
     /// Launch the hammer again from `height_m` with `velocity_m_per_s`
@@ -217,6 +253,7 @@ impl EngineState {
         let x_c = dot(&scene.free.rows.x_c, &self.s_f);
         self.x_h = x_c + height_m.max(0.0);
         self.v_h = velocity_m_per_s / self.time_scale;
+        self.cache_ok = false;
     }
 
     /// One sample: decide the phase at the current instant, return the output
@@ -227,14 +264,94 @@ impl EngineState {
         self.n_events = 0;
         self.t_in_step = 0.0;
         if scene.switching == Switching::Exact {
-            let out = self.output();
-            self.advance_exact(scene);
+            let out = self.output(scene);
+            if !self.try_fast_step(scene, true) {
+                self.advance_exact(scene);
+                self.cache_ok = false;
+            }
             return out;
         }
         self.decide(scene);
-        let out = self.output();
-        self.advance(scene);
+        let out = self.output(scene);
+        if !self.try_fast_step(scene, false) {
+            self.advance(scene);
+            self.cache_ok = false;
+        }
         out
+    }
+
+    /// The common case of a sample, in one fused O(N) pass: step the blocks
+    /// into the spare buffer while evaluating the event row and the outputs
+    /// of the new state. With exact switching the step is kept only if the
+    /// curvature bound certifies that no switch can happen inside it (see
+    /// `exact.rs`); otherwise nothing is changed and `false` is returned.
+    #[inline]
+    fn try_fast_step(&mut self, scene: &CompiledScene, certify: bool) -> bool {
+        let in_contact = self.in_contact;
+        let ph = if in_contact {
+            &scene.contact
+        } else {
+            &scene.free
+        };
+        if ph.dense.is_some() {
+            return false;
+        }
+        if !self.cache_ok {
+            self.refresh_cache(scene);
+        }
+        let (s, next, props, out) = if in_contact {
+            (&self.s_c, &mut self.s_c_next, &self.p_c, &self.out_c)
+        } else {
+            (&self.s_f, &mut self.s_f_next, &self.p_f, &self.out_f)
+        };
+        let rows = Rows {
+            ev: &ph.ev,
+            l: &out[0],
+            r: &out[1],
+        };
+        let f = fused_step(self.simd, props, s, next, &rows);
+        let dt = self.step_s;
+        let (x_h1, v_h1) = (
+            self.x_h + self.v_h * dt - 0.5 * self.g * dt * dt,
+            self.v_h - self.g * dt,
+        );
+        if certify {
+            let (phi0, phi1, g) = if in_contact {
+                let off = scene.offsets.pi / scene.sk;
+                (self.cache[0] + off, f[0] + off, 0.0)
+            } else {
+                (self.cache[0] + self.x_h, f[0] + x_h1, self.g)
+            };
+            let bound = g + ph.ev_dd_norm * f[3].sqrt() * (1.0 + 1e-12);
+            if !(phi1 > 0.0 && phi0.min(phi1) - bound * dt * dt / 8.0 > 0.0) {
+                return false;
+            }
+        }
+        if in_contact {
+            std::mem::swap(&mut self.s_c, &mut self.s_c_next);
+        } else {
+            std::mem::swap(&mut self.s_f, &mut self.s_f_next);
+            self.x_h = x_h1;
+            self.v_h = v_h1;
+        }
+        self.cache = [f[0], f[1], f[2]];
+        self.cache_ok = true;
+        true
+    }
+
+    fn refresh_cache(&mut self, scene: &CompiledScene) {
+        let (ph, s, out) = if self.in_contact {
+            (&scene.contact, &self.s_c, &self.out_c)
+        } else {
+            (&scene.free, &self.s_f, &self.out_f)
+        };
+        let rows = Rows {
+            ev: &ph.ev,
+            l: &out[0],
+            r: &out[1],
+        };
+        self.cache = rows_of(s, &rows);
+        self.cache_ok = true;
     }
 
     /// Like [`tick`](Self::tick) but also returns the trace observation taken
@@ -243,15 +360,21 @@ impl EngineState {
         self.n_events = 0;
         self.t_in_step = 0.0;
         if scene.switching == Switching::Exact {
-            let out = self.output();
+            let out = self.output(scene);
             let obs = self.observe(scene);
-            self.advance_exact(scene);
+            if !self.try_fast_step(scene, true) {
+                self.advance_exact(scene);
+                self.cache_ok = false;
+            }
             return (out, obs);
         }
         self.decide(scene);
-        let out = self.output();
+        let out = self.output(scene);
         let obs = self.observe(scene);
-        self.advance(scene);
+        if !self.try_fast_step(scene, false) {
+            self.advance(scene);
+            self.cache_ok = false;
+        }
         (out, obs)
     }
 
@@ -306,6 +429,7 @@ impl EngineState {
         }
         self.in_contact = true;
         self.contacts_started += 1;
+        self.cache_ok = false;
         self.log_event(true);
     }
 
@@ -327,6 +451,7 @@ impl EngineState {
         self.v_h = eta / scene.sm;
         self.rod_m = 0.0;
         self.in_contact = false;
+        self.cache_ok = false;
         self.log_event(false);
     }
 
@@ -347,17 +472,17 @@ impl EngineState {
     }
 
     #[inline]
-    fn output(&self) -> [f64; 2] {
+    fn output(&mut self, scene: &CompiledScene) -> [f64; 2] {
+        if !self.cache_ok {
+            self.refresh_cache(scene);
+        }
         if self.in_contact {
             [
-                dot(&self.out_c[0], &self.s_c) + self.out_c_offset[0],
-                dot(&self.out_c[1], &self.s_c) + self.out_c_offset[1],
+                self.cache[1] + self.out_c_offset[0],
+                self.cache[2] + self.out_c_offset[1],
             ]
         } else {
-            [
-                dot(&self.out_f[0], &self.s_f),
-                dot(&self.out_f[1], &self.s_f),
-            ]
+            [self.cache[1], self.cache[2]]
         }
     }
 
@@ -449,6 +574,7 @@ impl EngineState {
         let scale = self.time_scale;
         // re-derive propagators and output rows for the new scene
         self.set_time_scale_inner(new, scale);
+        self.cache_ok = false;
         true
     }
 
@@ -511,10 +637,10 @@ fn energy_coords(ph: &CompiledPhase, s: &[f64], s_star: &[f64]) -> Vec<f64> {
     y
 }
 
-fn fill_props(p: &mut [Mat2], ph: &CompiledPhase, dt: f64) {
+fn fill_props(p: &mut BlockProps, ph: &CompiledPhase, dt: f64) {
     if let Some(gens) = &ph.gens {
-        for (dst, g) in p.iter_mut().zip(gens) {
-            *dst = exp2(g, dt);
+        for (k, g) in gens.iter().enumerate() {
+            p.set(k, &exp2(g, dt));
         }
     }
 }
@@ -536,7 +662,7 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
 }
 
 #[inline]
-fn step_phase(ph: &CompiledPhase, p: &[Mat2], s: &mut [f64], scratch: &mut [f64]) {
+fn step_phase(ph: &CompiledPhase, p: &BlockProps, s: &mut [f64], scratch: &mut [f64]) {
     if let Some((_, phi)) = &ph.dense {
         let n = ph.dim;
         for i in 0..n {
@@ -545,11 +671,13 @@ fn step_phase(ph: &CompiledPhase, p: &[Mat2], s: &mut [f64], scratch: &mut [f64]
         }
         s[..n].copy_from_slice(&scratch[..n]);
     } else {
-        for (k, m) in p.iter().enumerate() {
-            let a = s[2 * k];
-            let b = s[2 * k + 1];
-            s[2 * k] = m[0] * a + m[1] * b;
-            s[2 * k + 1] = m[2] * a + m[3] * b;
+        let nb = p.len();
+        for k in 0..nb {
+            let m = p.get(k);
+            let a = s[k];
+            let b = s[nb + k];
+            s[k] = m[0] * a + m[1] * b;
+            s[nb + k] = m[2] * a + m[3] * b;
         }
     }
 }

@@ -32,7 +32,8 @@ pub const MAX_EXPM_DIFF_PER_KAPPA: f64 = 1e-12;
 /// How a phase is advanced.
 #[derive(Debug, Clone)]
 pub enum Form {
-    /// Real 2x2 blocks: state `s` with `y = V s`, one `exp2` per block.
+    /// Real 2x2 blocks: state `s` with `y = V s`, one `exp2` per block. Block
+    /// `k` acts on `(s[k], s[nb + k])` (structure of arrays).
     Blocks {
         /// Block generators `G_k`.
         gens: Vec<Mat2>,
@@ -113,13 +114,14 @@ pub fn blocks_to_dense(
     t: f64,
 ) -> DMatrix<f64> {
     let dim = v.nrows();
+    let nb = gens.len();
     let mut p = DMatrix::zeros(dim, dim);
     for (k, g) in gens.iter().enumerate() {
         let e = exp2(g, t);
-        p[(2 * k, 2 * k)] = e[0];
-        p[(2 * k, 2 * k + 1)] = e[1];
-        p[(2 * k + 1, 2 * k)] = e[2];
-        p[(2 * k + 1, 2 * k + 1)] = e[3];
+        p[(k, k)] = e[0];
+        p[(k, nb + k)] = e[1];
+        p[(nb + k, k)] = e[2];
+        p[(nb + k, nb + k)] = e[3];
     }
     use crate::physics::linalg::matmul;
     matmul(&matmul(v, &p), vinv)
@@ -128,10 +130,11 @@ pub fn blocks_to_dense(
 /// Phase from closed-form 2x2 blocks acting on coordinate pairs given by
 /// `pairs[k] = (i, j)` of the energy vector (modal objects: `(xi_k, u_k)`).
 pub fn from_blocks(gens: Vec<Mat2>, pairs: &[(usize, usize)], dim: usize, h: f64) -> PhaseDecomp {
+    let nb = pairs.len();
     let mut v = DMatrix::zeros(dim, dim);
     for (k, &(i, j)) in pairs.iter().enumerate() {
-        v[(i, 2 * k)] = 1.0;
-        v[(j, 2 * k + 1)] = 1.0;
+        v[(i, k)] = 1.0;
+        v[(j, nb + k)] = 1.0;
     }
     let vinv = v.transpose();
     let sig = if dim <= 400 {
@@ -227,6 +230,64 @@ pub fn decompose(a: &DMatrix<f64>, h: f64) -> Result<PhaseDecomp, String> {
     }
 }
 
+/// Decompose a generator that is block diagonal after a permutation: the
+/// `coupled` indices form one general system (decomposed and checked as in
+/// [`decompose`]); each pair in `free_pairs` (with its closed-form 2x2
+/// generator) is an exactly decoupled mode, e.g. a mode with zero weight at
+/// the contact point during contact (NUMERICS.md section 6: "those modes are
+/// bit-identical with and without contact"). Returns `None` when the coupled
+/// part needs the dense fallback (the caller then decomposes the whole).
+pub fn decompose_split(
+    a: &DMatrix<f64>,
+    coupled: &[usize],
+    free_pairs: &[(usize, usize)],
+    free_gens: &[Mat2],
+    h: f64,
+) -> Result<Option<PhaseDecomp>, String> {
+    let dim = a.nrows();
+    let nc = coupled.len();
+    let sub = DMatrix::from_fn(nc, nc, |i, j| a[(coupled[i], coupled[j])]);
+    let d = decompose(&sub, h)?;
+    let Form::Blocks { gens: cg } = d.form else {
+        return Ok(None);
+    };
+    let nbc = cg.len();
+    let nb = nbc + free_pairs.len();
+    let mut v = DMatrix::zeros(dim, dim);
+    let mut vinv = DMatrix::zeros(dim, dim);
+    // coupled blocks: SoA columns k and nbc + k of the sub-decomposition go
+    // to columns k and nb + k of the whole
+    for k in 0..nbc {
+        for (ri, &r) in coupled.iter().enumerate() {
+            v[(r, k)] = d.v[(ri, k)];
+            v[(r, nb + k)] = d.v[(ri, nbc + k)];
+            vinv[(k, r)] = d.vinv[(k, ri)];
+            vinv[(nb + k, r)] = d.vinv[(nbc + k, ri)];
+        }
+    }
+    let mut gens = cg;
+    for (j, (&(i0, i1), g)) in free_pairs.iter().zip(free_gens).enumerate() {
+        let k = nbc + j;
+        v[(i0, k)] = 1.0;
+        v[(i1, nb + k)] = 1.0;
+        vinv[(k, i0)] = 1.0;
+        vinv[(nb + k, i1)] = 1.0;
+        gens.push(*g);
+    }
+    let mut diag = d.diag;
+    diag.dim = dim;
+    diag.method = format!(
+        "eigen blocks (faer) on the coupled {nc}-dim part + {} decoupled closed-form modes",
+        free_pairs.len()
+    );
+    Ok(Some(PhaseDecomp {
+        form: Form::Blocks { gens },
+        v,
+        vinv,
+        diag,
+    }))
+}
+
 /// Largest dimension for which the dense `exp(A h)` cross-check and exact
 /// SVDs are computed at compile time (O(dim^3) with nalgebra's Pade `exp`).
 pub const MAX_DENSE_CHECK_DIM: usize = 400;
@@ -236,15 +297,16 @@ pub const MAX_DENSE_CHECK_DIM: usize = 400;
 fn sigma_max_blocks_est(gens: &[Mat2], v: &DMatrix<f64>, vinv: &DMatrix<f64>, h: f64) -> f64 {
     let dim = v.nrows();
     let props: Vec<Mat2> = gens.iter().map(|g| exp2(g, h)).collect();
+    let nb = props.len();
     let apply_blocks = |x: &mut nalgebra::DVector<f64>, transpose: bool| {
         for (k, p) in props.iter().enumerate() {
-            let (a, b) = (x[2 * k], x[2 * k + 1]);
+            let (a, b) = (x[k], x[nb + k]);
             if transpose {
-                x[2 * k] = p[0] * a + p[2] * b;
-                x[2 * k + 1] = p[1] * a + p[3] * b;
+                x[k] = p[0] * a + p[2] * b;
+                x[nb + k] = p[1] * a + p[3] * b;
             } else {
-                x[2 * k] = p[0] * a + p[1] * b;
-                x[2 * k + 1] = p[2] * a + p[3] * b;
+                x[k] = p[0] * a + p[1] * b;
+                x[nb + k] = p[2] * a + p[3] * b;
             }
         }
     };
@@ -410,7 +472,17 @@ fn eigen_blocks(a: &DMatrix<f64>) -> Result<EigenBlocks, String> {
     }
     let residual = (crate::physics::linalg::matmul(a, &v) - vg).norm()
         / (a.norm() * v.norm()).max(f64::MIN_POSITIVE);
-    Ok((gens, v, vinv, residual, kappa))
+    // Structure of arrays: block k's coordinates go to k and nb + k, so the
+    // engine's kernels stream contiguous arrays (NUMERICS.md section 6).
+    let nb = gens.len();
+    let perm = |c: usize| if c.is_multiple_of(2) { c / 2 } else { nb + c / 2 };
+    let mut v_soa = DMatrix::zeros(n, n);
+    let mut vinv_soa = DMatrix::zeros(n, n);
+    for c in 0..n {
+        v_soa.set_column(perm(c), &v.column(c));
+        vinv_soa.set_row(perm(c), &vinv.row(c));
+    }
+    Ok((gens, v_soa, vinv_soa, residual, kappa))
 }
 
 #[cfg(test)]

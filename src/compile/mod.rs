@@ -13,6 +13,8 @@
 //! - gravity as a shift to the contact phase's static equilibrium, so stepping
 //!   stays homogeneous (no affine term per sample).
 
+pub mod prune;
+
 use crate::physics::decomp::{self, DecompDiagnostics, Form, PhaseDecomp};
 use crate::physics::model::{contact_system, ContactLayout, ContactParams, ObjectModel};
 use crate::scene::{ObjectSpec, Quantity, Scene, Switching};
@@ -114,10 +116,11 @@ fn row_times_generator(
 ) -> Vec<f64> {
     let mut out = vec![0.0; row.len()];
     if let Some(gens) = gens {
+        let nb = gens.len();
         for (k, g) in gens.iter().enumerate() {
-            let (r0, r1) = (row[2 * k], row[2 * k + 1]);
-            out[2 * k] = r0 * g[0] + r1 * g[2];
-            out[2 * k + 1] = r0 * g[1] + r1 * g[3];
+            let (r0, r1) = (row[k], row[nb + k]);
+            out[k] = r0 * g[0] + r1 * g[2];
+            out[nb + k] = r0 * g[1] + r1 * g[3];
         }
     } else if let Some(a) = dense {
         for j in 0..row.len() {
@@ -203,11 +206,43 @@ pub fn compile(scene: &Scene, rate_hz: f64) -> Result<CompiledScene, CompileErro
     compile_with(scene, rate_hz, None)
 }
 
+/// What the compiler may leave out (DESIGN/issue: "leave out what a scene
+/// does not need").
+#[derive(Debug, Clone, Copy)]
+pub struct CompileOptions {
+    /// Exact savings (no approximation): drop modes that are zero at the
+    /// contact point and at every pickup, keep modes with zero contact weight
+    /// out of the contact eigenproblem. On by default; off only to test that
+    /// they change nothing.
+    pub exact_savings: bool,
+    /// Apply the scene's opt-in `[approximate]` settings.
+    pub approximations: bool,
+}
+
+impl Default for CompileOptions {
+    fn default() -> Self {
+        Self {
+            exact_savings: true,
+            approximations: true,
+        }
+    }
+}
+
 /// Compile, optionally overriding the scene's switching method.
 pub fn compile_with(
     scene: &Scene,
     rate_hz: f64,
     switching: Option<Switching>,
+) -> Result<CompiledScene, CompileError> {
+    compile_opts(scene, rate_hz, switching, &CompileOptions::default())
+}
+
+/// Compile with explicit [`CompileOptions`].
+pub fn compile_opts(
+    scene: &Scene,
+    rate_hz: f64,
+    switching: Option<Switching>,
+    opts: &CompileOptions,
 ) -> Result<CompiledScene, CompileError> {
     scene.validate().map_err(|e| CompileError(e.to_string()))?;
     if !(rate_hz.is_finite() && (1000.0..=10_000_000.0).contains(&rate_hz)) {
@@ -220,7 +255,8 @@ pub fn compile_with(
     let ci = scene
         .object_index(&scene.contact.object)
         .ok_or_else(|| CompileError("contact object missing".into()))?;
-    let spec = &scene.object[ci];
+    let (spec, dropped_modes) = prune::prune_object(scene, ci, rate_hz, opts);
+    let spec = &spec;
     let obj = ObjectModel::from_spec(spec).map_err(CompileError)?;
     if 2 * obj.n + 2 > MAX_CONTACT_DIM {
         return Err(CompileError(format!(
@@ -256,7 +292,39 @@ pub fn compile_with(
     // --- contact phase
     let (a_c, f_c, lay): (DMatrix<f64>, DVector<f64>, ContactLayout) =
         contact_system(&obj, contact_rows.as_ref().map(|r| &r.vel), &params);
-    let con_dec = decomp::decompose(&a_c, h).map_err(CompileError)?;
+    // Exact saving: modes with zero weight at the contact point are exactly
+    // decoupled from the contact; only the coupled part is diagonalised.
+    let uncoupled: Vec<usize> = match (&obj.modal_blocks, &contact_rows) {
+        (Some(_), Some(rows)) if opts.exact_savings => {
+            (0..n).filter(|&i| rows.vel[n + i] == 0.0).collect()
+        }
+        _ => Vec::new(),
+    };
+    let mut con_dec = None;
+    if !uncoupled.is_empty() {
+        let blocks = obj.modal_blocks.as_ref().expect("modal");
+        let is_unc = |i: usize| uncoupled.binary_search(&i).is_ok();
+        let coupled: Vec<usize> = (0..lay.dim())
+            .filter(|&r| {
+                let mode = if r < n {
+                    Some(r)
+                } else if r > n && r < 2 * n + 1 {
+                    Some(r - n - 1)
+                } else {
+                    None
+                };
+                !mode.is_some_and(is_unc)
+            })
+            .collect();
+        let pairs: Vec<(usize, usize)> = uncoupled.iter().map(|&i| (i, n + 1 + i)).collect();
+        let gens: Vec<[f64; 4]> = uncoupled.iter().map(|&i| blocks[i]).collect();
+        con_dec =
+            decomp::decompose_split(&a_c, &coupled, &pairs, &gens, h).map_err(CompileError)?;
+    }
+    let con_dec = match con_dec {
+        Some(d) => d,
+        None => decomp::decompose(&a_c, h).map_err(CompileError)?,
+    };
 
     // static equilibrium y* = -A^{-1} f (only with gravity: no affine term otherwise)
     let y_star: DVector<f64> = if params.g != 0.0 {
@@ -297,7 +365,10 @@ pub fn compile_with(
             ));
             continue;
         }
-        let rows = obj.point(&p.point).expect("validated");
+        let Some(rows) = obj.point(&p.point) else {
+            dropped_pickups.push(format!("pickup[{i}]: every mode of its object was dropped"));
+            continue;
+        };
         let (gl, gr) = pan_gains(p.pan);
         match p.quantity {
             Quantity::Displacement => {
@@ -472,6 +543,21 @@ pub fn compile_with(
         );
         if let Some(n) = &switching_note {
             let _ = writeln!(summary, "{n}");
+        }
+        let n_total = match &scene.object[ci] {
+            ObjectSpec::Modal(m) => m.mode.len(),
+            _ => n,
+        };
+        let _ = writeln!(
+            summary,
+            "modes: {n} kept of {n_total}; {} outside the contact eigenproblem (zero weight at the contact point)",
+            uncoupled.len()
+        );
+        for d in &dropped_modes {
+            let _ = writeln!(summary, "dropped {d}");
+        }
+        if params.c == 0.0 {
+            let _ = writeln!(summary, "contact damping 0: no velocity coupling term");
         }
         for d in &dropped_pickups {
             let _ = writeln!(summary, "dropped {d}");
