@@ -9,7 +9,6 @@
 //!   CLAP plugin into `target/demo/*.wav`
 
 mod plot;
-mod report;
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;
@@ -51,7 +50,6 @@ fn main() -> Result<()> {
             args.remove(1);
             run_render(RenderArgs::parse_from(args))
         }
-        Some("report") => report::run(&args[2..]),
         Some("test") => run_tests(&args[2..]),
         Some("demo") => run_demo(),
         _ => nice_plug_xtask::main(),
@@ -162,9 +160,17 @@ fn run_tests(extra: &[String]) -> Result<()> {
     }
     // The numerical tests run long loops (1e6 samples with per-sample energy
     // checks): release mode keeps them fast; debug assertions stay on.
+    // --no-fail-fast: a failure in one test binary still runs the others
+    // (the plugin tests included); the VST3 test runs either way.
     let mut cmd = std::process::Command::new("cargo");
-    cmd.args(["test", "--workspace", "--profile", "test-release"])
-        .args(extra);
+    cmd.args([
+        "test",
+        "--workspace",
+        "--profile",
+        "test-release",
+        "--no-fail-fast",
+    ])
+    .args(extra);
     for (name, dir) in &dirs {
         cmd.env(
             format!(
@@ -174,7 +180,7 @@ fn run_tests(extra: &[String]) -> Result<()> {
             dir.join("modal_contact.clap"),
         );
     }
-    run(&mut cmd)?;
+    let cargo_tests = run(&mut cmd);
     // The VST3 test compares with the library through this binary.
     run(std::process::Command::new("cargo").args([
         "build",
@@ -190,14 +196,15 @@ fn run_tests(extra: &[String]) -> Result<()> {
         .find(|(n, _)| *n == "release")
         .expect("release")
         .1;
-    run(std::process::Command::new(&python)
+    let vst3_test = run(std::process::Command::new(&python)
         .arg("plugin-tests/vst3/test_vst3.py")
         .env("MODAL_CONTACT_VST3", release.join("modal_contact.vst3"))
         .env(
             "MODAL_CONTACT_REFERENCE",
             "target/test-release/render-reference",
-        ))?;
-    Ok(())
+        ));
+    cargo_tests?;
+    vst3_test
 }
 
 /// `cargo xtask demo`: bundle the release plugin and render the demo through
