@@ -465,6 +465,16 @@ impl EngineState {
         }
     }
 
+    /// Enter contact (offset rod at the current penetration) and leave it
+    /// again: two changes of basis, O(N^2). Only for benchmarks of the switch
+    /// cost. [any-thread]
+    #[doc(hidden)]
+    pub fn bench_switch_pair(&mut self, scene: &CompiledScene) {
+        let p = self.penetration(scene);
+        self.enter_contact(scene, p.max(0.0));
+        self.leave_contact(scene);
+    }
+
     /// Phase switches that happened during the last `tick` (offline
     /// diagnostics: contact start/end times). [any-thread]
     pub fn switch_events(&self) -> &[SwitchEvent] {

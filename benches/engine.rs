@@ -1,0 +1,263 @@
+//! Criterion benchmarks of the per-sample engine (issue: "make the per-sample
+//! engine fast"). Every group measures this engine next to a naive baseline in
+//! the same run: multiplying the dense transition matrix every sample (the
+//! paper's transition matrix used literally, NUMERICS.md finding 4), and a
+//! summary at the end prints the ratios, ns per mode per sample and the SIMD
+//! path that ran. Timing is reported here, never asserted in tests.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use modal_contact::compile::{compile_with, CompiledScene};
+use modal_contact::engine::EngineState;
+use modal_contact::physics::decomp::dense_exp;
+use modal_contact::scene::{Scene, Switching};
+use nalgebra::{DMatrix, DVector};
+use std::hint::black_box;
+use std::time::Instant;
+
+const RATE: f64 = 44100.0;
+const BLOCK: usize = 441; // 10 ms per iteration
+
+fn modal_scene(n: usize, gravity: bool) -> Scene {
+    let mut t = String::from(
+        "version = 1\nname = \"bench\"\n[[object]]\nname = \"o\"\nkind = \"modal\"\npoints = [\"c\", \"p\"]\n",
+    );
+    for i in 0..n {
+        let f = 80.0 * (18000.0f64 / 80.0).powf(i as f64 / (n.max(2) - 1) as f64);
+        let w = 1.0 / (1.0 + 0.01 * i as f64).sqrt();
+        t += &format!(
+            "[[object.mode]]\nfreq_hz = {f}\nt60_s = {}\nweights = [{w}, {}]\n",
+            1000.0 / (1.0 + f / 1000.0),
+            if i % 2 == 0 { 0.7 * w } else { -0.5 * w }
+        );
+    }
+    if gravity {
+        // a heavy weight resting on the object: continuous contact
+        t += "[hammer]\nmass_kg = 0.5\nheight_m = 0.0\nvelocity_m_per_s = -0.1\ngravity_m_per_s2 = 9.81\n";
+    } else {
+        // hammer flying away: the free phase only
+        t += "[hammer]\nmass_kg = 0.02\nheight_m = 1.0\nvelocity_m_per_s = 1.0\n";
+    }
+    t += "[contact]\nobject = \"o\"\npoint = \"c\"\nstiffness_n_per_m = 1e6\ndamping_n_s_per_m = 50.0\n\
+          [[pickup]]\nobject = \"o\"\npoint = \"p\"\n";
+    Scene::from_toml_str(&t).unwrap()
+}
+
+/// The naive baseline: dense transition matrices of the free object (plus a
+/// ballistic hammer) and of the contact system, multiplied every sample in
+/// physical energy coordinates, offset-rod switching.
+struct NaiveDense {
+    phi_f: DMatrix<f64>,
+    phi_c: DMatrix<f64>,
+    y: DVector<f64>,
+    tmp: DVector<f64>,
+    out: DVector<f64>,
+}
+
+impl NaiveDense {
+    fn new(sc: &CompiledScene, contact: bool) -> Self {
+        let ph = if contact { &sc.contact } else { &sc.free };
+        let dim = ph.dim;
+        // the same generator as the engine's phase, in energy coordinates
+        let a = match (&ph.gens, &ph.dense) {
+            (_, Some((a, _))) => a.clone(),
+            (Some(g), None) => {
+                let nb = g.len();
+                let mut gm = DMatrix::zeros(dim, dim);
+                for (k, b) in g.iter().enumerate() {
+                    gm[(k, k)] = b[0];
+                    gm[(k, nb + k)] = b[1];
+                    gm[(nb + k, k)] = b[2];
+                    gm[(nb + k, nb + k)] = b[3];
+                }
+                let vinv = &ph.vinv;
+                &ph.v * gm * vinv
+            }
+            _ => unreachable!(),
+        };
+        let phi = dense_exp(&a, sc.h).unwrap();
+        let out = &ph.v.transpose() * DVector::from_vec(ph.rows.vel_l.clone());
+        Self {
+            phi_f: phi.clone(),
+            phi_c: phi,
+            y: DVector::from_fn(dim, |i, _| 1e-3 * ((i % 7) as f64 - 3.0)),
+            tmp: DVector::zeros(dim),
+            out,
+        }
+    }
+    fn run(&mut self, n: usize, contact: bool) -> f64 {
+        let phi = if contact { &self.phi_c } else { &self.phi_f };
+        let mut acc = 0.0;
+        for _ in 0..n {
+            phi.mul_to(&self.y, &mut self.tmp);
+            std::mem::swap(&mut self.y, &mut self.tmp);
+            acc += self.out.dot(&self.y);
+        }
+        acc
+    }
+}
+
+fn engine_in(sc: &CompiledScene, contact: bool) -> EngineState {
+    let mut st = EngineState::new(sc);
+    if !contact {
+        let n = sc.free.dim / 2;
+        let s = st.free_state_mut();
+        for k in 0..n {
+            s[n + k] = 1e-3;
+        }
+    } else {
+        for _ in 0..44100 {
+            st.tick(sc);
+        }
+        assert!(st.in_contact(), "bench scene must settle into contact");
+    }
+    st
+}
+
+fn run_engine(st: &mut EngineState, sc: &CompiledScene, n: usize) -> f64 {
+    let mut acc = 0.0;
+    for _ in 0..n {
+        acc += st.tick(sc)[0];
+    }
+    acc
+}
+
+fn phases(c: &mut Criterion) {
+    for contact in [false, true] {
+        let name = if contact { "contact_phase" } else { "free_phase" };
+        let mut g = c.benchmark_group(name);
+        g.sample_size(10);
+        for n in [10usize, 100, 1000] {
+            let sc = compile_with(&modal_scene(n, contact), RATE, Some(Switching::Exact)).unwrap();
+            g.throughput(Throughput::Elements((BLOCK * n) as u64));
+            let mut st = engine_in(&sc, contact);
+            g.bench_with_input(BenchmarkId::new("engine", n), &n, |b, _| {
+                b.iter(|| black_box(run_engine(&mut st, &sc, BLOCK)))
+            });
+            let mut naive = NaiveDense::new(&sc, contact);
+            g.bench_with_input(BenchmarkId::new("naive_dense", n), &n, |b, _| {
+                b.iter(|| black_box(naive.run(BLOCK, contact)))
+            });
+        }
+        g.finish();
+    }
+}
+
+fn switch(c: &mut Criterion) {
+    let sc = compile_with(&modal_scene(100, false), RATE, Some(Switching::Exact)).unwrap();
+    let mut st = engine_in(&sc, false);
+    let mut g = c.benchmark_group("switch_100_modes");
+    g.bench_function("enter_and_leave", |b| b.iter(|| st.bench_switch_pair(black_box(&sc))));
+    g.finish();
+}
+
+fn renders(c: &mut Criterion) {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("presets");
+    let mut g = c.benchmark_group("render_1s");
+    g.sample_size(10);
+    for name in ["paper-bounce", "paper-string"] {
+        let scene = Scene::from_file(&root.join(format!("{name}.toml"))).unwrap();
+        let sc = compile_with(&scene, RATE, None).unwrap();
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                let mut st = EngineState::new(&sc);
+                black_box(run_engine(&mut st, &sc, 44100))
+            })
+        });
+    }
+    g.finish();
+}
+
+fn voices(c: &mut Criterion) {
+    let sc = compile_with(&modal_scene(200, false), RATE, Some(Switching::Exact)).unwrap();
+    let mut g = c.benchmark_group("voices_16x200_modes_1s");
+    g.sample_size(10);
+    let mut vs: Vec<EngineState> = (0..16)
+        .map(|i| {
+            let mut st = engine_in(&sc, false);
+            st.set_time_scale(&sc, 2f64.powf(i as f64 / 12.0 - 0.5)).unwrap();
+            st
+        })
+        .collect();
+    g.bench_function("engine", |b| {
+        b.iter(|| {
+            let mut acc = 0.0;
+            for st in vs.iter_mut() {
+                acc += run_engine(st, &sc, 44100);
+            }
+            black_box(acc)
+        })
+    });
+    g.finish();
+}
+
+/// Median wall time of `f` over `runs` runs [s].
+fn median_time(runs: usize, mut f: impl FnMut()) -> f64 {
+    let mut t: Vec<f64> = (0..runs)
+        .map(|_| {
+            let t0 = Instant::now();
+            f();
+            t0.elapsed().as_secs_f64()
+        })
+        .collect();
+    t.sort_by(|a, b| a.total_cmp(b));
+    t[runs / 2]
+}
+
+/// Ratios against the naive baseline, measured in this run.
+fn summary(_c: &mut Criterion) {
+    let path = modal_contact::engine::SimdPath::detect();
+    println!("\n=== summary (median of 5, this run; SIMD path: {}) ===", path.name());
+    let n_samp = 44100;
+    for contact in [false, true] {
+        for n in [10usize, 100, 1000] {
+            let sc = compile_with(&modal_scene(n, contact), RATE, Some(Switching::Exact)).unwrap();
+            let mut st = engine_in(&sc, contact);
+            let te = median_time(5, || {
+                black_box(run_engine(&mut st, &sc, n_samp));
+            });
+            let mut naive = NaiveDense::new(&sc, contact);
+            let samples_naive = if n >= 1000 { 441 } else { n_samp };
+            let tn = median_time(3, || {
+                black_box(naive.run(samples_naive, contact));
+            }) * (n_samp / samples_naive) as f64;
+            println!(
+                "{:<8} {n:>5} modes: engine {:.3} ns/mode/sample, naive dense {:.2} ns/mode/sample, ratio {:.0}x",
+                if contact { "contact" } else { "free" },
+                te / (n_samp * n) as f64 * 1e9,
+                tn / (n_samp * n) as f64 * 1e9,
+                tn / te
+            );
+        }
+    }
+    let sc = compile_with(&modal_scene(100, false), RATE, Some(Switching::Exact)).unwrap();
+    let mut st = engine_in(&sc, false);
+    let ts = median_time(5, || {
+        for _ in 0..1000 {
+            st.bench_switch_pair(&sc);
+        }
+    }) / 2000.0;
+    println!("switch at 100 modes: {:.2} us per switch", ts * 1e6);
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("presets");
+    for name in ["paper-bounce", "paper-string"] {
+        let scene = Scene::from_file(&root.join(format!("{name}.toml"))).unwrap();
+        let sc = compile_with(&scene, RATE, None).unwrap();
+        let secs = scene.duration_s;
+        let n = (secs * RATE) as usize;
+        let t = median_time(5, || {
+            let mut st = EngineState::new(&sc);
+            black_box(run_engine(&mut st, &sc, n));
+        });
+        println!("render {name} ({secs} s): {:.2} ms, {:.0}x faster than real time", t * 1e3, secs / t);
+    }
+    let sc = compile_with(&modal_scene(200, false), RATE, Some(Switching::Exact)).unwrap();
+    let mut vs: Vec<EngineState> = (0..16).map(|_| engine_in(&sc, false)).collect();
+    let t = median_time(5, || {
+        for st in vs.iter_mut() {
+            black_box(run_engine(st, &sc, 44100));
+        }
+    });
+    println!("16 voices x 200 modes: {:.1} % of one core for real time", t * 100.0);
+}
+
+criterion_group!(benches, phases, switch, renders, voices, summary);
+criterion_main!(benches);
