@@ -9,6 +9,7 @@
 //!   CLAP plugin into `target/demo/*.wav`
 
 mod plot;
+mod report;
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;
@@ -50,6 +51,7 @@ fn main() -> Result<()> {
             args.remove(1);
             run_render(RenderArgs::parse_from(args))
         }
+        Some("report") => report::run(&args[2..]),
         Some("test") => run_tests(&args[2..]),
         Some("demo") => run_demo(),
         _ => nice_plug_xtask::main(),

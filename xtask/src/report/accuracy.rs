@@ -1,0 +1,206 @@
+//! "Error against run time": every method on every accuracy scene, against the
+//! exact-switching engine (f64, the scene's rate) as the reference.
+
+use super::runs::{
+    contact_errors, from_sim, rel_l2, rel_l2_range, run_engine, run_engine_subsampled,
+    time_competitor, time_engine, ContactErr, TimingPlan, Trajectory,
+};
+use super::scenes::RATE;
+use anyhow::{anyhow, Result};
+use modal_contact::competitors::{Method, PwlSystem};
+use modal_contact::compile::compile_with;
+use modal_contact::scene::{Scene, Switching};
+
+/// Oversampling factors of the competitors.
+pub const OVERSAMPLES: [usize; 7] = [1, 2, 4, 8, 16, 32, 64];
+/// Rate factor of the reference cross-check.
+pub const CHECK_FACTOR: usize = 16;
+/// The short error window [s].
+pub const SHORT_S: f64 = 0.05;
+
+/// One accuracy scene.
+pub struct Case {
+    pub name: String,
+    pub scene: Scene,
+    pub seconds: f64,
+    pub what: String,
+}
+
+/// One method at one oversampling on one scene.
+#[derive(Debug, Clone)]
+pub struct Row {
+    pub method: String,
+    pub os: usize,
+    /// Median CPU seconds per second of audio (stepping loop only).
+    pub cpu_per_s: f64,
+    pub reps: usize,
+    /// Relative L2 of the pickup (velocity) over the 50 ms from the first
+    /// reference contact / over the whole window.
+    pub pick_short: Option<f64>,
+    pub pick_full: Option<f64>,
+    /// Relative L2 of the hammer height over the window.
+    pub hammer: Option<f64>,
+    pub contacts: ContactErr,
+    /// Largest energy increase between two output samples / E0.
+    pub max_gain: f64,
+    pub diverged: bool,
+}
+
+/// Results of one scene.
+pub struct SceneResult {
+    pub name: String,
+    pub what: String,
+    pub seconds: f64,
+    pub n: usize,
+    pub rows: Vec<Row>,
+    /// Reference contacts.
+    pub ref_contacts: usize,
+    /// Cross-check of the reference against the engine at 16x the rate:
+    /// (pickup short, pickup full, hammer, max |contact time| difference in
+    /// samples).
+    pub check: (Option<f64>, Option<f64>, Option<f64>, f64),
+    /// Whether the pickup is identically zero (wall: no pickup).
+    pub has_pickup: bool,
+}
+
+fn row_from(method: &str, os: usize, tr: &Trajectory, reference: &Trajectory, n: usize) -> Row {
+    // the short window starts at the reference's first contact (a dropped
+    // ball is silent before it lands)
+    let s0 = reference
+        .contacts
+        .first()
+        .map_or(0, |c| (c.0 * RATE).floor() as usize);
+    let s1 = (s0 + (SHORT_S * RATE).round() as usize).min(n);
+    Row {
+        method: method.to_string(),
+        os,
+        cpu_per_s: f64::NAN,
+        reps: 0,
+        pick_short: rel_l2_range(&tr.pickup, &reference.pickup, s0, s1),
+        pick_full: rel_l2(&tr.pickup, &reference.pickup, n),
+        hammer: rel_l2(&tr.x_hammer, &reference.x_hammer, n),
+        contacts: contact_errors(&tr.contacts, &reference.contacts, RATE),
+        max_gain: tr.max_sample_gain(),
+        diverged: tr.diverged,
+    }
+}
+
+/// Measure one scene.
+pub fn run_case(case: &Case, plan: &TimingPlan) -> Result<SceneResult> {
+    let n = (case.seconds * RATE).round() as usize;
+    let exact = compile_with(&case.scene, RATE, Some(Switching::Exact))
+        .map_err(|e| anyhow!("{}: {e}", case.name))?;
+    let rod = compile_with(&case.scene, RATE, Some(Switching::OffsetRod))
+        .map_err(|e| anyhow!("{}: {e}", case.name))?;
+    let fine = compile_with(
+        &case.scene,
+        RATE * CHECK_FACTOR as f64,
+        Some(Switching::Exact),
+    )
+    .map_err(|e| anyhow!("{}: {e}", case.name))?;
+    let reference = run_engine(&exact, n);
+    let check = run_engine_subsampled(&fine, n, CHECK_FACTOR);
+    let has_pickup = reference.pickup.iter().any(|x| *x != 0.0);
+
+    let mut rows = Vec::new();
+    // exact at 1x: its error is its disagreement with the 16x-rate run (it
+    // is the reference itself, so against the reference it is 0 by
+    // construction)
+    let mut r = row_from("exact", 1, &reference, &check, n);
+    let (t, k) = time_engine(&exact, n, plan);
+    r.cpu_per_s = t / case.seconds;
+    r.reps = k;
+    // the energy gain is the reference run's own
+    r.max_gain = reference.max_sample_gain();
+    let c = contact_errors(&reference.contacts, &check.contacts, RATE);
+    let check_tuple = (
+        r.pick_short,
+        r.pick_full,
+        r.hammer,
+        c.max_start.max(c.max_end),
+    );
+    rows.push(r);
+
+    let rod_tr = run_engine(&rod, n);
+    let mut r = row_from("offset-rod", 1, &rod_tr, &reference, n);
+    let (t, k) = time_engine(&rod, n, plan);
+    r.cpu_per_s = t / case.seconds;
+    r.reps = k;
+    rows.push(r);
+
+    let sys = PwlSystem::from_scene(&case.scene).map_err(|e| anyhow!("{}: {e}", case.name))?;
+    for m in Method::ALL {
+        for os in OVERSAMPLES {
+            let (out, t, k) = time_competitor(&sys, m, RATE, os, n, plan);
+            let tr = from_sim(&sys, out);
+            let mut r = row_from(m.name(), os, &tr, &reference, n);
+            r.cpu_per_s = t / case.seconds;
+            r.reps = k;
+            eprintln!(
+                "  {:<18} x{os:<3} err {:>9} cpu {:.3e} s/s",
+                m.name(),
+                fmt_opt(if has_pickup { r.pick_full } else { r.hammer }),
+                r.cpu_per_s
+            );
+            rows.push(r);
+        }
+    }
+    Ok(SceneResult {
+        name: case.name.clone(),
+        what: case.what.clone(),
+        seconds: case.seconds,
+        n,
+        rows,
+        ref_contacts: reference.contacts.len(),
+        check: check_tuple,
+        has_pickup,
+    })
+}
+
+/// `1.23e-4`, `n/a` or `inf`.
+pub fn fmt_opt(x: Option<f64>) -> String {
+    match x {
+        None => "n/a".into(),
+        Some(v) if v.is_infinite() => "inf".into(),
+        Some(v) if v.is_nan() => "NaN".into(),
+        Some(v) => format!("{v:.2e}"),
+    }
+}
+
+/// Markdown table of one scene.
+pub fn markdown(res: &SceneResult) -> String {
+    let mut s = format!(
+        "### {} ({:.2} s, {} samples at 44.1 kHz; reference: {} contacts)\n\n{}\n\n",
+        res.name, res.seconds, res.n, res.ref_contacts, res.what
+    );
+    s += "| method | OS | CPU s per s audio | pickup vel. err 50 ms from 1st contact | pickup vel. err full | hammer err | contacts run/ref (missed, extra) | max abs onset err [smp] | max abs end err [smp] | max dE between samples / E0 |\n";
+    s += "|---|---|---|---|---|---|---|---|---|---|\n";
+    for r in &res.rows {
+        let div = if r.diverged { " **diverged**" } else { "" };
+        let gain = if r.max_gain.is_finite() {
+            format!("{:.1e}", r.max_gain)
+        } else {
+            "-".into()
+        };
+        let c = &r.contacts;
+        s += &format!(
+            "| {}{} | {} | {:.2e} ({}x) | {} | {} | {} | {}/{} ({}, {}) | {:.2e} | {:.2e} | {} |\n",
+            r.method,
+            div,
+            r.os,
+            r.cpu_per_s,
+            r.reps,
+            fmt_opt(r.pick_short),
+            fmt_opt(r.pick_full),
+            fmt_opt(r.hammer),
+            c.n_run,
+            c.n_ref,
+            c.missed(),
+            c.extra(),
+            c.max_start,
+            c.max_end,
+            gain
+        );
+    }
+    s
+}

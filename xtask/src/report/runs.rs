@@ -1,0 +1,311 @@
+//! Running the engine and the competitors on the output grid, timing their
+//! stepping loops, and the metrics (NUMERICS.md section 3).
+
+use modal_contact::competitors::{simulate, Method, PwlSystem, SimOutput};
+use modal_contact::compile::CompiledScene;
+use modal_contact::engine::EngineState;
+use std::hint::black_box;
+use std::time::Instant;
+
+/// Everything a run produces on the output grid (row `j` = time `j / rate`).
+#[derive(Debug, Clone, Default)]
+pub struct Trajectory {
+    /// Pickup signal (engine: left channel; competitors: gain-weighted sum).
+    pub pickup: Vec<f64>,
+    /// Hammer contact-face height [m].
+    pub x_hammer: Vec<f64>,
+    /// Total energy [J].
+    pub energy: Vec<f64>,
+    /// Contacts (start, end) [s].
+    pub contacts: Vec<(f64, f64)>,
+    /// Non-finite state or energy above 1e6 E0 (the rest is NaN).
+    pub diverged: bool,
+    /// Energy scale `E0 = |E(0)| + m_h g |x_h(0)|` [J].
+    pub e0: f64,
+    /// Largest per-step energy increase / E0 (engine: per sample;
+    /// competitors: per fine step).
+    pub max_step_gain: f64,
+    /// Engine only: what exact switching did, and the wall time per sample
+    /// of the observed run.
+    pub engine_note: String,
+}
+
+impl Trajectory {
+    /// Largest increase of the energy between two output samples / E0.
+    pub fn max_sample_gain(&self) -> f64 {
+        self.energy
+            .windows(2)
+            .map(|w| (w[1] - w[0]) / self.e0)
+            .filter(|x| x.is_finite())
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    /// Last finite energy.
+    pub fn e_end(&self) -> f64 {
+        self.energy
+            .iter()
+            .rev()
+            .find(|e| e.is_finite())
+            .copied()
+            .unwrap_or(f64::NAN)
+    }
+}
+
+/// Energy scale used by every run: `|E(0)| + m_h g |x_h(0)|`.
+fn e_scale(e0: f64, m_h: f64, g: f64, x_h0: f64) -> f64 {
+    let s = e0.abs() + m_h * g * x_h0.abs();
+    if s > 0.0 && s.is_finite() {
+        s
+    } else {
+        1.0
+    }
+}
+
+/// Run the engine for `n` samples with per-sample observation (O(N^2) per
+/// sample: offline only). Contact times come from the switch log after each
+/// tick (`t_n + after_s`).
+pub fn run_engine(sc: &CompiledScene, n: usize) -> Trajectory {
+    let t_run = Instant::now();
+    let mut st = EngineState::new(sc);
+    let first = st.observe(sc);
+    let e0 = e_scale(first.energy, sc.m_h, sc.g, sc.hammer_x0);
+    let limit = 1e6 * e0;
+    let mut tr = Trajectory {
+        pickup: Vec::with_capacity(n),
+        x_hammer: Vec::with_capacity(n),
+        energy: Vec::with_capacity(n),
+        e0,
+        max_step_gain: f64::NEG_INFINITY,
+        ..Default::default()
+    };
+    let mut open: Option<f64> = None;
+    let mut prev_e = first.energy;
+    for i in 0..n {
+        let t_n = i as f64 / sc.rate_hz;
+        let (out, obs) = st.tick_observed(sc);
+        if !(out[0].is_finite() && obs.energy.is_finite() && obs.energy <= limit) {
+            tr.diverged = true;
+            break;
+        }
+        if i > 0 {
+            tr.max_step_gain = tr.max_step_gain.max((obs.energy - prev_e) / e0);
+        }
+        prev_e = obs.energy;
+        tr.pickup.push(out[0]);
+        tr.x_hammer.push(obs.x_hammer);
+        tr.energy.push(obs.energy);
+        for ev in st.switch_events() {
+            let t = t_n + ev.after_s;
+            if ev.entered {
+                open = Some(t);
+            } else if let Some(t0) = open.take() {
+                tr.contacts.push((t0, t));
+            }
+        }
+    }
+    // the energy after the last step
+    if !tr.diverged {
+        let obs = st.observe(sc);
+        if obs.energy.is_finite() {
+            tr.max_step_gain = tr.max_step_gain.max((obs.energy - prev_e) / e0);
+        }
+    }
+    if let Some(t0) = open {
+        tr.contacts.push((t0, n as f64 / sc.rate_hz));
+    }
+    for v in [&mut tr.pickup, &mut tr.x_hammer, &mut tr.energy] {
+        v.resize(n, f64::NAN);
+    }
+    if tr.max_step_gain == f64::NEG_INFINITY {
+        tr.max_step_gain = 0.0;
+    }
+    let x = &st.exact_stats;
+    tr.engine_note = format!(
+        "{:.1} us/sample observed; located {}, capped {}, rod fallbacks {}, grazing {}, uncertified {}",
+        t_run.elapsed().as_secs_f64() / n.max(1) as f64 * 1e6,
+        x.located,
+        x.capped,
+        x.rod_fallbacks,
+        x.grazing,
+        x.uncertified
+    );
+    tr
+}
+
+/// The engine at `factor` times the rate, sampled every `factor`-th output
+/// (contacts keep their located times).
+pub fn run_engine_subsampled(sc_fine: &CompiledScene, n: usize, factor: usize) -> Trajectory {
+    let mut tr = run_engine(sc_fine, n * factor);
+    for v in [&mut tr.pickup, &mut tr.x_hammer, &mut tr.energy] {
+        *v = v.iter().step_by(factor).copied().collect();
+    }
+    tr
+}
+
+/// A competitor's output as a [`Trajectory`].
+pub fn from_sim(sys: &PwlSystem, out: SimOutput) -> Trajectory {
+    let e_first = out.energy.first().copied().unwrap_or(f64::NAN);
+    Trajectory {
+        e0: e_scale(e_first, sys.m_h, sys.g, sys.x_h0),
+        max_step_gain: out.max_energy_increase,
+        diverged: out.diverged,
+        pickup: out.pickup,
+        x_hammer: out.x_hammer,
+        energy: out.energy,
+        contacts: out.contacts,
+        engine_note: String::new(),
+    }
+}
+
+/// Median of a small sample.
+pub fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Repetitions for timing: `reps` unless one run already took longer than
+/// `slow_s`, then 3.
+pub struct TimingPlan {
+    pub reps: usize,
+    pub slow_s: f64,
+}
+
+/// Median seconds of the engine's stepping loop (`tick` only: no observation,
+/// no allocation; state built outside the timed region).
+pub fn time_engine(sc: &CompiledScene, n: usize, plan: &TimingPlan) -> (f64, usize) {
+    let mut times = Vec::new();
+    while times.len() < plan.reps {
+        let mut st = EngineState::new(sc);
+        let t0 = Instant::now();
+        let mut acc = 0.0;
+        for _ in 0..n {
+            let o = st.tick(sc);
+            acc += o[0];
+        }
+        black_box(acc);
+        times.push(t0.elapsed().as_secs_f64());
+        if times.len() >= 3 && times[0] > plan.slow_s {
+            break;
+        }
+    }
+    let k = times.len();
+    (median(times), k)
+}
+
+/// Simulate a competitor, timing the whole `simulate` call minus its setup
+/// (the same call with one output row: allocations and, for the trapezoid,
+/// the two LU solves). Returns (output of the first run, median seconds,
+/// repetitions). The timed loop still includes `simulate`'s per-fine-step
+/// energy evaluation and contact bookkeeping (O(nnz) like a step; there is no
+/// public step-only API).
+pub fn time_competitor(
+    sys: &PwlSystem,
+    m: Method,
+    rate: f64,
+    os: usize,
+    n: usize,
+    plan: &TimingPlan,
+) -> (SimOutput, f64, usize) {
+    let mut setups = Vec::new();
+    for _ in 0..3 {
+        let t0 = Instant::now();
+        black_box(simulate(sys, m, rate, os, 1));
+        setups.push(t0.elapsed().as_secs_f64());
+    }
+    let setup = median(setups);
+    let mut times = Vec::new();
+    let mut first = None;
+    while times.len() < plan.reps {
+        let t0 = Instant::now();
+        let out = black_box(simulate(sys, m, rate, os, n));
+        times.push((t0.elapsed().as_secs_f64() - setup).max(0.0));
+        if first.is_none() {
+            first = Some(out);
+        }
+        if times.len() >= 3 && times[0] > plan.slow_s {
+            break;
+        }
+        // a diverged run stops early: its time is not a cost
+        if first.as_ref().is_some_and(|o| o.diverged) && times.len() >= 3 {
+            break;
+        }
+    }
+    let k = times.len();
+    (first.expect("at least one run"), median(times), k)
+}
+
+/// Relative L2 difference of `a` against `reference` over `0..len`; `None`
+/// when the reference is identically zero there; infinity when `a` has a
+/// non-finite value in the window.
+pub fn rel_l2(a: &[f64], reference: &[f64], len: usize) -> Option<f64> {
+    rel_l2_range(a, reference, 0, len)
+}
+
+/// [`rel_l2`] over `start..end`.
+pub fn rel_l2_range(a: &[f64], reference: &[f64], start: usize, end: usize) -> Option<f64> {
+    let end = end.min(a.len()).min(reference.len());
+    let start = start.min(end);
+    let den: f64 = reference[start..end].iter().map(|y| y * y).sum();
+    if !(den > 0.0) {
+        return None;
+    }
+    let mut num = 0.0;
+    for (x, y) in a[start..end].iter().zip(&reference[start..end]) {
+        if !x.is_finite() {
+            return Some(f64::INFINITY);
+        }
+        num += (x - y) * (x - y);
+    }
+    Some((num / den).sqrt())
+}
+
+/// Contacts matched by order against the reference.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ContactErr {
+    /// Contacts in the reference and in the run.
+    pub n_ref: usize,
+    pub n_run: usize,
+    /// Largest |start error| and |end error| over matched pairs [samples].
+    pub max_start: f64,
+    pub max_end: f64,
+    /// Mean |start error| over matched pairs [samples].
+    pub mean_start: f64,
+}
+
+impl ContactErr {
+    /// Reference contacts without a partner.
+    pub fn missed(&self) -> usize {
+        self.n_ref.saturating_sub(self.n_run)
+    }
+    /// Run contacts without a partner.
+    pub fn extra(&self) -> usize {
+        self.n_run.saturating_sub(self.n_ref)
+    }
+}
+
+/// Match contacts by order; errors in samples of `rate`.
+pub fn contact_errors(run: &[(f64, f64)], reference: &[(f64, f64)], rate: f64) -> ContactErr {
+    let mut e = ContactErr {
+        n_ref: reference.len(),
+        n_run: run.len(),
+        ..Default::default()
+    };
+    let m = run.len().min(reference.len());
+    let mut sum = 0.0;
+    for ((s, t), (rs, rt)) in run.iter().zip(reference).take(m) {
+        let ds = ((s - rs) * rate).abs();
+        let de = ((t - rt) * rate).abs();
+        e.max_start = e.max_start.max(ds);
+        e.max_end = e.max_end.max(de);
+        sum += ds;
+    }
+    e.mean_start = if m > 0 { sum / m as f64 } else { 0.0 };
+    e
+}
