@@ -123,7 +123,11 @@ fn run_engine(st: &mut EngineState, sc: &CompiledScene, n: usize) -> f64 {
 
 fn phases(c: &mut Criterion) {
     for contact in [false, true] {
-        let name = if contact { "contact_phase" } else { "free_phase" };
+        let name = if contact {
+            "contact_phase"
+        } else {
+            "free_phase"
+        };
         let mut g = c.benchmark_group(name);
         g.sample_size(10);
         for n in [10usize, 100, 1000] {
@@ -146,7 +150,9 @@ fn switch(c: &mut Criterion) {
     let sc = compile_with(&modal_scene(100, false), RATE, Some(Switching::Exact)).unwrap();
     let mut st = engine_in(&sc, false);
     let mut g = c.benchmark_group("switch_100_modes");
-    g.bench_function("enter_and_leave", |b| b.iter(|| st.bench_switch_pair(black_box(&sc))));
+    g.bench_function("enter_and_leave", |b| {
+        b.iter(|| st.bench_switch_pair(black_box(&sc)))
+    });
     g.finish();
 }
 
@@ -174,7 +180,8 @@ fn voices(c: &mut Criterion) {
     let mut vs: Vec<EngineState> = (0..16)
         .map(|i| {
             let mut st = engine_in(&sc, false);
-            st.set_time_scale(&sc, 2f64.powf(i as f64 / 12.0 - 0.5)).unwrap();
+            st.set_time_scale(&sc, 2f64.powf(i as f64 / 12.0 - 0.5))
+                .unwrap();
             st
         })
         .collect();
@@ -206,7 +213,10 @@ fn median_time(runs: usize, mut f: impl FnMut()) -> f64 {
 /// Ratios against the naive baseline, measured in this run.
 fn summary(_c: &mut Criterion) {
     let path = modal_contact::engine::SimdPath::detect();
-    println!("\n=== summary (median of 5, this run; SIMD path: {}) ===", path.name());
+    println!(
+        "\n=== summary (median of 5, this run; SIMD path: {}) ===",
+        path.name()
+    );
     let n_samp = 44100;
     for contact in [false, true] {
         for n in [10usize, 100, 1000] {
@@ -247,7 +257,11 @@ fn summary(_c: &mut Criterion) {
             let mut st = EngineState::new(&sc);
             black_box(run_engine(&mut st, &sc, n));
         });
-        println!("render {name} ({secs} s): {:.2} ms, {:.0}x faster than real time", t * 1e3, secs / t);
+        println!(
+            "render {name} ({secs} s): {:.2} ms, {:.0}x faster than real time",
+            t * 1e3,
+            secs / t
+        );
     }
     let sc = compile_with(&modal_scene(200, false), RATE, Some(Switching::Exact)).unwrap();
     let mut vs: Vec<EngineState> = (0..16).map(|_| engine_in(&sc, false)).collect();
@@ -256,7 +270,10 @@ fn summary(_c: &mut Criterion) {
             black_box(run_engine(st, &sc, 44100));
         }
     });
-    println!("16 voices x 200 modes: {:.1} % of one core for real time", t * 100.0);
+    println!(
+        "16 voices x 200 modes: {:.1} % of one core for real time",
+        t * 100.0
+    );
 }
 
 criterion_group!(benches, phases, switch, renders, voices, summary);

@@ -5,12 +5,12 @@
 //! (off the audio thread: decompositions, propagators) -> [`compile::CompiledScene`]
 //! -> [`engine`] (per sample, allocation-free) ; [`render`] drives it offline.
 
-pub mod compile;
 pub mod competitors;
+pub mod compile;
 pub mod engine;
-pub mod physics;
-pub mod render;
-pub mod scene;
 pub mod instrument;
+pub mod physics;
 pub mod plugin;
 pub mod presets;
+pub mod render;
+pub mod scene;

@@ -475,7 +475,13 @@ fn eigen_blocks(a: &DMatrix<f64>) -> Result<EigenBlocks, String> {
     // Structure of arrays: block k's coordinates go to k and nb + k, so the
     // engine's kernels stream contiguous arrays (NUMERICS.md section 6).
     let nb = gens.len();
-    let perm = |c: usize| if c.is_multiple_of(2) { c / 2 } else { nb + c / 2 };
+    let perm = |c: usize| {
+        if c.is_multiple_of(2) {
+            c / 2
+        } else {
+            nb + c / 2
+        }
+    };
     let mut v_soa = DMatrix::zeros(n, n);
     let mut vinv_soa = DMatrix::zeros(n, n);
     for c in 0..n {
