@@ -40,6 +40,7 @@ pub struct SustainRow {
     /// Fraction of the steps before the first subnormal f32 state whose
     /// energy increases.
     pub frac_up_f32_normal: f64,
+    /// (Shrunk run: counted before its first subnormal state.)
     pub frac_up_f32_shrunk: f64,
     pub frac_up_f64: f64,
     pub max_up_f32: f64,
@@ -192,7 +193,8 @@ pub fn run_mode(f: f64, t60: f64) -> SustainRow {
         pitch_cent_coeff,
         frac_up_f32: r32.ups as f64 / n as f64,
         frac_up_f32_normal: r32.ups_normal as f64 / r32.subnormal_at.map_or(n, |i| i.max(1)) as f64,
-        frac_up_f32_shrunk: r32s.ups as f64 / n as f64,
+        frac_up_f32_shrunk: r32s.ups_normal as f64
+            / r32s.subnormal_at.map_or(n, |i| i.max(1)) as f64,
         frac_up_f64: r64.ups as f64 / n as f64,
         max_up_f32: r32.max_up,
         max_up_f64: r64.max_up,
@@ -216,7 +218,7 @@ pub fn run_all() -> Vec<SustainRow> {
 /// Markdown table.
 pub fn markdown(rows: &[SustainRow]) -> String {
     let mut s = String::from(
-        "| f [Hz] | T60 [s] | t_eval [s] | f32 amplitude err | f32 energy err | f32 phase err [rad] | f32 pitch err [cent] (coeff. only) | steps with E up: f32 (before subnormals) / f32 pole -4u / f64 | max rel. step gain f32 / f64 | f32 energy err, pole -4u | f32 subnormal from |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| f [Hz] | T60 [s] | t_eval [s] | f32 amplitude err | f32 energy err | f32 phase err [rad] | f32 pitch err [cent] (coeff. only) | steps with E up: f32 all (before subnormals) / f32 pole -4u before subnormals / f64 | max rel. step gain f32 / f64 | f32 energy err, pole -4u | f32 subnormal from |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let t60 = if r.t60.is_finite() {
