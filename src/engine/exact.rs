@@ -117,10 +117,26 @@ impl EngineState {
         } else {
             &self.s_f
         };
-        let norm = s.iter().map(|x| x * x).sum::<f64>().sqrt();
         let g = if self.in_contact { 0.0 } else { self.g };
+        let global = ph.ev_dd_norm * s.iter().map(|x| x * x).sum::<f64>().sqrt();
+        // Per-block bound: each 2x2 block is a contraction on its own, so
+        // |phi''| <= sum_k |ev_dd_k| |s_k|. Much tighter than the global
+        // Cauchy-Schwarz bound when the energy sits in blocks that barely move
+        // phi (a heavy hammer's slow mode, NUMERICS X7). Dense phases: global.
+        let bound = match &ph.gens {
+            Some(gens) => {
+                let nb = gens.len();
+                let mut acc = 0.0;
+                for k in 0..nb {
+                    let c = ph.ev_dd[k].hypot(ph.ev_dd[nb + k]);
+                    acc += c * s[k].hypot(s[nb + k]);
+                }
+                acc.min(global)
+            }
+            None => global,
+        };
         // 1 + 1e-12: the blocks are contractions up to rounding of exp2
-        g + ph.ev_dd_norm * norm * (1.0 + 1e-12)
+        g + bound * (1.0 + 1e-12)
     }
 
     /// Advance the current phase by `tau` (no switching).
