@@ -110,12 +110,23 @@ const LANES: usize = 4;
 #[inline(always)]
 fn fused_body<const FMA: bool>(p: &BlockProps, s: &[f64], next: &mut [f64], rows: &Rows) -> Fused {
     let nb = p.len();
+    // Re-slice every stream to exactly `nb` so the bounds checks vanish and
+    // LLVM can keep the four lanes of each accumulator in one vector register.
     let (sa, sb) = s.split_at(nb);
+    let sb = &sb[..nb];
     let (na, nbv) = next.split_at_mut(nb);
+    let nbv = &mut nbv[..nb];
     let (ea, eb) = rows.ev.split_at(nb);
+    let eb = &eb[..nb];
     let (la, lb) = rows.l.split_at(nb);
+    let lb = &lb[..nb];
     let (ra, rb) = rows.r.split_at(nb);
-    let mut acc = [[0.0f64; LANES]; 4];
+    let rb = &rb[..nb];
+    let (p00, p01, p10, p11) = (&p.p00[..nb], &p.p01[..nb], &p.p10[..nb], &p.p11[..nb]);
+    let mut acc_e = [0.0f64; LANES];
+    let mut acc_l = [0.0f64; LANES];
+    let mut acc_r = [0.0f64; LANES];
+    let mut acc_n = [0.0f64; LANES];
     let chunks = nb / LANES;
     for c in 0..chunks {
         let base = c * LANES;
@@ -123,25 +134,23 @@ fn fused_body<const FMA: bool>(p: &BlockProps, s: &[f64], next: &mut [f64], rows
             let k = base + j;
             let a = sa[k];
             let b = sb[k];
-            let x0 = madd::<FMA>(p.p00[k], a, p.p01[k] * b);
-            let x1 = madd::<FMA>(p.p10[k], a, p.p11[k] * b);
+            let x0 = madd::<FMA>(p00[k], a, p01[k] * b);
+            let x1 = madd::<FMA>(p10[k], a, p11[k] * b);
             na[k] = x0;
             nbv[k] = x1;
-            acc[0][j] = madd::<FMA>(ea[k], x0, madd::<FMA>(eb[k], x1, acc[0][j]));
-            acc[1][j] = madd::<FMA>(la[k], x0, madd::<FMA>(lb[k], x1, acc[1][j]));
-            acc[2][j] = madd::<FMA>(ra[k], x0, madd::<FMA>(rb[k], x1, acc[2][j]));
-            acc[3][j] = madd::<FMA>(a, a, madd::<FMA>(b, b, acc[3][j]));
+            acc_e[j] = madd::<FMA>(ea[k], x0, madd::<FMA>(eb[k], x1, acc_e[j]));
+            acc_l[j] = madd::<FMA>(la[k], x0, madd::<FMA>(lb[k], x1, acc_l[j]));
+            acc_r[j] = madd::<FMA>(ra[k], x0, madd::<FMA>(rb[k], x1, acc_r[j]));
+            acc_n[j] = madd::<FMA>(a, a, madd::<FMA>(b, b, acc_n[j]));
         }
     }
-    let mut out = [0.0; 4];
-    for (o, lanes) in out.iter_mut().zip(&acc) {
-        *o = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
-    }
+    let sum = |v: [f64; LANES]| (v[0] + v[1]) + (v[2] + v[3]);
+    let mut out = [sum(acc_e), sum(acc_l), sum(acc_r), sum(acc_n)];
     for k in chunks * LANES..nb {
         let a = sa[k];
         let b = sb[k];
-        let x0 = p.p00[k] * a + p.p01[k] * b;
-        let x1 = p.p10[k] * a + p.p11[k] * b;
+        let x0 = p00[k] * a + p01[k] * b;
+        let x1 = p10[k] * a + p11[k] * b;
         na[k] = x0;
         nbv[k] = x1;
         out[0] += ea[k] * x0 + eb[k] * x1;
