@@ -4,23 +4,15 @@
 //!
 //! Run with `--nocapture` to see the measured orders and errors.
 
+mod common;
+
+use common::{rel_l2, scene, wall_scene};
 use modal_contact::competitors::{simulate, Method, PwlSystem, SimOutput};
 use modal_contact::scene::Scene;
 use std::f64::consts::PI;
 
 const RATE: f64 = 44_100.0;
 const LN_1000: f64 = 6.907_755_278_982_137;
-
-fn scene(text: &str) -> Scene {
-    Scene::from_toml_str(text).unwrap_or_else(|e| panic!("{e}\n{text}"))
-}
-
-fn rel_l2(a: &[f64], b: &[f64]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
-    let den: f64 = b.iter().map(|y| y * y).sum();
-    (num / den).sqrt()
-}
 
 /// One mode of frequency `f_hz` (optional T60) with weight 1 at the contact
 /// point and `w_pick` at the pickup; the hammer starts well above the object and
@@ -63,26 +55,6 @@ fn one_mode_system(f_hz: f64, t60: Option<f64>, w_pick: f64, quantity: &str) -> 
     assert_eq!(sys.n(), 1);
     sys.z0 = vec![0.0, 1.0];
     sys
-}
-
-fn wall_scene(m: f64, k: f64, c: f64, v0: f64) -> Scene {
-    scene(&format!(
-        r#"
-version = 1
-name = "wall"
-[[object]]
-name = "floor"
-kind = "wall"
-[hammer]
-mass_kg = {m:e}
-height_m = 0.0
-velocity_m_per_s = {v0:e}
-[contact]
-object = "floor"
-stiffness_n_per_m = {k:e}
-damping_n_s_per_m = {c:e}
-"#
-    ))
 }
 
 fn assert_finite(out: &SimOutput, what: &str) {
