@@ -77,6 +77,18 @@ pub const UNDAMPED_RELEASE_T60_S: f64 = 20.0;
 pub const MIN_IMPACT_SPEED_M_PER_S: f64 = 0.05;
 /// Impact speed added at full velocity [m/s] (velocity 1 gives 3 m/s).
 pub const IMPACT_SPEED_RANGE_M_PER_S: f64 = 2.95;
+/// Hard output ceiling: no sample the instrument writes exceeds this in
+/// magnitude (4.0 = +12 dBFS). It is a last-resort guard against abuse
+/// (hundreds of full-velocity strikes piling energy into one ringing object
+/// at full gain): playing the presets never reaches it (the plugin tests
+/// count the samples it touches). A sample that would be larger is written
+/// at the ceiling with its sign and counted in [`Stats::ceiling_hits`].
+pub const OUTPUT_CEILING: f64 = 4.0;
+/// Each voice hears the modes of its object up to this fraction of the
+/// Nyquist frequency, at the voice's pitch ([`EngineState::set_output_band`]):
+/// a note pitched up leaves its top modes out of the output instead of
+/// aliasing them back into the audio band. The dynamics keep every mode.
+pub const OUTPUT_BAND_FRACTION: f64 = 1.0;
 /// Root note of scenes without modal frequencies (middle C).
 pub const DEFAULT_ROOT_NOTE: f64 = 60.0;
 /// Fixed slots for retired compiled scenes waiting to be handed back.
@@ -418,7 +430,12 @@ pub fn prepare(
             ));
         }
     }
-    let states = std::array::from_fn(|_| EngineState::new(&scene));
+    let band_hz = OUTPUT_BAND_FRACTION * 0.5 * rate_hz;
+    let states = std::array::from_fn(|_| {
+        let mut st = EngineState::new(&scene);
+        st.set_output_band(&scene, band_hz);
+        st
+    });
     Ok(Box::new(Prepared {
         revision,
         rate_hz,
@@ -482,6 +499,9 @@ pub struct Stats {
     pub silent_stops: u64,
     /// Note-ons.
     pub notes: u64,
+    /// Output samples that reached [`OUTPUT_CEILING`] (or were not finite
+    /// after mixing, written as 0).
+    pub ceiling_hits: u64,
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -842,10 +862,12 @@ impl Instrument {
             }
         }
         let g = self.gain;
+        let mut hits = 0u64;
         for k in 0..len {
-            left[k] = (self.acc[0][k] * g) as f32;
-            right[k] = (self.acc[1][k] * g) as f32;
+            left[k] = guarded(self.acc[0][k] * g, &mut hits);
+            right[k] = guarded(self.acc[1][k] * g, &mut hits);
         }
+        self.stats.ceiling_hits += hits;
     }
 
     fn stop_silent_voices(&mut self) {
@@ -883,6 +905,22 @@ fn audible_energy(st: &EngineState, scene: &CompiledScene) -> Option<f64> {
     } else {
         // The hammer flies away for good: only the object sounds.
         Some((proxy - 0.5 * scene.m_h * v_ref * v_ref).max(0.0))
+    }
+}
+
+/// The output guard: `x` when within [`OUTPUT_CEILING`], else the ceiling
+/// with `x`'s sign (0 for NaN), counted in `hits`.
+#[inline]
+fn guarded(x: f64, hits: &mut u64) -> f32 {
+    if x.abs() <= OUTPUT_CEILING {
+        x as f32
+    } else {
+        *hits += 1;
+        if x.is_nan() {
+            0.0
+        } else {
+            OUTPUT_CEILING.copysign(x) as f32
+        }
     }
 }
 

@@ -87,6 +87,11 @@ pub struct EngineState {
     out_f: [Vec<f64>; 2],
     out_c: [Vec<f64>; 2],
     out_c_offset: [f64; 2],
+    /// Output band [Hz, physical]: modes of the struck object above it are
+    /// left out of the outputs (not of the dynamics). Infinite = all heard.
+    band_hz: f64,
+    /// Modes left out of the outputs by the band at the current scale.
+    band_muted: usize,
     in_contact: bool,
     /// Offset rod length [m] (valid in contact).
     rod_m: f64,
@@ -132,6 +137,8 @@ impl EngineState {
             out_f: [vec![0.0; df], vec![0.0; df]],
             out_c: [vec![0.0; dc], vec![0.0; dc]],
             out_c_offset: [0.0; 2],
+            band_hz: f64::INFINITY,
+            band_muted: 0,
             in_contact: false,
             rod_m: 0.0,
             x_h: 0.0,
@@ -211,6 +218,9 @@ impl EngineState {
 
     /// Run the scene with its time axis scaled by `s` (pitch ratio). O(N), no
     /// allocation. [audio-thread]
+    /// Run the scene with its time axis scaled by `s` (pitch ratio). O(N), no
+    /// allocation (plus O(N M) for M modes left out by the output band, see
+    /// [`EngineState::set_output_band`]). [audio-thread]
     pub fn set_time_scale(&mut self, scene: &CompiledScene, s: f64) -> Result<(), TimeScaleError> {
         if !(s.is_finite() && s > 0.0) {
             return Err(TimeScaleError::Invalid);
@@ -237,8 +247,79 @@ impl EngineState {
             mix_rows(&mut self.out_c[ch], &scene.contact, ch, s);
         }
         self.out_c_offset = [scene.offsets.disp_l, scene.offsets.disp_r];
+        self.apply_band(scene);
         self.g = scene.g;
         self.cache_ok = false;
+    }
+
+    /// Leave the struck object's modes whose frequency (at the current time
+    /// scale, physical Hz) is above `band_hz` out of the outputs, in both
+    /// phases, so a note pitched up never aliases its top modes back into
+    /// the audio band. The dynamics are untouched (those modes still take
+    /// part in the contact): only the pickup rows change, and they change
+    /// consistently, because the contact rows are the free rows carried
+    /// through `s_f = W_fc s_c + s_f*`: the output stays a continuous
+    /// function of the physical state across every switch. `INFINITY` (the
+    /// default) hears every mode; NaN or <= 0 is treated as `INFINITY`.
+    /// A dense-fallback free phase has no modes to leave out (no effect).
+    /// Allocation-free, O(N M) for M modes left out. [audio-thread]
+    pub fn set_output_band(&mut self, scene: &CompiledScene, band_hz: f64) {
+        self.band_hz = if band_hz > 0.0 {
+            band_hz
+        } else {
+            f64::INFINITY
+        };
+        let s = self.time_scale;
+        for ch in 0..2 {
+            mix_rows(&mut self.out_f[ch], &scene.free, ch, s);
+            mix_rows(&mut self.out_c[ch], &scene.contact, ch, s);
+        }
+        self.out_c_offset = [scene.offsets.disp_l, scene.offsets.disp_r];
+        self.apply_band(scene);
+        self.cache_ok = false;
+    }
+
+    /// Modes currently left out of the outputs by the output band.
+    pub fn band_muted_modes(&self) -> usize {
+        self.band_muted
+    }
+
+    /// Subtract the contributions of the modes above the band from the rows
+    /// just mixed by `set_time_scale_inner`.
+    fn apply_band(&mut self, scene: &CompiledScene) {
+        self.band_muted = 0;
+        let Some(gens) = scene.free.gens.as_ref() else {
+            return;
+        };
+        if !self.band_hz.is_finite() {
+            return;
+        }
+        let nb = gens.len();
+        // omega_phys = omega_ref * s; muted when omega_ref * s > 2 pi band
+        let limit = 2.0 * std::f64::consts::PI * self.band_hz / self.time_scale;
+        let dc = scene.contact.dim;
+        for (k, g) in gens.iter().enumerate() {
+            let half_tr = 0.5 * (g[0] + g[3]);
+            let det = g[0] * g[3] - g[1] * g[2];
+            let w2 = det - half_tr * half_tr;
+            if !(w2 > limit * limit) {
+                continue;
+            }
+            self.band_muted += 1;
+            for ch in 0..2 {
+                for i in [k, nb + k] {
+                    let r = self.out_f[ch][i];
+                    if r == 0.0 {
+                        continue;
+                    }
+                    self.out_f[ch][i] = 0.0;
+                    for j in 0..dc {
+                        self.out_c[ch][j] -= r * scene.w_fc[(i, j)];
+                    }
+                    self.out_c_offset[ch] -= r * scene.s_f_star[i];
+                }
+            }
+        }
     }
 
     /// Launch the hammer again from `height_m` with `velocity_m_per_s`

@@ -14,6 +14,7 @@ pub mod worker;
 
 use crate::instrument::{prepare, Event, Instrument, InstrumentParams, SceneParams};
 use nice_plug::prelude::*;
+use nice_plug::util::permit_alloc;
 use params::ModalContactParams;
 use std::sync::Arc;
 use worker::{CompileRequest, Handoff, Worker};
@@ -34,6 +35,8 @@ pub struct ModalContact {
     /// Audio thread: a scene taken from the queue that could not be installed yet.
     pending: Option<Box<crate::instrument::Prepared>>,
     rate_hz: f64,
+    /// Panics caught at the process boundary since activation.
+    panics: u64,
     #[cfg(feature = "alloc-bug")]
     leak: Vec<f32>,
 }
@@ -51,6 +54,7 @@ impl Default for ModalContact {
             revision: 0,
             pending: None,
             rate_hz: 0.0,
+            panics: 0,
             #[cfg(feature = "alloc-bug")]
             leak: Vec::new(),
         }
@@ -153,6 +157,16 @@ impl Plugin for ModalContact {
         self.params.clone()
     }
 
+    /// States from older versions get defaults for parameters they lack;
+    /// invalid values are replaced by defaults (see [`params::migrate_state`]).
+    /// [main-thread]
+    fn filter_state(state: &mut nice_plug::plugin::PluginState) {
+        let notes = params::migrate_state(state);
+        if !notes.is_empty() {
+            nice_log!("modal_contact: state: {}", notes.join("; "));
+        }
+    }
+
     /// Compile the current parameters synchronously for the host's sample
     /// rate and start the worker. [main-thread]
     fn activate(
@@ -215,18 +229,60 @@ impl Plugin for ModalContact {
         }
     }
 
-    /// Render with sample-accurate note events. [audio-thread]
+    /// Render with sample-accurate note events, behind the panic boundary:
+    /// a panic anywhere below (instrument, engine, swap) is caught here, the
+    /// block is written as silence, every voice is stopped (their state may
+    /// be half-updated), a line is logged, and the next block plays on. A
+    /// panic must never unwind into the host (through `extern "C"` it would
+    /// abort the whole DAW). [audio-thread]
     fn process(
         &mut self,
         buffer: &mut Buffer,
         _aux: &mut AuxiliaryBuffers,
         context: &mut impl ProcessContext<Self>,
     ) -> ProcessStatus {
-        #[cfg(feature = "alloc-bug")]
-        {
-            // TEST ONLY: deliberate realtime violation (grows a Vec).
-            self.leak.push(0.0);
+        let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            self.process_guarded(&mut *buffer, &mut *context)
+        }));
+        match caught {
+            Ok(status) => status,
+            Err(payload) => {
+                self.panics += 1;
+                let n = self.panics;
+                // The panic already allocated its payload; freeing it and
+                // logging may allocate too. A panic is the one exception to
+                // the no-allocation rule (the alternative is the host's death).
+                permit_alloc(|| {
+                    let what = payload
+                        .downcast_ref::<&str>()
+                        .map(|s| s.to_string())
+                        .or_else(|| payload.downcast_ref::<String>().cloned())
+                        .unwrap_or_default();
+                    nice_log!(
+                        "modal_contact: caught a panic in process ({what}); \
+                         block silenced, voices stopped (panic {n} since activation)"
+                    );
+                    drop(payload);
+                });
+                if let Some(inst) = self.instrument.as_mut() {
+                    inst.silence();
+                }
+                for ch in buffer.as_slice().iter_mut() {
+                    ch.fill(0.0);
+                }
+                ProcessStatus::Normal
+            }
         }
+    }
+}
+
+impl ModalContact {
+    /// The body of `process` (see there). [audio-thread]
+    fn process_guarded(
+        &mut self,
+        buffer: &mut Buffer,
+        context: &mut impl ProcessContext<Self>,
+    ) -> ProcessStatus {
         self.maybe_swap_and_request();
         let num_samples = buffer.samples();
         let out = buffer.as_slice();
@@ -236,6 +292,13 @@ impl Plugin for ModalContact {
             }
             return ProcessStatus::Normal;
         };
+        if out.len() < 2 {
+            // No stereo output to write to (a host that ignored the layout).
+            for ch in out.iter_mut() {
+                ch.fill(0.0);
+            }
+            return ProcessStatus::Normal;
+        }
         let (left, right) = out.split_at_mut(1);
         let (left, right) = (&mut *left[0], &mut *right[0]);
         let mut pos = 0usize;
@@ -244,6 +307,17 @@ impl Plugin for ModalContact {
             inst.render(&mut left[pos..at], &mut right[pos..at]);
             pos = at;
             if let Some(e) = note_event(&event) {
+                // TEST ONLY fault injection (features of the `faults` test
+                // bundle; never in a shipped build): note 2 allocates in
+                // process, note 1 panics.
+                #[cfg(feature = "alloc-bug")]
+                if matches!(e, Event::NoteOn { key: 2, .. }) {
+                    self.leak.push(0.0);
+                }
+                #[cfg(feature = "panic-bug")]
+                if matches!(e, Event::NoteOn { key: 1, .. }) {
+                    permit_alloc(|| panic!("panic-bug: deliberate panic on note 1"));
+                }
                 inst.handle(e);
             }
         }

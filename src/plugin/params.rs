@@ -4,6 +4,7 @@
 
 use crate::instrument::{InstrumentParams, PlayParams, SceneParams};
 use crate::scene::Switching;
+use nice_plug::plugin::{ParamValue, PluginState};
 use nice_plug::prelude::*;
 
 /// The embedded presets, in the order of [`crate::presets::PRESETS`] (a test
@@ -245,9 +246,163 @@ impl ModalContactParams {
     }
 }
 
+/// Make a state safe to load, before nice-plug applies it
+/// ([`Plugin::filter_state`]): every parameter of this version that the
+/// state lacks (a project saved by an older version) gets its default, and
+/// every value that is of the wrong type, not finite, outside its range, or
+/// an unknown enum id is replaced by the default too (without this, a
+/// missing or refused value would silently keep whatever the instance had
+/// before the load). Entries for ids this version does not know are left
+/// alone (nice-plug skips them). Returns one note per replaced value, for
+/// the log. [main-thread]
+pub fn migrate_state(state: &mut PluginState) -> Vec<String> {
+    let d = ModalContactParams::default();
+    let mut notes = Vec::new();
+    let mut fix = |state: &mut PluginState, id: &str, ok: bool, default: ParamValue| {
+        if !ok {
+            let what = match state.params.get(id) {
+                None => "missing".to_string(),
+                Some(v) => format!("invalid value {v:?}"),
+            };
+            notes.push(format!("{id}: {what}, using the default {default:?}"));
+            state.params.insert(id.to_string(), default);
+        }
+    };
+    let floats: [(&str, &FloatParam); 9] = [
+        (ids::HAMMER_MASS, &d.hammer_mass),
+        (ids::HARDNESS, &d.hardness),
+        (ids::CONTACT_DAMPING, &d.contact_damping),
+        (ids::STRIKE_POS, &d.strike_pos),
+        (ids::DECAY, &d.decay),
+        (ids::DAMPER, &d.damper),
+        (ids::GRAVITY, &d.gravity),
+        (ids::DROP_HEIGHT, &d.drop_height_mm),
+        (ids::GAIN, &d.gain_db),
+    ];
+    for (id, p) in floats {
+        let ok = match state.params.get(id) {
+            Some(ParamValue::F32(v)) => float_in_range(p, *v),
+            _ => false,
+        };
+        fix(state, id, ok, ParamValue::F32(p.default_plain_value()));
+    }
+    for (id, p) in [
+        (ids::STRIKE_CUSTOM, &d.strike_custom),
+        (ids::PITCH_TRACKING, &d.pitch_tracking),
+    ] {
+        let ok = matches!(state.params.get(id), Some(ParamValue::Bool(_)));
+        fix(state, id, ok, ParamValue::Bool(p.default_plain_value()));
+    }
+    let (ok, default) = enum_ok(state.params.get(ids::SCENE), &d.scene);
+    fix(state, ids::SCENE, ok, default);
+    let (ok, default) = enum_ok(state.params.get(ids::SWITCHING), &d.switching);
+    fix(state, ids::SWITCHING, ok, default);
+    notes
+}
+
+/// Finite and inside the parameter's range (a round trip through the
+/// normalised value changes nothing but rounding).
+fn float_in_range(p: &FloatParam, v: f32) -> bool {
+    if !v.is_finite() {
+        return false;
+    }
+    let back = p.preview_plain(p.preview_normalized(v));
+    (back - v).abs() <= 1e-4 * v.abs().max(1.0)
+}
+
+/// Whether a stored enum value names a variant, and the default as stored.
+fn enum_ok<T: Enum + PartialEq>(v: Option<&ParamValue>, p: &EnumParam<T>) -> (bool, ParamValue) {
+    let ids = T::ids();
+    let n = T::variants().len();
+    let default = p.default_plain_value();
+    let stored = match ids {
+        Some(ids) => ParamValue::String(ids[default.to_index()].to_string()),
+        None => ParamValue::I32(default.to_index() as i32),
+    };
+    let ok = match (v, ids) {
+        (Some(ParamValue::String(s)), Some(ids)) => ids.contains(&s.as_str()),
+        (Some(ParamValue::I32(i)), _) => *i >= 0 && (*i as usize) < n,
+        _ => false,
+    };
+    (ok, stored)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::collections::BTreeMap;
+
+    /// `ParamValue` has no `PartialEq`: compare the debug forms.
+    macro_rules! same {
+        ($a:expr, $b:expr $(, $m:expr)?) => {
+            assert_eq!(format!("{:?}", $a), format!("{:?}", $b) $(, $m)?)
+        };
+    }
+
+    fn full_state() -> PluginState {
+        let mut state = PluginState {
+            version: "0.0.1".into(),
+            params: BTreeMap::new(),
+            fields: BTreeMap::new(),
+        };
+        assert_eq!(migrate_state(&mut state).len(), 13, "all 13 filled in");
+        state
+    }
+
+    #[test]
+    fn an_empty_older_state_gets_every_default() {
+        let state = full_state();
+        let d = ModalContactParams::default();
+        same!(
+            state.params[ids::HARDNESS],
+            ParamValue::F32(d.hardness.default_plain_value())
+        );
+        same!(
+            state.params[ids::SCENE],
+            ParamValue::String("marimba-bar".into())
+        );
+        same!(
+            state.params[ids::SWITCHING],
+            ParamValue::String("exact".into())
+        );
+        same!(state.params[ids::PITCH_TRACKING], ParamValue::Bool(true));
+        // a filled-in state is left as it is
+        let mut again = state.clone();
+        assert!(migrate_state(&mut again).is_empty());
+        same!(again.params, state.params);
+    }
+
+    #[test]
+    fn bad_values_are_replaced_and_good_ones_kept() {
+        let mut state = full_state();
+        let p = &mut state.params;
+        p.insert(ids::HARDNESS.into(), ParamValue::F32(f32::NAN));
+        p.insert(ids::DECAY.into(), ParamValue::F32(1e30));
+        p.insert(ids::GAIN.into(), ParamValue::F32(-3.0));
+        p.insert(ids::DAMPER.into(), ParamValue::Bool(true));
+        p.insert(
+            ids::SCENE.into(),
+            ParamValue::String("no-such-preset".into()),
+        );
+        p.insert(ids::SWITCHING.into(), ParamValue::I32(0));
+        p.insert(ids::STRIKE_CUSTOM.into(), ParamValue::F32(1.0));
+        p.insert("from_the_future".into(), ParamValue::F32(3.0));
+        let notes = migrate_state(&mut state);
+        println!("{notes:#?}");
+        assert_eq!(notes.len(), 5, "{notes:?}");
+        let d = ModalContactParams::default();
+        let p = &state.params;
+        same!(
+            p[ids::HARDNESS],
+            ParamValue::F32(d.hardness.default_plain_value())
+        );
+        same!(p[ids::DECAY], ParamValue::F32(1.0));
+        same!(p[ids::GAIN], ParamValue::F32(-3.0), "in range: kept");
+        same!(p[ids::SWITCHING], ParamValue::I32(0), "a valid index: kept");
+        same!(p[ids::SCENE], ParamValue::String("marimba-bar".into()));
+        same!(p[ids::STRIKE_CUSTOM], ParamValue::Bool(false));
+        same!(p["from_the_future"], ParamValue::F32(3.0));
+    }
 
     #[test]
     fn preset_choice_ids_match_the_embedded_presets() {
