@@ -4,7 +4,7 @@
 //!
 //! Bundles are found like this (first match wins):
 //! 1. env `MODAL_CONTACT_CLAP_<VARIANT>` (`..._RELEASE`, `..._RT_CHECKS`,
-//!    `..._ALLOC_BUG`) = path of a `.clap`: used as is (`cargo xtask test`
+//!    `..._ALLOC_BUG`, `..._PANIC_BUG`) = path of a `.clap`: used as is (`cargo xtask test`
 //!    builds the three bundles first and sets these);
 //! 2. otherwise the harness bundles the variant itself, once per process,
 //!    with `CARGO_TARGET_DIR=target/plugin-tests/cargo` (so it never waits on
@@ -38,8 +38,12 @@ pub enum Variant {
     /// `--profile test-release --features rt-checks`: optimised, debug
     /// assertions on, so nice-plug's `assert_process_allocs` is active.
     RtChecks,
-    /// As `RtChecks` plus `alloc-bug` (allocates in `process` on purpose).
+    /// As `RtChecks` plus the test-only `alloc-bug`: note 2 allocates in
+    /// `process`.
     AllocBug,
+    /// `--profile test-release --features panic-bug` (no allocation
+    /// checker): note 1 panics inside `process`.
+    PanicBug,
 }
 
 impl Variant {
@@ -49,6 +53,7 @@ impl Variant {
             Variant::Release => "release",
             Variant::RtChecks => "rt-checks",
             Variant::AllocBug => "alloc-bug",
+            Variant::PanicBug => "panic-bug",
         }
     }
 
@@ -63,6 +68,7 @@ impl Variant {
                 "--features",
                 "rt-checks,alloc-bug",
             ],
+            Variant::PanicBug => &["--profile", "test-release", "--features", "panic-bug"],
         }
     }
 
@@ -394,84 +400,155 @@ impl LoadedPlugin {
         state.load(&handle, &mut &bytes[..]).expect("load state");
     }
 
-    /// Activate, render, deactivate. Returns `[left, right]`.
-    pub fn render(&mut self, spec: &RenderSpec) -> [Vec<f32>; 2] {
+    /// Activate at `rate_hz` for blocks of `min_frames..=max_frames` and
+    /// start processing. [main thread, then the "audio thread" is the caller]
+    pub fn activate(&mut self, rate_hz: f64, min_frames: usize, max_frames: usize) -> Session<'_> {
         let config = PluginAudioConfiguration {
-            sample_rate: spec.rate_hz,
-            min_frames_count: 1,
-            max_frames_count: spec.max_block as u32,
+            sample_rate: rate_hz,
+            min_frames_count: min_frames as u32,
+            max_frames_count: max_frames as u32,
         };
         let processor = self.instance.activate(|_, _| (), config).expect("activate");
-        let mut processor = processor.start_processing().expect("start processing");
+        let processor = processor.start_processing().expect("start processing");
+        Session {
+            plugin: self,
+            processor: Some(processor),
+            max_frames,
+            left: vec![0f32; max_frames],
+            right: vec![0f32; max_frames],
+            out_ports: AudioPorts::with_capacity(2, 1),
+            in_events: EventBuffer::with_capacity(1024),
+            out_events: EventBuffer::with_capacity(256),
+            steady: 0,
+        }
+    }
 
+    /// Activate, render, deactivate. Returns `[left, right]`.
+    pub fn render(&mut self, spec: &RenderSpec) -> [Vec<f32>; 2] {
+        let mut session = self.activate(spec.rate_hz, 1, spec.max_block);
         let mut sorted = spec.events.clone();
         sorted.sort_by_key(|e| e.at());
         let total = spec.total;
-        let max_block = spec.max_block;
-        let mut left = vec![0f32; max_block];
-        let mut right = vec![0f32; max_block];
         let mut out = [Vec::with_capacity(total), Vec::with_capacity(total)];
-        let mut out_ports = AudioPorts::with_capacity(2, 1);
-        let input_audio = InputAudioBuffers::empty();
-        let mut in_events = EventBuffer::with_capacity(256);
-        let mut out_events = EventBuffer::with_capacity(256);
         let mut next = 0usize;
         let mut pos = 0usize;
         while pos < total {
-            let len = max_block.min(total - pos);
-            in_events.clear();
-            out_events.clear();
+            let len = spec.max_block.min(total - pos);
+            let first = next;
             while next < sorted.len() && sorted[next].at() < pos + len {
-                let t = (sorted[next].at() - pos) as u32;
-                match sorted[next] {
-                    HostEvent::NoteOn { key, velocity, .. } => in_events.push(&NoteOnEvent::new(
-                        t,
-                        Pckn::new(0u16, 0u16, key as u16, Match::All),
-                        velocity,
-                    )),
-                    HostEvent::NoteOff { key, .. } => in_events.push(&NoteOffEvent::new(
-                        t,
-                        Pckn::new(0u16, 0u16, key as u16, Match::All),
-                        0.0,
-                    )),
-                    HostEvent::Param { id, value, .. } => in_events.push(&ParamValueEvent::new(
-                        t,
-                        ClapId::new(id),
-                        Pckn::match_all(),
-                        value,
-                    )),
-                }
                 next += 1;
             }
-            // Poison the buffers: the plugin must overwrite every sample.
-            left[..len].fill(f32::NAN);
-            right[..len].fill(f32::NAN);
-            let mut output_audio = out_ports.with_output_buffers([AudioPortBuffer {
-                latency: 0,
-                channels: AudioPortBufferType::f32_output_only(
-                    [&mut left[..len], &mut right[..len]].into_iter(),
-                ),
-            }]);
-            processor
-                .process(
-                    &input_audio,
-                    &mut output_audio,
-                    &in_events.as_input(),
-                    &mut out_events.as_output(),
-                    Some(pos as u64),
-                    None,
-                )
-                .expect("process");
-            out[0].extend_from_slice(&left[..len]);
-            out[1].extend_from_slice(&right[..len]);
+            let block = session.process(len, pos, &sorted[first..next]);
+            out[0].extend_from_slice(block[0]);
+            out[1].extend_from_slice(block[1]);
             if spec.settle_after.iter().any(|&s| s >= pos && s < pos + len) {
                 std::thread::sleep(std::time::Duration::from_millis(spec.settle_ms));
             }
             pos += len;
         }
-        let stopped = processor.stop_processing();
-        self.instance.deactivate(stopped);
+        session.deactivate();
         out
+    }
+}
+
+/// An activated, processing instance: blocks are processed one at a time,
+/// with whatever sizes and events the caller chooses.
+pub struct Session<'a> {
+    plugin: &'a mut LoadedPlugin,
+    processor: Option<StartedPluginAudioProcessor<TestHost>>,
+    max_frames: usize,
+    left: Vec<f32>,
+    right: Vec<f32>,
+    out_ports: AudioPorts,
+    in_events: EventBuffer,
+    out_events: EventBuffer,
+    steady: u64,
+}
+
+impl Session<'_> {
+    /// Process one block of `frames` (0 allowed, at most the activation's
+    /// maximum) with `events` whose `at` is absolute: `block_start` is
+    /// subtracted. The output buffers are poisoned with NaN first, so every
+    /// sample the plugin fails to write shows. Returns `[left, right]`.
+    pub fn process(
+        &mut self,
+        frames: usize,
+        block_start: usize,
+        events: &[HostEvent],
+    ) -> [&[f32]; 2] {
+        assert!(
+            frames <= self.max_frames,
+            "{frames} > max {}",
+            self.max_frames
+        );
+        self.in_events.clear();
+        self.out_events.clear();
+        for e in events {
+            let t = (e.at() - block_start) as u32;
+            match *e {
+                HostEvent::NoteOn { key, velocity, .. } => self.in_events.push(&NoteOnEvent::new(
+                    t,
+                    Pckn::new(0u16, 0u16, key as u16, Match::All),
+                    velocity,
+                )),
+                HostEvent::NoteOff { key, .. } => self.in_events.push(&NoteOffEvent::new(
+                    t,
+                    Pckn::new(0u16, 0u16, key as u16, Match::All),
+                    0.0,
+                )),
+                HostEvent::Param { id, value, .. } => self.in_events.push(&ParamValueEvent::new(
+                    t,
+                    ClapId::new(id),
+                    Pckn::match_all(),
+                    value,
+                )),
+            }
+        }
+        let (left, right) = (&mut self.left[..frames], &mut self.right[..frames]);
+        left.fill(f32::NAN);
+        right.fill(f32::NAN);
+        let input_audio = InputAudioBuffers::empty();
+        let mut output_audio = self.out_ports.with_output_buffers([AudioPortBuffer {
+            latency: 0,
+            channels: AudioPortBufferType::f32_output_only([left, right].into_iter()),
+        }]);
+        self.processor
+            .as_mut()
+            .expect("processing")
+            .process(
+                &input_audio,
+                &mut output_audio,
+                &self.in_events.as_input(),
+                &mut self.out_events.as_output(),
+                Some(self.steady),
+                None,
+            )
+            .expect("process");
+        self.steady += frames as u64;
+        [&self.left[..frames], &self.right[..frames]]
+    }
+
+    /// The host's reset (e.g. on transport jumps).
+    pub fn reset(&mut self) {
+        self.processor.as_mut().expect("processing").reset();
+    }
+
+    /// Stop processing and deactivate.
+    pub fn deactivate(mut self) {
+        self.stop();
+    }
+
+    fn stop(&mut self) {
+        if let Some(p) = self.processor.take() {
+            let stopped = p.stop_processing();
+            self.plugin.instance.deactivate(stopped);
+        }
+    }
+}
+
+impl Drop for Session<'_> {
+    fn drop(&mut self) {
+        self.stop();
     }
 }
 

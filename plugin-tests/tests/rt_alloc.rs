@@ -1,4 +1,5 @@
-//! The allocation check really covers the plugin's `process`.
+//! The allocation check really covers the plugin's `process`, and a panic in
+//! `process` is caught at its boundary.
 //!
 //! The `rt-checks` bundles are built with debug assertions and nice-plug's
 //! `assert_process_allocs`: any allocation inside `process` aborts the host
@@ -6,8 +7,12 @@
 //! damped scene, parameter swaps including a preset change with its fade-out,
 //! a switching change and a strike-position change) runs in a child process
 //! (this test binary re-executed with `MODAL_CONTACT_CHILD_BUNDLE` set), so an
-//! abort is observed rather than killing the test run. The `alloc-bug` build
-//! allocates in `process` on purpose and must die; the clean build must not.
+//! abort is observed rather than killing the test run. In the `alloc-bug`
+//! build note 2 allocates in `process` on purpose: the child must die; the
+//! clean build must not. In the `panic-bug` build (no allocation checker:
+//! the unwinder's own (de)allocations would trip it) note 1 panics inside
+//! `process`: the child must live, the block is silenced, a line is logged,
+//! and the notes after it play.
 
 use modal_contact::plugin::params::ids;
 use modal_contact::presets;
@@ -16,6 +21,7 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 const CHILD_ENV: &str = "MODAL_CONTACT_CHILD_BUNDLE";
+const SCRIPT_ENV: &str = "MODAL_CONTACT_CHILD_SCRIPT";
 
 fn param(at: usize, id: &str, value: f64) -> HostEvent {
     HostEvent::Param {
@@ -27,7 +33,7 @@ fn param(at: usize, id: &str, value: f64) -> HostEvent {
 
 /// Renders the stress script; returns (output, the same notes without the
 /// parameter changes).
-fn stress(bundle: &Path) -> ([Vec<f32>; 2], [Vec<f32>; 2], usize) {
+fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2], usize) {
     let rate = 44_100.0;
     let total = (rate * 3.0) as usize;
     let mut notes = Vec::new();
@@ -53,6 +59,13 @@ fn stress(bundle: &Path) -> ([Vec<f32>; 2], [Vec<f32>; 2], usize) {
     }
     let first_change = 30_000;
     let mut events = notes.clone();
+    if let Some(key) = fault_note {
+        events.push(HostEvent::NoteOn {
+            at: 25_000,
+            key,
+            velocity: 0.5,
+        });
+    }
     events.push(param(first_change, ids::HARDNESS, 0.6));
     events.push(param(first_change, ids::DECAY, 0.4));
     events.push(param(45_000, ids::STRIKE_CUSTOM, 1.0));
@@ -77,32 +90,82 @@ fn stress(bundle: &Path) -> ([Vec<f32>; 2], [Vec<f32>; 2], usize) {
     (with, without, first_change)
 }
 
+/// The panic script: a note, note 1 (panics in the `panic-bug` build) in the
+/// block starting at 19_968, a note after it. Returns a summary line.
+fn panic_script(bundle: &Path) -> String {
+    let (rate, block, total) = (44_100.0, 256, 44_100);
+    let (panic_at, after) = (20_000, 30_000);
+    let clean = vec![
+        HostEvent::NoteOn {
+            at: 100,
+            key: 57,
+            velocity: 0.8,
+        },
+        HostEvent::NoteOn {
+            at: after,
+            key: 60,
+            velocity: 0.8,
+        },
+    ];
+    let mut with = clean.clone();
+    with.push(HostEvent::NoteOn {
+        at: panic_at,
+        key: 1,
+        velocity: 0.5,
+    });
+    let out = LoadedPlugin::load(bundle).render(&RenderSpec::new(rate, block, total, with));
+    let reference = LoadedPlugin::load(bundle).render(&RenderSpec::new(rate, block, total, clean));
+    let block_start = panic_at / block * block;
+    let finite = out.iter().flatten().all(|v| v.is_finite());
+    let same_before = out[0][..block_start] == reference[0][..block_start];
+    let silent = out[0][block_start..after]
+        .iter()
+        .chain(&out[1][block_start..after])
+        .all(|&v| v == 0.0);
+    let later = rms(&out[0][after..]);
+    let sounding_before = rms(&reference[0][block_start..after]);
+    write_wav(&out_dir().join("panic-caught.wav"), rate, &out);
+    format!(
+        "CHILD_PANIC_OK finite={finite} same_before={same_before} silent_after_panic={silent} \
+         rms_before_panic={sounding_before:.3e} rms_of_the_next_note={later:.3e}"
+    )
+}
+
 /// Does nothing unless spawned by `run_child`.
 #[test]
 fn child_render() {
-    if let Ok(bundle) = std::env::var(CHILD_ENV) {
-        let (with, without, change) = stress(Path::new(&bundle));
-        let finite = with.iter().flatten().all(|v| v.is_finite());
-        let swapped = with[0][change..] != without[0][change..];
-        write_wav(&out_dir().join("rt-checks-stress.wav"), 44_100.0, &with);
-        println!(
-            "CHILD_RENDER_OK finite={finite} swapped={swapped} peak={:.4}",
-            peak(&with[0])
-        );
+    let Ok(bundle) = std::env::var(CHILD_ENV) else {
+        return;
+    };
+    let bundle = Path::new(&bundle);
+    match std::env::var(SCRIPT_ENV).as_deref() {
+        Ok("panic") => println!("{}", panic_script(bundle)),
+        script => {
+            let fault = (script == Ok("alloc")).then_some(2);
+            let (with, without, change) = stress(bundle, fault);
+            let finite = with.iter().flatten().all(|v| v.is_finite());
+            let swapped = with[0][change..] != without[0][change..];
+            write_wav(&out_dir().join("rt-checks-stress.wav"), 44_100.0, &with);
+            println!(
+                "CHILD_RENDER_OK finite={finite} swapped={swapped} peak={:.4}",
+                peak(&with[0])
+            );
+        }
     }
 }
 
-fn run_child(bundle: &Path) -> Output {
+fn run_child(bundle: &Path, script: &str) -> Output {
     Command::new(std::env::current_exe().expect("test exe"))
         .args(["--exact", "child_render", "--nocapture", "--test-threads=1"])
         .env(CHILD_ENV, bundle)
+        .env(SCRIPT_ENV, script)
         .output()
         .expect("spawn child test process")
 }
 
 #[test]
 fn rt_checks_build_runs_the_stress_render_without_allocating() {
-    let out = run_child(&clap_bundle(Variant::RtChecks));
+    let out = run_child(&clap_bundle(Variant::RtChecks), "stress");
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
     let line = stdout
@@ -116,8 +179,8 @@ fn rt_checks_build_runs_the_stress_render_without_allocating() {
 }
 
 #[test]
-fn alloc_bug_build_aborts_in_process() {
-    let out = run_child(&clap_bundle(Variant::AllocBug));
+fn allocation_in_process_aborts_the_checked_build() {
+    let out = run_child(&clap_bundle(Variant::AllocBug), "alloc");
     let stderr = String::from_utf8_lossy(&out.stderr);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
@@ -140,11 +203,42 @@ fn alloc_bug_build_aborts_in_process() {
         "missing the allocation-check message; stderr:\n{stderr}"
     );
     println!(
-        "alloc-bug build aborted as expected: {:?}; {}",
+        "alloc-bug build, note 2 (allocates): aborted as expected: {:?}; {}",
         out.status,
         stderr
             .lines()
             .find(|l| l.contains("memory allocation of"))
             .unwrap_or("")
     );
+}
+
+#[test]
+fn a_panic_in_process_is_caught_silenced_and_logged() {
+    let out = run_child(&clap_bundle(Variant::PanicBug), "panic");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let line = stdout
+        .lines()
+        .find(|l| l.contains("CHILD_PANIC_OK"))
+        .unwrap_or_else(|| panic!("child failed: {:?}\n{stdout}\n{stderr}", out.status));
+    println!("{line}");
+    let logged = stderr
+        .lines()
+        .find(|l| l.contains("caught a panic"))
+        .unwrap_or_else(|| panic!("no log line; stderr:\n{stderr}"));
+    println!("log: {logged}");
+    assert!(out.status.success(), "{:?}\n{stderr}", out.status);
+    assert!(
+        logged.contains("panic-bug: deliberate panic on note 1"),
+        "{logged}"
+    );
+    for want in ["finite=true", "same_before=true", "silent_after_panic=true"] {
+        assert!(line.contains(want), "{want}: {line}");
+    }
+    let num = |key: &str| -> f64 {
+        let v = line.split(key).nth(1).expect(key);
+        v.split_whitespace().next().unwrap().parse().expect(key)
+    };
+    assert!(num("rms_before_panic=") > 1e-3, "{line}");
+    assert!(num("rms_of_the_next_note=") > 1e-3, "{line}");
 }

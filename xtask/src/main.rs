@@ -76,7 +76,7 @@ fn run(cmd: &mut std::process::Command) -> Result<()> {
 /// nice-plug's `assert_process_allocs` is active) and share its dependencies
 /// with the test build. Release comes last so `target/bundled/` ends up with
 /// the release bundle users install.
-const TEST_BUNDLES: [(&str, &[&str]); 3] = [
+const TEST_BUNDLES: [(&str, &[&str]); 4] = [
     (
         "rt-checks",
         &["--profile", "test-release", "--features", "rt-checks"],
@@ -89,6 +89,13 @@ const TEST_BUNDLES: [(&str, &[&str]); 3] = [
             "--features",
             "rt-checks,alloc-bug",
         ],
+    ),
+    // Without rt-checks: the allocation checker aborts on the unwinder's own
+    // (de)allocations, so a caught panic can only be shown in a build
+    // without it (as users run it).
+    (
+        "panic-bug",
+        &["--profile", "test-release", "--features", "panic-bug"],
     ),
     ("release", &["--release"]),
 ];
@@ -150,7 +157,8 @@ fn ensure_venv() -> Result<PathBuf> {
 }
 
 /// `cargo xtask test`: every test of the project (the README's test command):
-/// bundles the plugin three ways (release; rt-checks; rt-checks + alloc-bug),
+/// bundles the plugin four ways (release; rt-checks; rt-checks + the
+/// test-only alloc-bug; the test-only panic-bug),
 /// runs the workspace tests (plugin-tests load those bundles), then renders
 /// the VST3 with pedalboard.
 fn run_tests(extra: &[String]) -> Result<()> {
