@@ -5,7 +5,8 @@
 //! accuracy scene (`DIR/pareto-<scene>.svg`) and prints the tables. Timing is
 //! reported, never asserted. `--quick` shortens every render (for smoke runs;
 //! its numbers are not the report's).
-//! `--only accuracy|stability|f32` runs one section; `REPORT_DEBUG=1` prints
+//! `--only accuracy|stability|f32` runs one section, `--scene NAME` one
+//! accuracy scene (development); `REPORT_DEBUG=1` prints
 //! per-run times and exact-switching counters of the stability runs.
 
 mod accuracy;
@@ -17,6 +18,7 @@ mod sustain;
 
 use accuracy::{Case, SceneResult};
 use anyhow::{bail, Context, Result};
+use modal_contact::scene::ApproxSpec;
 use runs::TimingPlan;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -27,6 +29,8 @@ struct Args {
     out: PathBuf,
     /// Run one section only (development): accuracy, stability or f32.
     only: Option<String>,
+    /// Run only the accuracy scene of this name (development).
+    scene: Option<String>,
 }
 
 impl Args {
@@ -40,6 +44,7 @@ fn parse_args(args: &[String]) -> Result<Args> {
         quick: false,
         out: PathBuf::from("report"),
         only: None,
+        scene: None,
     };
     let mut it = args.iter();
     while let Some(x) = it.next() {
@@ -55,8 +60,11 @@ fn parse_args(args: &[String]) -> Result<Args> {
                 }
                 a.only = Some(o.clone());
             }
+            "--scene" => {
+                a.scene = Some(it.next().context("--scene needs an accuracy scene name")?.clone());
+            }
             other => bail!(
-                "cargo xtask report: unknown argument {other:?} (use --quick, --out DIR, --only SECTION)"
+                "cargo xtask report: unknown argument {other:?} (use --quick, --out DIR, --only SECTION, --scene NAME)"
             ),
         }
     }
@@ -71,49 +79,121 @@ fn accuracy_cases(root: &Path, quick: bool) -> Result<Vec<Case>> {
             scene: scenes::preset_single_pickup(root, "paper-bounce")?,
             seconds: len(0.5),
             what: "presets/paper-bounce.toml (10 g ball dropped from 2 cm onto 3 modes, gravity; many bounces), pickup panned hard left.".into(),
+            approx: Vec::new(),
+            oversamples: &accuracy::OVERSAMPLES,
         },
         Case {
             name: "paper-string".into(),
             scene: scenes::preset_single_pickup(root, "paper-string")?,
             seconds: len(0.2),
             what: "presets/paper-string.toml (50-mass string, non-proportional damping, hammer 1 m/s), only the first pickup (mass 40), panned hard left.".into(),
+            approx: Vec::new(),
+            oversamples: &accuracy::OVERSAMPLES,
         },
         Case {
             name: "wall".into(),
             scene: scenes::wall_accuracy_scene()?,
             seconds: len(0.1),
             what: "Rigid wall, no gravity: 10 g hammer, k = 1e6 N/m (f_c = 1.59 kHz), zeta_c = 0.1, 0.1 mm above the wall at 1 m/s (contact from 4.41 samples). No pickup: the error is the hammer trajectory's.".into(),
+            approx: Vec::new(),
+            oversamples: &accuracy::OVERSAMPLES,
         },
         Case {
             name: "X2-chattering".into(),
             scene: scenes::s_scene("X2-chattering", 0.45)?,
             seconds: len(0.2),
             what: "NUMERICS S2/X2: f_c = 0.45 f_Nyq, zeta_c = 0.3, m_h/m_k = 0.2, 20 modes 200 Hz..0.82 f_Nyq (T60 2 s..0.1 s), v0 = 1 m/s from 1e-5 m.".into(),
+            approx: Vec::new(),
+            oversamples: &accuracy::OVERSAMPLES,
         },
         Case {
             name: "S1-soft".into(),
             scene: scenes::s_scene("S1-soft", 0.09)?,
             seconds: len(0.2),
             what: "NUMERICS S1/X1: as X2 with f_c = 0.09 f_Nyq.".into(),
+            approx: Vec::new(),
+            oversamples: &accuracy::OVERSAMPLES,
         },
+        plate_case(quick)?,
     ])
+}
+
+/// The accuracy scene with many modes, some above Nyquist, measured also
+/// with the opt-in approximations.
+fn plate_case(quick: bool) -> Result<Case> {
+    let scene = scenes::plate_scene("plate-full", 1.5 * scenes::NYQ)?;
+    Ok(Case {
+        name: "plate-full".into(),
+        what: format!(
+            "The plate of presets/steel-plate.toml (simply supported 400 x 280 x 8 mm steel; hard beater 0.04 kg, \
+             -1.5 m/s, here from 0.1 mm; contact designed for 0.2 ms) with every mode up to 1.5 f_Nyq instead of \
+             8 kHz and T60 = ln(1000)/(1 + pi f 1e-4): {}. One velocity pickup at (0.72, 0.64). Competitors only up \
+             to 16x (cost: O(N) per fine step with N = 280 states). Also measured with the opt-in approximations \
+             (second table).",
+            scenes::modal_summary(&scene)
+        ),
+        scene,
+        // short: the 16x reference check observes O(N^2) per sample
+        seconds: if quick { 0.06 } else { 0.1 },
+        approx: plate_approximations(),
+        oversamples: &accuracy::OVERSAMPLES[..5],
+    })
+}
+
+/// The approximation settings measured on `plate-full`: frequency limits
+/// (relative to Nyquist and absolute), quiet-mode levels, and one combination.
+fn plate_approximations() -> Vec<ApproxSpec> {
+    let nyq = |f: f64| ApproxSpec {
+        nyquist_fraction: Some(f),
+        ..Default::default()
+    };
+    let max = |hz: f64| ApproxSpec {
+        max_freq_hz: Some(hz),
+        ..Default::default()
+    };
+    let quiet = |db: f64| ApproxSpec {
+        quiet_below_db: Some(db),
+        ..Default::default()
+    };
+    vec![
+        nyq(1.0),
+        nyq(0.8),
+        nyq(0.5),
+        nyq(0.25),
+        max(8000.0),
+        max(3000.0),
+        quiet(-40.0),
+        quiet(-30.0),
+        quiet(-20.0),
+        ApproxSpec {
+            nyquist_fraction: Some(1.0),
+            quiet_below_db: Some(-30.0),
+            ..Default::default()
+        },
+    ]
 }
 
 /// Methods on the Pareto front (no other point is both cheaper and more
 /// accurate) of a scene, by the plotted metric.
 fn pareto(res: &SceneResult) -> Vec<String> {
-    let pts: Vec<(String, f64, f64)> = res
+    let methods = res
         .rows
         .iter()
-        .filter(|r| !r.diverged)
-        .filter_map(|r| {
+        .map(|r| (format!("{} x{}", r.method, r.os), r));
+    let approx = res
+        .approx
+        .iter()
+        .map(|a| (format!("exact + {}", a.label), &a.row));
+    let pts: Vec<(String, f64, f64)> = methods
+        .chain(approx)
+        .filter(|(_, r)| !r.diverged)
+        .filter_map(|(name, r)| {
             let y = if res.has_pickup {
                 r.pick_full
             } else {
                 r.hammer
             }?;
-            (y.is_finite() && r.cpu_per_s.is_finite())
-                .then(|| (format!("{} x{}", r.method, r.os), r.cpu_per_s, y))
+            (y.is_finite() && r.cpu_per_s.is_finite()).then_some((name, r.cpu_per_s, y))
         })
         .collect();
     let mut front: Vec<(String, f64, f64)> = pts
@@ -151,7 +231,9 @@ pub fn run(args: &[String]) -> Result<()> {
          {}x the rate, below). Errors are relative L2 norms against the reference. CPU time: median of up to \
          {} runs in this process (3 when one run takes over {} s), stepping loop only (engine: `tick` in a \
          loop; competitors: `simulate` minus the same call with one output row, i.e. minus setup; the competitor \
-         loop still includes its per-fine-step energy and contact bookkeeping, O(state) per step). One core of \
+         loop still includes its per-fine-step energy and contact bookkeeping, O(state) per step). Every timed \
+         run starts with `vzeroupper`: compiling a small scene on the same thread leaves the upper AVX register \
+         halves dirty, which slowed the engine's next runs ~4x (xtask/src/report/runs.rs). One core of \
          a shared 2-core machine; other jobs may have run at the same time, so treat times as +-30 %.\n",
         if a.quick { " --quick" } else { "" },
         accuracy::CHECK_FACTOR,
@@ -167,11 +249,14 @@ pub fn run(args: &[String]) -> Result<()> {
     md += "Columns: CPU seconds per second of audio (repetitions); relative L2 error of the pickup velocity over the 50 ms from the reference's first contact onset (a dropped ball is silent before it lands) and over the whole window; relative L2 of the hammer height; contacts matched by order (missed = reference contacts without a partner, extra = the opposite); largest onset/end time error over matched contacts in samples; largest energy increase between two output samples relative to E0 = |E(0)| + m_h g |x_h(0)|. \
            The `exact` row is the reference itself: its errors are against the engine at 16x the rate (its own error is 0 by construction).\n\n";
     let mut results = Vec::new();
-    let acc_cases = if a.wants("accuracy") {
+    let mut acc_cases = if a.wants("accuracy") {
         accuracy_cases(&root, a.quick)?
     } else {
         Vec::new()
     };
+    if let Some(name) = &a.scene {
+        acc_cases.retain(|c| &c.name == name);
+    }
     for case in acc_cases {
         eprintln!("accuracy: {} ({} s)", case.name, case.seconds);
         let t0 = Instant::now();
