@@ -23,6 +23,52 @@ pub const MAX_MODES_PER_OBJECT: usize = 4000;
 /// audio rate this plugin runs at; above-Nyquist modes below it are legal).
 pub const MAX_FREQ_HZ: f64 = 1.0e7;
 
+// Ranges of the other physical values. Outside them the compiled matrices
+// overflow or lose all precision (tests/fuzz_scenes.rs found each case: a
+// 1e-300 kg hammer or a 5e-324 s T60 gives non-finite generators, gravity
+// 1e300 non-finite energies, a gain of 1e300 non-finite output), so a scene
+// file is refused with the field's name instead. Each range is far wider than
+// any instrument needs.
+
+/// Lowest mode frequency [Hz]: a period of 1000 s, longer than any render; a
+/// 0 Hz mode would be a free rigid body, which is not a mode.
+pub const MIN_FREQ_HZ: f64 = 1.0e-3;
+/// Shortest T60 [s]: 60 dB of decay in a microsecond (damping rate
+/// `ln(1000) / T60` up to 6.9e6 1/s) is far beyond any audible damping.
+pub const MIN_T60_S: f64 = 1.0e-6;
+/// Lightest and heaviest mass [kg] (hammer, string masses): the lower limit
+/// is the effective mass of the largest allowed weight, `1 / (1e6)^2`.
+pub const MIN_MASS_KG: f64 = 1.0e-12;
+/// See [`MIN_MASS_KG`] (a thousand tonnes).
+pub const MAX_MASS_KG: f64 = 1.0e6;
+/// Smallest contact stiffness [N/m]: a spring that pushes with 1 uN per mm
+/// of compression. Softer ones overflow the static equilibrium under
+/// gravity (`m g / k`; tests/fuzz_scenes.rs found `5e-324`).
+pub const MIN_STIFFNESS_N_PER_M: f64 = 1.0e-3;
+/// Largest contact or string spring stiffness [N/m] (a contact frequency of
+/// 1000x the Nyquist frequency of 44.1 kHz with a 20 g hammer needs 3.8e14).
+pub const MAX_STIFFNESS_N_PER_M: f64 = 1.0e16;
+/// Largest contact or dashpot damping [N s/m] (an overdamped contact with
+/// zeta = 1e3 for a 20 g hammer on 1e6 N/m needs 2.8e5).
+pub const MAX_DAMPING_N_S_PER_M: f64 = 1.0e9;
+/// Largest Rayleigh mass-proportional damping [1/s] (the rate of a T60 of
+/// [`MIN_T60_S`]: `2 ln(1000) / 1e-6`).
+pub const MAX_RAYLEIGH_ALPHA_PER_S: f64 = 1.4e7;
+/// Largest Rayleigh stiffness-proportional damping [s] (1 s damps every
+/// mode above 1 Hz critically).
+pub const MAX_RAYLEIGH_BETA_S: f64 = 1.0;
+/// Largest hammer height [m] and speed [m/s] (three times the speed of
+/// sound in air).
+pub const MAX_HEIGHT_M: f64 = 1.0e3;
+/// See [`MAX_HEIGHT_M`].
+pub const MAX_SPEED_M_PER_S: f64 = 1.0e3;
+/// Largest gravity [m/s^2] (a thousand g).
+pub const MAX_GRAVITY_M_PER_S2: f64 = 1.0e4;
+/// Largest pickup gain magnitude (+120 dB).
+pub const MAX_GAIN: f64 = 1.0e6;
+/// Longest `duration_s` [s] (the renderer's limit).
+pub const MAX_DURATION_S: f64 = 3600.0;
+
 /// A validation or parse error that names the field and the reason.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SceneError {
@@ -333,6 +379,42 @@ fn check_non_negative(path: &str, v: f64) -> Result<(), SceneError> {
     }
 }
 
+/// `v` (already known finite) must be at most `hi`.
+fn check_max(path: &str, v: f64, hi: f64) -> Result<(), SceneError> {
+    if v <= hi {
+        Ok(())
+    } else {
+        Err(SceneError::new(
+            path,
+            format!("must be <= {hi:e}, got {v:e}"),
+        ))
+    }
+}
+
+/// `v` (already known finite) must be at least `lo`.
+fn check_min(path: &str, v: f64, lo: f64) -> Result<(), SceneError> {
+    if v >= lo {
+        Ok(())
+    } else {
+        Err(SceneError::new(
+            path,
+            format!("must be >= {lo:e}, got {v:e}"),
+        ))
+    }
+}
+
+/// `|v|` (already known finite) must be at most `hi`.
+fn check_abs_max(path: &str, v: f64, hi: f64) -> Result<(), SceneError> {
+    if v.abs() <= hi {
+        Ok(())
+    } else {
+        Err(SceneError::new(
+            path,
+            format!("|value| must be <= {hi:e}, got {v:e}"),
+        ))
+    }
+}
+
 impl Scene {
     /// Parse and validate a scene from TOML text.
     pub fn from_toml_str(text: &str) -> Result<Scene, SceneError> {
@@ -381,6 +463,7 @@ impl Scene {
             ));
         }
         check_positive("duration_s", self.duration_s)?;
+        check_max("duration_s", self.duration_s, MAX_DURATION_S)?;
         if self.object.is_empty() {
             return Err(SceneError::new("object", "at least one object is needed"));
         }
@@ -420,9 +503,22 @@ impl Scene {
         }
         let h = &self.hammer;
         check_positive("hammer.mass_kg", h.mass_kg)?;
+        check_min("hammer.mass_kg", h.mass_kg, MIN_MASS_KG)?;
+        check_max("hammer.mass_kg", h.mass_kg, MAX_MASS_KG)?;
         check_non_negative("hammer.height_m", h.height_m)?;
+        check_max("hammer.height_m", h.height_m, MAX_HEIGHT_M)?;
         check_finite("hammer.velocity_m_per_s", h.velocity_m_per_s)?;
+        check_abs_max(
+            "hammer.velocity_m_per_s",
+            h.velocity_m_per_s,
+            MAX_SPEED_M_PER_S,
+        )?;
         check_non_negative("hammer.gravity_m_per_s2", h.gravity_m_per_s2)?;
+        check_max(
+            "hammer.gravity_m_per_s2",
+            h.gravity_m_per_s2,
+            MAX_GRAVITY_M_PER_S2,
+        )?;
 
         let c = &self.contact;
         let Some(obj_idx) = self.object_index(&c.object) else {
@@ -439,7 +535,16 @@ impl Scene {
                 ))
             }
             (ObjectSpec::Wall(_), None) => {}
-            (_, None) => return Err(SceneError::new("contact.point", "missing")),
+            (obj, None) => {
+                return Err(SceneError::new(
+                    "contact.point",
+                    format!(
+                        "missing: object {:?} is not a wall, name one of its points {:?}",
+                        c.object,
+                        obj.point_names()
+                    ),
+                ))
+            }
             (obj, Some(p)) => {
                 if !obj.point_names().contains(p) {
                     return Err(SceneError::new(
@@ -450,7 +555,22 @@ impl Scene {
             }
         }
         check_positive("contact.stiffness_n_per_m", c.stiffness_n_per_m)?;
+        check_min(
+            "contact.stiffness_n_per_m",
+            c.stiffness_n_per_m,
+            MIN_STIFFNESS_N_PER_M,
+        )?;
+        check_max(
+            "contact.stiffness_n_per_m",
+            c.stiffness_n_per_m,
+            MAX_STIFFNESS_N_PER_M,
+        )?;
         check_non_negative("contact.damping_n_s_per_m", c.damping_n_s_per_m)?;
+        check_max(
+            "contact.damping_n_s_per_m",
+            c.damping_n_s_per_m,
+            MAX_DAMPING_N_S_PER_M,
+        )?;
 
         for (i, p) in self.pickup.iter().enumerate() {
             let base = format!("pickup[{i}]");
@@ -467,6 +587,7 @@ impl Scene {
                 ));
             }
             check_finite(&format!("{base}.gain"), p.gain)?;
+            check_abs_max(&format!("{base}.gain"), p.gain, MAX_GAIN)?;
             check_finite(&format!("{base}.pan"), p.pan)?;
             if !(-1.0..=1.0).contains(&p.pan) {
                 return Err(SceneError::new(
@@ -518,8 +639,10 @@ fn validate_modal(base: &str, m: &ModalSpec) -> Result<(), SceneError> {
                 format!("must be <= {MAX_FREQ_HZ}, got {}", mode.freq_hz),
             ));
         }
+        check_min(&format!("{mb}.freq_hz"), mode.freq_hz, MIN_FREQ_HZ)?;
         if let Some(t60) = mode.t60_s {
             check_positive(&format!("{mb}.t60_s"), t60)?;
+            check_min(&format!("{mb}.t60_s"), t60, MIN_T60_S)?;
         }
         if mode.weights.len() != m.points.len() {
             return Err(SceneError::new(
@@ -554,12 +677,54 @@ fn validate_string(base: &str, s: &StringSpec) -> Result<(), SceneError> {
         ));
     }
     check_positive(&format!("{base}.mass_kg"), s.mass_kg)?;
+    check_min(&format!("{base}.mass_kg"), s.mass_kg, MIN_MASS_KG)?;
+    check_max(&format!("{base}.mass_kg"), s.mass_kg, MAX_MASS_KG)?;
     check_positive(&format!("{base}.spring_n_per_m"), s.spring_n_per_m)?;
+    check_max(
+        &format!("{base}.spring_n_per_m"),
+        s.spring_n_per_m,
+        MAX_STIFFNESS_N_PER_M,
+    )?;
+    // The chain's modes span 2 sqrt(s/m) sin(j pi / (2 (n + 1))), j = 1..n:
+    // the same frequency range as a modal object's modes.
+    let omega0 = (s.spring_n_per_m / s.mass_kg).sqrt();
+    let n1 = s.masses as f64 + 1.0;
+    let f_lo = omega0 * (std::f64::consts::PI / (2.0 * n1)).sin() / std::f64::consts::PI;
+    let f_hi =
+        omega0 * (s.masses as f64 * std::f64::consts::PI / (2.0 * n1)).sin() / std::f64::consts::PI;
+    if f_hi > MAX_FREQ_HZ {
+        return Err(SceneError::new(
+            format!("{base}.spring_n_per_m"),
+            format!(
+                "with mass_kg = {:e} the highest mode is at {f_hi:.3e} Hz, above {MAX_FREQ_HZ:e} Hz (spring too stiff or masses too light)",
+                s.mass_kg
+            ),
+        ));
+    }
+    if f_lo < MIN_FREQ_HZ {
+        return Err(SceneError::new(
+            format!("{base}.spring_n_per_m"),
+            format!(
+                "with mass_kg = {:e} the lowest mode is at {f_lo:.3e} Hz, below {MIN_FREQ_HZ:e} Hz (spring too soft or masses too heavy)",
+                s.mass_kg
+            ),
+        ));
+    }
     check_non_negative(
         &format!("{base}.rayleigh_alpha_per_s"),
         s.rayleigh_alpha_per_s,
     )?;
+    check_max(
+        &format!("{base}.rayleigh_alpha_per_s"),
+        s.rayleigh_alpha_per_s,
+        MAX_RAYLEIGH_ALPHA_PER_S,
+    )?;
     check_non_negative(&format!("{base}.rayleigh_beta_s"), s.rayleigh_beta_s)?;
+    check_max(
+        &format!("{base}.rayleigh_beta_s"),
+        s.rayleigh_beta_s,
+        MAX_RAYLEIGH_BETA_S,
+    )?;
     for (j, d) in s.dashpots.iter().enumerate() {
         if d.mass >= s.masses {
             return Err(SceneError::new(
@@ -568,6 +733,11 @@ fn validate_string(base: &str, s: &StringSpec) -> Result<(), SceneError> {
             ));
         }
         check_non_negative(&format!("{base}.dashpots[{j}].n_s_per_m"), d.n_s_per_m)?;
+        check_max(
+            &format!("{base}.dashpots[{j}].n_s_per_m"),
+            d.n_s_per_m,
+            MAX_DAMPING_N_S_PER_M,
+        )?;
     }
     for (name, &idx) in &s.points {
         if idx >= s.masses {

@@ -12,6 +12,7 @@ use modal_contact::scene::{ApproxSpec, Scene, Switching};
 const NO_SAVINGS: CompileOptions = CompileOptions {
     exact_savings: false,
     approximations: false,
+    ..CompileOptions::DEFAULT
 };
 
 fn six_mode_scene() -> Scene {

@@ -13,7 +13,10 @@
 //! - gravity as a shift to the contact phase's static equilibrium, so stepping
 //!   stays homogeneous (no affine term per sample).
 
+pub mod budget;
 pub mod prune;
+
+pub use budget::{CompileBudget, CompileCost};
 
 use crate::physics::decomp::{self, DecompDiagnostics, Form, PhaseDecomp};
 use crate::physics::model::{contact_system, ContactLayout, ContactParams, ObjectModel};
@@ -21,13 +24,32 @@ use crate::scene::{ObjectSpec, Quantity, Scene, Switching};
 use nalgebra::{DMatrix, DVector};
 use std::fmt;
 
-/// Largest contact-system dimension the compiler attempts (2 * 2000 + 2):
-/// beyond it the eigensolver takes far too long for an interactive instrument.
+/// Largest contact-system dimension the compiler attempts whatever the
+/// [`CompileBudget`] (2 * 2000 + 2): beyond it the eigensolver takes far too
+/// long for an interactive instrument. The default budget refuses much
+/// smaller systems (a fully coupled contact system of dimension ~2100).
 pub const MAX_CONTACT_DIM: usize = 4002;
 /// Largest dense-fallback phase for which exact switching is offered (its
 /// partial steps cost O(dim^2) per Taylor term; near-defective phases are in
 /// practice the 2x2 hammer-on-wall case).
 pub const MAX_DENSE_EXACT_DIM: usize = 16;
+/// Largest `|A|_F h` of a dense-fallback phase for which exact switching is
+/// offered: the engine's partial dense steps take `ceil(|A|_F tau / 0.5)`
+/// Taylor sub-steps of 20 mat-vecs each, per event-function evaluation, so a
+/// very stiff or very damped dense phase (found by tests/fuzz_scenes.rs:
+/// `|A| h ~ 1e6` made one sample take minutes) gets the offset rod instead.
+/// 8 allows 16 sub-steps (~80k flops per evaluation at dimension 16).
+pub const MAX_DENSE_EXACT_NORM_H: f64 = 8.0;
+
+/// Passivity check of every compiled propagator: its largest singular value
+/// over one sample, in energy coordinates, may exceed 1 by at most this many
+/// units of `dim * kappa(V) * u` (the rounding of forming `V exp(G h) V^-1`,
+/// or of the dense `exp(A h)` with `kappa = 1`). A larger excess means the
+/// decomposition or the Pade exponential is not accurate enough for the
+/// phase to be passive in f64, and stepping it could create energy
+/// (tests/fuzz_scenes.rs found a dense contact phase with `|A| h = 1.6e9`
+/// and `sigma_max - 1 = 4.5e-8`): such a scene is refused.
+pub const PASSIVITY_TOL_PER_DIM_KAPPA_U: f64 = 16.0;
 
 /// Why a scene could not be compiled.
 #[derive(Debug, Clone, PartialEq)]
@@ -201,6 +223,35 @@ pub fn pan_gains(pan: f64) -> (f64, f64) {
     (theta.cos(), theta.sin())
 }
 
+/// What to change when a phase is too stiff or too damped for f64.
+fn stiffness_hint(what: &str, scene: &Scene, ci: usize) -> String {
+    let obj = match &scene.object[ci] {
+        ObjectSpec::String(_) => format!(
+            "lower object[{ci}]'s damping (dashpots, rayleigh_alpha_per_s, rayleigh_beta_s) or spring_n_per_m, or raise its mass_kg"
+        ),
+        ObjectSpec::Modal(_) => format!(
+            "lengthen the shortest t60_s of object[{ci}] or lower its weights at the contact point (|w| is 1/sqrt(effective mass))"
+        ),
+        ObjectSpec::Wall(_) => String::new(),
+    };
+    if what == "free" {
+        obj
+    } else if obj.is_empty() {
+        "lower contact.stiffness_n_per_m or contact.damping_n_s_per_m, or raise hammer.mass_kg"
+            .into()
+    } else {
+        format!("lower contact.stiffness_n_per_m or contact.damping_n_s_per_m, raise hammer.mass_kg, or {obj}")
+    }
+}
+
+/// A decomposition failure of one phase, with what it means for the scene.
+fn phase_error(what: &str, e: &str, rate_hz: f64, scene: &Scene, ci: usize) -> CompileError {
+    CompileError(format!(
+        "{what} phase: {e}. Its generator is too stiff or too damped to be advanced in f64 at {rate_hz} Hz: {}",
+        stiffness_hint(what, scene, ci)
+    ))
+}
+
 /// Compile a scene for a sample rate.
 pub fn compile(scene: &Scene, rate_hz: f64) -> Result<CompiledScene, CompileError> {
     compile_with(scene, rate_hz, None)
@@ -217,14 +268,23 @@ pub struct CompileOptions {
     pub exact_savings: bool,
     /// Apply the scene's opt-in `[approximate]` settings.
     pub approximations: bool,
+    /// Largest estimated cost of a compile: a scene above it is refused
+    /// before any O(d^3) work (see [`budget`]).
+    pub budget: CompileBudget,
+}
+
+impl CompileOptions {
+    /// The defaults, usable in `const` contexts (`..CompileOptions::DEFAULT`).
+    pub const DEFAULT: Self = Self {
+        exact_savings: true,
+        approximations: true,
+        budget: CompileBudget::DEFAULT,
+    };
 }
 
 impl Default for CompileOptions {
     fn default() -> Self {
-        Self {
-            exact_savings: true,
-            approximations: true,
-        }
+        Self::DEFAULT
     }
 }
 
@@ -257,14 +317,32 @@ pub fn compile_opts(
         .ok_or_else(|| CompileError("contact object missing".into()))?;
     let (spec, dropped_modes) = prune::prune_object(scene, ci, rate_hz, opts);
     let spec = &spec;
-    let obj = ObjectModel::from_spec(spec).map_err(CompileError)?;
-    if 2 * obj.n + 2 > MAX_CONTACT_DIM {
+    // Budget: estimate before building anything of size O(d^2) or doing any
+    // O(d^3) work.
+    let cost = CompileCost::estimate(
+        spec,
+        scene.contact.point.as_deref(),
+        scene.hammer.gravity_m_per_s2 != 0.0,
+        opts.exact_savings,
+    );
+    if cost.contact_dim > MAX_CONTACT_DIM {
         return Err(CompileError(format!(
-            "contact system of dimension {} exceeds the limit {MAX_CONTACT_DIM}",
-            2 * obj.n + 2
+            "contact system of dimension {} exceeds the limit {MAX_CONTACT_DIM} (object[{ci}] {:?}: use fewer modes or masses); not attempted",
+            cost.contact_dim,
+            scene.contact.object
         )));
     }
-    let contact_rows = match &scene.contact.point {
+    cost.check(&opts.budget, scene, ci).map_err(CompileError)?;
+    let obj = ObjectModel::from_spec(spec)
+        .map_err(|e| CompileError(format!("object[{ci}] {:?}: {e}", scene.contact.object)))?;
+    // A modal object whose every mode was pruned is a rigid wall: it has no
+    // points, and the hammer meets it as a wall (tests/fuzz_scenes.rs found
+    // `[approximate] max_freq_hz` below every mode giving "no point c").
+    let contact_point = match spec {
+        ObjectSpec::Wall(_) => None,
+        _ => scene.contact.point.as_ref(),
+    };
+    let contact_rows = match contact_point {
         Some(p) => Some(
             obj.point(p)
                 .ok_or_else(|| CompileError(format!("no point {p}")))?
@@ -286,7 +364,9 @@ pub fn compile_opts(
             let pairs: Vec<(usize, usize)> = (0..n).map(|i| (i, n + i)).collect();
             decomp::from_blocks(blocks.clone(), &pairs, 2 * n, h)
         }
-        None => decomp::decompose(&obj.a, h).map_err(CompileError)?,
+        None => {
+            decomp::decompose(&obj.a, h).map_err(|e| phase_error("free", &e, rate_hz, scene, ci))?
+        }
     };
 
     // --- contact phase
@@ -318,12 +398,21 @@ pub fn compile_opts(
             .collect();
         let pairs: Vec<(usize, usize)> = uncoupled.iter().map(|&i| (i, n + 1 + i)).collect();
         let gens: Vec<[f64; 4]> = uncoupled.iter().map(|&i| blocks[i]).collect();
-        con_dec =
-            decomp::decompose_split(&a_c, &coupled, &pairs, &gens, h).map_err(CompileError)?;
+        con_dec = decomp::decompose_split(&a_c, &coupled, &pairs, &gens, h)
+            .map_err(|e| phase_error("contact", &e, rate_hz, scene, ci))?;
+        if con_dec.is_none() {
+            // The coupled part needs the dense fallback: the whole contact
+            // system is decomposed instead, which the estimate did not count.
+            let whole = CompileCost::from_dims(n, n, false, lay.dim(), params.g != 0.0);
+            whole
+                .check(&opts.budget, scene, ci)
+                .map_err(|e| CompileError(format!("the coupled modes are near-defective, so the whole contact system must be decomposed: {e}")))?;
+        }
     }
     let con_dec = match con_dec {
         Some(d) => d,
-        None => decomp::decompose(&a_c, h).map_err(CompileError)?,
+        None => decomp::decompose(&a_c, h)
+            .map_err(|e| phase_error("contact", &e, rate_hz, scene, ci))?,
     };
 
     // static equilibrium y* = -A^{-1} f (only with gravity: no affine term otherwise)
@@ -433,36 +522,38 @@ pub fn compile_opts(
     let s_f_star: Vec<f64> = (&w_fc * &s_star_v).iter().cloned().collect();
     let s_star: Vec<f64> = s_star_v.iter().cloned().collect();
 
-    let to_phase = |d: PhaseDecomp, rows: PhaseRows| -> Result<CompiledPhase, CompileError> {
-        let dim = d.v.nrows();
-        let (gens, dense) = match d.form {
-            Form::Blocks { gens } => (Some(gens), None),
-            Form::Dense { a } => {
-                let phi = decomp::dense_exp(&a, h).map_err(CompileError)?;
-                // row-major for the engine's mat-vec
-                let flat: Vec<f64> = (0..dim)
-                    .flat_map(|i| (0..dim).map(move |j| (i, j)))
-                    .map(|(i, j)| phi[(i, j)])
-                    .collect();
-                (None, Some((a, flat)))
-            }
+    let to_phase =
+        |what: &str, d: PhaseDecomp, rows: PhaseRows| -> Result<CompiledPhase, CompileError> {
+            let dim = d.v.nrows();
+            let (gens, dense) = match d.form {
+                Form::Blocks { gens } => (Some(gens), None),
+                Form::Dense { a } => {
+                    let phi = decomp::dense_exp(&a, h)
+                        .map_err(|e| phase_error(what, &e, rate_hz, scene, ci))?;
+                    // row-major for the engine's mat-vec
+                    let flat: Vec<f64> = (0..dim)
+                        .flat_map(|i| (0..dim).map(move |j| (i, j)))
+                        .map(|(i, j)| phi[(i, j)])
+                        .collect();
+                    (None, Some((a, flat)))
+                }
+            };
+            Ok(CompiledPhase {
+                dim,
+                gens,
+                dense,
+                v: d.v,
+                vinv: d.vinv,
+                rows,
+                diag: d.diag,
+                ev: Vec::new(),
+                ev_d: Vec::new(),
+                ev_dd: Vec::new(),
+                ev_dd_norm: 0.0,
+            })
         };
-        Ok(CompiledPhase {
-            dim,
-            gens,
-            dense,
-            v: d.v,
-            vinv: d.vinv,
-            rows,
-            diag: d.diag,
-            ev: Vec::new(),
-            ev_d: Vec::new(),
-            ev_dd: Vec::new(),
-            ev_dd_norm: 0.0,
-        })
-    };
-    let mut free = to_phase(free_dec, free_rows)?;
-    let mut contact = to_phase(con_dec, con_rows)?;
+    let mut free = to_phase("free", free_dec, free_rows)?;
+    let mut contact = to_phase("contact", con_dec, con_rows)?;
     let sk = params.k.sqrt();
     free.set_event_row(free.rows.x_c.iter().map(|x| -x).collect());
     contact.set_event_row(contact.rows.pi.iter().map(|x| x / sk).collect());
@@ -473,11 +564,18 @@ pub fn compile_opts(
     let mut switching_note = None;
     if switching == Switching::Exact {
         for ph in [&free, &contact] {
-            if ph.dense.is_some() && ph.dim > MAX_DENSE_EXACT_DIM {
+            let Some((a, _)) = &ph.dense else { continue };
+            let norm_h = a.norm() * h;
+            if ph.dim > MAX_DENSE_EXACT_DIM {
                 switching = Switching::OffsetRod;
                 switching_note = Some(format!(
                     "exact switching needs partial dense steps of dimension {} > {MAX_DENSE_EXACT_DIM}: using the offset rod",
                     ph.dim
+                ));
+            } else if !(norm_h <= MAX_DENSE_EXACT_NORM_H) {
+                switching = Switching::OffsetRod;
+                switching_note = Some(format!(
+                    "exact switching needs partial dense steps with |A| h = {norm_h:.1e} > {MAX_DENSE_EXACT_NORM_H} (too many Taylor sub-steps): using the offset rod"
                 ));
             }
         }
@@ -488,6 +586,35 @@ pub fn compile_opts(
             && ph.gens.iter().flatten().flatten().all(|x| x.is_finite());
         if !all_finite {
             return Err(CompileError(format!("{what} phase has non-finite entries")));
+        }
+    }
+    for (what, ph) in [("free", &free), ("contact", &contact)] {
+        let d = &ph.diag;
+        let kappa = if ph.dense.is_some() || !d.kappa.is_finite() {
+            1.0
+        } else {
+            d.kappa.max(1.0)
+        };
+        let tol = PASSIVITY_TOL_PER_DIM_KAPPA_U * ph.dim as f64 * kappa * (f64::EPSILON / 2.0);
+        if !(d.sigma_max - 1.0 <= tol) {
+            let norm_h = match &ph.dense {
+                Some((a, _)) => a.norm() * h,
+                None => {
+                    ph.gens
+                        .iter()
+                        .flatten()
+                        .map(|g| g.iter().map(|x| x * x).sum::<f64>().sqrt())
+                        .fold(0.0, f64::max)
+                        * h
+                }
+            };
+            return Err(CompileError(format!(
+                "{what} phase is not passive in f64 at {rate_hz} Hz: its one-sample propagator ({}) has largest singular value 1 + {:.1e} > 1 + {tol:.1e}, so stepping it could create energy. \
+                 The phase is too stiff or too damped for this rate (|A| h = {norm_h:.1e}): {}",
+                d.method,
+                d.sigma_max - 1.0,
+                stiffness_hint(what, scene, ci)
+            )));
         }
     }
     if w_cf.iter().chain(w_fc.iter()).any(|x| !x.is_finite()) {
