@@ -10,7 +10,8 @@
 //! - **Velocity -> impact speed** ([`impact_speed_m_per_s`]):
 //!   `v = 0.05 + 2.95 * vel^2` m/s for `vel` in 0..1 (MIDI velocity / 127), so
 //!   the softest note hits at 5 cm/s and the hardest at 3 m/s; the square gives
-//!   the usual "more range at the top" feel. The contact is linear, so the
+//!   the usual "more range at the top" feel. A note-on at velocity 0 (or not
+//!   a number) is a note-off, as in MIDI. The contact is linear, so the
 //!   output amplitude is proportional to `v` (up to the hammer's bounce).
 //!   The hammer is launched from the surface of the object (height 0 above the
 //!   contact point's current displacement) moving down at `v`: contact starts
@@ -687,6 +688,11 @@ impl Instrument {
     /// Apply one event now (between two samples). [audio-thread]
     pub fn handle(&mut self, event: Event) {
         match event {
+            // MIDI's convention: a note-on at velocity 0 is a note-off (and
+            // a velocity that is not a number strikes nothing).
+            Event::NoteOn { key, velocity_norm } if !(velocity_norm > 0.0) => {
+                self.note_off(Some(key))
+            }
             Event::NoteOn { key, velocity_norm } => self.note_on(key, velocity_norm),
             Event::NoteOff { key } => self.note_off(Some(key)),
             Event::AllNotesOff => self.note_off(None),

@@ -395,9 +395,14 @@ impl LoadedPlugin {
 
     /// Load a saved state.
     pub fn load_state(&mut self, bytes: &[u8]) {
+        assert!(self.try_load_state(bytes), "load state refused");
+    }
+
+    /// Load a state; false when the plugin refused it (the host is told).
+    pub fn try_load_state(&mut self, bytes: &[u8]) -> bool {
         let handle = self.instance.plugin_handle();
         let state: PluginState = handle.get_extension().expect("state extension");
-        state.load(&handle, &mut &bytes[..]).expect("load state");
+        state.load(&handle, &mut &bytes[..]).is_ok()
     }
 
     /// Activate at `rate_hz` for blocks of `min_frames..=max_frames` and
