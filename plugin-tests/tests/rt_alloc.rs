@@ -7,8 +7,8 @@
 //! damped scene, parameter swaps including a preset change with its fade-out,
 //! a switching change and a strike-position change) runs in a child process
 //! (this test binary re-executed with `MODAL_CONTACT_CHILD_BUNDLE` set), so an
-//! abort is observed rather than killing the test run. In the `alloc-bug`
-//! build note 2 allocates in `process` on purpose: the child must die; the
+//! abort is observed rather than killing the test run. In the `rt-checks`
+//! build note 2 at velocity 0.123 (test-only `alloc-bug` trigger) allocates in `process` on purpose: the child must die; the
 //! clean build must not. In the `panic-bug` build (no allocation checker:
 //! the unwinder's own (de)allocations would trip it) note 1 panics inside
 //! `process`: the child must live, the block is silenced, a line is logged,
@@ -63,7 +63,7 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
         events.push(HostEvent::NoteOn {
             at: 25_000,
             key,
-            velocity: 0.5,
+            velocity: 0.123,
         });
     }
     events.push(param(first_change, ids::HARDNESS, 0.6));

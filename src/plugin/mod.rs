@@ -310,9 +310,12 @@ impl ModalContact {
             pos = at;
             if let Some(e) = note_event(&event) {
                 // TEST ONLY fault injection (test bundles; never in a shipped
-                // build): note 2 allocates in process, note 1 panics.
+                // build): note 2 at velocity 0.123 allocates in process, note 1
+                // panics.
                 #[cfg(feature = "alloc-bug")]
-                if matches!(e, Event::NoteOn { key: 2, .. }) {
+                if matches!(e, Event::NoteOn { key: 2, velocity_norm }
+                    if (velocity_norm - 0.123).abs() < 1e-6)
+                {
                     self.leak.push(0.0);
                 }
                 #[cfg(feature = "panic-bug")]
