@@ -250,6 +250,25 @@ impl HostEvent {
     }
 }
 
+/// A note-on event.
+pub fn on(at: usize, key: u8, velocity: f64) -> HostEvent {
+    HostEvent::NoteOn { at, key, velocity }
+}
+
+/// A note-off event.
+pub fn off(at: usize, key: u8) -> HostEvent {
+    HostEvent::NoteOff { at, key }
+}
+
+/// A parameter event by string id (CLAP value, see [`HostEvent::Param`]).
+pub fn param(at: usize, id: &str, value: f64) -> HostEvent {
+    HostEvent::Param {
+        at,
+        id: param_id(id),
+        value,
+    }
+}
+
 /// nice-plug's string id -> CLAP param id hash.
 pub fn param_id(id: &str) -> u32 {
     let mut hash: u32 = 0;

@@ -8,38 +8,6 @@ use modal_contact::plugin::params::ids;
 use modal_contact::presets;
 use plugin_tests::*;
 
-const ALL_IDS: [&str; 13] = [
-    ids::SCENE,
-    ids::HAMMER_MASS,
-    ids::HARDNESS,
-    ids::CONTACT_DAMPING,
-    ids::STRIKE_CUSTOM,
-    ids::STRIKE_POS,
-    ids::DECAY,
-    ids::DAMPER,
-    ids::PITCH_TRACKING,
-    ids::GRAVITY,
-    ids::DROP_HEIGHT,
-    ids::GAIN,
-    ids::SWITCHING,
-];
-
-fn on(at: usize, key: u8, velocity: f64) -> HostEvent {
-    HostEvent::NoteOn { at, key, velocity }
-}
-
-fn off(at: usize, key: u8) -> HostEvent {
-    HostEvent::NoteOff { at, key }
-}
-
-fn param(at: usize, id: &str, value: f64) -> HostEvent {
-    HostEvent::Param {
-        at,
-        id: param_id(id),
-        value,
-    }
-}
-
 /// A phrase on the default scene (marimba bar, root A3 = 57): a chord, a
 /// repeated note while it rings, a release, more notes than voices.
 fn phrase(rate: f64) -> Vec<HostEvent> {
@@ -80,8 +48,8 @@ fn every_parameter_is_exposed_under_its_stable_id() {
     let mut p = LoadedPlugin::load(&clap_bundle(Variant::Release));
     let infos = p.param_infos();
     println!("{} parameters: {infos:?}", infos.len());
-    assert_eq!(infos.len(), ALL_IDS.len());
-    for id in ALL_IDS {
+    assert_eq!(infos.len(), ids::ALL.len());
+    for id in ids::ALL {
         assert!(
             infos.iter().any(|(h, _)| *h == param_id(id)),
             "{id} missing: {infos:?}"
@@ -289,7 +257,7 @@ fn saved_state_restores_every_parameter() {
         .map(|(i, (id, v))| param(i, id, *v))
         .collect();
     a.render(&RenderSpec::new(48_000.0, 64, 64, events));
-    let before: Vec<f64> = ALL_IDS
+    let before: Vec<f64> = ids::ALL
         .iter()
         .map(|id| a.param_value(param_id(id)))
         .collect();
@@ -302,7 +270,7 @@ fn saved_state_restores_every_parameter() {
     let mut b = LoadedPlugin::load(&bundle);
     assert_ne!(b.param_value(param_id(ids::SCENE)), before[0]);
     b.load_state(&state);
-    let after: Vec<f64> = ALL_IDS
+    let after: Vec<f64> = ids::ALL
         .iter()
         .map(|id| b.param_value(param_id(id)))
         .collect();

@@ -29,30 +29,6 @@ impl Rng {
     }
 }
 
-fn on(at: usize, key: u8, velocity: f64) -> HostEvent {
-    HostEvent::NoteOn { at, key, velocity }
-}
-
-fn off(at: usize, key: u8) -> HostEvent {
-    HostEvent::NoteOff { at, key }
-}
-
-const ALL_PARAMS: [&str; 13] = [
-    ids::SCENE,
-    ids::HAMMER_MASS,
-    ids::HARDNESS,
-    ids::CONTACT_DAMPING,
-    ids::STRIKE_CUSTOM,
-    ids::STRIKE_POS,
-    ids::DECAY,
-    ids::DAMPER,
-    ids::PITCH_TRACKING,
-    ids::GRAVITY,
-    ids::DROP_HEIGHT,
-    ids::GAIN,
-    ids::SWITCHING,
-];
-
 /// Every sample finite and within the ceiling; returns the peak.
 fn check_block(x: &[f32], what: &str) -> f64 {
     let mut p = 0.0f64;
@@ -336,7 +312,7 @@ fn random_sample_accurate_automation_of_every_parameter() {
     let mut hostile = 0;
     while pos < total {
         let len = (1 + rng.below(1024)).min(total - pos);
-        for id in ALL_PARAMS {
+        for id in ids::ALL {
             let v = match rng.below(40) {
                 0 => f64::NAN,
                 1 => f64::INFINITY,

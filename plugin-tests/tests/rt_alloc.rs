@@ -23,14 +23,6 @@ use std::process::{Command, Output};
 const CHILD_ENV: &str = "MODAL_CONTACT_CHILD_BUNDLE";
 const SCRIPT_ENV: &str = "MODAL_CONTACT_CHILD_SCRIPT";
 
-fn param(at: usize, id: &str, value: f64) -> HostEvent {
-    HostEvent::Param {
-        at,
-        id: param_id(id),
-        value,
-    }
-}
-
 /// Renders the stress script; returns (output, the same notes without the
 /// parameter changes).
 fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2], usize) {

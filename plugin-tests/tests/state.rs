@@ -11,24 +11,11 @@ use modal_contact::plugin::params::ids;
 use modal_contact::presets;
 use plugin_tests::*;
 
-const ALL: [&str; 13] = [
-    ids::SCENE,
-    ids::HAMMER_MASS,
-    ids::HARDNESS,
-    ids::CONTACT_DAMPING,
-    ids::STRIKE_CUSTOM,
-    ids::STRIKE_POS,
-    ids::DECAY,
-    ids::DAMPER,
-    ids::PITCH_TRACKING,
-    ids::GRAVITY,
-    ids::DROP_HEIGHT,
-    ids::GAIN,
-    ids::SWITCHING,
-];
-
 fn values(p: &mut LoadedPlugin) -> Vec<f64> {
-    ALL.iter().map(|id| p.param_value(param_id(id))).collect()
+    ids::ALL
+        .iter()
+        .map(|id| p.param_value(param_id(id)))
+        .collect()
 }
 
 /// Set non-default values through process (as automation).
@@ -107,7 +94,7 @@ fn round_trip_is_exact_and_older_states_get_defaults() {
     set_non_defaults(&mut c);
     assert!(c.try_load_state(&older), "an older state must load");
     let got = values(&mut c);
-    for (i, id) in ALL.iter().enumerate() {
+    for (i, id) in ids::ALL.iter().enumerate() {
         let want = if [ids::SWITCHING, ids::GAIN, ids::DECAY].contains(id) {
             defaults[i]
         } else {
@@ -138,7 +125,7 @@ fn round_trip_is_exact_and_older_states_get_defaults() {
     let mut d = LoadedPlugin::load(&bundle);
     assert!(d.try_load_state(&state_of(&bad)), "{bad}");
     let got = values(&mut d);
-    let idx = |id: &str| ALL.iter().position(|x| *x == id).unwrap();
+    let idx = |id: &str| ids::ALL.iter().position(|x| *x == id).unwrap();
     assert_eq!(got[idx(ids::SCENE)], defaults[idx(ids::SCENE)]);
     assert_eq!(got[idx(ids::HARDNESS)], defaults[idx(ids::HARDNESS)]);
     assert_eq!(got[idx(ids::GAIN)], before[idx(ids::GAIN)]);

@@ -262,21 +262,15 @@ impl EngineState {
     /// function of the physical state across every switch. `INFINITY` (the
     /// default) hears every mode; NaN or <= 0 is treated as `INFINITY`.
     /// A dense-fallback free phase has no modes to leave out (no effect).
-    /// Allocation-free, O(N M) for M modes left out. [audio-thread]
+    /// Allocation-free, O(N) plus O(N M) for M modes left out. [audio-thread]
     pub fn set_output_band(&mut self, scene: &CompiledScene, band_hz: f64) {
         self.band_hz = if band_hz > 0.0 {
             band_hz
         } else {
             f64::INFINITY
         };
-        let s = self.time_scale;
-        for ch in 0..2 {
-            mix_rows(&mut self.out_f[ch], &scene.free, ch, s);
-            mix_rows(&mut self.out_c[ch], &scene.contact, ch, s);
-        }
-        self.out_c_offset = [scene.offsets.disp_l, scene.offsets.disp_r];
-        self.apply_band(scene);
-        self.cache_ok = false;
+        // re-mix the rows (and apply the band) at the current scale
+        self.set_time_scale_inner(scene, self.time_scale);
     }
 
     /// Modes currently left out of the outputs by the output band.

@@ -83,6 +83,22 @@ pub mod ids {
     pub const GAIN: &str = "gain";
     /// Switching method.
     pub const SWITCHING: &str = "switching";
+    /// Every id, in the order of the parameter struct.
+    pub const ALL: [&str; 13] = [
+        SCENE,
+        HAMMER_MASS,
+        HARDNESS,
+        CONTACT_DAMPING,
+        STRIKE_CUSTOM,
+        STRIKE_POS,
+        DECAY,
+        DAMPER,
+        PITCH_TRACKING,
+        GRAVITY,
+        DROP_HEIGHT,
+        GAIN,
+        SWITCHING,
+    ];
 }
 
 /// Every parameter (see docs/plugin.md for ranges and meaning).
