@@ -4,6 +4,14 @@
 //! paper's transition matrix used literally, NUMERICS.md finding 4), and a
 //! summary at the end prints the ratios, ns per mode per sample and the SIMD
 //! path that ran. Timing is reported here, never asserted in tests.
+//!
+//! The engine is driven the way the plugin drives it: `process_block` on
+//! blocks of samples. The phase cases hold one phase for the whole run (free:
+//! the hammer flies away from a ringing object; contact: a weight rests on a
+//! vibrating object at its static equilibrium, with a vibration too small to
+//! lift it), so they measure that phase and nothing else; switches are
+//! measured on their own (the change of basis, and a whole sample with a
+//! located impact), and the preset renders show everything together.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use modal_contact::compile::{compile_with, CompiledScene};
@@ -96,6 +104,9 @@ impl NaiveDense {
     }
 }
 
+/// A state in the requested phase: free (a ringing object, the hammer flying
+/// away) or contact (resting at the static equilibrium under gravity with a
+/// vibration of half the size that could lift the weight).
 fn engine_in(sc: &CompiledScene, contact: bool) -> EngineState {
     let mut st = EngineState::new(sc);
     if !contact {
@@ -105,20 +116,50 @@ fn engine_in(sc: &CompiledScene, contact: bool) -> EngineState {
             s[n + k] = 1e-3;
         }
     } else {
-        for _ in 0..44100 {
-            st.tick(sc);
+        let dim = sc.contact.dim;
+        let pattern: Vec<f64> = (0..dim).map(|i| ((i * 7919) % 13) as f64 - 6.0).collect();
+        let y = &sc.contact.v * DVector::from_vec(pattern.clone());
+        let p_static = sc.offsets.pi / sc.sk;
+        let scale = 0.5 * sc.sk * p_static / y.norm();
+        let s = st.rest_in_contact();
+        for (x, p) in s.iter_mut().zip(&pattern) {
+            *x = p * scale;
         }
-        assert!(st.in_contact(), "bench scene must settle into contact");
     }
     st
 }
 
+/// `n` samples in host-like blocks of [`BLOCK`]; returns a checksum.
 fn run_engine(st: &mut EngineState, sc: &CompiledScene, n: usize) -> f64 {
+    let mut l = [0.0; BLOCK];
+    let mut r = [0.0; BLOCK];
     let mut acc = 0.0;
-    for _ in 0..n {
-        acc += st.tick(sc)[0];
+    let mut left = n;
+    while left > 0 {
+        let m = left.min(BLOCK);
+        st.process_block(sc, &mut l[..m], &mut r[..m]);
+        acc += l[0] + r[m - 1];
+        left -= m;
     }
     acc
+}
+
+/// A 100-mode object and a hammer one sample before it hits: the next
+/// sample holds a located impact (event search, root, partial steps, change
+/// of basis).
+fn before_impact() -> (CompiledScene, EngineState) {
+    let sc = compile_with(&modal_scene(100, false), RATE, Some(Switching::Exact)).unwrap();
+    let mut st = engine_in(&sc, false);
+    // hammer 2 mm above the surface, coming down at 1 m/s
+    st.strike(&sc, 2e-3, -1.0);
+    loop {
+        let mut probe = st.clone();
+        probe.tick(&sc);
+        if probe.contacts_started > 0 {
+            return (sc, st);
+        }
+        st.tick(&sc);
+    }
 }
 
 fn phases(c: &mut Criterion) {
@@ -137,6 +178,7 @@ fn phases(c: &mut Criterion) {
             g.bench_with_input(BenchmarkId::new("engine", n), &n, |b, _| {
                 b.iter(|| black_box(run_engine(&mut st, &sc, BLOCK)))
             });
+            assert_eq!(st.in_contact(), contact, "the phase must not change");
             let mut naive = NaiveDense::new(&sc, contact);
             g.bench_with_input(BenchmarkId::new("naive_dense", n), &n, |b, _| {
                 b.iter(|| black_box(naive.run(BLOCK, contact)))
@@ -150,8 +192,16 @@ fn switch(c: &mut Criterion) {
     let sc = compile_with(&modal_scene(100, false), RATE, Some(Switching::Exact)).unwrap();
     let mut st = engine_in(&sc, false);
     let mut g = c.benchmark_group("switch_100_modes");
-    g.bench_function("enter_and_leave", |b| {
+    g.bench_function("change_of_basis_enter_and_leave", |b| {
         b.iter(|| st.bench_switch_pair(black_box(&sc)))
+    });
+    let (sc, before) = before_impact();
+    g.bench_function("located_impact_sample", |b| {
+        b.iter_batched(
+            || before.clone(),
+            |mut st| black_box(st.tick(&sc)),
+            criterion::BatchSize::SmallInput,
+        )
     });
     g.finish();
 }
@@ -177,22 +227,9 @@ fn voices(c: &mut Criterion) {
     let sc = compile_with(&modal_scene(200, false), RATE, Some(Switching::Exact)).unwrap();
     let mut g = c.benchmark_group("voices_16x200_modes_1s");
     g.sample_size(10);
-    let mut vs: Vec<EngineState> = (0..16)
-        .map(|i| {
-            let mut st = engine_in(&sc, false);
-            st.set_time_scale(&sc, 2f64.powf(i as f64 / 12.0 - 0.5))
-                .unwrap();
-            st
-        })
-        .collect();
+    let mut vs = sixteen_voices(&sc);
     g.bench_function("engine", |b| {
-        b.iter(|| {
-            let mut acc = 0.0;
-            for st in vs.iter_mut() {
-                acc += run_engine(st, &sc, 44100);
-            }
-            black_box(acc)
-        })
+        b.iter(|| black_box(run_voices(&mut vs, &sc, 44100)))
     });
     g.finish();
 }
@@ -210,6 +247,35 @@ fn median_time(runs: usize, mut f: impl FnMut()) -> f64 {
     t[runs / 2]
 }
 
+/// 16 voices at different pitches, rendered like the instrument does: in
+/// chunks of 64 samples, voice after voice.
+fn run_voices(vs: &mut [EngineState], sc: &CompiledScene, n: usize) -> f64 {
+    let mut l = [0.0; 64];
+    let mut r = [0.0; 64];
+    let mut acc = 0.0;
+    let mut left = n;
+    while left > 0 {
+        let m = left.min(64);
+        for st in vs.iter_mut() {
+            st.process_block(sc, &mut l[..m], &mut r[..m]);
+            acc += l[0];
+        }
+        left -= m;
+    }
+    acc
+}
+
+fn sixteen_voices(sc: &CompiledScene) -> Vec<EngineState> {
+    (0..16)
+        .map(|i| {
+            let mut st = engine_in(sc, false);
+            st.set_time_scale(sc, 2f64.powf(i as f64 / 12.0 - 0.5))
+                .unwrap();
+            st
+        })
+        .collect()
+}
+
 /// Ratios against the naive baseline, measured in this run.
 fn summary(_c: &mut Criterion) {
     let path = modal_contact::engine::SimdPath::detect();
@@ -225,16 +291,24 @@ fn summary(_c: &mut Criterion) {
             let te = median_time(5, || {
                 black_box(run_engine(&mut st, &sc, n_samp));
             });
+            assert_eq!(st.in_contact(), contact, "the phase must not change");
+            let mut generic = engine_in(&sc, contact);
+            generic.set_simd_path(modal_contact::engine::SimdPath::Generic);
+            let tg = median_time(5, || {
+                black_box(run_engine(&mut generic, &sc, n_samp));
+            });
             let mut naive = NaiveDense::new(&sc, contact);
             let samples_naive = if n >= 1000 { 441 } else { n_samp };
             let tn = median_time(3, || {
                 black_box(naive.run(samples_naive, contact));
             }) * (n_samp / samples_naive) as f64;
+            let per = |t: f64| t / (n_samp * n) as f64 * 1e9;
             println!(
-                "{:<8} {n:>5} modes: engine {:.3} ns/mode/sample, naive dense {:.2} ns/mode/sample, ratio {:.0}x",
+                "{:<8} {n:>5} modes: engine {:.3} ns/mode/sample (generic path {:.3}), naive dense {:.2} ns/mode/sample, ratio {:.0}x",
                 if contact { "contact" } else { "free" },
-                te / (n_samp * n) as f64 * 1e9,
-                tn / (n_samp * n) as f64 * 1e9,
+                per(te),
+                per(tg),
+                per(tn),
                 tn / te
             );
         }
@@ -246,7 +320,33 @@ fn summary(_c: &mut Criterion) {
             st.bench_switch_pair(&sc);
         }
     }) / 2000.0;
-    println!("switch at 100 modes: {:.2} us per switch", ts * 1e6);
+    println!(
+        "switch at 100 modes: change of basis {:.2} us per switch",
+        ts * 1e6
+    );
+    let (sc, before) = before_impact();
+    let mut plain = before.clone();
+    let t_plain = median_time(5, || {
+        black_box(run_engine(&mut plain, &sc, 1));
+    });
+    let mut sweeps = 0;
+    let mut times: Vec<f64> = (0..2001)
+        .map(|_| {
+            let mut st = before.clone();
+            let t0 = Instant::now();
+            black_box(st.tick(&sc));
+            let t = t0.elapsed().as_secs_f64();
+            assert_eq!(st.contacts_started, 1);
+            sweeps = st.exact_stats.partial_sweeps;
+            t
+        })
+        .collect();
+    times.sort_by(|a, b| a.total_cmp(b));
+    println!(
+        "switch at 100 modes: a sample with a located impact (search, root, partial steps, change of basis) {:.2} us (median of 2001; {sweeps} sweeps of exp(G tau); a plain sample {:.2} us)",
+        times[1000] * 1e6,
+        t_plain * 1e6
+    );
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("presets");
     for name in ["paper-bounce", "paper-string"] {
         let scene = Scene::from_file(&root.join(format!("{name}.toml"))).unwrap();
@@ -264,11 +364,9 @@ fn summary(_c: &mut Criterion) {
         );
     }
     let sc = compile_with(&modal_scene(200, false), RATE, Some(Switching::Exact)).unwrap();
-    let mut vs: Vec<EngineState> = (0..16).map(|_| engine_in(&sc, false)).collect();
+    let mut vs = sixteen_voices(&sc);
     let t = median_time(5, || {
-        for st in vs.iter_mut() {
-            black_box(run_engine(st, &sc, 44100));
-        }
+        black_box(run_voices(&mut vs, &sc, 44100));
     });
     println!(
         "16 voices x 200 modes: {:.1} % of one core for real time",

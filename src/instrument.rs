@@ -954,13 +954,16 @@ fn tick_into(
     g0: f64,
     dg: f64,
 ) -> bool {
+    let [l, r] = buf;
+    st.process_block(scene, &mut l[..len], &mut r[..len]);
     let mut finite = true;
     for k in 0..len {
-        let o = st.tick(scene);
-        let g = (g0 - k as f64 * dg).max(0.0);
-        buf[0][k] = o[0] * g;
-        buf[1][k] = o[1] * g;
-        finite &= o[0].is_finite() && o[1].is_finite();
+        finite &= l[k].is_finite() && r[k].is_finite();
+        if dg != 0.0 || g0 != 1.0 {
+            let g = (g0 - k as f64 * dg).max(0.0);
+            l[k] *= g;
+            r[k] *= g;
+        }
     }
     finite
 }

@@ -128,6 +128,14 @@ pub struct CompiledPhase {
     /// `|ev_dd|_2`: with `|exp(G tau)| <= 1` it bounds `|phi''| <= |ev_dd| |s|`
     /// over any step (the curvature bound that certifies "no event").
     pub ev_dd_norm: f64,
+    /// Blocks only: `c_k = |(ev_dd[k], ev_dd[nb + k])|`, the curvature weight
+    /// of block `k`. Each block is a contraction on its own, so
+    /// `|phi''| <= sum_k c_k |s_k| <= sqrt(sum_k c_k) sqrt(sum_k c_k |s_k|^2)`
+    /// (Cauchy-Schwarz with weights `c_k`): far tighter than the global bound
+    /// when the energy sits in blocks that barely move `phi`.
+    pub ev_dd_block: Vec<f64>,
+    /// `sum_k c_k`.
+    pub ev_dd_block_sum: f64,
 }
 
 /// `row G` for a block-diagonal or dense generator.
@@ -158,6 +166,11 @@ impl CompiledPhase {
         let d = row_times_generator(&ev, self.gens.as_ref(), dense);
         let dd = row_times_generator(&d, self.gens.as_ref(), dense);
         self.ev_dd_norm = dd.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if self.gens.is_some() {
+            let nb = dd.len() / 2;
+            self.ev_dd_block = (0..nb).map(|k| dd[k].hypot(dd[nb + k])).collect();
+            self.ev_dd_block_sum = self.ev_dd_block.iter().sum();
+        }
         self.ev = ev;
         self.ev_d = d;
         self.ev_dd = dd;
@@ -550,6 +563,8 @@ pub fn compile_opts(
                 ev_d: Vec::new(),
                 ev_dd: Vec::new(),
                 ev_dd_norm: 0.0,
+                ev_dd_block: Vec::new(),
+                ev_dd_block_sum: 0.0,
             })
         };
     let mut free = to_phase("free", free_dec, free_rows)?;

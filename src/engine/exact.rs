@@ -34,6 +34,11 @@ pub const MAX_DEPTH: u32 = 10;
 /// Newton/bisection iterations for a root (converges in ~5-8; the cap only
 /// bounds the worst case).
 const MAX_ROOT_ITERS: u32 = 100;
+/// Resolution of a located switch instant, in ulps of the instant (3.5e-15
+/// of a sample): below it the rounding of `phi` itself (`u |x_h| / |phi'|`,
+/// ~1e-14 of a sample for a hammer at millimetres and 1 m/s) decides, so
+/// iterating further only costs sweeps.
+const ROOT_ULPS: f64 = 16.0;
 /// Largest |A tau| per Taylor sub-step for dense partial steps, and the
 /// number of terms: 0.5^20 / 20! ~ 4e-25.
 const TAYLOR_MAX_NORM: f64 = 0.5;
@@ -52,61 +57,106 @@ pub struct ExactStats {
     pub grazing: u64,
     /// Intervals left uncertified at the bisection depth limit.
     pub uncertified: u64,
+    /// Partial-step propagators `exp(G tau)` computed for every block (one
+    /// exponential and one sine/cosine per block: the main cost of a
+    /// located switch).
+    pub partial_sweeps: u64,
 }
 
 enum Search {
     None,
-    Bracket(f64, f64, f64, f64),
+    /// `phi(a) > 0 >= phi(b)` on `[a, b]`.
+    Bracket(f64, f64),
 }
 
 impl EngineState {
     /// `(phi, phi')` at `tau` into the step from the current state (reference
     /// time). `full` means `tau` is the whole step (precomputed propagators).
     fn eval_event(&mut self, scene: &CompiledScene, tau: f64, full: bool) -> (f64, f64) {
+        let [f, d, _] = self.eval_event3(scene, tau, full);
+        (f, d)
+    }
+
+    /// `[phi, phi', phi'']` at `tau` (see [`eval_event`](Self::eval_event)).
+    /// A partial step of exactly one sample period uses the precomputed
+    /// propagators (they are `exp(G h)` whatever the starting instant).
+    fn eval_event3(&mut self, scene: &CompiledScene, tau: f64, full: bool) -> [f64; 3] {
+        let full = full || tau == self.step_s;
         let ph: &CompiledPhase = current_phase(self, scene);
         let s = if self.in_contact {
             &self.s_c
         } else {
             &self.s_f
         };
-        let (mut f, mut d) = if ph.dense.is_some() {
+        let (mut f, mut d, mut dd) = if ph.dense.is_some() {
             let n = ph.dim;
             let [t0, t1, t2] = &mut self.dense_tmp;
             dense_apply(ph, s, tau, full, &mut t0[..n], &mut t1[..n], &mut t2[..n]);
-            (dot(&ph.ev, &t0[..n]), dot(&ph.ev_d, &t0[..n]))
+            (
+                dot(&ph.ev, &t0[..n]),
+                dot(&ph.ev_d, &t0[..n]),
+                dot(&ph.ev_dd, &t0[..n]),
+            )
         } else {
-            let props = if self.in_contact {
-                &self.p_c
+            if tau != 0.0 && !full {
+                self.ensure_partial(scene, tau);
+            }
+            let s = if self.in_contact {
+                &self.s_c
             } else {
-                &self.p_f
+                &self.s_f
             };
-            let gens = ph.gens.as_ref().expect("block phase");
-            let (mut f, mut d) = (0.0, 0.0);
-            let nb = gens.len();
+            let props = match (full, self.in_contact) {
+                (false, _) => &self.p_part,
+                (true, true) => &self.p_c,
+                (true, false) => &self.p_f,
+            };
+            let (mut f, mut d, mut dd) = (0.0, 0.0, 0.0);
+            let nb = ph.dim / 2;
             for k in 0..nb {
                 let (a, b) = (s[k], s[nb + k]);
                 let (x0, x1) = if tau == 0.0 {
                     (a, b)
                 } else {
-                    let p = if full {
-                        props.get(k)
-                    } else {
-                        exp2(&gens[k], tau)
-                    };
+                    let p = props.get(k);
                     (p[0] * a + p[1] * b, p[2] * a + p[3] * b)
                 };
                 f += ph.ev[k] * x0 + ph.ev[nb + k] * x1;
                 d += ph.ev_d[k] * x0 + ph.ev_d[nb + k] * x1;
+                dd += ph.ev_dd[k] * x0 + ph.ev_dd[nb + k] * x1;
             }
-            (f, d)
+            (f, d, dd)
         };
         if self.in_contact {
             f += scene.offsets.pi / scene.sk;
         } else {
             f += self.x_h + self.v_h * tau - 0.5 * self.g * tau * tau;
             d += self.v_h - self.g * tau;
+            dd -= self.g;
         }
-        (f, d)
+        [f, d, dd]
+    }
+
+    /// Fill `p_part` with the current phase's block propagators over `tau`,
+    /// unless it already holds them (the event search evaluates a point and
+    /// then advances to it; the remainder of a sample is checked and then
+    /// stepped): one sweep of `exp2` per distinct `(phase, tau)`.
+    fn ensure_partial(&mut self, scene: &CompiledScene, tau: f64) {
+        let contact = self.in_contact;
+        if self.part_ok && self.part_tau == tau && self.part_contact == contact {
+            return;
+        }
+        let gens = current_phase(self, scene)
+            .gens
+            .as_ref()
+            .expect("block phase");
+        for (k, g) in gens.iter().enumerate() {
+            self.p_part.set(k, &exp2(g, tau));
+        }
+        self.part_ok = true;
+        self.part_tau = tau;
+        self.part_contact = contact;
+        self.exact_stats.partial_sweeps += 1;
     }
 
     /// Curvature bound `B >= |phi''|` over any sub-step from the current state.
@@ -128,8 +178,7 @@ impl EngineState {
                 let nb = gens.len();
                 let mut acc = 0.0;
                 for k in 0..nb {
-                    let c = ph.ev_dd[k].hypot(ph.ev_dd[nb + k]);
-                    acc += c * s[k].hypot(s[nb + k]);
+                    acc += ph.ev_dd_block[k] * (s[k] * s[k] + s[nb + k] * s[nb + k]).sqrt();
                 }
                 acc.min(global)
             }
@@ -144,6 +193,7 @@ impl EngineState {
         if tau <= 0.0 {
             return;
         }
+        let full = full || tau == self.step_s;
         let ph: &CompiledPhase = current_phase(self, scene);
         let in_contact = self.in_contact;
         if ph.dense.is_some() {
@@ -157,19 +207,18 @@ impl EngineState {
             dense_apply(ph, s, tau, full, &mut t0[..n], &mut t1[..n], &mut t2[..n]);
             s[..n].copy_from_slice(&t0[..n]);
         } else {
-            let gens = ph.gens.as_ref().expect("block phase");
-            let (s, props) = if in_contact {
-                (&mut self.s_c, &self.p_c)
-            } else {
-                (&mut self.s_f, &self.p_f)
+            if !full {
+                self.ensure_partial(scene, tau);
+            }
+            let (s, props) = match (full, in_contact) {
+                (false, true) => (&mut self.s_c, &self.p_part),
+                (false, false) => (&mut self.s_f, &self.p_part),
+                (true, true) => (&mut self.s_c, &self.p_c),
+                (true, false) => (&mut self.s_f, &self.p_f),
             };
-            let nb = gens.len();
+            let nb = ph.dim / 2;
             for k in 0..nb {
-                let p = if full {
-                    props.get(k)
-                } else {
-                    exp2(&gens[k], tau)
-                };
+                let p = props.get(k);
                 let (a, b) = (s[k], s[nb + k]);
                 s[k] = p[0] * a + p[1] * b;
                 s[nb + k] = p[2] * a + p[3] * b;
@@ -200,7 +249,7 @@ impl EngineState {
         depth: u32,
     ) -> Search {
         if fb <= 0.0 {
-            return Search::Bracket(a, fa, b, fb);
+            return Search::Bracket(a, b);
         }
         if Self::certified(fa, da, fb, b - a, bound) {
             return Search::None;
@@ -212,7 +261,7 @@ impl EngineState {
         let m = 0.5 * (a + b);
         let (fm, dm) = self.eval_event(scene, m, false);
         if fm <= 0.0 {
-            return Search::Bracket(a, fa, m, fm);
+            return Search::Bracket(a, m);
         }
         match self.search(scene, bound, a, fa, da, m, fm, depth + 1) {
             Search::None => self.search(scene, bound, m, fm, dm, b, fb, depth + 1),
@@ -220,46 +269,64 @@ impl EngineState {
         }
     }
 
-    /// Refine a bracket `phi(a) > 0 >= phi(b)` to the switch instant (the
-    /// returned point has `phi <= 0`, so the switch happens on the far side).
-    fn refine(
-        &mut self,
-        scene: &CompiledScene,
-        mut a: f64,
-        mut fa: f64,
-        mut b: f64,
-        mut fb: f64,
-    ) -> (f64, f64) {
-        let mut db = self.eval_event(scene, b, false).1;
-        let mut x = a - fa * (b - a) / (fb - fa);
-        for _ in 0..MAX_ROOT_ITERS {
-            if !(x > a && x < b) {
-                x = 0.5 * (a + b);
-            }
-            if x <= a || x >= b || b - a <= 4.0 * f64::EPSILON * b {
+    /// Refine a bracket `phi(a) > 0 >= phi(b)` to the switch instant: the
+    /// returned point `b` has `phi(b) <= 0` (the switch happens there, the
+    /// rod takes up the few-ulp residual) and lies at most ~[`ROOT_ULPS`]
+    /// ulps after the root; also returns `phi'(b)`.
+    ///
+    /// Safeguarded Halley iteration (`phi''` costs one more dot per
+    /// evaluation; convergence is cubic). It starts from the Halley point of
+    /// a bracket end (`tau = 0` and whole samples cost no sweep of `exp2`),
+    /// aims every step a few ulps past its root estimate, and stops at the
+    /// first point with `phi <= 0` whose own Halley correction is a few
+    /// ulps: typically three evaluations, and the advance to `b` reuses the
+    /// propagators of the last one.
+    fn refine(&mut self, scene: &CompiledScene, a: f64, b: f64) -> (f64, f64) {
+        let (mut a, mut b) = (a, b);
+        let halley = |f: f64, d: f64, dd: f64| 2.0 * f * d / (2.0 * d * d - f * dd);
+        let ends = [b, a].map(|t| (t, self.eval_event3(scene, t, false)));
+        let mut db = ends[0].1[1];
+        let mut x = f64::NAN;
+        for (t, [f, d, dd]) in ends {
+            let guess = t - halley(f, d, dd);
+            if guess > a && guess < b {
+                x = guess;
                 break;
             }
-            let (fx, dx) = self.eval_event(scene, x, false);
-            if fx > 0.0 {
-                a = x;
-                fa = fx;
-            } else {
-                b = x;
-                fb = fx;
-                db = dx;
-                if fx == 0.0 {
+        }
+        if x.is_nan() {
+            let (fa, fb) = (ends[1].1[0], ends[0].1[0]);
+            x = a - fa * (b - a) / (fb - fa);
+        }
+        for _ in 0..MAX_ROOT_ITERS {
+            if b - a <= ROOT_ULPS * f64::EPSILON * b {
+                break;
+            }
+            if !(x > a && x < b) {
+                x = 0.5 * (a + b);
+                if !(x > a && x < b) {
                     break;
                 }
             }
-            // Newton from the new point, kept inside the bracket
-            x = if dx != 0.0 {
-                x - fx / dx
+            let [fx, dx, ddx] = self.eval_event3(scene, x, false);
+            let step = halley(fx, dx, ddx);
+            if fx > 0.0 {
+                a = x;
+            } else {
+                b = x;
+                db = dx;
+                if fx == 0.0 || step.abs() <= ROOT_ULPS * f64::EPSILON * x {
+                    break;
+                }
+            }
+            // aim just past the root estimate, onto the phi <= 0 side
+            let est = x - step;
+            x = if step.is_finite() {
+                est + 4.0 * f64::EPSILON * est.abs()
             } else {
                 0.5 * (a + b)
             };
         }
-        let _ = fa;
-        let _ = fb;
         (b, db)
     }
 
@@ -296,8 +363,8 @@ impl EngineState {
                     self.advance_by(scene, rem, full);
                     break;
                 }
-                Search::Bracket(a, fa, b, fb) => {
-                    let (tau, dtau) = self.refine(scene, a, fa, b, fb);
+                Search::Bracket(a, b) => {
+                    let (tau, dtau) = self.refine(scene, a, b);
                     self.advance_by(scene, tau, full && tau == rem);
                     t += tau;
                     self.t_in_step = t;

@@ -1,12 +1,34 @@
-//! The per-sample kernels, laid out for the machine: block propagators and
-//! state in structure-of-arrays form (block `k` is `(s[k], s[nb + k])`),
-//! chunked by 4 so LLVM emits 256-bit vector code, one fused pass that steps
-//! the state and evaluates every row the next sample needs.
+//! The per-sample kernels, laid out for the machine.
+//!
+//! Block propagators and state are stored as structure of arrays (block `k`
+//! is `(s[k], s[nb + k])`). The hot kernel, [`run_block`], advances a phase
+//! by up to [`EPOCH`] samples in one call, **mode-major**: a group of
+//! [`GROUP`] blocks is loaded into registers (state, 2x2 propagators and the
+//! three rows), stepped through all the samples, and adds its share of every
+//! sample's event row and outputs into small per-sample accumulators; then
+//! the next group. So per sample and mode the work is one 2x2 multiply and
+//! three 2-term dot products with everything in registers or L1, instead of
+//! streaming the whole state, propagators and rows through the cache once
+//! per sample.
+//!
+//! Determinism: each sample's sums are accumulated in a fixed order (group
+//! by group, four lanes, then a fixed tree), whatever the number of samples
+//! per call, so running `k` samples in one call gives bit-identical results
+//! to `k` calls of one sample. The engine relies on that: its output does
+//! not depend on how a host splits its blocks.
 //!
 //! A plugin binary must run on any x86-64, so AVX2+FMA is chosen at run time
 //! (`is_x86_feature_detected!`), never assumed at compile time: the same body
 //! is compiled twice, once inside a `#[target_feature(enable = "avx2,fma")]`
-//! function (with fused multiply-adds) and once for the baseline target.
+//! function (with fused multiply-adds) and once for the baseline target. The
+//! two paths round differently (FMA), each deterministically.
+
+/// Most samples one [`run_block`] call advances (the engine's epoch: the
+/// curvature bound of exact switching is refreshed at least this often).
+pub const EPOCH: usize = 64;
+/// Blocks (modes) processed together in registers: two 4-lane vectors.
+pub const GROUP: usize = 8;
+const LANES: usize = 4;
 
 /// Which kernel variant runs on this machine.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -35,6 +57,27 @@ impl SimdPath {
             SimdPath::Generic => "generic (baseline target)",
         }
     }
+}
+
+/// Clear the upper halves of the vector registers (`vzeroupper`) on the
+/// AVX2 path. Code elsewhere in the process (e.g. a linear-algebra library
+/// run by the compile worker, or the host) may leave them dirty, which makes
+/// every non-VEX SSE instruction that follows pay a merge penalty on some
+/// CPUs; the engine calls this once per block. [audio-thread]
+#[inline]
+pub fn clean_upper_state(path: SimdPath) {
+    #[cfg(target_arch = "x86_64")]
+    if path == SimdPath::Avx2Fma {
+        // SAFETY: `Avx2Fma` is only produced by `detect()` after checking AVX2.
+        unsafe { zeroupper() }
+    }
+    let _ = path;
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+fn zeroupper() {
+    std::arch::x86_64::_mm256_zeroupper();
 }
 
 /// Block propagators of one phase for one time step, structure of arrays.
@@ -93,8 +136,32 @@ pub struct Rows<'a> {
     pub r: &'a [f64],
 }
 
-/// Result of a fused step: `[ev . next, l . next, r . next, |s|^2]`.
-pub type Fused = [f64; 4];
+/// Per-sample lane accumulators of [`run_block`] (`[sample][row][lane]`):
+/// 6 KiB of scratch kept by the caller so a call neither allocates nor
+/// zeroes more than the samples it runs.
+pub type BlockAcc = [[[f64; LANES]; 3]; EPOCH];
+
+/// What [`run_block`] returns per sample `j`: the rows of the state after
+/// step `j` (the state at the start of sample `j + 1`).
+#[derive(Debug, Clone)]
+pub struct BlockRows {
+    /// Event row.
+    pub ev: [f64; EPOCH],
+    /// Left output row.
+    pub l: [f64; EPOCH],
+    /// Right output row.
+    pub r: [f64; EPOCH],
+}
+
+impl Default for BlockRows {
+    fn default() -> Self {
+        Self {
+            ev: [0.0; EPOCH],
+            l: [0.0; EPOCH],
+            r: [0.0; EPOCH],
+        }
+    }
+}
 
 #[inline(always)]
 fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
@@ -105,157 +172,418 @@ fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
     }
 }
 
-const LANES: usize = 4;
+/// The fixed reduction of four lanes (the same everywhere, for determinism).
+#[inline(always)]
+fn lane_sum(v: [f64; LANES]) -> f64 {
+    (v[0] + v[1]) + (v[2] + v[3])
+}
+
+/// One group of [`GROUP`] blocks held in registers: state, propagators and
+/// rows. Lanes past the end of the phase are zero (they add exactly 0).
+struct Group {
+    a: [f64; GROUP],
+    b: [f64; GROUP],
+    p: [[f64; GROUP]; 4],
+    row: [[f64; GROUP]; 6],
+}
+
+impl Group {
+    #[inline(always)]
+    fn load(p: &BlockProps, s: &[f64], rows: &Rows, nb: usize, base: usize, width: usize) -> Self {
+        let mut g = Group {
+            a: [0.0; GROUP],
+            b: [0.0; GROUP],
+            p: [[0.0; GROUP]; 4],
+            row: [[0.0; GROUP]; 6],
+        };
+        let srcs: [&[f64]; 4] = [&p.p00, &p.p01, &p.p10, &p.p11];
+        let rsrc: [&[f64]; 3] = [rows.ev, rows.l, rows.r];
+        for j in 0..width {
+            let k = base + j;
+            g.a[j] = s[k];
+            g.b[j] = s[nb + k];
+            for (q, src) in srcs.iter().enumerate() {
+                g.p[q][j] = src[k];
+            }
+            for (q, src) in rsrc.iter().enumerate() {
+                g.row[2 * q][j] = src[k];
+                g.row[2 * q + 1][j] = src[nb + k];
+            }
+        }
+        g
+    }
+
+    /// Step the group `k` samples, adding its share of each sample's rows
+    /// into `acc[j]`.
+    #[inline(always)]
+    fn run<const FMA: bool>(&mut self, k: usize, acc: &mut [[[f64; LANES]; 3]]) {
+        let (mut a, mut b) = (self.a, self.b);
+        let [p00, p01, p10, p11] = self.p;
+        let row = self.row;
+        for acc_j in acc[..k].iter_mut() {
+            let mut x0 = [0.0; GROUP];
+            let mut x1 = [0.0; GROUP];
+            for j in 0..GROUP {
+                x0[j] = madd::<FMA>(p00[j], a[j], p01[j] * b[j]);
+                x1[j] = madd::<FMA>(p10[j], a[j], p11[j] * b[j]);
+            }
+            for (q, acc_q) in acc_j.iter_mut().enumerate() {
+                let (ra, rb) = (&row[2 * q], &row[2 * q + 1]);
+                for j in 0..LANES {
+                    let h = j + LANES;
+                    let mut v = acc_q[j];
+                    v = madd::<FMA>(ra[j], x0[j], v);
+                    v = madd::<FMA>(rb[j], x1[j], v);
+                    v = madd::<FMA>(ra[h], x0[h], v);
+                    v = madd::<FMA>(rb[h], x1[h], v);
+                    acc_q[j] = v;
+                }
+            }
+            a = x0;
+            b = x1;
+        }
+        self.a = a;
+        self.b = b;
+    }
+}
+
+/// The operands of one [`run_block`] call.
+pub struct BlockIo<'a> {
+    /// Block propagators of the phase.
+    pub p: &'a BlockProps,
+    /// State at the start (read only).
+    pub s: &'a [f64],
+    /// State after the last sample (written).
+    pub next: &'a mut [f64],
+    /// Event and output rows.
+    pub rows: Rows<'a>,
+    /// Scratch for the per-sample lane sums.
+    pub acc: &'a mut BlockAcc,
+    /// Rows of every stepped state (written).
+    pub out: &'a mut BlockRows,
+}
 
 #[inline(always)]
-fn fused_body<const FMA: bool>(p: &BlockProps, s: &[f64], next: &mut [f64], rows: &Rows) -> Fused {
+fn block_body<const FMA: bool>(io: BlockIo, k: usize) {
+    let BlockIo {
+        p,
+        s,
+        next,
+        rows,
+        acc,
+        out,
+    } = io;
     let nb = p.len();
-    // Re-slice every stream to exactly `nb` so the bounds checks vanish and
-    // LLVM can keep the four lanes of each accumulator in one vector register.
-    let (sa, sb) = s.split_at(nb);
-    let sb = &sb[..nb];
-    let (na, nbv) = next.split_at_mut(nb);
-    let nbv = &mut nbv[..nb];
-    let (ea, eb) = rows.ev.split_at(nb);
-    let eb = &eb[..nb];
-    let (la, lb) = rows.l.split_at(nb);
-    let lb = &lb[..nb];
-    let (ra, rb) = rows.r.split_at(nb);
-    let rb = &rb[..nb];
-    let (p00, p01, p10, p11) = (&p.p00[..nb], &p.p01[..nb], &p.p10[..nb], &p.p11[..nb]);
-    let mut acc_e = [0.0f64; LANES];
-    let mut acc_l = [0.0f64; LANES];
-    let mut acc_r = [0.0f64; LANES];
-    let mut acc_n = [0.0f64; LANES];
-    let chunks = nb / LANES;
-    for c in 0..chunks {
-        let base = c * LANES;
-        for j in 0..LANES {
-            let k = base + j;
-            let a = sa[k];
-            let b = sb[k];
-            let x0 = madd::<FMA>(p00[k], a, p01[k] * b);
-            let x1 = madd::<FMA>(p10[k], a, p11[k] * b);
-            na[k] = x0;
-            nbv[k] = x1;
-            acc_e[j] = madd::<FMA>(ea[k], x0, madd::<FMA>(eb[k], x1, acc_e[j]));
-            acc_l[j] = madd::<FMA>(la[k], x0, madd::<FMA>(lb[k], x1, acc_l[j]));
-            acc_r[j] = madd::<FMA>(ra[k], x0, madd::<FMA>(rb[k], x1, acc_r[j]));
-            acc_n[j] = madd::<FMA>(a, a, madd::<FMA>(b, b, acc_n[j]));
-        }
+    let k = k.min(EPOCH);
+    for a in acc[..k].iter_mut() {
+        *a = [[0.0; LANES]; 3];
     }
-    let sum = |v: [f64; LANES]| (v[0] + v[1]) + (v[2] + v[3]);
-    let mut out = [sum(acc_e), sum(acc_l), sum(acc_r), sum(acc_n)];
-    for k in chunks * LANES..nb {
-        let a = sa[k];
-        let b = sb[k];
-        let x0 = p00[k] * a + p01[k] * b;
-        let x1 = p10[k] * a + p11[k] * b;
-        na[k] = x0;
-        nbv[k] = x1;
-        out[0] += ea[k] * x0 + eb[k] * x1;
-        out[1] += la[k] * x0 + lb[k] * x1;
-        out[2] += ra[k] * x0 + rb[k] * x1;
-        out[3] += a * a + b * b;
+    let mut base = 0;
+    while base < nb {
+        let width = GROUP.min(nb - base);
+        let mut g = Group::load(p, s, &rows, nb, base, width);
+        g.run::<FMA>(k, &mut acc[..k]);
+        next[base..base + width].copy_from_slice(&g.a[..width]);
+        next[nb + base..nb + base + width].copy_from_slice(&g.b[..width]);
+        base += width;
     }
-    out
+    for j in 0..k {
+        out.ev[j] = lane_sum(acc[j][0]);
+        out.l[j] = lane_sum(acc[j][1]);
+        out.r[j] = lane_sum(acc[j][2]);
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn fused_avx2(p: &BlockProps, s: &[f64], next: &mut [f64], rows: &Rows) -> Fused {
-    fused_body::<true>(p, s, next, rows)
+fn block_avx2(io: BlockIo, k: usize) {
+    block_body::<true>(io, k)
 }
 
-fn fused_generic(p: &BlockProps, s: &[f64], next: &mut [f64], rows: &Rows) -> Fused {
-    fused_body::<false>(p, s, next, rows)
-}
-
-/// `next = P s` for all blocks, and the rows of `next` plus `|s|^2`, in one
-/// pass. O(N), allocation-free. [audio-thread]
+/// Advance the blocks `k <= EPOCH` samples from `io.s` into `io.next`
+/// (`s` is left untouched, so a caller can re-run fewer samples), and write
+/// the rows of every stepped state into `io.out`. O(N k), allocation-free.
+/// [audio-thread]
 #[inline]
-pub fn fused_step(
-    path: SimdPath,
-    p: &BlockProps,
-    s: &[f64],
-    next: &mut [f64],
-    rows: &Rows,
-) -> Fused {
-    debug_assert_eq!(s.len(), 2 * p.len());
-    debug_assert_eq!(next.len(), s.len());
+pub fn run_block(path: SimdPath, io: BlockIo, k: usize) {
+    let n = 2 * io.p.len();
+    assert!(
+        io.s.len() == n
+            && io.next.len() == n
+            && io.rows.ev.len() == n
+            && io.rows.l.len() == n
+            && io.rows.r.len() == n,
+        "run_block: mismatched lengths"
+    );
     match path {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `SimdPath::Avx2Fma` is only produced by `detect()` after
         // `is_x86_feature_detected!` confirmed AVX2 and FMA on this CPU.
-        SimdPath::Avx2Fma => unsafe { fused_avx2(p, s, next, rows) },
-        _ => fused_generic(p, s, next, rows),
+        SimdPath::Avx2Fma => unsafe { block_avx2(io, k) },
+        _ => block_body::<false>(io, k),
     }
 }
 
-/// `[ev . s, l . s, r . s]` (no step). O(N). [audio-thread]
+/// `[ev . s, l . s, r . s]` (no step), summed in the same order as
+/// [`run_block`]'s generic path (bit-identical to it). O(N). [audio-thread]
 #[inline]
 pub fn rows_of(s: &[f64], rows: &Rows) -> [f64; 3] {
-    let mut out = [0.0; 3];
-    for k in 0..s.len() {
-        out[0] += rows.ev[k] * s[k];
-        out[1] += rows.l[k] * s[k];
-        out[2] += rows.r[k] * s[k];
+    let nb = s.len() / 2;
+    let mut acc = [[0.0f64; LANES]; 3];
+    let rs = [rows.ev, rows.l, rows.r];
+    for k in 0..nb {
+        let lane = k % LANES;
+        for q in 0..3 {
+            acc[q][lane] += rs[q][k] * s[k];
+            acc[q][lane] += rs[q][nb + k] * s[nb + k];
+        }
     }
-    out
+    [lane_sum(acc[0]), lane_sum(acc[1]), lane_sum(acc[2])]
+}
+
+/// The two energy measures of a block state that bound the event function's
+/// curvature: `(sum_k |s_k|^2, sum_k c_k |s_k|^2)` with `s_k` the 2-vector of
+/// block `k` and `c` per-block weights. O(N). [audio-thread]
+#[inline]
+pub fn block_measures(s: &[f64], c: &[f64]) -> (f64, f64) {
+    let nb = c.len();
+    let (sa, sb) = s.split_at(nb);
+    let sb = &sb[..nb];
+    let mut e = [0.0f64; LANES];
+    let mut w = [0.0f64; LANES];
+    for k in 0..nb {
+        let ek = sa[k] * sa[k] + sb[k] * sb[k];
+        e[k % LANES] += ek;
+        w[k % LANES] += c[k] * ek;
+    }
+    (lane_sum(e), lane_sum(w))
+}
+
+#[inline(always)]
+fn mat_vec_body<const FMA: bool>(m: &[f64], nrows: usize, x: &[f64], y: &mut [f64]) {
+    let y = &mut y[..nrows];
+    let ncols = x.len();
+    // Four columns per pass over y: a quarter of the loads and stores of y.
+    let mut j = 0;
+    while j + 4 <= ncols {
+        let xs = [x[j], x[j + 1], x[j + 2], x[j + 3]];
+        if xs != [0.0; 4] {
+            let c0 = &m[j * nrows..(j + 1) * nrows];
+            let c1 = &m[(j + 1) * nrows..(j + 2) * nrows];
+            let c2 = &m[(j + 2) * nrows..(j + 3) * nrows];
+            let c3 = &m[(j + 3) * nrows..(j + 4) * nrows];
+            for i in 0..nrows {
+                let mut v = y[i];
+                v = madd::<FMA>(c0[i], xs[0], v);
+                v = madd::<FMA>(c1[i], xs[1], v);
+                v = madd::<FMA>(c2[i], xs[2], v);
+                v = madd::<FMA>(c3[i], xs[3], v);
+                y[i] = v;
+            }
+        }
+        j += 4;
+    }
+    for j in j..ncols {
+        let xj = x[j];
+        if xj == 0.0 {
+            continue;
+        }
+        let col = &m[j * nrows..(j + 1) * nrows];
+        for (yi, &mij) in y.iter_mut().zip(col) {
+            *yi = madd::<FMA>(mij, xj, *yi);
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn mat_vec_avx2(m: &[f64], nrows: usize, x: &[f64], y: &mut [f64]) {
+    mat_vec_body::<true>(m, nrows, x, y)
+}
+
+/// `y += M x` for a column-major `nrows x x.len()` matrix `m` (contiguous
+/// columns, vectorised axpys four columns at a time; all-zero groups of `x`
+/// skipped).
+/// The change of basis at a phase switch. O(rows cols), allocation-free.
+/// [audio-thread]
+pub fn mat_vec_add(path: SimdPath, m: &[f64], nrows: usize, x: &[f64], y: &mut [f64]) {
+    assert!(
+        m.len() == nrows * x.len() && y.len() >= nrows,
+        "mat_vec_add: shapes"
+    );
+    match path {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as in `run_block`.
+        SimdPath::Avx2Fma => unsafe { mat_vec_avx2(m, nrows, x, y) },
+        _ => mat_vec_body::<false>(m, nrows, x, y),
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    #[test]
-    fn avx2_and_generic_paths_agree() {
-        let nb = 37; // not a multiple of the lane count
+    /// A phase of `nb` damped rotation blocks with arbitrary rows and state.
+    fn setup(nb: usize) -> (BlockProps, Vec<f64>, [Vec<f64>; 3]) {
         let mut p = BlockProps::new(nb);
         let mut s = vec![0.0; 2 * nb];
-        let mut rows_v = vec![vec![0.0; 2 * nb]; 3];
         for k in 0..nb {
-            let th = 0.1 * k as f64;
+            let th = 0.1 * k as f64 + 0.05;
+            let r = 0.999 - 1e-4 * k as f64;
             p.set(
                 k,
-                &[
-                    0.99 * th.cos(),
-                    0.99 * th.sin(),
-                    -0.99 * th.sin(),
-                    0.99 * th.cos(),
-                ],
+                &[r * th.cos(), r * th.sin(), -r * th.sin(), r * th.cos()],
             );
             s[k] = (k as f64).sin();
             s[nb + k] = (k as f64 * 0.7).cos();
         }
-        for (i, r) in rows_v.iter_mut().enumerate() {
-            for (k, x) in r.iter_mut().enumerate() {
-                *x = ((i + 1) * k) as f64 * 1e-2 - 0.3;
+        let rows = [0, 1, 2].map(|i| {
+            (0..2 * nb)
+                .map(|k| ((i + 1) * k) as f64 * 1e-2 - 0.3)
+                .collect::<Vec<f64>>()
+        });
+        (p, s, rows)
+    }
+
+    /// Plain per-sample reference: step, then the three rows.
+    fn reference(p: &BlockProps, s: &[f64], rows: &[Vec<f64>; 3], k: usize) -> Vec<[f64; 3]> {
+        let nb = p.len();
+        let mut s = s.to_vec();
+        let mut out = Vec::new();
+        for _ in 0..k {
+            let mut x = vec![0.0; 2 * nb];
+            for b in 0..nb {
+                let m = p.get(b);
+                x[b] = m[0] * s[b] + m[1] * s[nb + b];
+                x[nb + b] = m[2] * s[b] + m[3] * s[nb + b];
+            }
+            out.push([0, 1, 2].map(|q| rows[q].iter().zip(&x).map(|(a, b)| a * b).sum()));
+            s = x;
+        }
+        out
+    }
+
+    fn run(
+        path: SimdPath,
+        p: &BlockProps,
+        s: &[f64],
+        rows: &[Vec<f64>; 3],
+        k: usize,
+    ) -> (Vec<f64>, BlockRows) {
+        let mut next = vec![0.0; s.len()];
+        let mut acc = Box::new([[[0.0; LANES]; 3]; EPOCH]);
+        let mut out = BlockRows::default();
+        let io = BlockIo {
+            p,
+            s,
+            next: &mut next,
+            rows: Rows {
+                ev: &rows[0],
+                l: &rows[1],
+                r: &rows[2],
+            },
+            acc: &mut acc,
+            out: &mut out,
+        };
+        run_block(path, io, k);
+        (next, out)
+    }
+
+    #[test]
+    fn both_paths_match_a_plain_reference() {
+        println!("path {}", SimdPath::detect().name());
+        for nb in [1, 3, 8, 37, 100] {
+            let (p, s, rows) = setup(nb);
+            let want = reference(&p, &s, &rows, EPOCH);
+            for path in [SimdPath::detect(), SimdPath::Generic] {
+                let (_, out) = run(path, &p, &s, &rows, EPOCH);
+                let mut worst = 0.0f64;
+                for (j, w) in want.iter().enumerate() {
+                    for (q, got) in [out.ev[j], out.l[j], out.r[j]].iter().enumerate() {
+                        let scale = rows[q].iter().map(|x| x.abs()).sum::<f64>() * 2.0;
+                        worst = worst.max((got - w[q]).abs() / scale);
+                    }
+                }
+                println!(
+                    "{nb} blocks, {path:?}: worst rel. deviation {worst:.1e} over {EPOCH} samples"
+                );
+                assert!(worst < 1e-13, "{nb} blocks {path:?}: {worst}");
             }
         }
-        let rows = Rows {
-            ev: &rows_v[0],
-            l: &rows_v[1],
-            r: &rows_v[2],
-        };
-        let mut n1 = vec![0.0; 2 * nb];
-        let mut n2 = vec![0.0; 2 * nb];
-        let a = fused_step(SimdPath::detect(), &p, &s, &mut n1, &rows);
-        let b = fused_step(SimdPath::Generic, &p, &s, &mut n2, &rows);
-        println!("path {}", SimdPath::detect().name());
-        for (x, y) in a.iter().zip(&b) {
-            assert!((x - y).abs() <= 1e-13 * y.abs().max(1.0), "{x} vs {y}");
+    }
+
+    /// One call of `k` samples is bit-identical to `k` calls of one sample
+    /// (the engine's output must not depend on how blocks are split).
+    #[test]
+    fn k_samples_at_once_equal_k_single_samples_bit_for_bit() {
+        for nb in [1, 5, 8, 13, 64] {
+            let (p, s, rows) = setup(nb);
+            for path in [SimdPath::detect(), SimdPath::Generic] {
+                let (next_all, out_all) = run(path, &p, &s, &rows, 23);
+                let mut st = s.clone();
+                for j in 0..23 {
+                    let (next, out) = run(path, &p, &st, &rows, 1);
+                    assert_eq!(out.ev[0].to_bits(), out_all.ev[j].to_bits());
+                    assert_eq!(out.l[0].to_bits(), out_all.l[j].to_bits());
+                    assert_eq!(out.r[0].to_bits(), out_all.r[j].to_bits());
+                    st = next;
+                }
+                assert!(st
+                    .iter()
+                    .zip(&next_all)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()));
+                // and the input state is left untouched
+                assert_eq!(s, setup(nb).1);
+            }
         }
-        for (x, y) in n1.iter().zip(&n2) {
-            assert!((x - y).abs() <= 1e-15 * y.abs().max(1.0));
-        }
-        // and against a plain reference
-        let mut ev = 0.0;
+    }
+
+    #[test]
+    fn rows_of_uses_the_kernel_order() {
+        // rows_of(s) equals the sums the kernel makes for a state stepped by
+        // the identity, bit for bit.
+        let nb = 21;
+        let (mut p, s, rows) = setup(nb);
         for k in 0..nb {
-            let x0 = p.p00[k] * s[k] + p.p01[k] * s[nb + k];
-            let x1 = p.p10[k] * s[k] + p.p11[k] * s[nb + k];
-            ev += rows.ev[k] * x0 + rows.ev[nb + k] * x1;
+            p.set(k, &[1.0, 0.0, 0.0, 1.0]);
         }
-        assert!((ev - b[0]).abs() < 1e-12);
+        let (_, out) = run(SimdPath::Generic, &p, &s, &rows, 1);
+        let r = Rows {
+            ev: &rows[0],
+            l: &rows[1],
+            r: &rows[2],
+        };
+        let direct = rows_of(&s, &r);
+        assert_eq!(direct[0].to_bits(), out.ev[0].to_bits());
+        assert_eq!(direct[1].to_bits(), out.l[0].to_bits());
+        assert_eq!(direct[2].to_bits(), out.r[0].to_bits());
+    }
+
+    #[test]
+    fn mat_vec_add_matches_a_plain_product() {
+        let (nr, nc) = (37, 29);
+        let m: Vec<f64> = (0..nr * nc).map(|i| ((i * 31) % 17) as f64 - 8.0).collect();
+        let mut x: Vec<f64> = (0..nc).map(|j| (j as f64).cos()).collect();
+        x[3] = 0.0;
+        for path in [SimdPath::detect(), SimdPath::Generic] {
+            let mut y = vec![1.0; nr];
+            mat_vec_add(path, &m, nr, &x, &mut y);
+            for i in 0..nr {
+                let want = 1.0 + (0..nc).map(|j| m[j * nr + i] * x[j]).sum::<f64>();
+                assert!((y[i] - want).abs() < 1e-12, "{path:?} row {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn block_measures_are_block_energies() {
+        let (_, s, _) = setup(9);
+        let c: Vec<f64> = (0..9).map(|k| k as f64).collect();
+        let (e, w) = block_measures(&s, &c);
+        let e_want: f64 = s.iter().map(|x| x * x).sum();
+        let w_want: f64 = (0..9)
+            .map(|k| c[k] * (s[k] * s[k] + s[9 + k] * s[9 + k]))
+            .sum();
+        assert!((e - e_want).abs() < 1e-14 * e_want && (w - w_want).abs() < 1e-14 * w_want);
     }
 }

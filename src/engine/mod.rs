@@ -21,7 +21,7 @@ pub mod kernel;
 
 pub use exact::{ExactStats, MAX_SWITCHES_PER_SAMPLE};
 pub use kernel::SimdPath;
-use kernel::{fused_step, rows_of, BlockProps, Rows};
+use kernel::{rows_of, run_block, BlockAcc, BlockIo, BlockProps, BlockRows, Rows, EPOCH};
 
 use crate::compile::{CompiledPhase, CompiledScene};
 use crate::physics::block::exp2;
@@ -58,6 +58,9 @@ pub struct SwitchEvent {
 /// start-of-sample checks).
 const EVENT_LOG: usize = MAX_SWITCHES_PER_SAMPLE as usize + 2;
 
+/// `bound_epoch` value that matches no epoch (bound not computed).
+const NO_EPOCH: u64 = u64::MAX;
+
 /// Why a time scale could not be applied.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TimeScaleError {
@@ -81,9 +84,28 @@ pub struct EngineState {
     /// Kernel variant for this CPU.
     simd: SimdPath,
     /// Cached rows of the current state: `[ev . s, left, right]`, valid when
-    /// `cache_ok` (the fused step computes them for the next sample).
+    /// `cache_ok` (the block kernel computes them for the next sample).
     cache: [f64; 3],
     cache_ok: bool,
+    /// Scratch of the block kernel: per-sample lane sums and the rows of
+    /// every stepped state (boxed: 9 KiB, allocated once).
+    acc: Box<BlockAcc>,
+    brows: Box<BlockRows>,
+    /// Samples since the last reset: the voice's own clock. Epochs of
+    /// [`EPOCH`] samples of this clock (not the host's blocks) decide when the
+    /// curvature bound is refreshed, so the output does not depend on how the
+    /// caller splits its blocks.
+    clock: u64,
+    /// Curvature bound `B >= |phi''|` (reference time) for fast steps of
+    /// exact switching, valid for the epoch `bound_epoch` of `clock` and the
+    /// current phase (each block is a contraction, so a bound taken from an
+    /// earlier state of the same phase holds for every later one).
+    bound: f64,
+    bound_epoch: u64,
+    /// How many samples the fast path tries at once: reset to 1 when a
+    /// sample fails its check, doubled after each full success (speed only,
+    /// never results).
+    spec_len: usize,
     out_f: [Vec<f64>; 2],
     out_c: [Vec<f64>; 2],
     out_c_offset: [f64; 2],
@@ -108,6 +130,13 @@ pub struct EngineState {
     pub contacts_started: u64,
     /// Scratch vectors for dense partial steps (exact switching).
     dense_tmp: [Vec<f64>; 3],
+    /// Block propagators of the last partial step `exp(G tau)` (exact
+    /// switching), for `part_tau` in the phase `part_contact`; valid when
+    /// `part_ok` (cleared when the propagators' scene may change).
+    p_part: BlockProps,
+    part_tau: f64,
+    part_contact: bool,
+    part_ok: bool,
     /// What exact switching did since the last reset (diagnostic).
     pub exact_stats: ExactStats,
     /// Switches of the last tick (fixed array: no allocation).
@@ -134,6 +163,12 @@ impl EngineState {
             simd: SimdPath::detect(),
             cache: [0.0; 3],
             cache_ok: false,
+            acc: Box::new([[[0.0; 4]; 3]; EPOCH]),
+            brows: Box::default(),
+            clock: 0,
+            bound: 0.0,
+            bound_epoch: NO_EPOCH,
+            spec_len: EPOCH,
             out_f: [vec![0.0; df], vec![0.0; df]],
             out_c: [vec![0.0; dc], vec![0.0; dc]],
             out_c_offset: [0.0; 2],
@@ -153,6 +188,10 @@ impl EngineState {
                 vec![0.0; df.max(dc)],
             ],
             exact_stats: ExactStats::default(),
+            p_part: BlockProps::new(df.max(dc) / 2),
+            part_tau: 0.0,
+            part_contact: false,
+            part_ok: false,
             events: [SwitchEvent::default(); EVENT_LOG],
             n_events: 0,
             t_in_step: 0.0,
@@ -174,7 +213,16 @@ impl EngineState {
         self.v_h = scene.hammer_v0 / self.time_scale;
         self.contacts_started = 0;
         self.exact_stats = ExactStats::default();
+        self.clock = 0;
+        self.discontinuity();
+    }
+
+    /// The state jumped (reset, switch, strike, new propagators): the cached
+    /// rows and the curvature bound no longer describe it.
+    #[inline]
+    fn discontinuity(&mut self) {
         self.cache_ok = false;
+        self.bound_epoch = NO_EPOCH;
     }
 
     /// Use the portable kernel instead of the detected SIMD one (benchmarks
@@ -197,8 +245,25 @@ impl EngineState {
     /// `(s[k], s[nb + k])`; for a modal object block `k` is mode `k`, i.e.
     /// `s[k] = omega_k q_k` and `s[n + k] = q_k'` (reference time).
     pub fn free_state_mut(&mut self) -> &mut [f64] {
-        self.cache_ok = false;
+        self.discontinuity();
         &mut self.s_f
+    }
+
+    /// Put the hammer in contact at the contact phase's static equilibrium
+    /// (with gravity: resting on the object under its weight; without: just
+    /// touching), the object following it, and return the contact-phase
+    /// coordinates relative to that equilibrium (all zero now) for the caller
+    /// to add a vibration. Structure of arrays like
+    /// [`free_state_mut`](Self::free_state_mut); energy coordinates are
+    /// `y = V (s + s_star)`, so the penetration cannot reach 0 while
+    /// `|V s| < sqrt(k) p_static` in a passive phase. For benchmarks and
+    /// tests of the steady contact phase. [any-thread]
+    pub fn rest_in_contact(&mut self) -> &mut [f64] {
+        self.s_c.iter_mut().for_each(|x| *x = 0.0);
+        self.rod_m = 0.0;
+        self.in_contact = true;
+        self.discontinuity();
+        &mut self.s_c
     }
 
     /// Hammer height [m] and physical velocity [m/s] while in flight.
@@ -240,6 +305,7 @@ impl EngineState {
         self.v_h = v_phys / s;
         fill_props(&mut self.p_f, &scene.free, self.step_s);
         fill_props(&mut self.p_c, &scene.contact, self.step_s);
+        self.part_ok = false;
         // Outputs in physical units: displacement rows as they are, velocity
         // rows times s (reference velocities are physical / s).
         for ch in 0..2 {
@@ -249,7 +315,7 @@ impl EngineState {
         self.out_c_offset = [scene.offsets.disp_l, scene.offsets.disp_r];
         self.apply_band(scene);
         self.g = scene.g;
-        self.cache_ok = false;
+        self.discontinuity();
     }
 
     /// Leave the struck object's modes whose frequency (at the current time
@@ -328,90 +394,292 @@ impl EngineState {
         let x_c = dot(&scene.free.rows.x_c, &self.s_f);
         self.x_h = x_c + height_m.max(0.0);
         self.v_h = velocity_m_per_s / self.time_scale;
-        self.cache_ok = false;
+        self.discontinuity();
     }
 
     /// One sample: decide the phase at the current instant, return the output
-    /// `[left, right]` of the current state, and advance one step.
+    /// `[left, right]` of the current state, and advance one step. Same
+    /// result as one sample of [`process_block`](Self::process_block).
     /// Allocation-free, O(N) (O(N^2) on a switch). [audio-thread]
     #[inline]
     pub fn tick(&mut self, scene: &CompiledScene) -> [f64; 2] {
-        self.n_events = 0;
-        self.t_in_step = 0.0;
-        if scene.switching == Switching::Exact {
-            let out = self.output(scene);
-            if !self.try_fast_step(scene, true) {
-                self.advance_exact(scene);
-                self.cache_ok = false;
-            }
-            return out;
-        }
-        self.decide(scene);
-        let out = self.output(scene);
-        if !self.try_fast_step(scene, false) {
-            self.advance(scene);
-            self.cache_ok = false;
-        }
-        out
+        let (mut l, mut r) = ([0.0], [0.0]);
+        self.process_block(scene, &mut l, &mut r);
+        [l[0], r[0]]
     }
 
-    /// The common case of a sample, in one fused O(N) pass: step the blocks
-    /// into the spare buffer while evaluating the event row and the outputs
-    /// of the new state. With exact switching the step is kept only if the
-    /// curvature bound certifies that no switch can happen inside it (see
-    /// `exact.rs`); otherwise nothing is changed and `false` is returned.
-    #[inline]
-    fn try_fast_step(&mut self, scene: &CompiledScene, certify: bool) -> bool {
+    /// Like [`tick`](Self::tick) but also returns the trace observation taken
+    /// after the switching decision (DESIGN.md section 5). O(N^2): offline only.
+    pub fn tick_observed(&mut self, scene: &CompiledScene) -> ([f64; 2], Observation) {
+        self.n_events = 0;
+        self.t_in_step = 0.0;
+        let rod = scene.switching == Switching::OffsetRod;
+        if rod {
+            self.decide(scene);
+        }
+        let obs = self.observe(scene);
+        let (mut l, mut r) = ([0.0], [0.0]);
+        let (done, _) = self.run_fast(scene, &mut l, &mut r, rod);
+        let out = if done == 1 {
+            [l[0], r[0]]
+        } else {
+            self.slow_sample(scene, rod)
+        };
+        (out, obs)
+    }
+
+    /// Fill `left`/`right` with consecutive samples (f64): the block form of
+    /// [`tick`](Self::tick), and what the instrument runs. The result does
+    /// not depend on how a run is split into blocks (bit for bit).
+    ///
+    /// Samples in which no switch can happen (certified in exact mode by the
+    /// curvature bound, decided by the sign test with the offset rod) run in
+    /// the block kernel, up to [`EPOCH`] at a time; a sample that may hold a
+    /// switch, and every sample of a dense-fallback phase, takes the slow
+    /// path (event location, change of basis). Allocation-free, O(N) per
+    /// sample plus O(N^2) per switch. [audio-thread]
+    pub fn process_block(&mut self, scene: &CompiledScene, left: &mut [f64], right: &mut [f64]) {
+        kernel::clean_upper_state(self.simd);
+        let n = left.len().min(right.len());
+        let mut i = 0;
+        while i < n {
+            let (done, slow) = self.run_fast(scene, &mut left[i..n], &mut right[i..n], false);
+            i += done;
+            if slow && i < n {
+                let o = self.slow_sample(scene, false);
+                left[i] = o[0];
+                right[i] = o[1];
+                i += 1;
+            }
+        }
+    }
+
+    /// The fast path: run up to `left.len()` samples (within the current
+    /// epoch and the speculation length) through the block kernel, then
+    /// check them in order; commit every sample before the first one that
+    /// may hold a switch. Returns the samples done and whether the next one
+    /// needs the slow path. `decided`: the offset-rod decision for the first
+    /// sample was already taken (traces). [audio-thread]
+    fn run_fast(
+        &mut self,
+        scene: &CompiledScene,
+        left: &mut [f64],
+        right: &mut [f64],
+        decided: bool,
+    ) -> (usize, bool) {
         let in_contact = self.in_contact;
         let ph = if in_contact {
             &scene.contact
         } else {
             &scene.free
         };
-        if ph.dense.is_some() {
-            return false;
+        if ph.dense.is_some() || ph.gens.is_none() {
+            return (0, true);
+        }
+        let exact = scene.switching == Switching::Exact;
+        let epoch_left = EPOCH - (self.clock % EPOCH as u64) as usize;
+        let k_max = left
+            .len()
+            .min(right.len())
+            .min(epoch_left)
+            .min(self.spec_len);
+        if k_max == 0 {
+            return (0, false);
         }
         if !self.cache_ok {
             self.refresh_cache(scene);
         }
-        let (s, next, props, out) = if in_contact {
-            (&self.s_c, &mut self.s_c_next, &self.p_c, &self.out_c)
+        let epoch = self.clock / EPOCH as u64;
+        if exact && self.bound_epoch != epoch {
+            self.bound = self.curvature_bound_fast(scene);
+            self.bound_epoch = epoch;
+        }
+        self.run_kernel(scene, k_max);
+        // Check the samples in order (hammer in flight: its exact parabola).
+        let dt = self.step_s;
+        let g = self.g;
+        let margin = self.bound * dt * dt / 8.0;
+        let (off, out_off) = if in_contact {
+            (scene.offsets.pi / scene.sk, self.out_c_offset)
         } else {
-            (&self.s_f, &mut self.s_f_next, &self.p_f, &self.out_f)
+            (0.0, [0.0; 2])
+        };
+        let (mut x_h, mut v_h) = (self.x_h, self.v_h);
+        let mut rows_j = self.cache;
+        let mut k_ok = k_max;
+        for j in 0..k_max {
+            let phi0 = rows_j[0] + if in_contact { off } else { x_h };
+            let (x_h1, v_h1) = if in_contact {
+                (x_h, v_h)
+            } else {
+                (x_h + v_h * dt - 0.5 * g * dt * dt, v_h - g * dt)
+            };
+            let next_rows = [self.brows.ev[j], self.brows.l[j], self.brows.r[j]];
+            let ok = if exact {
+                let phi1 = next_rows[0] + if in_contact { off } else { x_h1 };
+                phi1 > 0.0 && phi0.min(phi1) - margin > 0.0
+            } else if j == 0 && decided {
+                true
+            } else if in_contact {
+                phi0 > 0.0 // leave at the first sample with p_eff <= 0
+            } else {
+                !(phi0 < 0.0) // enter at the first sample with p > 0
+            };
+            if !ok {
+                k_ok = j;
+                break;
+            }
+            left[j] = rows_j[1] + out_off[0];
+            right[j] = rows_j[2] + out_off[1];
+            rows_j = next_rows;
+            x_h = x_h1;
+            v_h = v_h1;
+        }
+        if k_ok < k_max {
+            self.spec_len = 1;
+            if k_ok == 0 {
+                return (0, true);
+            }
+            // Re-run only the certified samples (bit-identical: the kernel's
+            // per-sample sums do not depend on the number of samples).
+            self.run_kernel(scene, k_ok);
+        } else {
+            self.spec_len = (2 * self.spec_len).min(EPOCH);
+        }
+        self.commit_kernel(k_ok);
+        if !in_contact {
+            self.x_h = x_h;
+            self.v_h = v_h;
+        }
+        self.clock += k_ok as u64;
+        self.n_events = 0;
+        (k_ok, k_ok < k_max)
+    }
+
+    /// One sample on the slow path: a possible switch (located exactly, or
+    /// the offset rod's decision) or a dense-fallback phase. `decided`: the
+    /// offset-rod decision for this instant was already taken. [audio-thread]
+    fn slow_sample(&mut self, scene: &CompiledScene, decided: bool) -> [f64; 2] {
+        if !decided {
+            self.n_events = 0;
+            self.t_in_step = 0.0;
+        }
+        let out = if scene.switching == Switching::Exact {
+            let out = self.output(scene);
+            self.advance_exact(scene);
+            self.discontinuity();
+            out
+        } else {
+            if !decided {
+                self.decide(scene);
+            }
+            let out = self.output(scene);
+            self.step_plain(scene);
+            out
+        };
+        self.clock += 1;
+        out
+    }
+
+    /// One step of the current phase, no switching (offset rod after its
+    /// decision): the block kernel, or the dense propagator.
+    fn step_plain(&mut self, scene: &CompiledScene) {
+        let in_contact = self.in_contact;
+        let ph = if in_contact {
+            &scene.contact
+        } else {
+            &scene.free
+        };
+        if ph.dense.is_some() || ph.gens.is_none() {
+            let s = if in_contact {
+                &mut self.s_c
+            } else {
+                &mut self.s_f
+            };
+            step_phase(ph, s, &mut self.scratch);
+            self.cache_ok = false;
+        } else {
+            self.run_kernel(scene, 1);
+            self.commit_kernel(1);
+        }
+        if !in_contact {
+            // Hammer in flight: exact parabola (never diagonalised), in
+            // reference time (step s h, the scene's gravity).
+            let dt = self.step_s;
+            self.x_h += self.v_h * dt - 0.5 * self.g * dt * dt;
+            self.v_h -= self.g * dt;
+        }
+    }
+
+    /// Run the block kernel `k` samples from the current block phase's
+    /// state into the spare buffer (the state itself is left untouched) and
+    /// leave the rows of every stepped state in `brows`.
+    fn run_kernel(&mut self, scene: &CompiledScene, k: usize) {
+        let (ph, s, next, props, out) = if self.in_contact {
+            (
+                &scene.contact,
+                &self.s_c,
+                &mut self.s_c_next,
+                &self.p_c,
+                &self.out_c,
+            )
+        } else {
+            (
+                &scene.free,
+                &self.s_f,
+                &mut self.s_f_next,
+                &self.p_f,
+                &self.out_f,
+            )
         };
         let rows = Rows {
             ev: &ph.ev,
             l: &out[0],
             r: &out[1],
         };
-        let f = fused_step(self.simd, props, s, next, &rows);
-        let dt = self.step_s;
-        let (x_h1, v_h1) = (
-            self.x_h + self.v_h * dt - 0.5 * self.g * dt * dt,
-            self.v_h - self.g * dt,
+        run_block(
+            self.simd,
+            BlockIo {
+                p: props,
+                s,
+                next,
+                rows,
+                acc: &mut self.acc,
+                out: &mut self.brows,
+            },
+            k,
         );
-        if certify {
-            let (phi0, phi1, g) = if in_contact {
-                let off = scene.offsets.pi / scene.sk;
-                (self.cache[0] + off, f[0] + off, 0.0)
-            } else {
-                (self.cache[0] + self.x_h, f[0] + x_h1, self.g)
-            };
-            let bound = g + ph.ev_dd_norm * f[3].sqrt() * (1.0 + 1e-12);
-            if !(phi1 > 0.0 && phi0.min(phi1) - bound * dt * dt / 8.0 > 0.0) {
-                return false;
-            }
-        }
-        if in_contact {
+    }
+
+    /// Adopt the state of the last [`run_kernel`](Self::run_kernel) call,
+    /// which ran `k >= 1` samples, and its rows as the cached rows.
+    fn commit_kernel(&mut self, k: usize) {
+        if self.in_contact {
             std::mem::swap(&mut self.s_c, &mut self.s_c_next);
         } else {
             std::mem::swap(&mut self.s_f, &mut self.s_f_next);
-            self.x_h = x_h1;
-            self.v_h = v_h1;
         }
-        self.cache = [f[0], f[1], f[2]];
+        let j = k - 1;
+        self.cache = [self.brows.ev[j], self.brows.l[j], self.brows.r[j]];
         self.cache_ok = true;
-        true
+    }
+
+    /// Curvature bound for the fast path from the current state: the
+    /// smaller of the global bound `|ev_dd| |s|` and the weighted one
+    /// `sqrt(sum c_k * sum c_k |s_k|^2)` (see `CompiledPhase::ev_dd_block`),
+    /// plus gravity in flight. Valid for every later state of the phase.
+    fn curvature_bound_fast(&self, scene: &CompiledScene) -> f64 {
+        let (ph, s) = if self.in_contact {
+            (&scene.contact, &self.s_c)
+        } else {
+            (&scene.free, &self.s_f)
+        };
+        let (e, w) = kernel::block_measures(s, &ph.ev_dd_block);
+        let global2 = ph.ev_dd_norm * ph.ev_dd_norm * e;
+        let weighted2 = ph.ev_dd_block_sum * w;
+        let g = if self.in_contact { 0.0 } else { self.g };
+        // 1 + 1e-12: the blocks are contractions up to rounding of exp2
+        g + global2.min(weighted2).sqrt() * (1.0 + 1e-12)
     }
 
     fn refresh_cache(&mut self, scene: &CompiledScene) {
@@ -429,36 +697,16 @@ impl EngineState {
         self.cache_ok = true;
     }
 
-    /// Like [`tick`](Self::tick) but also returns the trace observation taken
-    /// after the switching decision (DESIGN.md section 5). O(N^2): offline only.
-    pub fn tick_observed(&mut self, scene: &CompiledScene) -> ([f64; 2], Observation) {
-        self.n_events = 0;
-        self.t_in_step = 0.0;
-        if scene.switching == Switching::Exact {
-            let out = self.output(scene);
-            let obs = self.observe(scene);
-            if !self.try_fast_step(scene, true) {
-                self.advance_exact(scene);
-                self.cache_ok = false;
-            }
-            return (out, obs);
+    /// The event function now: flight `x_h - x_c`, contact `p_eff`
+    /// (from the cached rows: the same numbers the fast path decides on).
+    fn phi_now(&mut self, scene: &CompiledScene) -> f64 {
+        if !self.cache_ok {
+            self.refresh_cache(scene);
         }
-        self.decide(scene);
-        let out = self.output(scene);
-        let obs = self.observe(scene);
-        if !self.try_fast_step(scene, false) {
-            self.advance(scene);
-            self.cache_ok = false;
-        }
-        (out, obs)
-    }
-
-    /// Fill `left`/`right` with consecutive samples (f64). [audio-thread]
-    pub fn process_block(&mut self, scene: &CompiledScene, left: &mut [f64], right: &mut [f64]) {
-        for (l, r) in left.iter_mut().zip(right.iter_mut()) {
-            let o = self.tick(scene);
-            *l = o[0];
-            *r = o[1];
+        if self.in_contact {
+            self.cache[0] + scene.offsets.pi / scene.sk
+        } else {
+            self.cache[0] + self.x_h
         }
     }
 
@@ -471,62 +719,64 @@ impl EngineState {
         }
     }
 
+    /// Offset rod: the decision at a sample instant, on the same numbers
+    /// the fast path uses ([`phi_now`](Self::phi_now)).
     fn decide(&mut self, scene: &CompiledScene) {
+        let phi = self.phi_now(scene);
         if self.in_contact {
-            let p_eff = self.penetration(scene);
             // Leave at the first sample with p_eff <= 0 (paper 2.2); cutting the
             // spring there can only lose its energy 0.5 k p_eff^2.
-            if !(p_eff > 0.0) {
+            if !(phi > 0.0) {
                 self.leave_contact(scene);
             }
-        } else {
-            let p = self.penetration(scene);
-            if p > 0.0 {
-                self.enter_contact(scene, p);
-            }
+        } else if phi < 0.0 {
+            // p = x_c - x_h = -phi > 0
+            self.enter_contact(scene, -phi);
         }
     }
 
     /// Offset rod: the spring starts unstretched (p_eff = 0), so entering
-    /// contact adds no energy.
+    /// contact adds no energy. O(N^2): one change of basis.
     fn enter_contact(&mut self, scene: &CompiledScene, p: f64) {
         self.rod_m = p;
         let eta = scene.sm * self.v_h;
         let dc = scene.contact.dim;
-        let df = scene.free.dim;
         for i in 0..dc {
-            let row = scene.w_cf.row(i);
-            let mut acc = scene.col_eta[i] * eta - scene.s_star[i];
-            for j in 0..df {
-                acc += row[j] * self.s_f[j];
-            }
-            self.s_c[i] = acc;
+            self.s_c[i] = scene.col_eta[i] * eta - scene.s_star[i];
         }
+        kernel::mat_vec_add(
+            self.simd,
+            scene.w_cf.as_slice(),
+            dc,
+            &self.s_f,
+            &mut self.s_c,
+        );
         self.in_contact = true;
         self.contacts_started += 1;
-        self.cache_ok = false;
+        self.discontinuity();
         self.log_event(true);
     }
 
+    /// Cut the spring (can only remove its energy). O(N^2): one change of
+    /// basis.
     fn leave_contact(&mut self, scene: &CompiledScene) {
         let p_eff = self.penetration(scene);
         let x_c = dot(&scene.contact.rows.x_c, &self.s_c) + scene.offsets.x_c;
         let eta = dot(&scene.contact.rows.eta, &self.s_c) + scene.offsets.eta;
         let df = scene.free.dim;
-        let dc = scene.contact.dim;
-        for i in 0..df {
-            let row = scene.w_fc.row(i);
-            let mut acc = scene.s_f_star[i];
-            for j in 0..dc {
-                acc += row[j] * self.s_c[j];
-            }
-            self.s_f[i] = acc;
-        }
+        self.s_f[..df].copy_from_slice(&scene.s_f_star);
+        kernel::mat_vec_add(
+            self.simd,
+            scene.w_fc.as_slice(),
+            df,
+            &self.s_c,
+            &mut self.s_f,
+        );
         self.x_h = x_c - p_eff - self.rod_m;
         self.v_h = eta / scene.sm;
         self.rod_m = 0.0;
         self.in_contact = false;
-        self.cache_ok = false;
+        self.discontinuity();
         self.log_event(false);
     }
 
@@ -568,20 +818,6 @@ impl EngineState {
             ]
         } else {
             [self.cache[1], self.cache[2]]
-        }
-    }
-
-    #[inline]
-    fn advance(&mut self, scene: &CompiledScene) {
-        if self.in_contact {
-            step_phase(&scene.contact, &self.p_c, &mut self.s_c, &mut self.scratch);
-        } else {
-            step_phase(&scene.free, &self.p_f, &mut self.s_f, &mut self.scratch);
-            // Hammer in flight: exact parabola (never diagonalised), in
-            // reference time (step s h, the scene's gravity).
-            let dt = self.step_s;
-            self.x_h += self.v_h * dt - 0.5 * self.g * dt * dt;
-            self.v_h -= self.g * dt;
         }
     }
 
@@ -659,7 +895,6 @@ impl EngineState {
         let scale = self.time_scale;
         // re-derive propagators and output rows for the new scene
         self.set_time_scale_inner(new, scale);
-        self.cache_ok = false;
         true
     }
 
@@ -746,23 +981,14 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
+/// One step of a dense-fallback phase: `s = exp(A h) s`.
 #[inline]
-fn step_phase(ph: &CompiledPhase, p: &BlockProps, s: &mut [f64], scratch: &mut [f64]) {
-    if let Some((_, phi)) = &ph.dense {
-        let n = ph.dim;
-        for i in 0..n {
-            let row = &phi[i * n..(i + 1) * n];
-            scratch[i] = dot(row, s);
-        }
-        s[..n].copy_from_slice(&scratch[..n]);
-    } else {
-        let nb = p.len();
-        for k in 0..nb {
-            let m = p.get(k);
-            let a = s[k];
-            let b = s[nb + k];
-            s[k] = m[0] * a + m[1] * b;
-            s[nb + k] = m[2] * a + m[3] * b;
-        }
+fn step_phase(ph: &CompiledPhase, s: &mut [f64], scratch: &mut [f64]) {
+    let (_, phi) = ph.dense.as_ref().expect("dense phase");
+    let n = ph.dim;
+    for i in 0..n {
+        let row = &phi[i * n..(i + 1) * n];
+        scratch[i] = dot(row, s);
     }
+    s[..n].copy_from_slice(&scratch[..n]);
 }
