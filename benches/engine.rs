@@ -234,6 +234,37 @@ fn voices(c: &mut Criterion) {
     g.finish();
 }
 
+/// A 200-mode object whose modes have decayed into the subnormal range of
+/// f64 (1e-310, as fast modes reach about 10 s after a strike while a slow
+/// one keeps the voice alive), with the engine's flush of subnormals on or
+/// off.
+fn subnormal_tail(sc: &CompiledScene, flush: bool) -> EngineState {
+    let mut st = engine_in(sc, false);
+    st.set_flush_denormals(flush);
+    let n = sc.free.dim / 2;
+    let s = st.free_state_mut();
+    for k in 0..n {
+        s[k] = 1e-310;
+        s[n + k] = -1e-310;
+    }
+    st
+}
+
+fn tail(c: &mut Criterion) {
+    let sc = compile_with(&modal_scene(200, false), RATE, Some(Switching::Exact)).unwrap();
+    let mut g = c.benchmark_group("subnormal_tail_200_modes");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements((BLOCK * 200) as u64));
+    for flush in [true, false] {
+        let mut st = subnormal_tail(&sc, flush);
+        let name = if flush { "flushed" } else { "not_flushed" };
+        g.bench_function(name, |b| {
+            b.iter(|| black_box(run_engine(&mut st, &sc, BLOCK)))
+        });
+    }
+    g.finish();
+}
+
 /// Median wall time of `f` over `runs` runs [s].
 fn median_time(runs: usize, mut f: impl FnMut()) -> f64 {
     let mut t: Vec<f64> = (0..runs)
@@ -372,7 +403,20 @@ fn summary(_c: &mut Criterion) {
         "16 voices x 200 modes: {:.1} % of one core for real time",
         t * 100.0
     );
+    let per_mode = |flush: bool| {
+        let mut st = subnormal_tail(&sc, flush);
+        median_time(5, || {
+            black_box(run_engine(&mut st, &sc, n_samp));
+        }) / (n_samp * 200) as f64
+            * 1e9
+    };
+    let (on, off) = (per_mode(true), per_mode(false));
+    println!(
+        "200 modes in the subnormal range: {on:.3} ns/mode/sample with the flush (the default), \
+         {off:.3} without ({:.1}x)",
+        off / on
+    );
 }
 
-criterion_group!(benches, phases, switch, renders, voices, summary);
+criterion_group!(benches, phases, switch, renders, voices, tail, summary);
 criterion_main!(benches);

@@ -53,6 +53,7 @@
 //!   here.
 
 use crate::compile::{compile_with, CompileError, CompiledScene};
+use crate::engine::denormal::FlushDenormals;
 use crate::engine::{EngineState, TimeScaleError};
 use crate::presets;
 use crate::scene::{ObjectSpec, Scene, Switching};
@@ -803,6 +804,9 @@ impl Instrument {
     /// Render `left.len()` samples, applying `events` (sorted by offset, offsets
     /// within the span) at their sample offsets. [audio-thread]
     pub fn process(&mut self, events: &[TimedEvent], left: &mut [f32], right: &mut [f32]) {
+        // Subnormals off for the whole block (each voice's engine would set
+        // it too; once here, the voices find it on and leave it).
+        let _flush = FlushDenormals::new(true);
         let n = left.len().min(right.len());
         let mut pos = 0;
         for ev in events {

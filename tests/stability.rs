@@ -419,3 +419,70 @@ fn grazing_contacts_do_not_hang() {
         }
     }
 }
+
+#[test]
+fn fast_modes_fall_through_the_subnormal_range_without_changing_the_output() {
+    // X13: a long-ringing mode (T60 100 s) keeps the object sounding while
+    // eight fast ones (T60 10..20 ms) decay by e^-708 (the bottom of the
+    // normal f64 range) 1..2 s after the strike, and would then spend 50..100
+    // ms as subnormal numbers, the slow path of the floating-point unit.
+    let mut text = String::from(
+        "version = 1\nname = \"tail\"\n[[object]]\nname = \"o\"\nkind = \"modal\"\npoints = [\"c\", \"p\"]\n\
+         [[object.mode]]\nfreq_hz = 180.0\nt60_s = 100.0\nweights = [1.0, 0.5]\n",
+    );
+    for i in 0..8 {
+        let f = 1000.0 + 900.0 * i as f64;
+        let t60 = 0.010 + 0.010 * i as f64 / 7.0;
+        text += &format!("[[object.mode]]\nfreq_hz = {f}\nt60_s = {t60}\nweights = [0.8, 0.6]\n");
+    }
+    text += "[hammer]\nmass_kg = 0.02\nheight_m = 0.0\nvelocity_m_per_s = -1.0\n\
+             [contact]\nobject = \"o\"\npoint = \"c\"\nstiffness_n_per_m = 1e6\ndamping_n_s_per_m = 5.0\n\
+             [[pickup]]\nobject = \"o\"\npoint = \"p\"\n";
+    let n = 130_000; // 2.9 s
+    for sw in MODES {
+        let sc = compile_with(&scene(&text), 44100.0, Some(sw)).unwrap();
+        let run = |flush: bool| {
+            let mut st = EngineState::new(&sc);
+            st.set_flush_denormals(flush);
+            let mut out = Vec::with_capacity(n);
+            let mut subnormal_samples = 0usize;
+            let mut first_subnormal = None;
+            let mut at_end = 0;
+            for i in 0..n {
+                out.push(st.tick(&sc));
+                let k = st.phase_state().iter().filter(|x| x.is_subnormal()).count();
+                if k > 0 {
+                    subnormal_samples += 1;
+                    first_subnormal.get_or_insert(i);
+                }
+                at_end = k;
+            }
+            (out, subnormal_samples, first_subnormal, at_end, st.in_contact())
+        };
+        let (with, sub_with, _, _, contact_end) = run(true);
+        let (without, sub_without, first, at_end, _) = run(false);
+        let max_diff = with
+            .iter()
+            .zip(&without)
+            .flat_map(|(a, b)| [(a[0] - b[0]).abs(), (a[1] - b[1]).abs()])
+            .fold(0.0f64, f64::max);
+        let tail_peak = with[n - 4410..]
+            .iter()
+            .fold(0.0f64, |m, o| m.max(o[0].abs()));
+        println!(
+            "X13 {sw:?}: without the flush {sub_without} of {n} samples hold a subnormal state (first at {:.3} s; \
+             {at_end} state numbers still subnormal at the end); with it {sub_with}; output difference {max_diff:e}; \
+             the slow mode still sounds at {tail_peak:.2e}",
+            first.map_or(f64::NAN, |i| i as f64 / 44100.0)
+        );
+        assert!(!contact_end, "{sw:?}: the hammer must have left");
+        assert!(
+            sub_without > 1000,
+            "{sw:?}: the scene must reach the subnormal range without the flush"
+        );
+        assert_eq!(sub_with, 0, "{sw:?}: a subnormal number in the state");
+        assert!(tail_peak > 1e-4, "{sw:?}: the object must still sound");
+        // a flushed number is below 2.2e-308: nothing at the output
+        assert!(max_diff <= 1e-290, "{sw:?}: output changed by {max_diff:e}");
+    }
+}

@@ -16,6 +16,7 @@
 //! recomputed (O(N), no allocation). Velocities in the reference system are
 //! the physical ones divided by `s`.
 
+pub mod denormal;
 mod exact;
 pub mod kernel;
 
@@ -26,6 +27,7 @@ use kernel::{rows_of, run_block, BlockAcc, BlockIo, BlockProps, BlockRows, Rows,
 use crate::compile::{CompiledPhase, CompiledScene};
 use crate::physics::block::exp2;
 use crate::scene::Switching;
+use denormal::FlushDenormals;
 
 /// What the trace records per sample (DESIGN.md section 5), physical units.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -83,6 +85,9 @@ pub struct EngineState {
     p_c: BlockProps,
     /// Kernel variant for this CPU.
     simd: SimdPath,
+    /// Run with subnormals flushed to zero (see [`denormal`]); on unless a
+    /// benchmark turns it off to measure what it saves.
+    flush_denormals: bool,
     /// Cached rows of the current state: `[ev . s, left, right]`, valid when
     /// `cache_ok` (the block kernel computes them for the next sample).
     cache: [f64; 3],
@@ -161,6 +166,7 @@ impl EngineState {
             p_f: BlockProps::new(df / 2),
             p_c: BlockProps::new(dc / 2),
             simd: SimdPath::detect(),
+            flush_denormals: true,
             cache: [0.0; 3],
             cache_ok: false,
             acc: Box::new([[[0.0; 4]; 3]; EPOCH]),
@@ -225,6 +231,12 @@ impl EngineState {
         self.bound_epoch = NO_EPOCH;
     }
 
+    /// Flush subnormal numbers to zero while stepping (default: on; see
+    /// [`denormal`]). Off only to measure what it saves. [any-thread]
+    pub fn set_flush_denormals(&mut self, on: bool) {
+        self.flush_denormals = on;
+    }
+
     /// Use the portable kernel instead of the detected SIMD one (benchmarks
     /// and equivalence tests). [any-thread]
     pub fn set_simd_path(&mut self, path: SimdPath) {
@@ -266,6 +278,17 @@ impl EngineState {
         &mut self.s_c
     }
 
+    /// The current phase's state in its block coordinates (read only; the
+    /// layout of [`free_state_mut`](Self::free_state_mut)). For tests and
+    /// diagnostics. [any-thread]
+    pub fn phase_state(&self) -> &[f64] {
+        if self.in_contact {
+            &self.s_c
+        } else {
+            &self.s_f
+        }
+    }
+
     /// Hammer height [m] and physical velocity [m/s] while in flight.
     pub fn hammer_in_flight(&self) -> Option<(f64, f64)> {
         (!self.in_contact).then_some((self.x_h, self.v_h * self.time_scale))
@@ -281,8 +304,6 @@ impl EngineState {
         self.time_scale
     }
 
-    /// Run the scene with its time axis scaled by `s` (pitch ratio). O(N), no
-    /// allocation. [audio-thread]
     /// Run the scene with its time axis scaled by `s` (pitch ratio). O(N), no
     /// allocation (plus O(N M) for M modes left out by the output band, see
     /// [`EngineState::set_output_band`]). [audio-thread]
@@ -411,6 +432,7 @@ impl EngineState {
     /// Like [`tick`](Self::tick) but also returns the trace observation taken
     /// after the switching decision (DESIGN.md section 5). O(N^2): offline only.
     pub fn tick_observed(&mut self, scene: &CompiledScene) -> ([f64; 2], Observation) {
+        let _flush = FlushDenormals::new(self.flush_denormals);
         self.n_events = 0;
         self.t_in_step = 0.0;
         let rod = scene.switching == Switching::OffsetRod;
@@ -436,9 +458,12 @@ impl EngineState {
     /// curvature bound, decided by the sign test with the offset rod) run in
     /// the block kernel, up to [`EPOCH`] at a time; a sample that may hold a
     /// switch, and every sample of a dense-fallback phase, takes the slow
-    /// path (event location, change of basis). Allocation-free, O(N) per
-    /// sample plus O(N^2) per switch. [audio-thread]
+    /// path (event location, change of basis). Subnormal numbers are
+    /// flushed to zero meanwhile ([`denormal`]), so a fading voice does not
+    /// get slower. Allocation-free, no system call, O(N) per sample plus
+    /// O(N^2) per switch. [audio-thread]
     pub fn process_block(&mut self, scene: &CompiledScene, left: &mut [f64], right: &mut [f64]) {
+        let _flush = FlushDenormals::new(self.flush_denormals);
         kernel::clean_upper_state(self.simd);
         let n = left.len().min(right.len());
         let mut i = 0;
