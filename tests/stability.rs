@@ -457,7 +457,13 @@ fn fast_modes_fall_through_the_subnormal_range_without_changing_the_output() {
                 }
                 at_end = k;
             }
-            (out, subnormal_samples, first_subnormal, at_end, st.in_contact())
+            (
+                out,
+                subnormal_samples,
+                first_subnormal,
+                at_end,
+                st.in_contact(),
+            )
         };
         let (with, sub_with, _, _, contact_end) = run(true);
         let (without, sub_without, first, at_end, _) = run(false);

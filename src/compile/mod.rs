@@ -18,6 +18,7 @@ pub mod prune;
 
 pub use budget::{CompileBudget, CompileCost};
 
+use crate::physics::block::OscBlocks;
 use crate::physics::decomp::{self, DecompDiagnostics, Form, PhaseDecomp};
 use crate::physics::model::{contact_system, ContactLayout, ContactParams, ObjectModel};
 use crate::scene::{ObjectSpec, Quantity, Scene, Switching};
@@ -108,6 +109,9 @@ pub struct CompiledPhase {
     pub dim: usize,
     /// Block generators (when advanced in blocks).
     pub gens: Option<Vec<[f64; 4]>>,
+    /// The blocks' oscillatory splits (when advanced in blocks), so that
+    /// `exp(G tau)` at a new `tau` costs one batched exp/sin/cos.
+    pub osc: OscBlocks,
     /// Dense generator and its propagator over one sample (fallback).
     pub dense: Option<(DMatrix<f64>, Vec<f64>)>,
     /// Phase coordinates to energy coordinates (`y = V s`), for energy/traces.
@@ -551,9 +555,11 @@ pub fn compile_opts(
                     (None, Some((a, flat)))
                 }
             };
+            let osc = gens.as_deref().map(OscBlocks::of).unwrap_or_default();
             Ok(CompiledPhase {
                 dim,
                 gens,
+                osc,
                 dense,
                 v: d.v,
                 vinv: d.vinv,

@@ -163,8 +163,12 @@ impl Default for BlockRows {
     }
 }
 
+/// `a b + c`: fused (one rounding) in the FMA copy of a kernel, two
+/// roundings in the baseline copy. Only call it from `#[inline(always)]`
+/// bodies, so that it is compiled inside the `target_feature` function
+/// (elsewhere `mul_add` would be a call into libm's software fma).
 #[inline(always)]
-fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
+pub(crate) fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
     if FMA {
         a.mul_add(b, c)
     } else {
@@ -357,6 +361,106 @@ pub fn block_measures(s: &[f64], c: &[f64]) -> (f64, f64) {
         w[k % LANES] += c[k] * ek;
     }
     (lane_sum(e), lane_sum(w))
+}
+
+#[inline(always)]
+fn event_body<const FMA: bool>(p: Option<&BlockProps>, s: &[f64], rows: [&[f64]; 3]) -> [f64; 3] {
+    let nb = s.len() / 2;
+    match p {
+        Some(p) => event_sum::<FMA, true>(
+            [&p.p00[..nb], &p.p01[..nb], &p.p10[..nb], &p.p11[..nb]],
+            s,
+            rows,
+        ),
+        None => event_sum::<FMA, false>([&[]; 4], s, rows),
+    }
+}
+
+/// The sum of [`event_rows`]: block `k` adds into lane `k % LANES`, in a
+/// fixed order (no closure: it must inline into the AVX2 copy).
+#[inline(always)]
+fn event_sum<const FMA: bool, const STEP: bool>(
+    p: [&[f64]; 4],
+    s: &[f64],
+    rows: [&[f64]; 3],
+) -> [f64; 3] {
+    let nb = s.len() / 2;
+    let (sa, sb) = s.split_at(nb);
+    let sb = &sb[..nb];
+    let r = rows.map(|r| {
+        let (a, b) = r.split_at(nb);
+        (&a[..nb], &b[..nb])
+    });
+    let mut acc = [[0.0f64; LANES]; 3];
+    let full = nb / LANES * LANES;
+    // Whole groups of LANES blocks as fixed-size arrays (the shape the
+    // vectoriser takes), then the tail, block `full + j` in lane `j`.
+    let group = |x: &[f64], k0: usize| -> [f64; LANES] {
+        x[k0..k0 + LANES].try_into().expect("LANES entries")
+    };
+    for k0 in (0..full).step_by(LANES) {
+        let (a, b) = (group(sa, k0), group(sb, k0));
+        let (mut x0, mut x1) = (a, b);
+        if STEP {
+            let pk = p.map(|pq| group(pq, k0));
+            for l in 0..LANES {
+                x0[l] = madd::<FMA>(pk[0][l], a[l], pk[1][l] * b[l]);
+                x1[l] = madd::<FMA>(pk[2][l], a[l], pk[3][l] * b[l]);
+            }
+        }
+        for q in 0..3 {
+            let (ra, rb) = (group(r[q].0, k0), group(r[q].1, k0));
+            for l in 0..LANES {
+                acc[q][l] = madd::<FMA>(ra[l], x0[l], madd::<FMA>(rb[l], x1[l], acc[q][l]));
+            }
+        }
+    }
+    for k in full..nb {
+        let (x0, x1) = if STEP {
+            (
+                madd::<FMA>(p[0][k], sa[k], p[1][k] * sb[k]),
+                madd::<FMA>(p[2][k], sa[k], p[3][k] * sb[k]),
+            )
+        } else {
+            (sa[k], sb[k])
+        };
+        for q in 0..3 {
+            let l = k - full;
+            acc[q][l] = madd::<FMA>(r[q].0[k], x0, madd::<FMA>(r[q].1[k], x1, acc[q][l]));
+        }
+    }
+    [lane_sum(acc[0]), lane_sum(acc[1]), lane_sum(acc[2])]
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn event_avx2(p: Option<&BlockProps>, s: &[f64], rows: [&[f64]; 3]) -> [f64; 3] {
+    event_body::<true>(p, s, rows)
+}
+
+/// `[r_0 . P s, r_1 . P s, r_2 . P s]` for three rows (the event function
+/// and its two derivatives) of a block state `s` stepped by the block
+/// propagators `p` (a partial step of exact switching; `None`: no step),
+/// without writing the stepped state. Lane sums in a fixed order.
+/// O(N), allocation-free. [audio-thread]
+#[inline]
+pub fn event_rows(
+    path: SimdPath,
+    p: Option<&BlockProps>,
+    s: &[f64],
+    rows: [&[f64]; 3],
+) -> [f64; 3] {
+    let n = s.len();
+    assert!(
+        n.is_multiple_of(2) && rows.iter().all(|r| r.len() == n) && p.is_none_or(|p| p.len() >= n / 2),
+        "event_rows: mismatched lengths"
+    );
+    match path {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as in `run_block`.
+        SimdPath::Avx2Fma => unsafe { event_avx2(p, s, rows) },
+        _ => event_body::<false>(p, s, rows),
+    }
 }
 
 #[inline(always)]
@@ -557,6 +661,29 @@ mod tests {
         assert_eq!(direct[0].to_bits(), out.ev[0].to_bits());
         assert_eq!(direct[1].to_bits(), out.l[0].to_bits());
         assert_eq!(direct[2].to_bits(), out.r[0].to_bits());
+    }
+
+    #[test]
+    fn event_rows_match_one_step_of_the_kernel_and_no_step() {
+        // With the propagators: the rows of the state after one step (as the
+        // kernel computes them); without: the rows of the state itself.
+        for nb in [1, 3, 4, 8, 37, 100] {
+            let (p, s, rows) = setup(nb);
+            let stepped = reference(&p, &s, &rows, 1)[0];
+            let unstepped =
+                [0, 1, 2].map(|q| rows[q].iter().zip(&s).map(|(a, b)| a * b).sum::<f64>());
+            let rr = [&rows[0][..], &rows[1][..], &rows[2][..]];
+            for path in [SimdPath::detect(), SimdPath::Generic] {
+                for (props, want) in [(Some(&p), stepped), (None, unstepped)] {
+                    let got = event_rows(path, props, &s, rr);
+                    for q in 0..3 {
+                        let scale = rows[q].iter().map(|x| x.abs()).sum::<f64>() * 2.0;
+                        let e = (got[q] - want[q]).abs() / scale;
+                        assert!(e < 1e-15, "{nb} blocks {path:?} row {q}: {e:e}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]

@@ -19,6 +19,7 @@
 pub mod denormal;
 mod exact;
 pub mod kernel;
+pub mod vmath;
 
 pub use exact::{ExactStats, MAX_SWITCHES_PER_SAMPLE};
 pub use kernel::SimdPath;
@@ -139,6 +140,9 @@ pub struct EngineState {
     /// switching), for `part_tau` in the phase `part_contact`; valid when
     /// `part_ok` (cleared when the propagators' scene may change).
     p_part: BlockProps,
+    /// Scratch of the batched partial propagators: per block `m tau`,
+    /// `w tau`, then `exp(m tau)`, `sin(w tau)`, `cos(w tau)`.
+    part_args: [Vec<f64>; 5],
     part_tau: f64,
     part_contact: bool,
     part_ok: bool,
@@ -195,6 +199,7 @@ impl EngineState {
             ],
             exact_stats: ExactStats::default(),
             p_part: BlockProps::new(df.max(dc) / 2),
+            part_args: std::array::from_fn(|_| vec![0.0; df.max(dc) / 2]),
             part_tau: 0.0,
             part_contact: false,
             part_ok: false,
@@ -982,10 +987,13 @@ fn energy_coords(ph: &CompiledPhase, s: &[f64], s_star: &[f64]) -> Vec<f64> {
     y
 }
 
+/// The one-sample block propagators `exp(G_k dt)` (libm's exp and sin_cos:
+/// these are applied every sample, so they take the most accurate
+/// functions; equal to `exp2` bit for bit).
 fn fill_props(p: &mut BlockProps, ph: &CompiledPhase, dt: f64) {
     if let Some(gens) = &ph.gens {
         for (k, g) in gens.iter().enumerate() {
-            p.set(k, &exp2(g, dt));
+            p.set(k, &ph.osc.get(k).map_or_else(|| exp2(g, dt), |o| o.exp(dt)));
         }
     }
 }
