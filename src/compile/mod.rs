@@ -434,9 +434,7 @@ pub fn compile_opts(
 
     // static equilibrium y* = -A^{-1} f (only with gravity: no affine term otherwise)
     let y_star: DVector<f64> = if params.g != 0.0 {
-        let lu = a_c.clone().lu();
-        let sol = lu
-            .solve(&(-&f_c))
+        let sol = crate::physics::linalg::solve(&a_c, &(-&f_c))
             .ok_or_else(|| CompileError("contact system is singular under gravity".into()))?;
         if sol.iter().any(|x| !x.is_finite()) {
             return Err(CompileError("static equilibrium is not finite".into()));

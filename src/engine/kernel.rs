@@ -452,7 +452,9 @@ pub fn event_rows(
 ) -> [f64; 3] {
     let n = s.len();
     assert!(
-        n.is_multiple_of(2) && rows.iter().all(|r| r.len() == n) && p.is_none_or(|p| p.len() >= n / 2),
+        n.is_multiple_of(2)
+            && rows.iter().all(|r| r.len() == n)
+            && p.is_none_or(|p| p.len() >= n / 2),
         "event_rows: mismatched lengths"
     );
     match path {

@@ -12,11 +12,12 @@
 //! eigenvalues), the phase falls back to the dense propagator `exp(A h)`.
 
 use crate::physics::block::{exp2, Mat2};
+use crate::physics::linalg::{mat_vec, to_faer};
 use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::evd::{evd_real, evd_scratch, ComputeEigenvectors};
 use faer::{Mat, Par};
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 
 /// Largest accepted condition number of `V` (energy coordinates give 1-25 on
 /// the prototype scenes, NUMERICS.md P-E6; 1e6 leaves room but stops the
@@ -305,10 +306,9 @@ pub const MAX_DENSE_CHECK_DIM: usize = 400;
 /// Power-iteration estimate of the largest singular value of
 /// `P = V blockdiag(exp(G h)) V^-1`, O(dim^2) per iteration.
 fn sigma_max_blocks_est(gens: &[Mat2], v: &DMatrix<f64>, vinv: &DMatrix<f64>, h: f64) -> f64 {
-    let dim = v.nrows();
     let props: Vec<Mat2> = gens.iter().map(|g| exp2(g, h)).collect();
     let nb = props.len();
-    let apply_blocks = |x: &mut nalgebra::DVector<f64>, transpose: bool| {
+    let apply_blocks = |x: &mut DVector<f64>, transpose: bool| {
         for (k, p) in props.iter().enumerate() {
             let (a, b) = (x[k], x[nb + k]);
             if transpose {
@@ -320,24 +320,46 @@ fn sigma_max_blocks_est(gens: &[Mat2], v: &DMatrix<f64>, vinv: &DMatrix<f64>, h:
             }
         }
     };
-    // deterministic start vector
-    let mut x = nalgebra::DVector::from_fn(dim, |i, _| 1.0 + ((i * 7919) % 13) as f64 / 13.0);
+    let (fv, fvinv) = (to_faer(v), to_faer(vinv));
+    power_sigma(v.nrows(), 60, |x, transpose| {
+        if transpose {
+            let mut z = mat_vec(&fv, x, true);
+            apply_blocks(&mut z, true);
+            mat_vec(&fvinv, &z, true)
+        } else {
+            let mut y = mat_vec(&fvinv, x, false);
+            apply_blocks(&mut y, false);
+            mat_vec(&fv, &y, false)
+        }
+    })
+}
+
+/// Largest singular value of the operator `x -> apply(x, false)` (with
+/// `apply(y, true)` its transpose) by power iteration on `M^T M` from a
+/// fixed start vector: a lower bound that converges to `sigma_max`, stopped
+/// after `iters` steps or when it changes by less than 1e-15 relative.
+fn power_sigma(
+    dim: usize,
+    iters: usize,
+    mut apply: impl FnMut(&DVector<f64>, bool) -> DVector<f64>,
+) -> f64 {
+    let mut x = DVector::from_fn(dim, |i, _| 1.0 + ((i * 7919) % 13) as f64 / 13.0);
     x /= x.norm();
-    let mut sigma = 0.0;
-    for _ in 0..60 {
-        // y = P x ; x = P^T y
-        let mut y = vinv * &x;
-        apply_blocks(&mut y, false);
-        let y = v * y;
-        let mut z = v.transpose() * &y;
-        apply_blocks(&mut z, true);
-        let z = vinv.transpose() * z;
+    let mut sigma: f64 = 0.0;
+    for _ in 0..iters {
+        let y = apply(&x, false);
+        let z = apply(&y, true);
         let n = z.norm();
         if !(n > 0.0) {
             return 0.0;
         }
-        sigma = n.sqrt();
+        let next = n.sqrt();
+        let done = (next - sigma).abs() <= 1e-15 * next;
+        sigma = next;
         x = z / n;
+        if done {
+            break;
+        }
     }
     sigma
 }
@@ -452,25 +474,32 @@ fn eigen_blocks(a: &DMatrix<f64>) -> Result<EigenBlocks, String> {
     if v.iter().any(|x| !x.is_finite()) {
         return Err("eigenvectors are not finite (defective generator)".into());
     }
-    let svd = v.clone().svd(false, false);
-    let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
-    let smin = svd
-        .singular_values
-        .iter()
-        .cloned()
-        .fold(f64::INFINITY, f64::min);
-    let kappa = if smin > 0.0 {
-        smax / smin
+    // faer's blocked LU and SVD (nalgebra's unblocked ones took most of a
+    // 2002-dimensional compile)
+    let vinv = crate::physics::linalg::inverse(&v)
+        .ok_or_else(|| "eigenvector matrix is singular (defective generator)".to_string())?;
+    let kappa = if n <= MAX_DENSE_CHECK_DIM {
+        let sv = crate::physics::linalg::singular_values(&v)
+            .ok_or_else(|| "eigenvector matrix: SVD failed".to_string())?;
+        let smax = sv.first().copied().unwrap_or(0.0);
+        let smin = sv.last().copied().unwrap_or(0.0);
+        if smin > 0.0 {
+            smax / smin
+        } else {
+            f64::INFINITY
+        }
     } else {
-        f64::INFINITY
+        // |V| |V^-1| by power iteration (O(n^2) per step instead of an
+        // O(n^3) SVD; each factor converges from below)
+        let norm = |m: &DMatrix<f64>| {
+            let fm = to_faer(m);
+            power_sigma(n, 40, |x, transpose| mat_vec(&fm, x, transpose))
+        };
+        norm(&v) * norm(&vinv)
     };
     if !kappa.is_finite() {
         return Err("eigenvector matrix is singular (defective generator)".into());
     }
-    let vinv = v
-        .clone()
-        .try_inverse()
-        .ok_or_else(|| "eigenvector matrix is singular".to_string())?;
     // residual |A V - V G|
     let mut vg = DMatrix::zeros(n, n);
     for (k, g) in gens.iter().enumerate() {

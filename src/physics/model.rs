@@ -154,9 +154,7 @@ fn string_model(s: &StringSpec) -> Result<ObjectModel, String> {
     a.view_mut((n, 0), (n, n)).copy_from(&(-b.transpose()));
     a.view_mut((n, n), (n, n)).copy_from(&(-d));
     // x_j = (L^{-T} xi)_j  =>  row_j = (L^{-1} e_j)^T
-    let l_inv = l
-        .clone()
-        .try_inverse()
+    let l_inv = crate::physics::linalg::inverse(&l)
         .ok_or_else(|| "Cholesky factor is singular".to_string())?;
     let points = s
         .points
