@@ -403,6 +403,16 @@ fn summary(_c: &mut Criterion) {
         "16 voices x 200 modes: {:.1} % of one core for real time",
         t * 100.0
     );
+    for (n, runs) in [(100usize, 5usize), (400, 3), (1000, 1)] {
+        let scene = modal_scene(n, false);
+        let t = median_time(runs, || {
+            black_box(compile_with(&scene, RATE, Some(Switching::Exact)).unwrap());
+        });
+        println!(
+            "compile (off the audio thread) of a {n}-mode object and its contact system: {t:.2} s{}",
+            if runs == 1 { " (one run)" } else { "" }
+        );
+    }
     let per_mode = |flush: bool| {
         let mut st = subnormal_tail(&sc, flush);
         median_time(5, || {
