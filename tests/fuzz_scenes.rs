@@ -1365,15 +1365,50 @@ fn regressions_found_by_the_fuzzer() {
 
     // 3. A non-passive dense propagator (effective mass 1e-12 kg at the
     // contact with a 13 N s/m damper at 8 kHz: |A| h = 1.6e9, sigma_max - 1 =
-    // 4.5e-8) was accepted and gained energy: now refused, saying why.
+    // 4.5e-8) was accepted and gained energy. Then refused as not passive
+    // (the general eigensolver's blocks gave sigma_max - 1 = 1.7e-13); the
+    // rank-one secular route now decomposes it passively (eigenvalues
+    // -c / m_eff = -1.3e13, -k / c = -77, and the hammer swinging on the
+    // mode's 1.6e-8 N/m at 1.3e-4 rad/s), and it runs stably.
     let t = one_mode_scene(20.0, 1e6, 1e3, 12.95, 1.0, 0.0, "");
-    let e = compile_at(&t, 8000.0).unwrap_err();
+    let c = compile_at(&t, 8000.0).unwrap();
+    let d = &c.contact.diag;
+    println!(
+        "stiff damper on a 1e-12 kg point: {}",
+        c.summary.lines().nth(3).unwrap()
+    );
+    assert!(d.method.contains("secular"), "{}", c.summary);
+    assert!(
+        d.sigma_max - 1.0 <= 16.0 * 4.0 * d.kappa * U,
+        "{}",
+        c.summary
+    );
+    check(&t, 8000.0);
+
+    // 7. Still refused as not passive, saying why: a 1e-12 kg contact point
+    // with a 2e3 N s/m damper (|A| h = 2.5e11 at 8 kHz), where neither
+    // route's blocks are accurate enough to be passive in f64.
+    let t = "version = 1\nname = \"fuzz\"\n[[object]]\nname = \"o0\"\nkind = \"modal\"\n\
+             points = [\"c\", \"p\", \"q\"]\n\
+             [[object.mode]]\nfreq_hz = 1.635220668045858e2\nweights = [4.829829869729381e-1, 9.538949415789817e-1, 0e0]\n\
+             [[object.mode]]\nfreq_hz = 1.7849759385500585e2\nt60_s = 5.270258998123533e0\n\
+             weights = [-2.791380621140284e0, 6.146409419843188e-1, 2.677033643378004e0]\n\
+             [[object.mode]]\nfreq_hz = 4.545888511119805e1\nt60_s = 1.452973641070041e-1\n\
+             weights = [-1.1488949249545708e0, -1e6, 0e0]\n\
+             [[object.mode]]\nfreq_hz = 1.0223013063120637e3\nt60_s = 8.423388844601357e-2\n\
+             weights = [1.5086467177698417e0, 2.862583060139188e0, -1.4175779382694346e-2]\n\
+             [hammer]\nmass_kg = 1.0665131572074324e-1\nheight_m = 2.626874853153423e-2\n\
+             velocity_m_per_s = 8.850335853218309e-1\ngravity_m_per_s2 = 9.81e0\n\
+             [contact]\nobject = \"o0\"\npoint = \"p\"\nstiffness_n_per_m = 9.105092367774893e6\n\
+             damping_n_s_per_m = 1.9708577632920035e3\n\
+             [[pickup]]\nobject = \"o0\"\npoint = \"q\"\n";
+    let e = compile_at(t, 8000.0).unwrap_err();
     println!("non-passive contact phase: {e}");
     assert!(
         e.contains("contact phase") && e.contains("could create energy"),
         "{e}"
     );
-    check(&t, 8000.0);
+    check(t, 8000.0);
 
     // 4. A dense-fallback phase (critically damped stiff wall contact) with
     // |A| h in the hundreds: exact switching's Taylor partial steps made a

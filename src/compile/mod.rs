@@ -21,6 +21,7 @@ pub use budget::{CompileBudget, CompileCost};
 use crate::physics::block::OscBlocks;
 use crate::physics::decomp::{self, DecompDiagnostics, Form, PhaseDecomp};
 use crate::physics::model::{contact_system, ContactLayout, ContactParams, ObjectModel};
+use crate::physics::secular;
 use crate::scene::{ObjectSpec, Quantity, Scene, Switching};
 use nalgebra::{DMatrix, DVector};
 use std::fmt;
@@ -397,6 +398,32 @@ pub fn compile_opts(
         }
         _ => Vec::new(),
     };
+    // A modal object struck at one point: its contact system is a rank-one
+    // update of diagonal modes, decomposed in O(N^2) through the secular
+    // equation (NUMERICS.md section 6), checked like any decomposition; the
+    // general eigensolver takes over if it fails.
+    let secular = || -> Option<(&'static str, Result<decomp::BlockEigen, String>)> {
+        let blocks = obj.modal_blocks.as_ref()?;
+        let f_all: Vec<f64> = match &contact_rows {
+            Some(rows) => (0..n).map(|i| rows.vel[n + i]).collect(),
+            None => Vec::new(),
+        };
+        let keep: Vec<usize> = (0..f_all.len())
+            .filter(|i| uncoupled.binary_search(i).is_err())
+            .collect();
+        let omega: Vec<f64> = keep.iter().map(|&i| blocks[i][1]).collect();
+        let sigma: Vec<f64> = keep.iter().map(|&i| -0.5 * blocks[i][3]).collect();
+        let f: Vec<f64> = keep.iter().map(|&i| f_all[i]).collect();
+        let mc = secular::ModalContact {
+            omega: &omega,
+            sigma: &sigma,
+            f: &f,
+            k: params.k,
+            c: params.c,
+            m_h: params.m_h,
+        };
+        Some(("rank-one secular eigenvectors", secular::decompose(&mc)))
+    };
     let mut con_dec = None;
     if !uncoupled.is_empty() {
         let blocks = obj.modal_blocks.as_ref().expect("modal");
@@ -415,7 +442,7 @@ pub fn compile_opts(
             .collect();
         let pairs: Vec<(usize, usize)> = uncoupled.iter().map(|&i| (i, n + 1 + i)).collect();
         let gens: Vec<[f64; 4]> = uncoupled.iter().map(|&i| blocks[i]).collect();
-        con_dec = decomp::decompose_split(&a_c, &coupled, &pairs, &gens, h)
+        con_dec = decomp::decompose_split(&a_c, &coupled, &pairs, &gens, h, secular())
             .map_err(|e| phase_error("contact", &e, rate_hz, scene, ci))?;
         if con_dec.is_none() {
             // The coupled part needs the dense fallback: the whole contact
@@ -428,6 +455,8 @@ pub fn compile_opts(
     }
     let con_dec = match con_dec {
         Some(d) => d,
+        None if uncoupled.is_empty() => decomp::decompose_via(&a_c, h, secular())
+            .map_err(|e| phase_error("contact", &e, rate_hz, scene, ci))?,
         None => decomp::decompose(&a_c, h)
             .map_err(|e| phase_error("contact", &e, rate_hz, scene, ci))?,
     };
@@ -665,13 +694,20 @@ pub fn compile_opts(
             let d = &ph.diag;
             let _ = writeln!(
                 summary,
-                "{what} phase: dim {}, {}, residual {:.1e}, kappa(V) {:.2}, |V exp(Gh) V^-1 - exp(Ah)| {:.1e}, sigma_max(P) - 1 = {:.1e}{}",
+                "{what} phase: dim {}, {}, residual {:.1e}, kappa(V) {}{:.2}, |V exp(Gh) V^-1 - exp(Ah)| {:.1e}, sigma_max(P) - 1 {} {:.1e}{}{}",
                 d.dim,
                 d.method,
                 d.residual,
+                if d.estimated { ">= " } else { "" },
                 d.kappa,
                 d.expm_rel_diff,
+                if d.estimated { ">=" } else { "=" },
                 d.sigma_max - 1.0,
+                if d.estimated {
+                    " (power-iteration estimates: dimension above the dense checks)"
+                } else {
+                    ""
+                },
                 d.fallback_reason
                     .as_ref()
                     .map(|r| format!(" (fallback: {r})"))

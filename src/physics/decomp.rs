@@ -13,6 +13,7 @@
 
 use crate::physics::block::{exp2, Mat2};
 use crate::physics::linalg::{mat_vec, to_faer};
+pub use crate::physics::secular::BlockEigen;
 use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::evd::{evd_real, evd_scratch, ComputeEigenvectors};
@@ -78,6 +79,9 @@ pub struct DecompDiagnostics {
     pub sigma_max: f64,
     /// Why the eigen route was refused, if it was.
     pub fallback_reason: Option<String>,
+    /// `kappa` and `sigma_max` are power-iteration estimates (lower bounds),
+    /// not SVDs (systems above [`MAX_DENSE_CHECK_DIM`]).
+    pub estimated: bool,
 }
 
 /// Largest singular value.
@@ -161,6 +165,7 @@ pub fn from_blocks(gens: Vec<Mat2>, pairs: &[(usize, usize)], dim: usize, h: f64
             expm_rel_diff: f64::NAN,
             sigma_max: sig,
             fallback_reason: None,
+            estimated: false,
         },
     }
 }
@@ -168,77 +173,215 @@ pub fn from_blocks(gens: Vec<Mat2>, pairs: &[(usize, usize)], dim: usize, h: f64
 /// Decompose a general phase generator; falls back to dense when the eigen
 /// route fails its checks. `h` is the sample period used for the checks.
 pub fn decompose(a: &DMatrix<f64>, h: f64) -> Result<PhaseDecomp, String> {
-    let dim = a.nrows();
+    decompose_via(a, h, None)
+}
+
+/// Like [`decompose`], trying first a decomposition that the caller got from
+/// the system's structure (`(method name, result)`, e.g. the rank-one
+/// secular route of [`crate::physics::secular`]). It is checked like any
+/// other; if it failed or fails the checks, faer's general eigensolver is
+/// used, and the summary says why.
+pub fn decompose_via(
+    a: &DMatrix<f64>,
+    h: f64,
+    structured: Option<(&str, Result<BlockEigen, String>)>,
+) -> Result<PhaseDecomp, String> {
     if a.iter().any(|x| !x.is_finite()) {
         return Err("phase generator has non-finite entries".into());
     }
-    let small = dim <= MAX_DENSE_CHECK_DIM;
-    match eigen_blocks(a) {
-        Ok((gens, v, vinv, residual, kappa)) => {
-            // Dense cross-check against nalgebra's Pade exp (O(dim^3), only
-            // for small systems; large ones rely on residual and kappa, which
-            // bound the propagator error by ~ kappa * residual * |A h|).
-            let (diff, sig) = if small {
-                let reference = dense_exp(a, h)?;
-                let p = blocks_to_dense(&gens, &v, &vinv, h);
-                let diff = (&p - &reference).norm() / reference.norm().max(f64::MIN_POSITIVE);
-                (diff, sigma_max(&p))
-            } else {
-                (f64::NAN, sigma_max_blocks_est(&gens, &v, &vinv, h))
-            };
-            let reason = if residual > MAX_RESIDUAL {
-                Some(format!(
-                    "eigen residual {residual:.1e} > {MAX_RESIDUAL:.0e}"
-                ))
-            } else if kappa > MAX_KAPPA {
-                Some(format!(
-                    "kappa(V) {kappa:.1e} > {MAX_KAPPA:.0e} (near-defective)"
-                ))
-            } else if small
-                && !(diff
-                    <= MAX_EXPM_DIFF_PER_KAPPA
-                        * kappa.max(1.0)
-                        * (dim as f64).sqrt()
-                        * (a.norm() * h).max(1.0))
-            {
-                // (The reference is itself only accurate to ~ |A h| u: each
-                // of the ~log2 |A h| squarings of the Pade exp doubles its
-                // error. tests/fuzz_scenes.rs found a stiff hammer-on-wall
-                // rotation, |A h| = 4.7e3, whose closed-form blocks were
-                // exact but differed from the reference by 1e-12: the dense
-                // fallback taken then was the non-passive one.)
-                Some(format!(
-                    "V exp(G h) V^-1 differs from exp(A h) by {diff:.1e}"
-                ))
-            } else {
-                None
-            };
-            match reason {
-                None => Ok(PhaseDecomp {
-                    form: Form::Blocks { gens },
-                    diag: DecompDiagnostics {
-                        dim,
-                        method: "eigen blocks (faer)".into(),
-                        residual,
-                        kappa,
-                        expm_rel_diff: diff,
-                        sigma_max: sig,
-                        fallback_reason: None,
-                    },
-                    v,
-                    vinv,
-                }),
-                Some(r) => Ok(dense_phase(a, dense_exp(a, h)?, residual, kappa, Some(r))),
-            }
+    let mut refused = None;
+    if let Some((name, eig)) = structured {
+        match eig
+            .map_err(Refusal::plain)
+            .and_then(|e| checked(a, h, e, name))
+        {
+            Ok(d) => return Ok(d),
+            Err(r) => refused = Some(format!("{name} refused: {}", r.reason)),
         }
-        Err(e) => Ok(dense_phase(
+    }
+    let method = match &refused {
+        Some(r) => format!("eigen blocks (faer; {r})"),
+        None => "eigen blocks (faer)".to_string(),
+    };
+    match eigen_blocks(a)
+        .map_err(Refusal::plain)
+        .and_then(|e| checked(a, h, e, &method))
+    {
+        Ok(d) => Ok(d),
+        Err(r) => Ok(dense_phase(
             a,
             dense_exp(a, h)?,
-            f64::NAN,
-            f64::NAN,
-            Some(e),
+            r.residual,
+            r.kappa,
+            Some(match &refused {
+                Some(s) => format!("{}; {s}", r.reason),
+                None => r.reason,
+            }),
         )),
     }
+}
+
+/// Why a block decomposition was not accepted, with what was measured.
+struct Refusal {
+    reason: String,
+    residual: f64,
+    kappa: f64,
+}
+
+impl Refusal {
+    fn plain(reason: String) -> Self {
+        Self {
+            reason,
+            residual: f64::NAN,
+            kappa: f64::NAN,
+        }
+    }
+}
+
+/// Largest accepted `|V^-1 V - I|` (relative, per unit of `kappa(V)`): the
+/// structured route builds `V^-1` from left eigenvectors, not by inversion.
+pub const MAX_INVERSE_DEFECT_PER_KAPPA: f64 = 1e-11;
+
+/// Check a block decomposition `(gens, V, V^-1)` of `a` (residual,
+/// condition, inverse, and for small systems the propagator against the
+/// dense Pade `exp(A h)`) and make it a phase, or say why not.
+fn checked(
+    a: &DMatrix<f64>,
+    h: f64,
+    (gens, v, vinv): BlockEigen,
+    method: &str,
+) -> Result<PhaseDecomp, Refusal> {
+    let dim = a.nrows();
+    let small = dim <= MAX_DENSE_CHECK_DIM;
+    let (residual, kappa, inv_defect) = measure(a, &gens, &v, &vinv).map_err(Refusal::plain)?;
+    let refuse = |reason: String| Refusal {
+        reason,
+        residual,
+        kappa,
+    };
+    if !(residual <= MAX_RESIDUAL) {
+        return Err(refuse(format!(
+            "eigen residual {residual:.1e} > {MAX_RESIDUAL:.0e}"
+        )));
+    }
+    if !(kappa <= MAX_KAPPA) {
+        return Err(refuse(format!(
+            "kappa(V) {kappa:.1e} > {MAX_KAPPA:.0e} (near-defective)"
+        )));
+    }
+    if !(inv_defect <= MAX_INVERSE_DEFECT_PER_KAPPA * kappa.max(1.0)) {
+        return Err(refuse(format!(
+            "|V^-1 V - I| = {inv_defect:.1e} (the inverse is not accurate)"
+        )));
+    }
+    // Dense cross-check against nalgebra's Pade exp (O(dim^3), only for
+    // small systems; large ones rely on residual, inverse and kappa, which
+    // bound the propagator error by ~ kappa * residual * |A h|).
+    let (diff, sig) = if small {
+        let reference = dense_exp(a, h).map_err(&refuse)?;
+        let p = blocks_to_dense(&gens, &v, &vinv, h);
+        let diff = (&p - &reference).norm() / reference.norm().max(f64::MIN_POSITIVE);
+        (diff, sigma_max(&p))
+    } else {
+        (f64::NAN, sigma_max_blocks_est(&gens, &v, &vinv, h))
+    };
+    // (The reference is itself only accurate to ~ |A h| u: each of the
+    // ~log2 |A h| squarings of the Pade exp doubles its error.
+    // tests/fuzz_scenes.rs found a stiff hammer-on-wall rotation, |A h| =
+    // 4.7e3, whose closed-form blocks were exact but differed from the
+    // reference by 1e-12: the dense fallback taken then was the non-passive
+    // one.)
+    if small
+        && !(diff
+            <= MAX_EXPM_DIFF_PER_KAPPA
+                * kappa.max(1.0)
+                * (dim as f64).sqrt()
+                * (a.norm() * h).max(1.0))
+    {
+        return Err(refuse(format!(
+            "V exp(G h) V^-1 differs from exp(A h) by {diff:.1e}"
+        )));
+    }
+    Ok(PhaseDecomp {
+        form: Form::Blocks { gens },
+        diag: DecompDiagnostics {
+            dim,
+            method: method.to_string(),
+            residual,
+            kappa,
+            expm_rel_diff: diff,
+            sigma_max: sig,
+            fallback_reason: None,
+            estimated: !small,
+        },
+        v,
+        vinv,
+    })
+}
+
+/// `(|A V - V G| / (|A| |V|), kappa(V), |V^-1 V - I|)` of a block
+/// decomposition in structure-of-arrays layout. `kappa` is exact (SVD) up to
+/// dimension [`MAX_DENSE_CHECK_DIM`], above it `|V| |V^-1|` by power
+/// iteration (O(n^2) per step; each factor converges from below). The
+/// inverse defect is exact (Frobenius, relative to `sqrt(n)`) for small
+/// systems, else measured on three fixed probe vectors.
+fn measure(
+    a: &DMatrix<f64>,
+    gens: &[Mat2],
+    v: &DMatrix<f64>,
+    vinv: &DMatrix<f64>,
+) -> Result<(f64, f64, f64), String> {
+    let n = a.nrows();
+    if n == 0 {
+        return Ok((0.0, 1.0, 0.0));
+    }
+    let nb = gens.len();
+    if 2 * nb != n || v.shape() != (n, n) || vinv.shape() != (n, n) {
+        return Err("block decomposition has the wrong shape".into());
+    }
+    if v.iter().chain(vinv.iter()).any(|x| !x.is_finite()) {
+        return Err("eigenvectors are not finite (defective generator)".into());
+    }
+    let mut vg = DMatrix::zeros(n, n);
+    for (k, g) in gens.iter().enumerate() {
+        for i in 0..n {
+            let (x0, x1) = (v[(i, k)], v[(i, nb + k)]);
+            vg[(i, k)] = x0 * g[0] + x1 * g[2];
+            vg[(i, nb + k)] = x0 * g[1] + x1 * g[3];
+        }
+    }
+    let residual = (crate::physics::linalg::matmul(a, v) - vg).norm()
+        / (a.norm() * v.norm()).max(f64::MIN_POSITIVE);
+    let (kappa, inv_defect) = if n <= MAX_DENSE_CHECK_DIM {
+        let sv = crate::physics::linalg::singular_values(v)
+            .ok_or_else(|| "eigenvector matrix: SVD failed".to_string())?;
+        let smax = sv.first().copied().unwrap_or(0.0);
+        let smin = sv.last().copied().unwrap_or(0.0);
+        let kappa = if smin > 0.0 {
+            smax / smin
+        } else {
+            f64::INFINITY
+        };
+        let defect = (crate::physics::linalg::matmul(vinv, v) - DMatrix::identity(n, n)).norm()
+            / (n as f64).sqrt();
+        (kappa, defect)
+    } else {
+        let (fv, fvinv) = (to_faer(v), to_faer(vinv));
+        let norm = |m: &Mat<f64>| power_sigma(n, 30, |x, transpose| mat_vec(m, x, transpose));
+        let mut defect: f64 = 0.0;
+        for seed in 0..3usize {
+            let x = DVector::from_fn(n, |i, _| {
+                (((i + 1) * (7919 + 104_729 * seed)) % 1009) as f64 / 1009.0 - 0.5
+            });
+            let back = mat_vec(&fvinv, &mat_vec(&fv, &x, false), false);
+            defect = defect.max((back - &x).norm() / x.norm());
+        }
+        (norm(&fv) * norm(&fvinv), defect)
+    };
+    if !kappa.is_finite() {
+        return Err("eigenvector matrix is singular (defective generator)".into());
+    }
+    Ok((residual, kappa, inv_defect))
 }
 
 /// Decompose a generator that is block diagonal after a permutation: the
@@ -254,11 +397,12 @@ pub fn decompose_split(
     free_pairs: &[(usize, usize)],
     free_gens: &[Mat2],
     h: f64,
+    structured: Option<(&str, Result<BlockEigen, String>)>,
 ) -> Result<Option<PhaseDecomp>, String> {
     let dim = a.nrows();
     let nc = coupled.len();
     let sub = DMatrix::from_fn(nc, nc, |i, j| a[(coupled[i], coupled[j])]);
-    let d = decompose(&sub, h)?;
+    let d = decompose_via(&sub, h, structured)?;
     let Form::Blocks { gens: cg } = d.form else {
         return Ok(None);
     };
@@ -288,7 +432,8 @@ pub fn decompose_split(
     let mut diag = d.diag;
     diag.dim = dim;
     diag.method = format!(
-        "eigen blocks (faer) on the coupled {nc}-dim part + {} decoupled closed-form modes",
+        "{} on the coupled {nc}-dim part + {} decoupled closed-form modes",
+        diag.method,
         free_pairs.len()
     );
     Ok(Some(PhaseDecomp {
@@ -321,7 +466,7 @@ fn sigma_max_blocks_est(gens: &[Mat2], v: &DMatrix<f64>, vinv: &DMatrix<f64>, h:
         }
     };
     let (fv, fvinv) = (to_faer(v), to_faer(vinv));
-    power_sigma(v.nrows(), 60, |x, transpose| {
+    power_sigma(v.nrows(), 30, |x, transpose| {
         if transpose {
             let mut z = mat_vec(&fv, x, true);
             apply_blocks(&mut z, true);
@@ -384,23 +529,17 @@ fn dense_phase(
             expm_rel_diff: 0.0,
             sigma_max: sigma_max(&reference),
             fallback_reason: reason,
+            estimated: false,
         },
     }
 }
 
-type EigenBlocks = (Vec<Mat2>, DMatrix<f64>, DMatrix<f64>, f64, f64);
-
-/// Real block form from faer's real EVD; returns (gens, V, V^{-1}, residual, kappa).
-fn eigen_blocks(a: &DMatrix<f64>) -> Result<EigenBlocks, String> {
+/// Real block form from faer's real EVD (structure of arrays): `(gens, V,
+/// V^{-1})`, unchecked ([`checked`] measures it).
+fn eigen_blocks(a: &DMatrix<f64>) -> Result<BlockEigen, String> {
     let n = a.nrows();
     if n == 0 {
-        return Ok((
-            Vec::new(),
-            DMatrix::zeros(0, 0),
-            DMatrix::zeros(0, 0),
-            0.0,
-            1.0,
-        ));
+        return Ok((Vec::new(), DMatrix::zeros(0, 0), DMatrix::zeros(0, 0)));
     }
     let fa = Mat::<f64>::from_fn(n, n, |i, j| a[(i, j)]);
     let mut s_re = Diag::<f64>::zeros(n);
@@ -474,43 +613,10 @@ fn eigen_blocks(a: &DMatrix<f64>) -> Result<EigenBlocks, String> {
     if v.iter().any(|x| !x.is_finite()) {
         return Err("eigenvectors are not finite (defective generator)".into());
     }
-    // faer's blocked LU and SVD (nalgebra's unblocked ones took most of a
+    // faer's blocked LU (nalgebra's unblocked one took most of a
     // 2002-dimensional compile)
     let vinv = crate::physics::linalg::inverse(&v)
         .ok_or_else(|| "eigenvector matrix is singular (defective generator)".to_string())?;
-    let kappa = if n <= MAX_DENSE_CHECK_DIM {
-        let sv = crate::physics::linalg::singular_values(&v)
-            .ok_or_else(|| "eigenvector matrix: SVD failed".to_string())?;
-        let smax = sv.first().copied().unwrap_or(0.0);
-        let smin = sv.last().copied().unwrap_or(0.0);
-        if smin > 0.0 {
-            smax / smin
-        } else {
-            f64::INFINITY
-        }
-    } else {
-        // |V| |V^-1| by power iteration (O(n^2) per step instead of an
-        // O(n^3) SVD; each factor converges from below)
-        let norm = |m: &DMatrix<f64>| {
-            let fm = to_faer(m);
-            power_sigma(n, 40, |x, transpose| mat_vec(&fm, x, transpose))
-        };
-        norm(&v) * norm(&vinv)
-    };
-    if !kappa.is_finite() {
-        return Err("eigenvector matrix is singular (defective generator)".into());
-    }
-    // residual |A V - V G|
-    let mut vg = DMatrix::zeros(n, n);
-    for (k, g) in gens.iter().enumerate() {
-        for i in 0..n {
-            let (x0, x1) = (v[(i, 2 * k)], v[(i, 2 * k + 1)]);
-            vg[(i, 2 * k)] = x0 * g[0] + x1 * g[2];
-            vg[(i, 2 * k + 1)] = x0 * g[1] + x1 * g[3];
-        }
-    }
-    let residual = (crate::physics::linalg::matmul(a, &v) - vg).norm()
-        / (a.norm() * v.norm()).max(f64::MIN_POSITIVE);
     // Structure of arrays: block k's coordinates go to k and nb + k, so the
     // engine's kernels stream contiguous arrays (NUMERICS.md section 6).
     let nb = gens.len();
@@ -527,7 +633,7 @@ fn eigen_blocks(a: &DMatrix<f64>) -> Result<EigenBlocks, String> {
         v_soa.set_column(perm(c), &v.column(c));
         vinv_soa.set_row(perm(c), &vinv.row(c));
     }
-    Ok((gens, v_soa, vinv_soa, residual, kappa))
+    Ok((gens, v_soa, vinv_soa))
 }
 
 #[cfg(test)]

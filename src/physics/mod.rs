@@ -5,3 +5,4 @@ pub mod block;
 pub mod decomp;
 pub mod linalg;
 pub mod model;
+pub mod secular;

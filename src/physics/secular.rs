@@ -1,0 +1,666 @@
+//! The contact system of a modal object struck at one point, decomposed
+//! through its rank-one structure (NUMERICS.md sections 2 and 6): O(N^2)
+//! instead of a general O(N^3) eigensolver.
+//!
+//! Modes `q_i'' + 2 sigma_i q_i' + omega_i^2 q_i = -f_i F`, hammer
+//! `m x_h'' = F`, contact force `F = k p + c p'` with `p = sum f_i q_i - x_h`.
+//! An eigenvalue `z` of the contact phase makes the contact force excite
+//! exactly the motion it came from:
+//!
+//! `s(z) = 1 + (k + c z) R(z) = 0`, `R(z) = sum_i f_i^2 / D_i(z) + 1 / (m z^2)`,
+//! `D_i(z) = z^2 + 2 sigma_i z + omega_i^2`,
+//!
+//! a scalar secular equation whose `2 n + 2` roots are the zeros of the
+//! polynomial `P(z) = s(z) m z^2 prod_i D_i(z)`. The eigenvector for a root
+//! follows in closed form (force `F = 1`): in the energy coordinates of
+//! [`crate::physics::model::contact_system`], `xi_i = -f_i omega_i / D_i`,
+//! `u_i = -f_i z / D_i`, `pi = sqrt(k) / (k + c z)`, `eta = 1 / (sqrt(m) z)`.
+//! The generator has the form `A = [[0, B], [-B^T, -Dm]]` (positions
+//! `xi, pi`; momenta `u, eta`), so `A^T = J A J` with `J = diag(I, -I)`:
+//! `J v` is a left eigenvector for the same `z`, and the inverse of the
+//! eigenvector matrix is `diag(1 / (v_j^T J v_j)) V^T J`, also O(N^2).
+//!
+//! Roots: Aberth-Ehrlich simultaneous iteration on `P`, started from the
+//! poles (each mode's two poles; the hammer's double pole at 0 replaced by
+//! the rigid-contact frequency `+-i sqrt(k (1/m + sum f_i^2))`). Each root is
+//! kept as its offset `delta` from the nearest pole, and `P'/P` is evaluated
+//! with that pole's factor multiplied into `s` (`S_j = D_j s`), so a root
+//! next to a pole (a weakly coupled mode) keeps full relative precision in
+//! `delta`, and so does `D_j = delta (delta + p_j - p_j')`, which the
+//! eigenvector divides by (the idea of Gu and Eisenstat's stable secular
+//! solvers: never form the difference of a root and a pole from two rounded
+//! numbers). O(N) per root and sweep, O(N^2) per sweep, typically 10-30
+//! sweeps.
+//!
+//! Failure is reported, not hidden: equal modes (a degenerate pair has a
+//! combination that does not couple, whose eigenvector this formula cannot
+//! give), roots that do not converge, or an unpaired complex root return an
+//! error, and the caller uses the general eigensolver instead. The caller
+//! also checks the result (residual, condition, inverse) like any other
+//! decomposition.
+
+use crate::physics::block::Mat2;
+use nalgebra::{Complex, DMatrix};
+
+type C = Complex<f64>;
+
+/// A modal object struck at one point by the hammer: what the contact
+/// phase's eigenproblem depends on. Only modes with a nonzero weight at the
+/// contact point belong here (the others are exactly decoupled).
+#[derive(Debug, Clone, Copy)]
+pub struct ModalContact<'a> {
+    /// Undamped angular frequencies `omega_i` [rad/s], > 0.
+    pub omega: &'a [f64],
+    /// Decay rates `sigma_i` [1/s], >= 0 (generator entry `-2 sigma_i`).
+    pub sigma: &'a [f64],
+    /// Mode weights at the contact point `f_i` [1/sqrt(kg)], nonzero.
+    pub f: &'a [f64],
+    /// Contact stiffness [N/m], > 0.
+    pub k: f64,
+    /// Contact damping [N s/m], >= 0.
+    pub c: f64,
+    /// Hammer mass [kg], > 0.
+    pub m_h: f64,
+}
+
+/// Real 2x2 blocks in structure-of-arrays layout (block `k` on coordinates
+/// `k` and `nb + k`), the eigenvector matrix `V` (rows in the contact
+/// system's order `[xi; pi; u; eta]`) and `V^{-1}`.
+pub type BlockEigen = (Vec<Mat2>, DMatrix<f64>, DMatrix<f64>);
+
+/// Most Aberth sweeps before giving up.
+const MAX_SWEEPS: usize = 200;
+/// A root is converged when its last correction is below this fraction of
+/// its distance to its pole (or below 8 ulps of the root); corrections at
+/// rounding level wander around 1e-15 of it. Two more sweeps follow.
+const REL_STEP: f64 = 1e-14;
+/// Sweeps after every root has converged.
+const POLISH_SWEEPS: usize = 2;
+/// Largest eigenvalue condition number `1 / |v^T J v|` (unit `v`) for which
+/// `V^-1` is built from the left eigenvectors `J v`; beyond it, by LU.
+const ROW_COND_MAX: f64 = 4.0;
+/// Roots with `|Im z| <= REAL_TOL |z|` are real.
+const REAL_TOL: f64 = 1e-9;
+
+/// One factor of `P`: a mode's `D_i` or the hammer's `z^2`, with its poles
+/// and its weight in `R` (`f_i^2`, or `1/m`).
+#[derive(Debug, Clone, Copy)]
+struct Factor {
+    p: [C; 2],
+    g: f64,
+}
+
+impl Factor {
+    /// `D(z)` and `D'(z)` at `z = p[a] + delta`, with both differences
+    /// `z - p[.]` formed from `delta` and the pole difference.
+    #[inline]
+    fn eval_anchored(&self, a: usize, delta: C) -> (C, C) {
+        let d0 = delta;
+        let d1 = delta + (self.p[a] - self.p[1 - a]);
+        (d0 * d1, d0 + d1)
+    }
+
+    /// `D(z)` and `D'(z)` at `z = base + delta` (`base` a pole of another
+    /// factor).
+    #[inline]
+    fn eval_at(&self, base: C, delta: C) -> (C, C) {
+        let d0 = (base - self.p[0]) + delta;
+        let d1 = (base - self.p[1]) + delta;
+        (d0 * d1, d0 + d1)
+    }
+}
+
+/// A root as an offset from an anchor pole.
+#[derive(Debug, Clone, Copy)]
+struct Root {
+    /// Factor and which of its two poles.
+    j: usize,
+    a: usize,
+    delta: C,
+}
+
+struct Problem {
+    factors: Vec<Factor>,
+    k: f64,
+    c: f64,
+}
+
+impl Problem {
+    fn pole(&self, r: &Root) -> C {
+        self.factors[r.j].p[r.a]
+    }
+
+    fn z(&self, r: &Root) -> C {
+        self.pole(r) + r.delta
+    }
+
+    /// The Newton correction `P/P'` at the root estimate, with the anchor's
+    /// factor multiplied into `s` (no cancellation next to the pole).
+    fn newton(&self, r: &Root) -> C {
+        let base = self.pole(r);
+        let z = base + r.delta;
+        let mut rsum = C::new(0.0, 0.0);
+        let mut rder = C::new(0.0, 0.0);
+        let mut logsum = C::new(0.0, 0.0);
+        for (l, fl) in self.factors.iter().enumerate() {
+            if l == r.j {
+                continue;
+            }
+            let (d, dd) = fl.eval_at(base, r.delta);
+            let inv = d.inv();
+            rsum += inv * fl.g;
+            rder -= dd * inv * inv * fl.g;
+            logsum += dd * inv;
+        }
+        let fj = &self.factors[r.j];
+        let (dj, ddj) = fj.eval_anchored(r.a, r.delta);
+        let kz = C::new(self.k, 0.0) + z * self.c;
+        let one = C::new(1.0, 0.0) + kz * rsum;
+        let s = dj * one + kz * fj.g;
+        let sd = ddj * one + dj * (rsum * self.c + kz * rder) + C::new(self.c * fj.g, 0.0);
+        // 1 / (S'/S + logsum), with no division by S: an exact root gives 0.
+        s / (sd + s * logsum)
+    }
+
+    /// Move the root's anchor to the nearest pole.
+    fn reanchor(&self, r: &mut Root) {
+        let z = self.z(r);
+        let mut best = (r.delta.norm_sqr(), r.j, r.a);
+        for (l, fl) in self.factors.iter().enumerate() {
+            for a in 0..2 {
+                let d = (z - fl.p[a]).norm_sqr();
+                if d < best.0 {
+                    best = (d, l, a);
+                }
+            }
+        }
+        if (best.1, best.2) != (r.j, r.a) {
+            let old = self.pole(r);
+            r.j = best.1;
+            r.a = best.2;
+            r.delta = (old - self.pole(r)) + r.delta;
+        }
+    }
+}
+
+/// The poles of `z^2 + 2 sigma z + omega^2`, each computed without
+/// cancellation.
+fn mode_poles(omega: f64, sigma: f64) -> [C; 2] {
+    if sigma < omega {
+        let wd = ((omega - sigma) * (omega + sigma)).sqrt();
+        [C::new(-sigma, wd), C::new(-sigma, -wd)]
+    } else {
+        let r = ((sigma - omega) * (sigma + omega)).sqrt();
+        let big = -sigma - r;
+        [C::new(omega * omega / big, 0.0), C::new(big, 0.0)]
+    }
+}
+
+/// Decompose the contact phase of `mc` (see the module doc). O(N^2) time,
+/// O(N^2) memory for `V` and `V^{-1}`.
+pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
+    let n = mc.omega.len();
+    if mc.sigma.len() != n || mc.f.len() != n {
+        return Err("secular route: mismatched mode data".into());
+    }
+    let ok = |x: f64| x.is_finite();
+    if !(mc.k > 0.0 && ok(mc.k) && mc.c >= 0.0 && ok(mc.c) && mc.m_h > 0.0 && ok(mc.m_h)) {
+        return Err("secular route: contact parameters out of range".into());
+    }
+    for i in 0..n {
+        if !(mc.omega[i] > 0.0 && ok(mc.omega[i]) && mc.sigma[i] >= 0.0 && ok(mc.sigma[i])) {
+            return Err(format!("secular route: mode {i} out of range"));
+        }
+        if !(mc.f[i] != 0.0 && ok(mc.f[i])) {
+            return Err(format!("secular route: mode {i} is not coupled"));
+        }
+    }
+    let dim = 2 * n + 2;
+    let mut factors: Vec<Factor> = (0..n)
+        .map(|i| Factor {
+            p: mode_poles(mc.omega[i], mc.sigma[i]),
+            g: mc.f[i] * mc.f[i],
+        })
+        .collect();
+    factors.push(Factor {
+        p: [C::new(0.0, 0.0); 2],
+        g: 1.0 / mc.m_h,
+    });
+    // Equal poles of two modes: a combination of them does not couple, and
+    // its eigenvector is not of the closed form (deflation would be needed).
+    let mut poles: Vec<(f64, f64)> = factors[..n]
+        .iter()
+        .flat_map(|f| f.p.iter().map(|p| (p.re, p.im)))
+        .collect();
+    poles.sort_by(|x, y| x.1.total_cmp(&y.1).then(x.0.total_cmp(&y.0)));
+    for w in poles.windows(2) {
+        let (a, b) = (C::new(w[0].0, w[0].1), C::new(w[1].0, w[1].1));
+        if (a - b).norm() <= 1e-12 * a.norm().max(b.norm()) {
+            return Err("secular route: two modes share a pole (degenerate pair)".into());
+        }
+    }
+    let prob = Problem {
+        factors,
+        k: mc.k,
+        c: mc.c,
+    };
+    // Starting points: every mode's poles; the hammer's pair at the rigid
+    // contact frequency.
+    let mut roots: Vec<Root> = Vec::with_capacity(dim);
+    for j in 0..n {
+        for a in 0..2 {
+            roots.push(Root {
+                j,
+                a,
+                delta: C::new(0.0, 0.0),
+            });
+        }
+    }
+    let g_sum: f64 = 1.0 / mc.m_h + mc.f.iter().map(|f| f * f).sum::<f64>();
+    let w_h = (mc.k * g_sum).sqrt();
+    for sign in [1.0, -1.0] {
+        let mut r = Root {
+            j: n,
+            a: 0,
+            delta: C::new(-0.5 * mc.c * g_sum, sign * w_h),
+        };
+        prob.reanchor(&mut r);
+        roots.push(r);
+    }
+
+    // Aberth-Ehrlich, Gauss-Seidel order.
+    let mut converged = vec![false; dim];
+    let mut sweeps = 0;
+    let mut polish = 0;
+    while sweeps < MAX_SWEEPS && polish < POLISH_SWEEPS {
+        if converged.iter().all(|&c| c) {
+            polish += 1;
+        }
+        sweeps += 1;
+        for i in 0..dim {
+            let ri = roots[i];
+            let pi = prob.pole(&ri);
+            let mut sum = C::new(0.0, 0.0);
+            for (m, rm) in roots.iter().enumerate() {
+                if m != i {
+                    let diff = (pi - prob.pole(rm)) + (ri.delta - rm.delta);
+                    sum += diff.inv();
+                }
+            }
+            let newton = prob.newton(&ri);
+            let w = newton / (C::new(1.0, 0.0) - newton * sum);
+            if !(w.re.is_finite() && w.im.is_finite()) {
+                return Err(format!(
+                    "secular route: the iteration broke down (sweep {sweeps})"
+                ));
+            }
+            // converged: the step is tiny against the distance to the pole,
+            // or below the root's own rounding (8 ulps)
+            let tol = (REL_STEP * ri.delta.norm()).max(8.0 * f64::EPSILON * prob.z(&ri).norm());
+            converged[i] |= w.norm() <= tol;
+            let r = &mut roots[i];
+            r.delta -= w;
+            prob.reanchor(r);
+        }
+    }
+    if converged.iter().any(|c| !c) {
+        return Err(format!(
+            "secular route: {} of {dim} roots did not converge in {MAX_SWEEPS} sweeps",
+            converged.iter().filter(|c| !**c).count()
+        ));
+    }
+    // Passivity is exact: no eigenvalue of the contact phase has a positive
+    // real part, and a lossless one has none at all (A is skew). Rounding
+    // may leave +-1e-16 |z|; it is removed.
+    let lossless = mc.c == 0.0 && mc.sigma.iter().all(|&s| s == 0.0);
+
+    // Eigenvectors (unnormalised: force 1, times the anchor's factor).
+    let sk = mc.k.sqrt();
+    let sm = mc.m_h.sqrt();
+    let eigvec = |r: &Root| -> Vec<C> {
+        let base = prob.pole(r);
+        let z = base + r.delta;
+        let fj = &prob.factors[r.j];
+        let (dj, _) = fj.eval_anchored(r.a, r.delta);
+        let mut v = vec![C::new(0.0, 0.0); dim];
+        for i in 0..n {
+            // D_j / D_i (1 for the anchor)
+            let ratio = if i == r.j {
+                C::new(1.0, 0.0)
+            } else {
+                dj / prob.factors[i].eval_at(base, r.delta).0
+            };
+            v[i] = ratio * (-mc.f[i] * mc.omega[i]);
+            v[n + 1 + i] = ratio * z * (-mc.f[i]);
+        }
+        v[n] = dj * sk / (C::new(mc.k, 0.0) + z * mc.c);
+        v[2 * n + 1] = dj / (z * sm);
+        let norm = v.iter().map(|x| x.norm_sqr()).sum::<f64>().sqrt();
+        for x in v.iter_mut() {
+            *x /= norm;
+        }
+        v
+    };
+    // v^T J v (bilinear): positions minus momenta.
+    let jnorm = |v: &[C]| -> C {
+        let mut acc = C::new(0.0, 0.0);
+        for (i, x) in v.iter().enumerate() {
+            if i <= n {
+                acc += x * x;
+            } else {
+                acc -= x * x;
+            }
+        }
+        acc
+    };
+
+    let mut complex: Vec<(C, Vec<C>)> = Vec::new();
+    let mut real: Vec<(f64, Vec<C>)> = Vec::new();
+    let mut n_lower = 0;
+    for r in &roots {
+        let mut z = prob.z(r);
+        if lossless {
+            z.re = 0.0;
+        } else {
+            z.re = z.re.min(0.0);
+        }
+        if z.im.abs() <= REAL_TOL * z.norm() {
+            // On the real axis: polish there by Newton (no deflation needed
+            // this close), keeping the offset from the pole (not the root
+            // itself) exact, so that the root and its vector are real.
+            let mut rr = *r;
+            rr.delta.im = -prob.pole(&rr).im;
+            for _ in 0..3 {
+                rr.delta.re -= prob.newton(&rr).re;
+            }
+            real.push((prob.z(&rr).re.min(0.0), eigvec(&rr)));
+        } else if z.im > 0.0 {
+            complex.push((z, eigvec(r)));
+        } else {
+            n_lower += 1;
+        }
+    }
+    if n_lower != complex.len() || !real.len().is_multiple_of(2) {
+        return Err(format!(
+            "secular route: roots are not in conjugate pairs ({} upper, {n_lower} lower, {} real)",
+            complex.len(),
+            real.len()
+        ));
+    }
+    real.sort_by(|x, y| x.0.total_cmp(&y.0));
+
+    let nb = dim / 2;
+    let mut gens: Vec<Mat2> = Vec::with_capacity(nb);
+    let mut v = DMatrix::zeros(dim, dim);
+    let mut vinv = DMatrix::zeros(dim, dim);
+    let sign = |i: usize| if i <= n { 1.0 } else { -1.0 };
+    let s2 = std::f64::consts::SQRT_2;
+    // Each row of V^-1 is J v_j / (v_j^T J v_j); with |v_j| = 1, 1 / |v_j^T J
+    // v_j| is the condition number of eigenvalue j, and the row's rounding
+    // error grows with it (the propagator's with its product with kappa(V)).
+    // Past ROW_COND_MAX the inverse is taken by LU instead (O(N^3), but one
+    // blocked factorisation, far cheaper than the eigensolver).
+    let mut worst_cond: f64 = 1.0;
+    for (z, ev) in &complex {
+        let kb = gens.len();
+        let nj = jnorm(ev);
+        if !(nj.norm() > 0.0) {
+            return Err("secular route: a defective eigenvalue (v^T J v = 0)".into());
+        }
+        worst_cond = worst_cond.max(1.0 / nj.norm());
+        let inv_n = nj.inv();
+        for i in 0..dim {
+            v[(i, kb)] = s2 * ev[i].re;
+            v[(i, nb + kb)] = s2 * ev[i].im;
+            let w = ev[i] * sign(i) * inv_n;
+            vinv[(kb, i)] = s2 * w.re;
+            vinv[(nb + kb, i)] = -s2 * w.im;
+        }
+        gens.push([z.re, z.im, -z.im, z.re]);
+    }
+    for pair in real.chunks(2) {
+        let kb = gens.len();
+        for (off, (_, ev)) in pair.iter().enumerate() {
+            let col = if off == 0 { kb } else { nb + kb };
+            let nj = jnorm(ev).re;
+            if !(nj.abs() > 0.0) {
+                return Err("secular route: a defective eigenvalue (v^T J v = 0)".into());
+            }
+            worst_cond = worst_cond.max(1.0 / nj.abs());
+            for i in 0..dim {
+                v[(i, col)] = ev[i].re;
+                vinv[(col, i)] = ev[i].re * sign(i) / nj;
+            }
+        }
+        gens.push([pair[0].0, 0.0, 0.0, pair[1].0]);
+    }
+    if v.iter().any(|x| !x.is_finite()) {
+        return Err("secular route: eigenvectors are not finite".into());
+    }
+    if worst_cond > ROW_COND_MAX {
+        vinv = crate::physics::linalg::inverse(&v)
+            .ok_or_else(|| "secular route: eigenvector matrix is singular".to_string())?;
+    }
+    if vinv.iter().any(|x| !x.is_finite()) {
+        return Err("secular route: inverse is not finite".into());
+    }
+    Ok((gens, v, vinv))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::physics::decomp::{blocks_to_dense, dense_exp};
+    use crate::physics::model::{contact_system, ContactParams, ObjectModel};
+    use crate::scene::{ModalSpec, ModeSpec, ObjectSpec};
+
+    /// splitmix64 for reproducible random scenes.
+    struct Rng(u64);
+    impl Rng {
+        fn unit(&mut self) -> f64 {
+            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn log_uniform(&mut self, lo: f64, hi: f64) -> f64 {
+            lo * (hi / lo).powf(self.unit())
+        }
+    }
+
+    struct Case {
+        omega: Vec<f64>,
+        sigma: Vec<f64>,
+        f: Vec<f64>,
+        k: f64,
+        c: f64,
+        m_h: f64,
+    }
+
+    impl Case {
+        fn mc(&self) -> ModalContact<'_> {
+            ModalContact {
+                omega: &self.omega,
+                sigma: &self.sigma,
+                f: &self.f,
+                k: self.k,
+                c: self.c,
+                m_h: self.m_h,
+            }
+        }
+        /// The contact generator as the compiler builds it (from frequency
+        /// and T60), and the case with the model's own omega and sigma.
+        fn generator(&self) -> (DMatrix<f64>, Case) {
+            let spec = ModalSpec {
+                name: "o".into(),
+                points: vec!["c".into()],
+                mode: (0..self.omega.len())
+                    .map(|i| ModeSpec {
+                        freq_hz: self.omega[i] / (2.0 * std::f64::consts::PI),
+                        t60_s: (self.sigma[i] > 0.0)
+                            .then(|| crate::physics::model::LN_1000 / self.sigma[i]),
+                        weights: vec![self.f[i]],
+                    })
+                    .collect(),
+            };
+            let obj = ObjectModel::from_spec(&ObjectSpec::Modal(spec)).unwrap();
+            let blocks = obj.modal_blocks.clone().unwrap();
+            let row = obj.point("c").unwrap().vel.clone();
+            let p = ContactParams {
+                k: self.k,
+                c: self.c,
+                m_h: self.m_h,
+                g: 0.0,
+            };
+            let model = Case {
+                omega: blocks.iter().map(|b| b[1]).collect(),
+                sigma: blocks.iter().map(|b| -0.5 * b[3]).collect(),
+                f: self.f.clone(),
+                ..*self
+            };
+            (contact_system(&obj, Some(&row), &p).0, model)
+        }
+    }
+
+    fn random_case(rng: &mut Rng, n: usize) -> Case {
+        let mut omega: Vec<f64> = (0..n)
+            .map(|_| 2.0 * std::f64::consts::PI * rng.log_uniform(30.0, 20000.0))
+            .collect();
+        omega.sort_by(|a, b| a.total_cmp(b));
+        let damping = rng.unit();
+        let sigma = omega
+            .iter()
+            .map(|w| {
+                if damping < 0.2 {
+                    0.0
+                } else if damping < 0.4 {
+                    // some overdamped modes
+                    w * rng.log_uniform(1e-4, 5.0)
+                } else {
+                    w * rng.log_uniform(1e-5, 1e-2)
+                }
+            })
+            .collect::<Vec<_>>();
+        let f = (0..n)
+            .map(|_| {
+                let s = if rng.unit() < 0.5 { -1.0 } else { 1.0 };
+                s * rng.log_uniform(1e-3, 5.0)
+            })
+            .collect();
+        let m_h = rng.log_uniform(1e-3, 3.0);
+        let k = rng.log_uniform(1e3, 1e9);
+        let c = if rng.unit() < 0.3 {
+            0.0
+        } else {
+            2.0 * (k * m_h).sqrt() * rng.log_uniform(1e-3, 3.0)
+        };
+        Case {
+            omega,
+            sigma,
+            f,
+            k,
+            c,
+            m_h,
+        }
+    }
+
+    /// Random scenes from 1 to 60 modes (undamped, lightly damped, partly
+    /// overdamped; soft to stiff, light to heavy hammers): the secular
+    /// decomposition is an eigendecomposition of the compiler's generator,
+    /// its inverse is accurate, and its propagator matches the dense Pade
+    /// exp(A h).
+    #[test]
+    fn matches_the_generator_on_random_scenes() {
+        let mut rng = Rng(2024);
+        let h = 1.0 / 44100.0;
+        let (mut worst_res, mut worst_inv, mut worst_exp) = (0.0f64, 0.0f64, 0.0f64);
+        let mut refused = Vec::new();
+        let cases = 1000;
+        for t in 0..cases {
+            let n = [1, 2, 3, 5, 8, 20, 60][t % 7];
+            let case = random_case(&mut rng, n);
+            let (a, exact) = case.generator();
+            let dim = a.nrows();
+            let (gens, v, vinv) = match decompose(&exact.mc()) {
+                Ok(d) => d,
+                Err(e) => {
+                    refused.push(format!("case {t} ({n} modes): {e}"));
+                    continue;
+                }
+            };
+            let nb = gens.len();
+            let mut vg = DMatrix::zeros(dim, dim);
+            for (k, g) in gens.iter().enumerate() {
+                for i in 0..dim {
+                    let (x0, x1) = (v[(i, k)], v[(i, nb + k)]);
+                    vg[(i, k)] = x0 * g[0] + x1 * g[2];
+                    vg[(i, nb + k)] = x0 * g[1] + x1 * g[3];
+                }
+            }
+            let res = (&a * &v - vg).norm() / (a.norm() * v.norm());
+            let inv = (&vinv * &v - DMatrix::identity(dim, dim)).norm() / (dim as f64).sqrt();
+            let p = blocks_to_dense(&gens, &v, &vinv, h);
+            let reference = dense_exp(&a, h).unwrap();
+            let ah = (a.norm() * h).max(1.0);
+            let exp_diff = (&p - &reference).norm() / reference.norm() / ah;
+            worst_res = worst_res.max(res);
+            worst_inv = worst_inv.max(inv);
+            worst_exp = worst_exp.max(exp_diff);
+            assert!(
+                res < 1e-13,
+                "case {t} ({n} modes): residual {res:e}\n{:?} {:?} {:?} k {} c {} m {}\n{gens:?}",
+                exact.omega,
+                exact.sigma,
+                exact.f,
+                exact.k,
+                exact.c,
+                exact.m_h
+            );
+            assert!(inv < 1e-11, "case {t} ({n} modes): |V^-1 V - I| {inv:e}");
+            assert!(
+                exp_diff < 1e-12,
+                "case {t} ({n} modes): propagator off by {exp_diff:e}"
+            );
+        }
+        println!(
+            "secular route on {cases} random scenes: worst residual {worst_res:.1e}, \
+             |V^-1 V - I| {worst_inv:.1e}, |P - exp(A h)| / max(1, |A h|) {worst_exp:.1e}; \
+             refused {}: {refused:?}",
+            refused.len()
+        );
+        // refusals go to the general eigensolver; they must stay rare
+        assert!(refused.len() <= cases / 50, "{refused:?}");
+    }
+
+    #[test]
+    fn lossless_contact_has_imaginary_eigenvalues_and_an_orthogonal_basis() {
+        let case = Case {
+            omega: vec![1000.0, 2500.0, 7000.0],
+            sigma: vec![0.0; 3],
+            f: vec![1.0, -0.5, 0.8],
+            k: 1e6,
+            c: 0.0,
+            m_h: 0.02,
+        };
+        let (gens, v, vinv) = decompose(&case.mc()).unwrap();
+        assert!(gens.iter().all(|g| g[0] == 0.0 && g[3] == 0.0), "{gens:?}");
+        let dev = (&vinv - v.transpose()).norm() / v.norm();
+        println!("lossless: |V^-1 - V^T| / |V| = {dev:.1e}");
+        assert!(dev < 1e-13);
+    }
+
+    #[test]
+    fn equal_modes_are_left_to_the_general_solver() {
+        let case = Case {
+            omega: vec![1000.0, 1000.0],
+            sigma: vec![2.0, 2.0],
+            f: vec![1.0, 0.7],
+            k: 1e6,
+            c: 3.0,
+            m_h: 0.02,
+        };
+        let e = decompose(&case.mc()).unwrap_err();
+        assert!(e.contains("degenerate"), "{e}");
+    }
+}
