@@ -27,7 +27,7 @@ mod common;
 
 use common::preset_path;
 use modal_contact::compile::{
-    compile_opts, CompileBudget, CompileOptions, CompiledPhase, CompiledScene,
+    compile_opts, CompileBudget, CompileCost, CompileOptions, CompiledPhase, CompiledScene,
 };
 use modal_contact::engine::EngineState;
 use modal_contact::scene::*;
@@ -636,7 +636,7 @@ fn object_strategy() -> BoxedStrategy<GenObj> {
         // all of these are refused, by validation or by the compile budget,
         // before any expensive work
         30 => 1i64..=40,
-        1 => select(&[0i64, -1, 1000, 2000, 2001, 100_000, i64::MAX][..]),
+        1 => select(&[0i64, -1, 1600, 2000, 2001, 100_000, i64::MAX][..]),
     ];
     let string = (
         masses,
@@ -668,7 +668,7 @@ fn object_strategy() -> BoxedStrategy<GenObj> {
         60 => modal,
         25 => string,
         15 => Just(GenObj::Wall),
-        1 => select(&[100_000usize, 4001, 3000, 1200][..]).prop_map(GenObj::HugeModal),
+        1 => select(&[100_000usize, 4001, 3000, 1700][..]).prop_map(GenObj::HugeModal),
     ]
     .boxed()
 }
@@ -1245,13 +1245,13 @@ fn too_big_scenes_are_refused_fast_with_a_message() {
             "use fewer masses (object[0].masses)",
         ),
         (
-            "1000-mass string",
-            string_text(1000),
+            "1600-mass string",
+            string_text(1600),
             "use fewer masses (object[0].masses)",
         ),
         (
-            "1200 coupled modes",
-            modal_text(1200, 1),
+            "1700 coupled modes",
+            modal_text(1700, 1),
             "[approximate] nyquist_fraction",
         ),
         (
@@ -1295,6 +1295,51 @@ fn too_big_scenes_are_refused_fast_with_a_message() {
     );
     assert!(e.contains("CompileOptions::budget"), "{e}");
     compile_opts(&small, 44100.0, None, &CompileOptions::default()).unwrap();
+
+    // The budget admits a modal object for the rank-one secular route. If
+    // that route fails (two equal modes), the general eigensolver takes
+    // over only if it fits the budget too; otherwise the scene is refused,
+    // saying both.
+    let mut freq_lines = 0;
+    let twins: String = modal_text(20, 1)
+        .lines()
+        .map(|l| {
+            if l.starts_with("freq_hz") {
+                freq_lines += 1;
+                if freq_lines == 2 {
+                    return "freq_hz = 1e2\n".to_string(); // as the first mode
+                }
+            }
+            format!("{l}\n")
+        })
+        .collect();
+    let scene = Scene::from_toml_str(&twins).unwrap();
+    let cost = CompileCost::estimate(&scene.object[0], Some("c"), false, true);
+    let between = CompileOptions {
+        budget: CompileBudget {
+            max_flops: 0.5 * (cost.flops + cost.general().flops),
+            max_bytes: f64::INFINITY,
+        },
+        ..CompileOptions::default()
+    };
+    assert!(cost.flops < between.budget.max_flops && !cost.general_fits(&between.budget));
+    let e = compile_opts(&scene, 44100.0, None, &between)
+        .unwrap_err()
+        .to_string();
+    println!("equal modes, budget for the secular route only: {e}");
+    assert!(
+        e.contains("degenerate") && e.contains("over the compile budget"),
+        "{e}"
+    );
+    let c = compile_opts(&scene, 44100.0, None, &CompileOptions::default()).unwrap();
+    assert!(
+        c.contact
+            .diag
+            .method
+            .contains("faer; rank-one secular eigenvectors refused"),
+        "{}",
+        c.summary
+    );
 }
 
 // ----------------------------------------------- regressions the fuzzer found

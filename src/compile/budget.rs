@@ -6,51 +6,61 @@
 //! What dominates the cost (see `compile_opts`), with `n` the struck object's
 //! degrees of freedom after pruning, `nf = 2 n` the free-phase dimension and
 //! `d = 2 n + 2` the contact-phase dimension:
-//! - each non-symmetric eigendecomposition of dimension `x` (faer's real EVD
-//!   with eigenvectors, the SVD for kappa(V), the inverse of V and the
-//!   residual product): [`EIG_FLOPS_PER_DIM3`] `* x^3`. A modal object's free
-//!   phase needs none (closed form); its contact phase needs one of dimension
-//!   `2 n_c + 2`, `n_c` the modes with a non-zero weight at the contact point
-//!   (the others stay out of the eigenproblem). A string needs two, of
-//!   dimension `2 n` (free) and `2 n + 2` (contact);
-//! - the two changes of basis between the phases, four dense products:
-//!   `4 d^2 nf + 4 d nf^2` flops;
+//! - each general non-symmetric eigendecomposition of dimension `x` (faer's
+//!   real EVD with eigenvectors, the inverse of V, the residual product and
+//!   the condition number): [`EIG_FLOPS_PER_DIM3`] `* x^3`. A string needs
+//!   two, of dimension `2 n` (free) and `2 n + 2` (contact);
+//! - a modal object's free phase needs none (closed form), and its contact
+//!   phase, of dimension `x = 2 n_c + 2` (`n_c` the modes with a non-zero
+//!   weight at the contact point; the others stay out of the eigenproblem),
+//!   takes the rank-one secular route (O(x^2) roots and eigenvectors, plus
+//!   the O(x^3) residual product): [`SECULAR_FLOPS_PER_DIM3`] `* x^3`. If
+//!   that route fails, the general one is used only if its own estimate fits
+//!   the budget too ([`CompileCost::general_fits`]);
+//! - a string's changes of basis between the phases, four dense products:
+//!   `4 d^2 nf + 4 d nf^2` flops (a modal object's are gathers, O(d^2));
 //! - with gravity, the LU solve for the static equilibrium: `2/3 d^3`;
 //! - a string's Cholesky factor and its inverse: `~2 n^3`.
 //!
 //! Memory: [`DENSE_MATRICES_KEPT`] dense matrices of about `d x d` (object and
 //! contact generators, V and V^-1 of both phases, the changes of basis and
 //! the temporaries of the products), plus [`EIG_SCRATCH_MATRICES`] of `x x x`
-//! per eigendecomposition, 8 bytes per entry.
+//! per general eigendecomposition (one for the secular route), 8 bytes per
+//! entry.
 //!
-//! Calibration (2-core development machine, test-release profile): a fully
-//! coupled 800-mode object (d = 1602) estimates 6.5e11 flops and compiles in
-//! 29 s at 315 MB peak RSS (estimate 370 MB); an 800-mass string estimates
-//! 1.3e12 flops and compiles in 75 s at 380 MB (estimate 490 MB); 2000 modes
-//! of which 200 are coupled estimate 5.2e11 flops and 1.5 GB and take 28 s at
-//! 1.66 GB. So one estimated flop is ~45 ps here (~2e10 per second).
+//! Calibration (2-core development machine, release profile, 2026-11): one
+//! estimated flop is ~45 ps, so the default budget of 1.5e12 is about a
+//! minute. Measured: modal objects by the secular route, 800 / 1000 / 1500 /
+//! 1900 modes all coupled: 1.0 / 1.7 / 4.4 / 7.5 s (estimates 0.5 / 0.9 /
+//! 3.0 / 6.9 s), peak RSS 267 / 412 / 914 / 1457 MB (estimates 267 / 417 /
+//! 938 / 1504 MB); 1000 modes through the general route (a degenerate pair
+//! refuses the secular one): 7.1 s (estimate 7.2 s), 476 MB (577 MB);
+//! strings of 400 / 800 / 1000 masses: 1.3 / 9.8 / 16.6 s (estimates 1.5 /
+//! 11.8 / 23 s), 95 / 387 / 528 MB (estimates 114 / 450 / 700 MB).
 
 use crate::scene::{ObjectSpec, Scene};
 
-/// Flop-equivalents per `x^3` for one eigendecomposition of dimension `x`
-/// (measured: the EVD with eigenvectors, an SVD and an inverse cost ~150
-/// times what a dense product of the same size costs per `x^3` flop pair).
-pub const EIG_FLOPS_PER_DIM3: f64 = 150.0;
+/// Flop-equivalents per `x^3` for one general eigendecomposition of
+/// dimension `x` (calibrated, see the module doc).
+pub const EIG_FLOPS_PER_DIM3: f64 = 25.0;
+/// Flop-equivalents per `x^3` for the rank-one secular route (calibrated).
+pub const SECULAR_FLOPS_PER_DIM3: f64 = 5.0;
 /// Dense matrices of about `d x d` alive at the peak of a compile.
 pub const DENSE_MATRICES_KEPT: f64 = 12.0;
-/// Extra dense matrices of `x x x` during one eigendecomposition.
+/// Extra dense matrices of `x x x` during one general eigendecomposition.
 pub const EIG_SCRATCH_MATRICES: f64 = 6.0;
+/// Extra dense matrices of `x x x` for the secular route.
+pub const SECULAR_SCRATCH_MATRICES: f64 = 1.0;
 
 /// Limits on what one compile may cost (see the module doc for the model).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CompileBudget {
     /// Largest estimated work [flop-equivalents]. The default, 1.5e12, is
-    /// about a minute on the 2-core development machine: it admits a fully
-    /// coupled 1000-mode object (1.27e12; the stability suite compiles one)
-    /// and refuses a 2000-mass string (2.0e13).
+    /// about a minute on the 2-core development machine: it admits an
+    /// 800-mass string (1.1e12) and refuses a 1000-mass one (2.2e12).
     pub max_flops: f64,
     /// Largest estimated peak memory [bytes]. The default, 1 GiB, admits
-    /// 1000 fully coupled modes (~0.6 GB).
+    /// 1500 fully coupled modes (~0.94 GB) and refuses 1600 (1.07 GB).
     pub max_bytes: f64,
 }
 
@@ -89,6 +99,11 @@ pub struct CompileCost {
     pub free_eig_dim: usize,
     /// Dimension of the contact-phase eigenproblem.
     pub contact_eig_dim: usize,
+    /// The contact eigenproblem takes the rank-one secular route (a modal
+    /// object) rather than the general eigensolver.
+    pub secular: bool,
+    /// With gravity (the static-equilibrium solve).
+    pub gravity: bool,
     /// Estimated work [flop-equivalents].
     pub flops: f64,
     /// Estimated peak memory [bytes].
@@ -96,29 +111,37 @@ pub struct CompileCost {
 }
 
 impl CompileCost {
-    /// Estimate from the dimensions (see the module doc).
+    /// Estimate from the dimensions (see the module doc). `secular`: the
+    /// contact eigenproblem takes the rank-one route (modal objects).
     pub fn from_dims(
         n: usize,
         n_coupled: usize,
         free_eig: bool,
         contact_eig_dim: usize,
         gravity: bool,
+        secular: bool,
     ) -> Self {
         let nf = (2 * n) as f64;
         let d = nf + 2.0;
         let free_eig_dim = if free_eig { 2 * n } else { 0 };
         let (xf, xc) = (free_eig_dim as f64, contact_eig_dim as f64);
-        let mut flops = EIG_FLOPS_PER_DIM3 * (xf.powi(3) + xc.powi(3));
-        flops += 4.0 * d * d * nf + 4.0 * d * nf * nf;
+        let (per_dim3, scratch) = if secular {
+            (SECULAR_FLOPS_PER_DIM3, SECULAR_SCRATCH_MATRICES)
+        } else {
+            (EIG_FLOPS_PER_DIM3, EIG_SCRATCH_MATRICES)
+        };
+        let mut flops = EIG_FLOPS_PER_DIM3 * xf.powi(3) + per_dim3 * xc.powi(3);
+        if free_eig {
+            // a string: dense changes of basis, Cholesky of K and the
+            // inverse of its factor
+            flops += 4.0 * d * d * nf + 4.0 * d * nf * nf;
+            flops += 2.0 * (n as f64).powi(3);
+        }
         if gravity {
             flops += 2.0 / 3.0 * d.powi(3);
         }
-        if free_eig {
-            // a string: Cholesky of K and the inverse of its factor
-            flops += 2.0 * (n as f64).powi(3);
-        }
-        let bytes =
-            8.0 * (DENSE_MATRICES_KEPT * d * d + EIG_SCRATCH_MATRICES * (xf * xf + xc * xc));
+        let bytes = 8.0
+            * (DENSE_MATRICES_KEPT * d * d + EIG_SCRATCH_MATRICES * xf * xf + scratch * xc * xc);
         Self {
             n,
             n_coupled,
@@ -126,9 +149,31 @@ impl CompileCost {
             contact_dim: 2 * n + 2,
             free_eig_dim,
             contact_eig_dim,
+            secular,
+            gravity,
             flops,
             bytes,
         }
+    }
+
+    /// The same compile through the general eigensolver (what a failed
+    /// secular route falls back to).
+    pub fn general(&self) -> Self {
+        Self::from_dims(
+            self.n,
+            self.n_coupled,
+            self.free_eig_dim > 0,
+            self.contact_eig_dim,
+            self.gravity,
+            false,
+        )
+    }
+
+    /// Whether the general eigensolver's estimate also fits `budget` (a
+    /// failed secular route may fall back to it only then).
+    pub fn general_fits(&self, budget: &CompileBudget) -> bool {
+        let g = self.general();
+        g.flops <= budget.max_flops && g.bytes <= budget.max_bytes
     }
 
     /// Estimate for compiling `spec` (the struck object after pruning) struck
@@ -150,12 +195,12 @@ impl CompileCost {
                     }
                     _ => n,
                 };
-                Self::from_dims(n, n_coupled, false, 2 * n_coupled + 2, gravity)
+                Self::from_dims(n, n_coupled, false, 2 * n_coupled + 2, gravity, true)
             }
             ObjectSpec::String(s) => {
-                Self::from_dims(s.masses, s.masses, true, 2 * s.masses + 2, gravity)
+                Self::from_dims(s.masses, s.masses, true, 2 * s.masses + 2, gravity, false)
             }
-            ObjectSpec::Wall(_) => Self::from_dims(0, 0, false, 2, gravity),
+            ObjectSpec::Wall(_) => Self::from_dims(0, 0, false, 2, gravity, true),
         }
     }
 

@@ -424,6 +424,20 @@ pub fn compile_opts(
         };
         Some(("rank-one secular eigenvectors", secular::decompose(&mc)))
     };
+    // A failed secular route falls back to the general eigensolver only if
+    // that fits the budget too.
+    let general_ok = cost.general_fits(&opts.budget);
+    let contact_error = |e: String| {
+        if e.contains(decomp::GENERAL_OVER_BUDGET) {
+            CompileError(format!(
+                "contact phase: {e} (estimate {:.1e} flops, {:.0} MB); not attempted",
+                cost.general().flops,
+                cost.general().bytes / 1e6
+            ))
+        } else {
+            phase_error("contact", &e, rate_hz, scene, ci)
+        }
+    };
     let mut con_dec = None;
     if !uncoupled.is_empty() {
         let blocks = obj.modal_blocks.as_ref().expect("modal");
@@ -442,12 +456,12 @@ pub fn compile_opts(
             .collect();
         let pairs: Vec<(usize, usize)> = uncoupled.iter().map(|&i| (i, n + 1 + i)).collect();
         let gens: Vec<[f64; 4]> = uncoupled.iter().map(|&i| blocks[i]).collect();
-        con_dec = decomp::decompose_split(&a_c, &coupled, &pairs, &gens, h, secular())
-            .map_err(|e| phase_error("contact", &e, rate_hz, scene, ci))?;
+        con_dec = decomp::decompose_split(&a_c, &coupled, &pairs, &gens, h, secular(), general_ok)
+            .map_err(contact_error)?;
         if con_dec.is_none() {
             // The coupled part needs the dense fallback: the whole contact
             // system is decomposed instead, which the estimate did not count.
-            let whole = CompileCost::from_dims(n, n, false, lay.dim(), params.g != 0.0);
+            let whole = CompileCost::from_dims(n, n, false, lay.dim(), params.g != 0.0, false);
             whole
                 .check(&opts.budget, scene, ci)
                 .map_err(|e| CompileError(format!("the coupled modes are near-defective, so the whole contact system must be decomposed: {e}")))?;
@@ -455,8 +469,9 @@ pub fn compile_opts(
     }
     let con_dec = match con_dec {
         Some(d) => d,
-        None if uncoupled.is_empty() => decomp::decompose_via(&a_c, h, secular())
-            .map_err(|e| phase_error("contact", &e, rate_hz, scene, ci))?,
+        None if uncoupled.is_empty() => {
+            decomp::decompose_via(&a_c, h, secular(), general_ok).map_err(contact_error)?
+        }
         None => decomp::decompose(&a_c, h)
             .map_err(|e| phase_error("contact", &e, rate_hz, scene, ci))?,
     };

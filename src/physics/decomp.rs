@@ -173,18 +173,20 @@ pub fn from_blocks(gens: Vec<Mat2>, pairs: &[(usize, usize)], dim: usize, h: f64
 /// Decompose a general phase generator; falls back to dense when the eigen
 /// route fails its checks. `h` is the sample period used for the checks.
 pub fn decompose(a: &DMatrix<f64>, h: f64) -> Result<PhaseDecomp, String> {
-    decompose_via(a, h, None)
+    decompose_via(a, h, None, true)
 }
 
 /// Like [`decompose`], trying first a decomposition that the caller got from
 /// the system's structure (`(method name, result)`, e.g. the rank-one
 /// secular route of [`crate::physics::secular`]). It is checked like any
 /// other; if it failed or fails the checks, faer's general eigensolver is
-/// used, and the summary says why.
+/// used (the summary says why) when `allow_general`, else the error says
+/// why the structured route was refused.
 pub fn decompose_via(
     a: &DMatrix<f64>,
     h: f64,
     structured: Option<(&str, Result<BlockEigen, String>)>,
+    allow_general: bool,
 ) -> Result<PhaseDecomp, String> {
     if a.iter().any(|x| !x.is_finite()) {
         return Err("phase generator has non-finite entries".into());
@@ -198,6 +200,9 @@ pub fn decompose_via(
             Ok(d) => return Ok(d),
             Err(r) => refused = Some(format!("{name} refused: {}", r.reason)),
         }
+    }
+    if let (Some(r), false) = (&refused, allow_general) {
+        return Err(format!("{r}, and {GENERAL_OVER_BUDGET}"));
     }
     let method = match &refused {
         Some(r) => format!("eigen blocks (faer; {r})"),
@@ -220,6 +225,10 @@ pub fn decompose_via(
         )),
     }
 }
+
+/// How [`decompose_via`] says that the structured route failed and the
+/// general one was not allowed.
+pub const GENERAL_OVER_BUDGET: &str = "the general eigensolver is over the compile budget";
 
 /// Why a block decomposition was not accepted, with what was measured.
 struct Refusal {
@@ -398,11 +407,12 @@ pub fn decompose_split(
     free_gens: &[Mat2],
     h: f64,
     structured: Option<(&str, Result<BlockEigen, String>)>,
+    allow_general: bool,
 ) -> Result<Option<PhaseDecomp>, String> {
     let dim = a.nrows();
     let nc = coupled.len();
     let sub = DMatrix::from_fn(nc, nc, |i, j| a[(coupled[i], coupled[j])]);
-    let d = decompose_via(&sub, h, structured)?;
+    let d = decompose_via(&sub, h, structured, allow_general)?;
     let Form::Blocks { gens: cg } = d.form else {
         return Ok(None);
     };
