@@ -224,7 +224,7 @@ pub fn cases() -> Result<Vec<StabCase>> {
         let samples = if n >= 300 { 4410 } else { 10_000 };
         v.push(modal(
             &format!("X9 {n} modes"),
-            "modes 100 Hz..18 kHz, m_h 0.03 kg, k 1e6, c 10 (capped at 300 modes: 1000 compiles in ~45 s and the dense trapezoid would dominate the runtime)",
+            "modes 100 Hz..18 kHz, m_h 0.03 kg, k 1e6, c 10 (capped at 300 modes: at 1000 the dense trapezoid competitor would dominate the runtime)",
             samples,
             n,
             100.0,
