@@ -18,7 +18,10 @@
 //! The generator has the form `A = [[0, B], [-B^T, -Dm]]` (positions
 //! `xi, pi`; momenta `u, eta`), so `A^T = J A J` with `J = diag(I, -I)`:
 //! `J v` is a left eigenvector for the same `z`, and the inverse of the
-//! eigenvector matrix is `diag(1 / (v_j^T J v_j)) V^T J`, also O(N^2).
+//! eigenvector matrix is `diag(1 / (v_j^T J v_j)) V^T J`, also O(N^2). (Its
+//! rounding grows with each eigenvalue's condition number `1 / |v_j^T J
+//! v_j|`; past [`ROW_COND_MAX`] the inverse is taken by LU instead, one
+//! blocked O(N^3) factorisation.)
 //!
 //! Roots: Aberth-Ehrlich simultaneous iteration on `P`, started from the
 //! poles (each mode's two poles; the hammer's double pole at 0 replaced by
@@ -30,7 +33,10 @@
 //! eigenvector divides by (the idea of Gu and Eisenstat's stable secular
 //! solvers: never form the difference of a root and a pole from two rounded
 //! numbers). O(N) per root and sweep, O(N^2) per sweep, typically 10-30
-//! sweeps.
+//! sweeps. On 1000 random scenes (1 to 60 modes, undamped to overdamped,
+//! soft to stiff contacts; the test below) the residual is at most 3e-16,
+//! `|V^-1 V - I|` 4e-15 and the propagator within 3e-15 of the dense Pade
+//! `exp(A h)`, as close as the general eigensolver gets.
 //!
 //! Failure is reported, not hidden: equal modes (a degenerate pair has a
 //! combination that does not couple, whose eigenvector this formula cannot
