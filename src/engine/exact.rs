@@ -415,7 +415,7 @@ impl EngineState {
 
 /// The current phase of `st` in `scene` (a plain shared borrow; split out so
 /// the borrow checker sees it does not alias the state vectors).
-fn current_phase<'a>(st: &EngineState, scene: &'a CompiledScene) -> &'a CompiledPhase {
+pub(super) fn current_phase<'a>(st: &EngineState, scene: &'a CompiledScene) -> &'a CompiledPhase {
     if st.in_contact {
         &scene.contact
     } else {

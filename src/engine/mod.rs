@@ -498,11 +498,7 @@ impl EngineState {
         decided: bool,
     ) -> (usize, bool) {
         let in_contact = self.in_contact;
-        let ph = if in_contact {
-            &scene.contact
-        } else {
-            &scene.free
-        };
+        let ph = exact::current_phase(self, scene);
         if ph.dense.is_some() || ph.gens.is_none() {
             return (0, true);
         }
@@ -615,11 +611,7 @@ impl EngineState {
     /// decision): the block kernel, or the dense propagator.
     fn step_plain(&mut self, scene: &CompiledScene) {
         let in_contact = self.in_contact;
-        let ph = if in_contact {
-            &scene.contact
-        } else {
-            &scene.free
-        };
+        let ph = exact::current_phase(self, scene);
         if ph.dense.is_some() || ph.gens.is_none() {
             let s = if in_contact {
                 &mut self.s_c
