@@ -14,3 +14,5 @@ pub mod plugin;
 pub mod presets;
 pub mod render;
 pub mod scene;
+#[cfg(test)]
+mod test_rng;

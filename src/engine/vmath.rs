@@ -317,27 +317,11 @@ pub fn exp_sincos(
 mod tests {
     use super::*;
 
-    /// splitmix64: a small deterministic generator for the test arguments.
-    struct Rng(u64);
-    impl Rng {
-        fn next_u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            z ^ (z >> 31)
-        }
-        /// Uniform in [0, 1).
-        fn unit(&mut self) -> f64 {
-            (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-        }
-        fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-            lo + (hi - lo) * self.unit()
-        }
-        /// Log-uniform magnitude in [10^lo, 10^hi].
-        fn log_uniform(&mut self, lo: f64, hi: f64) -> f64 {
-            10f64.powf(self.uniform(lo, hi))
-        }
+    use crate::test_rng::TestRng as Rng;
+
+    /// Log-uniform magnitude in [10^lo, 10^hi].
+    fn log_uniform(g: &mut Rng, lo: f64, hi: f64) -> f64 {
+        10f64.powf(g.uniform(lo, hi))
     }
 
     /// `|got - want|` in ulps of `want`: the spacing of doubles at `|want|`
@@ -448,7 +432,7 @@ mod tests {
             m.push(if u < 0.3 {
                 -g.uniform(0.0, 800.0)
             } else if u < 0.6 {
-                -g.log_uniform(-300.0, 800f64.log10())
+                -log_uniform(&mut g, -300.0, 800f64.log10())
             } else if u < 0.85 {
                 -g.uniform(0.0, 20.0)
             } else if u < 0.9 {
@@ -461,14 +445,14 @@ mod tests {
             r.push(if u < 0.5 {
                 g.uniform(0.0, 20.0)
             } else if u < 0.7 {
-                g.log_uniform(-300.0, 5.0)
+                log_uniform(&mut g, -300.0, 5.0)
             } else if u < 0.85 {
                 g.uniform(0.0, 1e5)
             } else if u < 0.97 {
                 g.uniform(0.0, R_FAST)
             } else {
                 // the scalar fall-back
-                g.log_uniform(R_FAST.log10(), 9.0)
+                log_uniform(&mut g, R_FAST.log10(), 9.0)
             });
         }
         (m, r)

@@ -460,19 +460,11 @@ mod tests {
     use crate::physics::model::{contact_system, ContactParams, ObjectModel};
     use crate::scene::{ModalSpec, ModeSpec, ObjectSpec};
 
-    /// splitmix64 for reproducible random scenes.
-    struct Rng(u64);
-    impl Rng {
-        fn unit(&mut self) -> f64 {
-            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn log_uniform(&mut self, lo: f64, hi: f64) -> f64 {
-            lo * (hi / lo).powf(self.unit())
-        }
+    use crate::test_rng::TestRng as Rng;
+
+    /// Log-uniform in [lo, hi].
+    fn log_uniform(rng: &mut Rng, lo: f64, hi: f64) -> f64 {
+        lo * (hi / lo).powf(rng.unit())
     }
 
     struct Case {
@@ -531,7 +523,7 @@ mod tests {
 
     fn random_case(rng: &mut Rng, n: usize) -> Case {
         let mut omega: Vec<f64> = (0..n)
-            .map(|_| 2.0 * std::f64::consts::PI * rng.log_uniform(30.0, 20000.0))
+            .map(|_| 2.0 * std::f64::consts::PI * log_uniform(rng, 30.0, 20000.0))
             .collect();
         omega.sort_by(|a, b| a.total_cmp(b));
         let damping = rng.unit();
@@ -542,24 +534,24 @@ mod tests {
                     0.0
                 } else if damping < 0.4 {
                     // some overdamped modes
-                    w * rng.log_uniform(1e-4, 5.0)
+                    w * log_uniform(rng, 1e-4, 5.0)
                 } else {
-                    w * rng.log_uniform(1e-5, 1e-2)
+                    w * log_uniform(rng, 1e-5, 1e-2)
                 }
             })
             .collect::<Vec<_>>();
         let f = (0..n)
             .map(|_| {
                 let s = if rng.unit() < 0.5 { -1.0 } else { 1.0 };
-                s * rng.log_uniform(1e-3, 5.0)
+                s * log_uniform(rng, 1e-3, 5.0)
             })
             .collect();
-        let m_h = rng.log_uniform(1e-3, 3.0);
-        let k = rng.log_uniform(1e3, 1e9);
+        let m_h = log_uniform(rng, 1e-3, 3.0);
+        let k = log_uniform(rng, 1e3, 1e9);
         let c = if rng.unit() < 0.3 {
             0.0
         } else {
-            2.0 * (k * m_h).sqrt() * rng.log_uniform(1e-3, 3.0)
+            2.0 * (k * m_h).sqrt() * log_uniform(rng, 1e-3, 3.0)
         };
         Case {
             omega,
