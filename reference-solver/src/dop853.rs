@@ -1,0 +1,351 @@
+//! A second, unrelated solver to check the expm reference against: Dormand
+//! and Prince's explicit Runge-Kutta 8(5,3) ("DOP853", Hairer, Norsett and
+//! Wanner, *Solving ODEs I*, section II.10) with step-size control, on the
+//! right-hand side written directly from the physics (no phase matrices, no
+//! exponential, no balancing), in physical coordinates.
+//!
+//! Steps land on every sample instant. After each accepted step the same
+//! switching semantics as the reference are applied: a crossing of `p` is
+//! bracketed by the step's ends (or by an interior extremum of `p`, found by
+//! bisection on `p'`), then located by bisection where every trial point is
+//! a fresh single DOP853 step of length `tau` from the step's start (a
+//! re-integration: a shorter step of an accepted step is at least as
+//! accurate). It is far slower than the expm solver and only meant for
+//! moderately stiff cases in the unit tests.
+
+use crate::{switched, toward, ContactInterval, Model, Solution, Stats};
+
+/// Stage coefficients `a[s][j]`, `j < s`, stages 2..=12 (Hairer's DOP853).
+const A: [[f64; 12]; 12] = {
+    let mut a = [[0.0; 12]; 12];
+    a[1][0] = 0.05260015195876773;
+    a[2][0] = 0.0197250569845379;
+    a[2][1] = 0.0591751709536137;
+    a[3][0] = 0.02958758547680685;
+    a[3][2] = 0.08876275643042054;
+    a[4][0] = 0.2413651341592667;
+    a[4][2] = -0.8845494793282861;
+    a[4][3] = 0.924834003261792;
+    a[5][0] = 0.037037037037037035;
+    a[5][3] = 0.17082860872947386;
+    a[5][4] = 0.12546768756682242;
+    a[6][0] = 0.037109375;
+    a[6][3] = 0.17025221101954405;
+    a[6][4] = 0.06021653898045596;
+    a[6][5] = -0.017578125;
+    a[7][0] = 0.03709200011850479;
+    a[7][3] = 0.17038392571223998;
+    a[7][4] = 0.10726203044637328;
+    a[7][5] = -0.015319437748624402;
+    a[7][6] = 0.008273789163814023;
+    a[8][0] = 0.6241109587160757;
+    a[8][3] = -3.3608926294469414;
+    a[8][4] = -0.868219346841726;
+    a[8][5] = 27.59209969944671;
+    a[8][6] = 20.154067550477894;
+    a[8][7] = -43.48988418106996;
+    a[9][0] = 0.47766253643826434;
+    a[9][3] = -2.4881146199716677;
+    a[9][4] = -0.590290826836843;
+    a[9][5] = 21.230051448181193;
+    a[9][6] = 15.279233632882423;
+    a[9][7] = -33.28821096898486;
+    a[9][8] = -0.020331201708508627;
+    a[10][0] = -0.9371424300859873;
+    a[10][3] = 5.186372428844064;
+    a[10][4] = 1.0914373489967295;
+    a[10][5] = -8.149787010746927;
+    a[10][6] = -18.52006565999696;
+    a[10][7] = 22.739487099350505;
+    a[10][8] = 2.4936055526796523;
+    a[10][9] = -3.0467644718982196;
+    a[11][0] = 2.273310147516538;
+    a[11][3] = -10.53449546673725;
+    a[11][4] = -2.0008720582248625;
+    a[11][5] = -17.9589318631188;
+    a[11][6] = 27.94888452941996;
+    a[11][7] = -2.8589982771350235;
+    a[11][8] = -8.87285693353063;
+    a[11][9] = 12.360567175794303;
+    a[11][10] = 0.6433927460157636;
+    a
+};
+
+/// 8th-order weights.
+const B: [f64; 12] = [
+    0.054293734116568765,
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    4.450312892752409,
+    1.8915178993145003,
+    -5.801203960010585,
+    0.3111643669578199,
+    -0.1521609496625161,
+    0.20136540080403034,
+    0.04471061572777259,
+];
+
+/// 3rd-order error weights `b - b_hat3` (the differences from [`B`]).
+const E3_SHIFT: [(usize, f64); 3] = [
+    (0, 0.2440944881889764),
+    (8, 0.7338466882816118),
+    (11, 0.022058823529411766),
+];
+
+/// 5th-order error weights.
+const E5: [f64; 12] = [
+    0.01312004499419488,
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    -1.2251564463762044,
+    -0.4957589496572502,
+    1.6643771824549864,
+    -0.35032884874997366,
+    0.3341791187130175,
+    0.08192320648511571,
+    -0.022355307863886294,
+];
+
+/// The right-hand side `z' = f(z)` of a phase, from the physics.
+fn rhs(model: &Model, contact: bool, z: &[f64], out: &mut [f64]) {
+    let n = model.n_modes();
+    let (x_h, v_h) = (z[2 * n], z[2 * n + 1]);
+    let f = if contact {
+        let (x_c, v_c) = model.contact_point(z);
+        model.contact.stiffness_n_per_m * (x_c - x_h)
+            + model.contact.damping_n_s_per_m * (v_c - v_h)
+    } else {
+        0.0
+    };
+    for (i, md) in model.modes.iter().enumerate() {
+        let w = md.omega();
+        out[i] = z[n + i];
+        out[n + i] = -w * w * z[i] - 2.0 * md.sigma() * z[n + i] - md.weight * f;
+    }
+    out[2 * n] = v_h;
+    out[2 * n + 1] = -model.hammer.gravity_m_per_s2 + f / model.hammer.mass_kg;
+}
+
+/// The integrator's working set for one model.
+struct Dop<'a> {
+    model: &'a Model,
+    /// Absolute tolerance per component.
+    atol: Vec<f64>,
+    rtol: f64,
+    k: [Vec<f64>; 12],
+    tmp: Vec<f64>,
+}
+
+impl Dop<'_> {
+    /// One step of length `h` from `z`: the new state and the error norm
+    /// (Hairer's combined 5th/3rd-order estimate; accept when `<= 1`).
+    fn step(&mut self, contact: bool, z: &[f64], h: f64) -> (Vec<f64>, f64) {
+        let dim = z.len();
+        rhs(self.model, contact, z, &mut self.k[0]);
+        for s in 1..12 {
+            for i in 0..dim {
+                let mut acc = 0.0;
+                for j in 0..s {
+                    acc += A[s][j] * self.k[j][i];
+                }
+                self.tmp[i] = z[i] + h * acc;
+            }
+            rhs(self.model, contact, &self.tmp, &mut self.k[s]);
+        }
+        let mut z1 = vec![0.0; dim];
+        let (mut e5n, mut e3n) = (0.0, 0.0);
+        for i in 0..dim {
+            let mut acc = 0.0;
+            let mut e5 = 0.0;
+            for j in 0..12 {
+                acc += B[j] * self.k[j][i];
+                e5 += E5[j] * self.k[j][i];
+            }
+            let mut e3 = acc;
+            for (j, d) in E3_SHIFT {
+                e3 -= d * self.k[j][i];
+            }
+            z1[i] = z[i] + h * acc;
+            let sc = self.atol[i] + self.rtol * z[i].abs().max(z1[i].abs());
+            e5n += (e5 / sc).powi(2);
+            e3n += (e3 / sc).powi(2);
+        }
+        let err = if e5n == 0.0 && e3n == 0.0 {
+            0.0
+        } else {
+            h.abs() * e5n / ((e5n + 0.01 * e3n) * dim as f64).sqrt()
+        };
+        (z1, err)
+    }
+
+    /// Bisection on `[a, b]` (`a` not switched, `b` switched with state
+    /// `zb`), trial points re-integrated from `z0`.
+    fn bisect(
+        &mut self,
+        c: bool,
+        z0: &[f64],
+        mut a: f64,
+        mut b: f64,
+        mut zb: Vec<f64>,
+        tol: f64,
+    ) -> (f64, Vec<f64>) {
+        loop {
+            let mid = 0.5 * (a + b);
+            if b - a <= tol || mid <= a || mid >= b {
+                return (b, zb);
+            }
+            let zm = self.step(c, z0, mid).0;
+            if switched(c, self.model.penetration(&zm)) {
+                b = mid;
+                zb = zm;
+            } else {
+                a = mid;
+            }
+        }
+    }
+
+    /// First switch inside the accepted step `z0 -> z1` of length `hs`.
+    fn search(
+        &mut self,
+        c: bool,
+        z0: &[f64],
+        z1: &[f64],
+        hs: f64,
+        tol: f64,
+        stats: &mut Stats,
+    ) -> Option<(f64, Vec<f64>)> {
+        let ev = |z: &[f64]| {
+            let (x, v) = self.model.contact_point(z);
+            let n = self.model.n_modes();
+            (x - z[2 * n], v - z[2 * n + 1])
+        };
+        let (p1, d1) = ev(z1);
+        if switched(c, p1) {
+            return Some(self.bisect(c, z0, 0.0, hs, z1.to_vec(), tol));
+        }
+        let (_, d0) = ev(z0);
+        if !(toward(c, d0) > 0.0 && toward(c, d1) <= 0.0) {
+            return None;
+        }
+        stats.extremum_searches += 1;
+        let (mut lo, mut hi) = (0.0, hs);
+        loop {
+            let mid = 0.5 * (lo + hi);
+            if hi - lo <= tol || mid <= lo || mid >= hi {
+                break;
+            }
+            let zm = self.step(c, z0, mid).0;
+            let n = self.model.n_modes();
+            let (x, v) = self.model.contact_point(&zm);
+            if switched(c, x - zm[2 * n]) {
+                return Some(self.bisect(c, z0, 0.0, mid, zm, tol));
+            }
+            if toward(c, v - zm[2 * n + 1]) > 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let zh = self.step(c, z0, hi).0;
+        if switched(c, self.model.penetration(&zh)) {
+            return Some(self.bisect(c, z0, 0.0, hi, zh, tol));
+        }
+        None
+    }
+}
+
+/// Solve `model` for `n` samples at `rate_hz` with DOP853 at relative
+/// tolerance `rtol` (absolute tolerances: `rtol` times each component's
+/// scale, from the initial energy; see the body).
+pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
+    let h = 1.0 / rate_hz;
+    let nm = model.n_modes();
+    let dim = 2 * nm + 2;
+    let m_h = model.hammer.mass_kg;
+    let g = model.hammer.gravity_m_per_s2;
+    let v0 = model.hammer.velocity_m_per_s;
+    let x0 = model.hammer.height_m;
+    // energy scale: what the hammer brings (kinetic + fall to the object)
+    let e_s = 0.5 * m_h * v0 * v0 + m_h * g * x0;
+    let inv_m: f64 = 1.0 / m_h + model.modes.iter().map(|m| m.weight * m.weight).sum::<f64>();
+    let w_c = (model.contact.stiffness_n_per_m * inv_m).sqrt();
+    let v_s = (2.0 * e_s / m_h).sqrt();
+    let mut atol = vec![0.0; dim];
+    for (i, md) in model.modes.iter().enumerate() {
+        // a mode holding all the energy: q' ~ sqrt(2E), q ~ sqrt(2E)/omega
+        atol[i] = rtol * (2.0 * e_s).sqrt() / md.omega();
+        atol[nm + i] = rtol * (2.0 * e_s).sqrt();
+    }
+    atol[2 * nm] = rtol * x0.max(v_s / w_c);
+    atol[2 * nm + 1] = rtol * v_s;
+    let w_max = model.modes.iter().map(|m| m.omega()).fold(0.0, f64::max);
+    let mut h_try = [
+        if w_max > 0.0 { (0.1 / w_max).min(h) } else { h },
+        (0.1 / (w_c + w_max)).min(h),
+    ];
+    let mut dop = Dop {
+        model,
+        atol,
+        rtol,
+        k: std::array::from_fn(|_| vec![0.0; dim]),
+        tmp: vec![0.0; dim],
+    };
+    let tol = crate::TIME_RESOLUTION * h;
+    let mut stats = Stats::default();
+    let mut z = model.initial_state();
+    let mut c = false;
+    let mut samples = Vec::with_capacity(n + 1);
+    samples.push(model.observe(&z, c));
+    let mut contacts: Vec<ContactInterval> = Vec::new();
+    for i in 0..n {
+        let t_n = i as f64 * h;
+        let mut t = 0.0;
+        while t < h {
+            let rest = h - t;
+            let clipped = h_try[c as usize] >= rest;
+            let hs = if clipped { rest } else { h_try[c as usize] };
+            let (z1, err) = dop.step(c, &z, hs);
+            let fac = 0.9 * err.powf(-1.0 / 8.0);
+            if !(err <= 1.0) {
+                stats.rejected += 1;
+                h_try[c as usize] = hs * fac.clamp(0.2, 1.0);
+                continue;
+            }
+            stats.steps += 1;
+            if !clipped {
+                h_try[c as usize] = hs * fac.clamp(0.2, 10.0);
+            }
+            match dop.search(c, &z, &z1, hs, tol, &mut stats) {
+                None => {
+                    z = z1;
+                    t = if clipped { h } else { t + hs };
+                }
+                Some((tau, zs)) => {
+                    z = zs;
+                    t = if clipped && tau >= hs { h } else { t + tau };
+                    c = !c;
+                    stats.switches += 1;
+                    if c {
+                        contacts.push(ContactInterval {
+                            start_s: t_n + t,
+                            end_s: None,
+                        });
+                    } else if let Some(last) = contacts.last_mut() {
+                        last.end_s = Some(t_n + t);
+                    }
+                }
+            }
+        }
+        samples.push(model.observe(&z, c));
+    }
+    Solution {
+        rate_hz,
+        samples,
+        contacts,
+        stats,
+    }
+}

@@ -1,0 +1,324 @@
+//! An independent reference solution of the piecewise-linear contact between a
+//! point-mass hammer and a modal object (or a rigid wall), for testing the
+//! `modal_contact` engine's exact switching at any contact stiffness.
+//!
+//! It shares nothing with the engine but the scene's numbers: its own model
+//! description ([`Model`]), its own phase matrices in *physical* coordinates
+//! `z = [q; q'; x_h; v_h]` (the engine works in energy coordinates), the dense
+//! matrix exponential (nalgebra's Pade `exp`) instead of eigen-decompositions,
+//! and bisection instead of the engine's certified Newton search. A second,
+//! unrelated integrator ([`dop853`], explicit Runge-Kutta with error control)
+//! checks this one in the unit tests, together with closed forms for a hammer
+//! on a rigid wall.
+//!
+//! Conventions (the project's): SI units, one vertical axis, positive up.
+//! Penetration `p = x_c - x_h` (object contact point minus hammer face). While
+//! in contact the force on the hammer is `F = k p + c p'` (up) and the object
+//! feels `-F` at the contact point; out of contact there is no force. Gravity
+//! `g` pulls the hammer only.
+//!
+//! Physics (unit modal masses): `q_i'' + 2 sigma_i q_i' + omega_i^2 q_i = w_i
+//! F_obj` with `sigma_i = ln(1000) / T60_i`, `omega_i = 2 pi f_i`, contact
+//! displacement `x_c = sum w_i q_i`; hammer `m_h x_h'' = -m_h g + F_h`. Energy
+//! `0.5 sum(q_i'^2 + omega_i^2 q_i^2) + 0.5 m_h v_h^2 + m_h g x_h` plus
+//! `0.5 k p^2` in contact.
+//!
+//! Switching (the engine's semantics): flight becomes contact when `p` crosses
+//! from `<= 0` to `> 0`; contact becomes flight when `p` returns to `<= 0`
+//! (position-based release, so a damper pulling just before release is
+//! allowed). A touch at zero relative speed that does not cross is no
+//! contact. Positions and velocities never jump at a switch.
+
+pub mod dop853;
+mod expm;
+mod phase;
+#[cfg(test)]
+mod tests;
+
+pub use expm::solve;
+
+/// One mode of a modal object.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Mode {
+    /// Frequency [Hz].
+    pub freq_hz: f64,
+    /// 60 dB decay time [s]; `None` = undamped.
+    pub t60_s: Option<f64>,
+    /// Mass-normalised weight at the contact point [1/sqrt(kg)].
+    pub weight: f64,
+}
+
+impl Mode {
+    /// Angular frequency `omega = 2 pi f` [rad/s].
+    pub fn omega(&self) -> f64 {
+        2.0 * std::f64::consts::PI * self.freq_hz
+    }
+
+    /// Decay rate `sigma = ln(1000) / T60` [1/s] (0 when undamped).
+    pub fn sigma(&self) -> f64 {
+        self.t60_s.map_or(0.0, |t| 1000f64.ln() / t)
+    }
+}
+
+/// The point-mass hammer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hammer {
+    /// Mass [kg].
+    pub mass_kg: f64,
+    /// Initial height of the contact face [m] (the object starts at rest at 0).
+    pub height_m: f64,
+    /// Initial velocity [m/s], positive up.
+    pub velocity_m_per_s: f64,
+    /// Gravity [m/s^2] pulling the hammer down (0 = none).
+    pub gravity_m_per_s2: f64,
+}
+
+/// The linear contact spring-damper.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    /// Stiffness `k` [N/m].
+    pub stiffness_n_per_m: f64,
+    /// Damping `c` [N s/m].
+    pub damping_n_s_per_m: f64,
+}
+
+/// A scene: a modal object (no modes = a rigid wall at height 0), a hammer
+/// and the contact between them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Model {
+    /// The struck object's modes; empty for a rigid wall.
+    pub modes: Vec<Mode>,
+    /// The hammer.
+    pub hammer: Hammer,
+    /// The contact law.
+    pub contact: Contact,
+}
+
+impl Model {
+    /// Number of modes `N` (the physical state has `2 N + 2` entries).
+    pub fn n_modes(&self) -> usize {
+        self.modes.len()
+    }
+
+    /// Total energy [J] of the physical state `z = [q; q'; x_h; v_h]`, with
+    /// the contact spring's `0.5 k p^2` when `in_contact`.
+    pub fn energy(&self, z: &[f64], in_contact: bool) -> f64 {
+        let n = self.n_modes();
+        let mut e = 0.0;
+        for (i, md) in self.modes.iter().enumerate() {
+            let w = md.omega();
+            e += 0.5 * (z[n + i] * z[n + i] + w * w * z[i] * z[i]);
+        }
+        let (x_h, v_h) = (z[2 * n], z[2 * n + 1]);
+        let m = self.hammer.mass_kg;
+        e += 0.5 * m * v_h * v_h + m * self.hammer.gravity_m_per_s2 * x_h;
+        if in_contact {
+            let p = self.penetration(z);
+            e += 0.5 * self.contact.stiffness_n_per_m * p * p;
+        }
+        e
+    }
+
+    /// Contact-point displacement and velocity `(x_c, v_c)` of `z`.
+    pub fn contact_point(&self, z: &[f64]) -> (f64, f64) {
+        let n = self.n_modes();
+        let mut x = 0.0;
+        let mut v = 0.0;
+        for (i, md) in self.modes.iter().enumerate() {
+            x += md.weight * z[i];
+            v += md.weight * z[n + i];
+        }
+        (x, v)
+    }
+
+    /// Penetration `p = x_c - x_h` of `z`.
+    pub fn penetration(&self, z: &[f64]) -> f64 {
+        self.contact_point(z).0 - z[2 * self.n_modes()]
+    }
+
+    /// Initial physical state: object at rest, hammer at its initial height
+    /// and velocity.
+    pub fn initial_state(&self) -> Vec<f64> {
+        let n = self.n_modes();
+        let mut z = vec![0.0; 2 * n + 2];
+        z[2 * n] = self.hammer.height_m;
+        z[2 * n + 1] = self.hammer.velocity_m_per_s;
+        z
+    }
+
+    /// The same model slightly disturbed, to measure how fast the motion
+    /// forgets its initial state (see [`horizon`]): under gravity with a
+    /// non-zero initial height, the height scaled by `1 + rel`; otherwise the
+    /// hammer mass scaled by `1 + rel`.
+    ///
+    /// Why not always the initial height or velocity: without gravity the
+    /// system is homogeneous (the switching surface `p = 0` and every force
+    /// are linear, the object starts at rest), so scaling the initial
+    /// velocity scales the whole solution and changes no contact instant,
+    /// and autonomous, so a different initial height only shifts the whole
+    /// motion in time. Neither grows, however chaotic the motion, and the
+    /// horizon would measure rounding instead. Gravity breaks both
+    /// symmetries; the mass perturbation breaks them everywhere.
+    pub fn perturbed(&self, rel: f64) -> Model {
+        let mut m = self.clone();
+        if m.hammer.gravity_m_per_s2 > 0.0 && m.hammer.height_m != 0.0 {
+            m.hammer.height_m *= 1.0 + rel;
+        } else {
+            m.hammer.mass_kg *= 1.0 + rel;
+        }
+        m
+    }
+
+    /// The observation of `z` at time `t` (see [`Sample`]).
+    pub fn observe(&self, z: &[f64], in_contact: bool) -> Sample {
+        let n = self.n_modes();
+        let (x_c, v_c) = self.contact_point(z);
+        Sample {
+            x_hammer: z[2 * n],
+            v_hammer: z[2 * n + 1],
+            x_contact: x_c,
+            v_contact: v_c,
+            in_contact,
+            energy: self.energy(z, in_contact),
+        }
+    }
+}
+
+/// The state at one sample instant, physical units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    /// Hammer contact-face height [m].
+    pub x_hammer: f64,
+    /// Hammer velocity [m/s].
+    pub v_hammer: f64,
+    /// Object displacement at the contact point [m].
+    pub x_contact: f64,
+    /// Object velocity at the contact point [m/s].
+    pub v_contact: f64,
+    /// In contact at this instant (after any switch located exactly here).
+    pub in_contact: bool,
+    /// Total energy [J].
+    pub energy: f64,
+}
+
+/// One contact: from `start_s` to `end_s` [s], `end_s = None` if still in
+/// contact at the end of the run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactInterval {
+    /// Instant the penetration became positive [s].
+    pub start_s: f64,
+    /// Instant it returned to zero [s], if it did within the run.
+    pub end_s: Option<f64>,
+}
+
+/// What a solver did (diagnostics).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Stats {
+    /// Sub-steps per sample in flight and in contact (expm solver; 0 for
+    /// the adaptive one).
+    pub substeps_per_sample: [usize; 2],
+    /// Steps taken (sub-steps, partial steps, accepted adaptive steps).
+    pub steps: u64,
+    /// Rejected adaptive steps (0 for the expm solver).
+    pub rejected: u64,
+    /// Switches located.
+    pub switches: u64,
+    /// Interior extrema of the penetration searched for a hidden crossing.
+    pub extremum_searches: u64,
+    /// Balanced norms `|B|_1` of the flight and contact matrices [1/s]
+    /// (expm solver).
+    pub norms: [f64; 2],
+}
+
+/// A run of `n` samples: `n + 1` rows (row 0 = initial state) and the contact
+/// intervals.
+#[derive(Debug, Clone)]
+pub struct Solution {
+    /// Sample rate [Hz] of the rows.
+    pub rate_hz: f64,
+    /// State at every sample instant `i / rate_hz`, `i = 0..=n`.
+    pub samples: Vec<Sample>,
+    /// Every contact, in order.
+    pub contacts: Vec<ContactInterval>,
+    /// Diagnostics.
+    pub stats: Stats,
+}
+
+impl Solution {
+    /// Hammer height per row.
+    pub fn x_hammer(&self) -> Vec<f64> {
+        self.samples.iter().map(|s| s.x_hammer).collect()
+    }
+
+    /// Hammer velocity per row.
+    pub fn v_hammer(&self) -> Vec<f64> {
+        self.samples.iter().map(|s| s.v_hammer).collect()
+    }
+
+    /// Contact-point displacement per row.
+    pub fn x_contact(&self) -> Vec<f64> {
+        self.samples.iter().map(|s| s.x_contact).collect()
+    }
+}
+
+/// Predictability horizon of two runs of the same length: the largest
+/// sample index `N` such that over the window `[0, N]` the relative L2
+/// difference (`|a - b| / |b|`, a window where both are zero agrees) of each
+/// of hammer height, hammer velocity and contact-point displacement is at
+/// most `tol`.
+///
+/// With `b` a run of [`Model::perturbed`] by a tiny relative amount, this is
+/// where the motion stops being predictable: a chaotic rattle amplifies any
+/// difference (rounding, or another correct solver's truncation error) by the
+/// same factor, so two correct solvers may only be compared on the window
+/// where a perturbation much larger than their errors has not yet grown past
+/// the comparison tolerance. The largest agreeing window, not the first
+/// failing one: just after the first contact starts, the contact-point
+/// displacement is tiny and a shifted start is a large relative difference
+/// for a few samples, which longer windows average out.
+pub fn horizon(a: &Solution, b: &Solution, tol: f64) -> usize {
+    let traces: [fn(&Sample) -> f64; 3] = [|s| s.x_hammer, |s| s.v_hammer, |s| s.x_contact];
+    let mut num = [0.0; 3];
+    let mut den = [0.0; 3];
+    let mut last = 0;
+    let len = a.samples.len().min(b.samples.len());
+    for i in 0..len {
+        let mut agree = true;
+        for (k, f) in traces.iter().enumerate() {
+            let (x, y) = (f(&a.samples[i]), f(&b.samples[i]));
+            num[k] += (x - y) * (x - y);
+            den[k] += y * y;
+            agree &= num[k] <= tol * tol * den[k];
+        }
+        if agree {
+            last = i;
+        }
+    }
+    last
+}
+
+/// Which side of the switching surface counts as "switched" in each phase:
+/// in flight the state has switched once `p > 0`, in contact once `p <= 0`.
+#[inline]
+pub(crate) fn switched(in_contact: bool, p: f64) -> bool {
+    if in_contact {
+        p <= 0.0
+    } else {
+        p > 0.0
+    }
+}
+
+/// Rate at which `p` moves toward switching (`p'` in flight, `-p'` in
+/// contact): an interior maximum of it means a hidden crossing is possible.
+#[inline]
+pub(crate) fn toward(in_contact: bool, dp: f64) -> f64 {
+    if in_contact {
+        -dp
+    } else {
+        dp
+    }
+}
+
+/// Time resolution of located switches, as a fraction of a sample period:
+/// `1e-15`, about the rounding of a time inside a sample.
+pub const TIME_RESOLUTION: f64 = 1e-15;

@@ -1,0 +1,252 @@
+//! One phase (flight or contact) as an affine linear system in physical
+//! coordinates, balanced, with the dense exponentials the solver steps with.
+//!
+//! The augmented state is `[z; 1]`, `z = [q; q'; x_h; v_h]`, and the phase
+//! matrix `[[A, b], [0, 0]]` carries gravity as the affine term `b`, so that
+//! `exp` of the augmented matrix gives the affine part of the flow exactly.
+//!
+//! Physical coordinates are badly scaled (entries from 1 to `k / m_h`, up to
+//! 1e17): a Pade exponential's error is relative to the matrix norm, so the
+//! entries `~ sin(omega t) / omega` would lose everything. The matrix is
+//! therefore balanced by a diagonal similarity `B = D^-1 A D` with powers of
+//! two (Parlett-Reinsch, as LAPACK's `gebal` and MATLAB's `expm` do): exact
+//! in floating point, it only changes units, and brings `|B|` within a small
+//! factor of the spectral radius. The solver steps `y = D^-1 z`.
+
+use crate::Model;
+use nalgebra::DMatrix;
+
+/// Largest `|B|_1 h_sub` of a sub-step: over a sub-step the fastest component
+/// turns by at most half a radian, so the penetration has at most one
+/// interior extremum (the event search relies on it).
+pub const MAX_NORM_STEP: f64 = 0.5;
+
+/// A phase ready to step.
+#[derive(Debug, Clone)]
+pub struct Phase {
+    /// Contact phase (`true`) or flight.
+    pub contact: bool,
+    /// Augmented dimension `2 N + 3`.
+    pub dim: usize,
+    /// Balanced augmented matrix `B = D^-1 [[A, b], [0, 0]] D`.
+    pub b: DMatrix<f64>,
+    /// Balancing scales: `z_i = d_i y_i` (the last entry scales the constant
+    /// coordinate: `y_last = 1 / d_last`).
+    pub d: Vec<f64>,
+    /// `|B|_1` [1/s].
+    pub norm: f64,
+    /// Sub-steps per sample and their length `h / m` [s].
+    pub m: usize,
+    pub h_sub: f64,
+    /// Dyadic levels: a sub-step is `2^levels` time units, each unit at most
+    /// [`crate::TIME_RESOLUTION`] of a sample.
+    pub levels: u32,
+    /// `e[j] = exp(B h_sub 2^-j)`, row-major, `j = 0..=levels`.
+    pub e: Vec<Vec<f64>>,
+    /// Rows giving `p` and `p'` from the balanced state `y`.
+    pub row_p: Vec<f64>,
+    pub row_v: Vec<f64>,
+}
+
+impl Phase {
+    /// Build the phase of `model` for sample period `h`.
+    pub fn new(model: &Model, contact: bool, h: f64) -> Self {
+        let n = model.n_modes();
+        let dim = 2 * n + 3;
+        let a = augmented_matrix(model, contact);
+        let (b, d) = balance(&a);
+        let norm = norm1(&b);
+        let m = ((norm * h / MAX_NORM_STEP).ceil() as usize).max(1);
+        let h_sub = h / m as f64;
+        // units of h_sub 2^-levels <= TIME_RESOLUTION h
+        let levels =
+            ((1.0 / (crate::TIME_RESOLUTION * m as f64)).log2().ceil() as u32).clamp(1, 62);
+        let e = (0..=levels)
+            .map(|j| flat(&(&b * (h_sub * 0.5f64.powi(j as i32))).exp()))
+            .collect();
+        // p = sum w_i q_i - x_h, p' = sum w_i q_i' - v_h, in y = D^-1 z
+        let mut row_p = vec![0.0; dim];
+        let mut row_v = vec![0.0; dim];
+        for (i, md) in model.modes.iter().enumerate() {
+            row_p[i] = md.weight * d[i];
+            row_v[n + i] = md.weight * d[n + i];
+        }
+        row_p[2 * n] = -d[2 * n];
+        row_v[2 * n + 1] = -d[2 * n + 1];
+        Phase {
+            contact,
+            dim,
+            b,
+            d,
+            norm,
+            m,
+            h_sub,
+            levels,
+            e,
+            row_p,
+            row_v,
+        }
+    }
+
+    /// `exp(B tau)`, row-major (Pade, for partial steps).
+    pub fn exp_flat(&self, tau: f64) -> Vec<f64> {
+        flat(&(&self.b * tau).exp())
+    }
+
+    /// Balanced state of the physical state `z`.
+    pub fn to_balanced(&self, z: &[f64]) -> Vec<f64> {
+        let mut y: Vec<f64> = z.iter().zip(&self.d).map(|(z, d)| z / d).collect();
+        y.push(1.0 / self.d[self.dim - 1]);
+        y
+    }
+
+    /// Physical state of the balanced state `y` (without the constant).
+    pub fn to_physical(&self, y: &[f64]) -> Vec<f64> {
+        y[..self.dim - 1]
+            .iter()
+            .zip(&self.d)
+            .map(|(y, d)| y * d)
+            .collect()
+    }
+
+    /// `(p, p')` of the balanced state `y`.
+    #[inline]
+    pub fn event(&self, y: &[f64]) -> (f64, f64) {
+        (dot(&self.row_p, y), dot(&self.row_v, y))
+    }
+}
+
+/// The augmented phase matrix `[[A, b], [0, 0]]` in physical coordinates
+/// `[q; q'; x_h; v_h; 1]`.
+pub fn augmented_matrix(model: &Model, contact: bool) -> DMatrix<f64> {
+    let n = model.n_modes();
+    let dim = 2 * n + 3;
+    let (xh, vh, one) = (2 * n, 2 * n + 1, 2 * n + 2);
+    let mut a = DMatrix::zeros(dim, dim);
+    for (i, md) in model.modes.iter().enumerate() {
+        let w = md.omega();
+        a[(i, n + i)] = 1.0;
+        a[(n + i, i)] = -w * w;
+        a[(n + i, n + i)] = -2.0 * md.sigma();
+    }
+    a[(xh, vh)] = 1.0;
+    a[(vh, one)] = -model.hammer.gravity_m_per_s2;
+    if contact {
+        let k = model.contact.stiffness_n_per_m;
+        let c = model.contact.damping_n_s_per_m;
+        let m = model.hammer.mass_kg;
+        // F = k p + c p' with p = sum w_j q_j - x_h: row of F in z
+        let mut f = vec![0.0; dim];
+        for (j, md) in model.modes.iter().enumerate() {
+            f[j] = k * md.weight;
+            f[n + j] = c * md.weight;
+        }
+        f[xh] = -k;
+        f[vh] = -c;
+        // object: q_i'' += -w_i F; hammer: v_h' += F / m
+        for (i, md) in model.modes.iter().enumerate() {
+            for (col, fc) in f.iter().enumerate() {
+                a[(n + i, col)] -= md.weight * fc;
+            }
+        }
+        for (col, fc) in f.iter().enumerate() {
+            a[(vh, col)] += fc / m;
+        }
+    }
+    a
+}
+
+/// Parlett-Reinsch balancing by powers of two: `B = D^-1 A D`, returned with
+/// the diagonal of `D`. Rows or columns without off-diagonal entries keep
+/// scale 1. The constant coordinate (last) is then scaled so that the affine
+/// column adds nothing to `|B|_1` (its scale is free: it only fixes the value
+/// `1 / d` the constant coordinate carries).
+pub fn balance(a: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
+    let dim = a.nrows();
+    let core = dim - 1;
+    let mut b = a.clone();
+    let mut d = vec![1.0; dim];
+    for _sweep in 0..200 {
+        let mut done = true;
+        for i in 0..core {
+            let mut c = 0.0;
+            let mut r = 0.0;
+            for j in 0..core {
+                if j != i {
+                    c += b[(j, i)].abs();
+                    r += b[(i, j)].abs();
+                }
+            }
+            if c == 0.0 || r == 0.0 {
+                continue;
+            }
+            let s = c + r;
+            let mut f = 1.0;
+            let mut cc = c;
+            while cc < r / 2.0 {
+                f *= 2.0;
+                cc *= 4.0;
+            }
+            while cc >= r * 2.0 {
+                f /= 2.0;
+                cc /= 4.0;
+            }
+            if (cc + r) / f < 0.95 * s {
+                done = false;
+                d[i] *= f;
+                for j in 0..dim {
+                    b[(i, j)] /= f;
+                    b[(j, i)] *= f;
+                }
+            }
+        }
+        if done {
+            break;
+        }
+    }
+    let core_norm = (0..core)
+        .map(|j| (0..core).map(|i| b[(i, j)].abs()).sum::<f64>())
+        .fold(0.0, f64::max);
+    let affine: f64 = (0..core).map(|i| b[(i, core)].abs()).sum();
+    if affine > 0.0 && core_norm > 0.0 {
+        // power of two f with affine * f <= core_norm
+        let f = 2f64.powi((core_norm / affine).log2().floor() as i32);
+        d[core] = f;
+        for i in 0..core {
+            b[(i, core)] *= f;
+        }
+    }
+    (b, d)
+}
+
+/// Induced 1-norm (largest column sum).
+pub fn norm1(b: &DMatrix<f64>) -> f64 {
+    (0..b.ncols())
+        .map(|j| b.column(j).iter().map(|x| x.abs()).sum::<f64>())
+        .fold(0.0, f64::max)
+}
+
+/// Row-major copy.
+fn flat(m: &DMatrix<f64>) -> Vec<f64> {
+    let mut out = Vec::with_capacity(m.len());
+    for i in 0..m.nrows() {
+        for j in 0..m.ncols() {
+            out.push(m[(i, j)]);
+        }
+    }
+    out
+}
+
+#[inline]
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// `out = M y` for a row-major square `M`.
+#[inline]
+pub fn matvec(m: &[f64], y: &[f64], out: &mut [f64]) {
+    let n = y.len();
+    for (i, o) in out.iter_mut().enumerate() {
+        *o = dot(&m[i * n..(i + 1) * n], y);
+    }
+}

@@ -1,0 +1,328 @@
+//! The reference checked against what it must reproduce: closed forms for a
+//! hammer on a rigid wall, and an unrelated integrator (DOP853) on modal
+//! objects. Run with `--nocapture` to see the residuals.
+
+use crate::{dop853, horizon, solve, Contact, Hammer, Mode, Model, Solution};
+use std::f64::consts::PI;
+
+const RATE: f64 = 44_100.0;
+const NYQUIST: f64 = RATE / 2.0;
+
+/// A hammer of mass `m` moving down at 1 m/s from 0.1 mm above a rigid wall,
+/// contact at `ratio` times the Nyquist frequency with damping ratio `zeta`.
+fn wall(m: f64, ratio: f64, zeta: f64) -> Model {
+    let w0 = 2.0 * PI * ratio * NYQUIST;
+    let k = m * w0 * w0;
+    Model {
+        modes: Vec::new(),
+        hammer: Hammer {
+            mass_kg: m,
+            height_m: 1e-4,
+            velocity_m_per_s: -1.0,
+            gravity_m_per_s2: 0.0,
+        },
+        contact: Contact {
+            stiffness_n_per_m: k,
+            damping_n_s_per_m: 2.0 * zeta * (k * m).sqrt(),
+        },
+    }
+}
+
+/// Hammer on a rigid wall: with `p = -x_h`, contact obeys `m p'' = -k p -
+/// c p'`, so from `p(0) = 0`, `p'(0) = v` the penetration is `v/w_d
+/// e^{-zeta w0 t} sin(w_d t)`: the contact lasts `pi / w_d` and the hammer
+/// leaves at `exp(-zeta pi / sqrt(1 - zeta^2))` of its impact speed.
+///
+/// Tolerance 1e-10 relative: the instants are located to one time unit
+/// (1e-15 of a sample, 1e-12 of the shortest contact here, 5e-4 samples at
+/// 1000x Nyquist), and the contact flow is at most ~40 products with
+/// `exp(B h/m)` (each exact to a few ulps in the balanced coordinates, a
+/// normal 2x2 rotation-like block), so the expected error is ~1e-13; a
+/// located switch off by one sub-step, or an unbalanced exponential (whose
+/// `sin(w t)/w` entry would be off by `u w^2 ~ 1`), misses by orders more.
+#[test]
+fn rigid_wall_closed_forms() {
+    let m = 0.02;
+    let mut worst: f64 = 0.0;
+    for zeta in [0.0, 0.1, 0.7] {
+        for ratio in [1.0, 3.7, 31.9, 317.3, 1000.0] {
+            let model = wall(m, ratio, zeta);
+            let w0 = 2.0 * PI * ratio * NYQUIST;
+            let wd = w0 * (1.0 - zeta * zeta).sqrt();
+            let t_in = 1e-4;
+            let dur = PI / wd;
+            let e = (-zeta * PI / (1.0 - zeta * zeta).sqrt()).exp();
+            let n = ((t_in + dur) * RATE).ceil() as usize + 2;
+            let sol = solve(&model, RATE, n);
+            assert_eq!(
+                sol.contacts.len(),
+                1,
+                "zeta {zeta} ratio {ratio}: {:?}",
+                sol.contacts
+            );
+            let c = sol.contacts[0];
+            let end = c.end_s.expect("contact ended");
+            let err_start = (c.start_s - t_in).abs() / t_in;
+            let err_dur = ((end - c.start_s) - dur).abs() / dur;
+            // no gravity: the hammer keeps its release velocity
+            let v_out = sol.samples[n].v_hammer;
+            let err_e = (v_out - e).abs() / e;
+            // elastic: the energy comes back whole
+            let e0 = sol.samples[0].energy;
+            let err_energy = if zeta == 0.0 {
+                (sol.samples[n].energy - e0).abs() / e0
+            } else {
+                0.0
+            };
+            println!(
+                "wall zeta {zeta:3} f_c {ratio:6.1}x Nyquist: contact {:.3e} samples, sub-steps {:>5}/sample; \
+                 start {err_start:.1e}, duration {err_dur:.1e}, restitution {err_e:.1e}, energy {err_energy:.1e}",
+                dur * RATE,
+                sol.stats.substeps_per_sample[1]
+            );
+            for (what, err) in [
+                ("start", err_start),
+                ("duration", err_dur),
+                ("restitution", err_e),
+                ("energy", err_energy),
+            ] {
+                assert!(
+                    err < 1e-10,
+                    "wall zeta {zeta} ratio {ratio}: {what} off by {err:e} (relative)"
+                );
+                worst = worst.max(err);
+            }
+        }
+    }
+    println!("wall: worst relative error {worst:.1e}");
+}
+
+/// A 4-mode object (one mode above Nyquist, the rest damped) struck by a
+/// hammer of mass `m_h` at `v0` from `x0`, under gravity `g`, contact at
+/// `ratio` times Nyquist (two-mass frequency, see the body) with damping
+/// ratio `zeta`.
+fn object(m_h: f64, x0: f64, v0: f64, g: f64, ratio: f64, zeta: f64) -> Model {
+    let modes = vec![
+        Mode {
+            freq_hz: 311.0,
+            t60_s: Some(0.6),
+            weight: 2.0,
+        },
+        Mode {
+            freq_hz: 1303.0,
+            t60_s: Some(0.3),
+            weight: -1.5,
+        },
+        Mode {
+            freq_hz: 7411.0,
+            t60_s: None,
+            weight: 1.2,
+        },
+        Mode {
+            freq_hz: 1.2 * NYQUIST,
+            t60_s: Some(0.02),
+            weight: 0.9,
+        },
+    ];
+    // 1/m_eff = sum w^2: the object's mass at the contact point for a
+    // contact much shorter than its modes' periods
+    let inv_eff: f64 = modes.iter().map(|m| m.weight * m.weight).sum();
+    let inv_m = 1.0 / m_h + inv_eff;
+    let w = 2.0 * PI * ratio * NYQUIST;
+    let k = w * w / inv_m;
+    Model {
+        modes,
+        hammer: Hammer {
+            mass_kg: m_h,
+            height_m: x0,
+            velocity_m_per_s: v0,
+            gravity_m_per_s2: g,
+        },
+        contact: Contact {
+            stiffness_n_per_m: k,
+            damping_n_s_per_m: 2.0 * zeta * (k / inv_m).sqrt(),
+        },
+    }
+}
+
+/// Relative L2 difference `|a - b| / |b|` (0 when both are zero).
+fn rel_l2(a: &[f64], b: &[f64]) -> f64 {
+    let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
+    let den: f64 = b.iter().map(|y| y * y).sum();
+    if num == 0.0 {
+        0.0
+    } else {
+        (num / den).sqrt()
+    }
+}
+
+/// Largest difference of matched contact instants [samples] among the
+/// contacts that start within the first `t_max` seconds (`None` when their
+/// counts differ). An end is compared when both runs have it.
+fn max_dt(a: &Solution, b: &Solution, t_max: f64) -> Option<f64> {
+    let ca: Vec<_> = a.contacts.iter().filter(|c| c.start_s <= t_max).collect();
+    let cb: Vec<_> = b.contacts.iter().filter(|c| c.start_s <= t_max).collect();
+    if ca.len() != cb.len() {
+        return None;
+    }
+    let mut dt: f64 = 0.0;
+    for (x, y) in ca.iter().zip(&cb) {
+        dt = dt.max((x.start_s - y.start_s).abs());
+        if let (Some(ex), Some(ey)) = (x.end_s, y.end_s) {
+            dt = dt.max((ex - ey).abs());
+        }
+    }
+    Some(dt * RATE)
+}
+
+/// The expm reference against DOP853 on moderately stiff cases (contact at
+/// 0.45x to 3.1x Nyquist, hammer 0.03x to 10x the object's effective mass,
+/// elastic to critically damped, with and without gravity; the 4-mode
+/// object has a mode above Nyquist).
+///
+/// Where: chaotic cases (rattles, a heavy hammer chattering) amplify any
+/// difference ~10x per contact, DOP853's truncation error included. So each
+/// case is compared on its predictability horizon ([`crate::horizon`]): the
+/// window on which a second expm run, disturbed by 1e-9 (relative;
+/// [`Model::perturbed`]), stays within 1e-7 relative L2 of the first. On it
+/// a 1e-9 disturbance grows to at most ~1e-7, and DOP853's error, which
+/// starts ~1e-12, grows by the same factor.
+///
+/// Tolerances, for DOP853 at rtol 1e-13: 1e-8 relative L2 on the hammer
+/// height and velocity and the contact displacement (measured: <= 1e-9), and
+/// 1e-7 samples on contact instants. Instants are more sensitive than the
+/// traces: a contact entered at a small relative speed `v` moves by `dp / v`
+/// (the disturbed run's instants move by up to 2e-5 samples inside its
+/// horizon while its traces agree to 1e-7). That the remaining difference is
+/// DOP853's and not the reference's is checked by convergence: at rtol 1e-12
+/// it must be larger (by ~10x, DOP853 being 8th order: asserted > 2x)
+/// wherever it exceeds 1e-9 samples. A switch located a sub-step off (1e-2
+/// sample), a wrong sign or a missing term in one of the two independent
+/// phase descriptions (matrix vs right-hand side) gives 1e-4 or more, and
+/// would not converge. Each case must offer a horizon of at least 50
+/// samples (the chattering heavy hammer has 101).
+#[test]
+fn expm_matches_dop853() {
+    let cases = [
+        (
+            "soft strike, no gravity",
+            object(0.01, 2e-4, -1.0, 0.0, 0.45, 0.1),
+        ),
+        (
+            "stiff elastic, equal masses",
+            object(0.24, 1e-4, -0.5, 0.0, 3.1, 0.0),
+        ),
+        (
+            "stiff damped, light hammer",
+            object(0.003, 0.0, -2.0, 0.0, 2.7, 0.3),
+        ),
+        (
+            "critical rattle, gravity",
+            object(0.01, 1e-3, 0.0, 9.81, 3.1, 1.0),
+        ),
+        (
+            "elastic rattle, gravity",
+            object(0.01, 1e-3, 0.0, 9.81, 3.1, 0.0),
+        ),
+        (
+            "heavy hammer pressing",
+            object(1.0, 0.0, -0.1, 0.0, 3.1, 0.0),
+        ),
+        (
+            "heavy hammer, gravity",
+            object(1.0, 1e-4, 0.0, 9.81, 2.3, 0.05),
+        ),
+    ];
+    let n = 2205;
+    let mut failures = Vec::new();
+    for (name, model) in cases {
+        let t0 = std::time::Instant::now();
+        let a = solve(&model, RATE, n);
+        let ta = t0.elapsed().as_secs_f64();
+        let hz = horizon(&a, &solve(&model.perturbed(1e-9), RATE, n), 1e-7);
+        let w = hz + 1;
+        let t_max = hz as f64 / RATE;
+        let within = |s: &Solution| s.contacts.iter().filter(|c| c.start_s <= t_max).count();
+        let mut dts = [0.0; 2];
+        for (r, rtol) in [1e-12, 1e-13].into_iter().enumerate() {
+            let t0 = std::time::Instant::now();
+            let b = dop853::solve(&model, RATE, n, rtol);
+            let tb = t0.elapsed().as_secs_f64();
+            let ex = rel_l2(&a.x_hammer()[..w], &b.x_hammer()[..w]);
+            let ev = rel_l2(&a.v_hammer()[..w], &b.v_hammer()[..w]);
+            let ec = rel_l2(&a.x_contact()[..w], &b.x_contact()[..w]);
+            let dt = max_dt(&a, &b, t_max);
+            println!(
+                "{name:<28} rtol {rtol:.0e}: horizon {hz:>4} samples, contacts {:>3}/{:<3} (in 50 ms {:>3}/{:<3}) \
+                 x_h {ex:.1e}  v_h {ev:.1e}  x_c {ec:.1e}  max dt {} samples  \
+                 (expm {ta:.2} s, {}/{} sub-steps; dop853 {tb:.2} s, {} steps)",
+                within(&a),
+                within(&b),
+                a.contacts.len(),
+                b.contacts.len(),
+                dt.map_or("n/a".into(), |d| format!("{d:.1e}")),
+                a.stats.substeps_per_sample[0],
+                a.stats.substeps_per_sample[1],
+                b.stats.steps,
+            );
+            let Some(dt) = dt else {
+                failures.push(format!(
+                    "{name}, rtol {rtol:e}: contact counts differ within the horizon: expm {} dop853 {}",
+                    within(&a),
+                    within(&b)
+                ));
+                continue;
+            };
+            dts[r] = dt;
+            if rtol == 1e-13 {
+                for (what, err, tol) in [
+                    ("x_h", ex, 1e-8),
+                    ("v_h", ev, 1e-8),
+                    ("x_c", ec, 1e-8),
+                    ("contact instants [samples]", dt, 1e-7),
+                ] {
+                    if !(err < tol) {
+                        failures.push(format!("{name}: {what} disagree by {err:e} > {tol:e}"));
+                    }
+                }
+            }
+        }
+        if dts[1] > 1e-9 && !(dts[0] > 2.0 * dts[1]) {
+            failures.push(format!(
+                "{name}: contact instants do not converge with DOP853's tolerance: {:e} (1e-12) vs {:e} (1e-13) samples",
+                dts[0], dts[1]
+            ));
+        }
+        if hz < 50 {
+            failures.push(format!("{name}: horizon {hz} < 50 samples"));
+        }
+        if a.contacts.is_empty() {
+            failures.push(format!("{name}: no contact"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// A lossless run keeps its energy (the flows and the switches add none):
+/// the per-sample energy of an undamped object struck elastically drifts by
+/// rounding only (< 1e-10 relative over 2205 samples and every contact).
+#[test]
+fn lossless_energy_is_kept() {
+    let mut model = object(0.05, 1e-3, 0.0, 9.81, 31.3, 0.0);
+    for m in &mut model.modes {
+        m.t60_s = None;
+    }
+    let sol = solve(&model, RATE, 2205);
+    let e0 = sol.samples[0].energy;
+    let drift = sol
+        .samples
+        .iter()
+        .map(|s| (s.energy - e0).abs() / e0.abs())
+        .fold(0.0, f64::max);
+    println!(
+        "lossless rattle at 31.3x Nyquist: {} contacts, max |E/E0 - 1| = {drift:.1e}",
+        sol.contacts.len()
+    );
+    assert!(sol.contacts.len() > 1);
+    assert!(drift < 1e-10, "energy drift {drift:e}");
+}
