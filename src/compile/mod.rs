@@ -14,9 +14,11 @@
 //!   stays homogeneous (no affine term per sample).
 
 pub mod budget;
+pub mod event;
 pub mod prune;
 
 pub use budget::{CompileBudget, CompileCost};
+pub use event::EventSearch;
 
 use crate::physics::block::OscBlocks;
 use crate::physics::decomp::{self, DecompDiagnostics, Form, PhaseDecomp};
@@ -141,6 +143,8 @@ pub struct CompiledPhase {
     pub ev_dd_block: Vec<f64>,
     /// `sum_k c_k`.
     pub ev_dd_block_sum: f64,
+    /// What the exact event search needs beyond the rows ([`event`]).
+    pub search: EventSearch,
 }
 
 /// `row G` for a block-diagonal or dense generator.
@@ -176,6 +180,11 @@ impl CompiledPhase {
             self.ev_dd_block = (0..nb).map(|k| dd[k].hypot(dd[nb + k])).collect();
             self.ev_dd_block_sum = self.ev_dd_block.iter().sum();
         }
+        self.search = match (&self.gens, &self.dense) {
+            (Some(gens), _) => EventSearch::of_blocks(gens, &self.osc, &ev),
+            (None, Some((a, _))) => EventSearch::of_dense(a, &ev),
+            _ => EventSearch::default(),
+        };
         self.ev = ev;
         self.ev_d = d;
         self.ev_dd = dd;
@@ -613,6 +622,7 @@ pub fn compile_opts(
                 ev_dd_norm: 0.0,
                 ev_dd_block: Vec::new(),
                 ev_dd_block_sum: 0.0,
+                search: EventSearch::default(),
             })
         };
     let mut free = to_phase("free", free_dec, free_rows)?;

@@ -1,95 +1,295 @@
-//! Exact switching (beyond the paper): the instants where the penetration
-//! crosses zero are located inside the sample on the exact phase solution, and
-//! the sample is consumed piecewise: `exp(A_1 tau)`, switch, `exp(A_2 (h - tau))`
-//! (NUMERICS.md sections 0 and 4).
+//! Exact switching (beyond the paper): every instant inside a sample where
+//! the event function crosses zero is found, in time order, on the exact
+//! phase solution, and the sample is consumed piecewise: `exp(A_1 tau)`,
+//! switch, `exp(A_2 (tau' - tau))`, switch, ... (docs/numerics.md, "Exact
+//! switching" and "Finding every crossing").
 //!
-//! Event function `phi(tau)`: in flight `phi = x_h - x_c` (contact starts when it
-//! reaches 0 from above), in contact `phi = p_eff` (contact ends when it reaches
-//! 0 from above). Between samples `phi` is a known sum of exponentials plus the
-//! hammer's parabola, evaluated in O(N) at any `tau` from the block generators.
+//! Event function `phi(tau)`: in flight `phi = x_h - x_c` (contact starts
+//! when it crosses 0 downwards), in contact `phi = p_eff` (contact ends when
+//! it crosses 0 downwards). A contact never continues past its first release
+//! crossing, so a tensile spring force never acts outside the exact contact
+//! intervals.
 //!
-//! Detection without missing short excursions: with `|exp(G tau)| <= 1` (every
-//! block is passive in its coordinates), `|phi''| <= B = g + |ev_dd| |s|` over
-//! the whole step, so `phi >= min(phi_a, phi_b) - B w^2 / 8` on an interval of
-//! width `w` (chord bound), and `phi >= phi_a + phi_a' t - B t^2 / 2` (tangent
-//! bound, used right after a switch where `phi_a = 0`). An interval that
-//! neither bound certifies is bisected, up to [`MAX_DEPTH`] levels; a sign
-//! change is refined by safeguarded Newton to a few ulps.
+//! # The model
 //!
-//! Robustness: at most [`MAX_SWITCHES_PER_SAMPLE`] switches per sample (then
-//! the sample is finished in the current phase); a switch happens only on a
-//! transversal crossing (`phi' < 0`; a grazing touch with zero relative speed
-//! carries no impulse); and if a sample nevertheless starts inside the object
-//! in flight (an excursion below the bisection resolution), contact begins
-//! with the paper's offset rod, which adds no energy.
+//! From the instant `t0` where a search starts, `phi(t0 + tau)` is a known
+//! finite sum ([`crate::compile::event`]): the exactly polynomial part `c`
+//! (the hammer's parabola in flight, a constant in contact), one damped
+//! oscillation `Re[C_k e^{mu_k tau}]` per oscillatory block with complex
+//! amplitude `C_k` taken from the state in O(1), and `r_k exp(G_k tau) s_k`
+//! for the few blocks with real eigenvalues. The oscillatory blocks are
+//! split by how far they turn over a sample:
+//!
+//! - *slow* (`|mu| h <= THETA_SLOW`): summed into one Taylor polynomial about
+//!   `t0` whose truncation error is below rounding (degree chosen for it),
+//!   so their sum and its derivatives cost O(degree) anywhere in the sample;
+//! - *fast*: evaluated exactly (one exp and one sin/cos each) wherever the
+//!   search looks.
+//!
+//! # Certified isolation
+//!
+//! The search bisects `[t0, t_end]`, left to right. On a node `[a, a + w]`
+//! every fast block with `|mu| w <= THETA_RESOLVED`, every slow block and the
+//! polynomial part are *resolved*: their exact value, slope and curvature at
+//! `a` give a quadratic `Q` with the cubic remainder `|mu|^3 |C| e^{m a}
+//! w^3 / 6`; every other block is *unresolved* and enters only through its
+//! exact envelope `|C| e^{m a}` (slope `|mu| |C| e^{m a}`). From these bounds
+//! a node is
+//!
+//! - root-free: `phi > 0` on the whole node (or `phi` increases from a
+//!   positive value);
+//! - a certain, unique first root: `phi' < 0` on the node and `phi(a + w) < 0`
+//!   (with `phi(a) >= 0` known from the nodes before it); the root is then
+//!   refined on the model to [`ROOT_ULPS`] ulps of the sample;
+//! - neutral: `|phi|` is within rounding of zero on the whole node (a
+//!   grazing touch: both phases give the same motion to rounding), or the
+//!   node is below the root resolution: decided by the sign of `phi` at its
+//!   end;
+//! - or split in two.
+//!
+//! So the work per sample is bounded by the phase's own time scales: nodes
+//! shrink only until the fast blocks whose amplitude can still change the
+//! sign are resolved (`w ~ 1 / |mu|`), and below that only next to a root
+//! or a tangency, where the bisection descends along one path to the root
+//! resolution (at most ~50 levels). There is no depth limit and no cap on the
+//! switches of a sample: after a switch the next one is at least the root
+//! resolution later, so a sample holds at most `1 / (ROOT_ULPS eps)` of
+//! them, a bound the loop carries (its counter `capped` therefore stays 0).
+//!
+//! A switch happens on a crossing with `phi` going down (a touch with zero
+//! relative speed that does not cross carries no impulse and is not a
+//! contact); right after a switch the new phase's `phi` starts at zero
+//! (the spring starts unstretched: the residual of rounding at the root is
+//! taken up by the rod offset, which adds no energy) and rises.
 
 use super::{dot, EngineState};
 use super::{kernel, vmath};
 use crate::compile::{CompiledPhase, CompiledScene};
-use crate::physics::block::exp2;
+use crate::physics::block::{exp2, mul2};
 
-/// Cap on switches inside one sample (X2 saw 2; X11 grazing must not loop).
-pub const MAX_SWITCHES_PER_SAMPLE: u32 = 8;
-/// Bisection depth of the event search: intervals down to h / 2^10.
-pub const MAX_DEPTH: u32 = 10;
-/// Newton/bisection iterations for a root (converges in ~5-8; the cap only
-/// bounds the worst case).
-const MAX_ROOT_ITERS: u32 = 100;
-/// Resolution of a located switch instant, in ulps of the instant (3.5e-15
-/// of a sample): below it the rounding of `phi` itself (`u |x_h| / |phi'|`,
-/// ~1e-14 of a sample for a hammer at millimetres and 1 m/s) decides, so
-/// iterating further only costs sweeps.
-const ROOT_ULPS: f64 = 16.0;
+/// A fast block is resolved on a node of width `w` when `|mu| w <=` this:
+/// then its cubic remainder `|mu|^3 w^3 / 6` (0.46 of its amplitude) and
+/// slope remainder `|mu|^3 w^2 / 2` beat the bare envelope and slope bound.
+pub const THETA_RESOLVED: f64 = 1.4;
+/// An oscillatory block is slow when `|mu| h <=` this: its Taylor series
+/// about the search origin converges fast over a whole sample (every term
+/// at most `2^j / j!` of its amplitude, degree <= [`MAX_DEGREE`] for a
+/// truncation error below `2^-60` of it).
+pub const THETA_SLOW: f64 = 2.0;
+/// Highest degree of the slow blocks' polynomial (`2^25 / 25! = 2e-18`).
+pub const MAX_DEGREE: usize = 24;
+/// Resolution of a located switch instant, in ulps of the sample period
+/// (3.6e-15 of a sample): below it the rounding of `phi` itself (`u |x_h| /
+/// |phi'|`, ~1e-14 of a sample for a hammer at millimetres and 1 m/s)
+/// decides, so resolving further only costs evaluations. It is also the
+/// least time between two switches.
+pub const ROOT_ULPS: f64 = 16.0;
+/// A node is neutral when `|phi| <= NEUTRAL_TOL` roundings on all of it.
+const NEUTRAL_TOL: f64 = 4.0;
+/// Rounding allowance of the model, in units of `u` times its scale.
+const ROUND_UNITS: f64 = 64.0;
+/// Deepest bisection: nodes never get narrower than the root resolution,
+/// `2^-48` of a sample; the stack holds one pending node per level.
+const STACK: usize = 64;
 /// Largest |A tau| per Taylor sub-step for dense partial steps, and the
 /// number of terms: 0.5^20 / 20! ~ 4e-25.
 const TAYLOR_MAX_NORM: f64 = 0.5;
 const TAYLOR_TERMS: usize = 20;
 
-/// Counters of what the exact switching did (diagnostics for reports/tests).
+/// Counters of what the exact switching did (diagnostics for reports,
+/// tests and the render summary).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct ExactStats {
     /// Switches located inside samples.
     pub located: u64,
-    /// Samples that hit the per-sample switch cap.
+    /// Samples that reached the loop's bound on switches (provably
+    /// unreachable: at least the root resolution passes between switches).
     pub capped: u64,
-    /// Contacts started by the offset-rod safety net.
+    /// Samples that started on the wrong side of the surface by more than
+    /// rounding (a crossing missed in the sample before: never expected).
+    /// The contact then starts with the paper's offset rod.
     pub rod_fallbacks: u64,
-    /// Grazing zeros that were not switched (no impulse).
+    /// Neutral nodes and resolution-sized nodes that ended with `phi > 0`:
+    /// touches of zero within rounding that are not crossings.
     pub grazing: u64,
-    /// Intervals left uncertified at the bisection depth limit.
+    /// Nodes left undecided (none: every node is decided at the latest at
+    /// the root resolution; kept as a diagnostic the tests assert is 0).
     pub uncertified: u64,
     /// Partial-step propagators `exp(G tau)` computed for every block (one
-    /// exponential and one sine/cosine per block: the main cost of a
-    /// located switch).
+    /// exponential and one sine/cosine per block).
     pub partial_sweeps: u64,
+    /// Nodes the event search examined.
+    pub search_nodes: u64,
+    /// Most nodes examined in one sample.
+    pub max_nodes_in_sample: u64,
+    /// Most switches in one sample.
+    pub max_switches_in_sample: u64,
+    /// Samples whose state was not finite (no search: the rest of the
+    /// sample is stepped in the current phase, and the caller sees a
+    /// non-finite output; the instrument resets such a voice).
+    pub nonfinite: u64,
 }
 
-enum Search {
+/// Which terms of a phase's event function ([`crate::compile::event`])
+/// are slow (one polynomial) and which are fast (evaluated exactly), for the
+/// current step length. Recomputed when the time scale changes.
+#[derive(Debug, Clone, Default)]
+pub(super) struct TermSplit {
+    slow: Vec<u32>,
+    fast: Vec<u32>,
+}
+
+impl TermSplit {
+    /// Room for `n` terms (two per block at most).
+    pub(super) fn with_capacity(n: usize) -> Self {
+        Self {
+            slow: Vec::with_capacity(n),
+            fast: Vec::with_capacity(n),
+        }
+    }
+
+    /// Split the terms of `ph` for steps of `step` (reference time).
+    /// O(N), allocation-free within the capacity. [audio-thread]
+    pub(super) fn update(&mut self, ph: &CompiledPhase, step: f64) {
+        self.slow.clear();
+        self.fast.clear();
+        for (i, t) in ph.search.terms.iter().enumerate() {
+            if t.mu * step <= THETA_SLOW {
+                self.slow.push(i as u32);
+            } else {
+                self.fast.push(i as u32);
+            }
+        }
+    }
+}
+
+/// Scratch of the event search (sized once per voice, never reallocated).
+#[derive(Debug, Clone)]
+pub(super) struct SearchScratch {
+    /// Fast blocks gathered for the current model: complex amplitude
+    /// `C = cr + i ci`, eigenvalue `m + i w`, `|C|`, `|mu|`.
+    nf: usize,
+    f_cr: Vec<f64>,
+    f_ci: Vec<f64>,
+    f_m: Vec<f64>,
+    f_w: Vec<f64>,
+    f_amp: Vec<f64>,
+    f_mu: Vec<f64>,
+    /// exp/sin/cos arguments and results for the fast blocks.
+    f_mt: Vec<f64>,
+    f_wt: Vec<f64>,
+    f_e: Vec<f64>,
+    f_s: Vec<f64>,
+    f_c: Vec<f64>,
+    /// Slow blocks' polynomial `sum_j poly[j] tau^j`, its degree, the bound
+    /// on the slow part's third derivative, and the truncation errors of the
+    /// polynomial's value, slope and curvature.
+    poly: [f64; MAX_DEGREE + 1],
+    deg: usize,
+    slow_c3: f64,
+    slow_err: [f64; 3],
+    /// Slow blocks gathered: `C mu^j` as it is raised, and `mu`.
+    z_r: Vec<f64>,
+    z_i: Vec<f64>,
+    mu_r: Vec<f64>,
+    mu_i: Vec<f64>,
+    /// Exactly polynomial part `c0 + c1 tau + c2 tau^2 / 2`.
+    c: [f64; 3],
+    /// Growth allowance `e^{gamma rem}` of envelopes (rounding of lossless
+    /// eigenvalues may leave `m` a hair above 0).
+    growth: f64,
+    /// Rounding allowances of the value and of the slope.
+    tol: f64,
+    tol_d: f64,
+    /// Dense phases: the state norm at the origin.
+    y_norm: f64,
+    /// Pending right halves of the bisection, `(a, w)`.
+    stack: [(f64, f64); STACK],
+}
+
+impl SearchScratch {
+    /// Room for `n` terms.
+    pub(super) fn new(n: usize) -> Self {
+        let v = || vec![0.0; n];
+        Self {
+            nf: 0,
+            f_cr: v(),
+            f_ci: v(),
+            f_m: v(),
+            f_w: v(),
+            f_amp: v(),
+            f_mu: v(),
+            f_mt: v(),
+            f_wt: v(),
+            f_e: v(),
+            f_s: v(),
+            f_c: v(),
+            poly: [0.0; MAX_DEGREE + 1],
+            deg: 0,
+            slow_c3: 0.0,
+            slow_err: [0.0; 3],
+            z_r: v(),
+            z_i: v(),
+            mu_r: v(),
+            mu_i: v(),
+            c: [0.0; 3],
+            growth: 1.0,
+            tol: 0.0,
+            tol_d: 0.0,
+            y_norm: 0.0,
+            stack: [(0.0, 0.0); STACK],
+        }
+    }
+}
+
+/// Bounds of `phi` on a node `[a, a + w]`: the resolved part's value, slope
+/// and curvature at `a` (`q`), the bound `c3` on its third derivative, and
+/// bounds on the unresolved part's value (`u`) and slope (`l`).
+#[derive(Debug, Clone, Copy)]
+struct NodeBounds {
+    q: [f64; 3],
+    u: f64,
+    l: f64,
+    c3: f64,
+}
+
+/// What the search found.
+enum Found {
+    /// No crossing before the end of the range.
     None,
-    /// `phi(a) > 0 >= phi(b)` on `[a, b]`.
-    Bracket(f64, f64),
+    /// Switch at this time after the search origin (`phi <= 0` there, to
+    /// rounding).
+    At(f64),
+}
+
+/// `(min, max)` of `q0 + q1 t + q2 t^2 / 2` on `[0, w]`.
+fn quad_range(q: [f64; 3], w: f64) -> (f64, f64) {
+    let end = q[0] + w * (q[1] + 0.5 * q[2] * w);
+    let (mut lo, mut hi) = (q[0].min(end), q[0].max(end));
+    if q[2] != 0.0 {
+        let t = -q[1] / q[2];
+        if t > 0.0 && t < w {
+            let v = q[0] + t * (q[1] + 0.5 * q[2] * t);
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+    }
+    (lo, hi)
 }
 
 impl EngineState {
-    /// `(phi, phi')` at `tau` into the step from the current state (reference
-    /// time). `full` means `tau` is the whole step (precomputed propagators).
-    fn eval_event(&mut self, scene: &CompiledScene, tau: f64, full: bool) -> (f64, f64) {
-        let [f, d, _] = self.eval_event3(scene, tau, full);
-        (f, d)
-    }
-
-    /// `[phi, phi', phi'']` at `tau` (see [`eval_event`](Self::eval_event)).
-    /// A partial step of exactly one sample period uses the precomputed
-    /// propagators (they are `exp(G h)` whatever the starting instant).
-    fn eval_event3(&mut self, scene: &CompiledScene, tau: f64, full: bool) -> [f64; 3] {
+    /// `[phi, phi', phi'']` at `tau` into the step from the current state,
+    /// through the state itself (a sweep of partial propagators). `full`
+    /// means `tau` is the whole step (precomputed propagators).
+    pub(super) fn eval_event3(&mut self, scene: &CompiledScene, tau: f64, full: bool) -> [f64; 3] {
         let full = full || tau == self.step_s;
         let ph: &CompiledPhase = current_phase(self, scene);
-        let s = if self.in_contact {
-            &self.s_c
-        } else {
-            &self.s_f
-        };
         let (mut f, mut d, mut dd) = if ph.dense.is_some() {
+            let s = if self.in_contact {
+                &self.s_c
+            } else {
+                &self.s_f
+            };
             let n = ph.dim;
             let [t0, t1, t2] = &mut self.dense_tmp;
             dense_apply(ph, s, tau, full, &mut t0[..n], &mut t1[..n], &mut t2[..n]);
@@ -127,9 +327,8 @@ impl EngineState {
     }
 
     /// Fill `p_part` with the current phase's block propagators over `tau`,
-    /// unless it already holds them (the event search evaluates a point and
-    /// then advances to it; the remainder of a sample is checked and then
-    /// stepped): one sweep of `exp2` per distinct `(phase, tau)`.
+    /// unless it already holds them: one sweep of exp/sin/cos per distinct
+    /// `(phase, tau)`.
     fn ensure_partial(&mut self, scene: &CompiledScene, tau: f64) {
         let contact = self.in_contact;
         if self.part_ok && self.part_tau == tau && self.part_contact == contact {
@@ -138,9 +337,8 @@ impl EngineState {
         let ph = current_phase(self, scene);
         let gens = ph.gens.as_ref().expect("block phase");
         let nb = gens.len();
-        // Oscillatory blocks (all of a modal object's free phase, the
-        // complex pairs of a contact phase): exp, sin and cos of every
-        // block in one vectorised batch, then `exp(G tau)` from them as in
+        // Oscillatory blocks: exp, sin and cos of every block in one
+        // vectorised batch, then `exp(G tau)` from them as in
         // `OscForm::exp_from`. Blocks with real eigenvalues: exp2.
         let o = &ph.osc;
         let [mt, wt, e, sn, cs] = &mut self.part_args;
@@ -170,35 +368,6 @@ impl EngineState {
         self.part_tau = tau;
         self.part_contact = contact;
         self.exact_stats.partial_sweeps += 1;
-    }
-
-    /// Curvature bound `B >= |phi''|` over any sub-step from the current state.
-    fn curvature_bound(&self, scene: &CompiledScene) -> f64 {
-        let ph = current_phase(self, scene);
-        let s = if self.in_contact {
-            &self.s_c
-        } else {
-            &self.s_f
-        };
-        let g = if self.in_contact { 0.0 } else { self.g };
-        let global = ph.ev_dd_norm * s.iter().map(|x| x * x).sum::<f64>().sqrt();
-        // Per-block bound: each 2x2 block is a contraction on its own, so
-        // |phi''| <= sum_k |ev_dd_k| |s_k|. Much tighter than the global
-        // Cauchy-Schwarz bound when the energy sits in blocks that barely move
-        // phi (a heavy hammer's slow mode, NUMERICS X7). Dense phases: global.
-        let bound = match &ph.gens {
-            Some(gens) => {
-                let nb = gens.len();
-                let mut acc = 0.0;
-                for k in 0..nb {
-                    acc += ph.ev_dd_block[k] * (s[k] * s[k] + s[nb + k] * s[nb + k]).sqrt();
-                }
-                acc.min(global)
-            }
-            None => global,
-        };
-        // 1 + 1e-12: the blocks are contractions up to rounding of exp2
-        g + bound * (1.0 + 1e-12)
     }
 
     /// Advance the current phase by `tau` (no switching).
@@ -243,173 +412,468 @@ impl EngineState {
         }
     }
 
-    fn certified(fa: f64, da: f64, fb: f64, w: f64, b: f64) -> bool {
-        let chord = fa.min(fb) - b * w * w / 8.0 > 0.0;
-        let tangent = fa >= 0.0 && da > 0.0 && fb > 0.0 && fa + da * w - b * w * w / 2.0 > 0.0;
-        chord || tangent
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn search(
-        &mut self,
-        scene: &CompiledScene,
-        bound: f64,
-        a: f64,
-        fa: f64,
-        da: f64,
-        b: f64,
-        fb: f64,
-        depth: u32,
-    ) -> Search {
-        if fb <= 0.0 {
-            return Search::Bracket(a, b);
+    /// Build the model of `phi` from the current state over the next `rem`
+    /// (reference time): amplitudes of every block, the slow polynomial,
+    /// the fast blocks gathered, the rounding allowances. O(N + N_slow deg).
+    fn build_model(&mut self, scene: &CompiledScene, rem: f64) {
+        let in_contact = self.in_contact;
+        let ph = current_phase(self, scene);
+        let sc = &mut self.search;
+        sc.c = if in_contact {
+            [scene.offsets.pi / scene.sk, 0.0, 0.0]
+        } else {
+            [self.x_h, self.v_h, -self.g]
+        };
+        let c_scale = sc.c[0].abs() + sc.c[1].abs() * rem + sc.c[2].abs() * rem * rem;
+        let c_scale_d = sc.c[1].abs() + sc.c[2].abs() * rem;
+        let s = if in_contact { &self.s_c } else { &self.s_f };
+        if let Some((_, _)) = &ph.dense {
+            let n = ph.dim;
+            sc.y_norm = s[..n].iter().map(|x| x * x).sum::<f64>().sqrt();
+            sc.nf = 0;
+            sc.deg = 0;
+            sc.growth = 1.0;
+            let ev_norm = ph.ev.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let evd_norm = ph.ev_d.iter().map(|x| x * x).sum::<f64>().sqrt();
+            // dense partial steps: a Taylor series of mat-vecs per sub-step
+            let units = ROUND_UNITS * (n as f64 + TAYLOR_TERMS as f64);
+            sc.tol = units * f64::EPSILON * (c_scale + ev_norm * sc.y_norm);
+            sc.tol_d = units * f64::EPSILON * (c_scale_d + evd_norm * sc.y_norm);
+            return;
         }
-        if Self::certified(fa, da, fb, b - a, bound) {
-            return Search::None;
+        let split = if in_contact {
+            &self.split_c
+        } else {
+            &self.split_f
+        };
+        let nb = ph.dim / 2;
+        let terms = &ph.search.terms;
+        // complex amplitude C = (re . s_k) - i (im . s_k) of a term
+        let amp = |t: &crate::compile::event::Term| -> (f64, f64) {
+            let k = t.block as usize;
+            let (x0, x1) = (s[k], s[nb + k]);
+            (t.re[0] * x0 + t.re[1] * x1, -(t.im[0] * x0 + t.im[1] * x1))
+        };
+        // Growth allowance: envelopes can only shrink unless rounding left
+        // a lossless eigenvalue's real part a hair above 0.
+        let mut gamma: f64 = 0.0;
+        // --- fast terms, gathered
+        let nf = split.fast.len();
+        let mut sum_f = 0.0;
+        let mut sum_f_d = 0.0;
+        for (i, &j) in split.fast.iter().enumerate() {
+            let t = &terms[j as usize];
+            let (cr, ci) = amp(t);
+            let a = cr.hypot(ci);
+            sc.f_cr[i] = cr;
+            sc.f_ci[i] = ci;
+            sc.f_m[i] = t.m;
+            sc.f_w[i] = t.w;
+            sc.f_amp[i] = a;
+            sc.f_mu[i] = t.mu;
+            sum_f += a;
+            sum_f_d += a * t.mu;
+            gamma = gamma.max(t.m);
         }
-        if depth >= MAX_DEPTH {
-            self.exact_stats.uncertified += 1;
-            return Search::None;
+        sc.nf = nf;
+        // --- whole blocks: bounds only (evaluated from the state per node)
+        let mut sum_o = 0.0;
+        let mut sum_o_d = 0.0;
+        for (j, &k) in ph.search.whole.iter().enumerate() {
+            let k = k as usize;
+            let [nr, nr1, _, g, _] = ph.search.whole_norms[j];
+            let sn = s[k].hypot(s[nb + k]);
+            sum_o += nr * sn;
+            sum_o_d += nr1 * sn;
+            gamma = gamma.max(g);
         }
-        let m = 0.5 * (a + b);
-        let (fm, dm) = self.eval_event(scene, m, false);
-        if fm <= 0.0 {
-            return Search::Bracket(a, m);
+        // --- slow terms: the Taylor polynomial of their sum about t0
+        let ns = split.slow.len();
+        let mut sum_s = 0.0;
+        let mut sum_s_d = 0.0;
+        let mut c3 = 0.0;
+        let mut mu_max: f64 = 0.0;
+        for (i, &j) in split.slow.iter().enumerate() {
+            let t = &terms[j as usize];
+            let (cr, ci) = amp(t);
+            let a = cr.hypot(ci);
+            sc.z_r[i] = cr;
+            sc.z_i[i] = ci;
+            sc.mu_r[i] = t.m;
+            sc.mu_i[i] = t.w;
+            sum_s += a;
+            sum_s_d += a * t.mu;
+            c3 += a * t.mu * t.mu * t.mu;
+            mu_max = mu_max.max(t.mu);
+            gamma = gamma.max(t.m);
         }
-        match self.search(scene, bound, a, fa, da, m, fm, depth + 1) {
-            Search::None => self.search(scene, bound, m, fm, dm, b, fb, depth + 1),
-            br => br,
+        let growth = (gamma * rem).exp();
+        sc.growth = growth;
+        // degree: theta^(d+1) / (d+1)! <= 2^-60 with theta = mu_max rem
+        let theta = mu_max * rem;
+        let mut deg = 0;
+        let mut term = theta; // theta^(deg+1) / (deg+1)!
+        while deg < MAX_DEGREE && term > f64::EPSILON / 256.0 {
+            deg += 1;
+            term *= theta / (deg + 1) as f64;
         }
-    }
-
-    /// Refine a bracket `phi(a) > 0 >= phi(b)` to the switch instant: the
-    /// returned point `b` has `phi(b) <= 0` (the switch happens there, the
-    /// rod takes up the few-ulp residual) and lies at most ~[`ROOT_ULPS`]
-    /// ulps after the root; also returns `phi'(b)`.
-    ///
-    /// Safeguarded Halley iteration (`phi''` costs one more dot per
-    /// evaluation; convergence is cubic). It starts from the Halley point of
-    /// a bracket end (`tau = 0` and whole samples cost no sweep of `exp2`),
-    /// aims every step a few ulps past its root estimate, and stops at the
-    /// first point with `phi <= 0` whose own Halley correction is a few
-    /// ulps: typically three evaluations, and the advance to `b` reuses the
-    /// propagators of the last one.
-    fn refine(&mut self, scene: &CompiledScene, a: f64, b: f64) -> (f64, f64) {
-        let (mut a, mut b) = (a, b);
-        let halley = |f: f64, d: f64, dd: f64| 2.0 * f * d / (2.0 * d * d - f * dd);
-        let ends = [b, a].map(|t| (t, self.eval_event3(scene, t, false)));
-        let mut db = ends[0].1[1];
-        let mut x = f64::NAN;
-        for (t, [f, d, dd]) in ends {
-            let guess = t - halley(f, d, dd);
-            if guess > a && guess < b {
-                x = guess;
-                break;
+        if ns == 0 {
+            deg = 0;
+        }
+        sc.deg = deg;
+        // coefficients: poly[j] = sum_k Re[C_k mu_k^j] / j!
+        let (zr, zi) = (&mut sc.z_r[..ns], &mut sc.z_i[..ns]);
+        let (mr, mi) = (&sc.mu_r[..ns], &sc.mu_i[..ns]);
+        let mut inv_fact = 1.0;
+        for j in 0..=deg {
+            let mut acc = [0.0; 4];
+            let mut chunks_r = zr.chunks_exact(4);
+            for ch in &mut chunks_r {
+                for l in 0..4 {
+                    acc[l] += ch[l];
+                }
+            }
+            let mut tail = 0.0;
+            for x in chunks_r.remainder() {
+                tail += x;
+            }
+            sc.poly[j] = ((acc[0] + acc[1]) + (acc[2] + acc[3]) + tail) * inv_fact;
+            if j < deg {
+                for i in 0..ns {
+                    let (a, b) = (zr[i], zi[i]);
+                    zr[i] = a * mr[i] - b * mi[i];
+                    zi[i] = a * mi[i] + b * mr[i];
+                }
+                inv_fact /= (j + 1) as f64;
             }
         }
-        if x.is_nan() {
-            let (fa, fb) = (ends[1].1[0], ends[0].1[0]);
-            x = a - fa * (b - a) / (fb - fa);
+        for p in sc.poly[deg + 1..].iter_mut() {
+            *p = 0.0;
         }
-        for _ in 0..MAX_ROOT_ITERS {
-            if b - a <= ROOT_ULPS * f64::EPSILON * b {
+        sc.slow_c3 = c3 * growth;
+        // Lagrange remainders of the j-th derivative of the degree-`deg`
+        // Taylor polynomial: sum_k |C_k| |mu_k|^(deg+1) rem^(deg+1-j) /
+        // (deg+1-j)!, with |mu_k| <= theta / rem.
+        sc.slow_err = if ns == 0 {
+            [0.0; 3]
+        } else {
+            let mut e = [0.0; 3];
+            for (j, ej) in e.iter_mut().enumerate() {
+                let mut v = sum_s * growth;
+                for i in 1..=(deg + 1 - j) {
+                    v *= theta / i as f64;
+                }
+                for _ in 0..j {
+                    v *= mu_max;
+                }
+                *ej = v;
+            }
+            e
+        };
+        // Rounding: the polynomial's terms add up to at most e^theta times
+        // the slow amplitudes, summed in ~deg + log2(N) roundings.
+        let poly_units = (deg as f64 + 2.0 + (ns as f64).log2().max(0.0)) * theta.exp();
+        let units = ROUND_UNITS * f64::EPSILON;
+        sc.tol = units * (c_scale + poly_units * sum_s + 4.0 * (sum_f + sum_o)) * growth;
+        sc.tol_d = units * (c_scale_d + poly_units * sum_s_d + 4.0 * (sum_f_d + sum_o_d)) * growth;
+    }
+
+    /// Bounds of `phi` on the node `[tau, tau + w]` of the current model
+    /// (`all`: every block resolved, for an exact value of the model).
+    fn node_bounds(&mut self, scene: &CompiledScene, tau: f64, w: f64, all: bool) -> NodeBounds {
+        let in_contact = self.in_contact;
+        let ph = current_phase(self, scene);
+        let sc = &mut self.search;
+        let [c0, c1, c2] = sc.c;
+        let mut q = [c0 + tau * (c1 + 0.5 * c2 * tau), c1 + c2 * tau, c2];
+        let (mut u, mut l, mut c3) = (0.0, 0.0, 0.0);
+        let s = if in_contact { &self.s_c } else { &self.s_f };
+        if ph.dense.is_some() {
+            let n = ph.dim;
+            let [t0, t1, t2] = &mut self.dense_tmp;
+            dense_apply(ph, s, tau, false, &mut t0[..n], &mut t1[..n], &mut t2[..n]);
+            q[0] += dot(&ph.ev, &t0[..n]);
+            q[1] += dot(&ph.ev_d, &t0[..n]);
+            q[2] += dot(&ph.ev_dd, &t0[..n]);
+            c3 = ph.search.dense_ddd_norm * sc.y_norm;
+            return NodeBounds { q, u, l, c3 };
+        }
+        // slow polynomial: value, slope and curvature by Horner
+        let deg = sc.deg;
+        let (mut p0, mut p1, mut p2) = (0.0, 0.0, 0.0);
+        for j in (0..=deg).rev() {
+            p2 = p2 * tau + 2.0 * p1;
+            p1 = p1 * tau + p0;
+            p0 = p0 * tau + sc.poly[j];
+        }
+        q[0] += p0;
+        q[1] += p1;
+        q[2] += p2;
+        c3 += sc.slow_c3;
+        let [e0, e1, e2] = sc.slow_err;
+        u += e0 + w * (e1 + 0.5 * e2 * w);
+        l += e1 + e2 * w;
+        // fast blocks: exact, in one vectorised exp/sin/cos batch
+        let nf = sc.nf;
+        if nf > 0 {
+            for i in 0..nf {
+                sc.f_mt[i] = sc.f_m[i] * tau;
+                sc.f_wt[i] = sc.f_w[i] * tau;
+            }
+            vmath::exp_sincos(
+                self.simd,
+                &sc.f_mt[..nf],
+                &sc.f_wt[..nf],
+                &mut sc.f_e[..nf],
+                &mut sc.f_s[..nf],
+                &mut sc.f_c[..nf],
+            );
+            let growth = sc.growth;
+            for i in 0..nf {
+                let e = sc.f_e[i];
+                let (sn, cs) = (sc.f_s[i], sc.f_c[i]);
+                let (cr, ci) = (sc.f_cr[i], sc.f_ci[i]);
+                let er = e * (cr * cs - ci * sn);
+                let ei = e * (cr * sn + ci * cs);
+                let env = sc.f_amp[i] * e * growth;
+                let (m, wv, mu) = (sc.f_m[i], sc.f_w[i], sc.f_mu[i]);
+                if all || mu * w <= THETA_RESOLVED {
+                    q[0] += er;
+                    q[1] += er * m - ei * wv;
+                    q[2] += er * (m * m - wv * wv) - ei * (2.0 * m * wv);
+                    c3 += mu * mu * mu * env;
+                } else {
+                    u += env;
+                    l += mu * env;
+                }
+            }
+        }
+        // whole blocks (nearly equal real eigenvalues): from their own state
+        let gens = ph.gens.as_ref().expect("block phase");
+        let nb = gens.len();
+        for (j, &k) in ph.search.whole.iter().enumerate() {
+            let k = k as usize;
+            let p = exp2(&gens[k], tau);
+            let (x0, x1) = mul2(&p, s[k], s[nb + k]);
+            let [nr, nr1, nr3, g, rho] = ph.search.whole_norms[j];
+            let nrm = x0.hypot(x1) * (g * w).exp();
+            if all || rho * w <= THETA_RESOLVED {
+                q[0] += ph.ev[k] * x0 + ph.ev[nb + k] * x1;
+                q[1] += ph.ev_d[k] * x0 + ph.ev_d[nb + k] * x1;
+                q[2] += ph.ev_dd[k] * x0 + ph.ev_dd[nb + k] * x1;
+                c3 += nr3 * nrm;
+            } else {
+                u += nr * nrm;
+                l += nr1 * nrm;
+            }
+        }
+        NodeBounds { q, u, l, c3 }
+    }
+
+    /// `[phi, phi', phi'']` of the model at `tau` (exact to rounding).
+    fn model_eval(&mut self, scene: &CompiledScene, tau: f64) -> [f64; 3] {
+        self.node_bounds(scene, tau, 0.0, true).q
+    }
+
+    /// The first crossing of the model in `(0, rem]` (`open`: the origin is
+    /// a switch instant, where `phi` is zero to rounding and rising).
+    fn first_root(
+        &mut self,
+        scene: &CompiledScene,
+        rem: f64,
+        open: bool,
+        nodes: &mut u64,
+    ) -> Found {
+        let resolution = ROOT_ULPS * f64::EPSILON * self.step_s;
+        let mut top = 0; // pending nodes on the stack
+        let mut cur = (0.0, rem);
+        loop {
+            let (a, w) = cur;
+            *nodes += 1;
+            let nbd = self.node_bounds(scene, a, w, false);
+            let (tol, tol_d) = (self.search.tol, self.search.tol_d);
+            let NodeBounds { q, u, l, c3 } = nbd;
+            let r3 = c3 * w * w * w / 6.0;
+            let r2 = 0.5 * c3 * w * w;
+            let (qmin, qmax) = quad_range(q, w);
+            let slope_lb = q[1].min(q[1] + q[2] * w) - l - r2 - tol_d;
+            let slope_ub = q[1].max(q[1] + q[2] * w) + l + r2 + tol_d;
+            let start_open = open && a == 0.0;
+            let mut root_free = if start_open {
+                // phi(0) = 0 to rounding: no crossing while it rises
+                slope_lb > 0.0
+            } else {
+                qmin - u - r3 - tol > 0.0 || (slope_lb > 0.0 && q[0] - u - tol > 0.0)
+            };
+            if !root_free && !start_open && slope_ub < 0.0 {
+                let end = q[0] + w * (q[1] + 0.5 * q[2] * w);
+                if end + u + r3 + tol < 0.0 {
+                    // phi(a) >= 0, strictly decreasing, negative at the end
+                    let b = self.refine(scene, a, a + w);
+                    return Found::At(if open { b.max(resolution) } else { b });
+                }
+                root_free = end - u - r3 - tol > 0.0;
+            }
+            if !root_free {
+                let neutral = qmin.abs().max(qmax.abs()) + u + r3 <= NEUTRAL_TOL * tol;
+                if neutral || w <= resolution {
+                    // decided by the sign at the node's end
+                    let end = a + w;
+                    let fe = self.model_eval(scene, end)[0];
+                    if fe <= 0.0 && !(open && end < resolution && fe > -tol) {
+                        return Found::At(if open { end.max(resolution) } else { end });
+                    }
+                    self.exact_stats.grazing += 1;
+                    root_free = true;
+                } else if top < STACK {
+                    let h = 0.5 * w;
+                    self.search.stack[top] = (a + h, w - h);
+                    top += 1;
+                    cur = (a, h);
+                    continue;
+                } else {
+                    // cannot happen: w halves per level and stops at the
+                    // resolution, 2^-48 of a sample
+                    self.exact_stats.uncertified += 1;
+                    root_free = true;
+                }
+            }
+            debug_assert!(root_free);
+            if top == 0 {
+                return Found::None;
+            }
+            top -= 1;
+            cur = self.search.stack[top];
+        }
+    }
+
+    /// Refine a certified bracket (`phi(a) >= 0 > phi(b)`, `phi` strictly
+    /// decreasing on it) to the root, on the model: safeguarded Halley,
+    /// bisecting whenever a step does not halve the bracket. Returns a
+    /// point at most [`ROOT_ULPS`] ulps of the sample after the root, on its
+    /// `phi <= 0` side.
+    fn refine(&mut self, scene: &CompiledScene, a: f64, b: f64) -> f64 {
+        let resolution = ROOT_ULPS * f64::EPSILON * self.step_s;
+        let halley = |f: f64, d: f64, dd: f64| 2.0 * f * d / (2.0 * d * d - f * dd);
+        let (mut a, mut b) = (a, b);
+        let [fb, db, ddb] = self.model_eval(scene, b);
+        let mut x = b - halley(fb, db, ddb);
+        let mut width = b - a;
+        // ~60 bisections reach the resolution from a whole sample; Halley
+        // steps only make it faster.
+        for _ in 0..200 {
+            if b - a <= resolution {
                 break;
             }
             if !(x > a && x < b) {
                 x = 0.5 * (a + b);
-                if !(x > a && x < b) {
-                    break;
-                }
             }
-            let [fx, dx, ddx] = self.eval_event3(scene, x, false);
+            let [fx, dx, ddx] = self.model_eval(scene, x);
             let step = halley(fx, dx, ddx);
             if fx > 0.0 {
                 a = x;
             } else {
                 b = x;
-                db = dx;
-                if fx == 0.0 || step.abs() <= ROOT_ULPS * f64::EPSILON * x {
+                if fx == 0.0 || step.abs() <= 0.25 * resolution {
                     break;
                 }
             }
             // aim just past the root estimate, onto the phi <= 0 side
             let est = x - step;
             x = if step.is_finite() {
-                est + 4.0 * f64::EPSILON * est.abs()
+                est + 0.25 * resolution
             } else {
                 0.5 * (a + b)
             };
+            if b - a > 0.5 * width {
+                x = 0.5 * (a + b);
+            }
+            width = b - a;
         }
-        (b, db)
+        b
+    }
+
+    /// Switch phase at the current instant (exact switching): cut the
+    /// spring, or start it unstretched (the rod offset takes up the
+    /// rounding residual of `phi` at the root, so no energy is added).
+    fn switch_now(&mut self, scene: &CompiledScene) {
+        if self.in_contact {
+            self.leave_contact(scene);
+        } else {
+            let p = -self.eval_event3(scene, 0.0, false)[0];
+            self.enter_contact(scene, p);
+        }
     }
 
     /// Exact-switching step of one sample (reference duration `step_s`).
-    /// O(N) without events; O(N) trig per evaluation and O(N^2) per switch
-    /// when a switch is near. Allocation-free. [audio-thread]
+    /// O(N) plus the slow polynomial without events; per switch one change
+    /// of basis, O(N^2), and a number of node evaluations bounded by the
+    /// phase's time scales. Allocation-free. [audio-thread]
     pub(super) fn advance_exact(&mut self, scene: &CompiledScene) {
-        // Safety net: a sample that starts on the wrong side of the surface.
-        let (phi0, dphi0) = self.eval_event(scene, 0.0, false);
-        if phi0 < 0.0 && dphi0 <= 0.0 {
-            if self.in_contact {
-                self.leave_contact(scene);
-            } else {
-                self.exact_stats.rod_fallbacks += 1;
-                self.enter_contact(scene, -phi0);
-            }
-        }
         let step = self.step_s;
+        // the least time between two switches is the root resolution
+        let max_switches = (1.0 / (ROOT_ULPS * f64::EPSILON)) as u64 + 2;
         let mut t = 0.0; // time consumed in this sample
-        let mut switches = 0;
+        let mut switches: u64 = 0;
+        let mut nodes: u64 = 0;
+        let mut open = false;
         loop {
             let rem = step - t;
             if rem <= 0.0 {
                 break;
             }
             let full = t == 0.0;
-            let (fa, da) = self.eval_event(scene, 0.0, false);
-            // one-sided start: right after a switch phi = 0 and phi' > 0
-            let fa = if switches > 0 { fa.max(0.0) } else { fa };
-            let (fb, _) = self.eval_event(scene, rem, full);
-            let bound = self.curvature_bound(scene);
-            match self.search(scene, bound, 0.0, fa, da, rem, fb, 0) {
-                Search::None => {
+            self.build_model(scene, rem);
+            if !(self.search.tol.is_finite() && self.search.tol_d.is_finite()) {
+                self.exact_stats.nonfinite += 1;
+                self.advance_by(scene, rem, full);
+                break;
+            }
+            let mut at_origin = false;
+            if !open {
+                // a sample that starts on (or within rounding beyond) the
+                // surface: the crossing is at this instant
+                let [f0, d0, _] = self.model_eval(scene, 0.0);
+                if f0 < 0.0 || (f0 == 0.0 && d0 < 0.0) {
+                    if f0 < -NEUTRAL_TOL * self.search.tol {
+                        self.exact_stats.rod_fallbacks += 1;
+                    }
+                    at_origin = true;
+                } else if f0 == 0.0 {
+                    open = true;
+                }
+            }
+            let found = if at_origin {
+                Found::At(0.0)
+            } else {
+                self.first_root(scene, rem, open, &mut nodes)
+            };
+            match found {
+                Found::None => {
                     self.advance_by(scene, rem, full);
                     break;
                 }
-                Search::Bracket(a, b) => {
-                    let (tau, dtau) = self.refine(scene, a, b);
+                Found::At(tau) => {
+                    let tau = tau.min(rem);
                     self.advance_by(scene, tau, full && tau == rem);
                     t += tau;
                     self.t_in_step = t;
-                    if dtau < 0.0 {
-                        if self.in_contact {
-                            self.leave_contact(scene);
-                        } else {
-                            // phi = x_h - x_c <= 0 (a few ulps): the rod
-                            // takes up that residual, the spring starts at 0.
-                            let p = (-self.eval_event(scene, 0.0, false).0).max(0.0);
-                            self.enter_contact(scene, p);
-                        }
-                        self.exact_stats.located += 1;
-                        switches += 1;
-                    } else {
-                        // A zero touched with phi' >= 0: no impulse, both
-                        // phases agree here. Finish the sample in the current
-                        // phase; the start-of-sample check settles the rest.
-                        self.exact_stats.grazing += 1;
-                        let rem = step - t;
-                        self.advance_by(scene, rem, false);
-                        break;
-                    }
-                    if switches >= MAX_SWITCHES_PER_SAMPLE {
+                    self.switch_now(scene);
+                    self.exact_stats.located += 1;
+                    switches += 1;
+                    open = true;
+                    if switches >= max_switches {
                         self.exact_stats.capped += 1;
-                        let rem = step - t;
-                        self.advance_by(scene, rem, false);
+                        self.advance_by(scene, step - t, false);
                         break;
                     }
                 }
             }
         }
+        let st = &mut self.exact_stats;
+        st.search_nodes += nodes;
+        st.max_nodes_in_sample = st.max_nodes_in_sample.max(nodes);
+        st.max_switches_in_sample = st.max_switches_in_sample.max(switches);
     }
 }
 
@@ -508,5 +972,60 @@ mod tests {
             }
         }
         println!("batched partial propagators vs exp2: worst {worst:.1e} of the block norm");
+    }
+
+    /// The search's model of `phi` (slow polynomial + fast blocks + other
+    /// blocks + polynomial part) against `phi` through the state (a sweep
+    /// of exact partial propagators), in both phases of every preset, at
+    /// several instants of a sample, with the state of a ringing object.
+    #[test]
+    fn model_matches_the_state_evaluation() {
+        let mut worst = [0.0f64; 3];
+        for i in 0..presets::PRESETS.len() {
+            let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
+            let mut st = EngineState::new(&sc);
+            // ring the object: one strike's worth of state in every block
+            for contact in [false, true] {
+                st.in_contact = contact;
+                st.x_h = 1e-4;
+                st.v_h = -0.3;
+                let dim = current_phase(&st, &sc).dim;
+                for j in 0..dim {
+                    let v = 1e-3 * ((j * 7919 % 101) as f64 / 101.0 - 0.5);
+                    if contact {
+                        st.s_c[j] = v;
+                    } else {
+                        st.s_f[j] = v;
+                    }
+                }
+                st.part_ok = false;
+                let step = st.step_s;
+                st.build_model(&sc, step);
+                for frac in [0.0, 1e-9, 0.013, 0.5, 0.999, 1.0] {
+                    let tau = frac * step;
+                    let want = st.eval_event3(&sc, tau, false);
+                    let got = st.model_eval(&sc, tau);
+                    // value and slope within the model's rounding
+                    // allowances; curvature to 1e-12 of its scale
+                    let curv_scale = st.search.tol_d / (ROUND_UNITS * f64::EPSILON) / step;
+                    let tols = [st.search.tol, st.search.tol_d, 1e-12 * curv_scale];
+                    for d in 0..3 {
+                        let e = (got[d] - want[d]).abs();
+                        worst[d] = worst[d].max(e / tols[d]);
+                        assert!(
+                            e <= tols[d],
+                            "preset {i} contact {contact} tau {tau:e} deriv {d}: model {} state {} (allowance {:e})",
+                            got[d],
+                            want[d],
+                            tols[d]
+                        );
+                    }
+                }
+            }
+        }
+        println!(
+            "model vs state evaluation: worst {:.3} / {:.3} / {:.3} of the allowance (value / slope / curvature)",
+            worst[0], worst[1], worst[2]
+        );
     }
 }

@@ -21,7 +21,8 @@ mod exact;
 pub mod kernel;
 pub mod vmath;
 
-pub use exact::{ExactStats, MAX_SWITCHES_PER_SAMPLE};
+pub use exact::{ExactStats, ROOT_ULPS};
+use exact::{SearchScratch, TermSplit};
 pub use kernel::SimdPath;
 use kernel::{rows_of, run_block, BlockAcc, BlockIo, BlockProps, BlockRows, Rows, EPOCH};
 
@@ -57,9 +58,11 @@ pub struct SwitchEvent {
     pub entered: bool,
 }
 
-/// Most switches recorded per tick (the exact mode's cap plus the
-/// start-of-sample checks).
-const EVENT_LOG: usize = MAX_SWITCHES_PER_SAMPLE as usize + 2;
+/// Switches recorded per tick by default (offline tools that expect more,
+/// e.g. chattering contacts far above Nyquist, ask for a larger log with
+/// [`EngineState::set_event_log_capacity`]; switches beyond it are counted
+/// in [`EngineState::events_dropped`]).
+const EVENT_LOG: usize = 64;
 
 /// `bound_epoch` value that matches no epoch (bound not computed).
 const NO_EPOCH: u64 = u64::MAX;
@@ -148,9 +151,16 @@ pub struct EngineState {
     part_ok: bool,
     /// What exact switching did since the last reset (diagnostic).
     pub exact_stats: ExactStats,
-    /// Switches of the last tick (fixed array: no allocation).
-    events: [SwitchEvent; EVENT_LOG],
+    /// Switches of the last tick (fixed capacity: no allocation).
+    events: Vec<SwitchEvent>,
     n_events: usize,
+    /// Switches not recorded because the log was full (diagnostic).
+    pub events_dropped: u64,
+    /// Scratch of the exact event search, and its split of each phase's
+    /// event terms into slow and fast ones at the current step.
+    search: SearchScratch,
+    split_f: TermSplit,
+    split_c: TermSplit,
     /// Reference time consumed in the current step (for event times).
     t_in_step: f64,
 }
@@ -203,8 +213,12 @@ impl EngineState {
             part_tau: 0.0,
             part_contact: false,
             part_ok: false,
-            events: [SwitchEvent::default(); EVENT_LOG],
+            events: vec![SwitchEvent::default(); EVENT_LOG],
             n_events: 0,
+            events_dropped: 0,
+            search: SearchScratch::new(df.max(dc)),
+            split_f: TermSplit::with_capacity(df),
+            split_c: TermSplit::with_capacity(dc),
             t_in_step: 0.0,
         };
         st.set_time_scale(scene, 1.0)
@@ -224,6 +238,7 @@ impl EngineState {
         self.v_h = scene.hammer_v0 / self.time_scale;
         self.contacts_started = 0;
         self.exact_stats = ExactStats::default();
+        self.events_dropped = 0;
         self.clock = 0;
         self.discontinuity();
     }
@@ -331,6 +346,8 @@ impl EngineState {
         self.v_h = v_phys / s;
         fill_props(&mut self.p_f, &scene.free, self.step_s);
         fill_props(&mut self.p_c, &scene.contact, self.step_s);
+        self.split_f.update(&scene.free, self.step_s);
+        self.split_c.update(&scene.contact, self.step_s);
         self.part_ok = false;
         // Outputs in physical units: displacement rows as they are, velocity
         // rows times s (reference velocities are physical / s).
@@ -803,12 +820,14 @@ impl EngineState {
     }
 
     fn log_event(&mut self, entered: bool) {
-        if self.n_events < EVENT_LOG {
+        if self.n_events < self.events.len() {
             self.events[self.n_events] = SwitchEvent {
                 after_s: self.t_in_step / self.time_scale,
                 entered,
             };
             self.n_events += 1;
+        } else {
+            self.events_dropped += 1;
         }
     }
 
@@ -826,6 +845,13 @@ impl EngineState {
     /// diagnostics: contact start/end times). [any-thread]
     pub fn switch_events(&self) -> &[SwitchEvent] {
         &self.events[..self.n_events]
+    }
+
+    /// Record up to `n` switches per tick (default 64). Allocates: not on
+    /// the audio thread. [main-thread]
+    pub fn set_event_log_capacity(&mut self, n: usize) {
+        self.events = vec![SwitchEvent::default(); n];
+        self.n_events = 0;
     }
 
     #[inline]

@@ -193,6 +193,26 @@ impl OscBlocks {
     }
 }
 
+/// The largest eigenvalue of `(G + G^T) / 2`, or 0 if it is negative:
+/// `|exp(G t)|_2 <= e^{gamma t}`.
+pub fn sym_growth(g: &Mat2) -> f64 {
+    let (a, d) = (g[0], g[3]);
+    let b = 0.5 * (g[1] + g[2]);
+    let top = 0.5 * (a + d) + (0.25 * (a - d) * (a - d) + b * b).sqrt();
+    top.max(0.0)
+}
+
+/// Whether `G + G^T` is negative semidefinite (then `|exp(G t)|_2 <= 1` for
+/// every `t >= 0`), with a relative rounding allowance.
+pub fn is_contraction(g: &Mat2) -> bool {
+    let (a, d) = (g[0], g[3]);
+    let b = 0.5 * (g[1] + g[2]);
+    let scale = g.iter().map(|x| x.abs()).fold(0.0, f64::max);
+    let tol = 64.0 * f64::EPSILON * scale;
+    // 2x2 symmetric [[a, b], [b, d]] <= 0  <=>  a <= 0, d <= 0, ad >= b^2
+    a <= tol && d <= tol && a * d - b * b >= -tol * scale
+}
+
 /// `a * b = p + e` exactly (Dekker's product with Veltkamp's split: no FMA
 /// needed, so the baseline build computes the same; valid while `|a|, |b|`
 /// stay below ~1e300).

@@ -11,7 +11,7 @@
 //! fails (near-defective `A`: exactly critical damping, coalescing
 //! eigenvalues), the phase falls back to the dense propagator `exp(A h)`.
 
-use crate::physics::block::{exp2, Mat2};
+use crate::physics::block::{exp2, is_contraction, Mat2};
 use crate::physics::linalg::{mat_vec, to_faer};
 pub use crate::physics::secular::BlockEigen;
 use faer::diag::Diag;
@@ -191,6 +191,19 @@ pub fn decompose_via(
     if a.iter().any(|x| !x.is_finite()) {
         return Err("phase generator has non-finite entries".into());
     }
+    // A 2x2 generator (a hammer against a wall, or the hammer-spring pair
+    // of a contact whose coupled modes all sit at a node) is its own block:
+    // exp2 is exact for every 2x2 matrix, Jordan blocks (exactly critical
+    // damping) included, so it needs no eigenvectors and no dense fallback.
+    let g2 = [a[(0, 0)], a[(0, 1)], a[(1, 0)], a[(1, 1)]];
+    if a.nrows() == 2 && is_contraction(&g2) {
+        let mut d = from_blocks(vec![g2], &[(0, 1)], 2, h);
+        d.diag.method = "one 2x2 block in closed form (exact at any damping)".into();
+        let p = blocks_to_dense(&[g2], &d.v, &d.vinv, h);
+        let reference = dense_exp(a, h)?;
+        d.diag.expm_rel_diff = (&p - &reference).norm() / reference.norm().max(f64::MIN_POSITIVE);
+        return Ok(d);
+    }
     let mut refused = None;
     if let Some((name, eig)) = structured {
         match eig
@@ -328,6 +341,23 @@ fn checked(
     })
 }
 
+/// `|A V - V G| / (|A| |V|)` for block generators `G` in structure-of-arrays
+/// layout (block `k` on columns `k` and `nb + k` of `V`).
+pub fn block_residual(a: &DMatrix<f64>, gens: &[Mat2], v: &DMatrix<f64>) -> f64 {
+    let n = v.nrows();
+    let nb = gens.len();
+    let mut vg = DMatrix::zeros(n, n);
+    for (k, g) in gens.iter().enumerate() {
+        for i in 0..n {
+            let (x0, x1) = (v[(i, k)], v[(i, nb + k)]);
+            vg[(i, k)] = x0 * g[0] + x1 * g[2];
+            vg[(i, nb + k)] = x0 * g[1] + x1 * g[3];
+        }
+    }
+    (crate::physics::linalg::matmul(a, v) - vg).norm()
+        / (a.norm() * v.norm()).max(f64::MIN_POSITIVE)
+}
+
 /// `(|A V - V G| / (|A| |V|), kappa(V), |V^-1 V - I|)` of a block
 /// decomposition in structure-of-arrays layout. `kappa` is exact (SVD) up to
 /// dimension [`MAX_DENSE_CHECK_DIM`], above it `|V| |V^-1|` by power
@@ -351,16 +381,7 @@ fn measure(
     if v.iter().chain(vinv.iter()).any(|x| !x.is_finite()) {
         return Err("eigenvectors are not finite (defective generator)".into());
     }
-    let mut vg = DMatrix::zeros(n, n);
-    for (k, g) in gens.iter().enumerate() {
-        for i in 0..n {
-            let (x0, x1) = (v[(i, k)], v[(i, nb + k)]);
-            vg[(i, k)] = x0 * g[0] + x1 * g[2];
-            vg[(i, nb + k)] = x0 * g[1] + x1 * g[3];
-        }
-    }
-    let residual = (crate::physics::linalg::matmul(a, v) - vg).norm()
-        / (a.norm() * v.norm()).max(f64::MIN_POSITIVE);
+    let residual = block_residual(a, gens, v);
     let (kappa, inv_defect) = if n <= MAX_DENSE_CHECK_DIM {
         let sv = crate::physics::linalg::singular_values(v)
             .ok_or_else(|| "eigenvector matrix: SVD failed".to_string())?;
@@ -651,11 +672,44 @@ mod tests {
     use super::*;
 
     #[test]
-    fn critically_damped_two_by_two_falls_back_to_dense() {
+    fn critically_damped_two_by_two_is_one_exact_block() {
         // Hammer against a rigid wall with exactly critical contact damping:
-        // A = [[0, -w], [w, -2 w]] is a Jordan block (NUMERICS.md X4).
+        // A = [[0, -w], [w, -2 w]] is a Jordan block (NUMERICS X4). As a
+        // single 2x2 block exp2 is exact: e^{-w t} [[1 + w t, -w t], [w t,
+        // 1 - w t]] in closed form.
         let w = 2.0 * std::f64::consts::PI * 3000.0;
         let a = DMatrix::from_row_slice(2, 2, &[0.0, -w, w, -2.0 * w]);
+        let h = 1.0 / 44100.0;
+        let d = decompose(&a, h).unwrap();
+        println!("{:?}", d.diag);
+        let Form::Blocks { gens } = &d.form else {
+            panic!("not a block: {:?}", d.diag)
+        };
+        assert!(d.diag.fallback_reason.is_none());
+        for t in [h * 1e-6, h * 0.37, h, 10.0 * h] {
+            let p = exp2(&gens[0], t);
+            let e = (-w * t).exp();
+            let want = [e * (1.0 + w * t), -e * w * t, e * w * t, e * (1.0 - w * t)];
+            let err = p
+                .iter()
+                .zip(&want)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max);
+            assert!(err < 4e-16, "t {t:e}: {p:?} vs {want:?}");
+        }
+    }
+
+    #[test]
+    fn near_defective_larger_system_falls_back_to_dense() {
+        // Two identical critically damped pairs: a double Jordan structure
+        // of dimension 4 (no 2x2 shortcut).
+        let w = 2.0 * std::f64::consts::PI * 3000.0;
+        let mut a = DMatrix::zeros(4, 4);
+        for b in [0, 2] {
+            a[(b, b + 1)] = -w;
+            a[(b + 1, b)] = w;
+            a[(b + 1, b + 1)] = -2.0 * w;
+        }
         let d = decompose(&a, 1.0 / 44100.0).unwrap();
         println!("{:?}", d.diag);
         assert!(matches!(d.form, Form::Dense { .. }), "{:?}", d.diag);

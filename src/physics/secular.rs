@@ -456,7 +456,7 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::decomp::{blocks_to_dense, dense_exp};
+    use crate::physics::decomp::{block_residual, blocks_to_dense, dense_exp};
     use crate::physics::model::{contact_system, ContactParams, ObjectModel};
     use crate::scene::{ModalSpec, ModeSpec, ObjectSpec};
 
@@ -587,16 +587,7 @@ mod tests {
                     continue;
                 }
             };
-            let nb = gens.len();
-            let mut vg = DMatrix::zeros(dim, dim);
-            for (k, g) in gens.iter().enumerate() {
-                for i in 0..dim {
-                    let (x0, x1) = (v[(i, k)], v[(i, nb + k)]);
-                    vg[(i, k)] = x0 * g[0] + x1 * g[2];
-                    vg[(i, nb + k)] = x0 * g[1] + x1 * g[3];
-                }
-            }
-            let res = (&a * &v - vg).norm() / (a.norm() * v.norm());
+            let res = block_residual(&a, &gens, &v);
             let inv = (&vinv * &v - DMatrix::identity(dim, dim)).norm() / (dim as f64).sqrt();
             let p = blocks_to_dense(&gens, &v, &vinv, h);
             let reference = dense_exp(&a, h).unwrap();
