@@ -20,7 +20,7 @@
 //! same way), then whole sub-steps to the sample instant. Any number of
 //! switches may happen inside a sub-step or a sample.
 
-use crate::phase::{matvec, Phase};
+use crate::phase::{matvec, Phase, MAX_NORM_STEP, RESYNC};
 use crate::{switched, toward, ContactInterval, Model, Solution, Stats};
 use std::cell::RefCell;
 
@@ -157,8 +157,18 @@ fn refine(
 
 /// Solve `model` for `n` samples at `rate_hz` (the reference solution).
 pub fn solve(model: &Model, rate_hz: f64, n: usize) -> Solution {
+    solve_with_substeps(model, rate_hz, n, MAX_NORM_STEP)
+}
+
+/// [`solve`] with sub-steps of `|B|_1 h_sub <= max_norm_step` instead of
+/// 0.5: the flows are exact, so the result must not depend on it beyond
+/// rounding (a convergence check of the reference itself).
+pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step: f64) -> Solution {
     let h = 1.0 / rate_hz;
-    let phases = [Phase::new(model, false, h), Phase::new(model, true, h)];
+    let phases = [
+        Phase::new(model, false, h, max_norm_step),
+        Phase::new(model, true, h, max_norm_step),
+    ];
     let mut stats = Stats {
         substeps_per_sample: [phases[0].m, phases[1].m],
         norms: [phases[0].norm, phases[1].norm],
@@ -172,9 +182,14 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize) -> Solution {
     let mut y1 = vec![0.0; y.len()];
     for i in 0..n {
         let t_n = i as f64 * h;
-        // position in the sample: on the current phase's grid point j, or
-        // at `t` seconds off the grid after a switch
+        // Position in the sample: on the current phase's grid point j, or
+        // `t` seconds into the sample, off the grid, after a switch. The
+        // marched state `y` is re-derived from the anchor (the last grid
+        // point reached exactly: the sample start, or the end of the
+        // partial step after a switch) every RESYNC sub-steps, before any
+        // search and at the sample's end.
         let mut on_grid: Option<usize> = Some(0);
+        let mut anchor = (0usize, y.clone());
         let mut t = 0.0;
         let mut switches = 0usize;
         loop {
@@ -183,6 +198,11 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize) -> Solution {
                 Some(j) if j == ph.m => break,
                 Some(j) => {
                     matvec(&ph.e[0], &y, &mut y1);
+                    if j > anchor.0 && may_switch(ph, &y, &y1) {
+                        // search from exact states, not marched ones
+                        y = ph.advance_grid(&anchor.1, j - anchor.0);
+                        y1 = ph.advance_grid(&anchor.1, j + 1 - anchor.0);
+                    }
                     (Flow::Grid(ph), j as f64 * ph.h_sub, j + 1)
                 }
                 None => {
@@ -216,6 +236,17 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize) -> Solution {
             match search(&flow, &y, &y1, &mut stats) {
                 None => {
                     std::mem::swap(&mut y, &mut y1);
+                    let exact_end = match flow {
+                        // a partial step ends exactly on the grid: new anchor
+                        Flow::Partial { .. } => true,
+                        Flow::Grid(_) => next == ph.m || (next - anchor.0).is_multiple_of(RESYNC),
+                    };
+                    if exact_end {
+                        if matches!(flow, Flow::Grid(_)) {
+                            y = ph.advance_grid(&anchor.1, next - anchor.0);
+                        }
+                        anchor = (next, y.clone());
+                    }
                     on_grid = Some(next);
                 }
                 Some((units, ys)) => {
@@ -239,7 +270,9 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize) -> Solution {
                         "reference solver: more than {MAX_SWITCHES_PER_SAMPLE} switches in sample {i}"
                     );
                     on_grid = if t >= h {
-                        Some(phases[in_contact as usize].m)
+                        let m = phases[in_contact as usize].m;
+                        anchor = (m, y.clone());
+                        Some(m)
                     } else {
                         None
                     };
@@ -255,4 +288,12 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize) -> Solution {
         contacts,
         stats,
     }
+}
+
+/// Whether the marched step `y0 -> y1` may hold a switch (the same tests as
+/// [`search`] makes first).
+fn may_switch(ph: &Phase, y0: &[f64], y1: &[f64]) -> bool {
+    let (p1, d1) = ph.event(y1);
+    let (_, d0) = ph.event(y0);
+    switched(ph.contact, p1) || (toward(ph.contact, d0) > 0.0 && toward(ph.contact, d1) <= 0.0)
 }

@@ -35,7 +35,7 @@ mod phase;
 #[cfg(test)]
 mod tests;
 
-pub use expm::solve;
+pub use expm::{solve, solve_with_substeps};
 
 /// One mode of a modal object.
 #[derive(Debug, Clone, Copy, PartialEq)]
