@@ -2,27 +2,36 @@
 //! switches located by bisection on the exact flow.
 //!
 //! Each sample period `h` is cut into `m` equal sub-steps of the current phase
-//! (`|B|_1 h / m <= 0.5`, see [`crate::phase`]); a sub-step is one product
-//! with `exp(B h/m)`. On every sub-step the penetration `p` and `p'` are
-//! checked at both ends: a change of the "switched" side brackets a crossing;
-//! otherwise, if `p` moves toward switching at the start and away at the end,
-//! its interior extremum is located (bisection on `p'`) and, if `p` has
-//! switched there, the crossing lies between the start and the extremum.
-//! Brackets are refined by bisection on the exact flow `exp(B tau) y` down to
-//! one time unit (`<= 1e-15` of a sample). Time inside a sub-step is an
-//! integer count of units, a power of two per sub-step, so every bisection
-//! midpoint is reached from the bracket's left end with the precomputed
-//! `exp(B h/m 2^-j)` (one product per bit of the offset).
+//! (`|B|_1 h / m <= 0.5`, see [`crate::phase`]). On every sub-step the
+//! penetration `p` and `p'` are checked at both ends: a change of the
+//! "switched" side brackets a crossing; otherwise, if `p` moves toward
+//! switching at the start and away at the end, its interior extremum is
+//! located (bisection on `p'`) and, if `p` has switched there, the crossing
+//! lies between the start and the extremum. Brackets are refined by
+//! bisection on the exact flow `exp(B tau) y` down to one time unit (`<=
+//! 1e-15` of a sample). Time inside a sub-step is an integer count of units,
+//! a power of two per sub-step, so every bisection midpoint is reached from
+//! the bracket's left end with the precomputed `exp(B h/m 2^-j)` (one
+//! product per bit of the offset).
+//!
+//! Exact states (double-double, see [`crate::dd`]) are kept at anchors: the
+//! sample's start, the state after each switch and at the end of the partial
+//! step that follows it. A grid point `j` sub-steps after an anchor is
+//! reached exactly by one product per set bit of `j`. Between anchors an
+//! f64 copy is marched one sub-step at a time with nalgebra's Pade `exp(B
+//! h/m)`; it only decides where to search: any sub-step it flags is
+//! re-derived exactly from the anchor and searched exactly, and it is
+//! re-anchored every [`RESYNC`] sub-steps and at the sample's end.
 //!
 //! At a switch the state carries over unchanged (positions and velocities
-//! are continuous) and the new phase runs a partial step to the next point of
-//! its own sub-step grid (Pade `exp(B tau)` for the odd lengths, searched the
-//! same way), then whole sub-steps to the sample instant. Any number of
-//! switches may happen inside a sub-step or a sample.
+//! are continuous) and the new phase runs a partial step to the next point
+//! of its own sub-step grid (Taylor series `exp(B tau) y` for the odd
+//! length, searched the same way), then whole sub-steps to the sample
+//! instant. Any number of switches may happen inside a sub-step or a sample.
 
+use crate::dd::Dd;
 use crate::phase::{matvec, Phase, MAX_NORM_STEP, RESYNC};
 use crate::{switched, toward, ContactInterval, Model, Solution, Stats};
-use std::cell::RefCell;
 
 /// Switches per sample beyond which the run is declared a loop (a physical
 /// run at these stiffnesses has a handful).
@@ -32,13 +41,12 @@ const MAX_SWITCHES_PER_SAMPLE: usize = 100_000;
 enum Flow<'a> {
     /// A whole sub-step: units of `h_sub 2^-levels`, precomputed powers.
     Grid(&'a Phase),
-    /// A partial step of `2^levels` units of `unit` seconds; `exp(B unit
-    /// 2^l)` computed on first use.
+    /// A partial step of `2^levels` units of `unit` seconds (Taylor series
+    /// per point).
     Partial {
         phase: &'a Phase,
         unit: f64,
         levels: u32,
-        cache: RefCell<Vec<Option<Vec<f64>>>>,
     },
 }
 
@@ -65,44 +73,27 @@ impl Flow<'_> {
         }
     }
 
-    /// The state `units` time units after `y` (one product per set bit).
-    fn advance(&self, y: &[f64], units: u64) -> Vec<f64> {
-        let mut cur = y.to_vec();
-        let mut tmp = vec![0.0; y.len()];
-        let levels = self.levels();
-        for l in 0..=levels {
-            if units & (1u64 << l) == 0 {
-                continue;
-            }
-            match self {
-                Flow::Grid(p) => matvec(&p.e[(levels - l) as usize], &cur, &mut tmp),
-                Flow::Partial {
-                    phase, unit, cache, ..
-                } => {
-                    let mut c = cache.borrow_mut();
-                    let e = c[l as usize]
-                        .get_or_insert_with(|| phase.exp_flat(unit * 2f64.powi(l as i32)));
-                    matvec(e, &cur, &mut tmp);
-                }
-            }
-            std::mem::swap(&mut cur, &mut tmp);
+    /// The exact state `units` time units after `y`.
+    fn advance(&self, y: &[Dd], units: u64) -> Vec<Dd> {
+        match self {
+            Flow::Grid(p) => p.advance_fine(y, units),
+            Flow::Partial { phase, unit, .. } => phase.exp_apply(unit * units as f64, y),
         }
-        cur
     }
 }
 
-/// Search one step for the first switch. `y0`, `y1`: states at its start and
-/// end (`y0` not switched). Returns the unit count and the state of the first
-/// switched point found, or `None`.
-fn search(flow: &Flow, y0: &[f64], y1: &[f64], stats: &mut Stats) -> Option<(u64, Vec<f64>)> {
+/// Search one step for the first switch. `y0`, `y1`: exact states at its
+/// start and end (`y0` not switched). Returns the unit count and the exact
+/// state of the first switched point found, or `None`.
+fn search(flow: &Flow, y0: &[Dd], y1: &[Dd], stats: &mut Stats) -> Option<(u64, Vec<Dd>)> {
     let ph = flow.phase();
     let c = ph.contact;
     let total = 1u64 << flow.levels();
-    let (p1, d1) = ph.event(y1);
+    let (p1, d1) = ph.event_dd(y1);
     if switched(c, p1) {
         return Some(refine(flow, 0, y0.to_vec(), total, y1.to_vec()));
     }
-    let (_, d0) = ph.event(y0);
+    let (_, d0) = ph.event_dd(y0);
     if !(toward(c, d0) > 0.0 && toward(c, d1) <= 0.0) {
         return None;
     }
@@ -112,7 +103,7 @@ fn search(flow: &Flow, y0: &[f64], y1: &[f64], stats: &mut Stats) -> Option<(u64
     while hi - lo > 1 {
         let mid = lo + (hi - lo) / 2;
         let ym = flow.advance(&ylo, mid - lo);
-        let (pm, dm) = ph.event(&ym);
+        let (pm, dm) = ph.event_dd(&ym);
         if switched(c, pm) {
             return Some(refine(flow, 0, y0.to_vec(), mid, ym));
         }
@@ -124,7 +115,7 @@ fn search(flow: &Flow, y0: &[f64], y1: &[f64], stats: &mut Stats) -> Option<(u64
         }
     }
     let yh = flow.advance(&ylo, 1);
-    if switched(c, ph.event(&yh).0) {
+    if switched(c, ph.event_dd(&yh).0) {
         return Some(refine(flow, 0, y0.to_vec(), hi, yh));
     }
     None
@@ -133,18 +124,12 @@ fn search(flow: &Flow, y0: &[f64], y1: &[f64], stats: &mut Stats) -> Option<(u64
 /// Bisection on `[a, b]` (unit counts) with `a` not switched and `b`
 /// switched, down to one unit. Returns `b` and the state there, as evaluated
 /// when `b` was found switched (so the new phase starts exactly on its side).
-fn refine(
-    flow: &Flow,
-    mut a: u64,
-    mut ya: Vec<f64>,
-    mut b: u64,
-    mut yb: Vec<f64>,
-) -> (u64, Vec<f64>) {
+fn refine(flow: &Flow, mut a: u64, mut ya: Vec<Dd>, mut b: u64, mut yb: Vec<Dd>) -> (u64, Vec<Dd>) {
     let ph = flow.phase();
     while b - a > 1 {
         let mid = a + (b - a) / 2;
         let ym = flow.advance(&ya, mid - a);
-        if switched(ph.contact, ph.event(&ym).0) {
+        if switched(ph.contact, ph.event_dd(&ym).0) {
             b = mid;
             yb = ym;
         } else {
@@ -153,6 +138,32 @@ fn refine(
         }
     }
     (b, yb)
+}
+
+/// Whether the marched f64 step `y0 -> y1` may hold a switch (the tests
+/// [`search`] makes first, with a margin: a point within 1e-12 of the
+/// largest term of `p` from the switching side counts, so the marched
+/// copy's drift, ~`RESYNC u` = 3e-14, cannot hide a crossing the exact
+/// states have; a wider margin would flag every sub-step of a hammer
+/// resting under gravity on a stiff contact, compressed by `m g / k` ~
+/// 1e-10 of its height at 1000x Nyquist).
+fn may_switch(ph: &Phase, y0: &[f64], y1: &[f64]) -> bool {
+    let (p0, d0) = ph.event(y0);
+    let (p1, d1) = ph.event(y1);
+    let scale = ph
+        .row_p
+        .iter()
+        .zip(y1)
+        .map(|(r, y)| (r * y).abs())
+        .fold(0.0, f64::max);
+    let margin = 1e-12 * scale;
+    let c = ph.contact;
+    let near = |p: f64| if c { p <= margin } else { p > -margin };
+    near(p0) || near(p1) || (toward(c, d0) > 0.0 && toward(c, d1) <= 0.0)
+}
+
+fn to_f64(y: &[Dd]) -> Vec<f64> {
+    y.iter().map(|v| v.to_f64()).collect()
 }
 
 /// Solve `model` for `n` samples at `rate_hz` (the reference solution).
@@ -175,112 +186,126 @@ pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step:
         ..Stats::default()
     };
     let mut in_contact = false;
-    let mut y = phases[0].to_balanced(&model.initial_state());
+    let z0: Vec<Dd> = model
+        .initial_state()
+        .into_iter()
+        .map(Dd::from_f64)
+        .collect();
+    // the exact state at the current sample instant
+    let mut y = phases[0].to_balanced(&z0);
+    let observe = |ph: &Phase, y: &[Dd], c: bool| model.observe(&to_f64(&ph.to_physical(y)), c);
     let mut samples = Vec::with_capacity(n + 1);
-    samples.push(model.observe(&phases[0].to_physical(&y), false));
+    samples.push(observe(&phases[0], &y, false));
     let mut contacts: Vec<ContactInterval> = Vec::new();
-    let mut y1 = vec![0.0; y.len()];
     for i in 0..n {
         let t_n = i as f64 * h;
-        // Position in the sample: on the current phase's grid point j, or
-        // `t` seconds into the sample, off the grid, after a switch. The
-        // marched state `y` is re-derived from the anchor (the last grid
-        // point reached exactly: the sample start, or the end of the
-        // partial step after a switch) every RESYNC sub-steps, before any
-        // search and at the sample's end.
-        let mut on_grid: Option<usize> = Some(0);
-        let mut anchor = (0usize, y.clone());
+        // On the grid: at sub-step `j` of the current phase, exact anchor
+        // `(anchor_j, anchor)` and marched copy `yf`. Off the grid: exact
+        // state `y` at `t` seconds into the sample, after a switch.
+        let mut on_grid = true;
+        let mut j = 0usize;
+        let mut anchor_j = 0usize;
+        let mut anchor = y.clone();
+        let mut yf = to_f64(&y);
+        let mut yf1 = vec![0.0; yf.len()];
         let mut t = 0.0;
         let mut switches = 0usize;
         loop {
             let ph = &phases[in_contact as usize];
-            let (flow, t_start, next) = match on_grid {
-                Some(j) if j == ph.m => break,
-                Some(j) => {
-                    matvec(&ph.e[0], &y, &mut y1);
-                    if j > anchor.0 && may_switch(ph, &y, &y1) {
-                        // search from exact states, not marched ones
-                        y = ph.advance_grid(&anchor.1, j - anchor.0);
-                        y1 = ph.advance_grid(&anchor.1, j + 1 - anchor.0);
-                    }
-                    (Flow::Grid(ph), j as f64 * ph.h_sub, j + 1)
+            let found;
+            let (flow, t_start);
+            if on_grid {
+                if j == ph.m {
+                    debug_assert_eq!(anchor_j, j);
+                    y = anchor;
+                    break;
                 }
-                None => {
-                    // partial step to the next grid point of this phase
-                    let mut j = (t / ph.h_sub).floor() as usize + 1;
-                    while j < ph.m && j as f64 * ph.h_sub <= t {
-                        j += 1;
+                matvec(&ph.e1, &yf, &mut yf1);
+                stats.steps += 1;
+                if !may_switch(ph, &yf, &yf1) {
+                    std::mem::swap(&mut yf, &mut yf1);
+                    j += 1;
+                    if j == ph.m || (j - anchor_j).is_multiple_of(RESYNC) {
+                        anchor = ph.advance_grid(&anchor, j - anchor_j);
+                        anchor_j = j;
+                        yf = to_f64(&anchor);
                     }
-                    let end = if j >= ph.m { h } else { j as f64 * ph.h_sub };
-                    let tau = end - t;
-                    let levels =
-                        ((tau / (crate::TIME_RESOLUTION * h)).log2().ceil() as u32).clamp(1, 62);
-                    let unit = tau / 2f64.powi(levels as i32);
-                    let e = ph.exp_flat(tau);
-                    matvec(&e, &y, &mut y1);
-                    let mut cache = vec![None; levels as usize + 1];
-                    cache[levels as usize] = Some(e);
-                    (
-                        Flow::Partial {
-                            phase: ph,
-                            unit,
-                            levels,
-                            cache: RefCell::new(cache),
-                        },
-                        t,
-                        j.min(ph.m),
-                    )
+                    continue;
                 }
-            };
-            stats.steps += 1;
-            match search(&flow, &y, &y1, &mut stats) {
-                None => {
-                    std::mem::swap(&mut y, &mut y1);
-                    let exact_end = match flow {
-                        // a partial step ends exactly on the grid: new anchor
-                        Flow::Partial { .. } => true,
-                        Flow::Grid(_) => next == ph.m || (next - anchor.0).is_multiple_of(RESYNC),
-                    };
-                    if exact_end {
-                        if matches!(flow, Flow::Grid(_)) {
-                            y = ph.advance_grid(&anchor.1, next - anchor.0);
-                        }
-                        anchor = (next, y.clone());
-                    }
-                    on_grid = Some(next);
+                // search this sub-step on exact states
+                let y0 = ph.advance_grid(&anchor, j - anchor_j);
+                let y1 = ph.advance_grid(&y0, 1);
+                flow = Flow::Grid(ph);
+                t_start = j as f64 * ph.h_sub;
+                found = search(&flow, &y0, &y1, &mut stats);
+                if found.is_none() {
+                    j += 1;
+                    anchor = y1;
+                    anchor_j = j;
+                    yf = to_f64(&anchor);
+                    continue;
                 }
-                Some((units, ys)) => {
-                    let frac = units as f64 / 2f64.powi(flow.levels() as i32);
-                    t = (t_start + frac * flow.length()).min(h);
-                    let z = ph.to_physical(&ys);
-                    in_contact = !in_contact;
-                    y = phases[in_contact as usize].to_balanced(&z);
-                    if in_contact {
-                        contacts.push(ContactInterval {
-                            start_s: t_n + t,
-                            end_s: None,
-                        });
-                    } else if let Some(last) = contacts.last_mut() {
-                        last.end_s = Some(t_n + t);
-                    }
-                    stats.switches += 1;
-                    switches += 1;
-                    assert!(
-                        switches <= MAX_SWITCHES_PER_SAMPLE,
-                        "reference solver: more than {MAX_SWITCHES_PER_SAMPLE} switches in sample {i}"
-                    );
-                    on_grid = if t >= h {
-                        let m = phases[in_contact as usize].m;
-                        anchor = (m, y.clone());
-                        Some(m)
-                    } else {
-                        None
-                    };
+            } else {
+                // partial step to the next grid point of this phase
+                let mut jn = (t / ph.h_sub).floor() as usize + 1;
+                while jn < ph.m && jn as f64 * ph.h_sub <= t {
+                    jn += 1;
                 }
+                let end = if jn >= ph.m { h } else { jn as f64 * ph.h_sub };
+                let tau = end - t;
+                let levels =
+                    ((tau / (crate::TIME_RESOLUTION * h)).log2().ceil() as u32).clamp(1, 62);
+                let y1 = ph.exp_apply(tau, &y);
+                stats.steps += 1;
+                flow = Flow::Partial {
+                    phase: ph,
+                    unit: tau / 2f64.powi(levels as i32),
+                    levels,
+                };
+                t_start = t;
+                found = search(&flow, &y, &y1, &mut stats);
+                if found.is_none() {
+                    on_grid = true;
+                    j = jn.min(ph.m);
+                    anchor = y1;
+                    anchor_j = j;
+                    yf = to_f64(&anchor);
+                    continue;
+                }
+            }
+            // a switch inside the step
+            let (units, ys) = found.expect("a switch");
+            let frac = units as f64 / 2f64.powi(flow.levels() as i32);
+            t = (t_start + frac * flow.length()).min(h);
+            let z = ph.to_physical(&ys);
+            in_contact = !in_contact;
+            let ph_new = &phases[in_contact as usize];
+            y = ph_new.to_balanced(&z);
+            if in_contact {
+                contacts.push(ContactInterval {
+                    start_s: t_n + t,
+                    end_s: None,
+                });
+            } else if let Some(last) = contacts.last_mut() {
+                last.end_s = Some(t_n + t);
+            }
+            stats.switches += 1;
+            switches += 1;
+            assert!(
+                switches <= MAX_SWITCHES_PER_SAMPLE,
+                "reference solver: more than {MAX_SWITCHES_PER_SAMPLE} switches in sample {i}"
+            );
+            if t >= h {
+                on_grid = true;
+                j = ph_new.m;
+                anchor = y.clone();
+                anchor_j = j;
+            } else {
+                on_grid = false;
             }
         }
         let ph = &phases[in_contact as usize];
-        samples.push(model.observe(&ph.to_physical(&y), in_contact));
+        samples.push(observe(ph, &y, in_contact));
     }
     Solution {
         rate_hz,
@@ -288,12 +313,4 @@ pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step:
         contacts,
         stats,
     }
-}
-
-/// Whether the marched step `y0 -> y1` may hold a switch (the same tests as
-/// [`search`] makes first).
-fn may_switch(ph: &Phase, y0: &[f64], y1: &[f64]) -> bool {
-    let (p1, d1) = ph.event(y1);
-    let (_, d0) = ph.event(y0);
-    switched(ph.contact, p1) || (toward(ph.contact, d0) > 0.0 && toward(ph.contact, d1) <= 0.0)
 }

@@ -12,7 +12,15 @@
 //! two (Parlett-Reinsch, as LAPACK's `gebal` and MATLAB's `expm` do): exact
 //! in floating point, it only changes units, and brings `|B|` within a small
 //! factor of the spectral radius. The solver steps `y = D^-1 z`.
+//!
+//! The propagators the exact states go through are double-double (see
+//! [`crate::dd`]): the Taylor series of `exp(B tau)` for `|B tau| <= 0.5`,
+//! checked against nalgebra's Pade `exp` of the same sub-step when the phase
+//! is built, and whole numbers of sub-steps by repeated squaring. The f64
+//! Pade sub-step propagator marches the state between exact anchors, for
+//! the event search only.
 
+use crate::dd::{exp_taylor, exp_taylor_apply, Dd, DdMat};
 use crate::Model;
 use nalgebra::DMatrix;
 
@@ -21,9 +29,10 @@ use nalgebra::DMatrix;
 /// interior extremum (the event search relies on it).
 pub const MAX_NORM_STEP: f64 = 0.5;
 
-/// Whole sub-steps between two re-anchorings of the marched state (see
-/// [`Phase::big`]).
-pub const RESYNC: usize = 64;
+/// Whole sub-steps between two re-anchorings of the f64 marched state on the
+/// exact one (it only decides where to look for switches; 256 f64 products
+/// drift by ~1e-14).
+pub const RESYNC: usize = 256;
 
 /// A phase ready to step.
 #[derive(Debug, Clone)]
@@ -32,8 +41,6 @@ pub struct Phase {
     pub contact: bool,
     /// Augmented dimension `2 N + 3`.
     pub dim: usize,
-    /// Balanced augmented matrix `B = D^-1 [[A, b], [0, 0]] D`.
-    pub b: DMatrix<f64>,
     /// Balancing scales: `z_i = d_i y_i` (the last entry scales the constant
     /// coordinate: `y_last = 1 / d_last`).
     pub d: Vec<f64>,
@@ -45,17 +52,19 @@ pub struct Phase {
     /// Dyadic levels: a sub-step is `2^levels` time units, each unit at most
     /// [`crate::TIME_RESOLUTION`] of a sample.
     pub levels: u32,
-    /// `e[j] = exp(B h_sub 2^-j)`, row-major, `j = 0..=levels`.
-    pub e: Vec<Vec<f64>>,
-    /// `big[l] = exp(B h_sub 2^l)`, `2^l <= m`: a grid point `j` sub-steps
-    /// after an anchor is reached with one product per set bit of `j`, not
-    /// `j` products. Chaining `exp(B h_sub)` `m` times per sample (up to
-    /// 1e5 at 1000x Nyquist) accumulates `m u` of rounding and of the Pade
-    /// approximant's own error, amplified by the eigenvector condition of a
-    /// stiff overdamped contact (measured: release instants moving by 2e-8
-    /// samples when the sub-steps were 16x shorter); the dyadic products
-    /// keep it at `log2(m) u`.
-    pub big: Vec<Vec<f64>>,
+    /// `exp(B h_sub)` in f64 (nalgebra's Pade), row-major: marches the
+    /// state that decides where to search.
+    pub e1: Vec<f64>,
+    /// `fine[j] = exp(B h_sub 2^-j)`, `j = 0..=levels`, double-double: the
+    /// bisection reaches `k` time units after a point with one product per
+    /// set bit of `k`.
+    pub fine: Vec<DdMat>,
+    /// `big[l] = exp(B h_sub 2^l)`, `2^l <= m`, double-double: a grid point
+    /// `j` sub-steps after an exact anchor is reached with one product per
+    /// set bit of `j`, not `j` chained products.
+    pub big: Vec<DdMat>,
+    /// Balanced augmented matrix `B = D^-1 [[A, b], [0, 0]] D`, row-major.
+    pub b_flat: Vec<f64>,
     /// Rows giving `p` and `p'` from the balanced state `y`.
     pub row_p: Vec<f64>,
     pub row_v: Vec<f64>,
@@ -75,12 +84,27 @@ impl Phase {
         // units of h_sub 2^-levels <= TIME_RESOLUTION h
         let levels =
             ((1.0 / (crate::TIME_RESOLUTION * m as f64)).log2().ceil() as u32).clamp(1, 62);
-        let e = (0..=levels)
-            .map(|j| flat(&(&b * (h_sub * 0.5f64.powi(j as i32))).exp()))
+        let b_flat = flat(&b);
+        let fine: Vec<DdMat> = (0..=levels)
+            .map(|j| exp_taylor(&b_flat, dim, h_sub * 0.5f64.powi(j as i32)))
             .collect();
-        let big = (0..usize::BITS - m.leading_zeros())
-            .map(|l| flat(&(&b * (h_sub * 2f64.powi(l as i32))).exp()))
-            .collect();
+        let e1 = flat(&(&b * h_sub).exp());
+        // two independent computations of the same sub-step exponential
+        let scale = fine[0].max_abs();
+        let diff = e1
+            .iter()
+            .zip(fine[0].to_f64())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            diff <= 1e-13 * scale,
+            "sub-step exponential: Pade and Taylor disagree by {diff:e} (scale {scale:e})"
+        );
+        let mut big = vec![fine[0].clone()];
+        for _ in 1..usize::BITS - m.leading_zeros() {
+            let g = big.last().expect("level 0");
+            big.push(g.mul(g));
+        }
         // p = sum w_i q_i - x_h, p' = sum w_i q_i' - v_h, in y = D^-1 z
         let mut row_p = vec![0.0; dim];
         let mut row_v = vec![0.0; dim];
@@ -93,51 +117,82 @@ impl Phase {
         Phase {
             contact,
             dim,
-            b,
             d,
             norm,
             m,
             h_sub,
             levels,
-            e,
+            e1,
+            fine,
             big,
+            b_flat,
             row_p,
             row_v,
         }
     }
 
-    /// `exp(B tau)`, row-major (Pade, for partial steps).
-    pub fn exp_flat(&self, tau: f64) -> Vec<f64> {
-        flat(&(&self.b * tau).exp())
+    /// `exp(B tau) y` in double-double (Taylor series on the vector; `|B
+    /// tau| <= 0.5`).
+    pub fn exp_apply(&self, tau: f64, y: &[Dd]) -> Vec<Dd> {
+        exp_taylor_apply(&self.b_flat, tau, y)
     }
 
     /// The state `count` whole sub-steps after `y` (dyadic products).
-    pub fn advance_grid(&self, y: &[f64], count: usize) -> Vec<f64> {
+    pub fn advance_grid(&self, y: &[Dd], count: usize) -> Vec<Dd> {
+        assert!(count >> self.big.len() == 0, "advance_grid: {count} > m");
         let mut cur = y.to_vec();
-        let mut tmp = vec![0.0; y.len()];
         for (l, g) in self.big.iter().enumerate() {
             if count & (1 << l) != 0 {
-                matvec(g, &cur, &mut tmp);
-                std::mem::swap(&mut cur, &mut tmp);
+                cur = g.apply(&cur);
             }
         }
-        assert!(count >> self.big.len() == 0, "advance_grid: {count} > m");
         cur
     }
 
-    /// Balanced state of the physical state `z`.
-    pub fn to_balanced(&self, z: &[f64]) -> Vec<f64> {
-        let mut y: Vec<f64> = z.iter().zip(&self.d).map(|(z, d)| z / d).collect();
-        y.push(1.0 / self.d[self.dim - 1]);
+    /// The state `units` time units (`h_sub 2^-levels`) after `y`, `units
+    /// <= 2^levels`.
+    pub fn advance_fine(&self, y: &[Dd], units: u64) -> Vec<Dd> {
+        let mut cur = y.to_vec();
+        for l in 0..=self.levels {
+            if units & (1u64 << l) != 0 {
+                cur = self.fine[(self.levels - l) as usize].apply(&cur);
+            }
+        }
+        cur
+    }
+
+    /// `(p, p')` of the exact state `y`.
+    pub fn event_dd(&self, y: &[Dd]) -> (f64, f64) {
+        let dot = |row: &[f64]| {
+            row.iter()
+                .zip(y)
+                .fold(
+                    Dd::ZERO,
+                    |acc, (&r, v)| if r == 0.0 { acc } else { acc + v.mul_f64(r) },
+                )
+                .to_f64()
+        };
+        (dot(&self.row_p), dot(&self.row_v))
+    }
+
+    /// Balanced state of the physical state `z` (exact: the scales are
+    /// powers of two).
+    pub fn to_balanced(&self, z: &[Dd]) -> Vec<Dd> {
+        let mut y: Vec<Dd> = z
+            .iter()
+            .zip(&self.d)
+            .map(|(z, d)| z.mul_f64(1.0 / d))
+            .collect();
+        y.push(Dd::from_f64(1.0 / self.d[self.dim - 1]));
         y
     }
 
     /// Physical state of the balanced state `y` (without the constant).
-    pub fn to_physical(&self, y: &[f64]) -> Vec<f64> {
+    pub fn to_physical(&self, y: &[Dd]) -> Vec<Dd> {
         y[..self.dim - 1]
             .iter()
             .zip(&self.d)
-            .map(|(y, d)| y * d)
+            .map(|(y, d)| y.mul_f64(*d))
             .collect()
     }
 

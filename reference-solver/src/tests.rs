@@ -35,11 +35,11 @@ fn wall(m: f64, ratio: f64, zeta: f64) -> Model {
 ///
 /// Tolerance 1e-10 relative: the instants are located to one time unit
 /// (1e-15 of a sample, 1e-12 of the shortest contact here, 5e-4 samples at
-/// 1000x Nyquist), and the contact flow is at most ~40 products with
-/// `exp(B h/m)` (each exact to a few ulps in the balanced coordinates, a
-/// normal 2x2 rotation-like block), so the expected error is ~1e-13; a
-/// located switch off by one sub-step, or an unbalanced exponential (whose
-/// `sin(w t)/w` entry would be off by `u w^2 ~ 1`), misses by orders more.
+/// 1000x Nyquist) and the flows are double-double, so what remains is the
+/// f64 rounding of the parameters, of the result and of the instants'
+/// sums (measured <= 3e-12); a located switch off by one sub-step, or an
+/// unbalanced exponential (whose `sin(w t)/w` entry would be off by `u w^2
+/// ~ 1`), misses by orders more.
 #[test]
 fn rigid_wall_closed_forms() {
     let m = 0.02;
@@ -263,18 +263,18 @@ fn max_dt(a: &Solution, b: &Solution, t_max: f64) -> Option<f64> {
 ///
 /// Tolerances, for DOP853 at rtol 1e-13: 1e-8 relative L2 on the hammer
 /// height and velocity and the contact displacement (measured: <= 1e-9), and
-/// 1e-6 samples on contact instants (measured: <= 1e-7). Instants are more sensitive than the
-/// traces: a contact entered at a small relative speed `v` moves by `dp / v`
-/// (the disturbed run's instants move by up to 2e-5 samples inside its
-/// horizon while its traces agree to 1e-7). That the remaining difference is
-/// DOP853's and not the reference's is checked by convergence: at rtol 1e-12
-/// it must be larger (by ~10x, DOP853 being 8th order: asserted > 2x)
-/// wherever it exceeds 1e-8 samples (below that both solvers reach their
-/// rounding floor on the overdamped cases, whose releases are
-/// ill-conditioned: `p` and `p'` are small differences there). A switch located a sub-step off (1e-2
-/// sample), a wrong sign or a missing term in one of the two independent
-/// phase descriptions (matrix vs right-hand side) gives 1e-4 or more, and
-/// would not converge. Each case must offer a horizon of at least 50
+/// 1e-6 samples on contact instants (measured: <= 1e-7). Instants are more
+/// sensitive than the traces: a contact entered at a small relative speed
+/// `v` moves by `dp / v` (the disturbed run's instants move by up to 2e-5
+/// samples inside its horizon while its traces agree to 1e-7). That the
+/// remaining difference is DOP853's and not the reference's is checked by
+/// convergence: at rtol 1e-12 it must be larger (by ~10x, DOP853 being 8th
+/// order: asserted > 2x) wherever it exceeds 1e-8 samples (below that
+/// DOP853 reaches its rounding floor on the overdamped cases, whose
+/// releases are ill-conditioned: `p` and `p'` are small differences there).
+/// A switch located a sub-step off (1e-2 sample), a wrong sign or a missing
+/// term in one of the two independent phase descriptions (matrix vs
+/// right-hand side) gives 1e-4 or more, and would not converge. Each case must offer a horizon of at least 50
 /// samples (the chattering heavy hammer has 101).
 #[test]
 fn expm_matches_dop853() {
@@ -392,10 +392,11 @@ fn expm_matches_dop853() {
 /// Nyquist, a damped bounce, an overdamped heavy hammer; in a chaotic
 /// rattle any rounding difference grows without bound).
 ///
-/// Tolerance 1e-9 relative L2 and 1e-8 samples: the two runs differ only in
-/// rounding, ~`u |B| t` in phase for the flows (1e-12 at 1000x Nyquist over
-/// a contact) and ~`u |x| / |p'|` for instants; the overdamped case is the
-/// worst (measured 2e-10, 1e-9 samples: its releases are ill-conditioned).
+/// Tolerance 1e-9 relative L2 and 1e-8 samples: the exact states are
+/// double-double, so the two runs differ only where their time units fall
+/// (up to 1e-15 sample apart: 1e-12 of a contact at 1000x Nyquist) and in
+/// the final rounding (measured <= 1e-13 and 1e-10 samples; in f64 the
+/// overdamped case moved by 3e-10 and 1e-9 samples).
 #[test]
 fn reference_does_not_depend_on_its_substeps() {
     let cases = [
