@@ -22,12 +22,20 @@
 //! from it the exact envelope `|C| e^{Re(mu) tau}` and every derivative
 //! `Re[C mu^j e^{mu tau}]`, `|.| <= |mu|^j |C| e^{Re(mu) tau}`. The rare
 //! blocks with nearly equal real eigenvalues (within a factor 2: one time
-//! scale, but Sylvester's amplitudes would cancel) stay whole: the search
-//! uses the norms of `r G^j` and the block's own state, which bounds them
-//! because every block is a contraction in its coordinates (`G + G^T <=
-//! 0`, up to a rounding allowance `gamma`).
+//! scale, but Sylvester's amplitudes would cancel) stay whole: with
+//! `G = m I + N`, `N^2 = rho^2 I`, `exp(G tau) = e^{m tau} (cosh(rho tau) I +
+//! sinh(rho tau) / rho N)`, so a row `R` applied to the block's state `x`
+//! at a node's start is at most `e^{(m + rho) tau} (|R x| + |R N x| tau)`
+//! later: the search keeps the rows `r G^j` and `r G^j N`.
+//!
+//! Near critical damping an oscillatory term has `w << |m|` and an
+//! ill-conditioned eigenbasis: `alpha` is of the size of the motion but
+//! `beta ~ 1 / w` is huge, and its envelope `|C|` says nothing. Its sine
+//! is small for as long as it matters, so the search bounds such a term by
+//! `e^{m tau} (|alpha| + |beta| min(1, w tau))`, which stays of the size of
+//! the motion (the same for every derivative, with `C mu^j`).
 
-use crate::physics::block::{sym_growth, Mat2, OscBlocks};
+use crate::physics::block::{Mat2, OscBlocks};
 use nalgebra::DMatrix;
 
 /// Real eigenvalues closer than this ratio (`|l1 - l2| < SPLIT_GAP max|l|`)
@@ -62,11 +70,12 @@ pub struct EventSearch {
     /// Blocks that are not written as terms (nearly equal real
     /// eigenvalues), ascending.
     pub whole: Vec<u32>,
-    /// Per whole block: `[|r|, |r G|, |r G^3|, gamma, rho]` with `gamma >= 0`
-    /// the largest eigenvalue of `(G + G^T) / 2` if positive (rounding of a
-    /// lossless eigenvalue): `|exp(G tau)| <= e^{gamma tau}`; `rho` the
-    /// spectral radius.
-    pub whole_norms: Vec<[f64; 5]>,
+    /// Per whole block: the rows `[r, r N, r G, r G N, r G^3, r G^3 N]`.
+    pub whole_rows: Vec<[[f64; 2]; 6]>,
+    /// Per whole block: `[lambda_max, rho_spec]`: the larger real
+    /// eigenvalue (`|exp(G tau) x|`-type bounds grow at most like
+    /// `e^{lambda_max tau}`, <= 1 up to rounding) and the spectral radius.
+    pub whole_info: Vec<[f64; 2]>,
     /// Dense phases: `|ev A^3|` (the event function's third derivative is
     /// at most this times the state norm, `|exp(A tau)| <= 1`).
     pub dense_ddd_norm: f64,
@@ -75,10 +84,6 @@ pub struct EventSearch {
 /// `row G` for one 2x2 block (row vector times matrix).
 fn row_g(r: [f64; 2], g: &Mat2) -> [f64; 2] {
     [r[0] * g[0] + r[1] * g[2], r[0] * g[1] + r[1] * g[3]]
-}
-
-fn norm2(r: [f64; 2]) -> f64 {
-    r[0].hypot(r[1])
 }
 
 /// The real eigenvalues `(l1, l2)` of a 2x2 block with a non-negative
@@ -103,7 +108,8 @@ impl EventSearch {
         let nb = gens.len();
         let mut terms = Vec::with_capacity(nb);
         let mut whole = Vec::new();
-        let mut whole_norms = Vec::new();
+        let mut whole_rows = Vec::new();
+        let mut whole_info = Vec::new();
         for (k, g) in gens.iter().enumerate() {
             let r = [ev[k], ev[nb + k]];
             if let Some(o) = osc.get(k) {
@@ -141,16 +147,20 @@ impl EventSearch {
                     });
                 }
             } else {
+                let m = 0.5 * (g[0] + g[3]);
+                let n = [g[0] - m, g[1], g[2], g[3] - m];
                 let r1 = row_g(r, g);
                 let r3 = row_g(row_g(r1, g), g);
                 whole.push(k as u32);
-                whole_norms.push([norm2(r), norm2(r1), norm2(r3), sym_growth(g), rho]);
+                whole_rows.push([r, row_g(r, &n), r1, row_g(r1, &n), r3, row_g(r3, &n)]);
+                whole_info.push([l1.max(l2), rho]);
             }
         }
         Self {
             terms,
             whole,
-            whole_norms,
+            whole_rows,
+            whole_info,
             dense_ddd_norm: 0.0,
         }
     }

@@ -86,8 +86,9 @@ pub const MAX_DEGREE: usize = 24;
 pub const ROOT_ULPS: f64 = 16.0;
 /// A node is neutral when `|phi| <= NEUTRAL_TOL` roundings on all of it.
 const NEUTRAL_TOL: f64 = 4.0;
-/// Rounding allowance of the model, in units of `u` times its scale.
-const ROUND_UNITS: f64 = 64.0;
+/// Rounding allowance of the model, in units of `u` times the magnitude of
+/// what is summed (each product and sum rounds once, with a margin).
+const ROUND_UNITS: f64 = 4.0;
 /// Deepest bisection: nodes never get narrower than the root resolution,
 /// `2^-48` of a sample; the stack holds one pending node per level.
 const STACK: usize = 64;
@@ -163,36 +164,49 @@ impl TermSplit {
     }
 }
 
+/// Per fast term, what the node bounds need besides its amplitude: for
+/// `j = 0, 1, 3` the magnitudes of `alpha_j = Re(C mu^j)`, `beta_j =
+/// -Im(C mu^j)` and `|C mu^j|`, and the peak of `e^{m tau} min(1, w tau)`
+/// (its instant and value) for decaying terms.
+#[derive(Debug, Clone, Copy, Default)]
+struct FastBounds {
+    ab: [[f64; 3]; 3],
+    peak: f64,
+    peak_val: f64,
+}
+
 /// Scratch of the event search (sized once per voice, never reallocated).
 #[derive(Debug, Clone)]
 pub(super) struct SearchScratch {
-    /// Fast blocks gathered for the current model: complex amplitude
-    /// `C = cr + i ci`, eigenvalue `m + i w`, `|C|`, `|mu|`.
+    /// Fast terms gathered for the current model: complex amplitude
+    /// `C = cr + i ci`, `mu = m + i w`, `|mu|`, and their bound data.
     nf: usize,
     f_cr: Vec<f64>,
     f_ci: Vec<f64>,
     f_m: Vec<f64>,
     f_w: Vec<f64>,
-    f_amp: Vec<f64>,
     f_mu: Vec<f64>,
-    /// exp/sin/cos arguments and results for the fast blocks.
+    f_b: Vec<FastBounds>,
+    /// exp/sin/cos arguments and results for the fast terms.
     f_mt: Vec<f64>,
     f_wt: Vec<f64>,
     f_e: Vec<f64>,
     f_s: Vec<f64>,
     f_c: Vec<f64>,
-    /// Slow blocks' polynomial `sum_j poly[j] tau^j`, its degree, the bound
+    /// Slow terms' polynomial `sum_j poly[j] tau^j`, its degree, the bound
     /// on the slow part's third derivative, and the truncation errors of the
     /// polynomial's value, slope and curvature.
     poly: [f64; MAX_DEGREE + 1],
     deg: usize,
     slow_c3: f64,
     slow_err: [f64; 3],
-    /// Slow blocks gathered: `C mu^j` as it is raised, and `mu`.
+    /// Slow terms gathered: `C mu^j` as it is raised, `mu`, and
+    /// `min(1, w rem)` (how much of `Im(C mu^j)` can show).
     z_r: Vec<f64>,
     z_i: Vec<f64>,
     mu_r: Vec<f64>,
     mu_i: Vec<f64>,
+    cw: Vec<f64>,
     /// Exactly polynomial part `c0 + c1 tau + c2 tau^2 / 2`.
     c: [f64; 3],
     /// Growth allowance `e^{gamma rem}` of envelopes (rounding of lossless
@@ -217,8 +231,8 @@ impl SearchScratch {
             f_ci: v(),
             f_m: v(),
             f_w: v(),
-            f_amp: v(),
             f_mu: v(),
+            f_b: vec![FastBounds::default(); n],
             f_mt: v(),
             f_wt: v(),
             f_e: v(),
@@ -232,6 +246,7 @@ impl SearchScratch {
             z_i: v(),
             mu_r: v(),
             mu_i: v(),
+            cw: v(),
             c: [0.0; 3],
             growth: 1.0,
             tol: 0.0,
@@ -240,6 +255,14 @@ impl SearchScratch {
             stack: [(0.0, 0.0); STACK],
         }
     }
+}
+
+/// `C mu^j` for `j = 0, 1, 3` as `(Re, Im)`.
+fn powers(cr: f64, ci: f64, m: f64, w: f64) -> [(f64, f64); 3] {
+    let mul = |(a, b): (f64, f64)| (a * m - b * w, a * w + b * m);
+    let c1 = mul((cr, ci));
+    let c3 = mul(mul(c1));
+    [(cr, ci), c1, c3]
 }
 
 /// Bounds of `phi` on a node `[a, a + w]`: the resolved part's value, slope
@@ -413,8 +436,9 @@ impl EngineState {
     }
 
     /// Build the model of `phi` from the current state over the next `rem`
-    /// (reference time): amplitudes of every block, the slow polynomial,
-    /// the fast blocks gathered, the rounding allowances. O(N + N_slow deg).
+    /// (reference time): amplitudes of every term, the slow polynomial, the
+    /// fast terms gathered with their bound data, the rounding allowances.
+    /// O(N + N_slow deg).
     fn build_model(&mut self, scene: &CompiledScene, rem: f64) {
         let in_contact = self.in_contact;
         let ph = current_phase(self, scene);
@@ -427,6 +451,7 @@ impl EngineState {
         let c_scale = sc.c[0].abs() + sc.c[1].abs() * rem + sc.c[2].abs() * rem * rem;
         let c_scale_d = sc.c[1].abs() + sc.c[2].abs() * rem;
         let s = if in_contact { &self.s_c } else { &self.s_f };
+        let units = ROUND_UNITS * f64::EPSILON;
         if let Some((_, _)) = &ph.dense {
             let n = ph.dim;
             sc.y_norm = s[..n].iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -436,9 +461,9 @@ impl EngineState {
             let ev_norm = ph.ev.iter().map(|x| x * x).sum::<f64>().sqrt();
             let evd_norm = ph.ev_d.iter().map(|x| x * x).sum::<f64>().sqrt();
             // dense partial steps: a Taylor series of mat-vecs per sub-step
-            let units = ROUND_UNITS * (n as f64 + TAYLOR_TERMS as f64);
-            sc.tol = units * f64::EPSILON * (c_scale + ev_norm * sc.y_norm);
-            sc.tol_d = units * f64::EPSILON * (c_scale_d + evd_norm * sc.y_norm);
+            let k = n as f64 + TAYLOR_TERMS as f64;
+            sc.tol = k * units * (c_scale + ev_norm * sc.y_norm);
+            sc.tol_d = k * units * (c_scale_d + evd_norm * sc.y_norm);
             return;
         }
         let split = if in_contact {
@@ -448,62 +473,79 @@ impl EngineState {
         };
         let nb = ph.dim / 2;
         let terms = &ph.search.terms;
-        // complex amplitude C = (re . s_k) - i (im . s_k) of a term
-        let amp = |t: &crate::compile::event::Term| -> (f64, f64) {
-            let k = t.block as usize;
-            let (x0, x1) = (s[k], s[nb + k]);
-            (t.re[0] * x0 + t.re[1] * x1, -(t.im[0] * x0 + t.im[1] * x1))
-        };
+        // Rounding: computing C from the state rounds each product once
+        // (`|re| |s_k|`, and `|im| |s_k|` of which at most `min(1, w rem)`
+        // shows); the sums below add it up as the allowance's scale.
+        let mut round = 0.0;
+        let mut round_d = 0.0;
         // Growth allowance: envelopes can only shrink unless rounding left
         // a lossless eigenvalue's real part a hair above 0.
         let mut gamma: f64 = 0.0;
         // --- fast terms, gathered
         let nf = split.fast.len();
-        let mut sum_f = 0.0;
-        let mut sum_f_d = 0.0;
         for (i, &j) in split.fast.iter().enumerate() {
             let t = &terms[j as usize];
-            let (cr, ci) = amp(t);
-            let a = cr.hypot(ci);
+            let k = t.block as usize;
+            let (x0, x1) = (s[k], s[nb + k]);
+            let (cr, ci) = (t.re[0] * x0 + t.re[1] * x1, -(t.im[0] * x0 + t.im[1] * x1));
+            let sk = x0.hypot(x1);
+            let r = (t.re[0].abs() + t.re[1].abs()) * sk
+                + (t.im[0].abs() + t.im[1].abs()) * sk * (t.w * rem).min(1.0);
+            round += r;
+            round_d += r * t.mu;
             sc.f_cr[i] = cr;
             sc.f_ci[i] = ci;
             sc.f_m[i] = t.m;
             sc.f_w[i] = t.w;
-            sc.f_amp[i] = a;
             sc.f_mu[i] = t.mu;
-            sum_f += a;
-            sum_f_d += a * t.mu;
+            let p = powers(cr, ci, t.m, t.w);
+            let mut fb = FastBounds::default();
+            for (q, (re, im)) in p.iter().enumerate() {
+                fb.ab[q] = [re.abs(), im.abs(), re.hypot(*im)];
+            }
+            // peak of e^{m tau} min(1, w tau) (decaying terms)
+            if t.m < 0.0 && t.w > 0.0 {
+                let t_star = -1.0 / t.m;
+                if t_star * t.w < 1.0 {
+                    (fb.peak, fb.peak_val) = (t_star, t.w * t_star * (-1.0f64).exp());
+                } else {
+                    (fb.peak, fb.peak_val) = (1.0 / t.w, (t.m / t.w).exp());
+                }
+            }
+            sc.f_b[i] = fb;
             gamma = gamma.max(t.m);
         }
         sc.nf = nf;
-        // --- whole blocks: bounds only (evaluated from the state per node)
-        let mut sum_o = 0.0;
-        let mut sum_o_d = 0.0;
+        // --- whole blocks: bounds from their own state, per node
         for (j, &k) in ph.search.whole.iter().enumerate() {
             let k = k as usize;
-            let [nr, nr1, _, g, _] = ph.search.whole_norms[j];
-            let sn = s[k].hypot(s[nb + k]);
-            sum_o += nr * sn;
-            sum_o_d += nr1 * sn;
-            gamma = gamma.max(g);
+            let rows = &ph.search.whole_rows[j];
+            let sk = s[k].hypot(s[nb + k]);
+            round += (rows[0][0].abs() + rows[0][1].abs()) * sk;
+            round_d += (rows[2][0].abs() + rows[2][1].abs()) * sk;
+            gamma = gamma.max(ph.search.whole_info[j][0]);
         }
+        let (round_fast, round_fast_d) = (round, round_d);
+        round = 0.0;
+        round_d = 0.0;
         // --- slow terms: the Taylor polynomial of their sum about t0
         let ns = split.slow.len();
-        let mut sum_s = 0.0;
-        let mut sum_s_d = 0.0;
-        let mut c3 = 0.0;
         let mut mu_max: f64 = 0.0;
         for (i, &j) in split.slow.iter().enumerate() {
             let t = &terms[j as usize];
-            let (cr, ci) = amp(t);
-            let a = cr.hypot(ci);
-            sc.z_r[i] = cr;
-            sc.z_i[i] = ci;
+            let k = t.block as usize;
+            let (x0, x1) = (s[k], s[nb + k]);
+            sc.z_r[i] = t.re[0] * x0 + t.re[1] * x1;
+            sc.z_i[i] = -(t.im[0] * x0 + t.im[1] * x1);
             sc.mu_r[i] = t.m;
             sc.mu_i[i] = t.w;
-            sum_s += a;
-            sum_s_d += a * t.mu;
-            c3 += a * t.mu * t.mu * t.mu;
+            let cw = (t.w * rem).min(1.0);
+            sc.cw[i] = cw;
+            let sk = x0.hypot(x1);
+            let r =
+                (t.re[0].abs() + t.re[1].abs()) * sk + (t.im[0].abs() + t.im[1].abs()) * sk * cw;
+            round += r;
+            round_d += r * t.mu;
             mu_max = mu_max.max(t.mu);
             gamma = gamma.max(t.m);
         }
@@ -517,65 +559,79 @@ impl EngineState {
             deg += 1;
             term *= theta / (deg + 1) as f64;
         }
-        if ns == 0 {
-            deg = 0;
-        }
+        // at least quadratic, so the remainders of the value, slope and
+        // curvature all come from the (deg+1)-th derivative
+        deg = if ns == 0 { 0 } else { deg.max(2) };
         sc.deg = deg;
-        // coefficients: poly[j] = sum_k Re[C_k mu_k^j] / j!
+        // Coefficients poly[j] = sum_k Re[C_k mu_k^j] / j!, and along the
+        // way the magnitudes of the third derivative (j = 3) and of the
+        // (deg+1)-th (the Lagrange remainder) of the slow part.
         let (zr, zi) = (&mut sc.z_r[..ns], &mut sc.z_i[..ns]);
-        let (mr, mi) = (&sc.mu_r[..ns], &sc.mu_i[..ns]);
+        let (mr, mi, cw) = (&sc.mu_r[..ns], &sc.mu_i[..ns], &sc.cw[..ns]);
+        let mag_now = |zr: &[f64], zi: &[f64]| -> f64 {
+            let mut acc = 0.0;
+            for i in 0..zr.len() {
+                acc += zr[i].hypot(zi[i]).min(zr[i].abs() + zi[i].abs() * cw[i]);
+            }
+            acc
+        };
+        let j_max = (deg + 1).max(3);
+        let (mut c3, mut rem_mag) = (0.0, 0.0);
         let mut inv_fact = 1.0;
-        for j in 0..=deg {
-            let mut acc = [0.0; 4];
-            let mut chunks_r = zr.chunks_exact(4);
-            for ch in &mut chunks_r {
-                for l in 0..4 {
-                    acc[l] += ch[l];
+        for j in 0..=j_max {
+            if j <= deg {
+                let mut acc = [0.0; 4];
+                let mut chunks = zr.chunks_exact(4);
+                for ch in &mut chunks {
+                    for l in 0..4 {
+                        acc[l] += ch[l];
+                    }
                 }
+                let mut tail = 0.0;
+                for x in chunks.remainder() {
+                    tail += x;
+                }
+                sc.poly[j] = ((acc[0] + acc[1]) + (acc[2] + acc[3]) + tail) * inv_fact;
+                inv_fact /= (j + 1) as f64;
             }
-            let mut tail = 0.0;
-            for x in chunks_r.remainder() {
-                tail += x;
+            if j == 3 {
+                c3 = mag_now(zr, zi);
             }
-            sc.poly[j] = ((acc[0] + acc[1]) + (acc[2] + acc[3]) + tail) * inv_fact;
-            if j < deg {
+            if j == deg + 1 {
+                rem_mag = mag_now(zr, zi);
+            }
+            if j < j_max {
                 for i in 0..ns {
                     let (a, b) = (zr[i], zi[i]);
                     zr[i] = a * mr[i] - b * mi[i];
                     zi[i] = a * mi[i] + b * mr[i];
                 }
-                inv_fact /= (j + 1) as f64;
             }
         }
         for p in sc.poly[deg + 1..].iter_mut() {
             *p = 0.0;
         }
+        if ns == 0 {
+            c3 = 0.0;
+            rem_mag = 0.0;
+        }
         sc.slow_c3 = c3 * growth;
         // Lagrange remainders of the j-th derivative of the degree-`deg`
-        // Taylor polynomial: sum_k |C_k| |mu_k|^(deg+1) rem^(deg+1-j) /
-        // (deg+1-j)!, with |mu_k| <= theta / rem.
-        sc.slow_err = if ns == 0 {
-            [0.0; 3]
-        } else {
-            let mut e = [0.0; 3];
-            for (j, ej) in e.iter_mut().enumerate() {
-                let mut v = sum_s * growth;
-                for i in 1..=(deg + 1 - j) {
-                    v *= theta / i as f64;
-                }
-                for _ in 0..j {
-                    v *= mu_max;
-                }
-                *ej = v;
+        // Taylor polynomial: |f^(deg+1)| rem^(deg+1-j) / (deg+1-j)!.
+        let mut e = [0.0; 3];
+        for (j, ej) in e.iter_mut().enumerate() {
+            let mut v = rem_mag * growth;
+            for i in 1..=(deg + 1).saturating_sub(j) {
+                v *= rem / i as f64;
             }
-            e
-        };
-        // Rounding: the polynomial's terms add up to at most e^theta times
-        // the slow amplitudes, summed in ~deg + log2(N) roundings.
-        let poly_units = (deg as f64 + 2.0 + (ns as f64).log2().max(0.0)) * theta.exp();
-        let units = ROUND_UNITS * f64::EPSILON;
-        sc.tol = units * (c_scale + poly_units * sum_s + 4.0 * (sum_f + sum_o)) * growth;
-        sc.tol_d = units * (c_scale_d + poly_units * sum_s_d + 4.0 * (sum_f_d + sum_o_d)) * growth;
+            *ej = v;
+        }
+        sc.slow_err = e;
+        // Horner's evaluation of the polynomial rounds ~2 deg times terms
+        // that add up to at most e^theta times the slow amplitudes.
+        let k = (2 * deg + 2) as f64 * theta.exp();
+        sc.tol = units * (c_scale + round_fast + k * round) * growth;
+        sc.tol_d = units * (c_scale_d + round_fast_d + k * round_d) * growth;
     }
 
     /// Bounds of `phi` on the node `[tau, tau + w]` of the current model
@@ -613,7 +669,7 @@ impl EngineState {
         let [e0, e1, e2] = sc.slow_err;
         u += e0 + w * (e1 + 0.5 * e2 * w);
         l += e1 + e2 * w;
-        // fast blocks: exact, in one vectorised exp/sin/cos batch
+        // fast terms: exact, in one vectorised exp/sin/cos batch
         let nf = sc.nf;
         if nf > 0 {
             for i in 0..nf {
@@ -633,38 +689,64 @@ impl EngineState {
                 let e = sc.f_e[i];
                 let (sn, cs) = (sc.f_s[i], sc.f_c[i]);
                 let (cr, ci) = (sc.f_cr[i], sc.f_ci[i]);
-                let er = e * (cr * cs - ci * sn);
-                let ei = e * (cr * sn + ci * cs);
-                let env = sc.f_amp[i] * e * growth;
                 let (m, wv, mu) = (sc.f_m[i], sc.f_w[i], sc.f_mu[i]);
-                if all || mu * w <= THETA_RESOLVED {
+                let resolved = all || mu * w <= THETA_RESOLVED;
+                if resolved {
+                    let er = e * (cr * cs - ci * sn);
+                    let ei = e * (cr * sn + ci * cs);
                     q[0] += er;
                     q[1] += er * m - ei * wv;
                     q[2] += er * (m * m - wv * wv) - ei * (2.0 * m * wv);
-                    c3 += mu * mu * mu * env;
+                    if all {
+                        continue;
+                    }
+                }
+                // sup over the node (tau >= `tau`) of e^{m t} and of
+                // e^{m t} min(1, w t)
+                let fb = &sc.f_b[i];
+                let (e_sup, f_sup) = if m < 0.0 {
+                    let f = if tau >= fb.peak {
+                        e * (wv * tau).min(1.0)
+                    } else {
+                        fb.peak_val
+                    };
+                    (e, f)
                 } else {
-                    u += env;
-                    l += mu * env;
+                    (growth, growth * (wv * (tau + w)).min(1.0))
+                };
+                let env =
+                    |q: usize| (fb.ab[q][2] * e_sup).min(fb.ab[q][0] * e_sup + fb.ab[q][1] * f_sup);
+                if resolved {
+                    c3 += env(2);
+                } else {
+                    u += env(0);
+                    l += env(1);
                 }
             }
         }
-        // whole blocks (nearly equal real eigenvalues): from their own state
+        // whole blocks (nearly equal real eigenvalues): from their own
+        // state x at the node's start, |R exp(G t) x| <= e^{lambda_max t}
+        // (|R x| + |R N x| t)
         let gens = ph.gens.as_ref().expect("block phase");
         let nb = gens.len();
         for (j, &k) in ph.search.whole.iter().enumerate() {
             let k = k as usize;
-            let p = exp2(&gens[k], tau);
-            let (x0, x1) = mul2(&p, s[k], s[nb + k]);
-            let [nr, nr1, nr3, g, rho] = ph.search.whole_norms[j];
-            let nrm = x0.hypot(x1) * (g * w).exp();
+            let (x0, x1) = mul2(&exp2(&gens[k], tau), s[k], s[nb + k]);
+            let rows = &ph.search.whole_rows[j];
+            let [lmax, rho] = ph.search.whole_info[j];
+            let dot2 = |r: [f64; 2]| (r[0] * x0 + r[1] * x1).abs();
+            let grow = (lmax.max(0.0) * w).exp();
+            let b = |q: usize| (dot2(rows[2 * q]) + dot2(rows[2 * q + 1]) * w) * grow;
             if all || rho * w <= THETA_RESOLVED {
                 q[0] += ph.ev[k] * x0 + ph.ev[nb + k] * x1;
                 q[1] += ph.ev_d[k] * x0 + ph.ev_d[nb + k] * x1;
                 q[2] += ph.ev_dd[k] * x0 + ph.ev_dd[nb + k] * x1;
-                c3 += nr3 * nrm;
+                if !all {
+                    c3 += b(2);
+                }
             } else {
-                u += nr * nrm;
-                l += nr1 * nrm;
+                u += b(0);
+                l += b(1);
             }
         }
         NodeBounds { q, u, l, c3 }
@@ -699,6 +781,9 @@ impl EngineState {
             let slope_lb = q[1].min(q[1] + q[2] * w) - l - r2 - tol_d;
             let slope_ub = q[1].max(q[1] + q[2] * w) + l + r2 + tol_d;
             let start_open = open && a == 0.0;
+            if std::env::var("DBG_SEARCH").is_ok() {
+                eprintln!("node a {:.12} w {:.3e} q {:?} u {:.3e} l {:.3e} c3w3/6 {:.3e} tol {:.3e} tol_d {:.3e} open {start_open} slope [{:.3e},{:.3e}] qrange [{:.3e},{:.3e}]", a / self.step_s, w / self.step_s, q, u, l, r3, tol, tol_d, slope_lb, slope_ub, qmin, qmax);
+            }
             let mut root_free = if start_open {
                 // phi(0) = 0 to rounding: no crossing while it rises
                 slope_lb > 0.0

@@ -323,7 +323,7 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
     // Eigenvectors (unnormalised: force 1, times the anchor's factor).
     let sk = mc.k.sqrt();
     let sm = mc.m_h.sqrt();
-    let eigvec = |r: &Root| -> Vec<C> {
+    let raw_vec = |r: &Root| -> Vec<C> {
         let base = prob.pole(r);
         let z = base + r.delta;
         let fj = &prob.factors[r.j];
@@ -341,6 +341,9 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
         }
         v[n] = dj * sk / (C::new(mc.k, 0.0) + z * mc.c);
         v[2 * n + 1] = dj / (z * sm);
+        v
+    };
+    let unit = |mut v: Vec<C>| -> Vec<C> {
         let norm = v.iter().map(|x| x.norm_sqr()).sum::<f64>().sqrt();
         for x in v.iter_mut() {
             *x /= norm;
@@ -360,8 +363,8 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
         acc
     };
 
-    let mut complex: Vec<(C, Vec<C>)> = Vec::new();
-    let mut real: Vec<(f64, Vec<C>)> = Vec::new();
+    let mut complex: Vec<(C, Root, Vec<C>)> = Vec::new();
+    let mut real: Vec<(f64, Root, Vec<C>)> = Vec::new();
     let mut n_lower = 0;
     for r in &roots {
         let mut z = prob.z(r);
@@ -379,9 +382,9 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
             for _ in 0..3 {
                 rr.delta.re -= prob.newton(&rr).re;
             }
-            real.push((prob.z(&rr).re.min(0.0), eigvec(&rr)));
+            real.push((prob.z(&rr).re.min(0.0), rr, unit(raw_vec(&rr))));
         } else if z.im > 0.0 {
-            complex.push((z, eigvec(r)));
+            complex.push((z, *r, unit(raw_vec(r))));
         } else {
             n_lower += 1;
         }
@@ -394,6 +397,30 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
         ));
     }
     real.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let cond = |v: &[C]| 1.0 / jnorm(v).norm();
+    // Near-critical real roots (adjacent, within a factor of each other,
+    // ill-conditioned) are paired together; the others in order.
+    let mut real_pairs: Vec<(usize, usize, bool)> = Vec::new();
+    {
+        let mut used = vec![false; real.len()];
+        for i in 0..real.len().saturating_sub(1) {
+            if used[i] || used[i + 1] {
+                continue;
+            }
+            let (z1, z2) = (real[i].0, real[i + 1].0);
+            let close = (z1 - z2).abs() < NEAR_CRITICAL_GAP * z1.abs().max(z2.abs());
+            let ill = cond(&real[i].2).max(cond(&real[i + 1].2)) > NEAR_CRITICAL_COND;
+            if close && ill {
+                used[i] = true;
+                used[i + 1] = true;
+                real_pairs.push((i, i + 1, true));
+            }
+        }
+        let rest: Vec<usize> = (0..real.len()).filter(|&i| !used[i]).collect();
+        for ch in rest.chunks(2) {
+            real_pairs.push((ch[0], ch[1], false));
+        }
+    }
 
     let nb = dim / 2;
     let mut gens: Vec<Mat2> = Vec::with_capacity(nb);
@@ -407,11 +434,32 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
     // Past ROW_COND_MAX the inverse is taken by LU instead (O(N^3), but one
     // blocked factorisation, far cheaper than the eigensolver).
     let mut worst_cond: f64 = 1.0;
-    for (z, ev) in &complex {
+    // A near-critical pair gets the orthonormal basis of its invariant
+    // subspace instead of its (nearly parallel) eigenvectors.
+    let near_critical = |kb: usize,
+                         gens: &mut Vec<Mat2>,
+                         v: &mut DMatrix<f64>,
+                         vinv: &mut DMatrix<f64>,
+                         r: &Root,
+                         z1: C,
+                         z2: C|
+     -> Result<(), String> {
+        let (g, q, rows) = pair_basis(&prob, mc, r, z1, z2)?;
+        for i in 0..dim {
+            v[(i, kb)] = q[0][i];
+            v[(i, nb + kb)] = q[1][i];
+            vinv[(kb, i)] = rows[0][i];
+            vinv[(nb + kb, i)] = rows[1][i];
+        }
+        gens.push(g);
+        Ok(())
+    };
+    for (z, r, ev) in &complex {
         let kb = gens.len();
         let nj = jnorm(ev);
-        if !(nj.norm() > 0.0) {
-            return Err("secular route: a defective eigenvalue (v^T J v = 0)".into());
+        if !(nj.norm() > 0.0) || 1.0 / nj.norm() > NEAR_CRITICAL_COND {
+            near_critical(kb, &mut gens, &mut v, &mut vinv, r, *z, z.conj())?;
+            continue;
         }
         worst_cond = worst_cond.max(1.0 / nj.norm());
         let inv_n = nj.inv();
@@ -424,9 +472,24 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
         }
         gens.push([z.re, z.im, -z.im, z.re]);
     }
-    for pair in real.chunks(2) {
+    for &(i1, i2, crit) in &real_pairs {
         let kb = gens.len();
-        for (off, (_, ev)) in pair.iter().enumerate() {
+        if crit {
+            let (z1, r1, _) = &real[i1];
+            let z2 = real[i2].0;
+            near_critical(
+                kb,
+                &mut gens,
+                &mut v,
+                &mut vinv,
+                r1,
+                C::new(*z1, 0.0),
+                C::new(z2, 0.0),
+            )?;
+            continue;
+        }
+        for (off, idx) in [i1, i2].into_iter().enumerate() {
+            let ev = &real[idx].2;
             let col = if off == 0 { kb } else { nb + kb };
             let nj = jnorm(ev).re;
             if !(nj.abs() > 0.0) {
@@ -438,7 +501,7 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
                 vinv[(col, i)] = ev[i].re * sign(i) / nj;
             }
         }
-        gens.push([pair[0].0, 0.0, 0.0, pair[1].0]);
+        gens.push([real[i1].0, 0.0, 0.0, real[i2].0]);
     }
     if v.iter().any(|x| !x.is_finite()) {
         return Err("secular route: eigenvectors are not finite".into());
@@ -451,6 +514,179 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
         return Err("secular route: inverse is not finite".into());
     }
     Ok((gens, v, vinv))
+}
+
+/// Eigenvalues whose condition number `1 / |v^T J v|` (unit `v`) exceeds
+/// this, in a pair closer than [`NEAR_CRITICAL_GAP`], are near critical
+/// damping: their eigenvectors are nearly parallel, so the pair is given
+/// the orthonormal basis of its invariant subspace instead.
+const NEAR_CRITICAL_COND: f64 = 8.0;
+/// Real roots closer than this fraction of their size form one
+/// near-critical pair.
+const NEAR_CRITICAL_GAP: f64 = 0.5;
+
+/// Coefficients (ascending powers) of a factor's polynomial `D(z)`.
+fn factor_poly(f: &Factor) -> [f64; 3] {
+    // (z - p0)(z - p1) = z^2 - (p0 + p1) z + p0 p1 (real: conjugate or real poles)
+    let s = f.p[0] + f.p[1];
+    let p = f.p[0] * f.p[1];
+    [p.re, -s.re, 1.0]
+}
+
+/// Divided difference `(N(z)/D(z) - N(w)/D(w)) / (z - w)` of a ratio of
+/// real polynomials at a pair `z, w` that is either conjugate or real,
+/// from `s = z + w` and `p = z w` (both real) and `D(z) D(w)`:
+/// `sum n_a d_b sgn(a - b) p^min(a,b) h_(|a-b|-1)(s, p) / (D(z) D(w))` with
+/// `h` the complete homogeneous symmetric polynomials. No difference of
+/// two nearly equal computed numbers is formed, so the result keeps full
+/// relative precision as `w -> z` (critical damping).
+fn divided_difference(num: &[f64], den: &[f64], s: f64, p: f64, dz_dw: f64) -> f64 {
+    let h = |k: usize| match k {
+        0 => 1.0,
+        1 => s,
+        2 => s * s - p,
+        _ => s * (s * s - 2.0 * p),
+    };
+    let mut acc = 0.0;
+    for (a, &na) in num.iter().enumerate() {
+        if na == 0.0 {
+            continue;
+        }
+        for (b, &db) in den.iter().enumerate() {
+            if db == 0.0 || a == b {
+                continue;
+            }
+            let (lo, gap) = (a.min(b), a.abs_diff(b));
+            let sgn = if a > b { 1.0 } else { -1.0 };
+            acc += sgn * na * db * p.powi(lo as i32) * h(gap - 1);
+        }
+    }
+    acc / dz_dw
+}
+
+/// The orthonormal basis of the invariant subspace of a near-critical pair
+/// of roots `z1, z2` (conjugate, or real), its 2x2 block, and the matching
+/// rows of `V^-1`.
+///
+/// With `v(z)` the eigenvector family of [`decompose`] (analytic in `z`,
+/// scaled by the anchor factor of `r`), `x = (v(z1) + v(z2)) / 2` and the
+/// divided difference `d = (v(z1) - v(z2)) / (z1 - z2)` are real and span
+/// the subspace; `A x = a x + e d`, `A d = x + a d` with `a = (z1 + z2) / 2`,
+/// `e = ((z1 - z2) / 2)^2` (`-w^2` for a conjugate pair): at exactly
+/// critical damping (`e = 0`) a Jordan block, which `exp2` steps exactly.
+/// `d` comes entry by entry from [`divided_difference`], so the pair stays
+/// accurate however close the roots are. Gram-Schmidt gives `Q = [x d]
+/// R^-1` and the block `R G R^-1`; the left subspace is spanned by `J x`,
+/// `J d` (`A^T = J A J`), and the rows are `(L Q)^-1 L`.
+#[allow(clippy::type_complexity)]
+fn pair_basis(
+    prob: &Problem,
+    mc: &ModalContact,
+    r: &Root,
+    z1: C,
+    z2: C,
+) -> Result<(Mat2, [Vec<f64>; 2], [Vec<f64>; 2]), String> {
+    let n = mc.omega.len();
+    let dim = 2 * n + 2;
+    let j = r.j;
+    let dj = factor_poly(&prob.factors[j]);
+    let (s, p) = ((z1 + z2).re, (z1 * z2).re);
+    let eval = |c: &[f64], z: C| -> C {
+        let mut acc = C::new(0.0, 0.0);
+        for &x in c.iter().rev() {
+            acc = acc * z + x;
+        }
+        acc
+    };
+    // D(z1) D(z2), real for a conjugate or real pair
+    let prod = |c: &[f64]| (eval(c, z1) * eval(c, z2)).re;
+    let mut x = vec![0.0; dim];
+    let mut d = vec![0.0; dim];
+    let sk = mc.k.sqrt();
+    let sm = mc.m_h.sqrt();
+    // x: the mean of the two eigenvectors (for a conjugate pair, the real
+    // part), with the common anchor factor D_j.
+    let mean = |num: &[f64], den: &[f64]| -> f64 {
+        let a = eval(num, z1) / eval(den, z1);
+        let b = eval(num, z2) / eval(den, z2);
+        0.5 * (a + b).re
+    };
+    let zdj = [0.0, dj[0], dj[1], dj[2]];
+    for i in 0..n {
+        let (fi, wi) = (mc.f[i], mc.omega[i]);
+        if i == j {
+            // D_j / D_j = 1: xi = -f w, u = -f z
+            x[i] = -fi * wi;
+            x[n + 1 + i] = -fi * s * 0.5;
+            d[i] = 0.0;
+            d[n + 1 + i] = -fi;
+        } else {
+            let di = factor_poly(&prob.factors[i]);
+            let dd_w = prod(&di);
+            x[i] = -fi * wi * mean(&dj, &di);
+            x[n + 1 + i] = -fi * mean(&zdj, &di);
+            d[i] = -fi * wi * divided_difference(&dj, &di, s, p, dd_w);
+            d[n + 1 + i] = -fi * divided_difference(&zdj, &di, s, p, dd_w);
+        }
+    }
+    let kc = [mc.k, mc.c];
+    x[n] = sk * mean(&dj, &kc);
+    d[n] = sk * divided_difference(&dj, &kc, s, p, prod(&kc));
+    let zz = [0.0, 1.0];
+    x[2 * n + 1] = mean(&dj, &zz) / sm;
+    d[2 * n + 1] = divided_difference(&dj, &zz, s, p, p) / sm;
+    // Gram-Schmidt (twice) on [x d]
+    let dotv = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, w)| u * w).sum::<f64>();
+    let nx = dotv(&x, &x).sqrt();
+    let q1: Vec<f64> = x.iter().map(|t| t / nx).collect();
+    let mut q2 = d.clone();
+    let mut r12 = 0.0;
+    for _ in 0..2 {
+        let c = dotv(&q1, &q2);
+        r12 += c;
+        for (a, b) in q2.iter_mut().zip(&q1) {
+            *a -= c * b;
+        }
+    }
+    let r22 = dotv(&q2, &q2).sqrt();
+    if !(nx > 0.0 && r22 > 1e-8 * dotv(&d, &d).sqrt() && r22.is_finite()) {
+        return Err("secular route: a near-critical pair has no independent basis".into());
+    }
+    for a in q2.iter_mut() {
+        *a /= r22;
+    }
+    // block: R G R^-1, G = [[a, 1], [e, a]], R = [[nx, r12], [0, r22]]
+    let a = 0.5 * s;
+    let e = 0.25 * (z1 - z2).powi(2).re;
+    let rg = [nx * a + r12 * e, nx + r12 * a, r22 * e, r22 * a];
+    let g = [
+        rg[0] / nx,
+        (rg[1] - rg[0] * r12 / nx) / r22,
+        rg[2] / nx,
+        (rg[3] - rg[2] * r12 / nx) / r22,
+    ];
+    // rows: (L Q)^-1 L with L = [J x; J d]
+    let jv = |u: &[f64]| -> Vec<f64> {
+        u.iter()
+            .enumerate()
+            .map(|(i, t)| if i <= n { *t } else { -*t })
+            .collect()
+    };
+    let (l1, l2) = (jv(&x), jv(&d));
+    let lq = [
+        dotv(&l1, &q1),
+        dotv(&l1, &q2),
+        dotv(&l2, &q1),
+        dotv(&l2, &q2),
+    ];
+    let det = lq[0] * lq[3] - lq[1] * lq[2];
+    if !(det.abs() > 0.0 && det.is_finite()) {
+        return Err("secular route: a near-critical pair has a singular left basis".into());
+    }
+    let inv = [lq[3] / det, -lq[1] / det, -lq[2] / det, lq[0] / det];
+    let row1: Vec<f64> = (0..dim).map(|i| inv[0] * l1[i] + inv[1] * l2[i]).collect();
+    let row2: Vec<f64> = (0..dim).map(|i| inv[2] * l1[i] + inv[3] * l2[i]).collect();
+    Ok((g, [q1, q2], [row1, row2]))
 }
 
 #[cfg(test)]
