@@ -170,7 +170,7 @@ impl EventSearch {
     pub fn of_dense(a: &DMatrix<f64>, ev: &[f64]) -> Self {
         let mut row = nalgebra::DVector::from_column_slice(ev).transpose();
         for _ in 0..3 {
-            row = row * a;
+            row *= a;
         }
         Self {
             dense_ddd_norm: row.norm(),
