@@ -63,7 +63,7 @@
 //! taken up by the rod offset, which adds no energy) and rises.
 
 use super::{dot, EngineState};
-use super::{kernel, vmath};
+use super::{kernel, vmath, SimdPath};
 use crate::compile::{CompiledPhase, CompiledScene};
 use crate::physics::block::{exp2, mul2};
 
@@ -165,12 +165,14 @@ impl TermSplit {
 }
 
 /// Per fast term, what the node bounds need besides its amplitude: for
-/// `j = 0, 1, 3` the magnitudes of `alpha_j = Re(C mu^j)`, `beta_j =
-/// -Im(C mu^j)` and `|C mu^j|`, and the peak of `e^{m tau} min(1, w tau)`
-/// (its instant and value) for decaying terms.
+/// `j = 0, 1, 3` the magnitudes of `alpha_j = Re(C mu^j)` and `beta_j =
+/// -Im(C mu^j)` (`|alpha cos + beta sin| <= |alpha| + |beta| |sin|`, within
+/// a factor sqrt(2) of the envelope `|C|` and far below it near critical
+/// damping), and the peak of `e^{m tau} min(1, w tau)` (its instant and
+/// value) for decaying terms.
 #[derive(Debug, Clone, Copy, Default)]
 struct FastBounds {
-    ab: [[f64; 3]; 3],
+    ab: [[f64; 2]; 3],
     peak: f64,
     peak_val: f64,
 }
@@ -200,6 +202,13 @@ pub(super) struct SearchScratch {
     deg: usize,
     slow_c3: f64,
     slow_err: [f64; 3],
+    /// Slow terms: how many, `|mu|max rem`, the model's range, and the next
+    /// power `j` of the raising (`z = C mu^j`, `inv_fact = 1 / j!`).
+    ns: usize,
+    theta: f64,
+    rem: f64,
+    next_j: usize,
+    inv_fact: f64,
     /// Slow terms gathered: `C mu^j` as it is raised, `mu`, and
     /// `min(1, w rem)` (how much of `Im(C mu^j)` can show).
     z_r: Vec<f64>,
@@ -239,6 +248,11 @@ impl SearchScratch {
             f_s: v(),
             f_c: v(),
             poly: [0.0; MAX_DEGREE + 1],
+            ns: 0,
+            theta: 0.0,
+            rem: 0.0,
+            next_j: 0,
+            inv_fact: 1.0,
             deg: 0,
             slow_c3: 0.0,
             slow_err: [0.0; 3],
@@ -254,6 +268,103 @@ impl SearchScratch {
             y_norm: 0.0,
             stack: [(0.0, 0.0); STACK],
         }
+    }
+}
+
+impl SearchScratch {
+    /// Raise the slow terms' powers `z = C mu^j` up to `j = upto`,
+    /// summing the coefficients `poly[j]` (`j <= deg`) and taking the
+    /// magnitudes of the third derivative (`j = 3`) and of the Lagrange
+    /// remainder (`j = deg + 1`). O(N_slow) per power. [audio-thread]
+    fn raise_poly(&mut self, simd: SimdPath, upto: usize) {
+        let ns = self.ns;
+        let deg = self.deg;
+        let (zr, zi) = (&mut self.z_r[..ns], &mut self.z_i[..ns]);
+        let (mr, mi, cw) = (&self.mu_r[..ns], &self.mu_i[..ns], &self.cw[..ns]);
+        let mag_now = |zr: &[f64], zi: &[f64]| -> f64 {
+            let mut acc = 0.0;
+            for i in 0..zr.len() {
+                acc += zr[i].abs() + zi[i].abs() * cw[i];
+            }
+            acc
+        };
+        while self.next_j <= upto {
+            let j = self.next_j;
+            if j == 3 && ns > 0 {
+                self.slow_c3 = mag_now(zr, zi) * self.growth;
+            }
+            if j == deg + 1 && ns > 0 {
+                // Lagrange remainders of the q-th derivative of the
+                // degree-`deg` Taylor polynomial: |f^(deg+1)| rem^(deg+1-q)
+                // / (deg+1-q)!.
+                let rem_mag = mag_now(zr, zi) * self.growth;
+                for (q, eq) in self.slow_err.iter_mut().enumerate() {
+                    let mut v = rem_mag;
+                    for i in 1..=(deg + 1).saturating_sub(q) {
+                        v *= self.rem / i as f64;
+                    }
+                    *eq = v;
+                }
+            }
+            // sum Re(z) (the coefficient) and raise z in one pass
+            let sum = raise_once(simd, zr, zi, mr, mi);
+            if j <= deg {
+                self.poly[j] = sum * self.inv_fact;
+                self.inv_fact /= (j + 1) as f64;
+            }
+            self.next_j += 1;
+        }
+    }
+
+    /// The whole polynomial and its truncation errors.
+    fn complete_poly(&mut self, simd: SimdPath) {
+        if self.next_j <= self.deg + 1 {
+            self.raise_poly(simd, self.deg + 1);
+        }
+    }
+}
+
+/// `sum Re(z)`, then `z *= mu` elementwise (complex, structure of arrays),
+/// in one pass; on the AVX2 path when the CPU has it. The sum runs in four
+/// lanes reduced in a fixed order (deterministic). [audio-thread]
+#[inline]
+fn raise_once(simd: SimdPath, zr: &mut [f64], zi: &mut [f64], mr: &[f64], mi: &[f64]) -> f64 {
+    #[inline(always)]
+    fn body(zr: &mut [f64], zi: &mut [f64], mr: &[f64], mi: &[f64]) -> f64 {
+        let n = zr.len();
+        let (zi, mr, mi) = (&mut zi[..n], &mr[..n], &mi[..n]);
+        let mut acc = [0.0; 4];
+        let full = n - n % 4;
+        let mut i = 0;
+        while i < full {
+            for l in 0..4 {
+                let (a, b) = (zr[i + l], zi[i + l]);
+                acc[l] += a;
+                zr[i + l] = a * mr[i + l] - b * mi[i + l];
+                zi[i + l] = a * mi[i + l] + b * mr[i + l];
+            }
+            i += 4;
+        }
+        let mut tail = 0.0;
+        for i in full..n {
+            let (a, b) = (zr[i], zi[i]);
+            tail += a;
+            zr[i] = a * mr[i] - b * mi[i];
+            zi[i] = a * mi[i] + b * mr[i];
+        }
+        ((acc[0] + acc[1]) + (acc[2] + acc[3])) + tail
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn body_avx2(zr: &mut [f64], zi: &mut [f64], mr: &[f64], mi: &[f64]) -> f64 {
+        body(zr, zi, mr, mi)
+    }
+    match simd {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `SimdPath::Avx2Fma` is only produced by `detect()` after
+        // checking AVX2 and FMA on this CPU.
+        SimdPath::Avx2Fma => unsafe { body_avx2(zr, zi, mr, mi) },
+        _ => body(zr, zi, mr, mi),
     }
 }
 
@@ -488,7 +599,7 @@ impl EngineState {
             let k = t.block as usize;
             let (x0, x1) = (s[k], s[nb + k]);
             let (cr, ci) = (t.re[0] * x0 + t.re[1] * x1, -(t.im[0] * x0 + t.im[1] * x1));
-            let sk = x0.hypot(x1);
+            let sk = x0.abs() + x1.abs();
             let r = (t.re[0].abs() + t.re[1].abs()) * sk
                 + (t.im[0].abs() + t.im[1].abs()) * sk * (t.w * rem).min(1.0);
             round += r;
@@ -501,7 +612,7 @@ impl EngineState {
             let p = powers(cr, ci, t.m, t.w);
             let mut fb = FastBounds::default();
             for (q, (re, im)) in p.iter().enumerate() {
-                fb.ab[q] = [re.abs(), im.abs(), re.hypot(*im)];
+                fb.ab[q] = [re.abs(), im.abs()];
             }
             // peak of e^{m tau} min(1, w tau) (decaying terms)
             if t.m < 0.0 && t.w > 0.0 {
@@ -520,7 +631,7 @@ impl EngineState {
         for (j, &k) in ph.search.whole.iter().enumerate() {
             let k = k as usize;
             let rows = &ph.search.whole_rows[j];
-            let sk = s[k].hypot(s[nb + k]);
+            let sk = s[k].abs() + s[nb + k].abs();
             round += (rows[0][0].abs() + rows[0][1].abs()) * sk;
             round_d += (rows[2][0].abs() + rows[2][1].abs()) * sk;
             gamma = gamma.max(ph.search.whole_info[j][0]);
@@ -541,7 +652,7 @@ impl EngineState {
             sc.mu_i[i] = t.w;
             let cw = (t.w * rem).min(1.0);
             sc.cw[i] = cw;
-            let sk = x0.hypot(x1);
+            let sk = x0.abs() + x1.abs();
             let r =
                 (t.re[0].abs() + t.re[1].abs()) * sk + (t.im[0].abs() + t.im[1].abs()) * sk * cw;
             round += r;
@@ -563,70 +674,19 @@ impl EngineState {
         // curvature all come from the (deg+1)-th derivative
         deg = if ns == 0 { 0 } else { deg.max(2) };
         sc.deg = deg;
-        // Coefficients poly[j] = sum_k Re[C_k mu_k^j] / j!, and along the
-        // way the magnitudes of the third derivative (j = 3) and of the
-        // (deg+1)-th (the Lagrange remainder) of the slow part.
-        let (zr, zi) = (&mut sc.z_r[..ns], &mut sc.z_i[..ns]);
-        let (mr, mi, cw) = (&sc.mu_r[..ns], &sc.mu_i[..ns], &sc.cw[..ns]);
-        let mag_now = |zr: &[f64], zi: &[f64]| -> f64 {
-            let mut acc = 0.0;
-            for i in 0..zr.len() {
-                acc += zr[i].hypot(zi[i]).min(zr[i].abs() + zi[i].abs() * cw[i]);
-            }
-            acc
-        };
-        let j_max = (deg + 1).max(3);
-        let (mut c3, mut rem_mag) = (0.0, 0.0);
-        let mut inv_fact = 1.0;
-        for j in 0..=j_max {
-            if j <= deg {
-                let mut acc = [0.0; 4];
-                let mut chunks = zr.chunks_exact(4);
-                for ch in &mut chunks {
-                    for l in 0..4 {
-                        acc[l] += ch[l];
-                    }
-                }
-                let mut tail = 0.0;
-                for x in chunks.remainder() {
-                    tail += x;
-                }
-                sc.poly[j] = ((acc[0] + acc[1]) + (acc[2] + acc[3]) + tail) * inv_fact;
-                inv_fact /= (j + 1) as f64;
-            }
-            if j == 3 {
-                c3 = mag_now(zr, zi);
-            }
-            if j == deg + 1 {
-                rem_mag = mag_now(zr, zi);
-            }
-            if j < j_max {
-                for i in 0..ns {
-                    let (a, b) = (zr[i], zi[i]);
-                    zr[i] = a * mr[i] - b * mi[i];
-                    zi[i] = a * mi[i] + b * mr[i];
-                }
-            }
-        }
-        for p in sc.poly[deg + 1..].iter_mut() {
-            *p = 0.0;
-        }
-        if ns == 0 {
-            c3 = 0.0;
-            rem_mag = 0.0;
-        }
-        sc.slow_c3 = c3 * growth;
-        // Lagrange remainders of the j-th derivative of the degree-`deg`
-        // Taylor polynomial: |f^(deg+1)| rem^(deg+1-j) / (deg+1-j)!.
-        let mut e = [0.0; 3];
-        for (j, ej) in e.iter_mut().enumerate() {
-            let mut v = rem_mag * growth;
-            for i in 1..=(deg + 1).saturating_sub(j) {
-                v *= rem / i as f64;
-            }
-            *ej = v;
-        }
-        sc.slow_err = e;
+        // Coefficients poly[j] = sum_k Re[C_k mu_k^j] / j! up to j = 3 (and
+        // the magnitude of the third derivative) now; the rest only when a
+        // node away from the origin needs them (`complete_poly`): a search
+        // that certifies its first node never pays for them.
+        sc.ns = ns;
+        sc.theta = theta;
+        sc.rem = rem;
+        sc.next_j = 0;
+        sc.inv_fact = 1.0;
+        sc.poly = [0.0; MAX_DEGREE + 1];
+        sc.slow_c3 = 0.0;
+        sc.slow_err = [0.0; 3];
+        sc.raise_poly(self.simd, 3);
         // Horner's evaluation of the polynomial rounds ~2 deg times terms
         // that add up to at most e^theta times the slow amplitudes.
         let k = (2 * deg + 2) as f64 * theta.exp();
@@ -654,21 +714,29 @@ impl EngineState {
             c3 = ph.search.dense_ddd_norm * sc.y_norm;
             return NodeBounds { q, u, l, c3 };
         }
-        // slow polynomial: value, slope and curvature by Horner
-        let deg = sc.deg;
-        let (mut p0, mut p1, mut p2) = (0.0, 0.0, 0.0);
-        for j in (0..=deg).rev() {
-            p2 = p2 * tau + 2.0 * p1;
-            p1 = p1 * tau + p0;
-            p0 = p0 * tau + sc.poly[j];
+        // slow polynomial: value, slope and curvature by Horner (at the
+        // origin: its first coefficients, which are exact sums)
+        if tau == 0.0 {
+            q[0] += sc.poly[0];
+            q[1] += sc.poly[1];
+            q[2] += 2.0 * sc.poly[2];
+        } else {
+            sc.complete_poly(self.simd);
+            let deg = sc.deg;
+            let (mut p0, mut p1, mut p2) = (0.0, 0.0, 0.0);
+            for j in (0..=deg).rev() {
+                p2 = p2 * tau + 2.0 * p1;
+                p1 = p1 * tau + p0;
+                p0 = p0 * tau + sc.poly[j];
+            }
+            q[0] += p0;
+            q[1] += p1;
+            q[2] += p2;
+            let [e0, e1, e2] = sc.slow_err;
+            u += e0 + w * (e1 + 0.5 * e2 * w);
+            l += e1 + e2 * w;
         }
-        q[0] += p0;
-        q[1] += p1;
-        q[2] += p2;
         c3 += sc.slow_c3;
-        let [e0, e1, e2] = sc.slow_err;
-        u += e0 + w * (e1 + 0.5 * e2 * w);
-        l += e1 + e2 * w;
         // fast terms: exact, in one vectorised exp/sin/cos batch
         let nf = sc.nf;
         if nf > 0 {
@@ -714,8 +782,7 @@ impl EngineState {
                 } else {
                     (growth, growth * (wv * (tau + w)).min(1.0))
                 };
-                let env =
-                    |q: usize| (fb.ab[q][2] * e_sup).min(fb.ab[q][0] * e_sup + fb.ab[q][1] * f_sup);
+                let env = |q: usize| fb.ab[q][0] * e_sup + fb.ab[q][1] * f_sup;
                 if resolved {
                     c3 += env(2);
                 } else {
@@ -781,9 +848,6 @@ impl EngineState {
             let slope_lb = q[1].min(q[1] + q[2] * w) - l - r2 - tol_d;
             let slope_ub = q[1].max(q[1] + q[2] * w) + l + r2 + tol_d;
             let start_open = open && a == 0.0;
-            if std::env::var("DBG_SEARCH").is_ok() {
-                eprintln!("node a {:.12} w {:.3e} q {:?} u {:.3e} l {:.3e} c3w3/6 {:.3e} tol {:.3e} tol_d {:.3e} open {start_open} slope [{:.3e},{:.3e}] qrange [{:.3e},{:.3e}]", a / self.step_s, w / self.step_s, q, u, l, r3, tol, tol_d, slope_lb, slope_ub, qmin, qmax);
-            }
             let mut root_free = if start_open {
                 // phi(0) = 0 to rounding: no crossing while it rises
                 slope_lb > 0.0
