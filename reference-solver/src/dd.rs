@@ -8,6 +8,9 @@
 //! when `p = x_c - x_h`, a small difference, returns to zero at a small
 //! `p'`) turn into 1e-6 samples after a few dozen contacts. In double-double
 //! that error is ~1e-27, and what remains is the final rounding to f64.
+//! The phase matrices' entries are double-double too (see
+//! [`crate::phase::augmented_matrix`]): rounded to f64 they change the
+//! contact force, a small difference of their products with the state.
 //!
 //! The error-free transformations are the classical ones (Knuth's two-sum,
 //! the product's rounding error by a fused multiply-add).
@@ -185,11 +188,13 @@ impl DdMat {
 const TAYLOR_TOL: f64 = 1e-34;
 
 /// `exp(B tau)` by its Taylor series in double-double, for `|B tau|_1 <=
-/// ~0.5` (then 25 terms reach 1e-34). `b` is f64, row-major, `n x n`.
-pub fn exp_taylor(b: &[f64], n: usize, tau: f64) -> DdMat {
+/// ~0.5` (then 25 terms reach 1e-34). `b` is double-double, row-major, `n x
+/// n` (the phase matrices' entries are exact sums and products of the
+/// model's numbers, see [`crate::phase::augmented_matrix`]).
+pub fn exp_taylor(b: &[Dd], n: usize, tau: f64) -> DdMat {
     let x = DdMat {
         n,
-        a: b.iter().map(|&v| Dd::from_f64(v).mul_f64(tau)).collect(),
+        a: b.iter().map(|v| v.mul_f64(tau)).collect(),
     };
     let mut sum = DdMat::identity(n);
     let mut term = DdMat::identity(n);
@@ -210,24 +215,25 @@ pub fn exp_taylor(b: &[f64], n: usize, tau: f64) -> DdMat {
 
 /// `exp(B tau) y` by the Taylor series applied to the vector (no matrix
 /// products: for one-off partial steps), same range as [`exp_taylor`].
-pub fn exp_taylor_apply(b: &[f64], tau: f64, y: &[Dd]) -> Vec<Dd> {
+pub fn exp_taylor_apply(b: &[Dd], tau: f64, y: &[Dd]) -> Vec<Dd> {
     let n = y.len();
     let mut sum = y.to_vec();
     let mut term = y.to_vec();
     for k in 1..200 {
-        let next: Vec<Dd> = (0..n)
-            .map(|i| {
-                let row = &b[i * n..(i + 1) * n];
-                row.iter().zip(&term).fold(Dd::ZERO, |acc, (&m, v)| {
-                    if m == 0.0 {
-                        acc
-                    } else {
-                        acc + v.mul_f64(m)
-                    }
+        let next: Vec<Dd> =
+            (0..n)
+                .map(|i| {
+                    let row = &b[i * n..(i + 1) * n];
+                    row.iter().zip(&term).fold(Dd::ZERO, |acc, (m, v)| {
+                        if m.hi == 0.0 {
+                            acc
+                        } else {
+                            acc + *m * *v
+                        }
+                    })
                 })
-            })
-            .map(|v| v.mul_f64(tau).div_f64(k as f64))
-            .collect();
+                .map(|v| v.mul_f64(tau).div_f64(k as f64))
+                .collect();
         term = next;
         let mut tmax: f64 = 0.0;
         for (s, t) in sum.iter_mut().zip(&term) {
@@ -246,6 +252,10 @@ pub fn exp_taylor_apply(b: &[f64], tau: f64, y: &[Dd]) -> Vec<Dd> {
 mod tests {
     use super::*;
 
+    fn dd(v: &[f64]) -> Vec<Dd> {
+        v.iter().map(|&x| Dd::from_f64(x)).collect()
+    }
+
     /// The double-double basics and the Taylor exponential of a rotation
     /// (exact: cos, sin) and of a decay (exact: e^-t), to ~1e-31.
     #[test]
@@ -254,7 +264,7 @@ mod tests {
         let err = (third.mul_f64(3.0) - Dd::ONE).to_f64().abs();
         assert!(err < 1e-31, "1/3 * 3 - 1 = {err:e}");
         // rotation by 0.5 rad: exp([[0, w], [-w, 0]] t)
-        let e = exp_taylor(&[0.0, 1.0, -1.0, 0.0], 2, 0.5);
+        let e = exp_taylor(&dd(&[0.0, 1.0, -1.0, 0.0]), 2, 0.5);
         let c_err = (e.a[0].hi - 0.5f64.cos()).abs();
         let s_err = (e.a[1].hi - 0.5f64.sin()).abs();
         assert!(c_err < 2e-16 && s_err < 2e-16, "{c_err:e} {s_err:e}");
@@ -264,14 +274,14 @@ mod tests {
         println!("double-double rotation: |cos^2 + sin^2 - 1| = {err:.1e}");
         assert!(err < 1e-30, "{err:e}");
         // the vector form agrees with the matrix form
-        let v = exp_taylor_apply(&[0.0, 1.0, -1.0, 0.0], 0.5, &[Dd::ONE, Dd::ZERO]);
+        let v = exp_taylor_apply(&dd(&[0.0, 1.0, -1.0, 0.0]), 0.5, &[Dd::ONE, Dd::ZERO]);
         let err = (v[0] - e.a[0])
             .to_f64()
             .abs()
             .max((v[1] - e.a[2]).to_f64().abs());
         assert!(err < 1e-31, "{err:e}");
         // e^-0.5 * e^0.5 = 1
-        let d = exp_taylor(&[-1.0], 1, 0.5).a[0] * exp_taylor(&[1.0], 1, 0.5).a[0];
+        let d = exp_taylor(&dd(&[-1.0]), 1, 0.5).a[0] * exp_taylor(&dd(&[1.0]), 1, 0.5).a[0];
         let err = (d - Dd::ONE).to_f64().abs();
         println!("double-double decay: |e^-t e^t - 1| = {err:.1e}");
         assert!(err < 1e-30, "{err:e}");

@@ -12,7 +12,12 @@
 //! (the exact states, see `dd`), which must agree when a phase is built: in
 //! physical coordinates a stiff phase's f64 propagators carry `u |B| t` of
 //! error, up to 1e-11 per sample at 1000x Nyquist, which the ill-conditioned
-//! releases of overdamped contacts turned into 1e-6-sample errors. A second,
+//! releases of overdamped contacts turned into 1e-6-sample errors. The phase
+//! matrices' entries are double-double as well: the contact force `k (x_c -
+//! x_h) + ...` is a small difference of large terms, and a matrix rounded to
+//! f64 entry by entry is a slightly different contact (a heavy hammer pressed
+//! into a light object through a stiff damped contact moved by 1e-8 relative
+//! in 50 ms, which no sub-step length changed). A second,
 //! unrelated integrator ([`dop853`], explicit Runge-Kutta with error
 //! control) checks this one in the unit tests, together with closed forms
 //! for a hammer on a rigid wall and the independence of the result from the
