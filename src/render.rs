@@ -2,7 +2,7 @@
 //! (DESIGN.md section 5). Used by `cargo xtask render`, the report and tests.
 
 use crate::compile::{compile_with, CompileError, CompiledScene};
-use crate::engine::{EngineState, Observation};
+use crate::engine::{EngineState, ExactStats, Observation};
 use crate::scene::{Scene, Switching};
 use std::io::Write;
 
@@ -54,6 +54,29 @@ pub struct RenderOutput {
     pub summary: String,
     /// Number of contacts that started.
     pub contacts: u64,
+    /// What exact switching did (all zero with the offset rod).
+    pub exact_stats: ExactStats,
+}
+
+impl RenderOutput {
+    /// One line on the exact switching's work and its diagnostics (the
+    /// counters that must stay 0: `capped`, `rod_fallbacks`,
+    /// `uncertified`).
+    pub fn switching_line(&self) -> String {
+        let x = &self.exact_stats;
+        format!(
+            "exact switching: {} located switches, {} grazing touches; capped {}, rod fallbacks {}, uncertified {}; \
+             event search: {} nodes, at most {} nodes and {} switches in one sample",
+            x.located,
+            x.grazing,
+            x.capped,
+            x.rod_fallbacks,
+            x.uncertified,
+            x.search_nodes,
+            x.max_nodes_in_sample,
+            x.max_switches_in_sample
+        )
+    }
 }
 
 /// Render a scene offline.
@@ -100,6 +123,7 @@ pub fn render_compiled(compiled: &CompiledScene, n: usize, trace: bool) -> Rende
         trace: rows,
         summary: compiled.summary.clone(),
         contacts: st.contacts_started,
+        exact_stats: st.exact_stats,
     }
 }
 

@@ -38,6 +38,19 @@
 use crate::physics::block::{Mat2, OscBlocks};
 use nalgebra::DMatrix;
 
+/// The engine's event search resolves a term on a node of width `w` when
+/// `|mu| w <=` this: then its cubic remainder `|mu|^3 w^3 / 6` (0.46 of its
+/// amplitude) and slope remainder `|mu|^3 w^2 / 2` beat the bare envelope
+/// and slope bound.
+pub const THETA_RESOLVED: f64 = 1.4;
+/// A term is slow when `|mu| h <=` this: the engine sums the slow terms
+/// into one Taylor polynomial per search, whose series converges fast over
+/// a whole sample (every term at most `2^j / j!` of its amplitude).
+pub const THETA_SLOW: f64 = 2.0;
+/// Nodes a search examines on its way down to the root resolution next to
+/// one root or tangency (`2^-48` of a sample).
+pub const NODES_PER_ROOT: f64 = 50.0;
+
 /// Real eigenvalues closer than this ratio (`|l1 - l2| < SPLIT_GAP max|l|`)
 /// are not split into two terms: their Sylvester amplitudes cancel by up to
 /// `1 / SPLIT_GAP`, while one time scale covers both.
@@ -103,6 +116,19 @@ fn real_eigenvalues(g: &Mat2) -> (f64, f64) {
 }
 
 impl EventSearch {
+    /// `(slow terms, fast terms, largest |mu| h of a fast term)` at step
+    /// `h`.
+    pub fn split_at(&self, h: f64) -> (usize, usize, f64) {
+        let fast: Vec<f64> = self
+            .terms
+            .iter()
+            .map(|t| t.mu * h)
+            .filter(|&x| x > THETA_SLOW)
+            .collect();
+        let top = fast.iter().copied().fold(0.0, f64::max);
+        (self.terms.len() - fast.len(), fast.len(), top)
+    }
+
     /// The search data of a block phase with event row `ev`.
     pub fn of_blocks(gens: &[Mat2], osc: &OscBlocks, ev: &[f64]) -> Self {
         let nb = gens.len();

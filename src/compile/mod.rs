@@ -751,6 +751,31 @@ pub fn compile_opts(
         if let Some(n) = &switching_note {
             let _ = writeln!(summary, "{n}");
         }
+        if switching == Switching::Exact {
+            // What the event search costs where a switch is near (see
+            // docs/numerics.md): fast terms are evaluated on nodes no wider
+            // than THETA_RESOLVED / |mu| while they can change the sign.
+            let mut parts = Vec::new();
+            let mut worst_nodes: f64 = 0.0;
+            for (what, ph) in [("free", &free), ("contact", &contact)] {
+                if ph.dense.is_some() {
+                    parts.push(format!("{what}: dense ({} dims)", ph.dim));
+                    continue;
+                }
+                let (slow, fast, top) = ph.search.split_at(h);
+                worst_nodes = worst_nodes.max((top / event::THETA_RESOLVED).ceil());
+                parts.push(format!(
+                    "{what}: {slow} slow terms in one polynomial, {fast} fast (fastest |mu| h = {top:.1}), {} whole blocks",
+                    ph.search.whole.len()
+                ));
+            }
+            let _ = writeln!(
+                summary,
+                "event search: {}; near a switch it examines up to ~{worst_nodes:.0} nodes per sample to resolve the fast terms, plus up to {:.0} per tangency (estimate; each node costs the fast terms and the polynomial)",
+                parts.join("; "),
+                event::NODES_PER_ROOT
+            );
+        }
         let n_total = match &scene.object[ci] {
             ObjectSpec::Modal(m) => m.mode.len(),
             _ => n,

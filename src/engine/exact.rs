@@ -64,18 +64,10 @@
 
 use super::{dot, EngineState};
 use super::{kernel, vmath, SimdPath};
+use crate::compile::event::{THETA_RESOLVED, THETA_SLOW};
 use crate::compile::{CompiledPhase, CompiledScene};
 use crate::physics::block::{exp2, mul2};
 
-/// A fast block is resolved on a node of width `w` when `|mu| w <=` this:
-/// then its cubic remainder `|mu|^3 w^3 / 6` (0.46 of its amplitude) and
-/// slope remainder `|mu|^3 w^2 / 2` beat the bare envelope and slope bound.
-pub const THETA_RESOLVED: f64 = 1.4;
-/// An oscillatory block is slow when `|mu| h <=` this: its Taylor series
-/// about the search origin converges fast over a whole sample (every term
-/// at most `2^j / j!` of its amplitude, degree <= [`MAX_DEGREE`] for a
-/// truncation error below `2^-60` of it).
-pub const THETA_SLOW: f64 = 2.0;
 /// Highest degree of the slow blocks' polynomial (`2^25 / 25! = 2e-18`).
 pub const MAX_DEGREE: usize = 24;
 /// Resolution of a located switch instant, in ulps of the sample period

@@ -266,6 +266,9 @@ fn run_render(a: RenderArgs) -> Result<()> {
         n as f64 / a.rate,
         out.contacts
     );
+    if out.exact_stats != Default::default() {
+        eprintln!("{}", out.switching_line());
+    }
     if !out.left.iter().chain(&out.right).all(|x| x.is_finite()) {
         bail!("render produced non-finite samples");
     }
