@@ -206,6 +206,138 @@ fn switch(c: &mut Criterion) {
     g.finish();
 }
 
+/// An `n`-mode object (200 Hz to 1.5x Nyquist, undamped) with a 10 g
+/// hammer dropped from 1 mm under gravity onto it through a critically
+/// damped contact at `ratio` times Nyquist: it rattles (hundreds of short
+/// contacts), the hardest work of the exact event search.
+fn rattle_scene(n: usize, ratio: f64) -> Scene {
+    let mut t = String::from(
+        "version = 1\nname = \"rattle\"\n[[object]]\nname = \"o\"\nkind = \"modal\"\npoints = [\"c\", \"p\"]\n",
+    );
+    let top = 1.5 * RATE / 2.0;
+    for i in 0..n {
+        let f = if n == 1 {
+            200.0
+        } else {
+            200.0 * (top / 200.0).powf(i as f64 / (n - 1) as f64)
+        };
+        let w = 0.7 / (1.0 + 0.05 * i as f64).sqrt();
+        t += &format!(
+            "[[object.mode]]\nfreq_hz = {f}\nweights = [{w}, {}]\n",
+            0.5 * w
+        );
+    }
+    let m_h = 0.01f64;
+    let k = m_h * (2.0 * std::f64::consts::PI * ratio * RATE / 2.0).powi(2);
+    let c = 2.0 * (k * m_h).sqrt();
+    t += &format!(
+        "[hammer]\nmass_kg = {m_h}\nheight_m = 0.001\nvelocity_m_per_s = 0.0\ngravity_m_per_s2 = 9.81\n\
+         [contact]\nobject = \"o\"\npoint = \"c\"\nstiffness_n_per_m = {k:e}\ndamping_n_s_per_m = {c:e}\n\
+         [[pickup]]\nobject = \"o\"\npoint = \"p\"\n"
+    );
+    Scene::from_toml_str(&t).unwrap()
+}
+
+/// The most expensive sample of the first `n` samples of a run from `st`
+/// (the fastest of three timings per sample, so a preemption does not
+/// pick it): the state just before it, its index, and the search nodes
+/// and switches it holds.
+fn worst_sample(sc: &CompiledScene, st: &EngineState, n: usize) -> (EngineState, usize, u64, u64) {
+    let mut best = vec![f64::INFINITY; n];
+    for _ in 0..3 {
+        let mut s = st.clone();
+        for b in best.iter_mut() {
+            let t0 = Instant::now();
+            black_box(s.tick(sc));
+            *b = b.min(t0.elapsed().as_secs_f64());
+        }
+    }
+    let i = (0..n).max_by(|&a, &b| best[a].total_cmp(&best[b])).unwrap();
+    let mut s = st.clone();
+    for _ in 0..i {
+        s.tick(sc);
+    }
+    let before = s.clone();
+    let (n0, l0) = (s.exact_stats.search_nodes, s.exact_stats.located);
+    s.tick(sc);
+    (
+        before,
+        i,
+        s.exact_stats.search_nodes - n0,
+        s.exact_stats.located - l0,
+    )
+}
+
+/// The exact event search at its hardest: the worst sample of 50 ms of
+/// rattling on 10 and 100 modes with the contact at 10x, 100x and 1000x
+/// Nyquist (criterion times that one sample, from a copy of the state).
+fn event_search(c: &mut Criterion) {
+    let mut g = c.benchmark_group("event_search_worst_sample");
+    g.sample_size(20);
+    for n in [10usize, 100] {
+        for ratio in [10.0, 100.0, 1000.0] {
+            let sc = compile_with(&rattle_scene(n, ratio), RATE, Some(Switching::Exact)).unwrap();
+            let (before, ..) = worst_sample(&sc, &EngineState::new(&sc), 2205);
+            g.bench_function(
+                BenchmarkId::new(format!("{n}_modes"), format!("{ratio}x_nyquist")),
+                |b| {
+                    b.iter_batched(
+                        || before.clone(),
+                        |mut st| black_box(st.tick(&sc)),
+                        criterion::BatchSize::SmallInput,
+                    )
+                },
+            );
+        }
+    }
+    g.finish();
+}
+
+/// The worst sample of each preset, struck at full velocity, at Hardness
+/// (contact stiffness factor) 0.01 .. 100, over the first 100 ms:
+/// microseconds and fraction of the 44.1 kHz sample period.
+fn presets_at_every_hardness() {
+    use modal_contact::instrument::{impact_speed_m_per_s, scene_for, InstrumentParams};
+    let period_us = 1e6 / RATE;
+    println!("worst sample of a full-velocity strike, first 100 ms, per Hardness (us; sample period {period_us:.1} us):");
+    let hardness = [0.01, 0.1, 1.0, 10.0, 100.0];
+    println!(
+        "  {:<18} {}",
+        "preset",
+        hardness.map(|h| format!("{h:>14}")).join("")
+    );
+    let mut worst_all: f64 = 0.0;
+    for (i, preset) in modal_contact::presets::PRESETS.iter().enumerate() {
+        let base = modal_contact::presets::scene(i).unwrap();
+        let mut cells = String::new();
+        for &hf in &hardness {
+            let mut p = InstrumentParams::default();
+            p.scene.preset = i;
+            p.scene.stiffness_factor = hf;
+            let sc = compile_with(&scene_for(&base, &p), RATE, None).unwrap();
+            let mut st = EngineState::new(&sc);
+            let speed = impact_speed_m_per_s(1.0);
+            if base.hammer.gravity_m_per_s2 > 0.0 {
+                st.strike(&sc, p.play.drop_height_m, -speed);
+            } else {
+                st.strike(&sc, 0.0, -speed);
+            }
+            let (before, ..) = worst_sample(&sc, &st, 4410);
+            let t = median_time(31, || {
+                let mut s = before.clone();
+                black_box(s.tick(&sc));
+            });
+            worst_all = worst_all.max(t * 1e6);
+            cells += &format!("{:>8.1} ({:>3.0}%)", t * 1e6, 100.0 * t * 1e6 / period_us);
+        }
+        println!("  {:<18} {cells}", preset.name);
+    }
+    println!(
+        "  worst over all presets and Hardness settings: {worst_all:.1} us = {:.0} % of a sample period",
+        100.0 * worst_all / period_us
+    );
+}
+
 fn renders(c: &mut Criterion) {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("presets");
     let mut g = c.benchmark_group("render_1s");
@@ -378,6 +510,34 @@ fn summary(_c: &mut Criterion) {
         times[1000] * 1e6,
         t_plain * 1e6
     );
+    println!("exact event search, worst sample of 50 ms of rattling (a 10 g hammer dropped 1 mm, critically damped contact):");
+    for n in [10usize, 100] {
+        for ratio in [10.0, 100.0, 1000.0] {
+            let sc = compile_with(&rattle_scene(n, ratio), RATE, Some(Switching::Exact)).unwrap();
+            let st0 = EngineState::new(&sc);
+            let (before, i, nodes, switches) = worst_sample(&sc, &st0, 2205);
+            let t = median_time(101, || {
+                let mut s = before.clone();
+                black_box(s.tick(&sc));
+            });
+            let mut all = st0.clone();
+            let t_all = median_time(3, || {
+                let mut s = all.clone();
+                black_box(run_engine(&mut s, &sc, 2205));
+            });
+            all = st0;
+            black_box(run_engine(&mut all, &sc, 2205));
+            println!(
+                "  {n:>3} modes, contact at {ratio:>6}x Nyquist: worst sample {:.1} us (sample {i}: {nodes} nodes, {switches} switches; {:.1}x the 22.7 us period); 50 ms in {:.2} ms, {} contacts, at most {} nodes in a sample",
+                t * 1e6,
+                t * RATE,
+                t_all * 1e3,
+                all.contacts_started,
+                all.exact_stats.max_nodes_in_sample
+            );
+        }
+    }
+    presets_at_every_hardness();
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("presets");
     for name in ["paper-bounce", "paper-string"] {
         let scene = Scene::from_file(&root.join(format!("{name}.toml"))).unwrap();
@@ -428,5 +588,14 @@ fn summary(_c: &mut Criterion) {
     );
 }
 
-criterion_group!(benches, phases, switch, renders, voices, tail, summary);
+criterion_group!(
+    benches,
+    phases,
+    switch,
+    event_search,
+    renders,
+    voices,
+    tail,
+    summary
+);
 criterion_main!(benches);
