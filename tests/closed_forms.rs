@@ -4,7 +4,7 @@
 mod common;
 
 use common::*;
-use modal_contact::compile::compile;
+use modal_contact::compile::{compile, compile_with};
 use modal_contact::engine::EngineState;
 use std::f64::consts::PI;
 
@@ -199,5 +199,45 @@ fn exact_switching_hits_rigid_wall_closed_forms_at_44k() {
         assert!(et < 1e-9, "contact time error {et:e}");
         assert!(ee < 1e-9, "restitution error {ee:e}");
         assert_eq!(st.exact_stats.rod_fallbacks, 0);
+    }
+}
+
+/// Every contact start and end is logged by `switch_events()`, in both
+/// switching modes and through both the plain and the observed tick (the
+/// report and the trace read them): one start per contact, each end after
+/// its start.
+#[test]
+fn switch_events_log_every_contact_in_both_modes() {
+    use modal_contact::scene::Switching;
+    let scene = common::preset("paper-bounce");
+    for sw in [Switching::OffsetRod, Switching::Exact] {
+        for observed in [false, true] {
+            let sc = compile_with(&scene, 44100.0, Some(sw)).unwrap();
+            let mut st = EngineState::new(&sc);
+            let (mut starts, mut ends) = (0u64, 0u64);
+            for _ in 0..44100 {
+                if observed {
+                    st.tick_observed(&sc);
+                } else {
+                    st.tick(&sc);
+                }
+                for e in st.switch_events() {
+                    if e.entered {
+                        starts += 1;
+                    } else {
+                        ends += 1;
+                    }
+                }
+            }
+            println!(
+                "{sw:?} observed={observed}: {} contacts, {starts} starts, {ends} ends logged",
+                st.contacts_started
+            );
+            assert_eq!(starts, st.contacts_started, "{sw:?} observed={observed}");
+            assert!(
+                ends + 1 >= starts && ends <= starts,
+                "{sw:?} observed={observed}"
+            );
+        }
     }
 }

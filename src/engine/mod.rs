@@ -595,7 +595,12 @@ impl EngineState {
             self.v_h = v_h;
         }
         self.clock += k_ok as u64;
-        self.n_events = 0;
+        // The events of the last sample: none in a fast sample, unless the
+        // offset rod's decision for it was already taken (and logged) by
+        // `tick_observed`.
+        if !(decided && k_ok == 1) {
+            self.n_events = 0;
+        }
         (k_ok, k_ok < k_max)
     }
 
