@@ -372,6 +372,29 @@ pub struct Prepared {
     states: [EngineState; MAX_VOICES],
 }
 
+impl Prepared {
+    /// A warning when the scene's exact event search may cost more than a
+    /// sample period in a sample that holds a switch (the compile summary's
+    /// estimate, at the root pitch: higher notes step further per sample and
+    /// cost more). The engine keeps the physics exact whatever it costs; the
+    /// warning tells the user where CPU spikes come from. [worker]
+    pub fn realtime_warning(&self) -> Option<String> {
+        let n = self.scene.search_nodes_estimate;
+        (n > crate::compile::REALTIME_SEARCH_NODES).then(|| {
+            let line = self
+                .scene
+                .summary
+                .lines()
+                .find(|l| l.starts_with("event search"))
+                .unwrap_or("");
+            format!(
+                "scene {:?}: the contact is stiff enough that a sample holding a switch may take longer than a sample period (about {n:.0} event-search nodes per sample; exact switching stays exact, expect CPU spikes at small buffer sizes; lower Hardness or raise Hammer mass to reduce it). {line}",
+                self.scene.name
+            )
+        })
+    }
+}
+
 impl std::fmt::Debug for Prepared {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Prepared")
@@ -1378,5 +1401,33 @@ mod tests {
                 .count(),
             2
         );
+    }
+
+    /// The real-time warning of a stiff scene's event search: no shipped
+    /// preset needs it at any Hardness (its estimate stays a few nodes per
+    /// sample), so users only see it for their own stiff scenes.
+    #[test]
+    fn presets_need_no_realtime_warning_at_any_hardness() {
+        for i in 0..presets::PRESETS.len() {
+            for hf in [0.01, 1.0, 100.0] {
+                let p = SceneParams {
+                    preset: i,
+                    stiffness_factor: hf,
+                    ..SceneParams::default()
+                };
+                let pr = prepare(&p, RATE, 1).unwrap();
+                assert!(
+                    pr.realtime_warning().is_none(),
+                    "{} x{hf}: {:?}",
+                    pr.scene.name,
+                    pr.realtime_warning()
+                );
+                assert!(
+                    pr.scene.search_nodes_estimate <= 8.0,
+                    "{}",
+                    pr.scene.summary
+                );
+            }
+        }
     }
 }

@@ -238,7 +238,17 @@ pub struct CompiledScene {
     pub offsets: RowOffsets,
     /// Human-readable summary of what was built.
     pub summary: String,
+    /// Estimated nodes per sample the exact event search needs near a
+    /// switch to resolve the fastest terms (0 with the offset rod): the
+    /// compile summary's `event search` line. The plugin warns above
+    /// [`REALTIME_SEARCH_NODES`].
+    pub search_nodes_estimate: f64,
 }
+
+/// Event-search nodes per sample beyond which a sample holding a switch may
+/// take longer than a 44.1 kHz sample period (measured 0.2-0.3 us per node
+/// plus the changes of basis; docs/numerics.md section 6.5).
+pub const REALTIME_SEARCH_NODES: f64 = 32.0;
 
 fn row_vec(row: &DVector<f64>, v: &DMatrix<f64>) -> Vec<f64> {
     (0..v.ncols()).map(|j| row.dot(&v.column(j))).collect()
@@ -697,6 +707,7 @@ pub fn compile_opts(
     }
 
     let mut summary = String::new();
+    let mut search_nodes_estimate = 0.0;
     {
         use std::fmt::Write;
         let kind = match spec {
@@ -769,6 +780,7 @@ pub fn compile_opts(
                     ph.search.whole.len()
                 ));
             }
+            search_nodes_estimate = worst_nodes;
             let _ = writeln!(
                 summary,
                 "event search: {}; near a switch it examines up to ~{worst_nodes:.0} nodes per sample to resolve the fast terms, plus up to {:.0} per tangency (estimate; each node costs the fast terms and the polynomial)",
@@ -835,5 +847,6 @@ pub fn compile_opts(
         s_f_star,
         offsets,
         summary,
+        search_nodes_estimate,
     })
 }

@@ -198,6 +198,9 @@ impl Plugin for ModalContact {
         if let Some(note) = &prepared.fallback_note {
             nice_log!("modal_contact: {note}");
         }
+        if let Some(w) = prepared.realtime_warning() {
+            nice_log!("modal_contact: {w}");
+        }
         self.requested = prepared.params;
         self.revision = 0;
         self.rate_hz = rate_hz;

@@ -162,6 +162,9 @@ fn run(h: &Handoff) {
                 if let Some(note) = &p.fallback_note {
                     nice_plug::nice_log!("modal_contact: {note}");
                 }
+                if let Some(w) = p.realtime_warning() {
+                    nice_plug::nice_log!("modal_contact: {w}");
+                }
                 h.last_compile_ms
                     .store(t0.elapsed().as_secs_f64() * 1e3, Ordering::Relaxed);
                 h.compiles.fetch_add(1, Ordering::Relaxed);
