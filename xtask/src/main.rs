@@ -8,6 +8,7 @@
 //! - `cargo xtask demo`: bundle (release) and render a demo through the built
 //!   CLAP plugin into `target/demo/*.wav`
 
+mod golden;
 mod plot;
 mod report;
 
@@ -54,6 +55,7 @@ fn main() -> Result<()> {
         Some("report") => report::run(&args[2..]),
         Some("test") => run_tests(&args[2..]),
         Some("demo") => run_demo(),
+        Some("golden") => golden::run(args.get(2).is_some_and(|a| a == "--write")),
         _ => nice_plug_xtask::main(),
     }
 }

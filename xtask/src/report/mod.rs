@@ -12,8 +12,8 @@
 mod accuracy;
 mod plot;
 mod runs;
-mod scenes;
-mod stability;
+pub mod scenes;
+pub mod stability;
 mod sustain;
 
 use accuracy::{Case, SceneResult};

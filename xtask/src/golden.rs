@@ -1,0 +1,178 @@
+//! `cargo xtask golden [--write]`: renders every preset and every stability
+//! case of the report, in both switching modes, and hashes the WAV and the
+//! trace CSV of each (64-bit FNV-1a of the bytes the render command writes).
+//! `--write` records them in `tests/golden-hashes.txt`; without it the
+//! hashes are compared with that file and any difference is an error.
+//!
+//! Why: a refactoring that must not change behaviour is shown to be one by
+//! bit-identical renders. The engine runs on the portable kernels (the
+//! baseline target, no FMA), whose rounding is the same on every x86-64, and
+//! on this CPU's detected kernels; each path has its own lines.
+
+use crate::report::scenes::RATE;
+use crate::report::stability;
+use anyhow::{bail, Context, Result};
+use modal_contact::compile::compile_with;
+use modal_contact::engine::{EngineState, SimdPath};
+use modal_contact::render::{write_trace_csv, TraceRow};
+use modal_contact::scene::{Scene, Switching};
+use std::collections::BTreeMap;
+use std::io::Cursor;
+use std::path::Path;
+
+/// Where the recorded hashes live (relative to the workspace root).
+pub const HASH_FILE: &str = "tests/golden-hashes.txt";
+
+/// 64-bit FNV-1a.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+/// Render `n` samples of `scene` with `switching` on kernel `path`, and
+/// hash the WAV (32-bit float stereo, as `cargo xtask render` writes it)
+/// and the trace CSV.
+fn render_hashes(
+    scene: &Scene,
+    n: usize,
+    switching: Switching,
+    path: SimdPath,
+) -> Result<(u64, u64)> {
+    let sc = compile_with(scene, RATE, Some(switching))?;
+    let mut st = EngineState::new(&sc);
+    st.set_simd_path(path);
+    let mut wav = Cursor::new(Vec::new());
+    let spec = hound::WavSpec {
+        channels: 2,
+        sample_rate: RATE as u32,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut rows = Vec::with_capacity(n);
+    {
+        let mut w = hound::WavWriter::new(&mut wav, spec)?;
+        for i in 0..n {
+            let (out, obs) = st.tick_observed(&sc);
+            rows.push(TraceRow {
+                t: i as f64 / RATE,
+                obs,
+            });
+            w.write_sample(out[0] as f32)?;
+            w.write_sample(out[1] as f32)?;
+        }
+        w.finalize()?;
+    }
+    let mut csv = Vec::new();
+    write_trace_csv(&rows, &mut csv)?;
+    Ok((fnv1a(&wav.into_inner()), fnv1a(&csv)))
+}
+
+/// Every case: (name, scene, samples).
+fn cases(root: &Path) -> Result<Vec<(String, Scene, usize)>> {
+    let mut v = Vec::new();
+    let mut presets: Vec<_> = std::fs::read_dir(root.join("presets"))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    presets.sort();
+    for p in presets {
+        let scene = Scene::from_file(&p).with_context(|| format!("{}", p.display()))?;
+        let n = (scene.duration_s.min(2.0) * RATE) as usize;
+        let name = format!("preset {}", p.file_stem().unwrap().to_string_lossy());
+        v.push((name, scene, n));
+    }
+    for c in stability::cases()? {
+        v.push((format!("stability {}", c.id), c.scene, c.samples));
+    }
+    Ok(v)
+}
+
+/// Compute every hash: `"<case> | <switching> | <kernels>" -> "wav trace"`.
+fn compute(root: &Path) -> Result<BTreeMap<String, String>> {
+    let mut paths = vec![SimdPath::Generic];
+    if SimdPath::detect() != SimdPath::Generic {
+        paths.push(SimdPath::detect());
+    }
+    let mut out = BTreeMap::new();
+    for (name, scene, n) in cases(root)? {
+        for sw in [Switching::Exact, Switching::OffsetRod] {
+            for &path in &paths {
+                let (w, t) = render_hashes(&scene, n, sw, path)
+                    .with_context(|| format!("{name} ({})", sw.as_str()))?;
+                let kernels = if path == SimdPath::Generic {
+                    "portable"
+                } else {
+                    "avx2+fma"
+                };
+                out.insert(
+                    format!("{name} | {} | {kernels}", sw.as_str()),
+                    format!("wav {w:016x} trace {t:016x}"),
+                );
+            }
+        }
+        eprintln!("  {name}");
+    }
+    Ok(out)
+}
+
+/// `cargo xtask golden [--write]`.
+pub fn run(write: bool) -> Result<()> {
+    nice_plug_xtask::chdir_workspace_root()?;
+    let root = Path::new(".");
+    let now = compute(root)?;
+    let file = root.join(HASH_FILE);
+    if write {
+        let mut text = String::from(
+            "# Render hashes of every preset and stability case (cargo xtask golden --write).\n\
+             # case | switching | kernels = wav <fnv1a-64> trace <fnv1a-64>\n",
+        );
+        for (k, v) in &now {
+            text += &format!("{k} = {v}\n");
+        }
+        std::fs::write(&file, text)?;
+        eprintln!("wrote {} ({} renders)", file.display(), now.len());
+        return Ok(());
+    }
+    let text = std::fs::read_to_string(&file).with_context(|| format!("{}", file.display()))?;
+    let mut recorded = BTreeMap::new();
+    for line in text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+    {
+        let (k, v) = line.rsplit_once(" = ").context("malformed line")?;
+        recorded.insert(k.to_string(), v.to_string());
+    }
+    let mut bad = Vec::new();
+    for (k, v) in &now {
+        match recorded.get(k) {
+            Some(r) if r == v => {}
+            Some(r) => bad.push(format!("{k}: recorded {r}, now {v}")),
+            // a CPU without the recorded kernel path checks the portable one
+            None if k.ends_with("| avx2+fma") => {}
+            None => bad.push(format!("{k}: not recorded")),
+        }
+    }
+    for k in recorded.keys() {
+        if !now.contains_key(k) && !k.ends_with("| avx2+fma") {
+            bad.push(format!("{k}: recorded but not rendered"));
+        }
+    }
+    if !bad.is_empty() {
+        bail!(
+            "{} of {} renders differ:\n{}",
+            bad.len(),
+            now.len(),
+            bad.join("\n")
+        );
+    }
+    eprintln!(
+        "all {} renders bit-identical to {}",
+        now.len(),
+        file.display()
+    );
+    Ok(())
+}
