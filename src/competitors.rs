@@ -240,7 +240,7 @@ impl PwlSystem {
         let oi = scene
             .object_index(&scene.contact.object)
             .ok_or_else(|| format!("contact.object: no object {:?}", scene.contact.object))?;
-        let obj = ObjectModel::from_spec(&scene.object[oi])?;
+        let obj = ObjectModel::from_spec(&scene.object[oi]).map_err(|e| e.to_string())?;
         let n = obj.n;
         let (disp, vel) = match &scene.contact.point {
             Some(name) if n > 0 => {

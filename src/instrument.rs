@@ -427,14 +427,43 @@ fn compile_with_fallback(
     }
 }
 
+/// Why a parameter set could not be prepared.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PrepareError {
+    /// A scene (the played one or its damped variant) did not compile.
+    Compile(CompileError),
+    /// The damped scene compiled to other dimensions than the played one
+    /// (released voices could not carry their state over).
+    DampedLayoutDiffers,
+}
+
+impl std::fmt::Display for PrepareError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Compile(e) => write!(f, "{e}"),
+            Self::DampedLayoutDiffers => {
+                write!(f, "damped scene has other dimensions than the scene")
+            }
+        }
+    }
+}
+
+impl std::error::Error for PrepareError {}
+
+impl From<CompileError> for PrepareError {
+    fn from(e: CompileError) -> Self {
+        Self::Compile(e)
+    }
+}
+
 /// Compile everything for `params` at `rate_hz` (eigendecompositions: never
 /// call this on the audio thread). [worker] [main-thread]
 pub fn prepare(
     params: &SceneParams,
     rate_hz: f64,
     revision: u64,
-) -> Result<Box<Prepared>, CompileError> {
-    let base = presets::scene(params.preset).map_err(|e| CompileError(e.to_string()))?;
+) -> Result<Box<Prepared>, PrepareError> {
+    let base = presets::scene(params.preset).map_err(CompileError::Scene)?;
     let ip = InstrumentParams {
         scene: *params,
         play: PlayParams::default(),
@@ -450,9 +479,7 @@ pub fn prepare(
     };
     if let Some(d) = &damped {
         if d.free.dim != scene.free.dim || d.contact.dim != scene.contact.dim {
-            return Err(CompileError(
-                "damped scene has other dimensions than the scene".into(),
-            ));
+            return Err(PrepareError::DampedLayoutDiffers);
         }
     }
     let band_hz = OUTPUT_BAND_FRACTION * 0.5 * rate_hz;

@@ -3,7 +3,7 @@
 
 use crate::compile::{compile_with, CompileError, CompiledScene};
 use crate::engine::{EngineState, ExactStats, Observation};
-use crate::scene::{Scene, Switching};
+use crate::scene::{Scene, Switching, MAX_DURATION_S};
 use std::io::Write;
 
 /// Options of an offline render.
@@ -79,15 +79,49 @@ impl RenderOutput {
     }
 }
 
-/// Render a scene offline.
-pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<RenderOutput, CompileError> {
-    let compiled = compile_with(scene, opts.rate_hz, opts.switching)?;
-    let seconds = opts.seconds.unwrap_or(scene.duration_s);
-    if !(seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0) {
-        return Err(CompileError(format!(
-            "render length must be in (0, 3600] s, got {seconds}"
-        )));
+/// Why an offline render could not run.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RenderError {
+    /// The scene did not compile.
+    Compile(CompileError),
+    /// The length is not in `(0, MAX_DURATION_S]` seconds.
+    Length(f64),
+}
+
+impl std::fmt::Display for RenderError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Compile(e) => write!(f, "{e}"),
+            Self::Length(s) => write!(
+                f,
+                "render length must be in (0, {MAX_DURATION_S}] s, got {s}"
+            ),
+        }
     }
+}
+
+impl std::error::Error for RenderError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Self::Compile(e) => Some(e),
+            Self::Length(_) => None,
+        }
+    }
+}
+
+impl From<CompileError> for RenderError {
+    fn from(e: CompileError) -> Self {
+        Self::Compile(e)
+    }
+}
+
+/// Render a scene offline.
+pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<RenderOutput, RenderError> {
+    let seconds = opts.seconds.unwrap_or(scene.duration_s);
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= MAX_DURATION_S) {
+        return Err(RenderError::Length(seconds));
+    }
+    let compiled = compile_with(scene, opts.rate_hz, opts.switching)?;
     let n = (seconds * opts.rate_hz).round() as usize;
     Ok(render_compiled(&compiled, n, opts.trace))
 }

@@ -399,7 +399,8 @@ fn check_scene_text(
         let compiled = match compiled {
             Err(e) => {
                 let msg = e.to_string();
-                if e.0.trim().len() < 8 {
+                let reason = msg.trim_start_matches("cannot compile scene: ");
+                if reason.trim().len() < 8 {
                     return Err(fail(
                         text,
                         format!("compile error without a reason: {msg:?}"),
@@ -413,9 +414,10 @@ fn check_scene_text(
                     ));
                 }
                 let mut st = stats.borrow_mut();
-                *st.compile_refused.entry(category(&e.0)).or_default() += 1;
+                let cat = format!("{} ({})", category(reason), e.kind());
+                *st.compile_refused.entry(cat.clone()).or_default() += 1;
                 st.compile_examples
-                    .entry(category(&e.0))
+                    .entry(cat)
                     .or_insert_with(|| format!("{msg}\n{}", show(text)));
                 continue;
             }

@@ -38,6 +38,7 @@
 //! strings of 400 / 800 / 1000 masses: 1.3 / 9.8 / 16.6 s (estimates 1.5 /
 //! 11.8 / 23 s), 95 / 387 / 528 MB (estimates 114 / 450 / 700 MB).
 
+use super::error::OverBudget;
 use crate::scene::{ObjectSpec, Scene};
 
 /// Flop-equivalents per `x^3` for one general eigendecomposition of
@@ -204,15 +205,15 @@ impl CompileCost {
         }
     }
 
-    /// `Ok` when the cost fits `budget`; otherwise a message that says what
-    /// the estimate is, what the limit is, and how to get under it. `scene`
-    /// and `obj_idx` name the struck object in the message.
+    /// `Ok` when the cost fits `budget`; otherwise what the estimate is,
+    /// what the limit is, and how to get under it. `scene` and `obj_idx`
+    /// name the struck object.
     pub fn check(
         &self,
         budget: &CompileBudget,
         scene: &Scene,
         obj_idx: usize,
-    ) -> Result<(), String> {
+    ) -> Result<(), Box<OverBudget>> {
         let over_flops = !(self.flops <= budget.max_flops);
         let over_bytes = !(self.bytes <= budget.max_bytes);
         if !over_flops && !over_bytes {
@@ -229,28 +230,17 @@ impl CompileCost {
                 self.n, self.n_coupled, self.contact_eig_dim, self.contact_dim, self.free_dim
             ),
         };
-        let mut over = Vec::new();
-        if over_flops {
-            over.push(format!(
-                "estimated work {:.1e} flops exceeds the limit {:.1e}",
-                self.flops, budget.max_flops
-            ));
-        }
-        if over_bytes {
-            over.push(format!(
-                "estimated memory {:.0} MB exceeds the limit {:.0} MB",
-                self.bytes / 1e6,
-                budget.max_bytes / 1e6
-            ));
-        }
         let hint = match obj {
             ObjectSpec::String(_) => format!("use fewer masses (object[{obj_idx}].masses)"),
             _ => "use fewer modes, drop high or quiet modes with [approximate] nyquist_fraction, max_freq_hz or quiet_below_db, or give modes that need not be struck a zero weight at the contact point (they stay out of the eigenproblem)".to_string(),
         };
-        Err(format!(
-            "compile budget exceeded for object[{obj_idx}] {:?} ({what}): {}; not attempted. To get under it, {hint}; or raise CompileOptions::budget",
-            obj.name(),
-            over.join(" and ")
-        ))
+        Err(Box::new(OverBudget {
+            object: obj_idx,
+            name: obj.name().to_string(),
+            what,
+            flops: over_flops.then_some((self.flops, budget.max_flops)),
+            bytes: over_bytes.then_some((self.bytes, budget.max_bytes)),
+            hint,
+        }))
     }
 }

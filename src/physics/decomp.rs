@@ -12,6 +12,7 @@
 //! eigenvalues), the phase falls back to the dense propagator `exp(A h)`.
 
 use crate::physics::block::{exp2, is_contraction, Mat2};
+use crate::physics::error::{Check, DecompError, SecularError};
 use crate::physics::linalg::{mat_vec, to_faer};
 pub use crate::physics::secular::BlockEigen;
 use faer::diag::Diag;
@@ -97,16 +98,16 @@ pub fn sigma_max(m: &DMatrix<f64>) -> f64 {
 
 /// Dense `exp(A t)` with a finiteness guard (nalgebra's `exp` unwraps an LU
 /// solve internally and would panic on NaN input).
-pub fn dense_exp(a: &DMatrix<f64>, t: f64) -> Result<DMatrix<f64>, String> {
+pub fn dense_exp(a: &DMatrix<f64>, t: f64) -> Result<DMatrix<f64>, DecompError> {
     if a.iter().any(|x| !x.is_finite()) || !t.is_finite() {
-        return Err("generator has non-finite entries".into());
+        return Err(DecompError::NonFinite);
     }
     if a.nrows() == 0 {
         return Ok(DMatrix::zeros(0, 0));
     }
     let e = (a * t).exp();
     if e.iter().any(|x| !x.is_finite()) {
-        return Err("exp(A h) is not finite".into());
+        return Err(DecompError::ExpNotFinite);
     }
     Ok(e)
 }
@@ -172,7 +173,7 @@ pub fn from_blocks(gens: Vec<Mat2>, pairs: &[(usize, usize)], dim: usize, h: f64
 
 /// Decompose a general phase generator; falls back to dense when the eigen
 /// route fails its checks. `h` is the sample period used for the checks.
-pub fn decompose(a: &DMatrix<f64>, h: f64) -> Result<PhaseDecomp, String> {
+pub fn decompose(a: &DMatrix<f64>, h: f64) -> Result<PhaseDecomp, DecompError> {
     decompose_via(a, h, None, true)
 }
 
@@ -185,11 +186,11 @@ pub fn decompose(a: &DMatrix<f64>, h: f64) -> Result<PhaseDecomp, String> {
 pub fn decompose_via(
     a: &DMatrix<f64>,
     h: f64,
-    structured: Option<(&str, Result<BlockEigen, String>)>,
+    structured: Option<(&str, Result<BlockEigen, SecularError>)>,
     allow_general: bool,
-) -> Result<PhaseDecomp, String> {
+) -> Result<PhaseDecomp, DecompError> {
     if a.iter().any(|x| !x.is_finite()) {
-        return Err("phase generator has non-finite entries".into());
+        return Err(DecompError::NonFinite);
     }
     // A 2x2 generator (a hammer against a wall, or the hammer-spring pair
     // of a contact whose coupled modes all sit at a node) is its own block:
@@ -204,20 +205,25 @@ pub fn decompose_via(
         d.diag.expm_rel_diff = (&p - &reference).norm() / reference.norm().max(f64::MIN_POSITIVE);
         return Ok(d);
     }
-    let mut refused = None;
+    let mut refused: Option<(String, DecompError)> = None;
     if let Some((name, eig)) = structured {
         match eig
-            .map_err(Refusal::plain)
+            .map_err(|e| Refusal::plain(e.into()))
             .and_then(|e| checked(a, h, e, name))
         {
             Ok(d) => return Ok(d),
-            Err(r) => refused = Some(format!("{name} refused: {}", r.reason)),
+            Err(r) => refused = Some((name.to_string(), r.error)),
         }
     }
-    if let (Some(r), false) = (&refused, allow_general) {
-        return Err(format!("{r}, and {GENERAL_OVER_BUDGET}"));
+    if let (Some((_, e)), false) = (&refused, allow_general) {
+        return Err(DecompError::GeneralOverBudget {
+            refused: Box::new(e.clone()),
+        });
     }
-    let method = match &refused {
+    let refused_text = refused
+        .as_ref()
+        .map(|(name, e)| format!("{name} refused: {e}"));
+    let method = match &refused_text {
         Some(r) => format!("eigen blocks (faer; {r})"),
         None => "eigen blocks (faer)".to_string(),
     };
@@ -231,29 +237,25 @@ pub fn decompose_via(
             dense_exp(a, h)?,
             r.residual,
             r.kappa,
-            Some(match &refused {
-                Some(s) => format!("{}; {s}", r.reason),
-                None => r.reason,
+            Some(match &refused_text {
+                Some(s) => format!("{}; {s}", r.error),
+                None => r.error.to_string(),
             }),
         )),
     }
 }
 
-/// How [`decompose_via`] says that the structured route failed and the
-/// general one was not allowed.
-pub const GENERAL_OVER_BUDGET: &str = "the general eigensolver is over the compile budget";
-
 /// Why a block decomposition was not accepted, with what was measured.
 struct Refusal {
-    reason: String,
+    error: DecompError,
     residual: f64,
     kappa: f64,
 }
 
 impl Refusal {
-    fn plain(reason: String) -> Self {
+    fn plain(error: DecompError) -> Self {
         Self {
-            reason,
+            error,
             residual: f64::NAN,
             kappa: f64::NAN,
         }
@@ -276,25 +278,27 @@ fn checked(
     let dim = a.nrows();
     let small = dim <= MAX_DENSE_CHECK_DIM;
     let (residual, kappa, inv_defect) = measure(a, &gens, &v, &vinv).map_err(Refusal::plain)?;
-    let refuse = |reason: String| Refusal {
-        reason,
+    let refuse = |error: DecompError| Refusal {
+        error,
         residual,
         kappa,
     };
+    let failed = |check: Check, value: f64, limit: f64| {
+        refuse(DecompError::Failed {
+            check,
+            value,
+            limit,
+        })
+    };
     if !(residual <= MAX_RESIDUAL) {
-        return Err(refuse(format!(
-            "eigen residual {residual:.1e} > {MAX_RESIDUAL:.0e}"
-        )));
+        return Err(failed(Check::Residual, residual, MAX_RESIDUAL));
     }
     if !(kappa <= MAX_KAPPA) {
-        return Err(refuse(format!(
-            "kappa(V) {kappa:.1e} > {MAX_KAPPA:.0e} (near-defective)"
-        )));
+        return Err(failed(Check::Kappa, kappa, MAX_KAPPA));
     }
-    if !(inv_defect <= MAX_INVERSE_DEFECT_PER_KAPPA * kappa.max(1.0)) {
-        return Err(refuse(format!(
-            "|V^-1 V - I| = {inv_defect:.1e} (the inverse is not accurate)"
-        )));
+    let inv_limit = MAX_INVERSE_DEFECT_PER_KAPPA * kappa.max(1.0);
+    if !(inv_defect <= inv_limit) {
+        return Err(failed(Check::Inverse, inv_defect, inv_limit));
     }
     // Dense cross-check against nalgebra's Pade exp (O(dim^3), only for
     // small systems; large ones rely on residual, inverse and kappa, which
@@ -313,16 +317,10 @@ fn checked(
     // 4.7e3, whose closed-form blocks were exact but differed from the
     // reference by 1e-12: the dense fallback taken then was the non-passive
     // one.)
-    if small
-        && !(diff
-            <= MAX_EXPM_DIFF_PER_KAPPA
-                * kappa.max(1.0)
-                * (dim as f64).sqrt()
-                * (a.norm() * h).max(1.0))
-    {
-        return Err(refuse(format!(
-            "V exp(G h) V^-1 differs from exp(A h) by {diff:.1e}"
-        )));
+    let diff_limit =
+        MAX_EXPM_DIFF_PER_KAPPA * kappa.max(1.0) * (dim as f64).sqrt() * (a.norm() * h).max(1.0);
+    if small && !(diff <= diff_limit) {
+        return Err(failed(Check::Propagator, diff, diff_limit));
     }
     Ok(PhaseDecomp {
         form: Form::Blocks { gens },
@@ -369,22 +367,21 @@ fn measure(
     gens: &[Mat2],
     v: &DMatrix<f64>,
     vinv: &DMatrix<f64>,
-) -> Result<(f64, f64, f64), String> {
+) -> Result<(f64, f64, f64), DecompError> {
     let n = a.nrows();
     if n == 0 {
         return Ok((0.0, 1.0, 0.0));
     }
     let nb = gens.len();
     if 2 * nb != n || v.shape() != (n, n) || vinv.shape() != (n, n) {
-        return Err("block decomposition has the wrong shape".into());
+        return Err(DecompError::WrongShape);
     }
     if v.iter().chain(vinv.iter()).any(|x| !x.is_finite()) {
-        return Err("eigenvectors are not finite (defective generator)".into());
+        return Err(DecompError::EigenvectorsNotFinite);
     }
     let residual = block_residual(a, gens, v);
     let (kappa, inv_defect) = if n <= MAX_DENSE_CHECK_DIM {
-        let sv = crate::physics::linalg::singular_values(v)
-            .ok_or_else(|| "eigenvector matrix: SVD failed".to_string())?;
+        let sv = crate::physics::linalg::singular_values(v).ok_or(DecompError::SvdFailed)?;
         let smax = sv.first().copied().unwrap_or(0.0);
         let smin = sv.last().copied().unwrap_or(0.0);
         let kappa = if smin > 0.0 {
@@ -409,7 +406,7 @@ fn measure(
         (norm(&fv) * norm(&fvinv), defect)
     };
     if !kappa.is_finite() {
-        return Err("eigenvector matrix is singular (defective generator)".into());
+        return Err(DecompError::EigenvectorsSingular);
     }
     Ok((residual, kappa, inv_defect))
 }
@@ -427,9 +424,9 @@ pub fn decompose_split(
     free_pairs: &[(usize, usize)],
     free_gens: &[Mat2],
     h: f64,
-    structured: Option<(&str, Result<BlockEigen, String>)>,
+    structured: Option<(&str, Result<BlockEigen, SecularError>)>,
     allow_general: bool,
-) -> Result<Option<PhaseDecomp>, String> {
+) -> Result<Option<PhaseDecomp>, DecompError> {
     let dim = a.nrows();
     let nc = coupled.len();
     let sub = DMatrix::from_fn(nc, nc, |i, j| a[(coupled[i], coupled[j])]);
@@ -567,7 +564,7 @@ fn dense_phase(
 
 /// Real block form from faer's real EVD (structure of arrays): `(gens, V,
 /// V^{-1})`, unchecked ([`checked`] measures it).
-fn eigen_blocks(a: &DMatrix<f64>) -> Result<BlockEigen, String> {
+fn eigen_blocks(a: &DMatrix<f64>) -> Result<BlockEigen, DecompError> {
     let n = a.nrows();
     if n == 0 {
         return Ok((Vec::new(), DMatrix::zeros(0, 0), DMatrix::zeros(0, 0)));
@@ -594,7 +591,7 @@ fn eigen_blocks(a: &DMatrix<f64>) -> Result<BlockEigen, String> {
         MemStack::new(&mut mem),
         Default::default(),
     )
-    .map_err(|e| format!("eigensolver did not converge: {e:?}"))?;
+    .map_err(|e| DecompError::NoConvergence(format!("{e:?}")))?;
 
     let mut v = DMatrix::zeros(n, n);
     let mut gens: Vec<Mat2> = Vec::with_capacity(n / 2);
@@ -608,7 +605,7 @@ fn eigen_blocks(a: &DMatrix<f64>) -> Result<BlockEigen, String> {
             j += 1;
         } else {
             if j + 1 >= n {
-                return Err("unpaired complex eigenvalue".into());
+                return Err(DecompError::UnpairedComplex);
             }
             // v = x + i y, normalised so |v| = 1; columns sqrt(2) x, sqrt(2) y.
             let norm: f64 = (0..n)
@@ -627,7 +624,7 @@ fn eigen_blocks(a: &DMatrix<f64>) -> Result<BlockEigen, String> {
         }
     }
     if !reals.len().is_multiple_of(2) {
-        return Err("odd number of real eigenvalues".into());
+        return Err(DecompError::OddReal);
     }
     reals.sort_by(|x, y| x.0.total_cmp(&y.0));
     for pair in reals.chunks(2) {
@@ -642,12 +639,11 @@ fn eigen_blocks(a: &DMatrix<f64>) -> Result<BlockEigen, String> {
     }
     debug_assert_eq!(col, n);
     if v.iter().any(|x| !x.is_finite()) {
-        return Err("eigenvectors are not finite (defective generator)".into());
+        return Err(DecompError::EigenvectorsNotFinite);
     }
     // faer's blocked LU (nalgebra's unblocked one took most of a
     // 2002-dimensional compile)
-    let vinv = crate::physics::linalg::inverse(&v)
-        .ok_or_else(|| "eigenvector matrix is singular (defective generator)".to_string())?;
+    let vinv = crate::physics::linalg::inverse(&v).ok_or(DecompError::EigenvectorsSingular)?;
     // Structure of arrays: block k's coordinates go to k and nb + k, so the
     // engine's kernels stream contiguous arrays (NUMERICS.md section 6).
     let nb = gens.len();

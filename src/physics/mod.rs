@@ -3,6 +3,9 @@
 
 pub mod block;
 pub mod decomp;
+pub mod error;
 pub mod linalg;
 pub mod model;
 pub mod secular;
+
+pub use error::{Check, DecompError, ModelError, SecularError};

@@ -16,6 +16,7 @@
 //! these coordinates; gravity adds a constant forcing on `eta`.
 
 use crate::physics::block::Mat2;
+use crate::physics::error::ModelError;
 use crate::scene::{ModalSpec, ObjectSpec, StringSpec};
 use nalgebra::{DMatrix, DVector};
 
@@ -60,7 +61,7 @@ impl ObjectModel {
     }
 
     /// Build the model of one scene object.
-    pub fn from_spec(spec: &ObjectSpec) -> Result<Self, String> {
+    pub fn from_spec(spec: &ObjectSpec) -> Result<Self, ModelError> {
         match spec {
             ObjectSpec::Modal(m) => Ok(modal_model(m)),
             ObjectSpec::String(s) => string_model(s),
@@ -123,7 +124,7 @@ fn modal_model(m: &ModalSpec) -> ObjectModel {
 /// String of `n` equal masses between fixed ends with `n + 1` equal springs
 /// (paper section 2.1, figure 1). `C = alpha M + beta K + dashpots`, which does
 /// not commute with `K` as soon as there is a dashpot.
-fn string_model(s: &StringSpec) -> Result<ObjectModel, String> {
+fn string_model(s: &StringSpec) -> Result<ObjectModel, ModelError> {
     let n = s.masses;
     let m = s.mass_kg;
     let kk = s.spring_n_per_m;
@@ -142,8 +143,8 @@ fn string_model(s: &StringSpec) -> Result<ObjectModel, String> {
     for d in &s.dashpots {
         c[(d.mass, d.mass)] += d.n_s_per_m;
     }
-    let chol = nalgebra::Cholesky::new(k.clone())
-        .ok_or_else(|| "stiffness matrix is not positive definite".to_string())?;
+    let chol =
+        nalgebra::Cholesky::new(k.clone()).ok_or(ModelError::StiffnessNotPositiveDefinite)?;
     let l = chol.l();
     let inv_sqrt_m = 1.0 / m.sqrt();
     // B = L^T M^{-1/2}; D = M^{-1/2} C M^{-1/2}
@@ -154,8 +155,8 @@ fn string_model(s: &StringSpec) -> Result<ObjectModel, String> {
     a.view_mut((n, 0), (n, n)).copy_from(&(-b.transpose()));
     a.view_mut((n, n), (n, n)).copy_from(&(-d));
     // x_j = (L^{-T} xi)_j  =>  row_j = (L^{-1} e_j)^T
-    let l_inv = crate::physics::linalg::inverse(&l)
-        .ok_or_else(|| "Cholesky factor is singular".to_string())?;
+    let l_inv =
+        crate::physics::linalg::inverse(&l).ok_or(ModelError::StiffnessNotPositiveDefinite)?;
     let points = s
         .points
         .iter()

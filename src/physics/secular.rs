@@ -46,6 +46,7 @@
 //! decomposition.
 
 use crate::physics::block::Mat2;
+use crate::physics::error::SecularError;
 use nalgebra::{Complex, DMatrix};
 
 type C = Complex<f64>;
@@ -75,7 +76,7 @@ pub struct ModalContact<'a> {
 pub type BlockEigen = (Vec<Mat2>, DMatrix<f64>, DMatrix<f64>);
 
 /// Most Aberth sweeps before giving up.
-const MAX_SWEEPS: usize = 200;
+pub const MAX_SWEEPS: usize = 200;
 /// A root is converged when its last correction is below this fraction of
 /// its distance to its pole (or below 8 ulps of the root); corrections at
 /// rounding level wander around 1e-15 of it. Two more sweeps follow.
@@ -204,21 +205,21 @@ fn mode_poles(omega: f64, sigma: f64) -> [C; 2] {
 
 /// Decompose the contact phase of `mc` (see the module doc). O(N^2) time,
 /// O(N^2) memory for `V` and `V^{-1}`.
-pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
+pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, SecularError> {
     let n = mc.omega.len();
     if mc.sigma.len() != n || mc.f.len() != n {
-        return Err("secular route: mismatched mode data".into());
+        return Err(SecularError::MismatchedData);
     }
     let ok = |x: f64| x.is_finite();
     if !(mc.k > 0.0 && ok(mc.k) && mc.c >= 0.0 && ok(mc.c) && mc.m_h > 0.0 && ok(mc.m_h)) {
-        return Err("secular route: contact parameters out of range".into());
+        return Err(SecularError::ContactOutOfRange);
     }
     for i in 0..n {
         if !(mc.omega[i] > 0.0 && ok(mc.omega[i]) && mc.sigma[i] >= 0.0 && ok(mc.sigma[i])) {
-            return Err(format!("secular route: mode {i} out of range"));
+            return Err(SecularError::ModeOutOfRange(i));
         }
         if !(mc.f[i] != 0.0 && ok(mc.f[i])) {
-            return Err(format!("secular route: mode {i} is not coupled"));
+            return Err(SecularError::ModeNotCoupled(i));
         }
     }
     let dim = 2 * n + 2;
@@ -242,7 +243,7 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
     for w in poles.windows(2) {
         let (a, b) = (C::new(w[0].0, w[0].1), C::new(w[1].0, w[1].1));
         if (a - b).norm() <= 1e-12 * a.norm().max(b.norm()) {
-            return Err("secular route: two modes share a pole (degenerate pair)".into());
+            return Err(SecularError::SharedPole);
         }
     }
     let prob = Problem {
@@ -296,9 +297,7 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
             let newton = prob.newton(&ri);
             let w = newton / (C::new(1.0, 0.0) - newton * sum);
             if !(w.re.is_finite() && w.im.is_finite()) {
-                return Err(format!(
-                    "secular route: the iteration broke down (sweep {sweeps})"
-                ));
+                return Err(SecularError::IterationBrokeDown { sweep: sweeps });
             }
             // converged: the step is tiny against the distance to the pole,
             // or below the root's own rounding (8 ulps)
@@ -310,10 +309,10 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
         }
     }
     if converged.iter().any(|c| !c) {
-        return Err(format!(
-            "secular route: {} of {dim} roots did not converge in {MAX_SWEEPS} sweeps",
-            converged.iter().filter(|c| !**c).count()
-        ));
+        return Err(SecularError::NotConverged {
+            count: converged.iter().filter(|c| !**c).count(),
+            of: dim,
+        });
     }
     // Passivity is exact: no eigenvalue of the contact phase has a positive
     // real part, and a lossless one has none at all (A is skew). Rounding
@@ -390,11 +389,11 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
         }
     }
     if n_lower != complex.len() || !real.len().is_multiple_of(2) {
-        return Err(format!(
-            "secular route: roots are not in conjugate pairs ({} upper, {n_lower} lower, {} real)",
-            complex.len(),
-            real.len()
-        ));
+        return Err(SecularError::NotConjugate {
+            upper: complex.len(),
+            lower: n_lower,
+            real: real.len(),
+        });
     }
     real.sort_by(|x, y| x.0.total_cmp(&y.0));
     let cond = |v: &[C]| 1.0 / jnorm(v).norm();
@@ -443,7 +442,7 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
                          r: &Root,
                          z1: C,
                          z2: C|
-     -> Result<(), String> {
+     -> Result<(), SecularError> {
         let (g, q, rows) = pair_basis(&prob, mc, r, z1, z2)?;
         for i in 0..dim {
             v[(i, kb)] = q[0][i];
@@ -493,7 +492,7 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
             let col = if off == 0 { kb } else { nb + kb };
             let nj = jnorm(ev).re;
             if !(nj.abs() > 0.0) {
-                return Err("secular route: a defective eigenvalue (v^T J v = 0)".into());
+                return Err(SecularError::Defective);
             }
             worst_cond = worst_cond.max(1.0 / nj.abs());
             for i in 0..dim {
@@ -504,14 +503,13 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, String> {
         gens.push([real[i1].0, 0.0, 0.0, real[i2].0]);
     }
     if v.iter().any(|x| !x.is_finite()) {
-        return Err("secular route: eigenvectors are not finite".into());
+        return Err(SecularError::NotFinite("eigenvectors"));
     }
     if worst_cond > ROW_COND_MAX {
-        vinv = crate::physics::linalg::inverse(&v)
-            .ok_or_else(|| "secular route: eigenvector matrix is singular".to_string())?;
+        vinv = crate::physics::linalg::inverse(&v).ok_or(SecularError::Singular)?;
     }
     if vinv.iter().any(|x| !x.is_finite()) {
-        return Err("secular route: inverse is not finite".into());
+        return Err(SecularError::NotFinite("inverse"));
     }
     Ok((gens, v, vinv))
 }
@@ -585,7 +583,7 @@ fn pair_basis(
     r: &Root,
     z1: C,
     z2: C,
-) -> Result<(Mat2, [Vec<f64>; 2], [Vec<f64>; 2]), String> {
+) -> Result<(Mat2, [Vec<f64>; 2], [Vec<f64>; 2]), SecularError> {
     let n = mc.omega.len();
     let dim = 2 * n + 2;
     let j = r.j;
@@ -650,7 +648,7 @@ fn pair_basis(
     }
     let r22 = dotv(&q2, &q2).sqrt();
     if !(nx > 0.0 && r22 > 1e-8 * dotv(&d, &d).sqrt() && r22.is_finite()) {
-        return Err("secular route: a near-critical pair has no independent basis".into());
+        return Err(SecularError::NoIndependentBasis);
     }
     for a in q2.iter_mut() {
         *a /= r22;
@@ -681,7 +679,7 @@ fn pair_basis(
     ];
     let det = lq[0] * lq[3] - lq[1] * lq[2];
     if !(det.abs() > 0.0 && det.is_finite()) {
-        return Err("secular route: a near-critical pair has a singular left basis".into());
+        return Err(SecularError::SingularLeftBasis);
     }
     let inv = [lq[3] / det, -lq[1] / det, -lq[2] / det, lq[0] / det];
     let row1: Vec<f64> = (0..dim).map(|i| inv[0] * l1[i] + inv[1] * l2[i]).collect();
@@ -886,6 +884,6 @@ mod tests {
             m_h: 0.02,
         };
         let e = decompose(&case.mc()).unwrap_err();
-        assert!(e.contains("degenerate"), "{e}");
+        assert_eq!(e, SecularError::SharedPole, "{e}");
     }
 }
