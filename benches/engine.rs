@@ -441,10 +441,10 @@ fn sixteen_voices(sc: &CompiledScene) -> Vec<EngineState> {
 
 /// Ratios against the naive baseline, measured in this run.
 fn summary(_c: &mut Criterion) {
-    let path = modal_contact::engine::SimdPath::detect();
+    let path = modal_contact::engine::fastest_kernels();
     println!(
         "\n=== summary (median of 5, this run; SIMD path: {}) ===",
-        path.name()
+        path
     );
     let n_samp = 44100;
     for contact in [false, true] {
@@ -456,7 +456,7 @@ fn summary(_c: &mut Criterion) {
             });
             assert_eq!(st.in_contact(), contact, "the phase must not change");
             let mut generic = engine_in(&sc, contact);
-            generic.set_simd_path(modal_contact::engine::SimdPath::Generic);
+            generic.set_portable_kernels(true);
             let tg = median_time(5, || {
                 black_box(run_engine(&mut generic, &sc, n_samp));
             });

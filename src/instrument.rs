@@ -66,18 +66,18 @@ pub const CHECK_INTERVAL_SAMPLES: usize = 64;
 /// A voice stops when its energy is below this fraction of its strike's
 /// energy: -90 dB, far below audibility after a full-scale strike.
 pub const SILENCE_ENERGY_RATIO: f64 = 1e-9;
-/// Fade-out length for voices that cannot be carried across a swap [s]
+/// Fade-out length for voices that cannot be carried across a swap \[s\]
 /// (5 ms: short enough to feel immediate, long enough not to click).
 pub const FADE_S: f64 = 0.005;
 /// Released decay times are divided by `1 + DAMPER_T60_DIVISOR * damper`
 /// (damper 1 = 51 times shorter: a felt damper on a bar).
 pub const DAMPER_T60_DIVISOR: f64 = 50.0;
-/// Modes without damping get this T60 [s] before the damper divides it
+/// Modes without damping get this T60 \[s\] before the damper divides it
 /// (they would otherwise ring forever after release).
 pub const UNDAMPED_RELEASE_T60_S: f64 = 20.0;
-/// Slowest impact speed (velocity 0) [m/s].
+/// Slowest impact speed (velocity 0) \[m/s\].
 pub const MIN_IMPACT_SPEED_M_PER_S: f64 = 0.05;
-/// Impact speed added at full velocity [m/s] (velocity 1 gives 3 m/s).
+/// Impact speed added at full velocity \[m/s\] (velocity 1 gives 3 m/s).
 pub const IMPACT_SPEED_RANGE_M_PER_S: f64 = 2.95;
 /// Hard output ceiling: no sample the instrument writes exceeds this in
 /// magnitude (4.0 = +12 dBFS). It is a last-resort guard against abuse
@@ -96,8 +96,8 @@ pub const DEFAULT_ROOT_NOTE: f64 = 60.0;
 /// Fixed slots for retired compiled scenes waiting to be handed back.
 pub const RETIRED_SLOTS: usize = 4;
 
-/// Velocity (0..1) to the hammer's impact speed [m/s]: `0.05 + 2.95 vel^2`.
-/// [any-thread]
+/// Velocity (0..1) to the hammer's impact speed \[m/s\]: `0.05 + 2.95 vel^2`.
+/// \[any-thread\]
 pub fn impact_speed_m_per_s(velocity_norm: f64) -> f64 {
     let v = if velocity_norm.is_finite() {
         velocity_norm.clamp(0.0, 1.0)
@@ -125,7 +125,7 @@ pub struct SceneParams {
     pub decay_scale: f64,
     /// Damper strength after note-off, 0..1.
     pub damper_norm: f64,
-    /// Gravity for bouncing scenes (scenes whose hammer has gravity) [m/s^2].
+    /// Gravity for bouncing scenes (scenes whose hammer has gravity) \[m/s^2\].
     pub gravity_m_per_s2: f64,
     /// Switching method (exact falls back to offset-rod if the compiler refuses it).
     pub switching: Switching,
@@ -152,9 +152,9 @@ impl Default for SceneParams {
 pub struct PlayParams {
     /// Notes scale the time axis (pitch); off = every note plays the root.
     pub pitch_tracking: bool,
-    /// Drop height for bouncing scenes [m].
+    /// Drop height for bouncing scenes \[m\].
     pub drop_height_m: f64,
-    /// Output gain [dB].
+    /// Output gain \[dB\].
     pub gain_db: f64,
 }
 
@@ -201,7 +201,7 @@ fn positive_or(v: f64, fallback: f64) -> f64 {
 ///   parameter's value; others stay without gravity;
 /// - switching is set in the scene's contact section.
 ///
-/// [any-thread]
+/// \[any-thread\]
 pub fn scene_for(base: &Scene, p: &InstrumentParams) -> Scene {
     let sp = &p.scene;
     let mut s = base.clone();
@@ -290,7 +290,7 @@ fn set_strike_position(s: &mut Scene, pos: f64) {
 /// `1 + 50 * damper` (T60s of modal objects; a string's Rayleigh damping and
 /// dashpots multiplied by the same factor; undamped modes get
 /// [`UNDAMPED_RELEASE_T60_S`] first). Same objects, same dimensions, so
-/// [`EngineState::rebind`] carries a voice onto it. [any-thread]
+/// [`EngineState::rebind`] carries a voice onto it. \[any-thread\]
 pub fn damped_scene(scene: &Scene, damper_norm: f64) -> Scene {
     let f = 1.0 + DAMPER_T60_DIVISOR * damper_norm.clamp(0.0, 1.0);
     let mut s = scene.clone();
@@ -315,9 +315,9 @@ pub fn damped_scene(scene: &Scene, damper_norm: f64) -> Scene {
     s
 }
 
-/// Lowest modal frequency of the struck object [Hz], if it has one (a
+/// Lowest modal frequency of the struck object \[Hz\], if it has one (a
 /// string's lowest mode from `omega_1 = 2 sqrt(s/m) sin(pi / (2 (n + 1)))`,
-/// damping neglected). [any-thread]
+/// damping neglected). \[any-thread\]
 pub fn lowest_frequency_hz(scene: &Scene) -> Option<f64> {
     let ci = scene.object_index(&scene.contact.object)?;
     match &scene.object[ci] {
@@ -339,7 +339,7 @@ pub fn lowest_frequency_hz(scene: &Scene) -> Option<f64> {
 }
 
 /// The MIDI note nearest the scene's lowest modal frequency (60 when unknown).
-/// [any-thread]
+/// \[any-thread\]
 pub fn root_note(scene: &Scene) -> f64 {
     match lowest_frequency_hz(scene) {
         Some(f) => (69.0 + 12.0 * (f / 440.0).log2()).round().clamp(0.0, 127.0),
@@ -353,7 +353,7 @@ pub fn root_note(scene: &Scene) -> f64 {
 pub struct Prepared {
     /// Request revision this was built for.
     pub revision: u64,
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub rate_hz: f64,
     /// The parameters it was built from.
     pub params: SceneParams,
@@ -377,7 +377,7 @@ impl Prepared {
     /// sample period in a sample that holds a switch (the compile summary's
     /// estimate, at the root pitch: higher notes step further per sample and
     /// cost more). The engine keeps the physics exact whatever it costs; the
-    /// warning tells the user where CPU spikes come from. [worker]
+    /// warning tells the user where CPU spikes come from. \[worker\]
     pub fn realtime_warning(&self) -> Option<String> {
         let n = self.scene.search_nodes_estimate;
         (n > crate::compile::REALTIME_SEARCH_NODES).then(|| {
@@ -457,7 +457,7 @@ impl From<CompileError> for PrepareError {
 }
 
 /// Compile everything for `params` at `rate_hz` (eigendecompositions: never
-/// call this on the audio thread). [worker] [main-thread]
+/// call this on the audio thread). \[worker\] \[main-thread\]
 pub fn prepare(
     params: &SceneParams,
     rate_hz: f64,
@@ -596,7 +596,7 @@ pub struct Instrument {
 }
 
 impl Instrument {
-    /// Start with a prepared scene. [main-thread]
+    /// Start with a prepared scene. \[main-thread\]
     pub fn new(prepared: Box<Prepared>, play: PlayParams) -> Self {
         let fade_len = ((FADE_S * prepared.rate_hz).round() as usize).max(1);
         let mut inst = Self {
@@ -618,13 +618,13 @@ impl Instrument {
         inst
     }
 
-    /// The scene set currently played. [audio-thread]
+    /// The scene set currently played. \[audio-thread\]
     pub fn prepared(&self) -> &Prepared {
         &self.cur
     }
 
     /// Update the parameters that need no compile (gain now; pitch tracking
-    /// and drop height at the next note). [audio-thread]
+    /// and drop height at the next note). \[audio-thread\]
     pub fn set_play(&mut self, play: PlayParams) {
         self.play = play;
         let g = 10f64.powf(play.gain_db / 20.0);
@@ -632,29 +632,29 @@ impl Instrument {
     }
 
     /// The engine state of voice `voice_idx` (for tests and tools, e.g. to
-    /// inspect or disturb a voice). [audio-thread]
+    /// inspect or disturb a voice). \[audio-thread\]
     pub fn voice_state_mut(&mut self, voice_idx: usize) -> &mut EngineState {
         &mut self.cur.states[voice_idx]
     }
 
-    /// Number of sounding voices (fading ones not counted). [audio-thread]
+    /// Number of sounding voices (fading ones not counted). \[audio-thread\]
     pub fn active_voices(&self) -> usize {
         self.voices.iter().filter(|v| v.active).count()
     }
 
-    /// Keys of the sounding voices, by voice index. [audio-thread]
+    /// Keys of the sounding voices, by voice index. \[audio-thread\]
     pub fn voice_keys(&self) -> [Option<u8>; MAX_VOICES] {
         std::array::from_fn(|i| self.voices[i].active.then_some(self.voices[i].key))
     }
 
     /// Whether [`install`](Self::install) would accept a scene now (no fade
-    /// in progress and a free retired slot). [audio-thread]
+    /// in progress and a free retired slot). \[audio-thread\]
     pub fn can_install(&self) -> bool {
         self.fading.is_none() && self.retired.iter().any(|s| s.is_none())
     }
 
     /// Retired scenes waiting to be handed back: the caller takes them out
-    /// (and puts them back if its return queue is full). [audio-thread]
+    /// (and puts them back if its return queue is full). \[audio-thread\]
     pub fn retired_slots_mut(&mut self) -> &mut [Option<Box<Prepared>>] {
         &mut self.retired
     }
@@ -662,7 +662,7 @@ impl Instrument {
     /// Swap in a recompiled scene at a block boundary, carrying every voice
     /// (see the module doc). Returns the box unused if it cannot be taken now
     /// ([`can_install`](Self::can_install) is false). O(MAX_VOICES N^2),
-    /// allocation-free. [audio-thread]
+    /// allocation-free. \[audio-thread\]
     pub fn install(&mut self, mut new: Box<Prepared>) -> Result<(), Box<Prepared>> {
         if !self.can_install() {
             return Err(new);
@@ -729,14 +729,14 @@ impl Instrument {
         }
     }
 
-    /// Stop every voice at once (host reset). Allocation-free. [audio-thread]
+    /// Stop every voice at once (host reset). Allocation-free. \[audio-thread\]
     pub fn silence(&mut self) {
         self.voices = [Voice::default(); MAX_VOICES];
         self.fade_voices = [None; MAX_VOICES];
         self.fade_left = 0;
     }
 
-    /// Apply one event now (between two samples). [audio-thread]
+    /// Apply one event now (between two samples). \[audio-thread\]
     pub fn handle(&mut self, event: Event) {
         match event {
             // MIDI's convention: a note-on at velocity 0 is a note-off (and
@@ -832,7 +832,7 @@ impl Instrument {
     }
 
     /// Render consecutive samples into `left`/`right` (overwritten).
-    /// Allocation-free. [audio-thread]
+    /// Allocation-free. \[audio-thread\]
     pub fn render(&mut self, left: &mut [f32], right: &mut [f32]) {
         let n = left.len().min(right.len());
         let mut i = 0;
@@ -852,7 +852,7 @@ impl Instrument {
     }
 
     /// Render `left.len()` samples, applying `events` (sorted by offset, offsets
-    /// within the span) at their sample offsets. [audio-thread]
+    /// within the span) at their sample offsets. \[audio-thread\]
     pub fn process(&mut self, events: &[TimedEvent], left: &mut [f32], right: &mut [f32]) {
         // Subnormals off for the whole block (each voice's engine would set
         // it too; once here, the voices find it on and leave it).

@@ -36,7 +36,7 @@ pub const PRESETS: &[Preset] = &[
     preset!("wood-block"),
 ];
 
-/// Index of the preset called `name`. [any-thread]
+/// Index of the preset called `name`. \[any-thread\]
 pub fn index_of(name: &str) -> Option<usize> {
     PRESETS.iter().position(|p| p.name == name)
 }

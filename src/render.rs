@@ -9,9 +9,9 @@ use std::io::Write;
 /// Options of an offline render.
 #[derive(Debug, Clone)]
 pub struct RenderOptions {
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub rate_hz: f64,
-    /// Length [s]; `None` = the scene's `duration_s`.
+    /// Length \[s\]; `None` = the scene's `duration_s`.
     pub seconds: Option<f64>,
     /// Override of the scene's switching method.
     pub switching: Option<Switching>,
@@ -33,7 +33,7 @@ impl Default for RenderOptions {
 /// One trace row (DESIGN.md section 5): row `n` is time `n / fs`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TraceRow {
-    /// Time [s].
+    /// Time \[s\].
     pub t: f64,
     /// The observation at that time, after the switching decision.
     pub obs: Observation,
@@ -42,7 +42,7 @@ pub struct TraceRow {
 /// Result of a render.
 #[derive(Debug, Clone)]
 pub struct RenderOutput {
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub rate_hz: f64,
     /// Left and right pickup signals (f64, physical units times pickup gains).
     pub left: Vec<f64>,

@@ -30,43 +30,43 @@ pub const MAX_FREQ_HZ: f64 = 1.0e7;
 // file is refused with the field's name instead. Each range is far wider than
 // any instrument needs.
 
-/// Lowest mode frequency [Hz]: a period of 1000 s, longer than any render; a
+/// Lowest mode frequency \[Hz\]: a period of 1000 s, longer than any render; a
 /// 0 Hz mode would be a free rigid body, which is not a mode.
 pub const MIN_FREQ_HZ: f64 = 1.0e-3;
-/// Shortest T60 [s]: 60 dB of decay in a microsecond (damping rate
+/// Shortest T60 \[s\]: 60 dB of decay in a microsecond (damping rate
 /// `ln(1000) / T60` up to 6.9e6 1/s) is far beyond any audible damping.
 pub const MIN_T60_S: f64 = 1.0e-6;
-/// Lightest and heaviest mass [kg] (hammer, string masses): the lower limit
+/// Lightest and heaviest mass \[kg\] (hammer, string masses): the lower limit
 /// is the effective mass of the largest allowed weight, `1 / (1e6)^2`.
 pub const MIN_MASS_KG: f64 = 1.0e-12;
 /// See [`MIN_MASS_KG`] (a thousand tonnes).
 pub const MAX_MASS_KG: f64 = 1.0e6;
-/// Smallest contact stiffness [N/m]: a spring that pushes with 1 uN per mm
+/// Smallest contact stiffness \[N/m\]: a spring that pushes with 1 uN per mm
 /// of compression. Softer ones overflow the static equilibrium under
 /// gravity (`m g / k`; tests/fuzz_scenes.rs found `5e-324`).
 pub const MIN_STIFFNESS_N_PER_M: f64 = 1.0e-3;
-/// Largest contact or string spring stiffness [N/m] (a contact frequency of
+/// Largest contact or string spring stiffness \[N/m\] (a contact frequency of
 /// 1000x the Nyquist frequency of 44.1 kHz with a 20 g hammer needs 3.8e14).
 pub const MAX_STIFFNESS_N_PER_M: f64 = 1.0e16;
-/// Largest contact or dashpot damping [N s/m] (an overdamped contact with
+/// Largest contact or dashpot damping \[N s/m\] (an overdamped contact with
 /// zeta = 1e3 for a 20 g hammer on 1e6 N/m needs 2.8e5).
 pub const MAX_DAMPING_N_S_PER_M: f64 = 1.0e9;
-/// Largest Rayleigh mass-proportional damping [1/s] (the rate of a T60 of
+/// Largest Rayleigh mass-proportional damping \[1/s\] (the rate of a T60 of
 /// [`MIN_T60_S`]: `2 ln(1000) / 1e-6`).
 pub const MAX_RAYLEIGH_ALPHA_PER_S: f64 = 1.4e7;
-/// Largest Rayleigh stiffness-proportional damping [s] (1 s damps every
+/// Largest Rayleigh stiffness-proportional damping \[s\] (1 s damps every
 /// mode above 1 Hz critically).
 pub const MAX_RAYLEIGH_BETA_S: f64 = 1.0;
-/// Largest hammer height [m] and speed [m/s] (three times the speed of
+/// Largest hammer height \[m\] and speed \[m/s\] (three times the speed of
 /// sound in air).
 pub const MAX_HEIGHT_M: f64 = 1.0e3;
 /// See [`MAX_HEIGHT_M`].
 pub const MAX_SPEED_M_PER_S: f64 = 1.0e3;
-/// Largest gravity [m/s^2] (a thousand g).
+/// Largest gravity \[m/s^2\] (a thousand g).
 pub const MAX_GRAVITY_M_PER_S2: f64 = 1.0e4;
 /// Largest pickup gain magnitude (+120 dB).
 pub const MAX_GAIN: f64 = 1.0e6;
-/// Longest `duration_s` [s] (the renderer's limit).
+/// Longest `duration_s` \[s\] (the renderer's limit).
 pub const MAX_DURATION_S: f64 = 3600.0;
 
 /// A validation or parse error that names the field and the reason.
@@ -143,7 +143,7 @@ pub struct Scene {
     /// Free text.
     #[serde(default)]
     pub description: String,
-    /// Default render length [s].
+    /// Default render length \[s\].
     #[serde(default = "default_duration_s")]
     pub duration_s: f64,
     /// The objects of the scene (at least one).
@@ -165,7 +165,7 @@ pub struct Scene {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 pub struct ApproxSpec {
-    /// Drop modes above this frequency [Hz].
+    /// Drop modes above this frequency \[Hz\].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_freq_hz: Option<f64>,
     /// Drop modes above this fraction of the Nyquist frequency (e.g. 0.9).
@@ -232,12 +232,12 @@ pub struct ModalSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ModeSpec {
-    /// Undamped natural frequency [Hz].
+    /// Undamped natural frequency \[Hz\].
     pub freq_hz: f64,
-    /// 60 dB decay time [s]; omitted means undamped.
+    /// 60 dB decay time \[s\]; omitted means undamped.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub t60_s: Option<f64>,
-    /// Mass-normalised mode shape at each point [1/sqrt(kg)].
+    /// Mass-normalised mode shape at each point \[1/sqrt(kg)\].
     pub weights: Vec<f64>,
 }
 
@@ -249,14 +249,14 @@ pub struct StringSpec {
     pub name: String,
     /// Number of masses.
     pub masses: usize,
-    /// Each mass [kg].
+    /// Each mass \[kg\].
     pub mass_kg: f64,
-    /// Each of the `masses + 1` springs [N/m].
+    /// Each of the `masses + 1` springs \[N/m\].
     pub spring_n_per_m: f64,
-    /// Rayleigh damping, mass part: `C = alpha M + beta K + dashpots` [1/s].
+    /// Rayleigh damping, mass part: `C = alpha M + beta K + dashpots` \[1/s\].
     #[serde(default)]
     pub rayleigh_alpha_per_s: f64,
-    /// Rayleigh damping, stiffness part [s].
+    /// Rayleigh damping, stiffness part \[s\].
     #[serde(default)]
     pub rayleigh_beta_s: f64,
     /// Extra dashpots to ground at single masses (make C not commute with K).
@@ -272,7 +272,7 @@ pub struct StringSpec {
 pub struct DashpotSpec {
     /// 0-based mass index.
     pub mass: usize,
-    /// Damping coefficient [N s/m].
+    /// Damping coefficient \[N s/m\].
     pub n_s_per_m: f64,
 }
 
@@ -288,14 +288,14 @@ pub struct WallSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HammerSpec {
-    /// Mass [kg].
+    /// Mass \[kg\].
     pub mass_kg: f64,
-    /// Initial height of its contact face [m] (>= 0: it starts out of contact).
+    /// Initial height of its contact face \[m\] (>= 0: it starts out of contact).
     pub height_m: f64,
-    /// Initial velocity [m/s], positive up.
+    /// Initial velocity \[m/s\], positive up.
     #[serde(default)]
     pub velocity_m_per_s: f64,
-    /// Gravity acting on the hammer [m/s^2] (pulls down); 0 = none.
+    /// Gravity acting on the hammer \[m/s^2\] (pulls down); 0 = none.
     #[serde(default)]
     pub gravity_m_per_s2: f64,
 }
@@ -309,9 +309,9 @@ pub struct ContactSpec {
     /// Name of the struck point (omit for a wall).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub point: Option<String>,
-    /// Contact stiffness k_c [N/m].
+    /// Contact stiffness k_c \[N/m\].
     pub stiffness_n_per_m: f64,
-    /// Contact damping c_c [N s/m].
+    /// Contact damping c_c \[N s/m\].
     #[serde(default)]
     pub damping_n_s_per_m: f64,
     /// Switching method; omitted means the project default.
@@ -323,10 +323,10 @@ pub struct ContactSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Quantity {
-    /// Velocity of the point [m/s] (the default: it weights the highs as the ear does).
+    /// Velocity of the point \[m/s\] (the default: it weights the highs as the ear does).
     #[default]
     Velocity,
-    /// Displacement of the point [m].
+    /// Displacement of the point \[m\].
     Displacement,
 }
 

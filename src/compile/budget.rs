@@ -60,7 +60,7 @@ pub struct CompileBudget {
     /// about a minute on the 2-core development machine: it admits an
     /// 800-mass string (1.1e12) and refuses a 1000-mass one (2.2e12).
     pub max_flops: f64,
-    /// Largest estimated peak memory [bytes]. The default, 1 GiB, admits
+    /// Largest estimated peak memory \[bytes\]. The default, 1 GiB, admits
     /// 1500 fully coupled modes (~0.94 GB) and refuses 1600 (1.07 GB).
     pub max_bytes: f64,
 }
@@ -107,7 +107,7 @@ pub struct CompileCost {
     pub gravity: bool,
     /// Estimated work [flop-equivalents].
     pub flops: f64,
-    /// Estimated peak memory [bytes].
+    /// Estimated peak memory \[bytes\].
     pub bytes: f64,
 }
 

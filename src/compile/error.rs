@@ -36,9 +36,9 @@ pub struct OverBudget {
     pub name: String,
     /// What would be decomposed (dimensions).
     pub what: String,
-    /// `(estimate, limit)` of the work [flops], when over.
+    /// `(estimate, limit)` of the work \[flops\], when over.
     pub flops: Option<(f64, f64)>,
-    /// `(estimate, limit)` of the memory [bytes], when over.
+    /// `(estimate, limit)` of the memory \[bytes\], when over.
     pub bytes: Option<(f64, f64)>,
     /// How to get under it.
     pub hint: String,
@@ -108,7 +108,7 @@ pub enum CompileError {
         phase: PhaseKind,
         /// Why.
         source: DecompError,
-        /// The sample rate [Hz].
+        /// The sample rate \[Hz\].
         rate_hz: f64,
         /// What to change in the scene.
         hint: String,
@@ -118,7 +118,7 @@ pub enum CompileError {
     GeneralOverBudget {
         /// Why the structured route was refused.
         refused: DecompError,
-        /// The general eigensolver's estimated work [flops] and memory [bytes].
+        /// The general eigensolver's estimated work \[flops\] and memory \[bytes\].
         flops: f64,
         /// See `flops`.
         bytes: f64,
@@ -135,7 +135,7 @@ pub enum CompileError {
         tol: f64,
         /// `|A| h` of the phase.
         norm_h: f64,
-        /// The sample rate [Hz].
+        /// The sample rate \[Hz\].
         rate_hz: f64,
         /// What to change in the scene.
         hint: String,

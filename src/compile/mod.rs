@@ -45,7 +45,7 @@ use nalgebra::DMatrix;
 /// smaller systems (a fully coupled contact system of dimension ~2100).
 pub const MAX_CONTACT_DIM: usize = 4002;
 
-/// Lowest and highest sample rate the compiler accepts [Hz].
+/// Lowest and highest sample rate the compiler accepts \[Hz\].
 pub const RATE_RANGE_HZ: (f64, f64) = (1_000.0, 10_000_000.0);
 
 /// One phase, ready for the engine.
@@ -139,25 +139,25 @@ impl CompiledPhase {
 pub struct CompiledScene {
     /// Scene name.
     pub name: String,
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub rate_hz: f64,
-    /// Sample period [s].
+    /// Sample period \[s\].
     pub h: f64,
     /// Switching method.
     pub switching: Switching,
-    /// Hammer mass [kg].
+    /// Hammer mass \[kg\].
     pub m_h: f64,
-    /// Gravity [m/s^2].
+    /// Gravity \[m/s^2\].
     pub g: f64,
-    /// Initial hammer height [m] and velocity [m/s].
+    /// Initial hammer height \[m\] and velocity \[m/s\].
     pub hammer_x0: f64,
     /// See `hammer_x0`.
     pub hammer_v0: f64,
-    /// Contact stiffness [N/m] and its square root.
+    /// Contact stiffness \[N/m\] and its square root.
     pub k: f64,
     /// `sqrt(k)`.
     pub sk: f64,
-    /// Contact damping [N s/m].
+    /// Contact damping \[N s/m\].
     pub c: f64,
     /// `sqrt(m_h)`.
     pub sm: f64,

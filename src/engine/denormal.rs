@@ -35,7 +35,7 @@ const MXCSR_FTZ: u32 = 1 << 15;
 const FPCR_FZ: u64 = 1 << 24;
 
 /// Flush-to-zero and denormals-are-zero while alive (this thread only).
-/// Not `Send`: it must drop on the thread that made it. [audio-thread]
+/// Not `Send`: it must drop on the thread that made it. \[audio-thread\]
 pub struct FlushDenormals {
     /// The control register's value before, if the guard changed it.
     #[allow(dead_code)]
@@ -46,7 +46,7 @@ pub struct FlushDenormals {
 impl FlushDenormals {
     /// Turn the modes on (if `on`; `false` gives a guard that does nothing,
     /// for measuring what the modes save). No allocation, no system call.
-    /// [audio-thread]
+    /// \[audio-thread\]
     #[inline]
     pub fn new(on: bool) -> Self {
         let restore = if on { set_flush_modes() } else { None };

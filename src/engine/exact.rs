@@ -62,7 +62,7 @@
 //! (the spring starts unstretched: the residual of rounding at the root is
 //! taken up by the rod offset, which adds no energy) and rises.
 
-use super::{dot, EngineState};
+use super::{dot, EngineState, Phase};
 use super::{kernel, vmath, SimdPath};
 use crate::compile::event::{THETA_RESOLVED, THETA_SLOW};
 use crate::compile::{CompiledPhase, CompiledScene};
@@ -142,7 +142,7 @@ impl TermSplit {
     }
 
     /// Split the terms of `ph` for steps of `step` (reference time).
-    /// O(N), allocation-free within the capacity. [audio-thread]
+    /// O(N), allocation-free within the capacity. \[audio-thread\]
     pub(super) fn update(&mut self, ph: &CompiledPhase, step: f64) {
         self.slow.clear();
         self.fast.clear();
@@ -267,7 +267,7 @@ impl SearchScratch {
     /// Raise the slow terms' powers `z = C mu^j` up to `j = upto`,
     /// summing the coefficients `poly[j]` (`j <= deg`) and taking the
     /// magnitudes of the third derivative (`j = 3`) and of the Lagrange
-    /// remainder (`j = deg + 1`). O(N_slow) per power. [audio-thread]
+    /// remainder (`j = deg + 1`). O(N_slow) per power. \[audio-thread\]
     fn raise_poly(&mut self, simd: SimdPath, upto: usize) {
         let ns = self.ns;
         let deg = self.deg;
@@ -318,7 +318,7 @@ impl SearchScratch {
 
 /// `sum Re(z)`, then `z *= mu` elementwise (complex, structure of arrays),
 /// in one pass; on the AVX2 path when the CPU has it. The sum runs in four
-/// lanes reduced in a fixed order (deterministic). [audio-thread]
+/// lanes reduced in a fixed order (deterministic). \[audio-thread\]
 #[inline]
 fn raise_once(simd: SimdPath, zr: &mut [f64], zi: &mut [f64], mr: &[f64], mi: &[f64]) -> f64 {
     #[inline(always)]
@@ -353,9 +353,9 @@ fn raise_once(simd: SimdPath, zr: &mut [f64], zi: &mut [f64], mr: &[f64], mi: &[
     }
     match simd {
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `SimdPath::Avx2Fma` is only produced by `detect()` after
+        // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `detect()` makes, after
         // checking AVX2 and FMA on this CPU.
-        SimdPath::Avx2Fma => unsafe { body_avx2(zr, zi, mr, mi) },
+        SimdPath::Avx2Fma(_) => unsafe { body_avx2(zr, zi, mr, mi) },
         _ => body(zr, zi, mr, mi),
     }
 }
@@ -411,11 +411,7 @@ impl EngineState {
         let full = full || tau == self.step_s;
         let ph: &CompiledPhase = current_phase(self, scene);
         let (mut f, mut d, mut dd) = if ph.dense.is_some() {
-            let s = if self.in_contact {
-                &self.s_c
-            } else {
-                &self.s_f
-            };
+            let s = &self.phases[self.phase.index()].s;
             let n = ph.dim;
             let [t0, t1, t2] = &mut self.dense_tmp;
             dense_apply(ph, s, tau, full, &mut t0[..n], &mut t1[..n], &mut t2[..n]);
@@ -428,21 +424,17 @@ impl EngineState {
             if tau != 0.0 && !full {
                 self.ensure_partial(scene, tau);
             }
-            let s = if self.in_contact {
-                &self.s_c
-            } else {
-                &self.s_f
-            };
-            let props = match (tau == 0.0, full, self.in_contact) {
-                (true, _, _) => None,
-                (false, false, _) => Some(&self.p_part),
-                (false, true, true) => Some(&self.p_c),
-                (false, true, false) => Some(&self.p_f),
+            let ps = &self.phases[self.phase.index()];
+            let s = &ps.s;
+            let props = match (tau == 0.0, full) {
+                (true, _) => None,
+                (false, false) => Some(&self.p_part),
+                (false, true) => Some(&ps.props),
             };
             let [f, d, dd] = kernel::event_rows(self.simd, props, s, [&ph.ev, &ph.ev_d, &ph.ev_dd]);
             (f, d, dd)
         };
-        if self.in_contact {
+        if self.in_contact() {
             f += scene.offsets.pi / scene.sk;
         } else {
             f += self.x_h + self.v_h * tau - 0.5 * self.g * tau * tau;
@@ -456,7 +448,7 @@ impl EngineState {
     /// unless it already holds them: one sweep of exp/sin/cos per distinct
     /// `(phase, tau)`.
     fn ensure_partial(&mut self, scene: &CompiledScene, tau: f64) {
-        let contact = self.in_contact;
+        let contact = self.in_contact();
         if self.part_ok && self.part_tau == tau && self.part_contact == contact {
             return;
         }
@@ -503,14 +495,11 @@ impl EngineState {
         }
         let full = full || tau == self.step_s;
         let ph: &CompiledPhase = current_phase(self, scene);
-        let in_contact = self.in_contact;
+        let phase = self.phase;
+        let in_contact = phase == Phase::Contact;
         if ph.dense.is_some() {
             let n = ph.dim;
-            let s = if in_contact {
-                &mut self.s_c
-            } else {
-                &mut self.s_f
-            };
+            let s = &mut self.phases[phase.index()].s;
             let [t0, t1, t2] = &mut self.dense_tmp;
             dense_apply(ph, s, tau, full, &mut t0[..n], &mut t1[..n], &mut t2[..n]);
             s[..n].copy_from_slice(&t0[..n]);
@@ -518,11 +507,11 @@ impl EngineState {
             if !full {
                 self.ensure_partial(scene, tau);
             }
-            let (s, props) = match (full, in_contact) {
-                (false, true) => (&mut self.s_c, &self.p_part),
-                (false, false) => (&mut self.s_f, &self.p_part),
-                (true, true) => (&mut self.s_c, &self.p_c),
-                (true, false) => (&mut self.s_f, &self.p_f),
+            let ps = &mut self.phases[phase.index()];
+            let (s, props) = if full {
+                (&mut ps.s, &ps.props)
+            } else {
+                (&mut ps.s, &self.p_part)
             };
             let nb = ph.dim / 2;
             for k in 0..nb {
@@ -543,7 +532,8 @@ impl EngineState {
     /// fast terms gathered with their bound data, the rounding allowances.
     /// O(N + N_slow deg).
     fn build_model(&mut self, scene: &CompiledScene, rem: f64) {
-        let in_contact = self.in_contact;
+        let phase = self.phase;
+        let in_contact = phase == Phase::Contact;
         let ph = current_phase(self, scene);
         let sc = &mut self.search;
         sc.c = if in_contact {
@@ -553,7 +543,7 @@ impl EngineState {
         };
         let c_scale = sc.c[0].abs() + sc.c[1].abs() * rem + sc.c[2].abs() * rem * rem;
         let c_scale_d = sc.c[1].abs() + sc.c[2].abs() * rem;
-        let s = if in_contact { &self.s_c } else { &self.s_f };
+        let s = &self.phases[phase.index()].s;
         let units = ROUND_UNITS * f64::EPSILON;
         if let Some((_, _)) = &ph.dense {
             let n = ph.dim;
@@ -569,11 +559,7 @@ impl EngineState {
             sc.tol_d = k * units * (c_scale_d + evd_norm * sc.y_norm);
             return;
         }
-        let split = if in_contact {
-            &self.split_c
-        } else {
-            &self.split_f
-        };
+        let split = &self.phases[phase.index()].split;
         let nb = ph.dim / 2;
         let terms = &ph.search.terms;
         // Rounding: computing C from the state rounds each product once
@@ -689,13 +675,13 @@ impl EngineState {
     /// Bounds of `phi` on the node `[tau, tau + w]` of the current model
     /// (`all`: every block resolved, for an exact value of the model).
     fn node_bounds(&mut self, scene: &CompiledScene, tau: f64, w: f64, all: bool) -> NodeBounds {
-        let in_contact = self.in_contact;
+        let phase = self.phase;
         let ph = current_phase(self, scene);
         let sc = &mut self.search;
         let [c0, c1, c2] = sc.c;
         let mut q = [c0 + tau * (c1 + 0.5 * c2 * tau), c1 + c2 * tau, c2];
         let (mut u, mut l, mut c3) = (0.0, 0.0, 0.0);
-        let s = if in_contact { &self.s_c } else { &self.s_f };
+        let s = &self.phases[phase.index()].s;
         if ph.dense.is_some() {
             let n = ph.dim;
             let [t0, t1, t2] = &mut self.dense_tmp;
@@ -938,7 +924,7 @@ impl EngineState {
     /// spring, or start it unstretched (the rod offset takes up the
     /// rounding residual of `phi` at the root, so no energy is added).
     fn switch_now(&mut self, scene: &CompiledScene) {
-        if self.in_contact {
+        if self.in_contact() {
             self.leave_contact(scene);
         } else {
             let p = -self.eval_event3(scene, 0.0, false)[0];
@@ -949,7 +935,7 @@ impl EngineState {
     /// Exact-switching step of one sample (reference duration `step_s`).
     /// O(N) plus the slow polynomial without events; per switch one change
     /// of basis, O(N^2), and a number of node evaluations bounded by the
-    /// phase's time scales. Allocation-free. [audio-thread]
+    /// phase's time scales. Allocation-free. \[audio-thread\]
     pub(super) fn advance_exact(&mut self, scene: &CompiledScene) {
         let step = self.step_s;
         // the least time between two switches is the root resolution
@@ -1021,11 +1007,7 @@ impl EngineState {
 /// The current phase of `st` in `scene` (a plain shared borrow; split out so
 /// the borrow checker sees it does not alias the state vectors).
 pub(super) fn current_phase<'a>(st: &EngineState, scene: &'a CompiledScene) -> &'a CompiledPhase {
-    if st.in_contact {
-        &scene.contact
-    } else {
-        &scene.free
-    }
+    scene.phase(st.phase)
 }
 
 /// `out = exp(A tau) s` for a dense phase: the precomputed propagator for a
@@ -1084,7 +1066,7 @@ mod tests {
             let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
             let mut st = EngineState::new(&sc);
             for contact in [false, true] {
-                st.in_contact = contact;
+                st.phase = if contact { Phase::Contact } else { Phase::Free };
                 let ph = current_phase(&st, &sc);
                 let Some(gens) = ph.gens.clone() else {
                     continue;
@@ -1127,17 +1109,13 @@ mod tests {
             let mut st = EngineState::new(&sc);
             // ring the object: one strike's worth of state in every block
             for contact in [false, true] {
-                st.in_contact = contact;
+                st.phase = if contact { Phase::Contact } else { Phase::Free };
                 st.x_h = 1e-4;
                 st.v_h = -0.3;
                 let dim = current_phase(&st, &sc).dim;
                 for j in 0..dim {
                     let v = 1e-3 * ((j * 7919 % 101) as f64 / 101.0 - 0.5);
-                    if contact {
-                        st.s_c[j] = v;
-                    } else {
-                        st.s_f[j] = v;
-                    }
+                    st.phases[st.phase.index()].s[j] = v;
                 }
                 st.part_ok = false;
                 let step = st.step_s;

@@ -30,30 +30,37 @@ pub const EPOCH: usize = 64;
 pub const GROUP: usize = 8;
 const LANES: usize = 4;
 
+/// Proof that this CPU has AVX2 and FMA. Only [`SimdPath::detect`] makes
+/// one (its field is private to this module), so no code, not even in this
+/// crate, can ask for the AVX2 kernels on a CPU that lacks them: the
+/// `unsafe` calls into `#[target_feature]` functions below rely on it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Avx2Fma(());
+
 /// Which kernel variant runs on this machine.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum SimdPath {
+pub(crate) enum SimdPath {
     /// AVX2 with FMA (x86-64, detected at run time).
-    Avx2Fma,
+    Avx2Fma(Avx2Fma),
     /// Portable code for the baseline target (SSE2 on x86-64).
     Generic,
 }
 
 impl SimdPath {
     /// Detect the best path for this CPU.
-    pub fn detect() -> Self {
+    pub(crate) fn detect() -> Self {
         #[cfg(target_arch = "x86_64")]
         {
             if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-                return SimdPath::Avx2Fma;
+                return SimdPath::Avx2Fma(Avx2Fma(()));
             }
         }
         SimdPath::Generic
     }
     /// Human-readable name (benchmarks print it).
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
-            SimdPath::Avx2Fma => "avx2+fma (runtime-detected)",
+            SimdPath::Avx2Fma(_) => "avx2+fma (runtime-detected)",
             SimdPath::Generic => "generic (baseline target)",
         }
     }
@@ -63,11 +70,11 @@ impl SimdPath {
 /// AVX2 path. Code elsewhere in the process (e.g. a linear-algebra library
 /// run by the compile worker, or the host) may leave them dirty, which makes
 /// every non-VEX SSE instruction that follows pay a merge penalty on some
-/// CPUs; the engine calls this once per block. [audio-thread]
+/// CPUs; the engine calls this once per block. \[audio-thread\]
 #[inline]
 pub fn clean_upper_state(path: SimdPath) {
     #[cfg(target_arch = "x86_64")]
-    if path == SimdPath::Avx2Fma {
+    if matches!(path, SimdPath::Avx2Fma(_)) {
         // SAFETY: `Avx2Fma` is only produced by `detect()` after checking AVX2.
         unsafe { zeroupper() }
     }
@@ -106,10 +113,6 @@ impl BlockProps {
     /// Number of blocks.
     pub fn len(&self) -> usize {
         self.p00.len()
-    }
-    /// No blocks.
-    pub fn is_empty(&self) -> bool {
-        self.p00.is_empty()
     }
     /// Store block `k`.
     #[inline]
@@ -307,7 +310,7 @@ fn block_avx2(io: BlockIo, k: usize) {
 /// Advance the blocks `k <= EPOCH` samples from `io.s` into `io.next`
 /// (`s` is left untouched, so a caller can re-run fewer samples), and write
 /// the rows of every stepped state into `io.out`. O(N k), allocation-free.
-/// [audio-thread]
+/// \[audio-thread\]
 #[inline]
 pub fn run_block(path: SimdPath, io: BlockIo, k: usize) {
     let n = 2 * io.p.len();
@@ -321,15 +324,15 @@ pub fn run_block(path: SimdPath, io: BlockIo, k: usize) {
     );
     match path {
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `SimdPath::Avx2Fma` is only produced by `detect()` after
+        // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `detect()` makes, after
         // `is_x86_feature_detected!` confirmed AVX2 and FMA on this CPU.
-        SimdPath::Avx2Fma => unsafe { block_avx2(io, k) },
+        SimdPath::Avx2Fma(_) => unsafe { block_avx2(io, k) },
         _ => block_body::<false>(io, k),
     }
 }
 
 /// `[ev . s, l . s, r . s]` (no step), summed in the same order as
-/// [`run_block`]'s generic path (bit-identical to it). O(N). [audio-thread]
+/// [`run_block`]'s generic path (bit-identical to it). O(N). \[audio-thread\]
 #[inline]
 pub fn rows_of(s: &[f64], rows: &Rows) -> [f64; 3] {
     let nb = s.len() / 2;
@@ -347,7 +350,7 @@ pub fn rows_of(s: &[f64], rows: &Rows) -> [f64; 3] {
 
 /// The two energy measures of a block state that bound the event function's
 /// curvature: `(sum_k |s_k|^2, sum_k c_k |s_k|^2)` with `s_k` the 2-vector of
-/// block `k` and `c` per-block weights. O(N). [audio-thread]
+/// block `k` and `c` per-block weights. O(N). \[audio-thread\]
 #[inline]
 pub fn block_measures(s: &[f64], c: &[f64]) -> (f64, f64) {
     let nb = c.len();
@@ -442,7 +445,7 @@ fn event_avx2(p: Option<&BlockProps>, s: &[f64], rows: [&[f64]; 3]) -> [f64; 3] 
 /// and its two derivatives) of a block state `s` stepped by the block
 /// propagators `p` (a partial step of exact switching; `None`: no step),
 /// without writing the stepped state. Lane sums in a fixed order.
-/// O(N), allocation-free. [audio-thread]
+/// O(N), allocation-free. \[audio-thread\]
 #[inline]
 pub fn event_rows(
     path: SimdPath,
@@ -460,7 +463,7 @@ pub fn event_rows(
     match path {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as in `run_block`.
-        SimdPath::Avx2Fma => unsafe { event_avx2(p, s, rows) },
+        SimdPath::Avx2Fma(_) => unsafe { event_avx2(p, s, rows) },
         _ => event_body::<false>(p, s, rows),
     }
 }
@@ -511,7 +514,7 @@ fn mat_vec_avx2(m: &[f64], nrows: usize, x: &[f64], y: &mut [f64]) {
 /// columns, vectorised axpys four columns at a time; all-zero groups of `x`
 /// skipped).
 /// The change of basis at a phase switch. O(rows cols), allocation-free.
-/// [audio-thread]
+/// \[audio-thread\]
 pub fn mat_vec_add(path: SimdPath, m: &[f64], nrows: usize, x: &[f64], y: &mut [f64]) {
     assert!(
         m.len() == nrows * x.len() && y.len() >= nrows,
@@ -520,7 +523,7 @@ pub fn mat_vec_add(path: SimdPath, m: &[f64], nrows: usize, x: &[f64], y: &mut [
     match path {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as in `run_block`.
-        SimdPath::Avx2Fma => unsafe { mat_vec_avx2(m, nrows, x, y) },
+        SimdPath::Avx2Fma(_) => unsafe { mat_vec_avx2(m, nrows, x, y) },
         _ => mat_vec_body::<false>(m, nrows, x, y),
     }
 }

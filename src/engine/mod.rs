@@ -1,29 +1,44 @@
 //! The per-sample engine: steps a [`CompiledScene`] exactly, switching between
-//! the free and the contact phase with the paper's offset rod (section 2.2).
+//! the free and the contact phase (docs/numerics.md, "Exact switching"; the
+//! paper's offset rod is the other [`Switching`] method).
 //!
-//! State is f64 and lives in the current phase's block coordinates; the
-//! physical state is never rebuilt while stepping (only for traces). A step
-//! costs one 2x2 multiply per block plus the rows the decision and the outputs
-//! need (O(N)); a switch costs one change of basis (O(N^2)). Nothing in
-//! [`EngineState::tick`] allocates: all buffers are sized in
+//! A voice is an [`EngineState`]: one `PhaseState` per [`Phase`] (state in
+//! that phase's block coordinates, spare buffer, one-sample propagators,
+//! output rows), the hammer in flight, and the exact switching's scratch
+//! (`exact`). The physical state is never rebuilt while stepping (only for
+//! traces). A step costs one 2x2 multiply per block plus the rows the
+//! decision and the outputs need (O(N)); a switch costs one change of basis
+//! (O(N^2)). Nothing in [`EngineState::tick`] or
+//! [`EngineState::process_block`] allocates: all buffers are sized in
 //! [`EngineState::new`].
+//!
+//! Samples run in two paths: the fast path steps up to `EPOCH` samples in
+//! the block kernel and certifies afterwards that none holds a switch (one
+//! curvature bound per epoch, `curvature_bound_fast`; exact mode) or applies
+//! the rod's sign test; a sample it cannot certify runs the slow path (the
+//! certified event search of `exact`, or the rod's decision and a change of
+//! basis).
+//!
+//! The SIMD kernels (`kernel`, `vmath`) are private: which ones run is
+//! chosen by run-time detection, and the AVX2 ones can only be reached with
+//! the token that detection makes (`kernel::SimdPath`).
 //!
 //! Time scaling (pitch): a voice may run the scene with its time axis scaled by
 //! `s` (every frequency times `s`, every decay time over `s`, contact stiffness
 //! times `s^2`, contact damping times `s`, gravity times `s^2`, hammer mass
-//! kept; energies scale by `s^2` at equal displacement). Then the reference system simply steps by `s h`, so the same
-//! decomposition serves every pitch; only the 2x2 block propagators are
-//! recomputed (O(N), no allocation). Velocities in the reference system are
-//! the physical ones divided by `s`.
+//! kept; energies scale by `s^2` at equal displacement). Then the reference
+//! system simply steps by `s h`, so the same decomposition serves every pitch;
+//! only the 2x2 block propagators are recomputed (O(N), no allocation).
+//! Velocities in the reference system are the physical ones divided by `s`.
 
 pub mod denormal;
 mod exact;
-pub mod kernel;
-pub mod vmath;
+mod kernel;
+mod vmath;
 
 pub use exact::{ExactStats, ROOT_ULPS};
 use exact::{SearchScratch, TermSplit};
-pub use kernel::SimdPath;
+use kernel::SimdPath;
 use kernel::{rows_of, run_block, BlockAcc, BlockIo, BlockProps, BlockRows, Rows, EPOCH};
 
 use crate::compile::{CompiledPhase, CompiledScene};
@@ -31,20 +46,31 @@ use crate::physics::block::exp2;
 use crate::scene::Switching;
 use denormal::FlushDenormals;
 
+/// The kernels this CPU runs when not asked for the portable ones, by name
+/// (`"avx2+fma (runtime-detected)"` or `"generic (baseline target)"`).
+pub fn fastest_kernels() -> &'static str {
+    SimdPath::detect().name()
+}
+
+/// Whether this CPU has faster kernels than the portable ones.
+pub fn has_faster_kernels() -> bool {
+    SimdPath::detect() != SimdPath::Generic
+}
+
 /// What the trace records per sample (DESIGN.md section 5), physical units.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Observation {
-    /// Hammer contact-face height [m].
+    /// Hammer contact-face height \[m\].
     pub x_hammer: f64,
-    /// Hammer velocity [m/s].
+    /// Hammer velocity \[m/s\].
     pub v_hammer: f64,
-    /// Object displacement at the contact point [m].
+    /// Object displacement at the contact point \[m\].
     pub x_contact: f64,
-    /// Object velocity at the contact point [m/s].
+    /// Object velocity at the contact point \[m/s\].
     pub v_contact: f64,
     /// In contact for the step that follows (offset rod) / at this instant (exact).
     pub in_contact: bool,
-    /// Total energy [J]: object + hammer (kinetic and gravity) + contact spring.
+    /// Total energy \[J\]: object + hammer (kinetic and gravity) + contact spring.
     pub energy: f64,
 }
 
@@ -76,17 +102,75 @@ pub enum TimeScaleError {
     DenseFallback,
 }
 
+/// Which phase a voice is in: the hammer in flight, or in contact.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// The struck object alone; the hammer flies on its parabola.
+    Free,
+    /// Object, contact spring-damper and hammer together.
+    Contact,
+}
+
+impl Phase {
+    /// Index into [`EngineState`]'s per-phase states.
+    #[inline]
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// Index of the free phase's `PhaseState`.
+const FREE: usize = Phase::Free as usize;
+/// Index of the contact phase's `PhaseState`.
+const CONTACT: usize = Phase::Contact as usize;
+
+/// What a voice keeps per phase, sized for that phase's compiled form.
+#[derive(Debug, Clone)]
+struct PhaseState {
+    /// The state in the phase's block coordinates (structure of arrays).
+    s: Vec<f64>,
+    /// Double buffer: the fused step writes here, then the vectors swap.
+    next: Vec<f64>,
+    /// One-sample block propagators at the current time scale.
+    props: BlockProps,
+    /// Output rows `[left, right]` mixed at the current time scale and band.
+    out: [Vec<f64>; 2],
+    /// The exact event search's split of the phase's terms into slow and
+    /// fast ones at the current step.
+    split: TermSplit,
+}
+
+impl PhaseState {
+    fn new(dim: usize) -> Self {
+        Self {
+            s: vec![0.0; dim],
+            next: vec![0.0; dim],
+            props: BlockProps::new(dim / 2),
+            out: [vec![0.0; dim], vec![0.0; dim]],
+            split: TermSplit::with_capacity(dim),
+        }
+    }
+}
+
+impl CompiledScene {
+    /// The compiled form of `phase`.
+    #[inline]
+    pub fn phase(&self, phase: Phase) -> &CompiledPhase {
+        match phase {
+            Phase::Free => &self.free,
+            Phase::Contact => &self.contact,
+        }
+    }
+}
+
 /// Mutable per-voice state. Sized for one compiled scene (or larger).
 #[derive(Debug, Clone)]
 pub struct EngineState {
-    s_f: Vec<f64>,
-    s_c: Vec<f64>,
-    /// Double buffers: the fused step writes here, then the vectors swap.
-    s_f_next: Vec<f64>,
-    s_c_next: Vec<f64>,
+    /// Per phase: state, spare buffer, propagators, output rows, search split.
+    phases: [PhaseState; 2],
+    /// The phase the voice is in.
+    phase: Phase,
     scratch: Vec<f64>,
-    p_f: BlockProps,
-    p_c: BlockProps,
     /// Kernel variant for this CPU.
     simd: SimdPath,
     /// Run with subnormals flushed to zero (see [`denormal`]); on unless a
@@ -101,7 +185,7 @@ pub struct EngineState {
     acc: Box<BlockAcc>,
     brows: Box<BlockRows>,
     /// Samples since the last reset: the voice's own clock. Epochs of
-    /// [`EPOCH`] samples of this clock (not the host's blocks) decide when the
+    /// `EPOCH` samples of this clock (not the host's blocks) decide when the
     /// curvature bound is refreshed, so the output does not depend on how the
     /// caller splits its blocks.
     clock: u64,
@@ -115,18 +199,16 @@ pub struct EngineState {
     /// sample fails its check, doubled after each full success (speed only,
     /// never results).
     spec_len: usize,
-    out_f: [Vec<f64>; 2],
-    out_c: [Vec<f64>; 2],
+    /// Constants added to the contact phase's outputs (its equilibrium).
     out_c_offset: [f64; 2],
     /// Output band [Hz, physical]: modes of the struck object above it are
     /// left out of the outputs (not of the dynamics). Infinite = all heard.
     band_hz: f64,
     /// Modes left out of the outputs by the band at the current scale.
     band_muted: usize,
-    in_contact: bool,
-    /// Offset rod length [m] (valid in contact).
+    /// Offset rod length \[m\] (valid in contact).
     rod_m: f64,
-    /// Hammer height [m] and reference-time velocity (valid in flight).
+    /// Hammer height \[m\] and reference-time velocity (valid in flight).
     x_h: f64,
     v_h: f64,
     /// Time scale `s` (1 = the scene as written).
@@ -156,11 +238,8 @@ pub struct EngineState {
     n_events: usize,
     /// Switches not recorded because the log was full (diagnostic).
     pub events_dropped: u64,
-    /// Scratch of the exact event search, and its split of each phase's
-    /// event terms into slow and fast ones at the current step.
+    /// Scratch of the exact event search.
     search: SearchScratch,
-    split_f: TermSplit,
-    split_c: TermSplit,
     /// Reference time consumed in the current step (for event times).
     t_in_step: f64,
 }
@@ -172,13 +251,9 @@ impl EngineState {
         let df = scene.free.dim;
         let dc = scene.contact.dim;
         let mut st = EngineState {
-            s_f: vec![0.0; df],
-            s_c: vec![0.0; dc],
-            s_f_next: vec![0.0; df],
-            s_c_next: vec![0.0; dc],
+            phases: [PhaseState::new(df), PhaseState::new(dc)],
+            phase: Phase::Free,
             scratch: vec![0.0; df.max(dc)],
-            p_f: BlockProps::new(df / 2),
-            p_c: BlockProps::new(dc / 2),
             simd: SimdPath::detect(),
             flush_denormals: true,
             cache: [0.0; 3],
@@ -189,12 +264,9 @@ impl EngineState {
             bound: 0.0,
             bound_epoch: NO_EPOCH,
             spec_len: EPOCH,
-            out_f: [vec![0.0; df], vec![0.0; df]],
-            out_c: [vec![0.0; dc], vec![0.0; dc]],
             out_c_offset: [0.0; 2],
             band_hz: f64::INFINITY,
             band_muted: 0,
-            in_contact: false,
             rod_m: 0.0,
             x_h: 0.0,
             v_h: 0.0,
@@ -217,8 +289,6 @@ impl EngineState {
             n_events: 0,
             events_dropped: 0,
             search: SearchScratch::new(df.max(dc)),
-            split_f: TermSplit::with_capacity(df),
-            split_c: TermSplit::with_capacity(dc),
             t_in_step: 0.0,
         };
         st.set_time_scale(scene, 1.0)
@@ -228,11 +298,11 @@ impl EngineState {
     }
 
     /// Objects at rest, hammer at the scene's initial height and velocity.
-    /// Does not allocate. [audio-thread]
+    /// Does not allocate. \[audio-thread\]
     pub fn reset(&mut self, scene: &CompiledScene) {
-        self.s_f.iter_mut().for_each(|x| *x = 0.0);
-        self.s_c.iter_mut().for_each(|x| *x = 0.0);
-        self.in_contact = false;
+        self.phases[FREE].s.iter_mut().for_each(|x| *x = 0.0);
+        self.phases[CONTACT].s.iter_mut().for_each(|x| *x = 0.0);
+        self.phase = Phase::Free;
         self.rod_m = 0.0;
         self.x_h = scene.hammer_x0;
         self.v_h = scene.hammer_v0 / self.time_scale;
@@ -252,24 +322,27 @@ impl EngineState {
     }
 
     /// Flush subnormal numbers to zero while stepping (default: on; see
-    /// [`denormal`]). Off only to measure what it saves. [any-thread]
+    /// [`denormal`]). Off only to measure what it saves. \[any-thread\]
     pub fn set_flush_denormals(&mut self, on: bool) {
         self.flush_denormals = on;
     }
 
-    /// Use the portable kernel instead of the detected SIMD one (benchmarks
-    /// and equivalence tests). [any-thread]
-    pub fn set_simd_path(&mut self, path: SimdPath) {
-        self.simd = if path == SimdPath::Avx2Fma {
-            SimdPath::detect()
+    /// Run the portable kernels (`true`) or the fastest ones this CPU has
+    /// (`false`, the default). The two round differently (fused
+    /// multiply-adds), each deterministically; benchmarks and equivalence
+    /// tests compare them. \[any-thread\]
+    pub fn set_portable_kernels(&mut self, portable: bool) {
+        self.simd = if portable {
+            SimdPath::Generic
         } else {
-            path
+            SimdPath::detect()
         };
     }
 
-    /// The kernel variant in use.
-    pub fn simd_path(&self) -> SimdPath {
-        self.simd
+    /// Whether the portable kernels run (see
+    /// [`set_portable_kernels`](Self::set_portable_kernels)).
+    pub fn portable_kernels(&self) -> bool {
+        self.simd == SimdPath::Generic
     }
 
     /// Free-phase coordinates of the struck object (for tests and tools that
@@ -278,7 +351,7 @@ impl EngineState {
     /// `s[k] = omega_k q_k` and `s[n + k] = q_k'` (reference time).
     pub fn free_state_mut(&mut self) -> &mut [f64] {
         self.discontinuity();
-        &mut self.s_f
+        &mut self.phases[FREE].s
     }
 
     /// Put the hammer in contact at the contact phase's static equilibrium
@@ -289,34 +362,30 @@ impl EngineState {
     /// [`free_state_mut`](Self::free_state_mut); energy coordinates are
     /// `y = V (s + s_star)`, so the penetration cannot reach 0 while
     /// `|V s| < sqrt(k) p_static` in a passive phase. For benchmarks and
-    /// tests of the steady contact phase. [any-thread]
+    /// tests of the steady contact phase. \[any-thread\]
     pub fn rest_in_contact(&mut self) -> &mut [f64] {
-        self.s_c.iter_mut().for_each(|x| *x = 0.0);
+        self.phases[CONTACT].s.iter_mut().for_each(|x| *x = 0.0);
         self.rod_m = 0.0;
-        self.in_contact = true;
+        self.phase = Phase::Contact;
         self.discontinuity();
-        &mut self.s_c
+        &mut self.phases[CONTACT].s
     }
 
     /// The current phase's state in its block coordinates (read only; the
     /// layout of [`free_state_mut`](Self::free_state_mut)). For tests and
-    /// diagnostics. [any-thread]
+    /// diagnostics. \[any-thread\]
     pub fn phase_state(&self) -> &[f64] {
-        if self.in_contact {
-            &self.s_c
-        } else {
-            &self.s_f
-        }
+        &self.phases[self.phase.index()].s
     }
 
-    /// Hammer height [m] and physical velocity [m/s] while in flight.
+    /// Hammer height \[m\] and physical velocity \[m/s\] while in flight.
     pub fn hammer_in_flight(&self) -> Option<(f64, f64)> {
-        (!self.in_contact).then_some((self.x_h, self.v_h * self.time_scale))
+        (!self.in_contact()).then_some((self.x_h, self.v_h * self.time_scale))
     }
 
     /// Whether the hammer is in contact (for the coming step).
     pub fn in_contact(&self) -> bool {
-        self.in_contact
+        self.phase == Phase::Contact
     }
 
     /// Current time scale.
@@ -326,7 +395,7 @@ impl EngineState {
 
     /// Run the scene with its time axis scaled by `s` (pitch ratio). O(N), no
     /// allocation (plus O(N M) for M modes left out by the output band, see
-    /// [`EngineState::set_output_band`]). [audio-thread]
+    /// [`EngineState::set_output_band`]). \[audio-thread\]
     pub fn set_time_scale(&mut self, scene: &CompiledScene, s: f64) -> Result<(), TimeScaleError> {
         if !(s.is_finite() && s > 0.0) {
             return Err(TimeScaleError::Invalid);
@@ -344,16 +413,18 @@ impl EngineState {
         self.time_scale = s;
         self.step_s = scene.h * s;
         self.v_h = v_phys / s;
-        fill_props(&mut self.p_f, &scene.free, self.step_s);
-        fill_props(&mut self.p_c, &scene.contact, self.step_s);
-        self.split_f.update(&scene.free, self.step_s);
-        self.split_c.update(&scene.contact, self.step_s);
+        fill_props(&mut self.phases[FREE].props, &scene.free, self.step_s);
+        fill_props(&mut self.phases[CONTACT].props, &scene.contact, self.step_s);
+        self.phases[FREE].split.update(&scene.free, self.step_s);
+        self.phases[CONTACT]
+            .split
+            .update(&scene.contact, self.step_s);
         self.part_ok = false;
         // Outputs in physical units: displacement rows as they are, velocity
         // rows times s (reference velocities are physical / s).
         for ch in 0..2 {
-            mix_rows(&mut self.out_f[ch], &scene.free, ch, s);
-            mix_rows(&mut self.out_c[ch], &scene.contact, ch, s);
+            mix_rows(&mut self.phases[FREE].out[ch], &scene.free, ch, s);
+            mix_rows(&mut self.phases[CONTACT].out[ch], &scene.contact, ch, s);
         }
         self.out_c_offset = [scene.offsets.disp_l, scene.offsets.disp_r];
         self.apply_band(scene);
@@ -371,7 +442,7 @@ impl EngineState {
     /// function of the physical state across every switch. `INFINITY` (the
     /// default) hears every mode; NaN or <= 0 is treated as `INFINITY`.
     /// A dense-fallback free phase has no modes to leave out (no effect).
-    /// Allocation-free, O(N) plus O(N M) for M modes left out. [audio-thread]
+    /// Allocation-free, O(N) plus O(N M) for M modes left out. \[audio-thread\]
     pub fn set_output_band(&mut self, scene: &CompiledScene, band_hz: f64) {
         self.band_hz = if band_hz > 0.0 {
             band_hz
@@ -411,13 +482,13 @@ impl EngineState {
             self.band_muted += 1;
             for ch in 0..2 {
                 for i in [k, nb + k] {
-                    let r = self.out_f[ch][i];
+                    let r = self.phases[FREE].out[ch][i];
                     if r == 0.0 {
                         continue;
                     }
-                    self.out_f[ch][i] = 0.0;
+                    self.phases[FREE].out[ch][i] = 0.0;
                     for j in 0..dc {
-                        self.out_c[ch][j] -= r * scene.w_fc[(i, j)];
+                        self.phases[CONTACT].out[ch][j] -= r * scene.w_fc[(i, j)];
                     }
                     self.out_c_offset[ch] -= r * scene.s_f_star[i];
                 }
@@ -429,12 +500,12 @@ impl EngineState {
     /// (physical, positive up) while the object keeps its motion: a repeated
     /// strike hits a moving surface. If the old hammer is still in contact it is
     /// lifted off first (its spring is cut: that can only remove energy).
-    /// O(N^2) when in contact, else O(1). [audio-thread]
+    /// O(N^2) when in contact, else O(1). \[audio-thread\]
     pub fn strike(&mut self, scene: &CompiledScene, height_m: f64, velocity_m_per_s: f64) {
-        if self.in_contact {
+        if self.in_contact() {
             self.leave_contact(scene);
         }
-        let x_c = dot(&scene.free.rows.x_c, &self.s_f);
+        let x_c = dot(&scene.free.rows.x_c, &self.phases[FREE].s);
         self.x_h = x_c + height_m.max(0.0);
         self.v_h = velocity_m_per_s / self.time_scale;
         self.discontinuity();
@@ -443,7 +514,7 @@ impl EngineState {
     /// One sample: decide the phase at the current instant, return the output
     /// `[left, right]` of the current state, and advance one step. Same
     /// result as one sample of [`process_block`](Self::process_block).
-    /// Allocation-free, O(N) (O(N^2) on a switch). [audio-thread]
+    /// Allocation-free, O(N) (O(N^2) on a switch). \[audio-thread\]
     #[inline]
     pub fn tick(&mut self, scene: &CompiledScene) -> [f64; 2] {
         let (mut l, mut r) = ([0.0], [0.0]);
@@ -478,12 +549,12 @@ impl EngineState {
     ///
     /// Samples in which no switch can happen (certified in exact mode by the
     /// curvature bound, decided by the sign test with the offset rod) run in
-    /// the block kernel, up to [`EPOCH`] at a time; a sample that may hold a
+    /// the block kernel, up to `EPOCH` at a time; a sample that may hold a
     /// switch, and every sample of a dense-fallback phase, takes the slow
     /// path (event location, change of basis). Subnormal numbers are
     /// flushed to zero meanwhile ([`denormal`]), so a fading voice does not
     /// get slower. Allocation-free, no system call, O(N) per sample plus
-    /// O(N^2) per switch. [audio-thread]
+    /// O(N^2) per switch. \[audio-thread\]
     pub fn process_block(&mut self, scene: &CompiledScene, left: &mut [f64], right: &mut [f64]) {
         let _flush = FlushDenormals::new(self.flush_denormals);
         kernel::clean_upper_state(self.simd);
@@ -506,7 +577,7 @@ impl EngineState {
     /// check them in order; commit every sample before the first one that
     /// may hold a switch. Returns the samples done and whether the next one
     /// needs the slow path. `decided`: the offset-rod decision for the first
-    /// sample was already taken (traces). [audio-thread]
+    /// sample was already taken (traces). \[audio-thread\]
     fn run_fast(
         &mut self,
         scene: &CompiledScene,
@@ -514,7 +585,8 @@ impl EngineState {
         right: &mut [f64],
         decided: bool,
     ) -> (usize, bool) {
-        let in_contact = self.in_contact;
+        let phase = self.phase;
+        let in_contact = phase == Phase::Contact;
         let ph = exact::current_phase(self, scene);
         if ph.dense.is_some() || ph.gens.is_none() {
             return (0, true);
@@ -606,7 +678,7 @@ impl EngineState {
 
     /// One sample on the slow path: a possible switch (located exactly, or
     /// the offset rod's decision) or a dense-fallback phase. `decided`: the
-    /// offset-rod decision for this instant was already taken. [audio-thread]
+    /// offset-rod decision for this instant was already taken. \[audio-thread\]
     fn slow_sample(&mut self, scene: &CompiledScene, decided: bool) -> [f64; 2] {
         if !decided {
             self.n_events = 0;
@@ -632,14 +704,11 @@ impl EngineState {
     /// One step of the current phase, no switching (offset rod after its
     /// decision): the block kernel, or the dense propagator.
     fn step_plain(&mut self, scene: &CompiledScene) {
-        let in_contact = self.in_contact;
+        let phase = self.phase;
+        let in_contact = phase == Phase::Contact;
         let ph = exact::current_phase(self, scene);
         if ph.dense.is_some() || ph.gens.is_none() {
-            let s = if in_contact {
-                &mut self.s_c
-            } else {
-                &mut self.s_f
-            };
+            let s = &mut self.phases[phase.index()].s;
             step_phase(ph, s, &mut self.scratch);
             self.cache_ok = false;
         } else {
@@ -659,23 +728,9 @@ impl EngineState {
     /// state into the spare buffer (the state itself is left untouched) and
     /// leave the rows of every stepped state in `brows`.
     fn run_kernel(&mut self, scene: &CompiledScene, k: usize) {
-        let (ph, s, next, props, out) = if self.in_contact {
-            (
-                &scene.contact,
-                &self.s_c,
-                &mut self.s_c_next,
-                &self.p_c,
-                &self.out_c,
-            )
-        } else {
-            (
-                &scene.free,
-                &self.s_f,
-                &mut self.s_f_next,
-                &self.p_f,
-                &self.out_f,
-            )
-        };
+        let ph = scene.phase(self.phase);
+        let ps = &mut self.phases[self.phase.index()];
+        let (s, next, props, out) = (&ps.s, &mut ps.next, &ps.props, &ps.out);
         let rows = Rows {
             ev: &ph.ev,
             l: &out[0],
@@ -698,11 +753,8 @@ impl EngineState {
     /// Adopt the state of the last [`run_kernel`](Self::run_kernel) call,
     /// which ran `k >= 1` samples, and its rows as the cached rows.
     fn commit_kernel(&mut self, k: usize) {
-        if self.in_contact {
-            std::mem::swap(&mut self.s_c, &mut self.s_c_next);
-        } else {
-            std::mem::swap(&mut self.s_f, &mut self.s_f_next);
-        }
+        let ps = &mut self.phases[self.phase.index()];
+        std::mem::swap(&mut ps.s, &mut ps.next);
         let j = k - 1;
         self.cache = [self.brows.ev[j], self.brows.l[j], self.brows.r[j]];
         self.cache_ok = true;
@@ -713,25 +765,19 @@ impl EngineState {
     /// `sqrt(sum c_k * sum c_k |s_k|^2)` (see `CompiledPhase::ev_dd_block`),
     /// plus gravity in flight. Valid for every later state of the phase.
     fn curvature_bound_fast(&self, scene: &CompiledScene) -> f64 {
-        let (ph, s) = if self.in_contact {
-            (&scene.contact, &self.s_c)
-        } else {
-            (&scene.free, &self.s_f)
-        };
+        let (ph, s) = (scene.phase(self.phase), &self.phases[self.phase.index()].s);
         let (e, w) = kernel::block_measures(s, &ph.ev_dd_block);
         let global2 = ph.ev_dd_norm * ph.ev_dd_norm * e;
         let weighted2 = ph.ev_dd_block_sum * w;
-        let g = if self.in_contact { 0.0 } else { self.g };
+        let g = if self.in_contact() { 0.0 } else { self.g };
         // 1 + 1e-12: the blocks are contractions up to rounding of exp2
         g + global2.min(weighted2).sqrt() * (1.0 + 1e-12)
     }
 
     fn refresh_cache(&mut self, scene: &CompiledScene) {
-        let (ph, s, out) = if self.in_contact {
-            (&scene.contact, &self.s_c, &self.out_c)
-        } else {
-            (&scene.free, &self.s_f, &self.out_f)
-        };
+        let ph = scene.phase(self.phase);
+        let ps = &self.phases[self.phase.index()];
+        let (s, out) = (&ps.s, &ps.out);
         let rows = Rows {
             ev: &ph.ev,
             l: &out[0],
@@ -747,19 +793,19 @@ impl EngineState {
         if !self.cache_ok {
             self.refresh_cache(scene);
         }
-        if self.in_contact {
+        if self.in_contact() {
             self.cache[0] + scene.offsets.pi / scene.sk
         } else {
             self.cache[0] + self.x_h
         }
     }
 
-    /// Effective penetration now (`p_eff`, with the rod) [m].
+    /// Effective penetration now (`p_eff`, with the rod) \[m\].
     pub fn penetration(&self, scene: &CompiledScene) -> f64 {
-        if self.in_contact {
-            (dot(&scene.contact.rows.pi, &self.s_c) + scene.offsets.pi) / scene.sk
+        if self.in_contact() {
+            (dot(&scene.contact.rows.pi, &self.phases[CONTACT].s) + scene.offsets.pi) / scene.sk
         } else {
-            dot(&scene.free.rows.x_c, &self.s_f) - self.x_h
+            dot(&scene.free.rows.x_c, &self.phases[FREE].s) - self.x_h
         }
     }
 
@@ -767,7 +813,7 @@ impl EngineState {
     /// the fast path uses ([`phi_now`](Self::phi_now)).
     fn decide(&mut self, scene: &CompiledScene) {
         let phi = self.phi_now(scene);
-        if self.in_contact {
+        if self.in_contact() {
             // Leave at the first sample with p_eff <= 0 (paper 2.2); cutting the
             // spring there can only lose its energy 0.5 k p_eff^2.
             if !(phi > 0.0) {
@@ -785,17 +831,18 @@ impl EngineState {
         self.rod_m = p;
         let eta = scene.sm * self.v_h;
         let dc = scene.contact.dim;
+        let [free, contact] = &mut self.phases;
         for i in 0..dc {
-            self.s_c[i] = scene.col_eta[i] * eta - scene.s_star[i];
+            contact.s[i] = scene.col_eta[i] * eta - scene.s_star[i];
         }
         kernel::mat_vec_add(
             self.simd,
             scene.w_cf.as_slice(),
             dc,
-            &self.s_f,
-            &mut self.s_c,
+            &free.s,
+            &mut contact.s,
         );
-        self.in_contact = true;
+        self.phase = Phase::Contact;
         self.contacts_started += 1;
         self.discontinuity();
         self.log_event(true);
@@ -805,21 +852,22 @@ impl EngineState {
     /// basis.
     fn leave_contact(&mut self, scene: &CompiledScene) {
         let p_eff = self.penetration(scene);
-        let x_c = dot(&scene.contact.rows.x_c, &self.s_c) + scene.offsets.x_c;
-        let eta = dot(&scene.contact.rows.eta, &self.s_c) + scene.offsets.eta;
+        let x_c = dot(&scene.contact.rows.x_c, &self.phases[CONTACT].s) + scene.offsets.x_c;
+        let eta = dot(&scene.contact.rows.eta, &self.phases[CONTACT].s) + scene.offsets.eta;
         let df = scene.free.dim;
-        self.s_f[..df].copy_from_slice(&scene.s_f_star);
+        let [free, contact] = &mut self.phases;
+        free.s[..df].copy_from_slice(&scene.s_f_star);
         kernel::mat_vec_add(
             self.simd,
             scene.w_fc.as_slice(),
             df,
-            &self.s_c,
-            &mut self.s_f,
+            &contact.s,
+            &mut free.s,
         );
         self.x_h = x_c - p_eff - self.rod_m;
         self.v_h = eta / scene.sm;
         self.rod_m = 0.0;
-        self.in_contact = false;
+        self.phase = Phase::Free;
         self.discontinuity();
         self.log_event(false);
     }
@@ -838,7 +886,7 @@ impl EngineState {
 
     /// Enter contact (offset rod at the current penetration) and leave it
     /// again: two changes of basis, O(N^2). Only for benchmarks of the switch
-    /// cost. [any-thread]
+    /// cost. \[any-thread\]
     #[doc(hidden)]
     pub fn bench_switch_pair(&mut self, scene: &CompiledScene) {
         let p = self.penetration(scene);
@@ -847,13 +895,13 @@ impl EngineState {
     }
 
     /// Phase switches that happened during the last `tick` (offline
-    /// diagnostics: contact start/end times). [any-thread]
+    /// diagnostics: contact start/end times). \[any-thread\]
     pub fn switch_events(&self) -> &[SwitchEvent] {
         &self.events[..self.n_events]
     }
 
     /// Record up to `n` switches per tick (default 64). Allocates: not on
-    /// the audio thread. [main-thread]
+    /// the audio thread. \[main-thread\]
     pub fn set_event_log_capacity(&mut self, n: usize) {
         self.events = vec![SwitchEvent::default(); n];
         self.n_events = 0;
@@ -864,7 +912,7 @@ impl EngineState {
         if !self.cache_ok {
             self.refresh_cache(scene);
         }
-        if self.in_contact {
+        if self.in_contact() {
             [
                 self.cache[1] + self.out_c_offset[0],
                 self.cache[2] + self.out_c_offset[1],
@@ -877,13 +925,17 @@ impl EngineState {
     /// Cheap O(N) energy proxy in reference units: `0.5 |s|^2` of the current
     /// phase plus the hammer's kinetic energy. Exact for modal objects in
     /// flight (orthonormal blocks); within a factor kappa(V)^2 otherwise.
-    /// Used to stop voices that have decayed. [audio-thread]
+    /// Used to stop voices that have decayed. \[audio-thread\]
     pub fn energy_proxy(&self, scene: &CompiledScene) -> f64 {
-        if self.in_contact {
-            0.5 * self.s_c.iter().map(|x| x * x).sum::<f64>()
-        } else {
-            0.5 * self.s_f.iter().map(|x| x * x).sum::<f64>()
-                + 0.5 * scene.m_h * self.v_h * self.v_h
+        let state = 0.5
+            * self.phases[self.phase.index()]
+                .s
+                .iter()
+                .map(|x| x * x)
+                .sum::<f64>();
+        match self.phase {
+            Phase::Contact => state,
+            Phase::Free => state + 0.5 * scene.m_h * self.v_h * self.v_h,
         }
     }
 
@@ -898,28 +950,34 @@ impl EngineState {
     /// (NUMERICS.md X14), and the hammer keeps its momentum coordinate.
     /// Returns `false` (state untouched) when the layouts differ (another
     /// object or another mode count): the caller then resets the voice.
-    /// O(N^2), allocation-free. [audio-thread]
+    /// O(N^2), allocation-free. \[audio-thread\]
     pub fn rebind(&mut self, old: &CompiledScene, new: &CompiledScene) -> bool {
         if old.free.dim != new.free.dim
             || old.contact.dim != new.contact.dim
-            || self.s_f.len() != new.free.dim
-            || self.s_c.len() != new.contact.dim
+            || self.phases[FREE].s.len() != new.free.dim
+            || self.phases[CONTACT].s.len() != new.contact.dim
         {
             return false;
         }
         if (new.free.dense.is_some() || new.contact.dense.is_some()) && self.time_scale != 1.0 {
             return false;
         }
-        let (ph_old, ph_new, s, star_old, star_new) = if self.in_contact {
+        let (ph_old, ph_new, s, star_old, star_new) = if self.in_contact() {
             (
                 &old.contact,
                 &new.contact,
-                &mut self.s_c,
+                &mut self.phases[CONTACT].s,
                 &old.s_star[..],
                 &new.s_star[..],
             )
         } else {
-            (&old.free, &new.free, &mut self.s_f, &[][..], &[][..])
+            (
+                &old.free,
+                &new.free,
+                &mut self.phases[FREE].s,
+                &[][..],
+                &[][..],
+            )
         };
         let dim = ph_old.dim;
         // y = V_old (s + s*_old)
@@ -938,10 +996,10 @@ impl EngineState {
             }
             s[i] = acc - star_new.get(i).copied().unwrap_or(0.0);
         }
-        if self.in_contact {
+        if self.in_contact() {
             // keep the true penetration p = p_eff + rod: x_h is unchanged
             // only if the spring length is; choose the rod so p_eff' = pi/sk'.
-            let pi = dot(&new.contact.rows.pi, &self.s_c) + new.offsets.pi;
+            let pi = dot(&new.contact.rows.pi, &self.phases[CONTACT].s) + new.offsets.pi;
             let p_true = self.rod_m + old_p_eff(old, pi);
             self.rod_m = p_true - pi / new.sk;
         }
@@ -951,16 +1009,16 @@ impl EngineState {
         true
     }
 
-    /// Physical observation of the current state (O(N^2)). [offline]
+    /// Physical observation of the current state (O(N^2)). \[offline\]
     pub fn observe(&self, scene: &CompiledScene) -> Observation {
         let s = self.time_scale;
-        if self.in_contact {
+        if self.in_contact() {
             let ph = &scene.contact;
-            let y = energy_coords(ph, &self.s_c, &scene.s_star);
-            let x_c = dot(&ph.rows.x_c, &self.s_c) + scene.offsets.x_c;
-            let v_c = dot(&ph.rows.v_c, &self.s_c) + scene.offsets.v_c;
+            let y = energy_coords(ph, &self.phases[CONTACT].s, &scene.s_star);
+            let x_c = dot(&ph.rows.x_c, &self.phases[CONTACT].s) + scene.offsets.x_c;
+            let v_c = dot(&ph.rows.v_c, &self.phases[CONTACT].s) + scene.offsets.v_c;
             let p_eff = self.penetration(scene);
-            let eta = dot(&ph.rows.eta, &self.s_c) + scene.offsets.eta;
+            let eta = dot(&ph.rows.eta, &self.phases[CONTACT].s) + scene.offsets.eta;
             let x_h = x_c - p_eff - self.rod_m;
             let e_ref: f64 = 0.5 * y.iter().map(|v| v * v).sum::<f64>();
             Observation {
@@ -973,9 +1031,9 @@ impl EngineState {
             }
         } else {
             let ph = &scene.free;
-            let z = energy_coords(ph, &self.s_f, &[]);
-            let x_c = dot(&ph.rows.x_c, &self.s_f);
-            let v_c = dot(&ph.rows.v_c, &self.s_f);
+            let z = energy_coords(ph, &self.phases[FREE].s, &[]);
+            let x_c = dot(&ph.rows.x_c, &self.phases[FREE].s);
+            let v_c = dot(&ph.rows.v_c, &self.phases[FREE].s);
             let e_obj: f64 = 0.5 * z.iter().map(|v| v * v).sum::<f64>();
             let v = self.v_h;
             Observation {

@@ -82,7 +82,7 @@ pub fn exp2(g: &Mat2, t: f64) -> Mat2 {
 /// `cos(w t)`: `exp(G t) = e^{m t} (cos(w t) I + sin(w t) N / w)` with
 /// `N = G - m I` (the formula of [`exp2`] with the `t`-independent parts
 /// taken out). The engine evaluates the three functions for all blocks at
-/// once ([`crate::engine::vmath`]) when it needs `exp(G tau)` at a new
+/// once (the engine's vectorised exp/sin/cos) when it needs `exp(G tau)` at a new
 /// `tau` (located switches).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OscForm {

@@ -50,7 +50,7 @@ pub struct ObjectModel {
     pub modal_blocks: Option<Vec<Mat2>>,
     /// Named points.
     pub points: Vec<PointRows>,
-    /// Undamped natural frequencies [Hz], for summaries.
+    /// Undamped natural frequencies \[Hz\], for summaries.
     pub freqs_hz: Vec<f64>,
 }
 
@@ -234,13 +234,13 @@ impl ContactLayout {
 /// Physical parameters of the contact and hammer.
 #[derive(Debug, Clone, Copy)]
 pub struct ContactParams {
-    /// Contact stiffness [N/m].
+    /// Contact stiffness \[N/m\].
     pub k: f64,
-    /// Contact damping [N s/m].
+    /// Contact damping \[N s/m\].
     pub c: f64,
-    /// Hammer mass [kg].
+    /// Hammer mass \[kg\].
     pub m_h: f64,
-    /// Gravity [m/s^2] (pulls down).
+    /// Gravity \[m/s^2\] (pulls down).
     pub g: f64,
 }
 

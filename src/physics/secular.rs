@@ -20,7 +20,7 @@
 //! `J v` is a left eigenvector for the same `z`, and the inverse of the
 //! eigenvector matrix is `diag(1 / (v_j^T J v_j)) V^T J`, also O(N^2). (Its
 //! rounding grows with each eigenvalue's condition number `1 / |v_j^T J
-//! v_j|`; past [`ROW_COND_MAX`] the inverse is taken by LU instead, one
+//! v_j|`; past `ROW_COND_MAX` the inverse is taken by LU instead, one
 //! blocked O(N^3) factorisation.)
 //!
 //! Roots: Aberth-Ehrlich simultaneous iteration on `P`, started from the
@@ -56,17 +56,17 @@ type C = Complex<f64>;
 /// contact point belong here (the others are exactly decoupled).
 #[derive(Debug, Clone, Copy)]
 pub struct ModalContact<'a> {
-    /// Undamped angular frequencies `omega_i` [rad/s], > 0.
+    /// Undamped angular frequencies `omega_i` \[rad/s\], > 0.
     pub omega: &'a [f64],
-    /// Decay rates `sigma_i` [1/s], >= 0 (generator entry `-2 sigma_i`).
+    /// Decay rates `sigma_i` \[1/s\], >= 0 (generator entry `-2 sigma_i`).
     pub sigma: &'a [f64],
-    /// Mode weights at the contact point `f_i` [1/sqrt(kg)], nonzero.
+    /// Mode weights at the contact point `f_i` \[1/sqrt(kg)\], nonzero.
     pub f: &'a [f64],
-    /// Contact stiffness [N/m], > 0.
+    /// Contact stiffness \[N/m\], > 0.
     pub k: f64,
-    /// Contact damping [N s/m], >= 0.
+    /// Contact damping \[N s/m\], >= 0.
     pub c: f64,
-    /// Hammer mass [kg], > 0.
+    /// Hammer mass \[kg\], > 0.
     pub m_h: f64,
 }
 

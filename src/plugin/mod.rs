@@ -63,7 +63,7 @@ impl Default for ModalContact {
 
 impl ModalContact {
     /// Hand retired scenes back, swap in a ready one, and post a request if
-    /// the matrix parameters moved. Lock-free, allocation-free. [audio-thread]
+    /// the matrix parameters moved. Lock-free, allocation-free. \[audio-thread\]
     fn maybe_swap_and_request(&mut self) {
         let Some(inst) = self.instrument.as_mut() else {
             return;
@@ -98,7 +98,7 @@ impl ModalContact {
         inst.set_play(self.params.play_params());
     }
 
-    /// Stop the worker and free the instrument. [main-thread]
+    /// Stop the worker and free the instrument. \[main-thread\]
     fn shut_down(&mut self) {
         if let Some(mut w) = self.worker.take() {
             w.stop();
@@ -159,7 +159,7 @@ impl Plugin for ModalContact {
 
     /// States from older versions get defaults for parameters they lack;
     /// invalid values are replaced by defaults (see [`params::migrate_state`]).
-    /// [main-thread]
+    /// \[main-thread\]
     fn filter_state(state: &mut nice_plug::plugin::PluginState) {
         let notes = params::migrate_state(state);
         if !notes.is_empty() {
@@ -168,7 +168,7 @@ impl Plugin for ModalContact {
     }
 
     /// Compile the current parameters synchronously for the host's sample
-    /// rate and start the worker. [main-thread]
+    /// rate and start the worker. \[main-thread\]
     fn activate(
         &mut self,
         _audio_io_layout: &AudioIOLayout,
@@ -219,13 +219,13 @@ impl Plugin for ModalContact {
         true
     }
 
-    /// Join the worker, free the scenes. [main-thread]
+    /// Join the worker, free the scenes. \[main-thread\]
     fn deactivate(&mut self) {
         self.shut_down();
     }
 
     /// Silence every voice (no allocation: states are reset in place by
-    /// restarting the instrument's voices). [audio-thread]
+    /// restarting the instrument's voices). \[audio-thread\]
     fn reset(&mut self) {
         if let Some(inst) = self.instrument.as_mut() {
             inst.silence();
@@ -237,7 +237,7 @@ impl Plugin for ModalContact {
     /// block is written as silence, every voice is stopped (their state may
     /// be half-updated), a line is logged, and the next block plays on. A
     /// panic must never unwind into the host (through `extern "C"` it would
-    /// abort the whole DAW). [audio-thread]
+    /// abort the whole DAW). \[audio-thread\]
     fn process(
         &mut self,
         buffer: &mut Buffer,
@@ -282,7 +282,7 @@ impl Plugin for ModalContact {
 }
 
 impl ModalContact {
-    /// The body of `process` (see there). [audio-thread]
+    /// The body of `process` (see there). \[audio-thread\]
     fn process_guarded(
         &mut self,
         buffer: &mut Buffer,

@@ -223,7 +223,7 @@ impl Default for ModalContactParams {
 
 impl ModalContactParams {
     /// Snapshot of the parameters that need a compile (atomic loads only).
-    /// [any-thread]
+    /// \[any-thread\]
     pub fn scene_params(&self) -> SceneParams {
         SceneParams {
             preset: self.scene.value().to_index(),
@@ -244,7 +244,7 @@ impl ModalContactParams {
         }
     }
 
-    /// Snapshot of the parameters read without a compile. [any-thread]
+    /// Snapshot of the parameters read without a compile. \[any-thread\]
     pub fn play_params(&self) -> PlayParams {
         PlayParams {
             pitch_tracking: self.pitch_tracking.value(),
@@ -253,7 +253,7 @@ impl ModalContactParams {
         }
     }
 
-    /// Both snapshots. [any-thread]
+    /// Both snapshots. \[any-thread\]
     pub fn instrument_params(&self) -> InstrumentParams {
         InstrumentParams {
             scene: self.scene_params(),
@@ -270,7 +270,7 @@ impl ModalContactParams {
 /// missing or refused value would silently keep whatever the instance had
 /// before the load). Entries for ids this version does not know are left
 /// alone (nice-plug skips them). Returns one note per replaced value, for
-/// the log. [main-thread]
+/// the log. \[main-thread\]
 pub fn migrate_state(state: &mut PluginState) -> Vec<String> {
     let d = ModalContactParams::default();
     let mut notes = Vec::new();

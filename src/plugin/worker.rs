@@ -39,7 +39,7 @@ pub const RETURN_CAPACITY: usize = 8;
 pub struct CompileRequest {
     /// Increases with every request of this instance.
     pub revision: u64,
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub rate_hz: f64,
     /// What to compile.
     pub params: SceneParams,
@@ -57,12 +57,12 @@ pub struct Handoff {
     pub failures: AtomicU64,
     /// Revision of the last published scene (worker writes).
     pub published_revision: AtomicU64,
-    /// Wall time of the last compile [ms] (worker writes; diagnostics only).
+    /// Wall time of the last compile \[ms\] (worker writes; diagnostics only).
     pub last_compile_ms: AtomicF64,
 }
 
 impl Handoff {
-    /// Allocate the queues. [main-thread]
+    /// Allocate the queues. \[main-thread\]
     pub fn new() -> Arc<Self> {
         Arc::new(Self {
             requests: ArrayQueue::new(REQUEST_CAPACITY),
@@ -77,23 +77,23 @@ impl Handoff {
     }
 
     /// Post a request; false if the queue is full (retry later). Lock-free,
-    /// no allocation. [audio-thread]
+    /// no allocation. \[audio-thread\]
     pub fn request(&self, req: CompileRequest) -> bool {
         self.requests.push(req).is_ok()
     }
 
-    /// Take a compiled scene if one is ready. Lock-free. [audio-thread]
+    /// Take a compiled scene if one is ready. Lock-free. \[audio-thread\]
     pub fn take_ready(&self) -> Option<Box<Prepared>> {
         self.ready.pop()
     }
 
     /// Hand a retired box back to be freed by the worker; gives it back if
-    /// the queue is full. Lock-free, never drops. [audio-thread]
+    /// the queue is full. Lock-free, never drops. \[audio-thread\]
     pub fn give_back(&self, b: Box<Prepared>) -> Result<(), Box<Prepared>> {
         self.returned.push(b)
     }
 
-    /// Free everything still queued (when no worker runs). [main-thread]
+    /// Free everything still queued (when no worker runs). \[main-thread\]
     pub fn drain(&self) {
         while self.returned.pop().is_some() {}
         while self.ready.pop().is_some() {}
@@ -108,7 +108,7 @@ pub struct Worker {
 }
 
 impl Worker {
-    /// Spawn the worker. [main-thread]
+    /// Spawn the worker. \[main-thread\]
     pub fn spawn(handoff: Arc<Handoff>) -> std::io::Result<Self> {
         handoff.stop.store(false, Ordering::Release);
         let h = handoff.clone();
@@ -122,7 +122,7 @@ impl Worker {
     }
 
     /// Stop and join the worker, then free whatever is still queued.
-    /// [main-thread]
+    /// \[main-thread\]
     pub fn stop(&mut self) {
         if let Some(t) = self.thread.take() {
             self.handoff.stop.store(true, Ordering::Release);
@@ -140,7 +140,7 @@ impl Drop for Worker {
 }
 
 /// The worker loop: free returned boxes, coalesce requests (newest revision
-/// wins), compile, publish; sleep with `park_timeout` when idle. [worker]
+/// wins), compile, publish; sleep with `park_timeout` when idle. \[worker\]
 fn run(h: &Handoff) {
     while !h.stop.load(Ordering::Acquire) {
         while let Some(old) = h.returned.pop() {
@@ -183,7 +183,7 @@ fn run(h: &Handoff) {
 }
 
 /// Publish, replacing a stale unread result if the queue is full (the stale
-/// box is freed here, on the worker). [worker]
+/// box is freed here, on the worker). \[worker\]
 fn publish(h: &Handoff, mut p: Box<Prepared>) {
     loop {
         match h.ready.push(p) {

@@ -13,7 +13,7 @@ use crate::report::scenes::RATE;
 use crate::report::stability;
 use anyhow::{bail, Context, Result};
 use modal_contact::compile::compile_with;
-use modal_contact::engine::{EngineState, SimdPath};
+use modal_contact::engine::{has_faster_kernels, EngineState};
 use modal_contact::render::{write_trace_csv, TraceRow};
 use modal_contact::scene::{Scene, Switching};
 use std::collections::BTreeMap;
@@ -33,18 +33,18 @@ fn fnv1a(bytes: &[u8]) -> u64 {
     h
 }
 
-/// Render `n` samples of `scene` with `switching` on kernel `path`, and
+/// Render `n` samples of `scene` with `switching` on the portable kernels or this CPU's fastest, and
 /// hash the WAV (32-bit float stereo, as `cargo xtask render` writes it)
 /// and the trace CSV.
 fn render_hashes(
     scene: &Scene,
     n: usize,
     switching: Switching,
-    path: SimdPath,
+    portable: bool,
 ) -> Result<(u64, u64)> {
     let sc = compile_with(scene, RATE, Some(switching))?;
     let mut st = EngineState::new(&sc);
-    st.set_simd_path(path);
+    st.set_portable_kernels(portable);
     let mut wav = Cursor::new(Vec::new());
     let spec = hound::WavSpec {
         channels: 2,
@@ -93,21 +93,17 @@ fn cases(root: &Path) -> Result<Vec<(String, Scene, usize)>> {
 
 /// Compute every hash: `"<case> | <switching> | <kernels>" -> "wav trace"`.
 fn compute(root: &Path) -> Result<BTreeMap<String, String>> {
-    let mut paths = vec![SimdPath::Generic];
-    if SimdPath::detect() != SimdPath::Generic {
-        paths.push(SimdPath::detect());
+    let mut paths = vec![true];
+    if has_faster_kernels() {
+        paths.push(false);
     }
     let mut out = BTreeMap::new();
     for (name, scene, n) in cases(root)? {
         for sw in [Switching::Exact, Switching::OffsetRod] {
-            for &path in &paths {
-                let (w, t) = render_hashes(&scene, n, sw, path)
+            for &portable in &paths {
+                let (w, t) = render_hashes(&scene, n, sw, portable)
                     .with_context(|| format!("{name} ({})", sw.as_str()))?;
-                let kernels = if path == SimdPath::Generic {
-                    "portable"
-                } else {
-                    "avx2+fma"
-                };
+                let kernels = if portable { "portable" } else { "avx2+fma" };
                 out.insert(
                     format!("{name} | {} | {kernels}", sw.as_str()),
                     format!("wav {w:016x} trace {t:016x}"),
