@@ -36,8 +36,11 @@ pub const MIN_FREQ_HZ: f64 = 1.0e-3;
 /// Shortest T60 \[s\]: 60 dB of decay in a microsecond (damping rate
 /// `ln(1000) / T60` up to 6.9e6 1/s) is far beyond any audible damping.
 pub const MIN_T60_S: f64 = 1.0e-6;
+/// Largest mode weight magnitude \[1/sqrt(kg)\]: a mode that looks like a mass
+/// of `1 / w^2 = 1e-12` kg at that point ([`MIN_MASS_KG`]).
+pub const MAX_WEIGHT: f64 = 1.0e6;
 /// Lightest and heaviest mass \[kg\] (hammer, string masses): the lower limit
-/// is the effective mass of the largest allowed weight, `1 / (1e6)^2`.
+/// is the effective mass of the largest allowed weight, `1 / MAX_WEIGHT^2`.
 pub const MIN_MASS_KG: f64 = 1.0e-12;
 /// See [`MIN_MASS_KG`] (a thousand tonnes).
 pub const MAX_MASS_KG: f64 = 1.0e6;
@@ -264,6 +267,19 @@ pub struct StringSpec {
     pub dashpots: Vec<DashpotSpec>,
     /// Named points: 0-based mass indices.
     pub points: BTreeMap<String, usize>,
+}
+
+impl StringSpec {
+    /// Natural frequency of mode `j` (1..=masses) of the undamped
+    /// fixed-fixed chain \[Hz\]: `omega_j = 2 sqrt(s/m) sin(j pi / (2 (n + 1)))`
+    /// (docs/design.md, "Objects"). The one closed form of the string's
+    /// modes: validation, summaries and the instrument's root note use it.
+    pub fn mode_freq_hz(&self, j: usize) -> f64 {
+        let omega = 2.0
+            * (self.spring_n_per_m / self.mass_kg).sqrt()
+            * (j as f64 * std::f64::consts::PI / (2.0 * (self.masses as f64 + 1.0))).sin();
+        omega / (2.0 * std::f64::consts::PI)
+    }
 }
 
 /// A dashpot from one mass to ground.
@@ -656,11 +672,11 @@ fn validate_modal(base: &str, m: &ModalSpec) -> Result<(), SceneError> {
         }
         for (j, w) in mode.weights.iter().enumerate() {
             check_finite(&format!("{mb}.weights[{j}]"), *w)?;
-            if w.abs() > 1e6 {
+            if w.abs() > MAX_WEIGHT {
                 return Err(SceneError::new(
                     format!("{mb}.weights[{j}]"),
                     format!(
-                        "|w| must be <= 1e6 1/sqrt(kg) (an effective mass >= 1e-12 kg), got {w}"
+                        "|w| must be <= {MAX_WEIGHT:e} 1/sqrt(kg) (an effective mass >= {MIN_MASS_KG:e} kg), got {w}"
                     ),
                 ));
             }
@@ -685,13 +701,10 @@ fn validate_string(base: &str, s: &StringSpec) -> Result<(), SceneError> {
         s.spring_n_per_m,
         MAX_STIFFNESS_N_PER_M,
     )?;
-    // The chain's modes span 2 sqrt(s/m) sin(j pi / (2 (n + 1))), j = 1..n:
-    // the same frequency range as a modal object's modes.
-    let omega0 = (s.spring_n_per_m / s.mass_kg).sqrt();
-    let n1 = s.masses as f64 + 1.0;
-    let f_lo = omega0 * (std::f64::consts::PI / (2.0 * n1)).sin() / std::f64::consts::PI;
-    let f_hi =
-        omega0 * (s.masses as f64 * std::f64::consts::PI / (2.0 * n1)).sin() / std::f64::consts::PI;
+    // The chain's modes must lie in the same frequency range as a modal
+    // object's modes.
+    let f_lo = s.mode_freq_hz(1);
+    let f_hi = s.mode_freq_hz(s.masses);
     if f_hi > MAX_FREQ_HZ {
         return Err(SceneError::new(
             format!("{base}.spring_n_per_m"),

@@ -174,15 +174,8 @@ fn string_model(s: &StringSpec) -> Result<ObjectModel, ModelError> {
             }
         })
         .collect();
-    // Natural frequencies of the fixed-fixed chain, closed form (for the summary):
-    // omega_j = 2 sqrt(k/m) sin(j pi / (2 (n + 1))).
-    let freqs = (1..=n)
-        .map(|j| {
-            2.0 * (kk / m).sqrt()
-                * (j as f64 * std::f64::consts::PI / (2.0 * (n as f64 + 1.0))).sin()
-                / (2.0 * std::f64::consts::PI)
-        })
-        .collect();
+    // Natural frequencies of the fixed-fixed chain (for the summary).
+    let freqs = (1..=n).map(|j| s.mode_freq_hz(j)).collect();
     Ok(ObjectModel {
         name: s.name.clone(),
         n,

@@ -12,7 +12,7 @@
 pub mod params;
 pub mod worker;
 
-use crate::instrument::{prepare, Event, Instrument, InstrumentParams, SceneParams};
+use crate::instrument::{prepare, Event, Instrument, InstrumentParams, SceneParams, TimedEvent};
 use nice_plug::prelude::*;
 use nice_plug::util::permit_alloc;
 use params::ModalContactParams;
@@ -289,7 +289,6 @@ impl ModalContact {
         context: &mut impl ProcessContext<Self>,
     ) -> ProcessStatus {
         self.maybe_swap_and_request();
-        let num_samples = buffer.samples();
         let out = buffer.as_slice();
         let Some(inst) = self.instrument.as_mut() else {
             for ch in out.iter_mut() {
@@ -306,29 +305,34 @@ impl ModalContact {
         }
         let (left, right) = out.split_at_mut(1);
         let (left, right) = (&mut *left[0], &mut *right[0]);
-        let mut pos = 0usize;
-        while let Some(event) = context.next_event() {
-            let at = (event.timing() as usize).clamp(pos, num_samples);
-            inst.render(&mut left[pos..at], &mut right[pos..at]);
-            pos = at;
-            if let Some(e) = note_event(&event) {
-                // TEST ONLY fault injection (test bundles; never in a shipped
-                // build): note 2 at velocity 0.123 allocates in process, note 1
-                // panics.
-                #[cfg(feature = "alloc-bug")]
-                if matches!(e, Event::NoteOn { key: 2, velocity_norm }
-                    if (velocity_norm - 0.123).abs() < 1e-6)
-                {
-                    self.leak.push(0.0);
-                }
-                #[cfg(feature = "panic-bug")]
-                if matches!(e, Event::NoteOn { key: 1, .. }) {
-                    panic!("panic-bug: deliberate panic on note 1");
-                }
-                inst.handle(e);
+        #[cfg(feature = "alloc-bug")]
+        let leak = &mut self.leak;
+        // The host's events as the instrument's, read as the block is
+        // rendered (no buffer): the instrument applies each at its offset.
+        let events = std::iter::from_fn(|| loop {
+            let event = context.next_event()?;
+            let Some(e) = note_event(&event) else {
+                continue;
+            };
+            // TEST ONLY fault injection (test bundles; never in a shipped
+            // build): note 2 at velocity 0.123 allocates in process, note 1
+            // panics.
+            #[cfg(feature = "alloc-bug")]
+            if matches!(e, Event::NoteOn { key: 2, velocity_norm }
+                if (velocity_norm - 0.123).abs() < 1e-6)
+            {
+                leak.push(0.0);
             }
-        }
-        inst.render(&mut left[pos..num_samples], &mut right[pos..num_samples]);
+            #[cfg(feature = "panic-bug")]
+            if matches!(e, Event::NoteOn { key: 1, .. }) {
+                panic!("panic-bug: deliberate panic on note 1");
+            }
+            return Some(TimedEvent {
+                offset: event.timing() as usize,
+                event: e,
+            });
+        });
+        inst.process_events(events, left, right);
         ProcessStatus::KeepAlive
     }
 }

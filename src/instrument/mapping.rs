@@ -1,0 +1,255 @@
+//! Parameters to scenes: what each instrument parameter does to the scene
+//! it plays (pure functions of the parameters; they allocate and run off
+//! the audio thread), and the velocity and pitch mappings.
+
+use super::{
+    DAMPER_T60_DIVISOR, DEFAULT_ROOT_NOTE, IMPACT_SPEED_RANGE_M_PER_S, MIN_IMPACT_SPEED_M_PER_S,
+    UNDAMPED_RELEASE_T60_S,
+};
+use crate::presets;
+use crate::scene::{ObjectSpec, Scene, Switching};
+
+/// Velocity (0..1) to the hammer's impact speed \[m/s\]: `0.05 + 2.95 vel^2`.
+/// \[any-thread\]
+pub fn impact_speed_m_per_s(velocity_norm: f64) -> f64 {
+    let v = if velocity_norm.is_finite() {
+        velocity_norm.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    MIN_IMPACT_SPEED_M_PER_S + IMPACT_SPEED_RANGE_M_PER_S * v * v
+}
+
+/// Parameters that change the compiled scene (a change needs a recompile on
+/// the worker).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SceneParams {
+    /// Index into [`presets::PRESETS`].
+    pub preset: usize,
+    /// Hammer mass multiplier.
+    pub hammer_mass_factor: f64,
+    /// Contact stiffness multiplier (hardness).
+    pub stiffness_factor: f64,
+    /// Contact damping multiplier.
+    pub damping_factor: f64,
+    /// Strike position along the object, 0..1; `None` = the scene's contact point.
+    pub strike_pos_norm: Option<f64>,
+    /// Decay time multiplier (T60 times it; Rayleigh damping over it).
+    pub decay_scale: f64,
+    /// Damper strength after note-off, 0..1.
+    pub damper_norm: f64,
+    /// Gravity for bouncing scenes (scenes whose hammer has gravity) \[m/s^2\].
+    pub gravity_m_per_s2: f64,
+    /// Switching method (exact falls back to offset-rod if the compiler refuses it).
+    pub switching: Switching,
+}
+
+impl Default for SceneParams {
+    fn default() -> Self {
+        Self {
+            preset: presets::index_of("marimba-bar").unwrap_or(0),
+            hammer_mass_factor: 1.0,
+            stiffness_factor: 1.0,
+            damping_factor: 1.0,
+            strike_pos_norm: None,
+            decay_scale: 1.0,
+            damper_norm: 0.5,
+            gravity_m_per_s2: 9.81,
+            switching: Switching::Exact,
+        }
+    }
+}
+
+/// Parameters read at note-on or per sample (no recompile).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlayParams {
+    /// Notes scale the time axis (pitch); off = every note plays the root.
+    pub pitch_tracking: bool,
+    /// Drop height for bouncing scenes \[m\].
+    pub drop_height_m: f64,
+    /// Output gain \[dB\].
+    pub gain_db: f64,
+}
+
+impl Default for PlayParams {
+    fn default() -> Self {
+        Self {
+            pitch_tracking: true,
+            drop_height_m: 0.02,
+            gain_db: -6.0,
+        }
+    }
+}
+
+/// All instrument parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct InstrumentParams {
+    /// What needs a compile.
+    pub scene: SceneParams,
+    /// What does not.
+    pub play: PlayParams,
+}
+
+/// Change every damping of the scene's objects: each modal T60 (`None` =
+/// undamped) by `t60`, each damping rate of a string (Rayleigh `alpha`,
+/// `beta`, dashpots) by `rate`. Longer decay times are smaller rates, so a
+/// caller scales the two inversely.
+fn scale_damping(
+    s: &mut Scene,
+    t60: impl Fn(Option<f64>) -> Option<f64>,
+    rate: impl Fn(f64) -> f64,
+) {
+    for obj in &mut s.object {
+        match obj {
+            ObjectSpec::Modal(m) => {
+                for mode in &mut m.mode {
+                    mode.t60_s = t60(mode.t60_s);
+                }
+            }
+            ObjectSpec::String(st) => {
+                st.rayleigh_alpha_per_s = rate(st.rayleigh_alpha_per_s);
+                st.rayleigh_beta_s = rate(st.rayleigh_beta_s);
+                for d in &mut st.dashpots {
+                    d.n_s_per_m = rate(d.n_s_per_m);
+                }
+            }
+            ObjectSpec::Wall(_) => {}
+        }
+    }
+}
+
+fn positive_or(v: f64, fallback: f64) -> f64 {
+    if v.is_finite() && v > 0.0 {
+        v
+    } else {
+        fallback
+    }
+}
+
+/// The scene a parameter set describes (pure; allocates).
+///
+/// - hammer mass, contact stiffness and contact damping are multiplied by
+///   their factors;
+/// - decay scale: every T60 is multiplied by it, a string's Rayleigh
+///   `alpha`, `beta` and dashpots are divided by it;
+/// - strike position (when `Some`): on a string, the contact point moves to
+///   mass `round(pos * (masses - 1))`; on a modal object with at least 3
+///   points, the points in their listed order are taken as evenly spaced
+///   samples of the striking line and each mode's contact weight becomes the
+///   linear interpolation of its weights at `pos * (points - 1)`; objects
+///   with fewer points (and walls) ignore it;
+/// - gravity: scenes whose hammer has gravity (bouncing scenes) get the
+///   parameter's value; others stay without gravity;
+/// - switching is set in the scene's contact section.
+///
+/// \[any-thread\]
+pub fn scene_for(base: &Scene, p: &InstrumentParams) -> Scene {
+    let sp = &p.scene;
+    let mut s = base.clone();
+    s.hammer.mass_kg *= positive_or(sp.hammer_mass_factor, 1.0);
+    s.contact.stiffness_n_per_m *= positive_or(sp.stiffness_factor, 1.0);
+    let cf = if sp.damping_factor.is_finite() && sp.damping_factor >= 0.0 {
+        sp.damping_factor
+    } else {
+        1.0
+    };
+    s.contact.damping_n_s_per_m *= cf;
+    let ds = positive_or(sp.decay_scale, 1.0);
+    scale_damping(&mut s, |t| t.map(|t| t * ds), |r| r / ds);
+    if let Some(pos) = sp.strike_pos_norm {
+        let pos = if pos.is_finite() {
+            pos.clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        set_strike_position(&mut s, pos);
+    }
+    if base.hammer.gravity_m_per_s2 > 0.0 {
+        s.hammer.gravity_m_per_s2 = positive_or(sp.gravity_m_per_s2, base.hammer.gravity_m_per_s2);
+    }
+    s.contact.switching = Some(sp.switching);
+    s
+}
+
+fn set_strike_position(s: &mut Scene, pos: f64) {
+    let Some(point) = s.contact.point.clone() else {
+        return;
+    };
+    let Some(ci) = s.object_index(&s.contact.object) else {
+        return;
+    };
+    match &mut s.object[ci] {
+        ObjectSpec::String(st) => {
+            if st.masses == 0 {
+                return;
+            }
+            let idx = (pos * (st.masses - 1) as f64).round() as usize;
+            st.points.insert(point, idx.min(st.masses - 1));
+        }
+        ObjectSpec::Modal(m) => {
+            let n_pts = m.points.len();
+            if n_pts < 3 {
+                return;
+            }
+            let Some(pi) = m.points.iter().position(|p| *p == point) else {
+                return;
+            };
+            let x = pos * (n_pts - 1) as f64;
+            let i0 = (x.floor() as usize).min(n_pts - 2);
+            let frac = x - i0 as f64;
+            for mode in &mut m.mode {
+                if mode.weights.len() != n_pts {
+                    continue;
+                }
+                let w = mode.weights[i0] * (1.0 - frac) + mode.weights[i0 + 1] * frac;
+                mode.weights[pi] = w;
+            }
+        }
+        ObjectSpec::Wall(_) => {}
+    }
+}
+
+/// The scene a released voice continues on: every decay time divided by
+/// `1 + 50 * damper` (T60s of modal objects; a string's Rayleigh damping and
+/// dashpots multiplied by the same factor; undamped modes get
+/// [`UNDAMPED_RELEASE_T60_S`] first). Same objects, same dimensions, so
+/// [`EngineState::rebind`] carries a voice onto it. \[any-thread\]
+pub fn damped_scene(scene: &Scene, damper_norm: f64) -> Scene {
+    let f = 1.0 + DAMPER_T60_DIVISOR * damper_norm.clamp(0.0, 1.0);
+    let mut s = scene.clone();
+    scale_damping(
+        &mut s,
+        |t| Some(t.unwrap_or(UNDAMPED_RELEASE_T60_S) / f),
+        |r| r * f,
+    );
+    s
+}
+
+/// Lowest modal frequency of the struck object \[Hz\], if it has one (a
+/// string's lowest mode from [`crate::scene::StringSpec::mode_freq_hz`], damping
+/// neglected). \[any-thread\]
+pub fn lowest_frequency_hz(scene: &Scene) -> Option<f64> {
+    let ci = scene.object_index(&scene.contact.object)?;
+    match &scene.object[ci] {
+        ObjectSpec::Modal(m) => m
+            .mode
+            .iter()
+            .map(|x| x.freq_hz)
+            .filter(|f| f.is_finite() && *f > 0.0)
+            .min_by(|a, b| a.total_cmp(b)),
+        ObjectSpec::String(st) => {
+            let f = st.mode_freq_hz(1);
+            (f.is_finite() && f > 0.0).then_some(f)
+        }
+        ObjectSpec::Wall(_) => None,
+    }
+}
+
+/// The MIDI note nearest the scene's lowest modal frequency (60 when unknown).
+/// \[any-thread\]
+pub fn root_note(scene: &Scene) -> f64 {
+    match lowest_frequency_hz(scene) {
+        Some(f) => (69.0 + 12.0 * (f / 440.0).log2()).round().clamp(0.0, 127.0),
+        None => DEFAULT_ROOT_NOTE,
+    }
+}

@@ -1,0 +1,302 @@
+//! The playable instrument: MIDI-like strikes on a compiled scene, with voices,
+//! pitch, a damper, voice stealing, silence detection and the realtime swap of
+//! recompiled scenes. Pure library code: no plugin types, no threads, no
+//! atomics. The plugin (`crate::plugin`) and the tests drive the same
+//! [`Instrument`] with the same [`Event`]s, so a test can compare the plugin's
+//! output with a direct render sample by sample.
+//!
+//! # Mappings
+//!
+//! - **Velocity -> impact speed** ([`impact_speed_m_per_s`]):
+//!   `v = 0.05 + 2.95 * vel^2` m/s for `vel` in 0..1 (MIDI velocity / 127), so
+//!   the softest note hits at 5 cm/s and the hardest at 3 m/s; the square gives
+//!   the usual "more range at the top" feel. A note-on at velocity 0 (or not
+//!   a number) is a note-off, as in MIDI. The contact is linear, so the
+//!   output amplitude is proportional to `v` (up to the hammer's bounce).
+//!   The hammer is launched from the surface of the object (height 0 above the
+//!   contact point's current displacement) moving down at `v`: contact starts
+//!   one sample after the note. In a bouncing scene (gravity > 0) it is dropped
+//!   from the drop height instead, with the same downward speed.
+//! - **Note -> pitch**: the voice runs the scene with its time axis scaled by
+//!   `s = 2^((note - root) / 12)` ([`EngineState::set_time_scale`]): every
+//!   modal frequency times `s`, every decay time over `s`, contact stiffness
+//!   times `s^2`, contact damping times `s`, gravity times `s^2`, hammer mass
+//!   kept. That is exactly the same physical system played back `s` times
+//!   faster, so the timbre (the ratio of contact time to period, the decay in
+//!   periods, the bounce pattern) is the same at every pitch. It costs O(N) at
+//!   note-on and no compile. The root note ([`root_note`]) is the MIDI note
+//!   nearest the scene's lowest modal frequency (60 when it has none), so
+//!   playing the root gives the scene as written. If the scene uses the
+//!   compiler's dense fallback the engine cannot scale time: that voice plays
+//!   at `s = 1` (counted in [`Stats::dense_pitch_fallbacks`]).
+//! - **Damper**: on note-off the voice is carried ([`EngineState::rebind`],
+//!   no energy increase) onto a "damped" compilation of the same scene whose
+//!   decay times are divided by `1 + 50 * damper` ([`damped_scene`]). A new
+//!   note on the same key carries it back. Damper 0 means no damping on
+//!   release (the bar rings on, as a struck bar does).
+//! - **Voices**: one voice per note, [`MAX_VOICES`] of them. A repeated note
+//!   strikes its own voice again while it rings: the hammer hits the moving
+//!   surface ([`EngineState::strike`]). A new note takes a free voice, else
+//!   steals the quietest one (lowest energy). A voice whose energy falls below
+//!   [`SILENCE_ENERGY_RATIO`] of its strike's energy (checked every
+//!   [`CHECK_INTERVAL_SAMPLES`] samples of the instrument's own clock, so the
+//!   result does not depend on how the host splits blocks) stops and costs
+//!   nothing.
+//! - **Swap**: [`Instrument::install`] takes a freshly compiled [`Prepared`]
+//!   at a block boundary. Each running voice is carried over with
+//!   [`EngineState::rebind`]; the running state is moved into the new box (a
+//!   pointer swap per voice, no allocation). If a voice cannot be carried (other
+//!   preset, other mode count, dense fallback at s != 1) it is faded out over
+//!   [`FADE_S`] on the old scene instead of being cut, and a new note starts
+//!   clean on the new one. Old boxes go to fixed [`Instrument::retired_slots_mut`]
+//!   for the caller to hand back to a non-realtime thread: nothing is dropped
+//!   here.
+
+mod events;
+mod mapping;
+mod mix;
+mod prepared;
+#[cfg(test)]
+mod tests;
+mod voices;
+
+pub use events::{Event, TimedEvent};
+pub use mapping::{
+    damped_scene, impact_speed_m_per_s, lowest_frequency_hz, root_note, scene_for,
+    InstrumentParams, PlayParams, SceneParams,
+};
+pub use prepared::{prepare, PrepareError, Prepared, Scenes};
+
+use crate::engine::EngineState;
+use voices::Voice;
+
+/// Number of voices (one per sounding note).
+pub const MAX_VOICES: usize = 16;
+/// Voices are checked for silence on this grid of the instrument's own sample
+/// clock (a power of two; 64 samples = 1.5 ms at 44.1 kHz).
+pub const CHECK_INTERVAL_SAMPLES: usize = 64;
+/// A voice stops when its energy is below this fraction of its strike's
+/// energy: -90 dB, far below audibility after a full-scale strike.
+pub const SILENCE_ENERGY_RATIO: f64 = 1e-9;
+/// Fade-out length for voices that cannot be carried across a swap \[s\]
+/// (5 ms: short enough to feel immediate, long enough not to click).
+pub const FADE_S: f64 = 0.005;
+/// Released decay times are divided by `1 + DAMPER_T60_DIVISOR * damper`
+/// (damper 1 = 51 times shorter: a felt damper on a bar).
+pub const DAMPER_T60_DIVISOR: f64 = 50.0;
+/// Modes without damping get this T60 \[s\] before the damper divides it
+/// (they would otherwise ring forever after release).
+pub const UNDAMPED_RELEASE_T60_S: f64 = 20.0;
+/// Slowest impact speed (velocity 0) \[m/s\].
+pub const MIN_IMPACT_SPEED_M_PER_S: f64 = 0.05;
+/// Impact speed added at full velocity \[m/s\] (velocity 1 gives 3 m/s).
+pub const IMPACT_SPEED_RANGE_M_PER_S: f64 = 2.95;
+/// Hard output ceiling: no sample the instrument writes exceeds this in
+/// magnitude (4.0 = +12 dBFS). It is a last-resort guard against abuse
+/// (hundreds of full-velocity strikes piling energy into one ringing object
+/// at full gain): playing the presets never reaches it (the plugin tests
+/// count the samples it touches). A sample that would be larger is written
+/// at the ceiling with its sign and counted in [`Stats::ceiling_hits`].
+pub const OUTPUT_CEILING: f64 = 4.0;
+/// Each voice hears the modes of its object up to this fraction of the
+/// Nyquist frequency, at the voice's pitch ([`EngineState::set_output_band`]):
+/// a note pitched up leaves its top modes out of the output instead of
+/// aliasing them back into the audio band. The dynamics keep every mode.
+pub const OUTPUT_BAND_FRACTION: f64 = 1.0;
+/// Root note of scenes without modal frequencies (middle C).
+pub const DEFAULT_ROOT_NOTE: f64 = 60.0;
+/// Fixed slots for retired compiled scenes waiting to be handed back.
+pub const RETIRED_SLOTS: usize = 4;
+
+/// Counters for tests and diagnostics.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Stats {
+    /// Scenes installed by [`Instrument::install`].
+    pub swaps: u64,
+    /// Voices carried across a swap by `rebind`.
+    pub voices_carried: u64,
+    /// Voices that could not be carried and were faded out.
+    pub voices_faded: u64,
+    /// Notes that stole a sounding voice.
+    pub steals: u64,
+    /// Voices reset because they produced a non-finite sample.
+    pub nonfinite_resets: u64,
+    /// Notes played at s = 1 because the scene uses the dense fallback.
+    pub dense_pitch_fallbacks: u64,
+    /// Voices stopped because they fell silent.
+    pub silent_stops: u64,
+    /// Note-ons.
+    pub notes: u64,
+    /// Output samples that reached [`OUTPUT_CEILING`] (or were not finite
+    /// after mixing, written as 0).
+    pub ceiling_hits: u64,
+}
+
+/// The instrument (owned by the audio thread). Everything it does after
+/// [`Instrument::new`] is allocation-free.
+pub struct Instrument {
+    cur: Box<Prepared>,
+    voices: [Voice; MAX_VOICES],
+    /// Previous scene while voices that could not be carried fade out.
+    fading: Option<Box<Prepared>>,
+    /// Which voices of `fading` sound, and whether each is on its damped scene.
+    fade_voices: [Option<bool>; MAX_VOICES],
+    fade_left: usize,
+    fade_len: usize,
+    retired: [Option<Box<Prepared>>; RETIRED_SLOTS],
+    play: PlayParams,
+    gain: f64,
+    sample_pos: u64,
+    acc: [[f64; CHECK_INTERVAL_SAMPLES]; 2],
+    vbuf: [[f64; CHECK_INTERVAL_SAMPLES]; 2],
+    /// Counters.
+    pub stats: Stats,
+}
+
+impl Instrument {
+    /// Start with a prepared scene. \[main-thread\]
+    pub fn new(prepared: Box<Prepared>, play: PlayParams) -> Self {
+        let fade_len = ((FADE_S * prepared.rate_hz).round() as usize).max(1);
+        let mut inst = Self {
+            cur: prepared,
+            voices: [Voice::default(); MAX_VOICES],
+            fading: None,
+            fade_voices: [None; MAX_VOICES],
+            fade_left: 0,
+            fade_len,
+            retired: Default::default(),
+            play,
+            gain: 1.0,
+            sample_pos: 0,
+            acc: [[0.0; CHECK_INTERVAL_SAMPLES]; 2],
+            vbuf: [[0.0; CHECK_INTERVAL_SAMPLES]; 2],
+            stats: Stats::default(),
+        };
+        inst.set_play(play);
+        inst
+    }
+
+    /// The scene set currently played. \[audio-thread\]
+    pub fn prepared(&self) -> &Prepared {
+        &self.cur
+    }
+
+    /// Update the parameters that need no compile (gain now; pitch tracking
+    /// and drop height at the next note). \[audio-thread\]
+    pub fn set_play(&mut self, play: PlayParams) {
+        self.play = play;
+        let g = 10f64.powf(play.gain_db / 20.0);
+        self.gain = if g.is_finite() { g } else { 0.0 };
+    }
+
+    /// The engine state of voice `voice_idx` (for tests and tools, e.g. to
+    /// inspect or disturb a voice). \[audio-thread\]
+    pub fn voice_state_mut(&mut self, voice_idx: usize) -> &mut EngineState {
+        &mut self.cur.states[voice_idx]
+    }
+
+    /// Number of sounding voices (fading ones not counted). \[audio-thread\]
+    pub fn active_voices(&self) -> usize {
+        self.voices.iter().filter(|v| v.active).count()
+    }
+
+    /// Keys of the sounding voices, by voice index. \[audio-thread\]
+    pub fn voice_keys(&self) -> [Option<u8>; MAX_VOICES] {
+        std::array::from_fn(|i| self.voices[i].active.then_some(self.voices[i].key))
+    }
+
+    /// Whether [`install`](Self::install) would accept a scene now (no fade
+    /// in progress and a free retired slot). \[audio-thread\]
+    pub fn can_install(&self) -> bool {
+        self.fading.is_none() && self.retired.iter().any(|s| s.is_none())
+    }
+
+    /// Retired scenes waiting to be handed back: the caller takes them out
+    /// (and puts them back if its return queue is full). \[audio-thread\]
+    pub fn retired_slots_mut(&mut self) -> &mut [Option<Box<Prepared>>] {
+        &mut self.retired
+    }
+
+    /// Swap in a recompiled scene at a block boundary, carrying every voice
+    /// (see the module doc). Returns the box unused if it cannot be taken now
+    /// ([`can_install`](Self::can_install) is false). O(MAX_VOICES N^2),
+    /// allocation-free. \[audio-thread\]
+    pub fn install(&mut self, mut new: Box<Prepared>) -> Result<(), Box<Prepared>> {
+        if !self.can_install() {
+            return Err(new);
+        }
+        let same_object =
+            new.params.preset == self.cur.params.preset && new.rate_hz == self.cur.rate_hz;
+        let mut any_fade = false;
+        for i in 0..MAX_VOICES {
+            let v = &mut self.voices[i];
+            if !v.active {
+                continue;
+            }
+            let to_damped = v.released && new.scenes.damped.is_some();
+            let carried = same_object && {
+                let Prepared { states, scenes, .. } = &mut *self.cur;
+                let from = scenes.bound(v.on_damped);
+                let ok = states[i].rebind(from, new.scenes.bound(to_damped));
+                if ok {
+                    // The running state moves into the new box; the new box's
+                    // fresh state goes back with the old one.
+                    std::mem::swap(&mut states[i], &mut new.states[i]);
+                }
+                ok
+            };
+            let v = &mut self.voices[i];
+            if carried {
+                v.on_damped = to_damped;
+                self.stats.voices_carried += 1;
+            } else {
+                self.fade_voices[i] = Some(v.on_damped);
+                v.active = false;
+                any_fade = true;
+                self.stats.voices_faded += 1;
+            }
+        }
+        let old = std::mem::replace(&mut self.cur, new);
+        self.stats.swaps += 1;
+        if any_fade {
+            self.fading = Some(old);
+            self.fade_left = self.fade_len;
+        } else {
+            self.retire(old);
+        }
+        Ok(())
+    }
+
+    fn retire(&mut self, b: Box<Prepared>) {
+        if let Some(slot) = self.retired.iter_mut().find(|s| s.is_none()) {
+            *slot = Some(b);
+        } else {
+            // Unreachable through `install` (it checks for a free slot); keep
+            // it fading (silent) rather than dropping it here.
+            self.fading = Some(b);
+            self.fade_voices = [None; MAX_VOICES];
+            self.fade_left = 0;
+        }
+    }
+
+    /// Stop every voice at once (host reset). Allocation-free. \[audio-thread\]
+    pub fn silence(&mut self) {
+        self.voices = [Voice::default(); MAX_VOICES];
+        self.fade_voices = [None; MAX_VOICES];
+        self.fade_left = 0;
+    }
+
+    /// Apply one event now (between two samples). \[audio-thread\]
+    pub fn handle(&mut self, event: Event) {
+        match event {
+            // MIDI's convention: a note-on at velocity 0 is a note-off (and
+            // a velocity that is not a number strikes nothing).
+            Event::NoteOn { key, velocity_norm } if !(velocity_norm > 0.0) => {
+                self.note_off(Some(key))
+            }
+            Event::NoteOn { key, velocity_norm } => self.note_on(key, velocity_norm),
+            Event::NoteOff { key } => self.note_off(Some(key)),
+            Event::AllNotesOff => self.note_off(None),
+        }
+    }
+}

@@ -1,0 +1,189 @@
+//! Prepared scenes: everything the audio thread needs for one parameter set,
+//! compiled off the audio thread, and the compile fallback that keeps a
+//! scene playing when exact switching is refused.
+
+use super::mapping::{
+    damped_scene, root_note, scene_for, InstrumentParams, PlayParams, SceneParams,
+};
+use super::{MAX_VOICES, OUTPUT_BAND_FRACTION};
+use crate::compile::{compile_with, CompileError, CompiledScene};
+use crate::engine::EngineState;
+use crate::presets;
+use crate::scene::{Scene, Switching};
+
+/// Everything the audio thread needs for one parameter set, built off the
+/// audio thread: the compiled scene, its damped variant, and a fresh engine
+/// state per voice (so a swap to new dimensions allocates nothing).
+pub struct Prepared {
+    /// Request revision this was built for.
+    pub revision: u64,
+    /// Sample rate \[Hz\].
+    pub rate_hz: f64,
+    /// The parameters it was built from.
+    pub params: SceneParams,
+    /// The compiled scenes.
+    pub scenes: Scenes,
+    /// MIDI note that plays the scene as written.
+    pub root_note: f64,
+    /// The hammer has gravity (it is dropped, it bounces).
+    pub bouncing: bool,
+    /// The switching method actually compiled.
+    pub switching_used: Switching,
+    /// Set when the requested switching was refused and the fallback used.
+    pub fallback_note: Option<String>,
+    /// One engine state per voice, sized for `scenes` (the running state of
+    /// a carried voice moves in here at a swap).
+    pub(super) states: [EngineState; MAX_VOICES],
+}
+
+/// The scene as played and the one released voices continue on. Kept apart
+/// from the voice states so a voice's scene can be read while its state is
+/// being stepped.
+pub struct Scenes {
+    /// The scene as played.
+    pub scene: CompiledScene,
+    /// Released voices continue on this (`None` when the damper is 0).
+    pub damped: Option<CompiledScene>,
+}
+
+impl Scenes {
+    /// The scene a voice is bound to: the damped one when it is released
+    /// onto it, else the played one.
+    #[inline]
+    pub fn bound(&self, on_damped: bool) -> &CompiledScene {
+        match (&self.damped, on_damped) {
+            (Some(d), true) => d,
+            _ => &self.scene,
+        }
+    }
+}
+
+impl Prepared {
+    /// A warning when the scene's exact event search may cost more than a
+    /// sample period in a sample that holds a switch (the compile summary's
+    /// estimate, at the root pitch: higher notes step further per sample and
+    /// cost more). The engine keeps the physics exact whatever it costs; the
+    /// warning tells the user where CPU spikes come from. \[worker\]
+    pub fn realtime_warning(&self) -> Option<String> {
+        let n = self.scenes.scene.search_nodes_estimate;
+        (n > crate::compile::REALTIME_SEARCH_NODES).then(|| {
+            let line = self
+                .scenes
+                .scene
+                .summary
+                .lines()
+                .find(|l| l.starts_with("event search"))
+                .unwrap_or("");
+            format!(
+                "scene {:?}: the contact is stiff enough that a sample holding a switch may take longer than a sample period (about {n:.0} event-search nodes per sample; exact switching stays exact, expect CPU spikes at small buffer sizes; lower Hardness or raise Hammer mass to reduce it). {line}",
+                self.scenes.scene.name
+            )
+        })
+    }
+}
+
+impl std::fmt::Debug for Prepared {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Prepared")
+            .field("revision", &self.revision)
+            .field("rate_hz", &self.rate_hz)
+            .field("scene", &self.scenes.scene.name)
+            .field("switching_used", &self.switching_used)
+            .finish_non_exhaustive()
+    }
+}
+
+fn compile_with_fallback(
+    scene: &Scene,
+    rate_hz: f64,
+    switching: Switching,
+) -> Result<(CompiledScene, Switching, Option<String>), CompileError> {
+    match compile_with(scene, rate_hz, Some(switching)) {
+        Ok(c) => Ok((c, switching, None)),
+        Err(e) if switching == Switching::Exact => {
+            let c = compile_with(scene, rate_hz, Some(Switching::OffsetRod))?;
+            Ok((
+                c,
+                Switching::OffsetRod,
+                Some(format!(
+                    "exact switching refused ({e}); falling back to offset-rod"
+                )),
+            ))
+        }
+        Err(e) => Err(e),
+    }
+}
+
+/// Why a parameter set could not be prepared.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PrepareError {
+    /// A scene (the played one or its damped variant) did not compile.
+    Compile(CompileError),
+    /// The damped scene compiled to other dimensions than the played one
+    /// (released voices could not carry their state over).
+    DampedLayoutDiffers,
+}
+
+impl std::fmt::Display for PrepareError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Compile(e) => write!(f, "{e}"),
+            Self::DampedLayoutDiffers => {
+                write!(f, "damped scene has other dimensions than the scene")
+            }
+        }
+    }
+}
+
+impl std::error::Error for PrepareError {}
+
+impl From<CompileError> for PrepareError {
+    fn from(e: CompileError) -> Self {
+        Self::Compile(e)
+    }
+}
+
+/// Compile everything for `params` at `rate_hz` (eigendecompositions: never
+/// call this on the audio thread). \[worker\] \[main-thread\]
+pub fn prepare(
+    params: &SceneParams,
+    rate_hz: f64,
+    revision: u64,
+) -> Result<Box<Prepared>, PrepareError> {
+    let base = presets::scene(params.preset).map_err(CompileError::Scene)?;
+    let ip = InstrumentParams {
+        scene: *params,
+        play: PlayParams::default(),
+    };
+    let played = scene_for(&base, &ip);
+    let (scene, switching_used, fallback_note) =
+        compile_with_fallback(&played, rate_hz, params.switching)?;
+    let damped = if params.damper_norm > 0.0 {
+        let d = damped_scene(&played, params.damper_norm);
+        Some(compile_with(&d, rate_hz, Some(switching_used))?)
+    } else {
+        None
+    };
+    if let Some(d) = &damped {
+        if d.free.dim != scene.free.dim || d.contact.dim != scene.contact.dim {
+            return Err(PrepareError::DampedLayoutDiffers);
+        }
+    }
+    let band_hz = OUTPUT_BAND_FRACTION * 0.5 * rate_hz;
+    let states = std::array::from_fn(|_| {
+        let mut st = EngineState::new(&scene);
+        st.set_output_band(&scene, band_hz);
+        st
+    });
+    Ok(Box::new(Prepared {
+        revision,
+        rate_hz,
+        params: *params,
+        root_note: root_note(&base),
+        bouncing: base.hammer.gravity_m_per_s2 > 0.0,
+        switching_used,
+        fallback_note,
+        scenes: Scenes { scene, damped },
+        states,
+    }))
+}

@@ -1,0 +1,426 @@
+//! Tests of the instrument: mappings, voices, swaps, fades.
+
+use super::*;
+use crate::compile::compile_with;
+use crate::presets;
+use crate::scene::{ObjectSpec, Scene, Switching};
+
+const RATE: f64 = 44_100.0;
+
+fn params(preset: &str) -> InstrumentParams {
+    let mut p = InstrumentParams::default();
+    p.scene.preset = presets::index_of(preset).unwrap();
+    p
+}
+
+fn base(preset: &str) -> Scene {
+    presets::scene(presets::index_of(preset).unwrap()).unwrap()
+}
+
+fn instrument(p: &InstrumentParams) -> Instrument {
+    Instrument::new(prepare(&p.scene, RATE, 0).unwrap(), p.play)
+}
+
+fn render(inst: &mut Instrument, events: &[TimedEvent], n: usize) -> [Vec<f32>; 2] {
+    let mut l = vec![0.0; n];
+    let mut r = vec![0.0; n];
+    inst.process(events, &mut l, &mut r);
+    [l, r]
+}
+
+fn on(offset: usize, key: u8, vel: f64) -> TimedEvent {
+    TimedEvent {
+        offset,
+        event: Event::NoteOn {
+            key,
+            velocity_norm: vel,
+        },
+    }
+}
+
+fn off(offset: usize, key: u8) -> TimedEvent {
+    TimedEvent {
+        offset,
+        event: Event::NoteOff { key },
+    }
+}
+
+fn rms(x: &[f32]) -> f64 {
+    (x.iter().map(|v| (*v as f64).powi(2)).sum::<f64>() / x.len().max(1) as f64).sqrt()
+}
+
+#[test]
+fn velocity_mapping_endpoints_and_monotone() {
+    assert_eq!(impact_speed_m_per_s(0.0), 0.05);
+    assert!((impact_speed_m_per_s(1.0) - 3.0).abs() < 1e-12);
+    assert!((impact_speed_m_per_s(0.5) - (0.05 + 2.95 * 0.25)).abs() < 1e-12);
+    assert_eq!(impact_speed_m_per_s(f64::NAN), 0.05);
+    assert_eq!(impact_speed_m_per_s(7.0), impact_speed_m_per_s(1.0));
+}
+
+#[test]
+fn scene_for_defaults_keep_the_scene() {
+    for (i, _) in presets::PRESETS.iter().enumerate() {
+        let b = presets::scene(i).unwrap();
+        let mut p = InstrumentParams::default();
+        p.scene.switching = Switching::OffsetRod;
+        let mut expect = b.clone();
+        expect.contact.switching = Some(Switching::OffsetRod);
+        assert_eq!(scene_for(&b, &p), expect, "{}", b.name);
+    }
+}
+
+#[test]
+fn scene_for_scales_hammer_contact_and_decay() {
+    let b = base("marimba-bar");
+    let mut p = params("marimba-bar");
+    p.scene.hammer_mass_factor = 2.0;
+    p.scene.stiffness_factor = 3.0;
+    p.scene.damping_factor = 0.5;
+    p.scene.decay_scale = 4.0;
+    let s = scene_for(&b, &p);
+    assert_eq!(s.hammer.mass_kg, b.hammer.mass_kg * 2.0);
+    assert_eq!(
+        s.contact.stiffness_n_per_m,
+        b.contact.stiffness_n_per_m * 3.0
+    );
+    assert_eq!(
+        s.contact.damping_n_s_per_m,
+        b.contact.damping_n_s_per_m * 0.5
+    );
+    let (ObjectSpec::Modal(m0), ObjectSpec::Modal(m1)) = (&b.object[0], &s.object[0]) else {
+        panic!("modal");
+    };
+    for (a, c) in m0.mode.iter().zip(&m1.mode) {
+        assert_eq!(c.t60_s.unwrap(), a.t60_s.unwrap() * 4.0);
+        assert_eq!(c.freq_hz, a.freq_hz);
+    }
+    // string: Rayleigh and dashpots over the decay scale
+    let b = base("paper-string");
+    let mut p = params("paper-string");
+    p.scene.decay_scale = 2.0;
+    let s = scene_for(&b, &p);
+    let (ObjectSpec::String(s0), ObjectSpec::String(s1)) = (&b.object[0], &s.object[0]) else {
+        panic!("string");
+    };
+    assert_eq!(s1.rayleigh_alpha_per_s, s0.rayleigh_alpha_per_s / 2.0);
+    assert_eq!(s1.rayleigh_beta_s, s0.rayleigh_beta_s / 2.0);
+    assert_eq!(s1.dashpots[0].n_s_per_m, s0.dashpots[0].n_s_per_m / 2.0);
+}
+
+#[test]
+fn strike_position_moves_the_string_contact_and_interpolates_modal_weights() {
+    let b = base("paper-string");
+    let mut p = params("paper-string");
+    p.scene.strike_pos_norm = Some(0.5);
+    let s = scene_for(&b, &p);
+    let ObjectSpec::String(st) = &s.object[0] else {
+        panic!()
+    };
+    assert_eq!(st.points["contact"], 25); // round(0.5 * 49)
+    p.scene.strike_pos_norm = Some(1.0);
+    let ObjectSpec::String(st) = &scene_for(&b, &p).object[0] else {
+        panic!()
+    };
+    assert_eq!(st.points["contact"], 49);
+
+    // steel-plate has 3 points: contact, pickup, pickup2 (samples at 0, 0.5, 1)
+    let b = base("steel-plate");
+    let mut p = params("steel-plate");
+    p.scene.strike_pos_norm = Some(0.75);
+    let s = scene_for(&b, &p);
+    let (ObjectSpec::Modal(m0), ObjectSpec::Modal(m1)) = (&b.object[0], &s.object[0]) else {
+        panic!()
+    };
+    for (a, c) in m0.mode.iter().zip(&m1.mode) {
+        let want = 0.5 * a.weights[1] + 0.5 * a.weights[2];
+        assert!((c.weights[0] - want).abs() < 1e-12);
+        assert_eq!(&c.weights[1..], &a.weights[1..]);
+    }
+    p.scene.strike_pos_norm = Some(0.0);
+    assert_eq!(
+        scene_for(&b, &p).object,
+        b.object,
+        "position 0 = first point"
+    );
+
+    // two points: ignored
+    let b = base("marimba-bar");
+    let mut p = params("marimba-bar");
+    p.scene.strike_pos_norm = Some(0.3);
+    assert_eq!(scene_for(&b, &p).object, b.object);
+}
+
+#[test]
+fn gravity_only_for_bouncing_scenes() {
+    let mut p = params("paper-bounce");
+    p.scene.gravity_m_per_s2 = 3.0;
+    assert_eq!(
+        scene_for(&base("paper-bounce"), &p).hammer.gravity_m_per_s2,
+        3.0
+    );
+    let mut p = params("bell");
+    p.scene.gravity_m_per_s2 = 3.0;
+    assert_eq!(scene_for(&base("bell"), &p).hammer.gravity_m_per_s2, 0.0);
+}
+
+#[test]
+fn damped_scene_divides_decay_times() {
+    let b = base("marimba-bar");
+    let d = damped_scene(&b, 1.0);
+    let (ObjectSpec::Modal(m0), ObjectSpec::Modal(m1)) = (&b.object[0], &d.object[0]) else {
+        panic!()
+    };
+    for (a, c) in m0.mode.iter().zip(&m1.mode) {
+        assert!((c.t60_s.unwrap() - a.t60_s.unwrap() / 51.0).abs() < 1e-12);
+    }
+    assert_eq!(damped_scene(&b, 0.0).object, b.object);
+}
+
+#[test]
+fn root_notes() {
+    assert_eq!(root_note(&base("marimba-bar")), 57.0); // 220 Hz = A3
+    assert_eq!(root_note(&base("bell")), 69.0); // 440 Hz
+    assert_eq!(root_note(&base("paper-string")), 65.0); // ~350 Hz = F4
+    let mut wall = base("paper-bounce");
+    wall.object = vec![ObjectSpec::Wall(crate::scene::WallSpec {
+        name: "plate".into(),
+    })];
+    assert_eq!(root_note(&wall), DEFAULT_ROOT_NOTE);
+}
+
+#[test]
+fn note_sounds_from_its_offset_and_root_plays_the_scene_as_written() {
+    let p = params("marimba-bar");
+    let mut inst = instrument(&p);
+    let at = 1000;
+    let [l, r] = render(&mut inst, &[on(at, 57, 0.8)], 20_000);
+    assert!(l[..=at].iter().chain(&r[..=at]).all(|x| *x == 0.0));
+    assert!(l[at + 1..at + 64].iter().any(|x| *x != 0.0));
+    assert!(l.iter().chain(&r).all(|x| x.is_finite()));
+    // the root note at the scene's own strike speed is the scene rendered
+    // directly (up to the output gain)
+    let mut sc = scene_for(&base("marimba-bar"), &p);
+    sc.contact.switching = Some(inst.prepared().switching_used);
+    let c = compile_with(&sc, RATE, None).unwrap();
+    let mut st = EngineState::new(&c);
+    let v = impact_speed_m_per_s(0.8);
+    st.strike(&c, 0.0, -v);
+    let g = 10f64.powf(p.play.gain_db / 20.0);
+    for k in 0..5000 {
+        let o = st.tick(&c);
+        assert!(((o[0] * g) as f32 - l[at + k]).abs() <= 1e-6 * (1.0 + l[at + k].abs()));
+    }
+}
+
+#[test]
+fn pitch_is_the_same_system_played_faster() {
+    // One octave up at 44.1 kHz is the root at 22.05 kHz, sample for
+    // sample, up to one constant factor (velocity pickups scale with s,
+    // the reference strike speed with 1/s).
+    let p = params("bell");
+    let mut hi = instrument(&p);
+    let [h, _] = render(&mut hi, &[on(0, 81, 0.7)], 4000);
+    let mut lo = Instrument::new(prepare(&p.scene, RATE / 2.0, 0).unwrap(), p.play);
+    let [l, _] = render(&mut lo, &[on(0, 69, 0.7)], 4000);
+    let c = h.iter().zip(&l).map(|(a, b)| (a * b) as f64).sum::<f64>()
+        / l.iter().map(|b| (b * b) as f64).sum::<f64>();
+    let peak = h.iter().fold(0.0f32, |m, x| m.max(x.abs())) as f64;
+    let err = h
+        .iter()
+        .zip(&l)
+        .map(|(a, b)| (*a as f64 - c * *b as f64).abs())
+        .fold(0.0, f64::max);
+    assert!(err < 1e-4 * peak, "err {err} peak {peak} c {c}");
+    let mut p = params("bell");
+    p.play.pitch_tracking = false;
+    let mut inst = instrument(&p);
+    let [l1, _] = render(&mut inst, &[on(0, 81, 0.7)], 4000);
+    let mut inst = instrument(&params("bell"));
+    let [l2, _] = render(&mut inst, &[on(0, 69, 0.7)], 4000);
+    assert_eq!(l1, l2, "pitch tracking off: every key plays the root");
+}
+
+#[test]
+fn louder_velocity_is_louder_and_block_splitting_does_not_matter() {
+    let level = |vel| {
+        let mut inst = instrument(&params("wood-block"));
+        rms(&render(&mut inst, &[on(0, 70, vel)], 10_000)[0])
+    };
+    assert!(level(0.9) > 3.0 * level(0.3));
+    let events = [
+        on(10, 60, 0.5),
+        on(300, 64, 0.9),
+        off(5000, 60),
+        on(7000, 60, 0.4),
+    ];
+    let mut a = instrument(&params("marimba-bar"));
+    let [whole, _] = render(&mut a, &events, 20_000);
+    let mut b = instrument(&params("marimba-bar"));
+    let mut split = vec![0.0f32; 20_000];
+    let mut right = vec![0.0f32; 20_000];
+    let mut pos = 0;
+    let mut ev = 0;
+    for len in [1usize, 7, 64, 100, 333, 512].iter().cycle() {
+        if pos >= 20_000 {
+            break;
+        }
+        let end = (pos + len).min(20_000);
+        let mut evs = Vec::new();
+        while ev < events.len() && events[ev].offset < end {
+            evs.push(TimedEvent {
+                offset: events[ev].offset - pos,
+                ..events[ev]
+            });
+            ev += 1;
+        }
+        b.process(&evs, &mut split[pos..end], &mut right[pos..end]);
+        pos = end;
+    }
+    assert_eq!(whole, split);
+}
+
+#[test]
+fn repeated_note_restrikes_its_ringing_voice() {
+    let mut inst = instrument(&params("marimba-bar"));
+    let [l, _] = render(&mut inst, &[on(0, 57, 0.8), on(4410, 57, 0.8)], 8820);
+    assert_eq!(inst.active_voices(), 1);
+    assert_eq!(inst.stats.notes, 2);
+    // the second strike hits a moving bar: not a copy of the first
+    let a = &l[..2000];
+    let b = &l[4410..6410];
+    assert!(a.iter().zip(b).any(|(x, y)| (x - y).abs() > 1e-4));
+    assert!(b.iter().all(|x| x.is_finite()));
+}
+
+#[test]
+fn voice_stealing_takes_the_quietest_voice() {
+    let mut inst = instrument(&params("marimba-bar"));
+    let mut events: Vec<TimedEvent> = (0..MAX_VOICES as u8)
+        .map(|i| on(10 * i as usize, 40 + i, if i == 5 { 0.05 } else { 0.9 }))
+        .collect();
+    events.push(on(1000, 100, 0.9));
+    render(&mut inst, &events, 1100);
+    let keys = inst.voice_keys();
+    assert_eq!(inst.stats.steals, 1);
+    assert!(
+        !keys.contains(&Some(45)),
+        "the soft note was stolen: {keys:?}"
+    );
+    assert!(keys.contains(&Some(100)));
+    assert_eq!(inst.active_voices(), MAX_VOICES);
+}
+
+#[test]
+fn damper_shortens_the_release_and_silent_voices_stop() {
+    let tail = |damper: f64| {
+        let mut p = params("marimba-bar");
+        p.scene.damper_norm = damper;
+        let mut inst = instrument(&p);
+        let [l, _] = render(&mut inst, &[on(0, 57, 0.8), off(4410, 57)], 44_100);
+        (rms(&l[22_050..]), inst)
+    };
+    let (free, _) = tail(0.0);
+    let (damped, _) = tail(1.0);
+    assert!(damped < 0.01 * free, "damped {damped} free {free}");
+    let mut p = params("wood-block");
+    p.scene.damper_norm = 1.0;
+    let mut inst = instrument(&p);
+    render(&mut inst, &[on(0, 70, 1.0), off(100, 70)], 44_100);
+    assert_eq!(
+        inst.active_voices(),
+        0,
+        "a damped wood block is silent after 1 s"
+    );
+    assert_eq!(inst.stats.silent_stops, 1);
+}
+
+#[test]
+fn non_finite_voice_is_reset_and_counted() {
+    let mut inst = instrument(&params("marimba-bar"));
+    let [_, _] = render(&mut inst, &[on(0, 57, 0.8)], 4410);
+    inst.voice_state_mut(0).free_state_mut()[0] = f64::NAN;
+    let [l, r] = render(&mut inst, &[], 4410);
+    assert!(l.iter().chain(&r).all(|x| x.is_finite()));
+    assert_eq!(inst.stats.nonfinite_resets, 1);
+    assert_eq!(inst.active_voices(), 0);
+}
+
+#[test]
+fn swap_carries_voices_without_a_jump_and_preset_change_fades() {
+    let p = params("marimba-bar");
+    let mut inst = instrument(&p);
+    let [l0, _] = render(&mut inst, &[on(0, 57, 0.8), on(5, 64, 0.8)], 4410);
+    let mut q = p;
+    q.scene.stiffness_factor = 1.5;
+    q.scene.decay_scale = 0.7;
+    let new = prepare(&q.scene, RATE, 1).unwrap();
+    assert!(inst.can_install());
+    inst.install(new).unwrap();
+    assert_eq!(inst.stats.voices_carried, 2);
+    assert_eq!(inst.active_voices(), 2);
+    let [l1, _] = render(&mut inst, &[], 4410);
+    let max_step = l0
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .fold(0.0, f32::max);
+    assert!((l1[0] - l0[4409]).abs() <= max_step, "jump at the swap");
+    // the old box is waiting to be handed back, not dropped
+    assert_eq!(
+        inst.retired_slots_mut()
+            .iter()
+            .filter(|s| s.is_some())
+            .count(),
+        1
+    );
+
+    let mut r = p;
+    r.scene.preset = presets::index_of("bell").unwrap();
+    inst.install(prepare(&r.scene, RATE, 2).unwrap()).unwrap();
+    assert_eq!(inst.stats.voices_faded, 2);
+    assert_eq!(inst.active_voices(), 0);
+    assert!(!inst.can_install(), "fading");
+    let [l2, _] = render(&mut inst, &[], 4410);
+    assert!(
+        (l2[0] - l1[4409]).abs() <= max_step,
+        "fade starts where it was"
+    );
+    let fade = (FADE_S * RATE) as usize;
+    assert!(l2[fade + 1..].iter().all(|x| *x == 0.0));
+    assert!(inst.can_install());
+    assert_eq!(
+        inst.retired_slots_mut()
+            .iter()
+            .filter(|s| s.is_some())
+            .count(),
+        2
+    );
+}
+
+/// The real-time warning of a stiff scene's event search: no shipped
+/// preset needs it at any Hardness (its estimate stays a few nodes per
+/// sample), so users only see it for their own stiff scenes.
+#[test]
+fn presets_need_no_realtime_warning_at_any_hardness() {
+    for i in 0..presets::PRESETS.len() {
+        for hf in [0.01, 1.0, 100.0] {
+            let p = SceneParams {
+                preset: i,
+                stiffness_factor: hf,
+                ..SceneParams::default()
+            };
+            let pr = prepare(&p, RATE, 1).unwrap();
+            assert!(
+                pr.realtime_warning().is_none(),
+                "{} x{hf}: {:?}",
+                pr.scenes.scene.name,
+                pr.realtime_warning()
+            );
+            assert!(
+                pr.scenes.scene.search_nodes_estimate <= 8.0,
+                "{}",
+                pr.scenes.scene.summary
+            );
+        }
+    }
+}

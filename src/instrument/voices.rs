@@ -1,0 +1,158 @@
+//! Voices: one per sounding note; allocation (a repeated note restrikes its
+//! own voice, a new note takes a free voice or steals the quietest), the
+//! damper at note-off, and silence detection.
+
+use super::prepared::Prepared;
+use super::{impact_speed_m_per_s, Instrument, MAX_VOICES, SILENCE_ENERGY_RATIO};
+use crate::compile::CompiledScene;
+use crate::engine::{EngineState, TimeScaleError};
+
+#[derive(Debug, Clone, Copy, Default)]
+/// One voice's note bookkeeping (its engine state lives in
+/// `Prepared::states` at the same index).
+pub(super) struct Voice {
+    /// Sounding.
+    pub(super) active: bool,
+    /// Its MIDI key.
+    pub(super) key: u8,
+    /// Released (note-off seen).
+    pub(super) released: bool,
+    /// Bound to the damped scene rather than the played one.
+    pub(super) on_damped: bool,
+    /// Energy of the last strike (reference units), for the silence test.
+    pub(super) strike_energy: f64,
+}
+
+impl Instrument {
+    pub(super) fn note_on(&mut self, key: u8, velocity_norm: f64) {
+        self.stats.notes += 1;
+        let speed = impact_speed_m_per_s(velocity_norm);
+        let p = &mut *self.cur;
+        let idx = if let Some(i) = self.voices.iter().position(|v| v.active && v.key == key) {
+            // Same key still ringing: strike the moving object again.
+            let v = &mut self.voices[i];
+            if v.on_damped {
+                let ok = match &p.scenes.damped {
+                    Some(d) => p.states[i].rebind(d, &p.scenes.scene),
+                    None => true,
+                };
+                if !ok {
+                    p.states[i].reset(&p.scenes.scene);
+                }
+                v.on_damped = false;
+            }
+            v.released = false;
+            i
+        } else {
+            let i = match self.voices.iter().position(|v| !v.active) {
+                Some(i) => i,
+                None => {
+                    self.stats.steals += 1;
+                    quietest(p, &self.voices)
+                }
+            };
+            let st = &mut p.states[i];
+            st.reset(&p.scenes.scene);
+            let s = if self.play.pitch_tracking {
+                2f64.powf((key as f64 - p.root_note) / 12.0)
+            } else {
+                1.0
+            };
+            match st.set_time_scale(&p.scenes.scene, s) {
+                Ok(()) => {}
+                Err(TimeScaleError::DenseFallback) | Err(TimeScaleError::Invalid) => {
+                    self.stats.dense_pitch_fallbacks += u64::from(s != 1.0);
+                    let _ = st.set_time_scale(&p.scenes.scene, 1.0);
+                }
+            }
+            st.reset(&p.scenes.scene);
+            self.voices[i] = Voice {
+                active: true,
+                key,
+                released: false,
+                on_damped: false,
+                strike_energy: 0.0,
+            };
+            i
+        };
+        let st = &mut p.states[idx];
+        let s = st.time_scale();
+        let v_ref = speed / s;
+        let m_h = p.scenes.scene.m_h;
+        let mut e = 0.5 * m_h * v_ref * v_ref;
+        if p.bouncing {
+            let h = self.play.drop_height_m.max(0.0);
+            st.strike(&p.scenes.scene, h, -speed);
+            e += m_h * p.scenes.scene.g * h;
+        } else {
+            st.strike(&p.scenes.scene, 0.0, -speed);
+        }
+        self.voices[idx].strike_energy = e;
+    }
+
+    pub(super) fn note_off(&mut self, key: Option<u8>) {
+        let p = &mut *self.cur;
+        for (i, v) in self.voices.iter_mut().enumerate() {
+            if !v.active || v.released || key.is_some_and(|k| k != v.key) {
+                continue;
+            }
+            v.released = true;
+            if let Some(d) = &p.scenes.damped {
+                if p.states[i].rebind(&p.scenes.scene, d) {
+                    v.on_damped = true;
+                }
+            }
+        }
+    }
+
+    pub(super) fn stop_silent_voices(&mut self) {
+        let p = &*self.cur;
+        for (i, v) in self.voices.iter_mut().enumerate() {
+            if !v.active {
+                continue;
+            }
+            let scene = p.scenes.bound(v.on_damped);
+            if let Some(e) = audible_energy(&p.states[i], scene) {
+                if e < SILENCE_ENERGY_RATIO * v.strike_energy {
+                    v.active = false;
+                    self.stats.silent_stops += 1;
+                }
+            }
+        }
+    }
+}
+
+/// Energy that decides whether a voice still sounds (reference units), or
+/// `None` while the hammer is still on its way (the strike is to come).
+fn audible_energy(st: &EngineState, scene: &CompiledScene) -> Option<f64> {
+    let proxy = st.energy_proxy(scene);
+    if st.in_contact() {
+        return Some(proxy);
+    }
+    let (_, v_phys) = st.hammer_in_flight()?;
+    let v_ref = v_phys / st.time_scale();
+    if scene.g > 0.0 {
+        // Falling hammer: its height above the surface is energy to come.
+        let above = (-st.penetration(scene)).max(0.0);
+        Some(proxy + scene.m_h * scene.g * above)
+    } else if v_ref < 0.0 {
+        None
+    } else {
+        // The hammer flies away for good: only the object sounds.
+        Some((proxy - 0.5 * scene.m_h * v_ref * v_ref).max(0.0))
+    }
+}
+
+fn quietest(p: &Prepared, voices: &[Voice; MAX_VOICES]) -> usize {
+    let mut best = 0;
+    let mut best_e = f64::INFINITY;
+    for (i, v) in voices.iter().enumerate() {
+        let s = p.states[i].time_scale();
+        let e = p.states[i].energy_proxy(p.scenes.bound(v.on_damped)) * s * s;
+        if !(e >= best_e) {
+            best = i;
+            best_e = e;
+        }
+    }
+    best
+}
