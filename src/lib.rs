@@ -5,7 +5,6 @@
 //! (off the audio thread: decompositions, propagators) -> [`compile::CompiledScene`]
 //! -> [`engine`] (per sample, allocation-free) ; [`render`] drives it offline.
 
-pub mod competitors;
 pub mod compile;
 pub mod engine;
 pub mod instrument;

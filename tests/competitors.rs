@@ -1,4 +1,4 @@
-//! Tests of the competitor integrators (src/competitors.rs): convergence order
+//! Tests of the competitor integrators (`modal_testkit::competitors`): convergence order
 //! against closed forms, the hammer-on-wall restitution and contact time,
 //! stability limits, and a smoke run on the paper's bouncing preset.
 //!
@@ -7,8 +7,8 @@
 mod common;
 
 use common::{rel_l2, scene, wall_scene};
-use modal_contact::competitors::{simulate, Method, PwlSystem, SimOutput};
 use modal_contact::scene::Scene;
+use modal_testkit::competitors::{simulate, Method, PwlSystem, SimOutput};
 use std::f64::consts::PI;
 
 const RATE: f64 = 44_100.0;

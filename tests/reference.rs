@@ -31,7 +31,8 @@
 //! The 16x cross-check shares the compiled decomposition's method with the
 //! reference, so `paper_string_matches_an_independent_expm_solution` also
 //! checks the reference against a solution that shares nothing with the
-//! engine but the scene: the competitors' dense phase matrices, nalgebra's
+//! engine but the scene: the competitors' dense phase matrices (the
+//! report's `modal_testkit::competitors`), nalgebra's
 //! `exp` (Pade) per phase and bisection for the release instant.
 //!
 //! Run with `--nocapture` to see the measured agreement.
@@ -39,10 +40,10 @@
 mod common;
 
 use common::{preset, rel_l2, scene, wall_scene};
-use modal_contact::competitors::PwlSystem;
 use modal_contact::compile::{compile_with, CompiledScene};
 use modal_contact::engine::EngineState;
 use modal_contact::scene::{Scene, Switching};
+use modal_testkit::competitors::PwlSystem;
 use nalgebra::DVector;
 use std::f64::consts::PI;
 

@@ -7,9 +7,9 @@ use super::runs::{
 };
 use super::scenes::RATE;
 use anyhow::{anyhow, Result};
-use modal_contact::competitors::{Method, PwlSystem};
 use modal_contact::compile::{compile_with, CompiledScene};
 use modal_contact::scene::{ApproxSpec, Scene, Switching};
+use modal_testkit::competitors::{Method, PwlSystem};
 use std::time::Instant;
 
 /// Oversampling factors of the competitors.

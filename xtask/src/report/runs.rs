@@ -1,9 +1,9 @@
 //! Running the engine and the competitors on the output grid, timing their
 //! stepping loops, and the metrics (NUMERICS.md section 3).
 
-use modal_contact::competitors::{simulate, Method, PwlSystem, SimOutput};
 use modal_contact::compile::CompiledScene;
 use modal_contact::engine::EngineState;
+use modal_testkit::competitors::{simulate, Method, PwlSystem, SimOutput};
 use std::hint::black_box;
 use std::time::Instant;
 

@@ -5,9 +5,9 @@ use super::accuracy::fmt_opt;
 use super::runs::{from_sim, rel_l2, run_engine, time_engine, TimingPlan, Trajectory};
 use super::scenes::{c_for, k_for, modal_scene, wall_scene, ModalOpts, NYQ, RATE};
 use anyhow::{anyhow, Result};
-use modal_contact::competitors::{simulate, Method, PwlSystem};
 use modal_contact::compile::compile_with;
 use modal_contact::scene::{Scene, Switching};
+use modal_testkit::competitors::{simulate, Method, PwlSystem};
 use std::time::Instant;
 
 /// Oversampling factors of the competitors in the stability table.

@@ -1,0 +1,9 @@
+//! Test scaffolding of `modal_contact`, shared by its tests, benches, the
+//! plugin tests and `cargo xtask` (the report and the golden renders), so
+//! that every list, scene family and metric they have in common is written
+//! once. A dev-only crate: the plugin library never depends on it.
+//!
+//! - [`competitors`]: the textbook integrators the report measures the
+//!   engine against (and `tests/competitors.rs` checks).
+
+pub mod competitors;
