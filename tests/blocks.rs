@@ -11,6 +11,7 @@ use common::{preset, wall_scene};
 use modal_contact::compile::{compile_with, CompiledScene};
 use modal_contact::engine::EngineState;
 use modal_contact::scene::{Scene, Switching};
+use modal_testkit::rng::TestRng;
 
 /// A source of block sizes.
 type Sizes<'a> = Box<dyn FnMut() -> usize + 'a>;
@@ -45,13 +46,8 @@ fn by_blocks(
 fn check(name: &str, scene: &Scene, switching: Switching, n: usize) {
     let sc = compile_with(scene, 44100.0, Some(switching)).unwrap();
     let (l0, r0, contacts, p0) = by_ticks(&sc, n);
-    let mut seed = 12345u64;
-    let mut random = move || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (seed >> 33) as usize % 300
-    };
+    let mut rng = TestRng(12345);
+    let mut random = move || rng.below(300);
     let mut splits: Vec<(&str, Sizes)> = vec![
         ("1", Box::new(|| 1)),
         ("7", Box::new(|| 7)),

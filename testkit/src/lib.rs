@@ -5,5 +5,7 @@
 //!
 //! - [`competitors`]: the textbook integrators the report measures the
 //!   engine against (and `tests/competitors.rs` checks).
+//! - [`rng`]: the one seeded generator of the tests.
 
 pub mod competitors;
+pub mod rng;
