@@ -6,6 +6,9 @@
 //! - [`competitors`]: the textbook integrators the report measures the
 //!   engine against (and `tests/competitors.rs` checks).
 //! - [`rng`]: the one seeded generator of the tests.
+//! - [`bundles`]: the plugin bundles the plugin tests load, and how they are
+//!   copied out of `target/bundled/`.
 
+pub mod bundles;
 pub mod competitors;
 pub mod rng;

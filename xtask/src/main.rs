@@ -16,7 +16,8 @@ use anyhow::{bail, Context, Result};
 use clap::Parser;
 use modal_contact::render::{render, write_trace_csv, RenderOptions};
 use modal_contact::scene::{Scene, Switching};
-use std::path::PathBuf;
+use modal_testkit::bundles::{copy_bundles, BUNDLES, BUNDLE_NAME};
+use std::path::{Path, PathBuf};
 
 /// Offline render of a scene file.
 #[derive(Parser, Debug)]
@@ -72,66 +73,17 @@ fn run(cmd: &mut std::process::Command) -> Result<()> {
     Ok(())
 }
 
-/// The plugin bundles the plugin tests use: (directory under
-/// `target/plugin-tests/`, `cargo xtask bundle` arguments). The checked
-/// builds use the `test-release` profile (optimised, debug assertions on, so
-/// nice-plug's `assert_process_allocs` is active) and share its dependencies
-/// with the test build. Release comes last so `target/bundled/` ends up with
-/// the release bundle users install.
-const TEST_BUNDLES: [(&str, &[&str]); 3] = [
-    // The checked build also carries the test-only alloc-bug trigger (note 2
-    // at velocity 0.123, played by no other test): one build instead of two.
-    (
-        "rt-checks",
-        &[
-            "--profile",
-            "test-release",
-            "--features",
-            "rt-checks,alloc-bug",
-        ],
-    ),
-    // Without rt-checks: the allocation checker aborts on the unwinder's own
-    // (de)allocations, so a caught panic can only be shown in a build
-    // without it (as users run it).
-    (
-        "panic-bug",
-        &["--profile", "test-release", "--features", "panic-bug"],
-    ),
-    ("release", &["--release"]),
-];
-
 /// `cargo xtask bundle modal_contact ARGS` in-process, then copy the result
 /// out of the shared `target/bundled/` to `target/plugin-tests/NAME/`.
 fn bundle_to(name: &str, args: &[&str]) -> Result<PathBuf> {
-    let mut all = vec!["bundle".to_string(), "modal_contact".to_string()];
+    let mut all = vec!["bundle".to_string(), BUNDLE_NAME.to_string()];
     all.extend(args.iter().map(|a| a.to_string()));
     eprintln!("+ cargo xtask {}", all.join(" "));
     nice_plug_xtask::main_with_args("cargo xtask", all)?;
     let out = PathBuf::from("target/plugin-tests").join(name);
-    let _ = std::fs::remove_dir_all(&out);
-    copy_tree(
-        std::path::Path::new("target/bundled/modal_contact.vst3"),
-        &out.join("modal_contact.vst3"),
-    )?;
-    std::fs::copy(
-        "target/bundled/modal_contact.clap",
-        out.join("modal_contact.clap"),
-    )?;
+    copy_bundles(Path::new("target/bundled"), &out)
+        .with_context(|| format!("copying target/bundled to {}", out.display()))?;
     Ok(std::fs::canonicalize(&out)?)
-}
-
-fn copy_tree(from: &std::path::Path, to: &std::path::Path) -> Result<()> {
-    std::fs::create_dir_all(to)?;
-    for entry in std::fs::read_dir(from).with_context(|| format!("{}", from.display()))? {
-        let entry = entry?;
-        let dest = to.join(entry.file_name());
-        if entry.file_type()?.is_dir() {
-            copy_tree(&entry.path(), &dest)?;
-        } else {
-            std::fs::copy(entry.path(), &dest)?;
-        }
-    }
-    Ok(())
 }
 
 /// The Python venv for the VST3 test (pedalboard, mido, numpy).
@@ -165,8 +117,8 @@ fn run_tests(extra: &[String]) -> Result<()> {
     nice_plug_xtask::chdir_workspace_root()?;
     let python = ensure_venv()?;
     let mut dirs = Vec::new();
-    for (name, args) in TEST_BUNDLES {
-        dirs.push((name, bundle_to(name, args)?));
+    for b in &BUNDLES {
+        dirs.push((b, bundle_to(b.name, b.cargo_args)?));
     }
     // The numerical tests run long loops (1e6 samples with per-sample energy
     // checks): release mode keeps them fast; debug assertions stay on.
@@ -181,14 +133,8 @@ fn run_tests(extra: &[String]) -> Result<()> {
         "--no-fail-fast",
     ])
     .args(extra);
-    for (name, dir) in &dirs {
-        cmd.env(
-            format!(
-                "MODAL_CONTACT_CLAP_{}",
-                name.to_uppercase().replace('-', "_")
-            ),
-            dir.join("modal_contact.clap"),
-        );
+    for (b, dir) in &dirs {
+        cmd.env(b.env_var(), dir.join(format!("{BUNDLE_NAME}.clap")));
     }
     let cargo_tests = run(&mut cmd);
     // The VST3 test compares with the library through this binary.
@@ -203,12 +149,15 @@ fn run_tests(extra: &[String]) -> Result<()> {
     ]))?;
     let release = &dirs
         .iter()
-        .find(|(n, _)| *n == "release")
+        .find(|(b, _)| b.name == "release")
         .expect("release")
         .1;
     let vst3_test = run(std::process::Command::new(&python)
         .arg("plugin-tests/vst3/test_vst3.py")
-        .env("MODAL_CONTACT_VST3", release.join("modal_contact.vst3"))
+        .env(
+            "MODAL_CONTACT_VST3",
+            release.join(format!("{BUNDLE_NAME}.vst3")),
+        )
         .env(
             "MODAL_CONTACT_REFERENCE",
             "target/test-release/render-reference",
@@ -223,7 +172,7 @@ fn run_demo() -> Result<()> {
     nice_plug_xtask::chdir_workspace_root()?;
     nice_plug_xtask::main_with_args(
         "cargo xtask",
-        ["bundle", "modal_contact", "--release"].map(String::from),
+        ["bundle", BUNDLE_NAME, "--release"].map(String::from),
     )?;
     run(std::process::Command::new("cargo").args([
         "run",
@@ -233,7 +182,7 @@ fn run_demo() -> Result<()> {
         "--bin",
         "render-demo",
         "--",
-        "target/bundled/modal_contact.clap",
+        &format!("target/bundled/{BUNDLE_NAME}.clap"),
         "target/demo",
     ]))
 }
