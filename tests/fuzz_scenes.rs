@@ -23,15 +23,13 @@
 //! seed and the shrunk scene, which then belongs in
 //! `regressions_found_by_the_fuzzer`.
 
-mod common;
-
-use common::preset_path;
 use modal_contact::compile::{
     compile_opts, CompileBudget, CompileCost, CompileOptions, CompiledPhase, CompiledScene,
 };
 use modal_contact::engine::EngineState;
 use modal_contact::scene::*;
 use modal_testkit::rng::TestRng;
+use modal_testkit::scenes::preset_path;
 use proptest::prelude::*;
 use proptest::sample::select;
 use proptest::test_runner::{Config, RngSeed, TestCaseError, TestRunner};
