@@ -9,13 +9,13 @@
 //! baseline target, no FMA), whose rounding is the same on every x86-64, and
 //! on this CPU's detected kernels; each path has its own lines.
 
-use crate::report::scenes::RATE;
-use crate::report::stability;
 use anyhow::{bail, Context, Result};
 use modal_contact::compile::compile_with;
 use modal_contact::engine::{EngineState, SimdPath};
 use modal_contact::render::{write_trace_csv, TraceRow};
 use modal_contact::scene::{Scene, Switching};
+use modal_testkit::scenes::RATE;
+use modal_testkit::stability;
 use std::collections::BTreeMap;
 use std::io::Cursor;
 use std::path::Path;
@@ -85,8 +85,9 @@ fn cases(root: &Path) -> Result<Vec<(String, Scene, usize)>> {
         let name = format!("preset {}", p.file_stem().unwrap().to_string_lossy());
         v.push((name, scene, n));
     }
-    for c in stability::cases()? {
-        v.push((format!("stability {}", c.id), c.scene, c.samples));
+    // recorded under the cases' numerics labels, which outlive renames
+    for c in stability::cases() {
+        v.push((format!("stability {}", c.label), c.scene, c.samples));
     }
     Ok(v)
 }
