@@ -10,6 +10,7 @@
 //! on this CPU's detected kernels; each path has its own lines.
 
 use anyhow::{bail, Context, Result};
+use clap::Args;
 use modal_contact::compile::compile_with;
 use modal_contact::engine::{EngineState, SimdPath};
 use modal_contact::render::{write_trace_csv, TraceRow};
@@ -19,6 +20,15 @@ use modal_testkit::stability;
 use std::collections::BTreeMap;
 use std::io::Cursor;
 use std::path::Path;
+
+/// `cargo xtask golden [--write]`.
+#[derive(Args, Debug)]
+pub struct GoldenArgs {
+    /// Record the hashes in tests/golden-hashes.txt instead of checking
+    /// them (only when a change of the renders is intended).
+    #[arg(long)]
+    write: bool,
+}
 
 /// Where the recorded hashes live (relative to the workspace root).
 pub const HASH_FILE: &str = "tests/golden-hashes.txt";
@@ -120,8 +130,9 @@ fn compute(root: &Path) -> Result<BTreeMap<String, String>> {
     Ok(out)
 }
 
-/// `cargo xtask golden [--write]`.
-pub fn run(write: bool) -> Result<()> {
+/// Run `cargo xtask golden`.
+pub fn run(args: GoldenArgs) -> Result<()> {
+    let write = args.write;
     nice_plug_xtask::chdir_workspace_root()?;
     let root = Path::new(".");
     let now = compute(root)?;

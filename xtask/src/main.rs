@@ -1,27 +1,91 @@
-//! `cargo xtask`: bundle the plugin (nice-plug-xtask) and render scenes offline.
+//! `cargo xtask`: bundle the plugin (nice-plug-xtask), render scenes
+//! offline, run every test, the report and the golden renders.
 //!
 //! - `cargo xtask bundle modal_contact --release` -> `target/bundled/*.clap, *.vst3`
+//!   (any command not below goes to nice-plug's xtask)
 //! - `cargo xtask render SCENE.toml --out OUT.wav [--trace OUT.csv] [--plot OUT.svg]
-//!   [--seconds S] [--rate HZ] [--switching offset-rod|exact]` (DESIGN.md section 5)
+//!   [--seconds S] [--rate HZ] [--switching offset-rod|exact]`
 //! - `cargo xtask test [CARGO TEST ARGS]`: every test, including the plugin
 //!   tests on the built bundles and the VST3 test through pedalboard
 //! - `cargo xtask demo`: bundle (release) and render a demo through the built
 //!   CLAP plugin into `target/demo/*.wav`
+//! - `cargo xtask report [--quick] [--out DIR] [--only SECTION] [--scene NAME]`
+//! - `cargo xtask golden [--write]`: bit-identical renders against
+//!   `tests/golden-hashes.txt`
 
 mod golden;
 mod plot;
 mod report;
 
 use anyhow::{bail, Context, Result};
-use clap::Parser;
+use clap::{Args, Parser, Subcommand, ValueEnum};
 use modal_contact::render::{render, write_trace_csv, RenderOptions};
 use modal_contact::scene::{Scene, Switching};
 use modal_testkit::bundles::{copy_bundles, BUNDLES, BUNDLE_NAME};
 use std::path::{Path, PathBuf};
 
-/// Offline render of a scene file.
+/// The project's tasks.
 #[derive(Parser, Debug)]
-#[command(name = "cargo xtask render")]
+#[command(
+    name = "cargo xtask",
+    bin_name = "cargo xtask",
+    after_help = "Any other command goes to nice-plug's xtask, e.g. `cargo xtask bundle modal_contact --release`."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Offline render of a scene file: WAV, trace CSV, plot, compile summary.
+    Render(RenderArgs),
+    /// Error against run time of the engine and the usual integrators, the
+    /// stability table and the f32 study (writes report/report.md).
+    Report(report::ReportArgs),
+    /// Every test: bundles the plugin three ways, runs the workspace tests
+    /// (the plugin tests load those bundles), then the VST3 test.
+    Test(TestArgs),
+    /// Bundle the release plugin and render a demo through the built CLAP
+    /// plugin into target/demo/.
+    Demo,
+    /// Check that every preset and stability case renders bit-identically
+    /// to tests/golden-hashes.txt.
+    Golden(golden::GoldenArgs),
+    /// Anything else: nice-plug's xtask (`bundle`, `bundle-universal`, ...).
+    #[command(external_subcommand)]
+    NicePlug(Vec<String>),
+}
+
+/// `cargo xtask test [CARGO TEST ARGS]`.
+#[derive(Args, Debug)]
+struct TestArgs {
+    /// Passed to `cargo test --workspace --profile test-release
+    /// --no-fail-fast` as written (e.g. `--test stability -- --nocapture`).
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+    cargo_test_args: Vec<String>,
+}
+
+/// The switching method, as the command line spells it.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum SwitchingArg {
+    /// Every crossing located inside the sample on the exact solution.
+    Exact,
+    /// The paper's method: contact starts at a sample instant.
+    OffsetRod,
+}
+
+impl From<SwitchingArg> for Switching {
+    fn from(s: SwitchingArg) -> Self {
+        match s {
+            SwitchingArg::Exact => Switching::Exact,
+            SwitchingArg::OffsetRod => Switching::OffsetRod,
+        }
+    }
+}
+
+/// Offline render of a scene file.
+#[derive(Args, Debug)]
 struct RenderArgs {
     /// Scene file (TOML).
     scene: PathBuf,
@@ -42,22 +106,22 @@ struct RenderArgs {
     #[arg(long, default_value_t = 44100.0)]
     rate: f64,
     /// Switching method (default: the scene's, else the project default).
-    #[arg(long)]
-    switching: Option<String>,
+    #[arg(long, value_enum)]
+    switching: Option<SwitchingArg>,
 }
 
 fn main() -> Result<()> {
-    let mut args: Vec<String> = std::env::args().collect();
-    match args.get(1).map(String::as_str) {
-        Some("render") => {
-            args.remove(1);
-            run_render(RenderArgs::parse_from(args))
-        }
-        Some("report") => report::run(&args[2..]),
-        Some("test") => run_tests(&args[2..]),
-        Some("demo") => run_demo(),
-        Some("golden") => golden::run(args.get(2).is_some_and(|a| a == "--write")),
-        _ => nice_plug_xtask::main(),
+    let argv: Vec<String> = std::env::args().collect();
+    match Cli::parse_from(&argv).command {
+        Some(Command::Render(a)) => run_render(a),
+        Some(Command::Report(a)) => report::run(a),
+        // The arguments go to cargo test verbatim: clap drops the `--` of
+        // `cargo xtask test -- --nocapture`, which cargo test needs.
+        Some(Command::Test(_)) => run_tests(&argv[2..]),
+        Some(Command::Demo) => run_demo(),
+        Some(Command::Golden(a)) => golden::run(a),
+        Some(Command::NicePlug(args)) => nice_plug_xtask::main_with_args("cargo xtask", args),
+        None => nice_plug_xtask::main(),
     }
 }
 
@@ -189,17 +253,10 @@ fn run_demo() -> Result<()> {
 
 fn run_render(a: RenderArgs) -> Result<()> {
     let scene = Scene::from_file(&a.scene).with_context(|| format!("{}", a.scene.display()))?;
-    let switching = match a.switching.as_deref() {
-        None => None,
-        Some(s) => match Switching::parse(s) {
-            Some(sw) => Some(sw),
-            None => bail!("--switching must be offset-rod or exact, got {s:?}"),
-        },
-    };
     let opts = RenderOptions {
         rate_hz: a.rate,
         seconds: a.seconds,
-        switching,
+        switching: a.switching.map(Switching::from),
         trace: true,
     };
     let t0 = std::time::Instant::now();

@@ -10,14 +10,14 @@
 //! accuracy scene (development); `REPORT_DEBUG=1` prints
 //! per-run times and exact-switching counters of the stability runs.
 
-mod accuracy;
-mod plot;
+pub mod accuracy;
 mod runs;
 mod stability;
 mod sustain;
 
 use accuracy::{Case, SceneResult};
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
 use modal_contact::scene::{ApproxSpec, ObjectSpec, Scene};
 use modal_testkit::scenes::{self, NYQ};
 use runs::TimingPlan;
@@ -25,51 +25,38 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
-struct Args {
+/// `cargo xtask report [--quick] [--out DIR] [--only SECTION] [--scene NAME]`.
+#[derive(Args, Debug)]
+pub struct ReportArgs {
+    /// Shorten every render (smoke runs; its numbers are not the report's).
+    #[arg(long)]
     quick: bool,
+    /// Where report.md and the plots go.
+    #[arg(long, default_value = "report")]
     out: PathBuf,
-    /// Run one section only (development): accuracy, stability or f32.
-    only: Option<String>,
+    /// Run one section only (development).
+    #[arg(long, value_enum)]
+    only: Option<Section>,
     /// Run only the accuracy scene of this name (development).
+    #[arg(long)]
     scene: Option<String>,
 }
 
-impl Args {
-    fn wants(&self, section: &str) -> bool {
-        self.only.as_deref().is_none_or(|o| o == section)
-    }
+/// A section of the report.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum Section {
+    /// Error against run time.
+    Accuracy,
+    /// The stability table.
+    Stability,
+    /// f32 against f64 state on a long sustain.
+    F32,
 }
 
-fn parse_args(args: &[String]) -> Result<Args> {
-    let mut a = Args {
-        quick: false,
-        out: PathBuf::from("report"),
-        only: None,
-        scene: None,
-    };
-    let mut it = args.iter();
-    while let Some(x) = it.next() {
-        match x.as_str() {
-            "--quick" => a.quick = true,
-            "--out" => {
-                a.out = PathBuf::from(it.next().context("--out needs a directory")?);
-            }
-            "--only" => {
-                let o = it.next().context("--only needs accuracy, stability or f32")?;
-                if !["accuracy", "stability", "f32"].contains(&o.as_str()) {
-                    bail!("--only needs accuracy, stability or f32, got {o:?}");
-                }
-                a.only = Some(o.clone());
-            }
-            "--scene" => {
-                a.scene = Some(it.next().context("--scene needs an accuracy scene name")?.clone());
-            }
-            other => bail!(
-                "cargo xtask report: unknown argument {other:?} (use --quick, --out DIR, --only SECTION, --scene NAME)"
-            ),
-        }
+impl ReportArgs {
+    fn wants(&self, section: Section) -> bool {
+        self.only.is_none_or(|o| o == section)
     }
-    Ok(a)
 }
 
 fn accuracy_cases(quick: bool) -> Result<Vec<Case>> {
@@ -213,8 +200,7 @@ fn pareto(res: &SceneResult) -> Vec<String> {
 }
 
 /// Run the report.
-pub fn run(args: &[String]) -> Result<()> {
-    let a = parse_args(args)?;
+pub fn run(a: ReportArgs) -> Result<()> {
     nice_plug_xtask::chdir_workspace_root()?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}", a.out.display()))?;
     let t_start = Instant::now();
@@ -249,7 +235,7 @@ pub fn run(args: &[String]) -> Result<()> {
     md += "Columns: CPU seconds per second of audio (repetitions); relative L2 error of the pickup velocity over the 50 ms from the reference's first contact onset (a dropped ball is silent before it lands) and over the whole window; relative L2 of the hammer height; contacts matched by order (missed = reference contacts without a partner, extra = the opposite); largest onset/end time error over matched contacts in samples; largest energy increase between two output samples relative to E0 = |E(0)| + m_h g |x_h(0)|. \
            The `exact` row is the reference itself: its errors are against the engine at 16x the rate (its own error is 0 by construction).\n\n";
     let mut results = Vec::new();
-    let mut acc_cases = if a.wants("accuracy") {
+    let mut acc_cases = if a.wants(Section::Accuracy) {
         accuracy_cases(a.quick)?
     } else {
         Vec::new()
@@ -264,7 +250,7 @@ pub fn run(args: &[String]) -> Result<()> {
         let table = accuracy::markdown(&res);
         println!("{table}");
         let svg = a.out.join(format!("pareto-{}.svg", res.name));
-        plot::plot_scene(&res, &svg)?;
+        crate::plot::plot_work_precision(&res, &svg)?;
         md += &table;
         let _ = writeln!(
             md,
@@ -303,7 +289,7 @@ pub fn run(args: &[String]) -> Result<()> {
         stability::LOSS_TOL
     );
     let mut stab = Vec::new();
-    let stab_cases = if a.wants("stability") {
+    let stab_cases = if a.wants(Section::Stability) {
         modal_testkit::stability::cases()
     } else {
         Vec::new()
@@ -338,7 +324,7 @@ pub fn run(args: &[String]) -> Result<()> {
          propagator times (1 - 2u), u = 2^-24, so |pole|^2 <= r^2 (1 - 4u) (docs/numerics.md, \"f32 or f64\").\n",
         sustain::SUSTAIN_N
     );
-    let sus = if a.wants("f32") {
+    let sus = if a.wants(Section::F32) {
         sustain::run_all()
     } else {
         Vec::new()
