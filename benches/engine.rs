@@ -1,9 +1,9 @@
 //! Criterion benchmarks of the per-sample engine (issue: "make the per-sample
 //! engine fast"). Every group measures this engine next to a naive baseline in
 //! the same run: multiplying the dense transition matrix every sample (the
-//! paper's transition matrix used literally, NUMERICS.md finding 4), and a
-//! summary at the end prints the ratios, ns per mode per sample and the SIMD
-//! path that ran. Timing is reported here, never asserted in tests.
+//! paper's transition matrix used literally), and a summary at the end
+//! prints the ratios, ns per mode per sample and the SIMD path that ran.
+//! Timing is reported here, never asserted in tests.
 //!
 //! The engine is driven the way the plugin drives it: `process_block` on
 //! blocks of samples. The phase cases hold one phase for the whole run (free:
@@ -18,6 +18,7 @@ use modal_contact::compile::{compile_with, CompiledScene};
 use modal_contact::engine::EngineState;
 use modal_contact::physics::decomp::dense_exp;
 use modal_contact::scene::{Scene, Switching};
+use modal_testkit::scenes::{preset, Contact, Hammer, Modal, Pickup, SceneBuilder};
 use nalgebra::{DMatrix, DVector};
 use std::hint::black_box;
 use std::time::Instant;
@@ -26,28 +27,26 @@ const RATE: f64 = 44100.0;
 const BLOCK: usize = 441; // 10 ms per iteration
 
 fn modal_scene(n: usize, gravity: bool) -> Scene {
-    let mut t = String::from(
-        "version = 1\nname = \"bench\"\n[[object]]\nname = \"o\"\nkind = \"modal\"\npoints = [\"c\", \"p\"]\n",
-    );
+    let mut object = Modal::new("o", &["c", "p"]);
     for i in 0..n {
         let f = 80.0 * (18000.0f64 / 80.0).powf(i as f64 / (n.max(2) - 1) as f64);
         let w = 1.0 / (1.0 + 0.01 * i as f64).sqrt();
-        t += &format!(
-            "[[object.mode]]\nfreq_hz = {f}\nt60_s = {}\nweights = [{w}, {}]\n",
-            1000.0 / (1.0 + f / 1000.0),
-            if i % 2 == 0 { 0.7 * w } else { -0.5 * w }
-        );
+        let wp = if i % 2 == 0 { 0.7 * w } else { -0.5 * w };
+        object = object.mode(f, 1000.0 / (1.0 + f / 1000.0), &[w, wp]);
     }
-    if gravity {
+    let hammer = if gravity {
         // a heavy weight resting on the object: continuous contact
-        t += "[hammer]\nmass_kg = 0.5\nheight_m = 0.0\nvelocity_m_per_s = -0.1\ngravity_m_per_s2 = 9.81\n";
+        Hammer::new(0.5).velocity(-0.1).gravity(9.81)
     } else {
         // hammer flying away: the free phase only
-        t += "[hammer]\nmass_kg = 0.02\nheight_m = 1.0\nvelocity_m_per_s = 1.0\n";
-    }
-    t += "[contact]\nobject = \"o\"\npoint = \"c\"\nstiffness_n_per_m = 1e6\ndamping_n_s_per_m = 50.0\n\
-          [[pickup]]\nobject = \"o\"\npoint = \"p\"\n";
-    Scene::from_toml_str(&t).unwrap()
+        Hammer::new(0.02).height(1.0).velocity(1.0)
+    };
+    SceneBuilder::new("bench")
+        .object(object)
+        .hammer(hammer)
+        .contact(Contact::new("o", 1e6).point("c").damping(50.0))
+        .pickup(Pickup::new("o", "p"))
+        .build()
 }
 
 /// The naive baseline: dense transition matrices of the free object (plus a
@@ -211,9 +210,7 @@ fn switch(c: &mut Criterion) {
 /// damped contact at `ratio` times Nyquist: it rattles (hundreds of short
 /// contacts), the hardest work of the exact event search.
 fn rattle_scene(n: usize, ratio: f64) -> Scene {
-    let mut t = String::from(
-        "version = 1\nname = \"rattle\"\n[[object]]\nname = \"o\"\nkind = \"modal\"\npoints = [\"c\", \"p\"]\n",
-    );
+    let mut object = Modal::new("o", &["c", "p"]);
     let top = 1.5 * RATE / 2.0;
     for i in 0..n {
         let f = if n == 1 {
@@ -222,20 +219,17 @@ fn rattle_scene(n: usize, ratio: f64) -> Scene {
             200.0 * (top / 200.0).powf(i as f64 / (n - 1) as f64)
         };
         let w = 0.7 / (1.0 + 0.05 * i as f64).sqrt();
-        t += &format!(
-            "[[object.mode]]\nfreq_hz = {f}\nweights = [{w}, {}]\n",
-            0.5 * w
-        );
+        object = object.mode(f, None, &[w, 0.5 * w]);
     }
     let m_h = 0.01f64;
     let k = m_h * (2.0 * std::f64::consts::PI * ratio * RATE / 2.0).powi(2);
     let c = 2.0 * (k * m_h).sqrt();
-    t += &format!(
-        "[hammer]\nmass_kg = {m_h}\nheight_m = 0.001\nvelocity_m_per_s = 0.0\ngravity_m_per_s2 = 9.81\n\
-         [contact]\nobject = \"o\"\npoint = \"c\"\nstiffness_n_per_m = {k:e}\ndamping_n_s_per_m = {c:e}\n\
-         [[pickup]]\nobject = \"o\"\npoint = \"p\"\n"
-    );
-    Scene::from_toml_str(&t).unwrap()
+    SceneBuilder::new("rattle")
+        .object(object)
+        .hammer(Hammer::new(m_h).height(0.001).gravity(9.81))
+        .contact(Contact::new("o", k).point("c").damping(c))
+        .pickup(Pickup::new("o", "p"))
+        .build()
 }
 
 /// The most expensive sample of the first `n` samples of a run from `st`
@@ -339,11 +333,10 @@ fn presets_at_every_hardness() {
 }
 
 fn renders(c: &mut Criterion) {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("presets");
     let mut g = c.benchmark_group("render_1s");
     g.sample_size(10);
     for name in ["paper-bounce", "paper-string"] {
-        let scene = Scene::from_file(&root.join(format!("{name}.toml"))).unwrap();
+        let scene = preset(name);
         let sc = compile_with(&scene, RATE, None).unwrap();
         g.bench_function(name, |b| {
             b.iter(|| {
@@ -538,9 +531,8 @@ fn summary(_c: &mut Criterion) {
         }
     }
     presets_at_every_hardness();
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("presets");
     for name in ["paper-bounce", "paper-string"] {
-        let scene = Scene::from_file(&root.join(format!("{name}.toml"))).unwrap();
+        let scene = preset(name);
         let sc = compile_with(&scene, RATE, None).unwrap();
         let secs = scene.duration_s;
         let n = (secs * RATE) as usize;

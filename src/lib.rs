@@ -5,7 +5,6 @@
 //! (off the audio thread: decompositions, propagators) -> [`compile::CompiledScene`]
 //! -> [`engine`] (per sample, allocation-free) ; [`render`] drives it offline.
 
-pub mod competitors;
 pub mod compile;
 pub mod engine;
 pub mod instrument;
@@ -14,5 +13,8 @@ pub mod plugin;
 pub mod presets;
 pub mod render;
 pub mod scene;
-#[cfg(test)]
-mod test_rng;
+// The one seeded generator of every test. It lives here, not in the dev-only
+// testkit crate, because the unit tests inside this crate cannot depend on a
+// crate that depends on this one; testkit re-exports it for everything else.
+#[doc(hidden)]
+pub mod test_rng;

@@ -1,7 +1,12 @@
-//! A small deterministic generator for unit tests (splitmix64): random
-//! arguments and scenes that are the same on every run.
+//! The one seeded generator of the project's tests (splitmix64): random
+//! arguments, block sizes, events and scenes that are the same on every run,
+//! so a red run is a regression and not a new draw. Tiny and without
+//! dependencies because the plugin library carries it (hidden): its own unit
+//! tests use it, and everything else reaches it through
+//! `modal_testkit::rng`. Not for the audio path.
 
-/// splitmix64.
+/// splitmix64: a 64-bit state advanced by a fixed odd increment and mixed.
+/// Any seed, 0 included, gives a full-period stream.
 pub struct TestRng(pub u64);
 
 impl TestRng {
@@ -22,5 +27,11 @@ impl TestRng {
     /// Uniform in [lo, hi).
     pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * self.unit()
+    }
+
+    /// An index in `0..n` (0 when `n` is 0). The modulo bias, below
+    /// `n / 2^64`, does not matter for test inputs.
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n.max(1) as u64) as usize
     }
 }

@@ -11,12 +11,11 @@
 //!    in the spectrum; with the band the level at each fold-back frequency
 //!    drops to the kept modes' own spectral skirt.
 
-mod common;
-
-use common::{rel_l2, scene};
 use modal_contact::compile::compile_with;
 use modal_contact::engine::EngineState;
 use modal_contact::scene::{ObjectSpec, Scene, Switching};
+use modal_testkit::metrics::rel_l2;
+use modal_testkit::scenes::{Contact, Hammer, Modal, Pickup, SceneBuilder};
 
 /// Eleven modes from 300 Hz to 19 kHz: at s = 2.5 the top ones are above
 /// 22.05 kHz. Pickups at a point other than the contact.
@@ -24,57 +23,34 @@ fn bar(gravity: f64) -> Scene {
     let freqs = [
         300.0, 820.0, 1610.0, 2650.0, 3950.0, 5500.0, 7300.0, 9350.0, 11650.0, 15600.0, 19000.0,
     ];
-    let mut modes = String::new();
-    for (i, f) in freqs.iter().enumerate() {
+    let mut bar = Modal::new("bar", &["contact", "pickup"]);
+    for (i, &f) in freqs.iter().enumerate() {
         let w_c = 1.0 + 0.1 * i as f64;
         let w_p = if i % 2 == 0 { 0.8 } else { -0.6 } * (1.0 + 0.05 * i as f64);
-        modes.push_str(&format!(
-            "[[object.mode]]\nfreq_hz = {f}\nt60_s = {}\nweights = [{w_c}, {w_p}]\n\n",
-            2.0 / (1.0 + i as f64)
-        ));
+        bar = bar.mode(f, 2.0 / (1.0 + i as f64), &[w_c, w_p]);
     }
     let (height, v0) = if gravity > 0.0 {
         (0.01, 0.0)
     } else {
         (0.0, -1.0)
     };
-    scene(&format!(
-        r#"
-version = 1
-name = "band-bar"
-[[object]]
-name = "bar"
-kind = "modal"
-points = ["contact", "pickup"]
-
-{modes}
-[hammer]
-mass_kg = 0.02
-height_m = {height}
-velocity_m_per_s = {v0}
-gravity_m_per_s2 = {gravity}
-
-[contact]
-object = "bar"
-point = "contact"
-stiffness_n_per_m = 1e6
-damping_n_s_per_m = 3.0
-
-[[pickup]]
-object = "bar"
-point = "pickup"
-quantity = "displacement"
-gain = 1000.0
-pan = -0.5
-
-[[pickup]]
-object = "bar"
-point = "pickup"
-quantity = "velocity"
-gain = 1.0
-pan = 0.7
-"#
-    ))
+    SceneBuilder::new("band-bar")
+        .object(bar)
+        .hammer(
+            Hammer::new(0.02)
+                .height(height)
+                .velocity(v0)
+                .gravity(gravity),
+        )
+        .contact(Contact::new("bar", 1e6).point("contact").damping(3.0))
+        .pickup(
+            Pickup::new("bar", "pickup")
+                .displacement()
+                .gain(1000.0)
+                .pan(-0.5),
+        )
+        .pickup(Pickup::new("bar", "pickup").gain(1.0).pan(0.7))
+        .build()
 }
 
 /// The same scene with the pickup weight of every mode above `band_hz` at

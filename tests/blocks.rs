@@ -5,12 +5,11 @@
 //! refreshed. (The plugin-level test `host_abuse.rs` checks the same through
 //! a real host; this one pins it on the engine, scene by scene.)
 
-mod common;
-
-use common::{preset, wall_scene};
 use modal_contact::compile::{compile_with, CompiledScene};
 use modal_contact::engine::EngineState;
 use modal_contact::scene::{Scene, Switching};
+use modal_testkit::rng::TestRng;
+use modal_testkit::scenes::{c_for, preset, wall_strike};
 
 /// A source of block sizes.
 type Sizes<'a> = Box<dyn FnMut() -> usize + 'a>;
@@ -45,13 +44,8 @@ fn by_blocks(
 fn check(name: &str, scene: &Scene, switching: Switching, n: usize) {
     let sc = compile_with(scene, 44100.0, Some(switching)).unwrap();
     let (l0, r0, contacts, p0) = by_ticks(&sc, n);
-    let mut seed = 12345u64;
-    let mut random = move || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (seed >> 33) as usize % 300
-    };
+    let mut rng = TestRng(12345);
+    let mut random = move || rng.below(300);
     let mut splits: Vec<(&str, Sizes)> = vec![
         ("1", Box::new(|| 1)),
         ("7", Box::new(|| 7)),
@@ -98,9 +92,7 @@ fn blocks_equal_ticks_bit_for_bit() {
         check("paper-string", &preset("paper-string"), sw, 20_000);
         check("bell", &preset("bell"), sw, 20_000);
         // critically damped hammer on a wall: dense-fallback contact phase
-        let mut wall = wall_scene(0.01, 1e6, 2.0 * (1e6f64 * 0.01).sqrt(), 1.0);
-        wall.hammer.height_m = 1e-3;
-        wall.hammer.velocity_m_per_s = -1.0;
+        let wall = wall_strike(0.01, 1e6, c_for(0.01, 1e6, 1.0), 1e-3, -1.0);
         check("critical wall (dense)", &wall, sw, 5_000);
     }
 }

@@ -1,11 +1,10 @@
 //! The engine against closed forms: free damped sinusoids, and the linear
-//! spring-damper impact on a rigid wall (DESIGN.md section 6).
+//! spring-damper impact on a rigid wall.
 
-mod common;
-
-use common::*;
 use modal_contact::compile::{compile, compile_with};
 use modal_contact::engine::EngineState;
+use modal_testkit::metrics::rel_l2;
+use modal_testkit::scenes::{preset, wall_strike, Contact, Hammer, Modal, SceneBuilder};
 use std::f64::consts::PI;
 
 /// A free modal object (three modes, one undamped) started with unit modal
@@ -19,18 +18,17 @@ fn free_modal_object_matches_damped_sinusoids() {
         (950.0, Some(0.4), 1.5),
         (3500.0, None, 1.2),
     ];
-    let mut text = String::from(
-        "version = 1\nname = \"free\"\n[[object]]\nname = \"o\"\nkind = \"modal\"\npoints = [\"c\"]\n",
-    );
+    let mut object = Modal::new("o", &["c"]);
     for (f, t60, w) in modes {
-        text += &format!("[[object.mode]]\nfreq_hz = {f}\nweights = [{w}]\n");
-        if let Some(t) = t60 {
-            text += &format!("t60_s = {t}\n");
-        }
+        object = object.mode(f, t60, &[w]);
     }
     // hammer flying away upwards: never touches
-    text += "[hammer]\nmass_kg = 0.01\nheight_m = 1.0\nvelocity_m_per_s = 1.0\n[contact]\nobject = \"o\"\npoint = \"c\"\nstiffness_n_per_m = 1e5\n";
-    let sc = compile(&scene(&text), 44100.0).unwrap();
+    let scene = SceneBuilder::new("free")
+        .object(object)
+        .hammer(Hammer::new(0.01).height(1.0).velocity(1.0))
+        .contact(Contact::new("o", 1e5).point("c"))
+        .build();
+    let sc = compile(&scene, 44100.0).unwrap();
     let mut st = EngineState::new(&sc);
     {
         let s = st.free_state_mut();
@@ -72,7 +70,7 @@ fn free_modal_object_matches_damped_sinusoids() {
 /// Contact time and rebound speed of a hammer against a rigid wall.
 fn wall_impact(rate: f64, m: f64, k: f64, c: f64) -> (f64, f64) {
     let v0 = -1.0;
-    let mut scene = wall_scene(m, k, c, v0);
+    let mut scene = wall_strike(m, k, c, 0.0, v0);
     scene.contact.switching = Some(modal_contact::scene::Switching::OffsetRod);
     let sc = compile(&scene, rate).unwrap();
     let mut st = EngineState::new(&sc);
@@ -160,7 +158,7 @@ fn exact_switching_hits_rigid_wall_closed_forms_at_44k() {
         let wd = w0 * (1.0 - zeta * zeta).sqrt();
         let t_exact = PI / wd;
         let e_exact = (-zeta * PI / (1.0 - zeta * zeta).sqrt()).exp();
-        let mut sc = wall_scene(m, k, c, v0);
+        let mut sc = wall_strike(m, k, c, 0.0, v0);
         // start 0.37 sample above the wall: the touch is inside a sample
         let gap = 0.37 * h * -v0;
         sc.hammer.height_m = gap;
@@ -209,7 +207,7 @@ fn exact_switching_hits_rigid_wall_closed_forms_at_44k() {
 #[test]
 fn switch_events_log_every_contact_in_both_modes() {
     use modal_contact::scene::Switching;
-    let scene = common::preset("paper-bounce");
+    let scene = preset("paper-bounce");
     for sw in [Switching::OffsetRod, Switching::Exact] {
         for observed in [false, true] {
             let sc = compile_with(&scene, 44100.0, Some(sw)).unwrap();

@@ -1,57 +1,39 @@
-//! Tests of the competitor integrators (src/competitors.rs): convergence order
+//! Tests of the competitor integrators (`modal_testkit::competitors`): convergence order
 //! against closed forms, the hammer-on-wall restitution and contact time,
 //! stability limits, and a smoke run on the paper's bouncing preset.
 //!
 //! Run with `--nocapture` to see the measured orders and errors.
 
-mod common;
-
-use common::{rel_l2, scene, wall_scene};
-use modal_contact::competitors::{simulate, Method, PwlSystem, SimOutput};
 use modal_contact::scene::Scene;
+use modal_testkit::competitors::{simulate, Method, PwlSystem, SimOutput};
+use modal_testkit::metrics::rel_l2;
+use modal_testkit::scenes::{preset, wall_strike, Contact, Hammer, Modal, Pickup, SceneBuilder};
 use std::f64::consts::PI;
 
 const RATE: f64 = 44_100.0;
 const LN_1000: f64 = 6.907_755_278_982_137;
 
 /// One mode of frequency `f_hz` (optional T60) with weight 1 at the contact
-/// point and `w_pick` at the pickup; the hammer starts well above the object and
-/// moves away (no gravity), so it never touches.
-fn one_mode_scene(f_hz: f64, t60: Option<f64>, w_pick: f64, quantity: &str) -> Scene {
-    let t60_line = t60.map_or(String::new(), |t| format!("t60_s = {t:e}"));
-    scene(&format!(
-        r#"
-version = 1
-name = "one-mode"
-[[object]]
-name = "obj"
-kind = "modal"
-points = ["contact", "pickup"]
-[[object.mode]]
-freq_hz = {f_hz:e}
-{t60_line}
-weights = [1.0, {w_pick:e}]
-[hammer]
-mass_kg = 0.01
-height_m = 0.05
-velocity_m_per_s = 0.1
-[contact]
-object = "obj"
-point = "contact"
-stiffness_n_per_m = 1e5
-damping_n_s_per_m = 1.0
-[[pickup]]
-object = "obj"
-point = "pickup"
-quantity = "{quantity}"
-gain = 1.0
-"#
-    ))
+/// point and `w_pick` at the pickup (velocity, or `displacement`); the hammer
+/// starts well above the object and moves away (no gravity), so it never
+/// touches.
+fn one_mode_scene(f_hz: f64, t60: Option<f64>, w_pick: f64, displacement: bool) -> Scene {
+    let pickup = Pickup::new("obj", "pickup");
+    SceneBuilder::new("one-mode")
+        .object(Modal::new("obj", &["contact", "pickup"]).mode(f_hz, t60, &[1.0, w_pick]))
+        .hammer(Hammer::new(0.01).height(0.05).velocity(0.1))
+        .contact(Contact::new("obj", 1e5).point("contact").damping(1.0))
+        .pickup(if displacement {
+            pickup.displacement()
+        } else {
+            pickup
+        })
+        .build()
 }
 
 /// System of [`one_mode_scene`] started with `xi = 0`, `u = 1` (energy 0.5 J).
-fn one_mode_system(f_hz: f64, t60: Option<f64>, w_pick: f64, quantity: &str) -> PwlSystem {
-    let mut sys = PwlSystem::from_scene(&one_mode_scene(f_hz, t60, w_pick, quantity)).unwrap();
+fn one_mode_system(f_hz: f64, t60: Option<f64>, w_pick: f64, displacement: bool) -> PwlSystem {
+    let mut sys = PwlSystem::from_scene(&one_mode_scene(f_hz, t60, w_pick, displacement)).unwrap();
     assert_eq!(sys.n(), 1);
     sys.z0 = vec![0.0, 1.0];
     sys
@@ -88,7 +70,7 @@ fn free_mode_converges_with_expected_order() {
                 * ((omega_d * t).cos() - sigma / omega_d * (omega_d * t).sin())
         })
         .collect();
-    let sys = one_mode_system(f, Some(t60), w_pick, "velocity");
+    let sys = one_mode_system(f, Some(t60), w_pick, false);
     let oversamples = [1usize, 2, 4, 8, 16];
     println!(
         "free mode f = {f} Hz, T60 = {t60} s, omega h = {:.4} at 1x; rel L2 of the velocity pickup over 20 ms",
@@ -140,7 +122,7 @@ fn free_mode_converges_with_expected_order() {
             w_pick * (-sigma * t).exp() * (omega_d * t).sin() / omega_d
         })
         .collect();
-    let sys = one_mode_system(f, Some(t60), w_pick, "displacement");
+    let sys = one_mode_system(f, Some(t60), w_pick, true);
     let out = simulate(&sys, Method::Rk4, RATE, 4, n_out);
     let err = rel_l2(&out.pickup, &exact_disp);
     println!("  rk4 displacement pickup at 4x: rel L2 {err:.3e}");
@@ -158,7 +140,7 @@ fn wall_contact_time_and_restitution_converge() {
     let omega_d = omega_n * (1.0 - zeta * zeta).sqrt();
     let t_exact = PI / omega_d;
     let e_exact = (-zeta * PI / (1.0 - zeta * zeta).sqrt()).exp();
-    let sys = PwlSystem::from_scene(&wall_scene(m, k, c, v0)).unwrap();
+    let sys = PwlSystem::from_scene(&wall_strike(m, k, c, 0.0, v0)).unwrap();
     assert_eq!(sys.n(), 0);
     let n_out = 221; // 5 ms; the contact lasts ~1 ms
     println!(
@@ -204,7 +186,7 @@ fn wall_contact_time_and_restitution_converge() {
 /// Run one undamped 1 kHz mode at `omega h` (oversampling 1).
 fn undamped_at(method: Method, omega_h: f64, n_out: usize) -> SimOutput {
     let f = 1000.0;
-    let sys = one_mode_system(f, None, 1.0, "velocity");
+    let sys = one_mode_system(f, None, 1.0, false);
     let rate = 2.0 * PI * f / omega_h;
     simulate(&sys, method, rate, 1, n_out)
 }
@@ -266,8 +248,7 @@ fn stability_limits() {
 /// from every method.
 #[test]
 fn paper_bounce_bounces() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("presets/paper-bounce.toml");
-    let sc = Scene::from_file(&path).unwrap();
+    let sc = preset("paper-bounce");
     let sys = PwlSystem::from_scene(&sc).unwrap();
     let n_out = (sc.duration_s * RATE) as usize + 1;
     let mut first_starts = Vec::new();
@@ -308,8 +289,7 @@ fn paper_bounce_bounces() {
 /// and close to RK4 at 32x over the first 20 ms.
 #[test]
 fn paper_string_methods_agree() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("presets/paper-string.toml");
-    let sc = Scene::from_file(&path).unwrap();
+    let sc = preset("paper-string");
     let sys = PwlSystem::from_scene(&sc).unwrap();
     assert_eq!(sys.dim(), 102);
     println!("paper-string nnz (B, -B^T, -D, d, f) = {:?}", sys.nnz());

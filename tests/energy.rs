@@ -5,59 +5,40 @@
 //! spring's energy at each release. Damped case: never increasing from one
 //! sample to the next beyond a rounding bound.
 
-mod common;
-
-use common::*;
 use modal_contact::compile::compile;
 use modal_contact::engine::EngineState;
+use modal_contact::scene::Scene;
+use modal_testkit::scenes::{preset, Contact, Hammer, Modal, Pickup, SceneBuilder};
 
 /// f64 unit roundoff.
 const U: f64 = f64::EPSILON / 2.0;
 
-fn bouncing_scene(damped: bool) -> String {
-    let (t60a, t60b, t60c, c) = if damped {
-        ("t60_s = 0.8\n", "t60_s = 0.4\n", "t60_s = 0.15\n", 2.0)
-    } else {
-        ("", "", "", 0.0)
-    };
-    format!(
-        r#"
-version = 1
-name = "bounce"
-[[object]]
-name = "plate"
-kind = "modal"
-points = ["contact", "pickup"]
-[[object.mode]]
-freq_hz = 220.0
-{t60a}weights = [2.0, 1.0]
-[[object.mode]]
-freq_hz = 950.0
-{t60b}weights = [1.5, -1.2]
-[[object.mode]]
-freq_hz = 3500.0
-{t60c}weights = [1.2, 0.9]
-[hammer]
-mass_kg = 0.01
-height_m = 0.02
-gravity_m_per_s2 = 9.81
-[contact]
-object = "plate"
-point = "contact"
-stiffness_n_per_m = 2e5
-damping_n_s_per_m = {c}
-[[pickup]]
-object = "plate"
-point = "pickup"
-"#
-    )
+/// The paper's bouncing ball (10 g from 2 cm onto three modes, gravity),
+/// lossless or with decaying modes and a damped contact.
+fn bouncing_scene(damped: bool) -> Scene {
+    let t60 = |t: f64| damped.then_some(t);
+    SceneBuilder::new("bounce")
+        .object(
+            Modal::new("plate", &["contact", "pickup"])
+                .mode(220.0, t60(0.8), &[2.0, 1.0])
+                .mode(950.0, t60(0.4), &[1.5, -1.2])
+                .mode(3500.0, t60(0.15), &[1.2, 0.9]),
+        )
+        .hammer(Hammer::new(0.01).height(0.02).gravity(9.81))
+        .contact(
+            Contact::new("plate", 2e5)
+                .point("contact")
+                .damping(if damped { 2.0 } else { 0.0 }),
+        )
+        .pickup(Pickup::new("plate", "pickup"))
+        .build()
 }
 
 #[test]
 fn lossless_energy_is_conserved_in_phases_and_only_lost_at_releases() {
     // the offset rod: releases cut a stretched spring
     let sc = modal_contact::compile::compile_with(
-        &scene(&bouncing_scene(false)),
+        &bouncing_scene(false),
         44100.0,
         Some(modal_contact::scene::Switching::OffsetRod),
     )
@@ -115,7 +96,7 @@ fn lossless_energy_is_conserved_in_phases_and_only_lost_at_releases() {
 #[test]
 fn damped_energy_never_increases() {
     for (name, sc) in [
-        ("bounce (damped)", scene(&bouncing_scene(true))),
+        ("bounce (damped)", bouncing_scene(true)),
         ("paper-string", preset("paper-string")),
         ("marimba-bar", preset("marimba-bar")),
     ] {
@@ -157,12 +138,12 @@ fn damped_energy_never_increases() {
     }
 }
 
-/// NUMERICS.md X14: contact stiffness, damping and hammer mass changed every
+/// Stability case X14 (docs/numerics.md, "The stability cases"): contact stiffness, damping and hammer mass changed every
 /// 64 samples during contact and flight; the state is carried over by
 /// `rebind` and the energy never increases, neither within steps nor at swaps.
 #[test]
 fn parameter_swaps_never_raise_energy() {
-    let base = scene(&bouncing_scene(true));
+    let base = bouncing_scene(true);
     let variants: Vec<_> = [(1.0, 1.0), (4.0, 0.5), (0.25, 3.0), (2.0, 1.0)]
         .iter()
         .map(|&(kf, cf)| {
@@ -219,12 +200,7 @@ fn parameter_swaps_never_raise_energy() {
 fn lossless_exact_switching_conserves_energy_through_every_switch() {
     use modal_contact::compile::compile_with;
     use modal_contact::scene::Switching;
-    let sc = compile_with(
-        &scene(&bouncing_scene(false)),
-        44100.0,
-        Some(Switching::Exact),
-    )
-    .unwrap();
+    let sc = compile_with(&bouncing_scene(false), 44100.0, Some(Switching::Exact)).unwrap();
     let mut st = EngineState::new(&sc);
     let e0 = st.observe(&sc).energy;
     let mut worst = 0.0f64;

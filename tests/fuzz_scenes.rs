@@ -23,14 +23,13 @@
 //! seed and the shrunk scene, which then belongs in
 //! `regressions_found_by_the_fuzzer`.
 
-mod common;
-
-use common::preset_path;
 use modal_contact::compile::{
     compile_opts, CompileBudget, CompileCost, CompileOptions, CompiledPhase, CompiledScene,
 };
 use modal_contact::engine::EngineState;
 use modal_contact::scene::*;
+use modal_testkit::rng::TestRng;
+use modal_testkit::scenes::preset_path;
 use proptest::prelude::*;
 use proptest::sample::select;
 use proptest::test_runner::{Config, RngSeed, TestCaseError, TestRunner};
@@ -65,11 +64,9 @@ fn seed() -> u64 {
             let t = std::time::SystemTime::now()
                 .duration_since(std::time::UNIX_EPOCH)
                 .map_or(0, |d| d.as_nanos() as u64);
-            // splitmix64 of the clock, so that close clocks give far seeds
-            let mut z = t.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            z ^ (z >> 31)
+            // the clock through the test generator, so that close clocks
+            // give far seeds
+            TestRng(t).next_u64()
         }
         Some(s) => s
             .parse()

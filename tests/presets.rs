@@ -1,13 +1,11 @@
 //! The paper's two demos (bounce, string) and every preset: parse, compile,
 //! render finite output.
 
-mod common;
-
-use common::*;
 use modal_contact::compile::compile;
 use modal_contact::engine::EngineState;
 use modal_contact::render::{render, RenderOptions};
 use modal_contact::scene::{ObjectSpec, Quantity, Switching};
+use modal_testkit::scenes::preset;
 
 #[test]
 fn paper_bounce_bounces_shrink_and_it_comes_to_rest() {

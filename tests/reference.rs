@@ -31,20 +31,19 @@
 //! The 16x cross-check shares the compiled decomposition's method with the
 //! reference, so `paper_string_matches_an_independent_expm_solution` also
 //! checks the reference against a solution that shares nothing with the
-//! engine but the scene: the competitors' dense phase matrices, nalgebra's
+//! engine but the scene: the competitors' dense phase matrices (the
+//! report's `modal_testkit::competitors`), nalgebra's
 //! `exp` (Pade) per phase and bisection for the release instant.
 //!
 //! Run with `--nocapture` to see the measured agreement.
 
-mod common;
-
-use common::{preset, rel_l2, scene, wall_scene};
-use modal_contact::competitors::PwlSystem;
 use modal_contact::compile::{compile_with, CompiledScene};
 use modal_contact::engine::EngineState;
 use modal_contact::scene::{Scene, Switching};
+use modal_testkit::competitors::PwlSystem;
+use modal_testkit::metrics::{match_contacts, rel_l2, ContactLog, Ends, Interval};
+use modal_testkit::scenes::{chattering, preset, single_pickup, wall_accuracy};
 use nalgebra::DVector;
-use std::f64::consts::PI;
 
 const RATE: f64 = 44_100.0;
 const FACTOR: usize = 16;
@@ -57,7 +56,8 @@ const TOL_T: f64 = 1e-6;
 struct Run {
     pickup: Vec<f64>,
     x_hammer: Vec<f64>,
-    contacts: Vec<(f64, f64)>,
+    /// [s]; a contact still open at the end of the run ends there.
+    contacts: Vec<Interval>,
 }
 
 /// Run `n_out * factor` samples, keeping every `factor`-th output and every
@@ -69,7 +69,7 @@ fn run(sc: &CompiledScene, n_out: usize, factor: usize) -> Run {
         x_hammer: Vec::with_capacity(n_out),
         contacts: Vec::new(),
     };
-    let mut open = None;
+    let mut log = ContactLog::default();
     for i in 0..n_out * factor {
         let t_n = i as f64 / sc.rate_hz;
         if i % factor == 0 {
@@ -80,17 +80,11 @@ fn run(sc: &CompiledScene, n_out: usize, factor: usize) -> Run {
             st.tick(sc);
         }
         for ev in st.switch_events() {
-            let t = t_n + ev.after_s;
-            if ev.entered {
-                open = Some(t);
-            } else if let Some(t0) = open.take() {
-                r.contacts.push((t0, t));
-            }
+            // a log out of order fails the contact comparison below
+            let _ = log.record(t_n + ev.after_s, ev.entered);
         }
     }
-    if let Some(t0) = open {
-        r.contacts.push((t0, (n_out * factor) as f64 / sc.rate_hz));
-    }
+    r.contacts = log.finish(Some((n_out * factor) as f64 / sc.rate_hz));
     r
 }
 
@@ -101,25 +95,18 @@ struct Agreement {
     max_dt_samples: f64,
 }
 
+/// Agreement of two runs over their first `len` samples and the contacts
+/// that start by `t_max` [s].
 fn agreement(a: &Run, b: &Run, len: usize, t_max: f64) -> Agreement {
     let any = b.pickup[..len].iter().any(|x| *x != 0.0);
-    let within = |c: &&(f64, f64)| c.0 < t_max;
-    let ca: Vec<_> = a.contacts.iter().filter(within).collect();
-    let cb: Vec<_> = b.contacts.iter().filter(within).collect();
-    let mut dt: f64 = 0.0;
-    for (x, y) in ca.iter().zip(&cb) {
-        // a contact still open at t_max is closed there in both runs' lists
-        // only if it ended later: compare the end only when both ended before
-        dt = dt.max((x.0 - y.0).abs());
-        if x.1 < t_max && y.1 < t_max {
-            dt = dt.max((x.1 - y.1).abs());
-        }
-    }
+    // runs that part by chaos late in the longer windows: their ends are
+    // compared only where both runs have one
+    let c = match_contacts(&a.contacts, &b.contacts, t_max, RATE, Ends::BothEnded);
     Agreement {
         pickup: any.then(|| rel_l2(&a.pickup[..len], &b.pickup[..len])),
         hammer: rel_l2(&a.x_hammer[..len], &b.x_hammer[..len]),
-        contacts: (ca.len(), cb.len()),
-        max_dt_samples: dt * RATE,
+        contacts: (c.n_run, c.n_ref),
+        max_dt_samples: c.worst(),
     }
 }
 
@@ -154,44 +141,13 @@ fn check(name: &str, sc: &Scene, seconds: f64, tol: f64, tol_t: f64) {
 }
 
 /// A preset with only its first pickup, panned hard left (as the report).
-fn single_pickup(name: &str) -> Scene {
-    let mut sc = preset(name);
-    sc.pickup.truncate(1);
-    sc.pickup[0].pan = -1.0;
-    sc
-}
-
-/// NUMERICS S1/S2 (as the report's `s_scene`): 20 modes 200 Hz..0.82 f_Nyq,
-/// m_h = 0.2 kg, zeta_c = 0.3, contact frequency `ratio` f_Nyq.
-fn s_scene(ratio: f64) -> Scene {
-    let nyq = RATE / 2.0;
-    let m_h: f64 = 0.2;
-    let k = m_h * (2.0 * PI * ratio * nyq).powi(2);
-    let c = 0.3 * 2.0 * (k * m_h).sqrt();
-    let mut text = String::from(
-        "version = 1\nname = \"s\"\n[[object]]\nname = \"o\"\nkind = \"modal\"\npoints = [\"c\", \"p\"]\n",
-    );
-    for i in 0..20 {
-        let x = i as f64 / 19.0;
-        let f = 200.0 * (0.82 * nyq / 200.0).powf(x);
-        let w = 1.0 / (1.0 + 0.1 * i as f64).sqrt();
-        let wp = if i % 2 == 0 { 0.7 * w } else { -0.5 * w };
-        text += &format!(
-            "[[object.mode]]\nfreq_hz = {f:e}\nweights = [{w:e}, {wp:e}]\nt60_s = {:e}\n",
-            2.0 * 0.05f64.powf(x)
-        );
-    }
-    text += &format!(
-        "[hammer]\nmass_kg = {m_h:e}\nheight_m = 1e-5\nvelocity_m_per_s = -1.0\n\
-         [contact]\nobject = \"o\"\npoint = \"c\"\nstiffness_n_per_m = {k:e}\ndamping_n_s_per_m = {c:e}\n\
-         [[pickup]]\nobject = \"o\"\npoint = \"p\"\nquantity = \"velocity\"\npan = -1.0\n"
-    );
-    scene(&text)
+fn single_pickup_preset(name: &str) -> Scene {
+    single_pickup(preset(name))
 }
 
 #[test]
 fn paper_bounce_agreement_over_time() {
-    let sc = single_pickup("paper-bounce");
+    let sc = single_pickup_preset("paper-bounce");
     let c1 = compile_with(&sc, RATE, Some(Switching::Exact)).unwrap();
     let c16 = compile_with(&sc, RATE * FACTOR as f64, Some(Switching::Exact)).unwrap();
     let n = (1.5 * RATE) as usize;
@@ -227,7 +183,7 @@ fn paper_bounce_agreement_over_time() {
 fn paper_string_agrees_with_16x_rate() {
     check(
         "paper-string",
-        &single_pickup("paper-string"),
+        &single_pickup_preset("paper-string"),
         0.2,
         TOL,
         TOL_T,
@@ -236,16 +192,21 @@ fn paper_string_agrees_with_16x_rate() {
 
 #[test]
 fn wall_agrees_with_16x_rate() {
-    let (m, k): (f64, f64) = (0.01, 1e6);
-    let mut sc = wall_scene(m, k, 0.1 * 2.0 * (k * m).sqrt(), -1.0);
-    sc.hammer.height_m = 1e-4;
-    check("wall", &sc, 0.1, TOL, TOL_T);
+    // the report's wall: 10 g, k = 1e6 N/m, zeta 0.1, from 0.1 mm at 1 m/s
+    check("wall", &wall_accuracy(), 0.1, TOL, TOL_T);
 }
 
 #[test]
 fn stiff_chattering_and_soft_agree_with_16x_rate() {
-    check("X2-chattering", &s_scene(0.45), 0.2, TOL, TOL_T);
-    check("S1-soft", &s_scene(0.09), 0.2, TOL, TOL_T);
+    // the report's scenes (docs/numerics.md's S2/X2 and S1/X1)
+    check(
+        "X2-chattering",
+        &chattering("X2-chattering", 0.45),
+        0.2,
+        TOL,
+        TOL_T,
+    );
+    check("S1-soft", &chattering("S1-soft", 0.09), 0.2, TOL, TOL_T);
 }
 
 #[test]
@@ -254,7 +215,7 @@ fn paper_string_matches_an_independent_expm_solution() {
     // 1 m/s down) touches at exactly t0 = 1 ms; from there the contact phase
     // is exp(A_c t) s0 until the penetration crosses zero (bisection to
     // machine precision), then the free phase exp(A_f t).
-    let sc = single_pickup("paper-string");
+    let sc = single_pickup_preset("paper-string");
     let sys = PwlSystem::from_scene(&sc).unwrap();
     let d = sys.dim();
     let (a_c, _) = sys.phase_system(true);
@@ -307,7 +268,7 @@ fn paper_string_matches_an_independent_expm_solution() {
     let e_pick = rel_l2(&r.pickup, &pickup[..n]);
     let e_ham = rel_l2(&r.x_hammer, &x_h[..n]);
     let dt0 = (r.contacts[0].0 - t0).abs() * RATE;
-    let dt1 = (r.contacts[0].1 - t_release).abs() * RATE;
+    let dt1 = (r.contacts[0].1.expect("closed") - t_release).abs() * RATE;
     println!(
         "paper-string vs independent expm solution: pickup {e_pick:.2e}, hammer {e_ham:.2e}, \
          contact start {dt0:.1e} / end {dt1:.1e} samples (release at {:.6} samples)",

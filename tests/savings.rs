@@ -2,12 +2,11 @@
 //! output identical to round-off; the approximate ones are opt-in and their
 //! error is measured.
 
-mod common;
-
-use common::*;
 use modal_contact::compile::{compile_opts, CompileOptions, CompiledScene};
 use modal_contact::engine::EngineState;
 use modal_contact::scene::{ApproxSpec, Scene, Switching};
+use modal_testkit::metrics::rel_l2;
+use modal_testkit::scenes::{Contact, Hammer, Modal, Pickup, SceneBuilder};
 
 const NO_SAVINGS: CompileOptions = CompileOptions {
     exact_savings: false,
@@ -26,19 +25,16 @@ fn six_mode_scene() -> Scene {
         (2100.0, 0.4, [0.0, -0.7]),
         (3500.0, 0.3, [0.0, 0.0]),
     ];
-    let mut t = String::from(
-        "version = 1\nname = \"six\"\n[[object]]\nname = \"o\"\nkind = \"modal\"\npoints = [\"c\", \"p\"]\n",
-    );
+    let mut object = Modal::new("o", &["c", "p"]);
     for (f, t60, w) in modes {
-        t += &format!(
-            "[[object.mode]]\nfreq_hz = {f}\nt60_s = {t60}\nweights = [{}, {}]\n",
-            w[0], w[1]
-        );
+        object = object.mode(f, t60, &w);
     }
-    t += "[hammer]\nmass_kg = 0.02\nheight_m = 0.001\nvelocity_m_per_s = -1.0\ngravity_m_per_s2 = 9.81\n\
-          [contact]\nobject = \"o\"\npoint = \"c\"\nstiffness_n_per_m = 1e6\ndamping_n_s_per_m = 5.0\n\
-          [[pickup]]\nobject = \"o\"\npoint = \"p\"\npan = -1.0\n";
-    scene(&t)
+    SceneBuilder::new("six")
+        .object(object)
+        .hammer(Hammer::new(0.02).height(0.001).velocity(-1.0).gravity(9.81))
+        .contact(Contact::new("o", 1e6).point("c").damping(5.0))
+        .pickup(Pickup::new("o", "p").pan(-1.0))
+        .build()
 }
 
 /// Render with the given modal velocities q_k' set initially (mode index ->
@@ -127,24 +123,21 @@ fn untouched_objects_and_silent_pickups_are_left_out() {
 
 #[test]
 fn approximate_savings_are_opt_in_and_measured() {
-    // 40 modes up to 2.7 f_Nyq (NUMERICS X8); dropping those above 0.9 f_Nyq
+    // 40 modes up to 2.7 f_Nyq (stability case X8); dropping those above 0.9 f_Nyq
     let rate = 44100.0;
-    let mut t = String::from(
-        "version = 1\nname = \"dense\"\n[[object]]\nname = \"o\"\nkind = \"modal\"\npoints = [\"c\", \"p\"]\n",
-    );
+    let mut object = Modal::new("o", &["c", "p"]);
     for i in 0..40 {
         let f = 150.0 * (2.7 * 22050.0 / 150.0f64).powf(i as f64 / 39.0);
         let w = 1.0 / (1.0 + 0.05 * i as f64);
-        t += &format!(
-            "[[object.mode]]\nfreq_hz = {f}\nt60_s = {}\nweights = [{w}, {}]\n",
-            2.0 / (1.0 + f / 2000.0),
-            if i % 2 == 0 { w } else { -0.6 * w }
-        );
+        let wp = if i % 2 == 0 { w } else { -0.6 * w };
+        object = object.mode(f, 2.0 / (1.0 + f / 2000.0), &[w, wp]);
     }
-    t += "[hammer]\nmass_kg = 0.02\nheight_m = 0.0\nvelocity_m_per_s = -1.0\n\
-          [contact]\nobject = \"o\"\npoint = \"c\"\nstiffness_n_per_m = 1e6\ndamping_n_s_per_m = 5.0\n\
-          [[pickup]]\nobject = \"o\"\npoint = \"p\"\nquantity = \"displacement\"\npan = -1.0\n";
-    let exact = scene(&t);
+    let exact = SceneBuilder::new("dense")
+        .object(object)
+        .hammer(Hammer::new(0.02).velocity(-1.0))
+        .contact(Contact::new("o", 1e6).point("c").damping(5.0))
+        .pickup(Pickup::new("o", "p").displacement().pan(-1.0))
+        .build();
     let ex = compile_opts(&exact, rate, None, &CompileOptions::default()).unwrap();
     assert_eq!(ex.free.dim, 80, "approximations must be opt-in");
     let mut approx = exact.clone();
@@ -163,7 +156,7 @@ fn approximate_savings_are_opt_in_and_measured() {
         "dropping {} modes above 0.9 f_Nyq: rel L2 error of the displacement pickup {err:.2e}",
         40 - kept
     );
-    // NUMERICS.md P-E5 measured 1.4e-3 (displacement) for a similar case
+    // the prototype measured 1.4e-3 (displacement) for a similar case
     assert!(err < 2e-2, "{err:e}");
     let mut quiet = exact.clone();
     quiet.approximate = Some(ApproxSpec {

@@ -1,13 +1,11 @@
 //! Scene files: bad input gives the documented error (naming the field), and
 //! the compiled contact propagator agrees with an independent dense exp(A h).
 
-mod common;
-
-use common::*;
 use modal_contact::compile::compile;
 use modal_contact::physics::block::exp2;
 use modal_contact::physics::model::{contact_system, ContactParams, ObjectModel};
 use modal_contact::scene::Scene;
+use modal_testkit::scenes::{preset, preset_path};
 use nalgebra::DMatrix;
 
 const GOOD: &str = r#"

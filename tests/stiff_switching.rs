@@ -6,8 +6,8 @@
 //! of stiff cases at 44.1 kHz, 50 ms each.
 //!
 //! Each case is written once as plain numbers ([`Case`] -> [`Numbers`]); the
-//! scene TOML and the reference model are both derived from them, so the two
-//! solvers share the scene and nothing else.
+//! engine's scene and the reference model are both derived from them, so the
+//! two solvers share the scene and nothing else.
 //!
 //! Definitions used to place the cases:
 //! - The object's effective mass at the contact point is `m_eff = 1 / sum
@@ -89,7 +89,12 @@
 
 use modal_contact::compile::compile_with;
 use modal_contact::engine::EngineState;
-use modal_contact::scene::{Scene, Switching};
+use modal_contact::scene::{Scene, SceneError, Switching};
+use modal_testkit::metrics::{
+    energy_rounding_bound, energy_scale, instant_horizon, match_contacts, rel_l2, ContactLog, Ends,
+    Interval, LogAnomaly,
+};
+use modal_testkit::scenes::{Contact, Hammer, Modal, Pickup, SceneBuilder, Wall};
 use pwl_reference as reference;
 use std::f64::consts::PI;
 use std::fmt::Write as _;
@@ -117,8 +122,6 @@ const INSTANT_HORIZON_TOL: f64 = TOL_INSTANT;
 const MIN_HORIZON: usize = 20;
 /// Engine runs timed (the fastest per sample is kept).
 const TIMING_RUNS: usize = 3;
-/// Unit roundoff.
-const U: f64 = f64::EPSILON / 2.0;
 /// Gravity of the rattling cases [m/s^2].
 const G: f64 = 9.81;
 
@@ -283,35 +286,32 @@ impl Numbers {
         }
     }
 
-    /// The scene file (every number written exactly: `{:e}` round-trips).
-    fn toml(&self) -> String {
-        let mut t = String::from("version = 1\nname = \"stiff\"\n");
-        let contact = if self.modes.is_empty() {
-            t += "[[object]]\nname = \"o\"\nkind = \"wall\"\n";
-            String::new()
-        } else {
-            t += "[[object]]\nname = \"o\"\nkind = \"modal\"\npoints = [\"c\", \"p\"]\n";
-            for (f, t60, w, wp) in &self.modes {
-                let _ = writeln!(
-                    t,
-                    "[[object.mode]]\nfreq_hz = {f:e}\nweights = [{w:e}, {wp:e}]"
-                );
-                if let Some(t60) = t60 {
-                    let _ = writeln!(t, "t60_s = {t60:e}");
-                }
-            }
-            "point = \"c\"\n".to_string()
-        };
-        let _ = write!(
-            t,
-            "[hammer]\nmass_kg = {:e}\nheight_m = {:e}\nvelocity_m_per_s = {:e}\ngravity_m_per_s2 = {:e}\n\
-             [contact]\nobject = \"o\"\n{contact}stiffness_n_per_m = {:e}\ndamping_n_s_per_m = {:e}\nswitching = \"exact\"\n",
-            self.m_h, self.x0, self.v0, self.g, self.k, self.c
-        );
-        if !self.modes.is_empty() {
-            t += "[[pickup]]\nobject = \"o\"\npoint = \"p\"\n";
+    /// The engine's scene (exact switching).
+    fn scene(&self) -> Result<Scene, SceneError> {
+        let hammer = Hammer::new(self.m_h)
+            .height(self.x0)
+            .velocity(self.v0)
+            .gravity(self.g);
+        let contact = Contact::new("o", self.k)
+            .damping(self.c)
+            .switching(Switching::Exact);
+        if self.modes.is_empty() {
+            return SceneBuilder::new("stiff")
+                .object(Wall::new("o"))
+                .hammer(hammer)
+                .contact(contact)
+                .try_build();
         }
-        t
+        let mut object = Modal::new("o", &["c", "p"]);
+        for &(f, t60, w, wp) in &self.modes {
+            object = object.mode(f, t60, &[w, wp]);
+        }
+        SceneBuilder::new("stiff")
+            .object(object)
+            .hammer(hammer)
+            .contact(contact.point("c"))
+            .pickup(Pickup::new("o", "p"))
+            .try_build()
     }
 
     /// The reference solver's model.
@@ -434,9 +434,6 @@ fn cases() -> Vec<Case> {
     v
 }
 
-/// A contact in samples: start, end (`None` = still in contact at the end).
-type Interval = (f64, Option<f64>);
-
 /// What one case measured.
 #[derive(Debug, Default)]
 struct Outcome {
@@ -462,71 +459,6 @@ struct Outcome {
     /// Short names of the failed checks, for the table.
     failed: Vec<&'static str>,
     summary: String,
-}
-
-/// Relative L2 difference `|a - b| / |b|` (0 when both are zero).
-fn rel_l2(a: &[f64], b: &[f64]) -> f64 {
-    let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
-    let den: f64 = b.iter().map(|y| y * y).sum();
-    if num == 0.0 {
-        0.0
-    } else {
-        (num / den).sqrt()
-    }
-}
-
-/// Compare contact lists on the contacts starting at or before `t_max`
-/// [samples]: `(count a, count b, worst instant difference [samples], first
-/// pair (index, a, b) that differs by more than `tol`)`. An end is compared
-/// when either run ends the contact by `t_max`; an end missing on one side
-/// counts as infinitely far.
-fn compare_contacts(
-    a: &[Interval],
-    b: &[Interval],
-    t_max: f64,
-    tol: f64,
-) -> (usize, usize, f64, Option<(usize, Interval, Interval)>) {
-    let ca: Vec<_> = a.iter().filter(|c| c.0 <= t_max).collect();
-    let cb: Vec<_> = b.iter().filter(|c| c.0 <= t_max).collect();
-    let mut worst: f64 = 0.0;
-    let mut first = None;
-    for (i, (x, y)) in ca.iter().zip(&cb).enumerate() {
-        let mut d = (x.0 - y.0).abs();
-        match (x.1, y.1) {
-            (Some(ex), Some(ey)) if ex.min(ey) <= t_max => d = d.max((ex - ey).abs()),
-            (Some(e), None) | (None, Some(e)) if e <= t_max => d = f64::INFINITY,
-            _ => {}
-        }
-        worst = worst.max(d);
-        if d > tol && first.is_none() {
-            first = Some((i, **x, **y));
-        }
-    }
-    (ca.len(), cb.len(), worst, first)
-}
-
-/// The last sample before the first contact that the two runs place more
-/// than `tol` samples apart (start or end), or that only one of them has;
-/// `n` when they agree on every contact.
-fn instant_horizon(a: &[Interval], b: &[Interval], tol: f64, n: usize) -> usize {
-    let before = |s: f64| (s.ceil() as usize).saturating_sub(1);
-    for (i, x) in a.iter().enumerate() {
-        let Some(y) = b.get(i) else {
-            return before(x.0);
-        };
-        let ends_differ = match (x.1, y.1) {
-            (Some(e), Some(f)) => (e - f).abs() > tol,
-            (None, None) => false,
-            _ => true,
-        };
-        if (x.0 - y.0).abs() > tol || ends_differ {
-            return before(x.0.min(y.0));
-        }
-    }
-    match b.get(a.len()) {
-        Some(y) => before(y.0),
-        None => n,
-    }
 }
 
 fn fmt_interval(c: &Interval) -> String {
@@ -564,7 +496,14 @@ fn run_case(case: &Case) -> Outcome {
     let hz = out.horizon_twin.min(out.horizon_instants);
     out.horizon = hz;
     out.contacts_ref = sol.contacts.len();
-    out.twin_dt = compare_contacts(&ref_contacts, &reference_intervals(&twin), hz as f64, 0.0).2;
+    out.twin_dt = match_contacts(
+        &reference_intervals(&twin),
+        &ref_contacts,
+        hz as f64,
+        1.0,
+        Ends::EitherEnded,
+    )
+    .worst();
     if hz < MIN_HORIZON {
         out.failed.push("window");
         out.failures.push(format!(
@@ -574,12 +513,11 @@ fn run_case(case: &Case) -> Outcome {
         ));
     }
 
-    let text = num.toml();
-    let scene = match Scene::from_toml_str(&text) {
+    let scene = match num.scene() {
         Ok(s) => s,
         Err(e) => {
             out.failed.push("scene");
-            out.failures.push(format!("scene refused: {e}\n{text}"));
+            out.failures.push(format!("scene refused: {e}\n{num:?}"));
             return out;
         }
     };
@@ -587,7 +525,7 @@ fn run_case(case: &Case) -> Outcome {
         Ok(c) => c,
         Err(e) => {
             out.failed.push("compile");
-            out.failures.push(format!("compile failed: {e}\n{text}"));
+            out.failures.push(format!("compile failed: {e}\n{num:?}"));
             return out;
         }
     };
@@ -605,7 +543,7 @@ fn run_case(case: &Case) -> Outcome {
         if record {
             obs.push(st.observe(&compiled));
         }
-        let mut open: Option<f64> = None;
+        let mut log = ContactLog::default();
         for (i, best) in tick_s.iter_mut().enumerate() {
             let t0 = Instant::now();
             st.tick(&compiled);
@@ -615,26 +553,20 @@ fn run_case(case: &Case) -> Outcome {
             }
             for ev in st.switch_events() {
                 let t = i as f64 + ev.after_s * RATE;
-                if ev.entered {
-                    if let Some(t0) = open.replace(t) {
-                        out.failures.push(format!(
-                            "engine entered contact at {t:.9} samples while in contact since {t0:.9}"
-                        ));
-                    }
-                } else if let Some(t0) = open.take() {
-                    eng_contacts.push((t0, Some(t)));
-                } else {
-                    out.failures.push(format!(
+                match log.record(t, ev.entered) {
+                    Ok(()) => {}
+                    Err(LogAnomaly::EnteredWhileInContact { since }) => out.failures.push(format!(
+                        "engine entered contact at {t:.9} samples while in contact since {since:.9}"
+                    )),
+                    Err(LogAnomaly::LeftWithoutEntering) => out.failures.push(format!(
                         "engine left contact at {t:.9} samples without entering"
-                    ));
+                    )),
                 }
             }
             obs.push(st.observe(&compiled));
         }
         if record {
-            if let Some(t0) = open {
-                eng_contacts.push((t0, None));
-            }
+            eng_contacts = log.finish(None);
             if !out.failures.is_empty() {
                 out.failed.push("events");
             }
@@ -668,8 +600,14 @@ fn run_case(case: &Case) -> Outcome {
     }
 
     // contact instants on the horizon
-    let (n_ref, n_eng, dt, first) =
-        compare_contacts(&ref_contacts, &eng_contacts, hz as f64, TOL_INSTANT);
+    let m = match_contacts(
+        &eng_contacts,
+        &ref_contacts,
+        hz as f64,
+        1.0,
+        Ends::EitherEnded,
+    );
+    let (n_ref, n_eng, dt) = (m.n_ref, m.n_run, m.worst());
     out.dt = dt;
     if n_ref != n_eng {
         out.failed.push("count");
@@ -677,30 +615,24 @@ fn run_case(case: &Case) -> Outcome {
             "{n_ref} reference vs {n_eng} engine contacts start within the horizon ({hz} samples)"
         ));
     }
-    if let Some((i, r, e)) = first {
+    if let Some(i) = m.first_beyond(TOL_INSTANT) {
         out.failed.push("instants");
         out.failures.push(format!(
             "contact #{i}: reference {} vs engine {} samples (worst instant error {dt:.3e} > {TOL_INSTANT:e} samples)",
-            fmt_interval(&r),
-            fmt_interval(&e)
+            fmt_interval(&ref_contacts[i]),
+            fmt_interval(&eng_contacts[i])
         ));
     }
 
     // energy over the whole run
-    let kappa = compiled.free.diag.kappa.max(compiled.contact.diag.kappa);
-    let kappa = if kappa.is_finite() {
-        kappa.max(1.0)
-    } else {
-        1.0
-    };
-    let bound = 64.0 * compiled.contact.dim as f64 * kappa * U;
+    let bound = energy_rounding_bound(&compiled);
     let mg = num.m_h * num.g;
     let mut de = f64::NEG_INFINITY;
     let mut first_rise = None;
     for i in 1..obs.len() {
         let (a, b) = (&obs[i - 1], &obs[i]);
-        let scale = (a.energy.abs() + 2.0 * mg * a.x_hammer.abs())
-            .max(b.energy.abs() + 2.0 * mg * b.x_hammer.abs())
+        let scale = energy_scale(a, mg)
+            .max(energy_scale(b, mg))
             .max(f64::MIN_POSITIVE);
         let rel = (b.energy - a.energy) / scale;
         if rel > de {

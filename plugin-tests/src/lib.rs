@@ -20,15 +20,19 @@ use clack_host::prelude::*;
 use modal_contact::instrument::{
     prepare, Event, Instrument, InstrumentParams, TimedEvent as LibEvent,
 };
+use modal_contact::plugin::ModalContact;
+use modal_testkit::bundles::{self, Bundle};
+use nice_plug::prelude::ClapPlugin;
 use std::ffi::CString;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Mutex;
 
-/// The plugin's CLAP id.
-pub const PLUGIN_ID: &str = "dev.modal-contact.modal-contact";
+/// The plugin's CLAP id, as the plugin declares it: the tests check that
+/// the built bundle exports exactly this.
+pub const PLUGIN_ID: &str = <ModalContact as ClapPlugin>::CLAP_ID;
 /// Bundle file stem.
-pub const BUNDLE_NAME: &str = "modal_contact";
+pub use modal_testkit::bundles::BUNDLE_NAME;
 
 /// Which build of the plugin.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -47,36 +51,29 @@ pub enum Variant {
 }
 
 impl Variant {
+    /// The build of the bundle matrix (`modal_testkit::bundles::BUNDLES`,
+    /// which `cargo xtask test` builds too) this variant runs on.
+    pub fn bundle(self) -> &'static Bundle {
+        bundles::bundle(match self {
+            Variant::Release => "release",
+            Variant::RtChecks | Variant::AllocBug => "rt-checks",
+            Variant::PanicBug => "panic-bug",
+        })
+    }
+
     /// Directory / env name.
     pub fn name(self) -> &'static str {
-        match self {
-            Variant::Release => "release",
-            Variant::RtChecks => "rt-checks",
-            Variant::AllocBug => "rt-checks",
-            Variant::PanicBug => "panic-bug",
-        }
+        self.bundle().name
     }
 
     /// Arguments for `cargo xtask bundle modal_contact ...`.
     pub fn bundle_args(self) -> &'static [&'static str] {
-        match self {
-            Variant::Release => &["--release"],
-            Variant::RtChecks | Variant::AllocBug => &[
-                "--profile",
-                "test-release",
-                "--features",
-                "rt-checks,alloc-bug",
-            ],
-            Variant::PanicBug => &["--profile", "test-release", "--features", "panic-bug"],
-        }
+        self.bundle().cargo_args
     }
 
     /// The environment variable that points at a prebuilt `.clap`.
     pub fn env_var(self) -> String {
-        format!(
-            "MODAL_CONTACT_CLAP_{}",
-            self.name().to_uppercase().replace('-', "_")
-        )
+        self.bundle().env_var()
     }
 }
 
@@ -144,36 +141,10 @@ fn bundle_dir(variant: Variant) -> PathBuf {
             .args(variant.bundle_args()),
         "cargo xtask bundle",
     );
-    copy_bundles(&target_dir.join("bundled"), &out);
+    bundles::copy_bundles(&target_dir.join("bundled"), &out)
+        .unwrap_or_else(|e| panic!("copying the bundles to {}: {e}", out.display()));
     built.push(variant);
     out
-}
-
-/// Copy `modal_contact.clap` and `modal_contact.vst3/` from `bundled` to `out`.
-pub fn copy_bundles(bundled: &Path, out: &Path) {
-    let _ = std::fs::remove_dir_all(out);
-    copy_tree(
-        &bundled.join(format!("{BUNDLE_NAME}.vst3")),
-        &out.join(format!("{BUNDLE_NAME}.vst3")),
-    );
-    std::fs::copy(
-        bundled.join(format!("{BUNDLE_NAME}.clap")),
-        out.join(format!("{BUNDLE_NAME}.clap")),
-    )
-    .expect("copy .clap");
-}
-
-fn copy_tree(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).expect("mkdir");
-    for entry in std::fs::read_dir(from).unwrap_or_else(|e| panic!("{}: {e}", from.display())) {
-        let entry = entry.expect("dir entry");
-        let dest = to.join(entry.file_name());
-        if entry.file_type().expect("file type").is_dir() {
-            copy_tree(&entry.path(), &dest);
-        } else {
-            std::fs::copy(entry.path(), &dest).expect("copy");
-        }
-    }
 }
 
 // ---------------------------------------------------------------------------
@@ -332,7 +303,7 @@ pub fn descriptors(bundle: &Path) -> Vec<DescriptorInfo> {
 /// How a render is run.
 #[derive(Debug, Clone)]
 pub struct RenderSpec {
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub rate_hz: f64,
     /// Block size (the last block may be shorter).
     pub max_block: usize,
@@ -341,7 +312,7 @@ pub struct RenderSpec {
     /// Events (any order).
     pub events: Vec<HostEvent>,
     /// After the block containing each of these positions, wait this long
-    /// [ms] so the plugin's worker can finish a compile (an offline render
+    /// \[ms\] so the plugin's worker can finish a compile (an offline render
     /// runs far faster than real time). Not a timing assertion.
     pub settle_after: Vec<usize>,
     /// See `settle_after`.

@@ -9,25 +9,8 @@
 use modal_contact::instrument::{InstrumentParams, OUTPUT_CEILING};
 use modal_contact::plugin::params::ids;
 use modal_contact::presets;
+use modal_testkit::rng::TestRng;
 use plugin_tests::*;
-
-/// Small deterministic generator (xorshift64*), no dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 /// Every sample finite and within the ceiling; returns the peak.
 fn check_block(x: &[f32], what: &str) -> f64 {
@@ -91,7 +74,7 @@ fn any_block_size_gives_the_same_output() {
     let total = (1.5 * rate) as usize;
     let events = phrase(rate);
     let bundle = clap_bundle(Variant::RtChecks);
-    let mut rng = Rng(0x5eed);
+    let mut rng = TestRng(0x5eed);
     let mut sizes = Vec::new();
     for s in [0usize, 1, 7, 64, 4097] {
         for _ in 0..5 {
@@ -174,7 +157,7 @@ fn sample_rates_from_8k_to_384k_and_changes_between_activations() {
 fn activation_cycles_resets_and_silence() {
     let bundle = clap_bundle(Variant::RtChecks);
     let mut p = LoadedPlugin::load(&bundle);
-    let mut rng = Rng(42);
+    let mut rng = TestRng(42);
     let rates = [44_100.0, 48_000.0, 96_000.0, 22_050.0];
     for cycle in 0..60 {
         let rate = rates[cycle % rates.len()];
@@ -234,7 +217,7 @@ fn a_thousand_notes_in_one_block() {
     let mut p = LoadedPlugin::load(&bundle);
     let rate = 48_000.0;
     let mut session = p.activate(rate, 1, 4096);
-    let mut rng = Rng(7);
+    let mut rng = TestRng(7);
     let mut events = Vec::new();
     for i in 0..1000 {
         let key = if i % 10 == 0 {
@@ -304,7 +287,7 @@ fn random_sample_accurate_automation_of_every_parameter() {
     let mut p = LoadedPlugin::load(&bundle);
     let rate = 48_000.0;
     let total = (20.0 * rate) as usize;
-    let mut rng = Rng(2024);
+    let mut rng = TestRng(2024);
     let n_presets = presets::PRESETS.len();
     let mut sizes = Vec::new();
     let mut events = Vec::new();

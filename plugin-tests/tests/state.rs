@@ -9,6 +9,7 @@
 
 use modal_contact::plugin::params::ids;
 use modal_contact::presets;
+use modal_testkit::rng::TestRng;
 use plugin_tests::*;
 
 fn values(p: &mut LoadedPlugin) -> Vec<f64> {
@@ -138,17 +139,8 @@ fn broken_states_are_refused_and_change_nothing() {
     let mut a = LoadedPlugin::load(&bundle);
     set_non_defaults(&mut a);
     let saved = a.save_state();
-    let mut rng = 0x9e37_79b9_7f4a_7c15u64;
-    let mut random = |n: usize| -> Vec<u8> {
-        (0..n)
-            .map(|_| {
-                rng ^= rng << 13;
-                rng ^= rng >> 7;
-                rng ^= rng << 17;
-                rng as u8
-            })
-            .collect()
-    };
+    let mut rng = TestRng(0x9e37_79b9_7f4a_7c15);
+    let mut random = |n: usize| -> Vec<u8> { (0..n).map(|_| rng.next_u64() as u8).collect() };
     let json = json_of(&saved);
     let mut cases: Vec<(String, Vec<u8>)> = vec![
         ("empty".into(), Vec::new()),

@@ -9,16 +9,26 @@
 //! baseline target, no FMA), whose rounding is the same on every x86-64, and
 //! on this CPU's detected kernels; each path has its own lines.
 
-use crate::report::scenes::RATE;
-use crate::report::stability;
 use anyhow::{bail, Context, Result};
+use clap::Args;
 use modal_contact::compile::compile_with;
 use modal_contact::engine::{has_faster_kernels, EngineState};
 use modal_contact::render::{write_trace_csv, TraceRow};
 use modal_contact::scene::{Scene, Switching};
+use modal_testkit::scenes::RATE;
+use modal_testkit::stability;
 use std::collections::BTreeMap;
 use std::io::Cursor;
 use std::path::Path;
+
+/// `cargo xtask golden [--write]`.
+#[derive(Args, Debug)]
+pub struct GoldenArgs {
+    /// Record the hashes in tests/golden-hashes.txt instead of checking
+    /// them (only when a change of the renders is intended).
+    #[arg(long)]
+    write: bool,
+}
 
 /// Where the recorded hashes live (relative to the workspace root).
 pub const HASH_FILE: &str = "tests/golden-hashes.txt";
@@ -85,8 +95,9 @@ fn cases(root: &Path) -> Result<Vec<(String, Scene, usize)>> {
         let name = format!("preset {}", p.file_stem().unwrap().to_string_lossy());
         v.push((name, scene, n));
     }
-    for c in stability::cases()? {
-        v.push((format!("stability {}", c.id), c.scene, c.samples));
+    // recorded under the cases' numerics labels, which outlive renames
+    for c in stability::cases() {
+        v.push((format!("stability {}", c.label), c.scene, c.samples));
     }
     Ok(v)
 }
@@ -115,8 +126,9 @@ fn compute(root: &Path) -> Result<BTreeMap<String, String>> {
     Ok(out)
 }
 
-/// `cargo xtask golden [--write]`.
-pub fn run(write: bool) -> Result<()> {
+/// Run `cargo xtask golden`.
+pub fn run(args: GoldenArgs) -> Result<()> {
+    let write = args.write;
     nice_plug_xtask::chdir_workspace_root()?;
     let root = Path::new(".");
     let now = compute(root)?;

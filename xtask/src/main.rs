@@ -1,26 +1,91 @@
-//! `cargo xtask`: bundle the plugin (nice-plug-xtask) and render scenes offline.
+//! `cargo xtask`: bundle the plugin (nice-plug-xtask), render scenes
+//! offline, run every test, the report and the golden renders.
 //!
 //! - `cargo xtask bundle modal_contact --release` -> `target/bundled/*.clap, *.vst3`
+//!   (any command not below goes to nice-plug's xtask)
 //! - `cargo xtask render SCENE.toml --out OUT.wav [--trace OUT.csv] [--plot OUT.svg]
-//!   [--seconds S] [--rate HZ] [--switching offset-rod|exact]` (DESIGN.md section 5)
+//!   [--seconds S] [--rate HZ] [--switching offset-rod|exact]`
 //! - `cargo xtask test [CARGO TEST ARGS]`: every test, including the plugin
 //!   tests on the built bundles and the VST3 test through pedalboard
 //! - `cargo xtask demo`: bundle (release) and render a demo through the built
 //!   CLAP plugin into `target/demo/*.wav`
+//! - `cargo xtask report [--quick] [--out DIR] [--only SECTION] [--scene NAME]`
+//! - `cargo xtask golden [--write]`: bit-identical renders against
+//!   `tests/golden-hashes.txt`
 
 mod golden;
 mod plot;
 mod report;
 
 use anyhow::{bail, Context, Result};
-use clap::Parser;
+use clap::{Args, Parser, Subcommand, ValueEnum};
 use modal_contact::render::{render, write_trace_csv, RenderOptions};
 use modal_contact::scene::{Scene, Switching};
-use std::path::PathBuf;
+use modal_testkit::bundles::{copy_bundles, BUNDLES, BUNDLE_NAME};
+use std::path::{Path, PathBuf};
+
+/// The project's tasks.
+#[derive(Parser, Debug)]
+#[command(
+    name = "cargo xtask",
+    bin_name = "cargo xtask",
+    after_help = "Any other command goes to nice-plug's xtask, e.g. `cargo xtask bundle modal_contact --release`."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Offline render of a scene file: WAV, trace CSV, plot, compile summary.
+    Render(RenderArgs),
+    /// Error against run time of the engine and the usual integrators, the
+    /// stability table and the f32 study (writes report/report.md).
+    Report(report::ReportArgs),
+    /// Every test: bundles the plugin three ways, runs the workspace tests
+    /// (the plugin tests load those bundles), then the VST3 test.
+    Test(TestArgs),
+    /// Bundle the release plugin and render a demo through the built CLAP
+    /// plugin into target/demo/.
+    Demo,
+    /// Check that every preset and stability case renders bit-identically
+    /// to tests/golden-hashes.txt.
+    Golden(golden::GoldenArgs),
+    /// Anything else: nice-plug's xtask (`bundle`, `bundle-universal`, ...).
+    #[command(external_subcommand)]
+    NicePlug(Vec<String>),
+}
+
+/// `cargo xtask test [CARGO TEST ARGS]`.
+#[derive(Args, Debug)]
+struct TestArgs {
+    /// Passed to `cargo test --workspace --profile test-release
+    /// --no-fail-fast` as written (e.g. `--test stability -- --nocapture`).
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+    cargo_test_args: Vec<String>,
+}
+
+/// The switching method, as the command line spells it.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum SwitchingArg {
+    /// Every crossing located inside the sample on the exact solution.
+    Exact,
+    /// The paper's method: contact starts at a sample instant.
+    OffsetRod,
+}
+
+impl From<SwitchingArg> for Switching {
+    fn from(s: SwitchingArg) -> Self {
+        match s {
+            SwitchingArg::Exact => Switching::Exact,
+            SwitchingArg::OffsetRod => Switching::OffsetRod,
+        }
+    }
+}
 
 /// Offline render of a scene file.
-#[derive(Parser, Debug)]
-#[command(name = "cargo xtask render")]
+#[derive(Args, Debug)]
 struct RenderArgs {
     /// Scene file (TOML).
     scene: PathBuf,
@@ -41,22 +106,22 @@ struct RenderArgs {
     #[arg(long, default_value_t = 44100.0)]
     rate: f64,
     /// Switching method (default: the scene's, else the project default).
-    #[arg(long)]
-    switching: Option<String>,
+    #[arg(long, value_enum)]
+    switching: Option<SwitchingArg>,
 }
 
 fn main() -> Result<()> {
-    let mut args: Vec<String> = std::env::args().collect();
-    match args.get(1).map(String::as_str) {
-        Some("render") => {
-            args.remove(1);
-            run_render(RenderArgs::parse_from(args))
-        }
-        Some("report") => report::run(&args[2..]),
-        Some("test") => run_tests(&args[2..]),
-        Some("demo") => run_demo(),
-        Some("golden") => golden::run(args.get(2).is_some_and(|a| a == "--write")),
-        _ => nice_plug_xtask::main(),
+    let argv: Vec<String> = std::env::args().collect();
+    match Cli::parse_from(&argv).command {
+        Some(Command::Render(a)) => run_render(a),
+        Some(Command::Report(a)) => report::run(a),
+        // The arguments go to cargo test verbatim: clap drops the `--` of
+        // `cargo xtask test -- --nocapture`, which cargo test needs.
+        Some(Command::Test(_)) => run_tests(&argv[2..]),
+        Some(Command::Demo) => run_demo(),
+        Some(Command::Golden(a)) => golden::run(a),
+        Some(Command::NicePlug(args)) => nice_plug_xtask::main_with_args("cargo xtask", args),
+        None => nice_plug_xtask::main(),
     }
 }
 
@@ -72,66 +137,17 @@ fn run(cmd: &mut std::process::Command) -> Result<()> {
     Ok(())
 }
 
-/// The plugin bundles the plugin tests use: (directory under
-/// `target/plugin-tests/`, `cargo xtask bundle` arguments). The checked
-/// builds use the `test-release` profile (optimised, debug assertions on, so
-/// nice-plug's `assert_process_allocs` is active) and share its dependencies
-/// with the test build. Release comes last so `target/bundled/` ends up with
-/// the release bundle users install.
-const TEST_BUNDLES: [(&str, &[&str]); 3] = [
-    // The checked build also carries the test-only alloc-bug trigger (note 2
-    // at velocity 0.123, played by no other test): one build instead of two.
-    (
-        "rt-checks",
-        &[
-            "--profile",
-            "test-release",
-            "--features",
-            "rt-checks,alloc-bug",
-        ],
-    ),
-    // Without rt-checks: the allocation checker aborts on the unwinder's own
-    // (de)allocations, so a caught panic can only be shown in a build
-    // without it (as users run it).
-    (
-        "panic-bug",
-        &["--profile", "test-release", "--features", "panic-bug"],
-    ),
-    ("release", &["--release"]),
-];
-
 /// `cargo xtask bundle modal_contact ARGS` in-process, then copy the result
 /// out of the shared `target/bundled/` to `target/plugin-tests/NAME/`.
 fn bundle_to(name: &str, args: &[&str]) -> Result<PathBuf> {
-    let mut all = vec!["bundle".to_string(), "modal_contact".to_string()];
+    let mut all = vec!["bundle".to_string(), BUNDLE_NAME.to_string()];
     all.extend(args.iter().map(|a| a.to_string()));
     eprintln!("+ cargo xtask {}", all.join(" "));
     nice_plug_xtask::main_with_args("cargo xtask", all)?;
     let out = PathBuf::from("target/plugin-tests").join(name);
-    let _ = std::fs::remove_dir_all(&out);
-    copy_tree(
-        std::path::Path::new("target/bundled/modal_contact.vst3"),
-        &out.join("modal_contact.vst3"),
-    )?;
-    std::fs::copy(
-        "target/bundled/modal_contact.clap",
-        out.join("modal_contact.clap"),
-    )?;
+    copy_bundles(Path::new("target/bundled"), &out)
+        .with_context(|| format!("copying target/bundled to {}", out.display()))?;
     Ok(std::fs::canonicalize(&out)?)
-}
-
-fn copy_tree(from: &std::path::Path, to: &std::path::Path) -> Result<()> {
-    std::fs::create_dir_all(to)?;
-    for entry in std::fs::read_dir(from).with_context(|| format!("{}", from.display()))? {
-        let entry = entry?;
-        let dest = to.join(entry.file_name());
-        if entry.file_type()?.is_dir() {
-            copy_tree(&entry.path(), &dest)?;
-        } else {
-            std::fs::copy(entry.path(), &dest)?;
-        }
-    }
-    Ok(())
 }
 
 /// The Python venv for the VST3 test (pedalboard, mido, numpy).
@@ -165,8 +181,8 @@ fn run_tests(extra: &[String]) -> Result<()> {
     nice_plug_xtask::chdir_workspace_root()?;
     let python = ensure_venv()?;
     let mut dirs = Vec::new();
-    for (name, args) in TEST_BUNDLES {
-        dirs.push((name, bundle_to(name, args)?));
+    for b in &BUNDLES {
+        dirs.push((b, bundle_to(b.name, b.cargo_args)?));
     }
     // The numerical tests run long loops (1e6 samples with per-sample energy
     // checks): release mode keeps them fast; debug assertions stay on.
@@ -181,14 +197,8 @@ fn run_tests(extra: &[String]) -> Result<()> {
         "--no-fail-fast",
     ])
     .args(extra);
-    for (name, dir) in &dirs {
-        cmd.env(
-            format!(
-                "MODAL_CONTACT_CLAP_{}",
-                name.to_uppercase().replace('-', "_")
-            ),
-            dir.join("modal_contact.clap"),
-        );
+    for (b, dir) in &dirs {
+        cmd.env(b.env_var(), dir.join(format!("{BUNDLE_NAME}.clap")));
     }
     let cargo_tests = run(&mut cmd);
     // The VST3 test compares with the library through this binary.
@@ -203,12 +213,15 @@ fn run_tests(extra: &[String]) -> Result<()> {
     ]))?;
     let release = &dirs
         .iter()
-        .find(|(n, _)| *n == "release")
+        .find(|(b, _)| b.name == "release")
         .expect("release")
         .1;
     let vst3_test = run(std::process::Command::new(&python)
         .arg("plugin-tests/vst3/test_vst3.py")
-        .env("MODAL_CONTACT_VST3", release.join("modal_contact.vst3"))
+        .env(
+            "MODAL_CONTACT_VST3",
+            release.join(format!("{BUNDLE_NAME}.vst3")),
+        )
         .env(
             "MODAL_CONTACT_REFERENCE",
             "target/test-release/render-reference",
@@ -223,7 +236,7 @@ fn run_demo() -> Result<()> {
     nice_plug_xtask::chdir_workspace_root()?;
     nice_plug_xtask::main_with_args(
         "cargo xtask",
-        ["bundle", "modal_contact", "--release"].map(String::from),
+        ["bundle", BUNDLE_NAME, "--release"].map(String::from),
     )?;
     run(std::process::Command::new("cargo").args([
         "run",
@@ -233,24 +246,17 @@ fn run_demo() -> Result<()> {
         "--bin",
         "render-demo",
         "--",
-        "target/bundled/modal_contact.clap",
+        &format!("target/bundled/{BUNDLE_NAME}.clap"),
         "target/demo",
     ]))
 }
 
 fn run_render(a: RenderArgs) -> Result<()> {
     let scene = Scene::from_file(&a.scene).with_context(|| format!("{}", a.scene.display()))?;
-    let switching = match a.switching.as_deref() {
-        None => None,
-        Some(s) => match Switching::parse(s) {
-            Some(sw) => Some(sw),
-            None => bail!("--switching must be offset-rod or exact, got {s:?}"),
-        },
-    };
     let opts = RenderOptions {
         rate_hz: a.rate,
         seconds: a.seconds,
-        switching,
+        switching: a.switching.map(Switching::from),
         trace: true,
     };
     let t0 = std::time::Instant::now();

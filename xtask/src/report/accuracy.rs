@@ -2,21 +2,22 @@
 //! exact-switching engine (f64, the scene's rate) as the reference.
 
 use super::runs::{
-    contact_errors, from_sim, rel_l2, rel_l2_range, run_engine, run_engine_subsampled,
-    time_competitor, time_engine, time_engine_pair, ContactErr, TimingPlan, Trajectory,
+    from_sim, run_engine, run_engine_subsampled, time_competitor, time_engine, time_engine_pair,
+    TimingPlan, Trajectory,
 };
-use super::scenes::RATE;
 use anyhow::{anyhow, Result};
-use modal_contact::competitors::{Method, PwlSystem};
 use modal_contact::compile::{compile_with, CompiledScene};
 use modal_contact::scene::{ApproxSpec, Scene, Switching};
+use modal_testkit::competitors::{Method, PwlSystem};
+use modal_testkit::metrics::{match_contacts, rel_l2_window, ContactMatch, Ends};
+use modal_testkit::scenes::RATE;
 use std::time::Instant;
 
 /// Oversampling factors of the competitors.
 pub const OVERSAMPLES: [usize; 7] = [1, 2, 4, 8, 16, 32, 64];
 /// Rate factor of the reference cross-check.
 pub const CHECK_FACTOR: usize = 16;
-/// The short error window [s].
+/// The short error window \[s\].
 pub const SHORT_S: f64 = 0.05;
 
 /// One accuracy scene.
@@ -49,7 +50,8 @@ pub struct Row {
     pub pick_full: Option<f64>,
     /// Relative L2 of the hammer height over the window.
     pub hammer: Option<f64>,
-    pub contacts: ContactErr,
+    /// Contacts matched by order against the reference (errors in samples).
+    pub contacts: ContactMatch,
     /// Largest energy increase between two output samples / E0.
     pub max_gain: f64,
     pub diverged: bool,
@@ -72,7 +74,7 @@ pub struct ApproxRow {
     pub label: String,
     /// Modes of the struck object kept (of [`SceneResult::modes`]).
     pub modes: usize,
-    /// Compile time [s] (off the audio thread; the eigenproblem shrinks too).
+    /// Compile time \[s\] (off the audio thread; the eigenproblem shrinks too).
     pub compile_s: f64,
     /// The exact scene's CPU seconds per second of audio, timed in
     /// alternation with this setting (the load of the shared machine drifts
@@ -99,7 +101,7 @@ pub struct SceneResult {
     pub check: (Option<f64>, Option<f64>, Option<f64>, f64),
     /// Whether the pickup is identically zero (wall: no pickup).
     pub has_pickup: bool,
-    /// Modes of the struck object in the exact run, and its compile time [s].
+    /// Modes of the struck object in the exact run, and its compile time \[s\].
     pub modes: usize,
     pub compile_s: f64,
     /// The exact engine with each approximation setting of the case.
@@ -131,6 +133,18 @@ pub fn approx_label(a: &ApproxSpec) -> String {
     }
 }
 
+/// Contacts of `tr` matched by order against `reference`, errors in
+/// samples.
+fn contact_errors(tr: &Trajectory, reference: &Trajectory) -> ContactMatch {
+    match_contacts(
+        &tr.contacts,
+        &reference.contacts,
+        f64::INFINITY,
+        RATE,
+        Ends::EitherEnded,
+    )
+}
+
 fn row_from(method: &str, os: usize, tr: &Trajectory, reference: &Trajectory, n: usize) -> Row {
     // the short window starts at the reference's first contact (a dropped
     // ball is silent before it lands)
@@ -144,10 +158,10 @@ fn row_from(method: &str, os: usize, tr: &Trajectory, reference: &Trajectory, n:
         os,
         cpu_per_s: f64::NAN,
         reps: 0,
-        pick_short: rel_l2_range(&tr.pickup, &reference.pickup, s0, s1),
-        pick_full: rel_l2(&tr.pickup, &reference.pickup, n),
-        hammer: rel_l2(&tr.x_hammer, &reference.x_hammer, n),
-        contacts: contact_errors(&tr.contacts, &reference.contacts, RATE),
+        pick_short: rel_l2_window(&tr.pickup, &reference.pickup, s0..s1),
+        pick_full: rel_l2_window(&tr.pickup, &reference.pickup, 0..n),
+        hammer: rel_l2_window(&tr.x_hammer, &reference.x_hammer, 0..n),
+        contacts: contact_errors(tr, reference),
         max_gain: tr.max_sample_gain(),
         diverged: tr.diverged,
     }
@@ -181,7 +195,7 @@ pub fn run_case(case: &Case, plan: &TimingPlan) -> Result<SceneResult> {
         .timed(time_engine(&exact, n, plan), case.seconds);
     // the energy gain is the reference run's own
     r.max_gain = reference.max_sample_gain();
-    let c = contact_errors(&reference.contacts, &check.contacts, RATE);
+    let c = contact_errors(&reference, &check);
     let check_tuple = (
         r.pick_short,
         r.pick_full,

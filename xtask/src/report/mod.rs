@@ -1,5 +1,6 @@
 //! `cargo xtask report [--quick] [--out DIR]`: the "error against run time"
-//! report and the stability table (NUMERICS.md sections 3-5).
+//! report, the stability table and the f32 study (docs/report.md; the cases
+//! are docs/numerics.md's "The stability cases").
 //!
 //! Writes `DIR/report.md` (default `report/`), one work-precision diagram per
 //! accuracy scene (`DIR/pareto-<scene>.svg`) and prints the tables. Timing is
@@ -9,74 +10,61 @@
 //! accuracy scene (development); `REPORT_DEBUG=1` prints
 //! per-run times and exact-switching counters of the stability runs.
 
-mod accuracy;
-mod plot;
+pub mod accuracy;
 mod runs;
-pub mod scenes;
-pub mod stability;
+mod stability;
 mod sustain;
 
 use accuracy::{Case, SceneResult};
-use anyhow::{bail, Context, Result};
-use modal_contact::scene::ApproxSpec;
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
+use modal_contact::scene::{ApproxSpec, ObjectSpec, Scene};
+use modal_testkit::scenes::{self, NYQ};
 use runs::TimingPlan;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
-struct Args {
+/// `cargo xtask report [--quick] [--out DIR] [--only SECTION] [--scene NAME]`.
+#[derive(Args, Debug)]
+pub struct ReportArgs {
+    /// Shorten every render (smoke runs; its numbers are not the report's).
+    #[arg(long)]
     quick: bool,
+    /// Where report.md and the plots go.
+    #[arg(long, default_value = "report")]
     out: PathBuf,
-    /// Run one section only (development): accuracy, stability or f32.
-    only: Option<String>,
+    /// Run one section only (development).
+    #[arg(long, value_enum)]
+    only: Option<Section>,
     /// Run only the accuracy scene of this name (development).
+    #[arg(long)]
     scene: Option<String>,
 }
 
-impl Args {
-    fn wants(&self, section: &str) -> bool {
-        self.only.as_deref().is_none_or(|o| o == section)
+/// A section of the report.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum Section {
+    /// Error against run time.
+    Accuracy,
+    /// The stability table.
+    Stability,
+    /// f32 against f64 state on a long sustain.
+    F32,
+}
+
+impl ReportArgs {
+    fn wants(&self, section: Section) -> bool {
+        self.only.is_none_or(|o| o == section)
     }
 }
 
-fn parse_args(args: &[String]) -> Result<Args> {
-    let mut a = Args {
-        quick: false,
-        out: PathBuf::from("report"),
-        only: None,
-        scene: None,
-    };
-    let mut it = args.iter();
-    while let Some(x) = it.next() {
-        match x.as_str() {
-            "--quick" => a.quick = true,
-            "--out" => {
-                a.out = PathBuf::from(it.next().context("--out needs a directory")?);
-            }
-            "--only" => {
-                let o = it.next().context("--only needs accuracy, stability or f32")?;
-                if !["accuracy", "stability", "f32"].contains(&o.as_str()) {
-                    bail!("--only needs accuracy, stability or f32, got {o:?}");
-                }
-                a.only = Some(o.clone());
-            }
-            "--scene" => {
-                a.scene = Some(it.next().context("--scene needs an accuracy scene name")?.clone());
-            }
-            other => bail!(
-                "cargo xtask report: unknown argument {other:?} (use --quick, --out DIR, --only SECTION, --scene NAME)"
-            ),
-        }
-    }
-    Ok(a)
-}
-
-fn accuracy_cases(root: &Path, quick: bool) -> Result<Vec<Case>> {
+fn accuracy_cases(quick: bool) -> Result<Vec<Case>> {
     let len = |s: f64| if quick { s.min(0.06) } else { s };
     Ok(vec![
         Case {
             name: "paper-bounce".into(),
-            scene: scenes::preset_single_pickup(root, "paper-bounce")?,
+            scene: scenes::single_pickup(scenes::preset("paper-bounce")),
             seconds: len(0.5),
             what: "presets/paper-bounce.toml (10 g ball dropped from 2 cm onto 3 modes, gravity; many bounces), pickup panned hard left.".into(),
             approx: Vec::new(),
@@ -84,7 +72,7 @@ fn accuracy_cases(root: &Path, quick: bool) -> Result<Vec<Case>> {
         },
         Case {
             name: "paper-string".into(),
-            scene: scenes::preset_single_pickup(root, "paper-string")?,
+            scene: scenes::single_pickup(scenes::preset("paper-string")),
             seconds: len(0.2),
             what: "presets/paper-string.toml (50-mass string, non-proportional damping, hammer 1 m/s), only the first pickup (mass 40), panned hard left.".into(),
             approx: Vec::new(),
@@ -92,7 +80,7 @@ fn accuracy_cases(root: &Path, quick: bool) -> Result<Vec<Case>> {
         },
         Case {
             name: "wall".into(),
-            scene: scenes::wall_accuracy_scene()?,
+            scene: scenes::wall_accuracy(),
             seconds: len(0.1),
             what: "Rigid wall, no gravity: 10 g hammer, k = 1e6 N/m (f_c = 1.59 kHz), zeta_c = 0.1, 0.1 mm above the wall at 1 m/s (contact from 4.41 samples). No pickup: the error is the hammer trajectory's.".into(),
             approx: Vec::new(),
@@ -100,17 +88,17 @@ fn accuracy_cases(root: &Path, quick: bool) -> Result<Vec<Case>> {
         },
         Case {
             name: "X2-chattering".into(),
-            scene: scenes::s_scene("X2-chattering", 0.45)?,
+            scene: scenes::chattering("X2-chattering", 0.45),
             seconds: len(0.2),
-            what: "NUMERICS S2/X2: f_c = 0.45 f_Nyq, zeta_c = 0.3, m_h/m_k = 0.2, 20 modes 200 Hz..0.82 f_Nyq (T60 2 s..0.1 s), v0 = 1 m/s from 1e-5 m.".into(),
+            what: "S2/X2 of docs/numerics.md: f_c = 0.45 f_Nyq, zeta_c = 0.3, m_h/m_k = 0.2, 20 modes 200 Hz..0.82 f_Nyq (T60 2 s..0.1 s), v0 = 1 m/s from 1e-5 m.".into(),
             approx: Vec::new(),
             oversamples: &accuracy::OVERSAMPLES,
         },
         Case {
             name: "S1-soft".into(),
-            scene: scenes::s_scene("S1-soft", 0.09)?,
+            scene: scenes::chattering("S1-soft", 0.09),
             seconds: len(0.2),
-            what: "NUMERICS S1/X1: as X2 with f_c = 0.09 f_Nyq.".into(),
+            what: "S1/X1 of docs/numerics.md: as X2 with f_c = 0.09 f_Nyq.".into(),
             approx: Vec::new(),
             oversamples: &accuracy::OVERSAMPLES,
         },
@@ -121,7 +109,7 @@ fn accuracy_cases(root: &Path, quick: bool) -> Result<Vec<Case>> {
 /// The accuracy scene with many modes, some above Nyquist, measured also
 /// with the opt-in approximations.
 fn plate_case(quick: bool) -> Result<Case> {
-    let scene = scenes::plate_scene("plate-full", 1.5 * scenes::NYQ)?;
+    let scene = scenes::plate("plate-full", 1.5 * NYQ);
     Ok(Case {
         name: "plate-full".into(),
         what: format!(
@@ -130,7 +118,7 @@ fn plate_case(quick: bool) -> Result<Case> {
              8 kHz and T60 = ln(1000)/(1 + pi f 1e-4): {}. One velocity pickup at (0.72, 0.64). Competitors only up \
              to 16x (cost: O(N) per fine step with N = 280 states). Also measured with the opt-in approximations \
              (second table).",
-            scenes::modal_summary(&scene)
+            modal_summary(&scene)
         ),
         scene,
         // short: the 16x reference check observes O(N^2) per sample
@@ -212,10 +200,8 @@ fn pareto(res: &SceneResult) -> Vec<String> {
 }
 
 /// Run the report.
-pub fn run(args: &[String]) -> Result<()> {
-    let a = parse_args(args)?;
+pub fn run(a: ReportArgs) -> Result<()> {
     nice_plug_xtask::chdir_workspace_root()?;
-    let root = std::env::current_dir()?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}", a.out.display()))?;
     let t_start = Instant::now();
     let plan = TimingPlan {
@@ -249,8 +235,8 @@ pub fn run(args: &[String]) -> Result<()> {
     md += "Columns: CPU seconds per second of audio (repetitions); relative L2 error of the pickup velocity over the 50 ms from the reference's first contact onset (a dropped ball is silent before it lands) and over the whole window; relative L2 of the hammer height; contacts matched by order (missed = reference contacts without a partner, extra = the opposite); largest onset/end time error over matched contacts in samples; largest energy increase between two output samples relative to E0 = |E(0)| + m_h g |x_h(0)|. \
            The `exact` row is the reference itself: its errors are against the engine at 16x the rate (its own error is 0 by construction).\n\n";
     let mut results = Vec::new();
-    let mut acc_cases = if a.wants("accuracy") {
-        accuracy_cases(&root, a.quick)?
+    let mut acc_cases = if a.wants(Section::Accuracy) {
+        accuracy_cases(a.quick)?
     } else {
         Vec::new()
     };
@@ -264,7 +250,7 @@ pub fn run(args: &[String]) -> Result<()> {
         let table = accuracy::markdown(&res);
         println!("{table}");
         let svg = a.out.join(format!("pareto-{}.svg", res.name));
-        plot::plot_scene(&res, &svg)?;
+        crate::plot::plot_work_precision(&res, &svg)?;
         md += &table;
         let _ = writeln!(
             md,
@@ -291,7 +277,7 @@ pub fn run(args: &[String]) -> Result<()> {
 
     // --- stability
     eprintln!("stability table");
-    md += "\n## 2. Stability (NUMERICS.md section 4)\n\n";
+    md += "\n## 2. Stability (docs/numerics.md, \"The stability cases\")\n\n";
     let _ = writeln!(
         md,
         "Each cell: **diverges** (non-finite or energy > 1e6 E0; time of the first bad sample), \
@@ -303,14 +289,14 @@ pub fn run(args: &[String]) -> Result<()> {
         stability::LOSS_TOL
     );
     let mut stab = Vec::new();
-    let stab_cases = if a.wants("stability") {
-        stability::cases()?
+    let stab_cases = if a.wants(Section::Stability) {
+        modal_testkit::stability::cases()
     } else {
         Vec::new()
     };
     for case in stab_cases {
         let case = if a.quick {
-            stability::StabCase {
+            modal_testkit::stability::Case {
                 samples: case.samples.min(2000),
                 ..case
             }
@@ -319,7 +305,7 @@ pub fn run(args: &[String]) -> Result<()> {
         };
         let t0 = Instant::now();
         stab.push(stability::run_case(&case)?);
-        eprintln!("  {} ({:.1} s)", case.id, t0.elapsed().as_secs_f64());
+        eprintln!("  {} ({:.1} s)", case.name, t0.elapsed().as_secs_f64());
     }
     let stab_md = stability::markdown(&stab);
     println!("{stab_md}");
@@ -335,10 +321,10 @@ pub fn run(args: &[String]) -> Result<()> {
          {} samples (22.7 s). Compared with the f64 run at t_eval = min(22.7 s, 2 T60) (the f64 amplitude is \
          1e-6 at 2 T60). Pitch error from the phase difference at t_eval; in brackets the pitch error of the \
          rounded coefficients alone (eigenvalue angle). `pole -4u`: f32 coefficients rounded from the f64 \
-         propagator times (1 - 2u), u = 2^-24, so |pole|^2 <= r^2 (1 - 4u) (NUMERICS.md section 5).\n",
+         propagator times (1 - 2u), u = 2^-24, so |pole|^2 <= r^2 (1 - 4u) (docs/numerics.md, \"f32 or f64\").\n",
         sustain::SUSTAIN_N
     );
-    let sus = if a.wants("f32") {
+    let sus = if a.wants(Section::F32) {
         sustain::run_all()
     } else {
         Vec::new()
@@ -366,6 +352,25 @@ pub fn run(args: &[String]) -> Result<()> {
     Ok(())
 }
 
+/// `"139 modes 365 Hz .. 33.1 kHz (48 above f_Nyq), T60 6.2 s .. 0.61 s"` for
+/// the first object of a scene when it is modal (measured from the scene).
+fn modal_summary(scene: &Scene) -> String {
+    let Some(ObjectSpec::Modal(m)) = scene.object.first() else {
+        return "not a modal object".into();
+    };
+    let fs = m.mode.iter().map(|x| x.freq_hz);
+    let (f_lo, f_hi) = fs.fold((f64::INFINITY, 0.0f64), |(a, b), f| (a.min(f), b.max(f)));
+    let above = m.mode.iter().filter(|x| x.freq_hz > NYQ).count();
+    let t60s: Vec<f64> = m.mode.iter().filter_map(|x| x.t60_s).collect();
+    let t_hi = t60s.iter().copied().fold(0.0f64, f64::max);
+    let t_lo = t60s.iter().copied().fold(f64::INFINITY, f64::min);
+    format!(
+        "{} modes {f_lo:.0} Hz .. {:.1} kHz ({above} above f_Nyq), T60 {t_hi:.2} s .. {t_lo:.2} s",
+        m.mode.len(),
+        f_hi / 1000.0
+    )
+}
+
 fn sustain_summary(rows: &[sustain::SustainRow]) -> String {
     let max_of = |f: &dyn Fn(&sustain::SustainRow) -> Option<f64>| {
         rows.iter()
@@ -390,7 +395,7 @@ fn sustain_summary(rows: &[sustain::SustainRow]) -> String {
         "\nSummary (measured here): f32 amplitude error up to {:.1}% and pitch error up to {:.1e} cent. \
          Steps with an f32 energy increase: up to {:.1}% of steps for 10 s <= T60 <= 100 s (the 2x2 block works in \
          (omega q, q') coordinates, where the per-step dissipation vanishes when q' = 0, so rounding wins on those \
-         steps; the prototype's diagonal complex-pole form showed none, NUMERICS.md section 5), {:.0}..{:.0}% undamped; at T60 = 1 s up to {:.1}% \
+         steps; the prototype's diagonal complex-pole form showed none, docs/numerics.md, \"f32 or f64\"), {:.0}..{:.0}% undamped; at T60 = 1 s up to {:.1}% \
          before the state turns subnormal (from {:.1} s on; {:.0}% over the whole run). With the f32 pole rounded \
          down (|p|^2 <= r^2 (1 - 4u)) at most {:.2}% of the steps before subnormals, at the price of {:.0}% less energy \
          after 22.7 s undamped. f64 state: no increase in any damped run; undamped, increases of at most \

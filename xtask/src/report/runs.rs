@@ -1,9 +1,11 @@
-//! Running the engine and the competitors on the output grid, timing their
-//! stepping loops, and the metrics (NUMERICS.md section 3).
+//! Running the engine and the competitors on the output grid and timing
+//! their stepping loops (the metrics are `modal_testkit::metrics`, shared
+//! with the tests).
 
-use modal_contact::competitors::{simulate, Method, PwlSystem, SimOutput};
 use modal_contact::compile::CompiledScene;
 use modal_contact::engine::EngineState;
+use modal_testkit::competitors::{simulate, Method, PwlSystem, SimOutput};
+use modal_testkit::metrics::{ContactLog, Interval};
 use std::hint::black_box;
 use std::time::Instant;
 
@@ -12,15 +14,16 @@ use std::time::Instant;
 pub struct Trajectory {
     /// Pickup signal (engine: left channel; competitors: gain-weighted sum).
     pub pickup: Vec<f64>,
-    /// Hammer contact-face height [m].
+    /// Hammer contact-face height \[m\].
     pub x_hammer: Vec<f64>,
-    /// Total energy [J].
+    /// Total energy \[J\].
     pub energy: Vec<f64>,
-    /// Contacts (start, end) [s].
-    pub contacts: Vec<(f64, f64)>,
+    /// Contacts (start, end) \[s\]; one still open at the end of the run
+    /// ends there.
+    pub contacts: Vec<Interval>,
     /// Non-finite state or energy above 1e6 E0 (the rest is NaN).
     pub diverged: bool,
-    /// Energy scale `E0 = |E(0)| + m_h g |x_h(0)|` [J].
+    /// Energy scale `E0 = |E(0)| + m_h g |x_h(0)|` \[J\].
     pub e0: f64,
     /// Largest per-step energy increase / E0 (engine: per sample;
     /// competitors: per fine step).
@@ -78,7 +81,7 @@ pub fn run_engine(sc: &CompiledScene, n: usize) -> Trajectory {
         max_step_gain: f64::NEG_INFINITY,
         ..Default::default()
     };
-    let mut open: Option<f64> = None;
+    let mut log = ContactLog::default();
     let mut prev_e = first.energy;
     for i in 0..n {
         let t_n = i as f64 / sc.rate_hz;
@@ -95,12 +98,8 @@ pub fn run_engine(sc: &CompiledScene, n: usize) -> Trajectory {
         tr.x_hammer.push(obs.x_hammer);
         tr.energy.push(obs.energy);
         for ev in st.switch_events() {
-            let t = t_n + ev.after_s;
-            if ev.entered {
-                open = Some(t);
-            } else if let Some(t0) = open.take() {
-                tr.contacts.push((t0, t));
-            }
+            // an inconsistent log is the engine's counters' business
+            let _ = log.record(t_n + ev.after_s, ev.entered);
         }
     }
     // the energy after the last step
@@ -110,9 +109,7 @@ pub fn run_engine(sc: &CompiledScene, n: usize) -> Trajectory {
             tr.max_step_gain = tr.max_step_gain.max((obs.energy - prev_e) / e0);
         }
     }
-    if let Some(t0) = open {
-        tr.contacts.push((t0, n as f64 / sc.rate_hz));
-    }
+    tr.contacts = log.finish(Some(n as f64 / sc.rate_hz));
     for v in [&mut tr.pickup, &mut tr.x_hammer, &mut tr.energy] {
         v.resize(n, f64::NAN);
     }
@@ -152,7 +149,11 @@ pub fn from_sim(sys: &PwlSystem, out: SimOutput) -> Trajectory {
         pickup: out.pickup,
         x_hammer: out.x_hammer,
         energy: out.energy,
-        contacts: out.contacts,
+        contacts: out
+            .contacts
+            .into_iter()
+            .map(|(a, b)| (a, Some(b)))
+            .collect(),
         engine_note: String::new(),
     }
 }
@@ -294,73 +295,4 @@ pub fn time_competitor(
     }
     let k = times.len();
     (first.expect("at least one run"), median(times), k)
-}
-
-/// Relative L2 difference of `a` against `reference` over `0..len`; `None`
-/// when the reference is identically zero there; infinity when `a` has a
-/// non-finite value in the window.
-pub fn rel_l2(a: &[f64], reference: &[f64], len: usize) -> Option<f64> {
-    rel_l2_range(a, reference, 0, len)
-}
-
-/// [`rel_l2`] over `start..end`.
-pub fn rel_l2_range(a: &[f64], reference: &[f64], start: usize, end: usize) -> Option<f64> {
-    let end = end.min(a.len()).min(reference.len());
-    let start = start.min(end);
-    let den: f64 = reference[start..end].iter().map(|y| y * y).sum();
-    if !(den > 0.0) {
-        return None;
-    }
-    let mut num = 0.0;
-    for (x, y) in a[start..end].iter().zip(&reference[start..end]) {
-        if !x.is_finite() {
-            return Some(f64::INFINITY);
-        }
-        num += (x - y) * (x - y);
-    }
-    Some((num / den).sqrt())
-}
-
-/// Contacts matched by order against the reference.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct ContactErr {
-    /// Contacts in the reference and in the run.
-    pub n_ref: usize,
-    pub n_run: usize,
-    /// Largest |start error| and |end error| over matched pairs [samples].
-    pub max_start: f64,
-    pub max_end: f64,
-    /// Mean |start error| over matched pairs [samples].
-    pub mean_start: f64,
-}
-
-impl ContactErr {
-    /// Reference contacts without a partner.
-    pub fn missed(&self) -> usize {
-        self.n_ref.saturating_sub(self.n_run)
-    }
-    /// Run contacts without a partner.
-    pub fn extra(&self) -> usize {
-        self.n_run.saturating_sub(self.n_ref)
-    }
-}
-
-/// Match contacts by order; errors in samples of `rate`.
-pub fn contact_errors(run: &[(f64, f64)], reference: &[(f64, f64)], rate: f64) -> ContactErr {
-    let mut e = ContactErr {
-        n_ref: reference.len(),
-        n_run: run.len(),
-        ..Default::default()
-    };
-    let m = run.len().min(reference.len());
-    let mut sum = 0.0;
-    for ((s, t), (rs, rt)) in run.iter().zip(reference).take(m) {
-        let ds = ((s - rs) * rate).abs();
-        let de = ((t - rt) * rate).abs();
-        e.max_start = e.max_start.max(ds);
-        e.max_end = e.max_end.max(de);
-        sum += ds;
-    }
-    e.mean_start = if m > 0 { sum / m as f64 } else { 0.0 };
-    e
 }

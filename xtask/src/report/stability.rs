@@ -1,13 +1,16 @@
-//! The stability table: every extreme case of NUMERICS.md section 4 through
-//! both engine modes and every competitor at 1x and 8x.
+//! The stability table: every case of the catalogue
+//! (`modal_testkit::stability`, docs/numerics.md's "The stability cases")
+//! through both engine modes and every competitor at 1x and 8x.
 
 use super::accuracy::fmt_opt;
-use super::runs::{from_sim, rel_l2, run_engine, time_engine, TimingPlan, Trajectory};
-use super::scenes::{c_for, k_for, modal_scene, wall_scene, ModalOpts, NYQ, RATE};
+use super::runs::{from_sim, run_engine, time_engine, TimingPlan, Trajectory};
 use anyhow::{anyhow, Result};
-use modal_contact::competitors::{simulate, Method, PwlSystem};
 use modal_contact::compile::compile_with;
-use modal_contact::scene::{Scene, Switching};
+use modal_contact::scene::Switching;
+use modal_testkit::competitors::{simulate, Method, PwlSystem};
+use modal_testkit::metrics::rel_l2_window;
+use modal_testkit::scenes::RATE;
+use modal_testkit::stability::Case;
 use std::time::Instant;
 
 /// Oversampling factors of the competitors in the stability table.
@@ -18,14 +21,6 @@ pub const GAIN_TOL: f64 = 1e-9;
 /// run "loses energy".
 pub const LOSS_TOL: f64 = 1e-3;
 
-/// One case.
-pub struct StabCase {
-    pub id: String,
-    pub what: String,
-    pub scene: Scene,
-    pub samples: usize,
-}
-
 /// One cell of the table.
 #[derive(Debug, Clone)]
 pub struct Cell {
@@ -35,7 +30,9 @@ pub struct Cell {
 
 /// Results of one case.
 pub struct StabResult {
-    pub id: String,
+    /// The case's name and its numerics label.
+    pub name: String,
+    pub label: String,
     pub what: String,
     pub samples: usize,
     pub cells: Vec<Cell>,
@@ -65,209 +62,6 @@ fn short(m: Method) -> &'static str {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn modal(
-    id: &str,
-    what: &str,
-    samples: usize,
-    n: usize,
-    f_lo: f64,
-    f_hi: f64,
-    damped: bool,
-    m_h: f64,
-    k: f64,
-    c: f64,
-    g: f64,
-) -> Result<StabCase> {
-    Ok(StabCase {
-        id: id.into(),
-        what: what.into(),
-        samples,
-        scene: modal_scene(
-            id,
-            ModalOpts {
-                n,
-                f_lo,
-                f_hi,
-                damped,
-                m_h,
-                k,
-                c,
-                g,
-                height: 0.0,
-            },
-        )?,
-    })
-}
-
-/// The cases (scene parameters as in tests/stability.rs).
-pub fn cases() -> Result<Vec<StabCase>> {
-    let mut v = Vec::new();
-    let m_h = 0.02;
-    for ratio in [1.0, 10.0, 100.0, 1000.0] {
-        let k = k_for(m_h, ratio * NYQ);
-        v.push(modal(
-            &format!("X3 f_c = {ratio}x f_Nyq"),
-            "20 modes 200 Hz..0.82 f_Nyq, m_h 0.02 kg, zeta_c 0.2, v0 1 m/s",
-            20_000,
-            20,
-            200.0,
-            0.82 * NYQ,
-            true,
-            m_h,
-            k,
-            c_for(m_h, k, 0.2),
-            0.0,
-        )?);
-    }
-    let m2 = 0.2;
-    let k2 = k_for(m2, 0.45 * NYQ);
-    v.push(modal(
-        "X2 stiff, chattering",
-        "f_c = 0.45 f_Nyq, zeta_c 0.3, m_h/m_k 0.2, 20 modes to 0.82 f_Nyq",
-        20_000,
-        20,
-        200.0,
-        0.82 * NYQ,
-        true,
-        m2,
-        k2,
-        c_for(m2, k2, 0.3),
-        0.0,
-    )?);
-    v.push(modal(
-        "X6 zero damping",
-        "X2 with every damping 0 (modes and contact): energy must stay E0",
-        20_000,
-        20,
-        200.0,
-        0.82 * NYQ,
-        false,
-        m2,
-        k2,
-        0.0,
-        0.0,
-    )?);
-    let (mw, kw) = (0.01, 1e6);
-    v.push(StabCase {
-        id: "X4 critical damping, wall".into(),
-        what: "hammer vs rigid wall, zeta_c = 1 exactly (defective contact block)".into(),
-        samples: 5000,
-        scene: wall_scene(mw, kw, c_for(mw, kw, 1.0), 0.0, -1.0)?,
-    });
-    v.push(modal(
-        "X4 critical damping, 1 mode",
-        "one undamped 300 Hz mode, 10 g hammer, k 1e6, zeta_c = 1",
-        20_000,
-        1,
-        300.0,
-        300.0,
-        false,
-        mw,
-        kw,
-        c_for(mw, kw, 1.0),
-        0.0,
-    )?);
-    for zeta in [10.0, 1e3] {
-        v.push(modal(
-            &format!("X5 overdamped zeta = {zeta}"),
-            if zeta > 100.0 {
-                "10 modes 200 Hz..5 kHz, m_h 0.02 kg, k 1e6 (shortened to 4410 samples when the exact engine cost ~0.8 ms per sample here; its cost now: the `tick` time that follows)"
-            } else {
-                "10 modes 200 Hz..5 kHz, m_h 0.02 kg, k 1e6"
-            },
-            if zeta > 100.0 { 4410 } else { 20_000 },
-            10,
-            200.0,
-            5000.0,
-            true,
-            0.02,
-            1e6,
-            c_for(0.02, 1e6, zeta),
-            0.0,
-        )?);
-    }
-    v.push(modal(
-        "X8 modes above Nyquist",
-        "40 modes 150 Hz..2.7 f_Nyq, m_h 0.02 kg, k 1e6, c 5",
-        20_000,
-        40,
-        150.0,
-        2.7 * NYQ,
-        true,
-        0.02,
-        1e6,
-        5.0,
-        0.0,
-    )?);
-    for ratio in [1e-6, 1e-3, 1.0, 1e3] {
-        let k = k_for(ratio, 2000.0);
-        v.push(modal(
-            &format!("X7 m_h/m_k = {ratio:e}"),
-            if ratio > 100.0 {
-                "10 modes 200 Hz..8 kHz (mode 0: 1 kg), f_c 2 kHz, zeta_c 0.1 (shortened to 2000 samples when the exact engine cost ~7 ms per sample here; its cost now: the `tick` time that follows)"
-            } else {
-                "10 modes 200 Hz..8 kHz (mode 0: 1 kg), f_c 2 kHz, zeta_c 0.1"
-            },
-            if ratio > 100.0 { 2000 } else { 20_000 },
-            10,
-            200.0,
-            8000.0,
-            true,
-            ratio,
-            k,
-            c_for(ratio, k, 0.1),
-            0.0,
-        )?);
-    }
-    for n in [1usize, 10, 100, 300] {
-        let samples = if n >= 300 { 4410 } else { 10_000 };
-        v.push(modal(
-            &format!("X9 {n} modes"),
-            "modes 100 Hz..18 kHz, m_h 0.03 kg, k 1e6, c 10 (capped at 300 modes: at 1000 the dense trapezoid competitor would dominate the runtime)",
-            samples,
-            n,
-            100.0,
-            18_000.0,
-            true,
-            0.03,
-            1e6,
-            10.0,
-            0.0,
-        )?);
-    }
-    let mut graze = modal(
-        "X11 grazing v = 1e-9",
-        "5 modes 300 Hz..5 kHz, impact speed 1e-9 m/s from 1e-12 m",
-        20_000,
-        5,
-        300.0,
-        5000.0,
-        true,
-        0.01,
-        1e6,
-        5.0,
-        0.0,
-    )?;
-    graze.scene.hammer.velocity_m_per_s = -1e-9;
-    graze.scene.hammer.height_m = 1e-12;
-    v.push(graze);
-    v.push(modal(
-        "X12/X13 long contact",
-        "50 g ball dropped from 1 cm (g = 9.81) on 3 modes 220..3500 Hz, k 2e5, c 5: bounces, then rests in continuous contact (3 s)",
-        (3.0 * RATE) as usize,
-        3,
-        220.0,
-        3500.0,
-        true,
-        0.05,
-        2e5,
-        5.0,
-        9.81,
-    )?);
-    Ok(v)
-}
-
 fn first_nan(tr: &Trajectory) -> Option<usize> {
     tr.x_hammer.iter().position(|x| !x.is_finite())
 }
@@ -281,9 +75,9 @@ fn cell(tr: &Trajectory, reference: Option<&Trajectory>, has_pickup: bool) -> St
     }
     let err = reference.and_then(|r| {
         if has_pickup {
-            rel_l2(&tr.pickup, &r.pickup, r.pickup.len())
+            rel_l2_window(&tr.pickup, &r.pickup, 0..r.pickup.len())
         } else {
-            rel_l2(&tr.x_hammer, &r.x_hammer, r.x_hammer.len())
+            rel_l2_window(&tr.x_hammer, &r.x_hammer, 0..r.x_hammer.len())
         }
     });
     let err_s = match reference {
@@ -308,10 +102,10 @@ fn cell(tr: &Trajectory, reference: Option<&Trajectory>, has_pickup: bool) -> St
 }
 
 /// Run one case.
-pub fn run_case(case: &StabCase) -> Result<StabResult> {
+pub fn run_case(case: &Case) -> Result<StabResult> {
     let t0 = Instant::now();
     let exact = compile_with(&case.scene, RATE, Some(Switching::Exact))
-        .map_err(|e| anyhow!("{}: {e}", case.id))?;
+        .map_err(|e| anyhow!("{}: {e}", case.name))?;
     let compile_s = t0.elapsed().as_secs_f64();
     let mut rod = exact.clone();
     rod.switching = Switching::OffsetRod;
@@ -349,7 +143,7 @@ pub fn run_case(case: &StabCase) -> Result<StabResult> {
         label: "offset-rod".into(),
         text: cell(&rod_tr, Some(&reference), has_pickup),
     });
-    let sys = PwlSystem::from_scene(&case.scene).map_err(|e| anyhow!("{}: {e}", case.id))?;
+    let sys = PwlSystem::from_scene(&case.scene).map_err(|e| anyhow!("{}: {e}", case.name))?;
     for m in Method::ALL {
         for os in STAB_OS {
             let t1 = Instant::now();
@@ -364,8 +158,9 @@ pub fn run_case(case: &StabCase) -> Result<StabResult> {
         }
     }
     Ok(StabResult {
-        id: case.id.clone(),
-        what: case.what.clone(),
+        name: case.name.clone(),
+        label: case.label.clone(),
+        what: case.description.clone(),
         samples: n,
         cells,
         compile_s,
@@ -387,7 +182,10 @@ pub fn markdown(results: &[StabResult]) -> String {
     }
     s += "\n";
     for r in results {
-        s += &format!("| {} | {} | {} |", r.id, r.samples, r.ref_contacts);
+        s += &format!(
+            "| {} ({}) | {} | {} |",
+            r.name, r.label, r.samples, r.ref_contacts
+        );
         for l in &labels {
             let t = r
                 .cells
@@ -401,8 +199,8 @@ pub fn markdown(results: &[StabResult]) -> String {
     s += "\nCase parameters:\n\n";
     for r in results {
         s += &format!(
-            "- **{}**: {}. Compile {:.2} s; {}\n",
-            r.id, r.what, r.compile_s, r.engine_note
+            "- **{}** ({}): {}. Compile {:.2} s; {}\n",
+            r.name, r.label, r.what, r.compile_s, r.engine_note
         );
     }
     s

@@ -1,4 +1,4 @@
-//! f32 against f64 state on a long sustain (NUMERICS.md section 5, X13): the
+//! f32 against f64 state on a long sustain (docs/numerics.md, "f32 or f64"): the
 //! engine's exact 2x2 block propagator of one free mode, `exp2` in f64, run in
 //! f64 and (coefficients and state cast) in f32, free decay from the unit
 //! state over 1e6 samples.
@@ -10,9 +10,9 @@ use std::f64::consts::PI;
 
 /// Samples of every sustain run (22.7 s at 44.1 kHz).
 pub const SUSTAIN_N: usize = 1_000_000;
-/// Mode frequencies [Hz].
+/// Mode frequencies \[Hz\].
 pub const FREQS: [f64; 5] = [20.0, 200.0, 1000.0, 5000.0, 15_000.0];
-/// T60 [s] (infinity: undamped).
+/// T60 \[s\] (infinity: undamped).
 pub const T60S: [f64; 4] = [1.0, 10.0, 100.0, f64::INFINITY];
 /// f32 unit roundoff.
 const U32: f64 = 5.960_464_477_539_063e-8;
@@ -22,16 +22,16 @@ const U32: f64 = 5.960_464_477_539_063e-8;
 pub struct SustainRow {
     pub f: f64,
     pub t60: f64,
-    /// Instant the comparison is taken at [s]: the end, or when the f64
+    /// Instant the comparison is taken at \[s\]: the end, or when the f64
     /// amplitude has fallen to 1e-6 (-120 dB), whichever is first.
     pub t_eval: f64,
     /// f32 amplitude / f64 amplitude - 1 at `t_eval`.
     pub amp_err: f64,
-    /// Phase difference f32 - f64 at `t_eval` [rad] and the pitch error it
-    /// means [cent].
+    /// Phase difference f32 - f64 at `t_eval` \[rad\] and the pitch error it
+    /// means \[cent\].
     pub phase_err: f64,
     pub pitch_cent: f64,
-    /// Pitch error of the rounded propagator's eigenvalue [cent] (the
+    /// Pitch error of the rounded propagator's eigenvalue \[cent\] (the
     /// coefficient-quantisation part alone).
     pub pitch_cent_coeff: f64,
     /// Fraction of steps whose energy increases: f32, f32 with the pole
@@ -48,7 +48,7 @@ pub struct SustainRow {
     /// f32 energy / f64 energy - 1 at `t_eval`, plain and shrunk.
     pub energy_err: f64,
     pub energy_err_shrunk: f64,
-    /// First time the f32 state is subnormal [s].
+    /// First time the f32 state is subnormal \[s\].
     pub subnormal_at: Option<f64>,
 }
 
@@ -149,7 +149,7 @@ pub fn run_mode(f: f64, t60: f64) -> SustainRow {
     let g: Mat2 = [0.0, w, -w, -2.0 * sigma];
     let p64 = exp2(&g, h);
     let p32 = p64.map(|v| v as f32);
-    // |p|^2 <= r^2 (1 - 4u) as in NUMERICS.md section 5: entries times (1 - 2u)
+    // |p|^2 <= r^2 (1 - 4u) (docs/numerics.md, "f32 or f64"): entries times (1 - 2u)
     let shrink = 1.0 - 2.0 * U32;
     let p32s = p64.map(|v| (v * shrink) as f32);
     // evaluation instant: amplitude e^{-sigma t} = 1e-6 at t = 2 T60

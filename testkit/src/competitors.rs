@@ -1,5 +1,5 @@
 //! The usual numerical integrators, as competitors for the "error against run
-//! time" report (NUMERICS.md section 3): symplectic Euler, Stormer-Verlet,
+//! time" report (`cargo xtask report`, docs/report.md): symplectic Euler, Stormer-Verlet,
 //! classic RK4 and the trapezoidal rule with active-set re-solve, all on the
 //! same piecewise-linear (PWL) contact model and the same scenes as the exact
 //! engine.
@@ -73,8 +73,8 @@
 //! modal objects and strings); the trapezoid costs one O(N^2) mat-vec per
 //! solve (O(N) for a free modal object, whose step matrix is block-diagonal).
 
-use crate::physics::model::ObjectModel;
-use crate::scene::{Quantity, Scene};
+use modal_contact::physics::model::ObjectModel;
+use modal_contact::scene::{Quantity, Scene};
 use nalgebra::{DMatrix, DVector};
 
 /// Compressed sparse row matrix; exact zeros are dropped.
@@ -219,14 +219,14 @@ pub struct PwlSystem {
     pub k: f64,
     /// Contact damping [N s/m].
     pub c: f64,
-    /// Hammer mass [kg].
+    /// Hammer mass \[kg\].
     pub m_h: f64,
     /// Gravity on the hammer [m/s^2] (pulls down).
     pub g: f64,
     /// Initial object state `z0 = [xi; u]` (zeros from a scene: at rest).
     /// Tests may set it to start the object vibrating.
     pub z0: Vec<f64>,
-    /// Initial hammer height [m].
+    /// Initial hammer height \[m\].
     pub x_h0: f64,
     /// Initial hammer velocity [m/s] (positive up).
     pub v_h0: f64,
@@ -360,7 +360,7 @@ impl PwlSystem {
         self.pick.iter().zip(s).map(|(a, b)| a * b).sum()
     }
 
-    /// Energy and penetration of a full state (DESIGN.md section 2; gravity
+    /// Energy and penetration of a full state (the README's conventions; gravity
     /// potential zero at `x_h = 0`).
     #[inline]
     pub fn energy_and_penetration(&self, s: &[f64]) -> (f64, f64) {
@@ -460,11 +460,11 @@ impl Method {
 pub struct SimOutput {
     /// Mono pickup mix (gain-weighted sum).
     pub pickup: Vec<f64>,
-    /// Hammer height [m].
+    /// Hammer height \[m\].
     pub x_hammer: Vec<f64>,
-    /// Energy [J] (DESIGN.md section 2).
+    /// Energy \[J\] (the README's conventions).
     pub energy: Vec<f64>,
-    /// Contacts as (start, end) times [s] on the fine grid: start = first fine
+    /// Contacts as (start, end) times \[s\] on the fine grid: start = first fine
     /// state with `p > 0`, end = first later fine state with `p <= 0`. A contact
     /// still open at the end (or at divergence) is closed at that time.
     pub contacts: Vec<(f64, f64)>,
