@@ -488,8 +488,9 @@ parameters! {
         name: "Output gain",
         kind: linear(-60.0, 12.0, -6.0, " dB", 1),
         applies: Applies::NextBlock,
-        doc: "Output level (the presets' pickup gains are the per-preset \
-              normalisation: a default strike peaks around 0.5).",
+        doc: "Output level. The presets' pickup gains are their normalisation: \
+              the strike written in a generated preset peaks around 0.35 per \
+              channel at 0 dB (0.5 per pickup, panned to the centre).",
     },
     switching: EnumParam<SwitchingChoice> = SWITCHING {
         id: "switching",

@@ -9,6 +9,7 @@
 //!   CLAP plugin into `target/demo/*.wav`
 
 mod golden;
+mod paramdocs;
 mod plot;
 mod report;
 
@@ -56,6 +57,7 @@ fn main() -> Result<()> {
         Some("test") => run_tests(&args[2..]),
         Some("demo") => run_demo(),
         Some("golden") => golden::run(args.get(2).is_some_and(|a| a == "--write")),
+        Some("param-docs") => paramdocs::run(args.get(2).is_some_and(|a| a == "--check")),
         _ => nice_plug_xtask::main(),
     }
 }
