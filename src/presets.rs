@@ -168,6 +168,80 @@ mod tests {
         }
     }
 
+    /// presets/tools/gen_presets.py simulates scene files with its own
+    /// table of what the parser assumes for a key a file leaves out
+    /// (`SCENE_DEFAULTS`); this parses a scene that leaves every such key
+    /// out and compares, so the table cannot drift from src/scene.rs.
+    #[test]
+    fn generator_defaults_are_the_scene_defaults() {
+        use crate::scene::ObjectSpec;
+        let py = std::fs::read_to_string(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("presets/tools/gen_presets.py"),
+        )
+        .unwrap();
+        let start = py.find("\nSCENE_DEFAULTS = {\n").expect("SCENE_DEFAULTS") + 1;
+        let block = &py[start..start + py[start..].find("\n}\n").expect("end of the table")];
+        let table: Vec<(String, String)> = block
+            .lines()
+            .skip(1)
+            .map(|line| {
+                let line = line.split('#').next().unwrap().trim().trim_end_matches(',');
+                let (key, value) = line.split_once(':').expect("\"key\": value");
+                (key.trim().trim_matches('"').into(), value.trim().into())
+            })
+            .collect();
+        let s = Scene::from_toml_str(
+            r#"
+            version = 1
+            name = "defaults"
+            [[object]]
+            kind = "modal"
+            name = "o"
+            points = ["c", "p"]
+            [[object.mode]]
+            freq_hz = 100.0
+            weights = [1.0, 1.0]
+            [hammer]
+            mass_kg = 0.01
+            height_m = 0.001
+            [contact]
+            object = "o"
+            point = "c"
+            stiffness_n_per_m = 1e5
+            [[pickup]]
+            object = "o"
+            point = "p"
+            "#,
+        )
+        .unwrap();
+        let ObjectSpec::Modal(m) = &s.object[0] else {
+            panic!("modal")
+        };
+        let p = &s.pickup[0];
+        let float = |x: f64| format!("{x:?}");
+        let rust: Vec<(&str, String)> = vec![
+            ("duration_s", float(s.duration_s)),
+            ("mode.t60_s", m.mode[0].t60_s.map_or("None".into(), float)),
+            ("hammer.velocity_m_per_s", float(s.hammer.velocity_m_per_s)),
+            ("hammer.gravity_m_per_s2", float(s.hammer.gravity_m_per_s2)),
+            (
+                "contact.damping_n_s_per_m",
+                float(s.contact.damping_n_s_per_m),
+            ),
+            (
+                "pickup.quantity",
+                format!("\"{}\"", format!("{:?}", p.quantity).to_lowercase()),
+            ),
+            ("pickup.gain", float(p.gain)),
+            ("pickup.pan", float(p.pan)),
+        ];
+        let rust: Vec<(String, String)> = rust.into_iter().map(|(k, v)| (k.into(), v)).collect();
+        assert_eq!(
+            table, rust,
+            "gen_presets.py's SCENE_DEFAULTS vs src/scene.rs"
+        );
+    }
+
     #[test]
     fn every_preset_parses_and_is_named_after_its_file() {
         for (i, p) in PRESETS.iter().enumerate() {
