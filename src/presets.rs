@@ -1,40 +1,89 @@
 //! The scene files of `presets/`, embedded into the plugin at build time.
 //!
-//! The list is sorted by file name; its order is the order of the plugin's
-//! "Scene" parameter (`plugin::params::PresetChoice`), so it must only grow at
-//! the end if saved projects are to keep their scene. A test below checks that
-//! the embedded list matches the folder exactly.
+//! [`PRESETS`] is the one list of presets: the plugin's "Scene" parameter
+//! takes its choices, their ids and the names hosts show from it
+//! ([`crate::plugin::params`]), `cargo xtask param-docs` writes the scenes
+//! table of docs/plugin.md from it, and the tests iterate over it. Adding a
+//! preset means adding its TOML file and one line at the END of the list
+//! (then `cargo xtask param-docs`).
+//!
+//! Why a written list and not a build script that scans `presets/*.toml`: the
+//! order is part of the plugin's interface, and a folder has no order. nice-plug
+//! saves the scene in a project by its string id (the file stem), so saved
+//! projects find their preset whatever the order; but a host's automation of
+//! the parameter stores its position (a CLAP host the index, a VST3 host
+//! `index / (count - 1)`), so a shipped preset must never move. A scan could
+//! only sort the names, which puts a new preset in the middle and shifts
+//! every one after it. So the list is append-only: `saved_indices_never_move`
+//! pins the order of the shipped presets, and
+//! `embedded_list_matches_the_presets_folder` fails when a file of the folder
+//! is missing from the list (or the other way round). Appending still changes
+//! the VST3 normalised values of the existing presets (the count changes);
+//! only reserving slots in advance would avoid that, which would show hosts
+//! choices that do not exist.
 
 use crate::scene::{Scene, SceneError};
 
-/// One embedded preset: its name (the file stem) and the TOML text.
+/// One embedded preset.
 #[derive(Debug, Clone, Copy)]
 pub struct Preset {
-    /// File stem, e.g. `marimba-bar`.
+    /// File stem, e.g. `marimba-bar`: the scene's `name`, and the id a saved
+    /// project stores for the "Scene" parameter (never rename one).
     pub name: &'static str,
+    /// What hosts show as the "Scene" parameter's value, e.g. `Marimba bar`.
+    pub title: &'static str,
     /// The scene file's text.
     pub toml: &'static str,
 }
 
 macro_rules! preset {
-    ($name:literal) => {
+    ($name:literal, $title:literal) => {
         Preset {
             name: $name,
+            title: $title,
             toml: include_str!(concat!("../presets/", $name, ".toml")),
         }
     };
 }
 
-/// Every file of `presets/*.toml`, sorted by name.
+/// Every file of `presets/*.toml`, in the order of the "Scene" parameter.
+/// Append only (see the module documentation).
 pub const PRESETS: &[Preset] = &[
-    preset!("bell"),
-    preset!("glockenspiel-bar"),
-    preset!("marimba-bar"),
-    preset!("paper-bounce"),
-    preset!("paper-string"),
-    preset!("steel-plate"),
-    preset!("wood-block"),
+    preset!("bell", "Bell"),
+    preset!("glockenspiel-bar", "Glockenspiel bar"),
+    preset!("marimba-bar", "Marimba bar"),
+    preset!("paper-bounce", "Paper bounce"),
+    preset!("paper-string", "Paper string"),
+    preset!("steel-plate", "Steel plate"),
+    preset!("wood-block", "Wood block"),
 ];
+
+/// How many presets there are.
+pub const COUNT: usize = PRESETS.len();
+
+/// The presets' names (file stems), in list order: the "Scene" parameter's
+/// stable ids. Built from [`PRESETS`] at compile time, because nice-plug's
+/// `Enum` trait wants `&'static` slices of them.
+pub const NAMES: [&str; COUNT] = {
+    let mut out = [""; COUNT];
+    let mut i = 0;
+    while i < COUNT {
+        out[i] = PRESETS[i].name;
+        i += 1;
+    }
+    out
+};
+
+/// The presets' titles, in list order (what hosts show).
+pub const TITLES: [&str; COUNT] = {
+    let mut out = [""; COUNT];
+    let mut i = 0;
+    while i < COUNT {
+        out[i] = PRESETS[i].title;
+        i += 1;
+    }
+    out
+};
 
 /// Index of the preset called `name`. \[any-thread\]
 pub fn index_of(name: &str) -> Option<usize> {
@@ -49,6 +98,21 @@ pub fn scene(index: usize) -> Result<Scene, SceneError> {
     })?;
     Scene::from_toml_str(p.toml)
 }
+
+/// The presets this plugin shipped with before the list became the single
+/// source, at the index hosts have automated them under and with the title
+/// hosts have shown: what `saved_indices_never_move` and the parameter tests
+/// hold the list to.
+#[cfg(test)]
+pub(crate) const SHIPPED: [(&str, &str); 7] = [
+    ("bell", "Bell"),
+    ("glockenspiel-bar", "Glockenspiel bar"),
+    ("marimba-bar", "Marimba bar"),
+    ("paper-bounce", "Paper bounce"),
+    ("paper-string", "Paper string"),
+    ("steel-plate", "Steel plate"),
+    ("wood-block", "Wood block"),
+];
 
 #[cfg(test)]
 mod tests {
@@ -66,12 +130,116 @@ mod tests {
             })
             .collect();
         on_disk.sort();
-        let embedded: Vec<String> = PRESETS.iter().map(|p| p.name.to_string()).collect();
-        assert_eq!(embedded, on_disk, "presets/ and PRESETS differ");
+        let mut embedded: Vec<String> = PRESETS.iter().map(|p| p.name.to_string()).collect();
+        embedded.sort();
+        assert_eq!(
+            embedded, on_disk,
+            "presets/ and PRESETS differ: append a new preset at the end of PRESETS"
+        );
         for p in PRESETS {
             let text = std::fs::read_to_string(dir.join(format!("{}.toml", p.name))).unwrap();
             assert_eq!(text, p.toml, "{} embedded text is stale", p.name);
         }
+    }
+
+    #[test]
+    fn saved_indices_never_move() {
+        assert!(
+            PRESETS.len() >= SHIPPED.len(),
+            "a shipped preset was removed"
+        );
+        for (i, (name, title)) in SHIPPED.iter().enumerate() {
+            assert_eq!(
+                (PRESETS[i].name, PRESETS[i].title),
+                (*name, *title),
+                "preset {i} moved or was renamed: hosts automate the Scene parameter by index"
+            );
+        }
+    }
+
+    #[test]
+    fn names_and_titles_are_unique_and_follow_the_list() {
+        assert_eq!(NAMES.len(), PRESETS.len());
+        for (i, p) in PRESETS.iter().enumerate() {
+            assert_eq!((NAMES[i], TITLES[i]), (p.name, p.title));
+            assert!(!p.title.is_empty());
+            assert_eq!(PRESETS.iter().filter(|q| q.name == p.name).count(), 1);
+            assert_eq!(PRESETS.iter().filter(|q| q.title == p.title).count(), 1);
+        }
+    }
+
+    /// presets/tools/gen_presets.py simulates scene files with its own
+    /// table of what the parser assumes for a key a file leaves out
+    /// (`SCENE_DEFAULTS`); this parses a scene that leaves every such key
+    /// out and compares, so the table cannot drift from src/scene.rs.
+    #[test]
+    fn generator_defaults_are_the_scene_defaults() {
+        use crate::scene::ObjectSpec;
+        let py = std::fs::read_to_string(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("presets/tools/gen_presets.py"),
+        )
+        .unwrap();
+        let start = py.find("\nSCENE_DEFAULTS = {\n").expect("SCENE_DEFAULTS") + 1;
+        let block = &py[start..start + py[start..].find("\n}\n").expect("end of the table")];
+        let table: Vec<(String, String)> = block
+            .lines()
+            .skip(1)
+            .map(|line| {
+                let line = line.split('#').next().unwrap().trim().trim_end_matches(',');
+                let (key, value) = line.split_once(':').expect("\"key\": value");
+                (key.trim().trim_matches('"').into(), value.trim().into())
+            })
+            .collect();
+        let s = Scene::from_toml_str(
+            r#"
+            version = 1
+            name = "defaults"
+            [[object]]
+            kind = "modal"
+            name = "o"
+            points = ["c", "p"]
+            [[object.mode]]
+            freq_hz = 100.0
+            weights = [1.0, 1.0]
+            [hammer]
+            mass_kg = 0.01
+            height_m = 0.001
+            [contact]
+            object = "o"
+            point = "c"
+            stiffness_n_per_m = 1e5
+            [[pickup]]
+            object = "o"
+            point = "p"
+            "#,
+        )
+        .unwrap();
+        let ObjectSpec::Modal(m) = &s.object[0] else {
+            panic!("modal")
+        };
+        let p = &s.pickup[0];
+        let float = |x: f64| format!("{x:?}");
+        let rust: Vec<(&str, String)> = vec![
+            ("duration_s", float(s.duration_s)),
+            ("mode.t60_s", m.mode[0].t60_s.map_or("None".into(), float)),
+            ("hammer.velocity_m_per_s", float(s.hammer.velocity_m_per_s)),
+            ("hammer.gravity_m_per_s2", float(s.hammer.gravity_m_per_s2)),
+            (
+                "contact.damping_n_s_per_m",
+                float(s.contact.damping_n_s_per_m),
+            ),
+            (
+                "pickup.quantity",
+                format!("\"{}\"", format!("{:?}", p.quantity).to_lowercase()),
+            ),
+            ("pickup.gain", float(p.gain)),
+            ("pickup.pan", float(p.pan)),
+        ];
+        let rust: Vec<(String, String)> = rust.into_iter().map(|(k, v)| (k.into(), v)).collect();
+        assert_eq!(
+            table, rust,
+            "gen_presets.py's SCENE_DEFAULTS vs src/scene.rs"
+        );
     }
 
     #[test]

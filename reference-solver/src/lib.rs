@@ -53,9 +53,9 @@ pub use expm::{solve, solve_with_substeps};
 /// One mode of a modal object.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Mode {
-    /// Frequency [Hz].
+    /// Frequency \[Hz\].
     pub freq_hz: f64,
-    /// 60 dB decay time [s]; `None` = undamped.
+    /// 60 dB decay time \[s\]; `None` = undamped.
     pub t60_s: Option<f64>,
     /// Mass-normalised weight at the contact point [1/sqrt(kg)].
     pub weight: f64,
@@ -76,9 +76,9 @@ impl Mode {
 /// The point-mass hammer.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hammer {
-    /// Mass [kg].
+    /// Mass \[kg\].
     pub mass_kg: f64,
-    /// Initial height of the contact face [m] (the object starts at rest at 0).
+    /// Initial height of the contact face \[m\] (the object starts at rest at 0).
     pub height_m: f64,
     /// Initial velocity [m/s], positive up.
     pub velocity_m_per_s: f64,
@@ -113,7 +113,7 @@ impl Model {
         self.modes.len()
     }
 
-    /// Total energy [J] of the physical state `z = [q; q'; x_h; v_h]`, with
+    /// Total energy \[J\] of the physical state `z = [q; q'; x_h; v_h]`, with
     /// the contact spring's `0.5 k p^2` when `in_contact`.
     pub fn energy(&self, z: &[f64], in_contact: bool) -> f64 {
         let n = self.n_modes();
@@ -200,27 +200,27 @@ impl Model {
 /// The state at one sample instant, physical units.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
-    /// Hammer contact-face height [m].
+    /// Hammer contact-face height \[m\].
     pub x_hammer: f64,
     /// Hammer velocity [m/s].
     pub v_hammer: f64,
-    /// Object displacement at the contact point [m].
+    /// Object displacement at the contact point \[m\].
     pub x_contact: f64,
     /// Object velocity at the contact point [m/s].
     pub v_contact: f64,
     /// In contact at this instant (after any switch located exactly here).
     pub in_contact: bool,
-    /// Total energy [J].
+    /// Total energy \[J\].
     pub energy: f64,
 }
 
-/// One contact: from `start_s` to `end_s` [s], `end_s = None` if still in
+/// One contact: from `start_s` to `end_s` \[s\], `end_s = None` if still in
 /// contact at the end of the run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContactInterval {
-    /// Instant the penetration became positive [s].
+    /// Instant the penetration became positive \[s\].
     pub start_s: f64,
-    /// Instant it returned to zero [s], if it did within the run.
+    /// Instant it returned to zero \[s\], if it did within the run.
     pub end_s: Option<f64>,
 }
 
@@ -247,7 +247,7 @@ pub struct Stats {
 /// intervals.
 #[derive(Debug, Clone)]
 pub struct Solution {
-    /// Sample rate [Hz] of the rows.
+    /// Sample rate \[Hz\] of the rows.
     pub rate_hz: f64,
     /// State at every sample instant `i / rate_hz`, `i = 0..=n`.
     pub samples: Vec<Sample>,

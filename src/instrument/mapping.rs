@@ -213,7 +213,7 @@ fn set_strike_position(s: &mut Scene, pos: f64) {
 /// `1 + 50 * damper` (T60s of modal objects; a string's Rayleigh damping and
 /// dashpots multiplied by the same factor; undamped modes get
 /// [`UNDAMPED_RELEASE_T60_S`] first). Same objects, same dimensions, so
-/// [`EngineState::rebind`] carries a voice onto it. \[any-thread\]
+/// \[`EngineState::rebind`\] carries a voice onto it. \[any-thread\]
 pub fn damped_scene(scene: &Scene, damper_norm: f64) -> Scene {
     let f = 1.0 + DAMPER_T60_DIVISOR * damper_norm.clamp(0.0, 1.0);
     let mut s = scene.clone();

@@ -1,224 +1,512 @@
-//! The plugin's parameters. Ids are stable strings (saved projects and
-//! automation refer to them); never rename one. Every parameter is
-//! automatable and saved with the host's project by nice-plug.
+//! The plugin's parameters, declared once.
+//!
+//! The `parameters!` invocation below is the single list of parameters: each
+//! entry gives the stable id, the name hosts show, the kind with its range,
+//! default and unit, when a change takes effect, and what the parameter does.
+//! From it the macro makes
+//! - [`PARAMS`], the metadata as data: `cargo xtask param-docs` writes the
+//!   parameter table of docs/plugin.md from it, [`migrate_state`] checks
+//!   saved states against it, and the tests iterate over it;
+//! - [`ids`], the id constants the host tests address parameters by;
+//! - [`ModalContactParams`], the typed nice-plug parameters, each built from
+//!   its entry (so the audio thread reads fields with atomic loads, no
+//!   look-up), and its `Params` implementation. nice-plug's
+//!   `#[derive(Params)]` wants every id again as an attribute literal, a
+//!   second copy of the list; the implementation here does what the derive
+//!   generates (one `(id, pointer, "")` per field, in declaration order, no
+//!   persisted fields) with the ids taken from the list.
+//!
+//! Enumerated parameters are [`Choice`]s of a [`ChoiceList`] whose ids and
+//! names are the list's own (the scene's come from [`crate::presets::PRESETS`]),
+//! so no Rust enum repeats them. Hosts show their names, and nice-plug saves
+//! them by id: a project saved with any earlier version finds the same preset.
+//!
+//! Never change an id (saved projects and automation refer to them; the test
+//! `ids_never_change` holds them), and only append choices at the end (CLAP
+//! automation stores a choice's index).
 
 use crate::instrument::{InstrumentParams, PlayParams, SceneParams};
+use crate::presets;
 use crate::scene::Switching;
 use nice_plug::plugin::{ParamValue, PluginState};
 use nice_plug::prelude::*;
+use std::marker::PhantomData;
 
-/// The embedded presets, in the order of [`crate::presets::PRESETS`] (a test
-/// checks that the ids match the file names).
-#[derive(Enum, Debug, PartialEq, Eq, Clone, Copy)]
-pub enum PresetChoice {
-    /// presets/bell.toml
-    #[id = "bell"]
-    #[name = "Bell"]
-    Bell,
-    /// presets/glockenspiel-bar.toml
-    #[id = "glockenspiel-bar"]
-    #[name = "Glockenspiel bar"]
-    GlockenspielBar,
-    /// presets/marimba-bar.toml
-    #[id = "marimba-bar"]
-    #[name = "Marimba bar"]
-    MarimbaBar,
-    /// presets/paper-bounce.toml
-    #[id = "paper-bounce"]
-    #[name = "Paper bounce"]
-    PaperBounce,
-    /// presets/paper-string.toml
-    #[id = "paper-string"]
-    #[name = "Paper string"]
-    PaperString,
-    /// presets/steel-plate.toml
-    #[id = "steel-plate"]
-    #[name = "Steel plate"]
-    SteelPlate,
-    /// presets/wood-block.toml
-    #[id = "wood-block"]
-    #[name = "Wood block"]
-    WoodBlock,
+/// One parameter's metadata: an entry of [`PARAMS`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParamSpec {
+    /// Stable id (what saved projects and automation refer to).
+    pub id: &'static str,
+    /// Name hosts show.
+    pub name: &'static str,
+    /// Value type, range, default and unit.
+    pub kind: Kind,
+    /// When a change is heard.
+    pub applies: Applies,
+    /// What the parameter does (Markdown, for docs/plugin.md).
+    pub doc: &'static str,
 }
 
-/// Switching method choice.
-#[derive(Enum, Debug, PartialEq, Eq, Clone, Copy)]
-pub enum SwitchingChoice {
-    /// The paper's offset rod (first order in the contact onset).
-    #[id = "offset-rod"]
-    #[name = "Offset rod"]
-    OffsetRod,
-    /// Switch instants located inside the sample (falls back to the offset
-    /// rod, with a log line, while the compiler refuses it).
-    #[id = "exact"]
-    #[name = "Exact"]
-    Exact,
+/// A parameter's value type, with its range, default and display.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Kind {
+    /// A continuous value.
+    Float {
+        /// Smallest value.
+        min: f32,
+        /// Largest value.
+        max: f32,
+        /// Default value.
+        default: f32,
+        /// How the host's knob maps onto the range.
+        taper: Taper,
+        /// Unit appended to the value, with its leading space (`" dB"`), or `""`.
+        unit: &'static str,
+        /// Decimal places hosts show.
+        digits: usize,
+    },
+    /// Off or on.
+    Bool {
+        /// Default value.
+        default: bool,
+    },
+    /// One of a list of named choices.
+    Choice {
+        /// Stable ids, saved in projects.
+        ids: &'static [&'static str],
+        /// Names hosts show, in the order of `ids`.
+        names: &'static [&'static str],
+        /// Index of the default choice.
+        default: usize,
+    },
 }
 
-/// Parameter ids (stable).
-pub mod ids {
-    /// Scene (preset).
-    pub const SCENE: &str = "scene";
-    /// Hammer mass factor.
-    pub const HAMMER_MASS: &str = "hammer_mass";
-    /// Contact stiffness factor.
-    pub const HARDNESS: &str = "hardness";
-    /// Contact damping factor.
-    pub const CONTACT_DAMPING: &str = "contact_damping";
-    /// Use the strike position parameter.
-    pub const STRIKE_CUSTOM: &str = "strike_custom";
-    /// Strike position 0..1.
-    pub const STRIKE_POS: &str = "strike_pos";
-    /// Decay scale.
-    pub const DECAY: &str = "decay";
-    /// Damper amount.
-    pub const DAMPER: &str = "damper";
-    /// Pitch tracking.
-    pub const PITCH_TRACKING: &str = "pitch_tracking";
-    /// Gravity (bouncing scenes).
-    pub const GRAVITY: &str = "gravity";
-    /// Drop height (bouncing scenes).
-    pub const DROP_HEIGHT: &str = "drop_height";
-    /// Output gain.
-    pub const GAIN: &str = "gain";
-    /// Switching method.
-    pub const SWITCHING: &str = "switching";
-    /// Every id, in the order of the parameter struct.
-    pub const ALL: [&str; 13] = [
-        SCENE,
-        HAMMER_MASS,
-        HARDNESS,
-        CONTACT_DAMPING,
-        STRIKE_CUSTOM,
-        STRIKE_POS,
-        DECAY,
-        DAMPER,
-        PITCH_TRACKING,
-        GRAVITY,
-        DROP_HEIGHT,
-        GAIN,
-        SWITCHING,
-    ];
+/// How a float parameter's normalised (knob) position maps to its value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Taper {
+    /// Evenly spread.
+    Linear,
+    /// nice-plug's `FloatRange::Skewed` with `factor = skew_factor(exponent)`:
+    /// a negative exponent gives the low end more of the knob.
+    Skewed {
+        /// Power-of-two exponent of the skew factor.
+        exponent: f32,
+    },
 }
 
-/// Every parameter (see docs/plugin.md for ranges and meaning).
-#[derive(Params)]
-pub struct ModalContactParams {
-    /// Which embedded scene is struck.
-    #[id = "scene"]
-    pub scene: EnumParam<PresetChoice>,
-    /// Hammer mass multiplier, 0.1..10 x.
-    #[id = "hammer_mass"]
-    pub hammer_mass: FloatParam,
-    /// Contact stiffness multiplier (hardness), 0.01..100 x.
-    #[id = "hardness"]
-    pub hardness: FloatParam,
-    /// Contact damping multiplier, 0..10 x.
-    #[id = "contact_damping"]
-    pub contact_damping: FloatParam,
-    /// Off: strike where the scene says; on: use "Strike position".
-    #[id = "strike_custom"]
-    pub strike_custom: BoolParam,
-    /// Strike position along the object, 0..1.
-    #[id = "strike_pos"]
-    pub strike_pos: FloatParam,
-    /// Decay time multiplier, 0.1..10 x.
-    #[id = "decay"]
-    pub decay: FloatParam,
-    /// Damper after note-off, 0..1 (released T60 / (1 + 50 damper)).
-    #[id = "damper"]
-    pub damper: FloatParam,
-    /// Notes change the pitch.
-    #[id = "pitch_tracking"]
-    pub pitch_tracking: BoolParam,
-    /// Gravity for bouncing scenes, 0.5..30 m/s^2.
-    #[id = "gravity"]
-    pub gravity: FloatParam,
-    /// Drop height for bouncing scenes, 1..100 mm.
-    #[id = "drop_height"]
-    pub drop_height_mm: FloatParam,
-    /// Output gain, -60..+12 dB.
-    #[id = "gain"]
-    pub gain_db: FloatParam,
-    /// Switching method.
-    #[id = "switching"]
-    pub switching: EnumParam<SwitchingChoice>,
+/// When a parameter change is heard.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Applies {
+    /// It changes the matrices: the worker recompiles the scene off the
+    /// audio thread and the result is swapped in (docs/plugin.md, "the swap
+    /// design"). Part of [`SceneParams`].
+    Recompile,
+    /// Read when a note starts. Part of [`PlayParams`].
+    NextNote,
+    /// Read at every block. Part of [`PlayParams`].
+    NextBlock,
 }
 
-fn factor_range(min: f32, max: f32) -> FloatRange {
-    // Skewed so that 1 x sits near the middle of the knob.
-    FloatRange::Skewed {
-        min,
-        max,
-        factor: FloatRange::skew_factor(-2.0),
-    }
-}
-
-impl Default for ModalContactParams {
-    fn default() -> Self {
-        let d = InstrumentParams::default();
-        Self {
-            scene: EnumParam::new("Scene", PresetChoice::MarimbaBar),
-            hammer_mass: FloatParam::new("Hammer mass", 1.0, factor_range(0.1, 10.0))
-                .with_unit(" x")
-                .with_value_to_string(formatters::v2s_f32_rounded(3)),
-            hardness: FloatParam::new("Hardness", 1.0, factor_range(0.01, 100.0))
-                .with_unit(" x")
-                .with_value_to_string(formatters::v2s_f32_rounded(3)),
-            contact_damping: FloatParam::new("Contact damping", 1.0, factor_range(0.0, 10.0))
-                .with_unit(" x")
-                .with_value_to_string(formatters::v2s_f32_rounded(3)),
-            strike_custom: BoolParam::new("Custom strike position", false),
-            strike_pos: FloatParam::new(
-                "Strike position",
-                0.5,
-                FloatRange::Linear { min: 0.0, max: 1.0 },
-            )
-            .with_value_to_string(formatters::v2s_f32_rounded(3)),
-            decay: FloatParam::new("Decay", 1.0, factor_range(0.1, 10.0))
-                .with_unit(" x")
-                .with_value_to_string(formatters::v2s_f32_rounded(3)),
-            damper: FloatParam::new(
-                "Damper",
-                d.scene.damper_norm as f32,
-                FloatRange::Linear { min: 0.0, max: 1.0 },
-            )
-            .with_value_to_string(formatters::v2s_f32_rounded(3)),
-            pitch_tracking: BoolParam::new("Pitch tracking", d.play.pitch_tracking),
-            gravity: FloatParam::new(
-                "Gravity",
-                d.scene.gravity_m_per_s2 as f32,
-                FloatRange::Linear {
-                    min: 0.5,
-                    max: 30.0,
-                },
-            )
-            .with_unit(" m/s2")
-            .with_value_to_string(formatters::v2s_f32_rounded(2)),
-            drop_height_mm: FloatParam::new(
-                "Drop height",
-                (d.play.drop_height_m * 1000.0) as f32,
-                FloatRange::Skewed {
-                    min: 1.0,
-                    max: 100.0,
-                    factor: FloatRange::skew_factor(-1.0),
-                },
-            )
-            .with_unit(" mm")
-            .with_value_to_string(formatters::v2s_f32_rounded(1)),
-            gain_db: FloatParam::new(
-                "Output gain",
-                d.play.gain_db as f32,
-                FloatRange::Linear {
-                    min: -60.0,
-                    max: 12.0,
-                },
-            )
-            .with_unit(" dB")
-            .with_value_to_string(formatters::v2s_f32_rounded(1)),
-            switching: EnumParam::new("Switching", SwitchingChoice::Exact),
+impl ParamSpec {
+    /// The default as nice-plug stores it in a saved state.
+    pub fn default_value(&self) -> ParamValue {
+        match self.kind {
+            Kind::Float { default, .. } => ParamValue::F32(default),
+            Kind::Bool { default } => ParamValue::Bool(default),
+            Kind::Choice { ids, default, .. } => ParamValue::String(ids[default].to_string()),
         }
     }
+}
+
+/// The metadata of the parameter `id`.
+pub fn spec(id: &str) -> Option<&'static ParamSpec> {
+    PARAMS.iter().find(|s| s.id == id)
+}
+
+/// A list of named choices for an enumerated parameter.
+pub trait ChoiceList: 'static {
+    /// Stable ids, saved in projects (never change one).
+    const IDS: &'static [&'static str];
+    /// Names hosts show, in the order of `IDS`.
+    const NAMES: &'static [&'static str];
+}
+
+/// One choice of the list `L`. nice-plug's [`Enum`] is implemented from the
+/// list's ids and names, so an enumerated parameter needs no Rust enum that
+/// would repeat them.
+pub struct Choice<L> {
+    index: usize,
+    list: PhantomData<L>,
+}
+
+// Written out: derives would demand the same traits of the marker type `L`.
+impl<L> Clone for Choice<L> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<L> Copy for Choice<L> {}
+impl<L> PartialEq for Choice<L> {
+    fn eq(&self, other: &Self) -> bool {
+        self.index == other.index
+    }
+}
+impl<L> Eq for Choice<L> {}
+impl<L: ChoiceList> std::fmt::Debug for Choice<L> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Choice({:?})", self.id())
+    }
+}
+
+impl<L: ChoiceList> Choice<L> {
+    /// Position in the list.
+    pub fn index(self) -> usize {
+        self.index
+    }
+    /// Stable id.
+    pub fn id(self) -> &'static str {
+        L::IDS[self.index]
+    }
+}
+
+impl<L: ChoiceList> Enum for Choice<L> {
+    fn variants() -> &'static [&'static str] {
+        L::NAMES
+    }
+    fn ids() -> Option<&'static [&'static str]> {
+        Some(L::IDS)
+    }
+    fn to_index(self) -> usize {
+        self.index
+    }
+    /// Out of range gives the first choice, as the trait asks.
+    fn from_index(index: usize) -> Self {
+        Self {
+            index: if index < L::IDS.len() { index } else { 0 },
+            list: PhantomData,
+        }
+    }
+}
+
+/// The embedded presets ([`crate::presets::PRESETS`], in its order).
+pub struct Scenes;
+impl ChoiceList for Scenes {
+    const IDS: &'static [&'static str] = &presets::NAMES;
+    const NAMES: &'static [&'static str] = &presets::TITLES;
+}
+
+/// The switching methods; the ids are the scene files' spellings.
+pub struct SwitchingMethods;
+impl ChoiceList for SwitchingMethods {
+    const IDS: &'static [&'static str] = &["offset-rod", "exact"];
+    const NAMES: &'static [&'static str] = &["Offset rod", "Exact"];
+}
+/// The method of each [`SwitchingMethods`] choice.
+const SWITCHING_METHOD: [Switching; 2] = [Switching::OffsetRod, Switching::Exact];
+
+/// The "Scene" parameter's value.
+pub type PresetChoice = Choice<Scenes>;
+/// The "Switching" parameter's value.
+pub type SwitchingChoice = Choice<SwitchingMethods>;
+
+/// A multiplier of a scene quantity, skewed so that 1 x sits near the middle
+/// of the knob.
+const fn factor(min: f32, max: f32, digits: usize) -> Kind {
+    Kind::Float {
+        min,
+        max,
+        default: 1.0,
+        taper: Taper::Skewed { exponent: -2.0 },
+        unit: " x",
+        digits,
+    }
+}
+
+/// A linear float parameter.
+const fn linear(min: f32, max: f32, default: f32, unit: &'static str, digits: usize) -> Kind {
+    Kind::Float {
+        min,
+        max,
+        default,
+        taper: Taper::Linear,
+        unit,
+        digits,
+    }
+}
+
+/// The choices of `L`, defaulting to the one with id `default` (a missing id
+/// stops the build: this runs at compile time).
+const fn choice<L: ChoiceList>(default: &str) -> Kind {
+    let mut i = 0;
+    while i < L::IDS.len() {
+        if str_eq(L::IDS[i], default) {
+            return Kind::Choice {
+                ids: L::IDS,
+                names: L::NAMES,
+                default: i,
+            };
+        }
+        i += 1;
+    }
+    panic!("the default is not one of the choices");
+}
+
+const fn str_eq(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    if a.len() != b.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < a.len() {
+        if a[i] != b[i] {
+            return false;
+        }
+        i += 1;
+    }
+    true
+}
+
+/// Builds a nice-plug parameter from its entry of [`PARAMS`].
+trait FromSpec {
+    fn from_spec(s: &ParamSpec) -> Self;
+}
+
+impl FromSpec for FloatParam {
+    fn from_spec(s: &ParamSpec) -> Self {
+        let Kind::Float {
+            min,
+            max,
+            default,
+            taper,
+            unit,
+            digits,
+        } = s.kind
+        else {
+            panic!(
+                "{}: declared {:?}, but its field is a FloatParam",
+                s.id, s.kind
+            );
+        };
+        let range = match taper {
+            Taper::Linear => FloatRange::Linear { min, max },
+            Taper::Skewed { exponent } => FloatRange::Skewed {
+                min,
+                max,
+                factor: FloatRange::skew_factor(exponent),
+            },
+        };
+        FloatParam::new(s.name, default, range)
+            .with_unit(unit)
+            .with_value_to_string(formatters::v2s_f32_rounded(digits))
+    }
+}
+
+impl FromSpec for BoolParam {
+    fn from_spec(s: &ParamSpec) -> Self {
+        let Kind::Bool { default } = s.kind else {
+            panic!(
+                "{}: declared {:?}, but its field is a BoolParam",
+                s.id, s.kind
+            );
+        };
+        BoolParam::new(s.name, default)
+    }
+}
+
+impl<L: ChoiceList> FromSpec for EnumParam<Choice<L>> {
+    fn from_spec(s: &ParamSpec) -> Self {
+        let Kind::Choice { ids, default, .. } = s.kind else {
+            panic!(
+                "{}: declared {:?}, but its field is an EnumParam",
+                s.id, s.kind
+            );
+        };
+        assert!(
+            ids == L::IDS,
+            "{}: the entry's choices are not its field's",
+            s.id
+        );
+        EnumParam::new(s.name, Choice::from_index(default))
+    }
+}
+
+/// Declares the parameters: see the module documentation for what it makes.
+macro_rules! parameters {
+    ($(
+        $field:ident: $ty:ty = $ID:ident {
+            id: $id:literal,
+            name: $name:literal,
+            kind: $kind:expr,
+            applies: $applies:expr,
+            doc: $doc:expr $(,)?
+        }
+    ),* $(,)?) => {
+        /// Parameter ids (stable: saved projects and automation refer to them).
+        pub mod ids {
+            $(
+                #[doc = $doc]
+                pub const $ID: &str = $id;
+            )*
+            /// Every id, in the order of [`super::PARAMS`].
+            pub const ALL: [&str; [$($id),*].len()] = [$($ID),*];
+        }
+
+        /// Every parameter, in the order hosts list them.
+        pub const PARAMS: &[ParamSpec] = &[$(
+            ParamSpec {
+                id: ids::$ID,
+                name: $name,
+                kind: $kind,
+                applies: $applies,
+                doc: $doc,
+            }
+        ),*];
+
+        /// The plugin's parameters: every entry of [`PARAMS`], automatable and
+        /// saved with the host's project by nice-plug.
+        pub struct ModalContactParams {
+            $(
+                #[doc = $doc]
+                pub $field: $ty,
+            )*
+        }
+
+        impl Default for ModalContactParams {
+            fn default() -> Self {
+                Self {
+                    $($field: FromSpec::from_spec(
+                        spec(ids::$ID).expect("declared above"),
+                    ),)*
+                }
+            }
+        }
+
+        // SAFETY: as for nice-plug's derive: the pointers point into `self`'s
+        // fields, and nice-plug only dereferences them while it holds the
+        // `Arc` the plugin hands out in `Plugin::params`.
+        unsafe impl Params for ModalContactParams {
+            fn param_map(&self) -> Vec<(String, ParamPtr, String)> {
+                vec![$(
+                    (String::from(ids::$ID), self.$field.as_ptr(), String::new()),
+                )*]
+            }
+        }
+    };
+}
+
+parameters! {
+    scene: EnumParam<PresetChoice> = SCENE {
+        id: "scene",
+        name: "Scene",
+        kind: choice::<Scenes>("marimba-bar"),
+        applies: Applies::Recompile,
+        doc: "Which scene of `presets/` is struck (the scenes are listed below).",
+    },
+    hammer_mass: FloatParam = HAMMER_MASS {
+        id: "hammer_mass",
+        name: "Hammer mass",
+        kind: factor(0.1, 10.0, 3),
+        applies: Applies::Recompile,
+        doc: "Multiplies the scene's hammer mass. Heavier: longer contact, darker, louder.",
+    },
+    hardness: FloatParam = HARDNESS {
+        id: "hardness",
+        name: "Hardness",
+        kind: factor(0.01, 100.0, 3),
+        applies: Applies::Recompile,
+        doc: "Multiplies the contact stiffness. Harder: shorter contact, brighter.",
+    },
+    contact_damping: FloatParam = CONTACT_DAMPING {
+        id: "contact_damping",
+        name: "Contact damping",
+        kind: factor(0.0, 10.0, 3),
+        applies: Applies::Recompile,
+        doc: "Multiplies the contact damping (a lossy felt vs a hard mallet).",
+    },
+    strike_custom: BoolParam = STRIKE_CUSTOM {
+        id: "strike_custom",
+        name: "Custom strike position",
+        kind: Kind::Bool { default: false },
+        applies: Applies::Recompile,
+        doc: "Off: strike where the scene says. On: use Strike position.",
+    },
+    strike_pos: FloatParam = STRIKE_POS {
+        id: "strike_pos",
+        name: "Strike position",
+        kind: linear(0.0, 1.0, 0.5, "", 3),
+        applies: Applies::Recompile,
+        doc: "Where along the object the hammer hits, 0 .. 1 (see below; \
+              the scenes table says which scenes it moves).",
+    },
+    decay: FloatParam = DECAY {
+        id: "decay",
+        name: "Decay",
+        kind: factor(0.1, 10.0, 3),
+        applies: Applies::Recompile,
+        doc: "Multiplies every decay time (modal T60s; a string's Rayleigh damping \
+              and dashpots are divided by it).",
+    },
+    damper: FloatParam = DAMPER {
+        id: "damper",
+        name: "Damper",
+        kind: linear(0.0, 1.0, 0.5, "", 3),
+        applies: Applies::Recompile,
+        doc: "How strongly a released note is damped: decay times after note-off \
+              are divided by `1 + 50 * damper`. 0 = the object rings on after release.",
+    },
+    pitch_tracking: BoolParam = PITCH_TRACKING {
+        id: "pitch_tracking",
+        name: "Pitch tracking",
+        kind: Kind::Bool { default: true },
+        applies: Applies::NextNote,
+        doc: "On: the note sets the pitch. Off: every note plays the scene as written.",
+    },
+    gravity: FloatParam = GRAVITY {
+        id: "gravity",
+        name: "Gravity",
+        kind: linear(0.5, 30.0, 9.81, " m/s2", 2),
+        applies: Applies::Recompile,
+        doc: "Gravity on the hammer, for bouncing scenes only (scenes whose hammer \
+              has gravity; the scenes table says which).",
+    },
+    drop_height_mm: FloatParam = DROP_HEIGHT {
+        id: "drop_height",
+        name: "Drop height",
+        kind: Kind::Float {
+            min: 1.0,
+            max: 100.0,
+            default: 20.0,
+            taper: Taper::Skewed { exponent: -1.0 },
+            unit: " mm",
+            digits: 1,
+        },
+        applies: Applies::NextNote,
+        doc: "Height the hammer is dropped from in bouncing scenes.",
+    },
+    gain_db: FloatParam = GAIN {
+        id: "gain",
+        name: "Output gain",
+        kind: linear(-60.0, 12.0, -6.0, " dB", 1),
+        applies: Applies::NextBlock,
+        doc: "Output level. The presets' pickup gains are their normalisation: \
+              the strike written in a generated preset peaks around 0.35 per \
+              channel at 0 dB (0.5 per pickup, panned to the centre).",
+    },
+    switching: EnumParam<SwitchingChoice> = SWITCHING {
+        id: "switching",
+        name: "Switching",
+        kind: choice::<SwitchingMethods>("exact"),
+        applies: Applies::Recompile,
+        doc: "Contact switching method: Exact finds every contact start and end \
+              inside the sample, in order, on the exact solution (located to \
+              3.6e-15 of a sample; no switching error beyond f64 rounding, \
+              docs/numerics.md section 6); Offset rod is the paper's method (first \
+              order, contacts start up to a sample late). If a scene's compile \
+              refuses exact switching (a dense-fallback phase larger than 16 states \
+              or too stiff for partial dense steps), it is compiled with the offset \
+              rod and the worker logs `exact switching refused (...); falling back \
+              to offset-rod`.",
+    },
 }
 
 impl ModalContactParams {
@@ -226,7 +514,7 @@ impl ModalContactParams {
     /// \[any-thread\]
     pub fn scene_params(&self) -> SceneParams {
         SceneParams {
-            preset: self.scene.value().to_index(),
+            preset: self.scene.value().index(),
             hammer_mass_factor: self.hammer_mass.value() as f64,
             stiffness_factor: self.hardness.value() as f64,
             damping_factor: self.contact_damping.value() as f64,
@@ -237,10 +525,7 @@ impl ModalContactParams {
             decay_scale: self.decay.value() as f64,
             damper_norm: self.damper.value() as f64,
             gravity_m_per_s2: self.gravity.value() as f64,
-            switching: match self.switching.value() {
-                SwitchingChoice::OffsetRod => Switching::OffsetRod,
-                SwitchingChoice::Exact => Switching::Exact,
-            },
+            switching: SWITCHING_METHOD[self.switching.value().index()],
         }
     }
 
@@ -263,56 +548,44 @@ impl ModalContactParams {
 }
 
 /// Make a state safe to load, before nice-plug applies it
-/// ([`Plugin::filter_state`]): every parameter of this version that the
-/// state lacks (a project saved by an older version) gets its default, and
-/// every value that is of the wrong type, not finite, outside its range, or
-/// an unknown enum id is replaced by the default too (without this, a
-/// missing or refused value would silently keep whatever the instance had
-/// before the load). Entries for ids this version does not know are left
-/// alone (nice-plug skips them). Returns one note per replaced value, for
-/// the log. \[main-thread\]
+/// ([`Plugin::filter_state`]): every parameter of [`PARAMS`] that the state
+/// lacks (a project saved by an older version) gets its default, and every
+/// value that is of the wrong type, not finite, outside its range, or an
+/// unknown choice id (a preset this version does not have) is replaced by
+/// the default too (without this, a missing or refused value would silently
+/// keep whatever the instance had before the load). Entries for ids this
+/// version does not know are left alone (nice-plug skips them). Returns one
+/// note per replaced value, for the log. \[main-thread\]
 pub fn migrate_state(state: &mut PluginState) -> Vec<String> {
-    let d = ModalContactParams::default();
     let mut notes = Vec::new();
-    let mut fix = |state: &mut PluginState, id: &str, ok: bool, default: ParamValue| {
+    for spec in PARAMS {
+        let stored = state.params.get(spec.id);
+        let ok = match (spec.kind, stored) {
+            (Kind::Float { .. }, Some(ParamValue::F32(v))) => {
+                float_in_range(&FloatParam::from_spec(spec), *v)
+            }
+            (Kind::Bool { .. }, Some(ParamValue::Bool(_))) => true,
+            (Kind::Choice { ids, .. }, Some(ParamValue::String(s))) => ids.contains(&s.as_str()),
+            // nice-plug stores an index for enums without ids; accept one
+            // that names a choice.
+            (Kind::Choice { ids, .. }, Some(ParamValue::I32(i))) => {
+                usize::try_from(*i).is_ok_and(|i| i < ids.len())
+            }
+            _ => false,
+        };
         if !ok {
-            let what = match state.params.get(id) {
+            let what = match stored {
                 None => "missing".to_string(),
                 Some(v) => format!("invalid value {v:?}"),
             };
-            notes.push(format!("{id}: {what}, using the default {default:?}"));
-            state.params.insert(id.to_string(), default);
+            let default = spec.default_value();
+            notes.push(format!(
+                "{}: {what}, using the default {default:?}",
+                spec.id
+            ));
+            state.params.insert(spec.id.to_string(), default);
         }
-    };
-    let floats: [(&str, &FloatParam); 9] = [
-        (ids::HAMMER_MASS, &d.hammer_mass),
-        (ids::HARDNESS, &d.hardness),
-        (ids::CONTACT_DAMPING, &d.contact_damping),
-        (ids::STRIKE_POS, &d.strike_pos),
-        (ids::DECAY, &d.decay),
-        (ids::DAMPER, &d.damper),
-        (ids::GRAVITY, &d.gravity),
-        (ids::DROP_HEIGHT, &d.drop_height_mm),
-        (ids::GAIN, &d.gain_db),
-    ];
-    for (id, p) in floats {
-        let ok = match state.params.get(id) {
-            Some(ParamValue::F32(v)) => float_in_range(p, *v),
-            _ => false,
-        };
-        fix(state, id, ok, ParamValue::F32(p.default_plain_value()));
     }
-    for (id, p) in [
-        (ids::STRIKE_CUSTOM, &d.strike_custom),
-        (ids::PITCH_TRACKING, &d.pitch_tracking),
-    ] {
-        let ok = matches!(state.params.get(id), Some(ParamValue::Bool(_)));
-        fix(state, id, ok, ParamValue::Bool(p.default_plain_value()));
-    }
-    let (ok, default) = enum_ok(state.params.get(ids::SCENE), &d.scene);
-    fix(state, ids::SCENE, ok, default);
-    let (ok, default) = enum_ok(state.params.get(ids::SWITCHING), &d.switching);
-    fix(state, ids::SWITCHING, ok, default);
     notes
 }
 
@@ -324,23 +597,6 @@ fn float_in_range(p: &FloatParam, v: f32) -> bool {
     }
     let back = p.preview_plain(p.preview_normalized(v));
     (back - v).abs() <= 1e-4 * v.abs().max(1.0)
-}
-
-/// Whether a stored enum value names a variant, and the default as stored.
-fn enum_ok<T: Enum + PartialEq>(v: Option<&ParamValue>, p: &EnumParam<T>) -> (bool, ParamValue) {
-    let ids = T::ids();
-    let n = T::variants().len();
-    let default = p.default_plain_value();
-    let stored = match ids {
-        Some(ids) => ParamValue::String(ids[default.to_index()].to_string()),
-        None => ParamValue::I32(default.to_index() as i32),
-    };
-    let ok = match (v, ids) {
-        (Some(ParamValue::String(s)), Some(ids)) => ids.contains(&s.as_str()),
-        (Some(ParamValue::I32(i)), _) => *i >= 0 && (*i as usize) < n,
-        _ => false,
-    };
-    (ok, stored)
 }
 
 #[cfg(test)]
@@ -365,6 +621,176 @@ mod tests {
         state
     }
 
+    /// The parameter `id` as nice-plug's wrappers see it.
+    fn ptr(p: &ModalContactParams, id: &str) -> ParamPtr {
+        p.param_map()
+            .into_iter()
+            .find(|(i, _, _)| i == id)
+            .unwrap_or_else(|| panic!("{id} not in the param map"))
+            .1
+    }
+
+    #[test]
+    fn ids_never_change() {
+        // The ids of the first release, in its order: saved projects and
+        // automation refer to them.
+        let shipped = [
+            "scene",
+            "hammer_mass",
+            "hardness",
+            "contact_damping",
+            "strike_custom",
+            "strike_pos",
+            "decay",
+            "damper",
+            "pitch_tracking",
+            "gravity",
+            "drop_height",
+            "gain",
+            "switching",
+        ];
+        assert_eq!(ids::ALL, shipped);
+        let listed: Vec<&str> = PARAMS.iter().map(|s| s.id).collect();
+        assert_eq!(listed, shipped);
+        let p = ModalContactParams::default();
+        let mapped: Vec<String> = p
+            .param_map()
+            .into_iter()
+            .map(|(id, _, g)| id + &g)
+            .collect();
+        assert_eq!(
+            mapped, shipped,
+            "the param map is the list, in order, ungrouped"
+        );
+    }
+
+    #[test]
+    fn every_parameter_is_built_from_its_entry() {
+        let p = ModalContactParams::default();
+        for s in PARAMS {
+            let q = ptr(&p, s.id);
+            // SAFETY (all the unsafe calls of these tests): `q` points into
+            // `p`, which outlives it.
+            unsafe {
+                assert_eq!(q.name(), s.name);
+                match s.kind {
+                    Kind::Float {
+                        min,
+                        max,
+                        default,
+                        unit,
+                        ..
+                    } => {
+                        assert_eq!(q.unit(), unit, "{}", s.id);
+                        assert_eq!(q.step_count(), None, "{}", s.id);
+                        let ends = (q.preview_plain(0.0), q.preview_plain(1.0));
+                        let tol = 1e-6 * max.abs().max(min.abs()).max(1.0);
+                        assert!(
+                            (ends.0 - min).abs() <= tol && (ends.1 - max).abs() <= tol,
+                            "{}: {ends:?}",
+                            s.id
+                        );
+                        assert_eq!(q.default_plain_value(), default, "{}", s.id);
+                        assert_eq!(q.unmodulated_plain_value(), default, "{}", s.id);
+                    }
+                    Kind::Bool { default } => {
+                        assert_eq!(q.step_count(), Some(1), "{}", s.id);
+                        assert_eq!(q.default_plain_value(), default as u8 as f32, "{}", s.id);
+                    }
+                    Kind::Choice {
+                        ids,
+                        names,
+                        default,
+                    } => {
+                        assert_eq!(ids.len(), names.len(), "{}", s.id);
+                        assert_eq!(q.step_count(), Some(ids.len() - 1), "{}", s.id);
+                        assert_eq!(q.default_plain_value(), default as f32, "{}", s.id);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn enumerated_values_show_names_and_parse_them() {
+        let p = ModalContactParams::default();
+        let mut choices = 0;
+        for s in PARAMS {
+            let Kind::Choice { names, .. } = s.kind else {
+                continue;
+            };
+            choices += 1;
+            let q = ptr(&p, s.id);
+            let last = (names.len() - 1) as f32;
+            for (i, name) in names.iter().enumerate() {
+                let norm = i as f32 / last;
+                unsafe {
+                    assert_eq!(q.normalized_value_to_string(norm, true), *name);
+                    assert_eq!(q.string_to_normalized_value(name), Some(norm), "{name}");
+                }
+            }
+        }
+        assert_eq!(choices, 2, "scene and switching");
+        // what the host shows for the scene: the preset titles
+        let q = ptr(&p, ids::SCENE);
+        let last = (presets::PRESETS.len() - 1) as f32;
+        for (i, (_, title)) in presets::SHIPPED.iter().enumerate() {
+            unsafe {
+                assert_eq!(q.normalized_value_to_string(i as f32 / last, false), *title);
+            }
+        }
+    }
+
+    #[test]
+    fn switching_ids_are_the_scene_file_spellings() {
+        for (i, id) in SwitchingMethods::IDS.iter().enumerate() {
+            assert_eq!(SWITCHING_METHOD[i].as_str(), *id);
+        }
+        assert_eq!(SwitchingMethods::IDS.len(), SwitchingMethods::NAMES.len());
+    }
+
+    /// A project saved before the parameters came from one list stores the
+    /// scene as nice-plug's `{"string": "<preset id>"}` (the derived enum had
+    /// `#[id]`s, the file stems). It must load as the same preset, at the
+    /// same index, shown under the same name; an unknown id loads the
+    /// default (with a note for the log).
+    #[test]
+    fn saved_scenes_load_as_the_same_preset() {
+        for (index, (id, title)) in presets::SHIPPED.iter().enumerate() {
+            let mut state = full_state();
+            state
+                .params
+                .insert(ids::SCENE.into(), ParamValue::String(id.to_string()));
+            assert!(migrate_state(&mut state).is_empty(), "{id} kept");
+            let p = ModalContactParams::default();
+            let ParamPtr::EnumParam(e) = ptr(&p, ids::SCENE) else {
+                panic!("scene is an enum parameter");
+            };
+            // what nice-plug's state loading does with a stored string
+            let ParamValue::String(stored) = &state.params[ids::SCENE] else {
+                panic!("stored as a string");
+            };
+            assert!(unsafe { (*e).set_from_id(stored) }, "{id}");
+            assert_eq!(p.scene_params().preset, index, "{id}");
+            assert_eq!(presets::PRESETS[index].name, *id);
+            assert_eq!(p.scene.to_string(), *title);
+            // and saving it again stores the same string
+            assert_eq!(unsafe { (*e).unmodulated_plain_id() }, Some(*id));
+        }
+        let mut state = full_state();
+        state.params.insert(
+            ids::SCENE.into(),
+            ParamValue::String("no-such-preset".into()),
+        );
+        let notes = migrate_state(&mut state);
+        assert_eq!(notes.len(), 1);
+        assert!(notes[0].starts_with("scene: invalid value"), "{notes:?}");
+        same!(
+            state.params[ids::SCENE],
+            ParamValue::String("marimba-bar".into())
+        );
+    }
+
     #[test]
     fn an_empty_older_state_gets_every_default() {
         let state = full_state();
@@ -382,6 +808,9 @@ mod tests {
             ParamValue::String("exact".into())
         );
         same!(state.params[ids::PITCH_TRACKING], ParamValue::Bool(true));
+        for s in PARAMS {
+            same!(state.params[s.id], s.default_value());
+        }
         // a filled-in state is left as it is
         let mut again = state.clone();
         assert!(migrate_state(&mut again).is_empty());
@@ -418,13 +847,12 @@ mod tests {
         same!(p[ids::SCENE], ParamValue::String("marimba-bar".into()));
         same!(p[ids::STRIKE_CUSTOM], ParamValue::Bool(false));
         same!(p["from_the_future"], ParamValue::F32(3.0));
-    }
-
-    #[test]
-    fn preset_choice_ids_match_the_embedded_presets() {
-        let ids = PresetChoice::ids().expect("ids are set");
-        let names: Vec<&str> = crate::presets::PRESETS.iter().map(|p| p.name).collect();
-        assert_eq!(ids, &names[..]);
+        // an index past the last choice is refused
+        let mut state = full_state();
+        state
+            .params
+            .insert(ids::SCENE.into(), ParamValue::I32(presets::COUNT as i32));
+        assert_eq!(migrate_state(&mut state).len(), 1);
     }
 
     #[test]
@@ -433,10 +861,82 @@ mod tests {
         let d = InstrumentParams::default();
         let got = p.instrument_params();
         assert_eq!(got.scene.preset, d.scene.preset);
-        assert_eq!(got.scene.strike_pos_norm, None);
+        assert_eq!(got.scene.strike_pos_norm, d.scene.strike_pos_norm);
         assert_eq!(got.scene.switching, d.scene.switching);
-        assert!((got.scene.hammer_mass_factor - 1.0).abs() < 1e-6);
-        assert!((got.play.gain_db - d.play.gain_db).abs() < 1e-6);
-        assert!((got.play.drop_height_m - d.play.drop_height_m).abs() < 1e-6);
+        assert_eq!(got.play.pitch_tracking, d.play.pitch_tracking);
+        // the list's f32 literals, read back as f64
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
+        for (what, a, b) in [
+            (
+                "hammer mass",
+                got.scene.hammer_mass_factor,
+                d.scene.hammer_mass_factor,
+            ),
+            (
+                "hardness",
+                got.scene.stiffness_factor,
+                d.scene.stiffness_factor,
+            ),
+            (
+                "contact damping",
+                got.scene.damping_factor,
+                d.scene.damping_factor,
+            ),
+            ("decay", got.scene.decay_scale, d.scene.decay_scale),
+            ("damper", got.scene.damper_norm, d.scene.damper_norm),
+            (
+                "gravity",
+                got.scene.gravity_m_per_s2,
+                d.scene.gravity_m_per_s2,
+            ),
+            ("drop height", got.play.drop_height_m, d.play.drop_height_m),
+            ("gain", got.play.gain_db, d.play.gain_db),
+        ] {
+            assert!(close(a, b), "{what}: {a} vs the instrument's {b}");
+        }
+    }
+
+    /// Each entry's `applies` says what the instrument does with it: moving a
+    /// `Recompile` parameter changes the compile request and nothing else,
+    /// moving any other one changes only what is read without a compile.
+    #[test]
+    fn applies_matches_the_instrument() {
+        let base = || {
+            let p = ModalContactParams::default();
+            // with a custom strike position, so that Strike position counts
+            unsafe {
+                ptr(&p, ids::STRIKE_CUSTOM)._internal_set_normalized_value(1.0);
+            }
+            p
+        };
+        let b = base();
+        for s in PARAMS {
+            let p = base();
+            let q = ptr(&p, s.id);
+            unsafe {
+                let now = q.unmodulated_normalized_value();
+                q._internal_set_normalized_value(if now < 0.5 { 1.0 } else { 0.0 });
+            }
+            let scene_moved = p.scene_params() != b.scene_params();
+            let play_moved = p.play_params() != b.play_params();
+            assert_eq!(
+                (scene_moved, play_moved),
+                (
+                    s.applies == Applies::Recompile,
+                    s.applies != Applies::Recompile
+                ),
+                "{}: {:?}",
+                s.id,
+                s.applies
+            );
+        }
+    }
+
+    #[test]
+    fn spec_finds_every_entry() {
+        for s in PARAMS {
+            assert_eq!(spec(s.id), Some(s));
+        }
+        assert_eq!(spec("no_such_parameter"), None);
     }
 }

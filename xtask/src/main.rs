@@ -12,8 +12,11 @@
 //! - `cargo xtask report [--quick] [--out DIR] [--only SECTION] [--scene NAME]`
 //! - `cargo xtask golden [--write]`: bit-identical renders against
 //!   `tests/golden-hashes.txt`
+//! - `cargo xtask param-docs [--check]`: the parameter and scene tables of
+//!   `docs/plugin.md`, from the plugin's own lists
 
 mod golden;
+mod paramdocs;
 mod plot;
 mod report;
 
@@ -52,9 +55,21 @@ enum Command {
     /// Check that every preset and stability case renders bit-identically
     /// to tests/golden-hashes.txt.
     Golden(golden::GoldenArgs),
+    /// Write the parameter and scene tables of docs/plugin.md from the
+    /// plugin's own lists.
+    ParamDocs(ParamDocsArgs),
     /// Anything else: nice-plug's xtask (`bundle`, `bundle-universal`, ...).
     #[command(external_subcommand)]
     NicePlug(Vec<String>),
+}
+
+/// `cargo xtask param-docs [--check]`.
+#[derive(Args, Debug)]
+struct ParamDocsArgs {
+    /// Fail (showing the first differing line) instead of writing when
+    /// docs/plugin.md is not what the lists generate.
+    #[arg(long)]
+    check: bool,
 }
 
 /// `cargo xtask test [CARGO TEST ARGS]`.
@@ -120,6 +135,7 @@ fn main() -> Result<()> {
         Some(Command::Test(_)) => run_tests(&argv[2..]),
         Some(Command::Demo) => run_demo(),
         Some(Command::Golden(a)) => golden::run(a),
+        Some(Command::ParamDocs(a)) => paramdocs::run(a.check),
         Some(Command::NicePlug(args)) => nice_plug_xtask::main_with_args("cargo xtask", args),
         None => nice_plug_xtask::main(),
     }
