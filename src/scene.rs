@@ -483,6 +483,17 @@ impl Scene {
         if self.object.is_empty() {
             return Err(SceneError::new("object", "at least one object is needed"));
         }
+        self.validate_objects()?;
+        if let Some(a) = &self.approximate {
+            a.validate()?;
+        }
+        self.hammer.validate()?;
+        self.validate_contact()?;
+        self.validate_pickups()
+    }
+
+    /// Names unique and non-empty, each object's own values.
+    fn validate_objects(&self) -> Result<(), SceneError> {
         for (i, obj) in self.object.iter().enumerate() {
             let base = format!("object[{i}]");
             if obj.name().is_empty() {
@@ -500,42 +511,12 @@ impl Scene {
                 ObjectSpec::Wall(_) => {}
             }
         }
-        if let Some(a) = &self.approximate {
-            if let Some(f) = a.max_freq_hz {
-                check_positive("approximate.max_freq_hz", f)?;
-            }
-            if let Some(f) = a.nyquist_fraction {
-                check_positive("approximate.nyquist_fraction", f)?;
-            }
-            if let Some(db) = a.quiet_below_db {
-                check_finite("approximate.quiet_below_db", db)?;
-                if db >= 0.0 {
-                    return Err(SceneError::new(
-                        "approximate.quiet_below_db",
-                        format!("must be < 0 dB, got {db}"),
-                    ));
-                }
-            }
-        }
-        let h = &self.hammer;
-        check_positive("hammer.mass_kg", h.mass_kg)?;
-        check_min("hammer.mass_kg", h.mass_kg, MIN_MASS_KG)?;
-        check_max("hammer.mass_kg", h.mass_kg, MAX_MASS_KG)?;
-        check_non_negative("hammer.height_m", h.height_m)?;
-        check_max("hammer.height_m", h.height_m, MAX_HEIGHT_M)?;
-        check_finite("hammer.velocity_m_per_s", h.velocity_m_per_s)?;
-        check_abs_max(
-            "hammer.velocity_m_per_s",
-            h.velocity_m_per_s,
-            MAX_SPEED_M_PER_S,
-        )?;
-        check_non_negative("hammer.gravity_m_per_s2", h.gravity_m_per_s2)?;
-        check_max(
-            "hammer.gravity_m_per_s2",
-            h.gravity_m_per_s2,
-            MAX_GRAVITY_M_PER_S2,
-        )?;
+        Ok(())
+    }
 
+    /// The struck object and point exist (a wall has none), and the
+    /// spring-damper's values.
+    fn validate_contact(&self) -> Result<(), SceneError> {
         let c = &self.contact;
         let Some(obj_idx) = self.object_index(&c.object) else {
             return Err(SceneError::new(
@@ -587,7 +568,11 @@ impl Scene {
             c.damping_n_s_per_m,
             MAX_DAMPING_N_S_PER_M,
         )?;
+        Ok(())
+    }
 
+    /// Each pickup's object and point exist; gain and pan.
+    fn validate_pickups(&self) -> Result<(), SceneError> {
         for (i, p) in self.pickup.iter().enumerate() {
             let base = format!("pickup[{i}]");
             let Some(oi) = self.object_index(&p.object) else {
@@ -612,6 +597,52 @@ impl Scene {
                 ));
             }
         }
+        Ok(())
+    }
+}
+
+impl ApproxSpec {
+    fn validate(&self) -> Result<(), SceneError> {
+        if let Some(f) = self.max_freq_hz {
+            check_positive("approximate.max_freq_hz", f)?;
+        }
+        if let Some(f) = self.nyquist_fraction {
+            check_positive("approximate.nyquist_fraction", f)?;
+        }
+        if let Some(db) = self.quiet_below_db {
+            check_finite("approximate.quiet_below_db", db)?;
+            if db >= 0.0 {
+                return Err(SceneError::new(
+                    "approximate.quiet_below_db",
+                    format!("must be < 0 dB, got {db}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl HammerSpec {
+    fn validate(&self) -> Result<(), SceneError> {
+        let h = self;
+        check_positive("hammer.mass_kg", h.mass_kg)?;
+        check_min("hammer.mass_kg", h.mass_kg, MIN_MASS_KG)?;
+        check_max("hammer.mass_kg", h.mass_kg, MAX_MASS_KG)?;
+        check_non_negative("hammer.height_m", h.height_m)?;
+        check_max("hammer.height_m", h.height_m, MAX_HEIGHT_M)?;
+        check_finite("hammer.velocity_m_per_s", h.velocity_m_per_s)?;
+        check_abs_max(
+            "hammer.velocity_m_per_s",
+            h.velocity_m_per_s,
+            MAX_SPEED_M_PER_S,
+        )?;
+        check_non_negative("hammer.gravity_m_per_s2", h.gravity_m_per_s2)?;
+        check_max(
+            "hammer.gravity_m_per_s2",
+            h.gravity_m_per_s2,
+            MAX_GRAVITY_M_PER_S2,
+        )?;
+
         Ok(())
     }
 }

@@ -30,6 +30,8 @@ pub enum SecularError {
         count: usize,
         /// Of how many.
         of: usize,
+        /// Sweeps run before giving up.
+        sweeps: usize,
     },
     /// Roots not in conjugate pairs.
     NotConjugate {
@@ -64,10 +66,9 @@ impl fmt::Display for SecularError {
             Self::IterationBrokeDown { sweep } => {
                 write!(f, "the iteration broke down (sweep {sweep})")
             }
-            Self::NotConverged { count, of } => write!(
+            Self::NotConverged { count, of, sweeps } => write!(
                 f,
-                "{count} of {of} roots did not converge in {} sweeps",
-                crate::physics::secular::MAX_SWEEPS
+                "{count} of {of} roots did not converge in {sweeps} sweeps"
             ),
             Self::NotConjugate { upper, lower, real } => write!(
                 f,

@@ -1,5 +1,5 @@
 //! The contact system of a modal object struck at one point, decomposed
-//! through its rank-one structure (NUMERICS.md sections 2 and 6): O(N^2)
+//! through its rank-one structure (docs/numerics.md, "Decomposing a phase"): O(N^2)
 //! instead of a general O(N^3) eigensolver.
 //!
 //! Modes `q_i'' + 2 sigma_i q_i' + omega_i^2 q_i = -f_i F`, hammer
@@ -204,55 +204,86 @@ fn mode_poles(omega: f64, sigma: f64) -> [C; 2] {
 }
 
 /// Decompose the contact phase of `mc` (see the module doc). O(N^2) time,
-/// O(N^2) memory for `V` and `V^{-1}`.
+/// O(N^2) memory for `V` and `V^{-1}`. Four stages: the problem's factors,
+/// the roots, their eigenvectors sorted into conjugate pairs and real
+/// pairs, and the blocks with `V` and `V^{-1}`.
 pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, SecularError> {
-    let n = mc.omega.len();
-    if mc.sigma.len() != n || mc.f.len() != n {
-        return Err(SecularError::MismatchedData);
+    let prob = Problem::new(mc)?;
+    let roots = solve_roots(&prob, mc)?;
+    let (complex, real) = eigenpairs(&prob, mc, &roots)?;
+    let mut out = Assembly::new(2 * mc.omega.len() + 2);
+    for (z, r, ev) in &complex {
+        out.put_conjugate_pair(&prob, mc, r, *z, ev)?;
     }
-    let ok = |x: f64| x.is_finite();
-    if !(mc.k > 0.0 && ok(mc.k) && mc.c >= 0.0 && ok(mc.c) && mc.m_h > 0.0 && ok(mc.m_h)) {
-        return Err(SecularError::ContactOutOfRange);
-    }
-    for i in 0..n {
-        if !(mc.omega[i] > 0.0 && ok(mc.omega[i]) && mc.sigma[i] >= 0.0 && ok(mc.sigma[i])) {
-            return Err(SecularError::ModeOutOfRange(i));
+    for &(i1, i2, crit) in &real_pairs(&real, mc.omega.len()) {
+        if crit {
+            let (z1, r1, _) = &real[i1];
+            let z2 = real[i2].0;
+            out.put_near_critical(&prob, mc, r1, C::new(*z1, 0.0), C::new(z2, 0.0))?;
+        } else {
+            out.put_real_pair(mc.omega.len(), &real[i1], &real[i2])?;
         }
-        if !(mc.f[i] != 0.0 && ok(mc.f[i])) {
-            return Err(SecularError::ModeNotCoupled(i));
-        }
     }
-    let dim = 2 * n + 2;
-    let mut factors: Vec<Factor> = (0..n)
-        .map(|i| Factor {
-            p: mode_poles(mc.omega[i], mc.sigma[i]),
-            g: mc.f[i] * mc.f[i],
+    out.finish()
+}
+
+impl Problem {
+    /// The factors of `P` for a valid `mc`; refuses out-of-range data and
+    /// two modes sharing a pole.
+    fn new(mc: &ModalContact) -> Result<Self, SecularError> {
+        let n = mc.omega.len();
+        if mc.sigma.len() != n || mc.f.len() != n {
+            return Err(SecularError::MismatchedData);
+        }
+        let ok = |x: f64| x.is_finite();
+        if !(mc.k > 0.0 && ok(mc.k) && mc.c >= 0.0 && ok(mc.c) && mc.m_h > 0.0 && ok(mc.m_h)) {
+            return Err(SecularError::ContactOutOfRange);
+        }
+        for i in 0..n {
+            if !(mc.omega[i] > 0.0 && ok(mc.omega[i]) && mc.sigma[i] >= 0.0 && ok(mc.sigma[i])) {
+                return Err(SecularError::ModeOutOfRange(i));
+            }
+            if !(mc.f[i] != 0.0 && ok(mc.f[i])) {
+                return Err(SecularError::ModeNotCoupled(i));
+            }
+        }
+        let mut factors: Vec<Factor> = (0..n)
+            .map(|i| Factor {
+                p: mode_poles(mc.omega[i], mc.sigma[i]),
+                g: mc.f[i] * mc.f[i],
+            })
+            .collect();
+        factors.push(Factor {
+            p: [C::new(0.0, 0.0); 2],
+            g: 1.0 / mc.m_h,
+        });
+        // Equal poles of two modes: a combination of them does not couple, and
+        // its eigenvector is not of the closed form (deflation would be needed).
+        let mut poles: Vec<(f64, f64)> = factors[..n]
+            .iter()
+            .flat_map(|f| f.p.iter().map(|p| (p.re, p.im)))
+            .collect();
+        poles.sort_by(|x, y| x.1.total_cmp(&y.1).then(x.0.total_cmp(&y.0)));
+        for w in poles.windows(2) {
+            let (a, b) = (C::new(w[0].0, w[0].1), C::new(w[1].0, w[1].1));
+            if (a - b).norm() <= 1e-12 * a.norm().max(b.norm()) {
+                return Err(SecularError::SharedPole);
+            }
+        }
+        Ok(Problem {
+            factors,
+            k: mc.k,
+            c: mc.c,
         })
-        .collect();
-    factors.push(Factor {
-        p: [C::new(0.0, 0.0); 2],
-        g: 1.0 / mc.m_h,
-    });
-    // Equal poles of two modes: a combination of them does not couple, and
-    // its eigenvector is not of the closed form (deflation would be needed).
-    let mut poles: Vec<(f64, f64)> = factors[..n]
-        .iter()
-        .flat_map(|f| f.p.iter().map(|p| (p.re, p.im)))
-        .collect();
-    poles.sort_by(|x, y| x.1.total_cmp(&y.1).then(x.0.total_cmp(&y.0)));
-    for w in poles.windows(2) {
-        let (a, b) = (C::new(w[0].0, w[0].1), C::new(w[1].0, w[1].1));
-        if (a - b).norm() <= 1e-12 * a.norm().max(b.norm()) {
-            return Err(SecularError::SharedPole);
-        }
     }
-    let prob = Problem {
-        factors,
-        k: mc.k,
-        c: mc.c,
-    };
-    // Starting points: every mode's poles; the hammer's pair at the rigid
-    // contact frequency.
+}
+
+/// The `2 n + 2` roots of `P` by Aberth-Ehrlich iteration (Gauss-Seidel
+/// order), started from every mode's poles and the hammer's pair at the
+/// rigid contact frequency.
+fn solve_roots(prob: &Problem, mc: &ModalContact) -> Result<Vec<Root>, SecularError> {
+    let n = mc.omega.len();
+    let dim = 2 * n + 2;
     let mut roots: Vec<Root> = Vec::with_capacity(dim);
     for j in 0..n {
         for a in 0..2 {
@@ -275,7 +306,6 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, SecularError> {
         roots.push(r);
     }
 
-    // Aberth-Ehrlich, Gauss-Seidel order.
     let mut converged = vec![false; dim];
     let mut sweeps = 0;
     let mut polish = 0;
@@ -312,60 +342,79 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, SecularError> {
         return Err(SecularError::NotConverged {
             count: converged.iter().filter(|c| !**c).count(),
             of: dim,
+            sweeps,
         });
     }
-    // Passivity is exact: no eigenvalue of the contact phase has a positive
-    // real part, and a lossless one has none at all (A is skew). Rounding
-    // may leave +-1e-16 |z|; it is removed.
+    Ok(roots)
+}
+
+/// The eigenvector of root `r` in energy coordinates, unnormalised (force
+/// 1, times the anchor's factor).
+fn eigenvector(prob: &Problem, mc: &ModalContact, r: &Root) -> Vec<C> {
+    let n = mc.omega.len();
+    let base = prob.pole(r);
+    let z = base + r.delta;
+    let fj = &prob.factors[r.j];
+    let (dj, _) = fj.eval_anchored(r.a, r.delta);
+    let mut v = vec![C::new(0.0, 0.0); 2 * n + 2];
+    for i in 0..n {
+        // D_j / D_i (1 for the anchor)
+        let ratio = if i == r.j {
+            C::new(1.0, 0.0)
+        } else {
+            dj / prob.factors[i].eval_at(base, r.delta).0
+        };
+        v[i] = ratio * (-mc.f[i] * mc.omega[i]);
+        v[n + 1 + i] = ratio * z * (-mc.f[i]);
+    }
+    v[n] = dj * mc.k.sqrt() / (C::new(mc.k, 0.0) + z * mc.c);
+    v[2 * n + 1] = dj / (z * mc.m_h.sqrt());
+    v
+}
+
+/// `v / |v|`.
+fn unit(mut v: Vec<C>) -> Vec<C> {
+    let norm = v.iter().map(|x| x.norm_sqr()).sum::<f64>().sqrt();
+    for x in v.iter_mut() {
+        *x /= norm;
+    }
+    v
+}
+
+/// `v^T J v` (bilinear): positions (the first `n + 1` entries) minus
+/// momenta.
+fn jnorm(v: &[C], n: usize) -> C {
+    let mut acc = C::new(0.0, 0.0);
+    for (i, x) in v.iter().enumerate() {
+        if i <= n {
+            acc += x * x;
+        } else {
+            acc -= x * x;
+        }
+    }
+    acc
+}
+
+/// A complex root (upper half plane) and a real root, each with its root
+/// and unit eigenvector.
+type ComplexPair = (C, Root, Vec<C>);
+type RealRoot = (f64, Root, Vec<C>);
+
+/// The roots' unit eigenvectors: one per conjugate pair (its upper
+/// member) and one per real root (polished on the real axis), the real ones
+/// sorted. Passivity is exact: no eigenvalue of the contact phase has a
+/// positive real part, and a lossless one has none at all (A is skew);
+/// rounding may leave +-1e-16 |z|, which is removed here.
+fn eigenpairs(
+    prob: &Problem,
+    mc: &ModalContact,
+    roots: &[Root],
+) -> Result<(Vec<ComplexPair>, Vec<RealRoot>), SecularError> {
     let lossless = mc.c == 0.0 && mc.sigma.iter().all(|&s| s == 0.0);
-
-    // Eigenvectors (unnormalised: force 1, times the anchor's factor).
-    let sk = mc.k.sqrt();
-    let sm = mc.m_h.sqrt();
-    let raw_vec = |r: &Root| -> Vec<C> {
-        let base = prob.pole(r);
-        let z = base + r.delta;
-        let fj = &prob.factors[r.j];
-        let (dj, _) = fj.eval_anchored(r.a, r.delta);
-        let mut v = vec![C::new(0.0, 0.0); dim];
-        for i in 0..n {
-            // D_j / D_i (1 for the anchor)
-            let ratio = if i == r.j {
-                C::new(1.0, 0.0)
-            } else {
-                dj / prob.factors[i].eval_at(base, r.delta).0
-            };
-            v[i] = ratio * (-mc.f[i] * mc.omega[i]);
-            v[n + 1 + i] = ratio * z * (-mc.f[i]);
-        }
-        v[n] = dj * sk / (C::new(mc.k, 0.0) + z * mc.c);
-        v[2 * n + 1] = dj / (z * sm);
-        v
-    };
-    let unit = |mut v: Vec<C>| -> Vec<C> {
-        let norm = v.iter().map(|x| x.norm_sqr()).sum::<f64>().sqrt();
-        for x in v.iter_mut() {
-            *x /= norm;
-        }
-        v
-    };
-    // v^T J v (bilinear): positions minus momenta.
-    let jnorm = |v: &[C]| -> C {
-        let mut acc = C::new(0.0, 0.0);
-        for (i, x) in v.iter().enumerate() {
-            if i <= n {
-                acc += x * x;
-            } else {
-                acc -= x * x;
-            }
-        }
-        acc
-    };
-
-    let mut complex: Vec<(C, Root, Vec<C>)> = Vec::new();
-    let mut real: Vec<(f64, Root, Vec<C>)> = Vec::new();
+    let mut complex: Vec<ComplexPair> = Vec::new();
+    let mut real: Vec<RealRoot> = Vec::new();
     let mut n_lower = 0;
-    for r in &roots {
+    for r in roots {
         let mut z = prob.z(r);
         if lossless {
             z.re = 0.0;
@@ -381,9 +430,13 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, SecularError> {
             for _ in 0..3 {
                 rr.delta.re -= prob.newton(&rr).re;
             }
-            real.push((prob.z(&rr).re.min(0.0), rr, unit(raw_vec(&rr))));
+            real.push((
+                prob.z(&rr).re.min(0.0),
+                rr,
+                unit(eigenvector(prob, mc, &rr)),
+            ));
         } else if z.im > 0.0 {
-            complex.push((z, *r, unit(raw_vec(r))));
+            complex.push((z, *r, unit(eigenvector(prob, mc, r))));
         } else {
             n_lower += 1;
         }
@@ -396,122 +449,161 @@ pub fn decompose(mc: &ModalContact) -> Result<BlockEigen, SecularError> {
         });
     }
     real.sort_by(|x, y| x.0.total_cmp(&y.0));
-    let cond = |v: &[C]| 1.0 / jnorm(v).norm();
-    // Near-critical real roots (adjacent, within a factor of each other,
-    // ill-conditioned) are paired together; the others in order.
-    let mut real_pairs: Vec<(usize, usize, bool)> = Vec::new();
-    {
-        let mut used = vec![false; real.len()];
-        for i in 0..real.len().saturating_sub(1) {
-            if used[i] || used[i + 1] {
-                continue;
-            }
-            let (z1, z2) = (real[i].0, real[i + 1].0);
-            let close = (z1 - z2).abs() < NEAR_CRITICAL_GAP * z1.abs().max(z2.abs());
-            let ill = cond(&real[i].2).max(cond(&real[i + 1].2)) > NEAR_CRITICAL_COND;
-            if close && ill {
-                used[i] = true;
-                used[i + 1] = true;
-                real_pairs.push((i, i + 1, true));
-            }
+    Ok((complex, real))
+}
+
+/// The real roots in pairs `(i, j, near_critical)`: adjacent roots within
+/// [`NEAR_CRITICAL_GAP`] of each other and ill-conditioned are paired as
+/// near critical, the others in order.
+fn real_pairs(real: &[RealRoot], n: usize) -> Vec<(usize, usize, bool)> {
+    let cond = |v: &[C]| 1.0 / jnorm(v, n).norm();
+    let mut pairs = Vec::new();
+    let mut used = vec![false; real.len()];
+    for i in 0..real.len().saturating_sub(1) {
+        if used[i] || used[i + 1] {
+            continue;
         }
-        let rest: Vec<usize> = (0..real.len()).filter(|&i| !used[i]).collect();
-        for ch in rest.chunks(2) {
-            real_pairs.push((ch[0], ch[1], false));
+        let (z1, z2) = (real[i].0, real[i + 1].0);
+        let close = (z1 - z2).abs() < NEAR_CRITICAL_GAP * z1.abs().max(z2.abs());
+        let ill = cond(&real[i].2).max(cond(&real[i + 1].2)) > NEAR_CRITICAL_COND;
+        if close && ill {
+            used[i] = true;
+            used[i + 1] = true;
+            pairs.push((i, i + 1, true));
+        }
+    }
+    let rest: Vec<usize> = (0..real.len()).filter(|&i| !used[i]).collect();
+    for ch in rest.chunks(2) {
+        pairs.push((ch[0], ch[1], false));
+    }
+    pairs
+}
+
+/// The blocks, `V` and `V^{-1}` as they are filled, block by block.
+///
+/// Each row of `V^-1` is `J v_j / (v_j^T J v_j)`; with `|v_j| = 1`,
+/// `1 / |v_j^T J v_j|` is the condition number of eigenvalue `j`, and the
+/// row's rounding error grows with it (the propagator's with its product
+/// with `kappa(V)`). Past [`ROW_COND_MAX`] the inverse is taken by LU
+/// instead (O(N^3), but one blocked factorisation, far cheaper than the
+/// eigensolver).
+struct Assembly {
+    gens: Vec<Mat2>,
+    v: DMatrix<f64>,
+    vinv: DMatrix<f64>,
+    worst_cond: f64,
+    nb: usize,
+}
+
+impl Assembly {
+    fn new(dim: usize) -> Self {
+        Self {
+            gens: Vec::with_capacity(dim / 2),
+            v: DMatrix::zeros(dim, dim),
+            vinv: DMatrix::zeros(dim, dim),
+            worst_cond: 1.0,
+            nb: dim / 2,
         }
     }
 
-    let nb = dim / 2;
-    let mut gens: Vec<Mat2> = Vec::with_capacity(nb);
-    let mut v = DMatrix::zeros(dim, dim);
-    let mut vinv = DMatrix::zeros(dim, dim);
-    let sign = |i: usize| if i <= n { 1.0 } else { -1.0 };
-    let s2 = std::f64::consts::SQRT_2;
-    // Each row of V^-1 is J v_j / (v_j^T J v_j); with |v_j| = 1, 1 / |v_j^T J
-    // v_j| is the condition number of eigenvalue j, and the row's rounding
-    // error grows with it (the propagator's with its product with kappa(V)).
-    // Past ROW_COND_MAX the inverse is taken by LU instead (O(N^3), but one
-    // blocked factorisation, far cheaper than the eigensolver).
-    let mut worst_cond: f64 = 1.0;
-    // A near-critical pair gets the orthonormal basis of its invariant
-    // subspace instead of its (nearly parallel) eigenvectors.
-    let near_critical = |kb: usize,
-                         gens: &mut Vec<Mat2>,
-                         v: &mut DMatrix<f64>,
-                         vinv: &mut DMatrix<f64>,
-                         r: &Root,
-                         z1: C,
-                         z2: C|
-     -> Result<(), SecularError> {
-        let (g, q, rows) = pair_basis(&prob, mc, r, z1, z2)?;
-        for i in 0..dim {
-            v[(i, kb)] = q[0][i];
-            v[(i, nb + kb)] = q[1][i];
-            vinv[(kb, i)] = rows[0][i];
-            vinv[(nb + kb, i)] = rows[1][i];
+    /// `+1` on positions, `-1` on momenta (the diagonal of `J`).
+    fn sign(i: usize, n: usize) -> f64 {
+        if i <= n {
+            1.0
+        } else {
+            -1.0
         }
-        gens.push(g);
-        Ok(())
-    };
-    for (z, r, ev) in &complex {
-        let kb = gens.len();
-        let nj = jnorm(ev);
-        if !(nj.norm() > 0.0) || 1.0 / nj.norm() > NEAR_CRITICAL_COND {
-            near_critical(kb, &mut gens, &mut v, &mut vinv, r, *z, z.conj())?;
-            continue;
-        }
-        worst_cond = worst_cond.max(1.0 / nj.norm());
-        let inv_n = nj.inv();
-        for i in 0..dim {
-            v[(i, kb)] = s2 * ev[i].re;
-            v[(i, nb + kb)] = s2 * ev[i].im;
-            let w = ev[i] * sign(i) * inv_n;
-            vinv[(kb, i)] = s2 * w.re;
-            vinv[(nb + kb, i)] = -s2 * w.im;
-        }
-        gens.push([z.re, z.im, -z.im, z.re]);
     }
-    for &(i1, i2, crit) in &real_pairs {
-        let kb = gens.len();
-        if crit {
-            let (z1, r1, _) = &real[i1];
-            let z2 = real[i2].0;
-            near_critical(
-                kb,
-                &mut gens,
-                &mut v,
-                &mut vinv,
-                r1,
-                C::new(*z1, 0.0),
-                C::new(z2, 0.0),
-            )?;
-            continue;
+
+    /// A near-critical pair: the orthonormal basis of its invariant
+    /// subspace instead of its (nearly parallel) eigenvectors.
+    fn put_near_critical(
+        &mut self,
+        prob: &Problem,
+        mc: &ModalContact,
+        r: &Root,
+        z1: C,
+        z2: C,
+    ) -> Result<(), SecularError> {
+        let (kb, nb) = (self.gens.len(), self.nb);
+        let (g, q, rows) = pair_basis(prob, mc, r, z1, z2)?;
+        for i in 0..2 * nb {
+            self.v[(i, kb)] = q[0][i];
+            self.v[(i, nb + kb)] = q[1][i];
+            self.vinv[(kb, i)] = rows[0][i];
+            self.vinv[(nb + kb, i)] = rows[1][i];
         }
-        for (off, idx) in [i1, i2].into_iter().enumerate() {
-            let ev = &real[idx].2;
-            let col = if off == 0 { kb } else { nb + kb };
-            let nj = jnorm(ev).re;
+        self.gens.push(g);
+        Ok(())
+    }
+
+    /// A conjugate pair `z, conj z` as one real block on `sqrt(2) (Re v,
+    /// Im v)` (near critical: [`Assembly::put_near_critical`]).
+    fn put_conjugate_pair(
+        &mut self,
+        prob: &Problem,
+        mc: &ModalContact,
+        r: &Root,
+        z: C,
+        ev: &[C],
+    ) -> Result<(), SecularError> {
+        let n = mc.omega.len();
+        let nj = jnorm(ev, n);
+        if !(nj.norm() > 0.0) || 1.0 / nj.norm() > NEAR_CRITICAL_COND {
+            return self.put_near_critical(prob, mc, r, z, z.conj());
+        }
+        let (kb, nb) = (self.gens.len(), self.nb);
+        let s2 = std::f64::consts::SQRT_2;
+        self.worst_cond = self.worst_cond.max(1.0 / nj.norm());
+        let inv_n = nj.inv();
+        for i in 0..2 * nb {
+            self.v[(i, kb)] = s2 * ev[i].re;
+            self.v[(i, nb + kb)] = s2 * ev[i].im;
+            let w = ev[i] * Self::sign(i, n) * inv_n;
+            self.vinv[(kb, i)] = s2 * w.re;
+            self.vinv[(nb + kb, i)] = -s2 * w.im;
+        }
+        self.gens.push([z.re, z.im, -z.im, z.re]);
+        Ok(())
+    }
+
+    /// Two well-separated real roots as one diagonal block.
+    fn put_real_pair(
+        &mut self,
+        n: usize,
+        first: &RealRoot,
+        second: &RealRoot,
+    ) -> Result<(), SecularError> {
+        let (kb, nb) = (self.gens.len(), self.nb);
+        for (col, (_, _, ev)) in [(kb, first), (nb + kb, second)] {
+            let nj = jnorm(ev, n).re;
             if !(nj.abs() > 0.0) {
                 return Err(SecularError::Defective);
             }
-            worst_cond = worst_cond.max(1.0 / nj.abs());
-            for i in 0..dim {
-                v[(i, col)] = ev[i].re;
-                vinv[(col, i)] = ev[i].re * sign(i) / nj;
+            self.worst_cond = self.worst_cond.max(1.0 / nj.abs());
+            for i in 0..2 * nb {
+                self.v[(i, col)] = ev[i].re;
+                self.vinv[(col, i)] = ev[i].re * Self::sign(i, n) / nj;
             }
         }
-        gens.push([real[i1].0, 0.0, 0.0, real[i2].0]);
+        self.gens.push([first.0, 0.0, 0.0, second.0]);
+        Ok(())
     }
-    if v.iter().any(|x| !x.is_finite()) {
-        return Err(SecularError::NotFinite("eigenvectors"));
+
+    /// Checks finiteness; `V^{-1}` by LU when a row would be too
+    /// ill-conditioned.
+    fn finish(mut self) -> Result<BlockEigen, SecularError> {
+        if self.v.iter().any(|x| !x.is_finite()) {
+            return Err(SecularError::NotFinite("eigenvectors"));
+        }
+        if self.worst_cond > ROW_COND_MAX {
+            self.vinv = crate::physics::linalg::inverse(&self.v).ok_or(SecularError::Singular)?;
+        }
+        if self.vinv.iter().any(|x| !x.is_finite()) {
+            return Err(SecularError::NotFinite("inverse"));
+        }
+        Ok((self.gens, self.v, self.vinv))
     }
-    if worst_cond > ROW_COND_MAX {
-        vinv = crate::physics::linalg::inverse(&v).ok_or(SecularError::Singular)?;
-    }
-    if vinv.iter().any(|x| !x.is_finite()) {
-        return Err(SecularError::NotFinite("inverse"));
-    }
-    Ok((gens, v, vinv))
 }
 
 /// Eigenvalues whose condition number `1 / |v^T J v|` (unit `v`) exceeds
