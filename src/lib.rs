@@ -1,7 +1,7 @@
 //! Energy-stable modal contact instrument (after Rath, "Energy-stable modelling
 //! of contacting modal objects with piece-wise linear interaction force").
 //!
-//! Layers (DESIGN.md section 4): [`scene`] (parse, validate) -> [`compile`]
+//! Layers (docs/design.md, "Layers"): [`scene`] (parse, validate) -> [`compile`]
 //! (off the audio thread: decompositions, propagators) -> [`compile::CompiledScene`]
 //! -> [`engine`] (per sample, allocation-free) ; [`render`] drives it offline.
 

@@ -1,5 +1,5 @@
 //! Offline rendering: scene -> compile -> engine, with an optional trace
-//! (DESIGN.md section 5). Used by `cargo xtask render`, the report and tests.
+//! (docs/design.md, "The render command and the trace CSV"). Used by `cargo xtask render`, the report and tests.
 
 use crate::compile::{compile_with, CompileError, CompiledScene};
 use crate::engine::{EngineState, ExactStats, Observation};
@@ -30,7 +30,7 @@ impl Default for RenderOptions {
     }
 }
 
-/// One trace row (DESIGN.md section 5): row `n` is time `n / fs`.
+/// One trace row (docs/design.md, "The render command and the trace CSV"): row `n` is time `n / fs`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TraceRow {
     /// Time \[s\].
@@ -161,7 +161,7 @@ pub fn render_compiled(compiled: &CompiledScene, n: usize, trace: bool) -> Rende
     }
 }
 
-/// The trace CSV header (DESIGN.md section 5).
+/// The trace CSV header (docs/design.md, "The render command and the trace CSV").
 pub const TRACE_HEADER: &str = "t,x_hammer,v_hammer,x_contact,v_contact,in_contact,energy";
 
 /// Write trace rows as CSV (full f64 precision, round-trip exact).

@@ -1,4 +1,4 @@
-//! Scene files: the editable description of an instrument (DESIGN.md section 5).
+//! Scene files: the editable description of an instrument (docs/design.md, "Scene files").
 //!
 //! A scene is parsed from TOML with serde (`deny_unknown_fields` everywhere, so a
 //! misspelt key is an error, not silence) and then validated. Every error names
@@ -15,7 +15,7 @@ use std::fmt;
 pub const SCENE_VERSION: u32 = 1;
 /// Largest number of lumped masses in a `kind = "string"` object. The contact
 /// system has `2 * masses + 2` states and is diagonalised off the audio thread;
-/// 2000 masses already take seconds (NUMERICS.md section 2, X9).
+/// 2000 masses already take seconds (docs/numerics.md, "Decomposing a phase").
 pub const MAX_STRING_MASSES: usize = 2000;
 /// Largest number of modes in one modal object (same reason as above).
 pub const MAX_MODES_PER_OBJECT: usize = 4000;
@@ -272,7 +272,7 @@ pub struct StringSpec {
 impl StringSpec {
     /// Natural frequency of mode `j` (1..=masses) of the undamped
     /// fixed-fixed chain \[Hz\]: `omega_j = 2 sqrt(s/m) sin(j pi / (2 (n + 1)))`
-    /// (docs/design.md, "Objects"). The one closed form of the string's
+    /// (docs/design.md, "Conventions and units"). The one closed form of the string's
     /// modes: validation, summaries and the instrument's root note use it.
     pub fn mode_freq_hz(&self, j: usize) -> f64 {
         let omega = 2.0

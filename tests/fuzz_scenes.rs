@@ -1,4 +1,4 @@
-//! Fuzzing the scene parser and the compiler (issue #6 part 3).
+//! Fuzzing the scene parser and the compiler (docs/design.md, "Scene files").
 //!
 //! Thousands of generated scene files, structured ones with extreme and
 //! degenerate values (0, -1, -0.0, NaN, +-inf, 1e300, 1e-300, subnormals,

@@ -198,7 +198,7 @@ fn wall_agrees_with_16x_rate() {
 
 #[test]
 fn stiff_chattering_and_soft_agree_with_16x_rate() {
-    // the report's scenes (docs/numerics.md's S2/X2 and S1/X1)
+    // the report's scenes (docs/numerics.md, "The stability cases": the stiff chattering and the soft contact)
     check(
         "X2-chattering",
         &chattering("X2-chattering", 0.45),

@@ -188,11 +188,9 @@ def design_contact(m_h, w_c1, t_c, zeta):
 
 
 def contact_comment(d, m_h):
-    # "DESIGN.md eq. 9" is what the committed presets say; the repository has no such file (the
-    # contact law is in README.md, "Conventions"). Rewording it changes the comments of every
-    # generated preset (not one number), so it waits for a deliberate regeneration.
     return [
-        "Contact (linear spring-damper, DESIGN.md eq. 9), designed against the lowest mode:",
+        "Contact (linear spring-damper, docs/design.md, \"Conventions and units\"), designed against",
+        "the lowest mode:",
         f"  M1 = 1/w_c1^2 = {d['M1']:.5g} kg, hammer m_h = {m_h:.4g} kg,",
         f"  m_eff = m_h M1/(m_h+M1) = {d['m_eff']:.5g} kg; target contact time t_c = {d['t_c']*1e3:.4g} ms,"
         f" zeta = {d['zeta']:.3g}",
@@ -1047,13 +1045,11 @@ def generate(out_dir):
         sim = simulate(to_parsed_like(sc))
         for p, pk in zip(sc["pickups"], sim["peaks"]):
             p["gain"] = sig2(TARGET_PEAK / pk)
-        # Kept as committed (it is in every generated file), though the rendered peak is about
-        # 0.35 per channel after the centre pan (module docstring; the report prints it): rewording
-        # it changes the comments of every generated preset, so it waits for a regeneration.
         sc["header"] += [
             "",
             "Pickups: velocity (what radiates); gain = 0.5 / simulated peak pickup velocity, so the",
-            "  rendered peak is about 0.5 (see the check output of gen_presets.py).",
+            "  pickup peaks at about 0.5 and, after the centre pan, each channel at about 0.35",
+            "  (see the check output of gen_presets.py).",
         ]
         paths.append(write_scene(sc, out_dir))
     return paths

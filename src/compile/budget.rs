@@ -1,7 +1,6 @@
 //! The compile budget: an estimate of what a compile will cost, made before
 //! any O(d^3) work, so that a scene too big for the machine is refused with a
-//! message instead of being attempted (issue #6: "a compile that would take
-//! too long or too much memory is refused with a message, not attempted").
+//! message instead of being attempted (docs/design.md, "The compiler").
 //!
 //! What dominates the cost (see `compile_opts`), with `n` the struck object's
 //! degrees of freedom after pruning, `nf = 2 n` the free-phase dimension and

@@ -1,5 +1,6 @@
 //! What the exact event search needs to know about a phase's event function
-//! beyond its rows (docs/numerics.md, "Finding every crossing").
+//! beyond its rows (docs/numerics.md, "Certified isolation
+//! of the first crossing").
 //!
 //! In a block phase the event function is a sum over blocks,
 //! `phi(t0 + tau) = c(tau) + sum_k r_k . exp(G_k tau) s_k`, with `r_k` the

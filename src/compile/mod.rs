@@ -190,7 +190,7 @@ pub struct CompiledScene {
 
 /// Event-search nodes per sample beyond which a sample holding a switch may
 /// take longer than a 44.1 kHz sample period (measured 0.2-0.3 us per node
-/// plus the changes of basis; docs/numerics.md section 6.5).
+/// plus the changes of basis; docs/numerics.md, "Why it terminates, and what it costs").
 pub const REALTIME_SEARCH_NODES: f64 = 32.0;
 
 /// Compile a scene for a sample rate.

@@ -1,5 +1,5 @@
-//! Leaving out modes a scene does not need (issue: "leave out what a scene
-//! does not need"; NUMERICS.md section 6).
+//! Leaving out modes a scene does not need (docs/numerics.md, "Leaving out what
+//! a scene does not need").
 //!
 //! Exact (always on): a mode of the struck modal object that is zero at the
 //! contact point and at every heard pickup is never excited (the object

@@ -1,5 +1,5 @@
-//! Subnormal numbers off for the engine's own arithmetic (DESIGN.md section
-//! 3, NUMERICS.md X13).
+//! Subnormal numbers off for the engine's own arithmetic (docs/numerics.md,
+//! "f32 or f64").
 //!
 //! A struck object rings on in its slow modes while its fast ones decay by
 //! hundreds of orders of magnitude: a mode with a 0.1 s decay time reaches

@@ -57,7 +57,7 @@ pub fn has_faster_kernels() -> bool {
     SimdPath::detect() != SimdPath::Generic
 }
 
-/// What the trace records per sample (DESIGN.md section 5), physical units.
+/// What the trace records per sample (docs/design.md, "The render command and the trace CSV"), physical units.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Observation {
     /// Hammer contact-face height \[m\].
@@ -523,7 +523,7 @@ impl EngineState {
     }
 
     /// Like [`tick`](Self::tick) but also returns the trace observation taken
-    /// after the switching decision (DESIGN.md section 5). O(N^2): offline only.
+    /// after the switching decision (docs/design.md, "The render command and the trace CSV"). O(N^2): offline only.
     pub fn tick_observed(&mut self, scene: &CompiledScene) -> ([f64; 2], Observation) {
         let _flush = FlushDenormals::new(self.flush_denormals);
         self.n_events = 0;
@@ -947,7 +947,8 @@ impl EngineState {
     /// the stored energy `0.5 |y|^2` is unchanged by the swap. In contact this
     /// keeps the spring coordinate `pi = sqrt(k) p_eff`: with a new stiffness
     /// `k'` the rod is re-chosen so that `0.5 k' p_eff'^2 = 0.5 k p_eff^2`
-    /// (NUMERICS.md X14), and the hammer keeps its momentum coordinate.
+    /// (docs/numerics.md, "The stability cases": parameters changed during
+    /// contact), and the hammer keeps its momentum coordinate.
     /// Returns `false` (state untouched) when the layouts differ (another
     /// object or another mode count): the caller then resets the voice.
     /// O(N^2), allocation-free. \[audio-thread\]

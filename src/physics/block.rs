@@ -11,7 +11,7 @@
 //! (Putzer / Cayley-Hamilton for 2x2; for `delta < 0` cosh and sinh become
 //! cos and sin). The expression is an entire function of `delta`, so it stays
 //! exact through critical damping (`delta = 0`, a Jordan block), where the
-//! eigenvector route breaks down (NUMERICS.md section 2, P-E1).
+//! eigenvector route breaks down (docs/numerics.md, "Stepping a phase: 2x2 blocks").
 
 /// A real 2x2 matrix stored row-major `[m11, m12, m21, m22]`.
 pub type Mat2 = [f64; 4];
@@ -258,7 +258,7 @@ mod tests {
         let h = 1.0 / 44100.0;
         let w = 2.0 * std::f64::consts::PI * 5000.0;
         // zeta from undamped through critical (exactly 1) to strongly overdamped;
-        // the eigenvector route fails at zeta = 1 (NUMERICS.md P-E1).
+        // the eigenvector route fails at zeta = 1 (docs/numerics.md, "Stepping a phase: 2x2 blocks").
         for zeta in [0.0, 0.01, 0.5, 1.0 - 1e-9, 1.0, 1.0 + 1e-9, 2.0, 50.0] {
             let g = [0.0, w, -w, -2.0 * zeta * w];
             let e = rel_err(&exp2(&g, h), &dense(&g, h));

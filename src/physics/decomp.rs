@@ -1,5 +1,5 @@
 //! Decomposition of a phase generator into real 2x2 blocks, with checks, and
-//! the dense fallback (NUMERICS.md section 2).
+//! the dense fallback (docs/numerics.md, "Decomposing a phase").
 //!
 //! `A = V G V^{-1}` with `G` block diagonal: a complex eigenpair `a +- ib` with
 //! eigenvector `x + iy` contributes the columns `sqrt(2) x, sqrt(2) y` of `V`
@@ -22,7 +22,7 @@ use faer::{Mat, Par};
 use nalgebra::{DMatrix, DVector};
 
 /// Largest accepted condition number of `V` (energy coordinates give 1-25 on
-/// the prototype scenes, NUMERICS.md P-E6; 1e6 leaves room but stops the
+/// the presets, docs/numerics.md, "Tolerances"; 1e6 leaves room but stops the
 /// near-defective cases, whose kappa grows like delta^{-1/2}).
 pub const MAX_KAPPA: f64 = 1e6;
 /// Largest accepted relative residual `|A V - V G| / (|A| |V|)`.
@@ -415,8 +415,8 @@ fn measure(
 /// `coupled` indices form one general system (decomposed and checked as in
 /// [`decompose`]); each pair in `free_pairs` (with its closed-form 2x2
 /// generator) is an exactly decoupled mode, e.g. a mode with zero weight at
-/// the contact point during contact (NUMERICS.md section 6: "those modes are
-/// bit-identical with and without contact"). Returns `None` when the coupled
+/// the contact point during contact (docs/numerics.md, "Leaving out what a scene does not need":
+/// those modes are bit-identical with and without contact). Returns `None` when the coupled
 /// part needs the dense fallback (the caller then decomposes the whole).
 pub fn decompose_split(
     a: &DMatrix<f64>,
@@ -645,7 +645,7 @@ fn eigen_blocks(a: &DMatrix<f64>) -> Result<BlockEigen, DecompError> {
     // 2002-dimensional compile)
     let vinv = crate::physics::linalg::inverse(&v).ok_or(DecompError::EigenvectorsSingular)?;
     // Structure of arrays: block k's coordinates go to k and nb + k, so the
-    // engine's kernels stream contiguous arrays (NUMERICS.md section 6).
+    // engine's kernels stream contiguous arrays (docs/numerics.md, "Stepping a phase: 2x2 blocks").
     let nb = gens.len();
     let perm = |c: usize| {
         if c.is_multiple_of(2) {

@@ -2,7 +2,7 @@
 //!
 //! Every object with `n` degrees of freedom is written as a first-order system in
 //! the coordinates `z = [xi; u] = [L^T q; M^{1/2} q']` with `K = L L^T`, so that its
-//! energy is `0.5 |z|^2` (NUMERICS.md section 2). Its generator is
+//! energy is `0.5 |z|^2` (docs/numerics.md, "Energy coordinates and passivity"). Its generator is
 //! `A = [[0, B], [-B^T, -D]]` with `B = L^T M^{-1/2}` and
 //! `D = M^{-1/2} C M^{-1/2}`: a skew part plus a negative semidefinite part, so
 //! `|exp(A t)| <= 1` holds by construction.
@@ -21,7 +21,7 @@ use crate::scene::{ModalSpec, ObjectSpec, StringSpec};
 use nalgebra::{DMatrix, DVector};
 
 /// `ln(1000)`: a mode decaying by 60 dB in T60 has amplitude rate
-/// `sigma = ln(1000) / T60` (DESIGN.md section 2).
+/// `sigma = ln(1000) / T60` (docs/design.md, "Conventions and units").
 pub const LN_1000: f64 = 6.907_755_278_982_137;
 
 /// Displacement and velocity rows of one named point, over `z = [xi; u]`.

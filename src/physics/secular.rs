@@ -725,6 +725,24 @@ fn pair_basis(
     let zz = [0.0, 1.0];
     x[2 * n + 1] = mean(&dj, &zz) / sm;
     d[2 * n + 1] = divided_difference(&dj, &zz, s, p, p) / sm;
+    let a = 0.5 * s;
+    let e = 0.25 * (z1 - z2).powi(2).re;
+    orthonormal_pair(x, d, a, e, n)
+}
+
+/// The pair's basis `[x d]` with `A x = a x + e d`, `A d = x + a d`
+/// orthonormalised (Gram-Schmidt twice): `Q`, the block `R G R^-1` and the
+/// rows `(L Q)^-1 L` of `V^-1` with `L = [J x; J d]` (`J` flips the sign of
+/// the momenta, which start at `n + 1`).
+#[allow(clippy::type_complexity)]
+fn orthonormal_pair(
+    x: Vec<f64>,
+    d: Vec<f64>,
+    a: f64,
+    e: f64,
+    n: usize,
+) -> Result<(Mat2, [Vec<f64>; 2], [Vec<f64>; 2]), SecularError> {
+    let dim = x.len();
     // Gram-Schmidt (twice) on [x d]
     let dotv = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, w)| u * w).sum::<f64>();
     let nx = dotv(&x, &x).sqrt();
@@ -746,8 +764,6 @@ fn pair_basis(
         *a /= r22;
     }
     // block: R G R^-1, G = [[a, 1], [e, a]], R = [[nx, r12], [0, r22]]
-    let a = 0.5 * s;
-    let e = 0.25 * (z1 - z2).powi(2).re;
     let rg = [nx * a + r12 * e, nx + r12 * a, r22 * e, r22 * a];
     let g = [
         rg[0] / nx,

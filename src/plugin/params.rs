@@ -98,8 +98,8 @@ pub enum Taper {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Applies {
     /// It changes the matrices: the worker recompiles the scene off the
-    /// audio thread and the result is swapped in (docs/plugin.md, "the swap
-    /// design"). Part of [`SceneParams`].
+    /// audio thread and the result is swapped in (docs/plugin.md,
+    /// "Parameter changes: the swap design"). Part of [`SceneParams`].
     Recompile,
     /// Read when a note starts. Part of [`PlayParams`].
     NextNote,
@@ -500,7 +500,7 @@ parameters! {
         doc: "Contact switching method: Exact finds every contact start and end \
               inside the sample, in order, on the exact solution (located to \
               3.6e-15 of a sample; no switching error beyond f64 rounding, \
-              docs/numerics.md section 6); Offset rod is the paper's method (first \
+              docs/numerics.md, \"Exact switching\"); Offset rod is the paper's method (first \
               order, contacts start up to a sample late). If a scene's compile \
               refuses exact switching (a dense-fallback phase larger than 16 states \
               or too stiff for partial dense steps), it is compiled with the offset \

@@ -1,0 +1,363 @@
+//! The project's documents and the code agree (docs/design.md, "Code
+//! conventions"):
+//!
+//! - every reference to a document (`docs/numerics.md, "Rounding allowance"`,
+//!   `docs/design.md section 5`, a Markdown link) names a file that exists
+//!   and, where it names a section, a heading that exists;
+//! - nothing points at a document outside the repository or at an issue
+//!   number (a maintainer cannot follow those);
+//! - every named tolerance of the compiler and the engine is named in
+//!   docs/numerics.md or docs/design.md;
+//! - the picture of the layers in docs/design.md lists every module of the
+//!   plugin crate, and no module imports one drawn above it.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Every source and document file of the workspace (not build output, not
+/// the gitignored report directory).
+fn project_files() -> Vec<PathBuf> {
+    let root = root();
+    let mut out = Vec::new();
+    let mut stack = vec![root.clone()];
+    while let Some(dir) = stack.pop() {
+        for e in std::fs::read_dir(&dir).expect("read dir") {
+            let p = e.expect("entry").path();
+            let name = p.file_name().unwrap().to_string_lossy().into_owned();
+            if p.is_dir() {
+                let rel = p.strip_prefix(&root).unwrap();
+                let skip = name.starts_with('.') && name != ".ci"
+                    || rel == Path::new("target")
+                    || rel == Path::new("report")
+                    || name == "node_modules";
+                if !skip {
+                    stack.push(p);
+                }
+            } else if ["rs", "md", "toml", "py"]
+                .iter()
+                .any(|x| p.extension().is_some_and(|e| e == *x))
+                || p.ends_with(".ci/run")
+            {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    assert!(out.len() > 50, "found only {} files", out.len());
+    out
+}
+
+/// Section titles of a Markdown file, without their numbers ("6.4
+/// Certified isolation of the first crossing" -> both "6.4" and the title).
+fn headings(path: &Path) -> (Vec<String>, Vec<String>) {
+    let text = std::fs::read_to_string(path).expect("read doc");
+    let (mut titles, mut numbers) = (Vec::new(), Vec::new());
+    let mut in_code = false;
+    for line in text.lines() {
+        if line.starts_with("```") {
+            in_code = !in_code;
+        }
+        if in_code || !line.starts_with('#') {
+            continue;
+        }
+        let h = line.trim_start_matches('#').trim();
+        let num: String = h
+            .chars()
+            .take_while(|c| c.is_ascii_digit() || *c == '.')
+            .collect();
+        let title = h[num.len()..].trim().to_string();
+        if !num.is_empty() {
+            numbers.push(num.trim_end_matches('.').to_string());
+        }
+        titles.push(title);
+    }
+    (titles, numbers)
+}
+
+/// The text after a reference with comment markers, string escapes and
+/// line breaks folded into single spaces (a title may wrap in a comment).
+fn fold(rest: &str, max: usize) -> String {
+    let mut out = String::new();
+    let mut space = false;
+    for line in rest.lines().take(4) {
+        let t = line.trim_start();
+        let t = t
+            .trim_start_matches("//!")
+            .trim_start_matches("///")
+            .trim_start_matches("//")
+            .trim_start_matches('#')
+            .trim_start_matches('"')
+            .trim_start_matches('\\');
+        for c in t.chars() {
+            if c.is_whitespace() {
+                space = true;
+            } else {
+                if space && !out.is_empty() {
+                    out.push(' ');
+                }
+                space = false;
+                out.push(c);
+            }
+        }
+        space = true;
+        if out.len() > max {
+            break;
+        }
+    }
+    out.replace("\\\"", "\"")
+}
+
+#[test]
+fn document_references_resolve() {
+    let root = root();
+    let this = root.join("tests/doc_references.rs");
+    let mut docs: BTreeMap<String, (Vec<String>, Vec<String>)> = BTreeMap::new();
+    for e in std::fs::read_dir(root.join("docs")).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "md") {
+            let name = p.file_name().unwrap().to_string_lossy().into_owned();
+            docs.insert(name, headings(&p));
+        }
+    }
+    // Names of documents that are not in the repository, built so that this
+    // file does not contain them itself.
+    let outside = [
+        ["DESIGN", ".md"].concat(),
+        ["NUMERICS", ".md"].concat(),
+        ["STYLE", ".md"].concat(),
+        ["..", "/shared"].concat(),
+        ["issue", " #"].concat(),
+        ["Issue", " #"].concat(),
+    ];
+    let mut problems = Vec::new();
+    let mut checked = 0;
+    for f in project_files() {
+        if f == this {
+            continue;
+        }
+        let text = std::fs::read_to_string(&f).unwrap_or_default();
+        let rel = f.strip_prefix(&root).unwrap().display().to_string();
+        for bad in &outside {
+            if text.contains(bad.as_str()) {
+                problems.push(format!("{rel}: points at {bad:?}"));
+            }
+        }
+        // `docs/<name>.md` anywhere; inside docs/, also `](<name>.md)` links
+        let mut refs: Vec<(usize, String)> = Vec::new();
+        for (i, _) in text.match_indices("docs/") {
+            let tail = &text[i + 5..];
+            let name: String = tail
+                .chars()
+                .take_while(|c| c.is_ascii_alphanumeric() || *c == '-' || *c == '_')
+                .collect();
+            if tail[name.len()..].starts_with(".md") && !name.is_empty() {
+                refs.push((i + 5 + name.len() + 3, format!("{name}.md")));
+            }
+        }
+        if rel.starts_with("docs/") {
+            for (i, _) in text.match_indices("](") {
+                let tail = &text[i + 2..];
+                let name: String = tail
+                    .chars()
+                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '-' || *c == '_')
+                    .collect();
+                if tail[name.len()..].starts_with(".md") && !name.is_empty() {
+                    refs.push((i + 2 + name.len() + 3, format!("{name}.md")));
+                }
+            }
+        }
+        for (end, name) in refs {
+            checked += 1;
+            let Some((titles, numbers)) = docs.get(&name) else {
+                problems.push(format!("{rel}: docs/{name} does not exist"));
+                continue;
+            };
+            let rest = fold(&text[end..], 200);
+            let rest = rest.strip_prefix(')').unwrap_or(&rest);
+            let rest = rest.strip_prefix("'s").unwrap_or(rest).trim_start();
+            let rest = rest.strip_prefix(',').unwrap_or(rest).trim_start();
+            if let Some(after) = rest.strip_prefix('"') {
+                let title = after.split('"').next().unwrap_or("");
+                if !titles.iter().any(|t| t == title) {
+                    problems.push(format!(
+                        "{rel}: docs/{name} has no section titled {title:?}"
+                    ));
+                }
+            } else if let Some(after) = rest.strip_prefix("section ") {
+                let num: String = after
+                    .chars()
+                    .take_while(|c| c.is_ascii_digit() || *c == '.')
+                    .collect();
+                let num = num.trim_end_matches('.');
+                if !numbers.iter().any(|n| n == num) {
+                    problems.push(format!("{rel}: docs/{name} has no section {num}"));
+                }
+            }
+        }
+    }
+    println!("{checked} references to docs/ checked");
+    assert!(checked > 30, "only {checked} references found");
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+/// Top-level `const NAME: f64` / `usize` items of a source file, outside its
+/// test module.
+fn constants(path: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(path).expect("read source");
+    let code = text.split("#[cfg(test)]").next().unwrap_or("");
+    let mut out = Vec::new();
+    for line in code.lines() {
+        let l = line
+            .trim_end()
+            .trim_start_matches("pub(crate) ")
+            .trim_start_matches("pub(super) ")
+            .trim_start_matches("pub ");
+        if let Some(rest) = l.strip_prefix("const ") {
+            let name: String = rest
+                .chars()
+                .take_while(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || *c == '_')
+                .collect();
+            let ty = rest[name.len()..].trim_start_matches(':').trim_start();
+            if !name.is_empty() && (ty.starts_with("f64") || ty.starts_with("usize")) {
+                out.push(name);
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn every_tolerance_is_documented() {
+    let root = root();
+    let docs = std::fs::read_to_string(root.join("docs/numerics.md")).unwrap()
+        + &std::fs::read_to_string(root.join("docs/design.md")).unwrap();
+    let mut files: Vec<PathBuf> = [
+        "src/physics/decomp.rs",
+        "src/physics/secular.rs",
+        "src/physics/block.rs",
+        "src/engine/exact.rs",
+    ]
+    .iter()
+    .map(|f| root.join(f))
+    .collect();
+    for e in std::fs::read_dir(root.join("src/compile")).unwrap() {
+        files.push(e.unwrap().path());
+    }
+    let mut missing = Vec::new();
+    let mut n = 0;
+    for f in &files {
+        for c in constants(f) {
+            n += 1;
+            if !docs.contains(&format!("`{c}`")) && !docs.contains(&format!("`{c}`,")) {
+                missing.push(format!("{} ({})", c, f.display()));
+            }
+        }
+    }
+    println!("{n} named tolerances, each in docs/numerics.md or docs/design.md");
+    assert!(n >= 30, "only {n} constants found: the scan is broken");
+    assert!(
+        missing.is_empty(),
+        "not in docs/numerics.md, \"Tolerances\":\n{}",
+        missing.join("\n")
+    );
+}
+
+/// The `crate::<module>` paths used by a source file's code (not its
+/// comments or its test module).
+fn crate_imports(text: &str) -> Vec<String> {
+    let code = text.split("#[cfg(test)]").next().unwrap_or("");
+    let mut out = Vec::new();
+    for line in code.lines() {
+        let t = line.trim_start();
+        if t.starts_with("//") {
+            continue;
+        }
+        let t = t.split("//").next().unwrap_or("");
+        for (i, _) in t.match_indices("crate::") {
+            let name: String = t[i + 7..]
+                .chars()
+                .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                .collect();
+            out.push(name);
+        }
+    }
+    out
+}
+
+#[test]
+fn the_layer_picture_matches_the_code() {
+    let root = root();
+    let design = std::fs::read_to_string(root.join("docs/design.md")).unwrap();
+    let lib = std::fs::read_to_string(root.join("src/lib.rs")).unwrap();
+    let modules: Vec<String> = lib
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("pub mod "))
+        .map(|m| m.trim_end_matches(';').to_string())
+        .filter(|m| m != "test_rng")
+        .collect();
+    // The picture: the first code block after the heading "Layers"; each
+    // box row names its modules as the first word of a cell, top to bottom.
+    let start = design
+        .lines()
+        .position(|l| l.starts_with("## ") && l.ends_with("Layers"))
+        .map(|i| design.lines().take(i).map(|l| l.len() + 1).sum::<usize>())
+        .expect("a Layers section");
+    let block = design[start..].split("```").nth(1).expect("a picture");
+    let mut level: BTreeMap<String, usize> = BTreeMap::new();
+    let mut row = 0;
+    for line in block.lines() {
+        if line.trim_start().starts_with('+') {
+            row += 1;
+            continue;
+        }
+        if !line.trim_start().starts_with('|') {
+            continue;
+        }
+        for cell in line.split('|') {
+            if let Some(word) = cell.split_whitespace().next() {
+                if modules.iter().any(|m| m == word) {
+                    level.entry(word.to_string()).or_insert(row);
+                }
+            }
+        }
+    }
+    for m in &modules {
+        assert!(level.contains_key(m), "module {m} is not in the picture");
+    }
+    println!("layers (row from the top): {level:?}");
+    // Every file of each module: no import of a module drawn above it.
+    let mut upward = Vec::new();
+    for m in &modules {
+        let dir = root.join("src").join(m);
+        let files: Vec<PathBuf> = if dir.is_dir() {
+            std::fs::read_dir(&dir)
+                .unwrap()
+                .map(|e| e.unwrap().path())
+                .collect()
+        } else {
+            vec![root.join("src").join(format!("{m}.rs"))]
+        };
+        for f in files {
+            if f.ends_with("tests.rs") {
+                continue;
+            }
+            let text = std::fs::read_to_string(&f).unwrap();
+            for used in crate_imports(&text) {
+                if let (Some(&a), Some(&b)) = (level.get(m), level.get(&used)) {
+                    if b < a {
+                        upward.push(format!("{} uses crate::{used}", f.display()));
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        upward.is_empty(),
+        "imports running up the picture:\n{}",
+        upward.join("\n")
+    );
+}
