@@ -65,7 +65,7 @@ pub use mapping::{
     damped_scene, impact_speed_m_per_s, lowest_frequency_hz, root_note, scene_for,
     InstrumentParams, PlayParams, SceneParams,
 };
-pub use prepared::{prepare, PrepareError, Prepared, Scenes};
+pub use prepared::{prepare, prepare_scene, PrepareError, Prepared, Scenes};
 
 use crate::engine::EngineState;
 use voices::Voice;

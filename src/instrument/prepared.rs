@@ -13,7 +13,9 @@ use crate::scene::{Scene, Switching};
 
 /// Everything the audio thread needs for one parameter set, built off the
 /// audio thread: the compiled scene, its damped variant, and a fresh engine
-/// state per voice (so a swap to new dimensions allocates nothing).
+/// state per voice (so a swap to new dimensions allocates nothing). A clone
+/// (offline tools play many notes of one compile) allocates.
+#[derive(Clone)]
 pub struct Prepared {
     /// Request revision this was built for.
     pub revision: u64,
@@ -39,6 +41,7 @@ pub struct Prepared {
 /// The scene as played and the one released voices continue on. Kept apart
 /// from the voice states so a voice's scene can be read while its state is
 /// being stepped.
+#[derive(Clone)]
 pub struct Scenes {
     /// The scene as played.
     pub scene: CompiledScene,
@@ -151,11 +154,24 @@ pub fn prepare(
     revision: u64,
 ) -> Result<Box<Prepared>, PrepareError> {
     let base = presets::scene(params.preset).map_err(CompileError::Scene)?;
+    prepare_scene(&base, params, rate_hz, revision)
+}
+
+/// [`prepare`] for a scene given as a value (a user's scene file, an
+/// offline batch job) instead of the preset `params.preset` names: the same
+/// parameter mapping, compile fallback and damped scene. `params.preset` is
+/// only carried along. \[worker\] \[main-thread\]
+pub fn prepare_scene(
+    base: &Scene,
+    params: &SceneParams,
+    rate_hz: f64,
+    revision: u64,
+) -> Result<Box<Prepared>, PrepareError> {
     let ip = InstrumentParams {
         scene: *params,
         play: PlayParams::default(),
     };
-    let played = scene_for(&base, &ip);
+    let played = scene_for(base, &ip);
     let (scene, switching_used, fallback_note) =
         compile_with_fallback(&played, rate_hz, params.switching)?;
     let damped = if params.damper_norm > 0.0 {
@@ -179,7 +195,7 @@ pub fn prepare(
         revision,
         rate_hz,
         params: *params,
-        root_note: root_note(&base),
+        root_note: root_note(base),
         bouncing: base.hammer.gravity_m_per_s2 > 0.0,
         switching_used,
         fallback_note,

@@ -17,8 +17,8 @@
 
 mod golden;
 mod paramdocs;
-mod plot;
-mod report;
+
+use xtask::{plot, report};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};

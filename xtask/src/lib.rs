@@ -1,0 +1,14 @@
+//! The offline tools behind `cargo xtask`, as a library so that tests and
+//! benchmarks run the same code as the commands:
+//!
+//! - [`offline`]: one job (a scene, or a note of a scene played through the
+//!   instrument), WAV writing, note and velocity lists;
+//! - [`plot`]: the render plot and the report's diagrams;
+//! - [`report`]: `cargo xtask report` (error against run time, stability);
+//! - [`multisample`]: every note x velocity layer of a scene as WAVs plus
+//!   an SFZ file.
+
+pub mod multisample;
+pub mod offline;
+pub mod plot;
+pub mod report;

@@ -1,0 +1,1 @@
+//! Multisample export (to be written).
