@@ -2,7 +2,7 @@
 //! (docs/design.md, "The render command and the trace CSV"). Used by `cargo xtask render`, the report and tests.
 
 use crate::compile::{compile_with, CompileError, CompiledScene};
-use crate::engine::{EngineState, ExactStats, Observation};
+use crate::engine::{EngineState, ExactStats, Motion, Observation};
 use crate::scene::{Scene, Switching, MAX_DURATION_S};
 use std::io::Write;
 
@@ -63,20 +63,24 @@ impl RenderOutput {
     /// counters that must stay 0: `capped`, `rod_fallbacks`,
     /// `uncertified`).
     pub fn switching_line(&self) -> String {
-        let x = &self.exact_stats;
-        format!(
-            "exact switching: {} located switches, {} grazing touches; capped {}, rod fallbacks {}, uncertified {}; \
-             event search: {} nodes, at most {} nodes and {} switches in one sample",
-            x.located,
-            x.grazing,
-            x.capped,
-            x.rod_fallbacks,
-            x.uncertified,
-            x.search_nodes,
-            x.max_nodes_in_sample,
-            x.max_switches_in_sample
-        )
+        switching_line(&self.exact_stats)
     }
+}
+
+/// One line on what exact switching did ([`RenderOutput::switching_line`]).
+pub fn switching_line(x: &ExactStats) -> String {
+    format!(
+        "exact switching: {} located switches, {} grazing touches; capped {}, rod fallbacks {}, uncertified {}; \
+         event search: {} nodes, at most {} nodes and {} switches in one sample",
+        x.located,
+        x.grazing,
+        x.capped,
+        x.rod_fallbacks,
+        x.uncertified,
+        x.search_nodes,
+        x.max_nodes_in_sample,
+        x.max_switches_in_sample
+    )
 }
 
 /// Why an offline render could not run.
@@ -115,49 +119,286 @@ impl From<CompileError> for RenderError {
     }
 }
 
-/// Render a scene offline.
+/// Render a scene offline (in memory; [`render_stream`] for long renders).
 pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<RenderOutput, RenderError> {
     let seconds = opts.seconds.unwrap_or(scene.duration_s);
-    if !(seconds.is_finite() && seconds > 0.0 && seconds <= MAX_DURATION_S) {
-        return Err(RenderError::Length(seconds));
-    }
+    let n = render_length(seconds, opts.rate_hz)?;
     let compiled = compile_with(scene, opts.rate_hz, opts.switching)?;
-    let n = (seconds * opts.rate_hz).round() as usize;
     Ok(render_compiled(&compiled, n, opts.trace))
 }
 
-/// Render `n` samples of a compiled scene from its initial state.
+/// Samples in `seconds` at `rate_hz`, or why that is not a render length.
+pub fn render_length(seconds: f64, rate_hz: f64) -> Result<usize, RenderError> {
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= MAX_DURATION_S) {
+        return Err(RenderError::Length(seconds));
+    }
+    Ok((seconds * rate_hz).round() as usize)
+}
+
+/// Render `n` samples of a compiled scene from its initial state, in memory.
 pub fn render_compiled(compiled: &CompiledScene, n: usize, trace: bool) -> RenderOutput {
-    let mut st = EngineState::new(compiled);
     let mut left = Vec::with_capacity(n);
     let mut right = Vec::with_capacity(n);
-    let mut rows = if trace {
-        Some(Vec::with_capacity(n))
-    } else {
-        None
+    let mut rows = TraceRows {
+        rate_hz: compiled.rate_hz,
+        rows: Vec::with_capacity(if trace { n } else { 0 }),
     };
-    for i in 0..n {
-        let out = if let Some(rows) = rows.as_mut() {
-            let (out, obs) = st.tick_observed(compiled);
-            rows.push(TraceRow {
-                t: i as f64 / compiled.rate_hz,
-                obs,
-            });
-            out
-        } else {
-            st.tick(compiled)
-        };
-        left.push(out[0]);
-        right.push(out[1]);
-    }
+    let audio = |l: &[f64], r: &[f64]| {
+        left.extend_from_slice(l);
+        right.extend_from_slice(r);
+        Ok(())
+    };
+    let sink: Option<&mut dyn TraceSink> = if trace { Some(&mut rows) } else { None };
+    let stats = render_stream(compiled, n, audio, sink).expect("in-memory sinks do not fail");
     RenderOutput {
         rate_hz: compiled.rate_hz,
         left,
         right,
-        trace: rows,
+        trace: trace.then_some(rows.rows),
         summary: compiled.summary.clone(),
-        contacts: st.contacts_started,
-        exact_stats: st.exact_stats,
+        contacts: stats.contacts,
+        exact_stats: stats.exact_stats,
+    }
+}
+
+/// Samples per call of the audio callback of [`render_stream`].
+pub const STREAM_CHUNK: usize = 4096;
+
+/// What a streamed render leaves besides what its sinks received.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StreamStats {
+    /// Samples rendered.
+    pub samples: usize,
+    /// Number of contacts that started.
+    pub contacts: u64,
+    /// What exact switching did.
+    pub exact_stats: ExactStats,
+    /// Largest `|sample|` over both channels.
+    pub peak: f64,
+    /// Samples (left or right) that were not finite.
+    pub nonfinite: usize,
+}
+
+/// Where a render's trace goes, sample by sample (docs/design.md, "Offline
+/// rendering"): the full rows, a CSV file, the plot's envelope, or several.
+pub trait TraceSink {
+    /// Whether sample `i` needs the energy (it costs more than the motion,
+    /// see [`EngineState::energy`]).
+    fn wants_energy(&self, i: usize) -> bool;
+    /// Record sample `i` (time `i / fs`): its motion, and its energy when
+    /// [`wants_energy`](Self::wants_energy) said so.
+    fn record(&mut self, i: usize, motion: &Motion, energy: Option<f64>) -> std::io::Result<()>;
+}
+
+/// Stream a render: `audio` receives consecutive chunks of at most
+/// [`STREAM_CHUNK`] samples (left, right), `trace` (if any) every sample.
+/// Memory stays O(chunk) whatever the length. Without a trace the engine
+/// runs its block path ([`EngineState::process_block`]), with one it ticks
+/// sample by sample and observes only what the sink asks for; the samples
+/// are the same bit for bit either way.
+pub fn render_stream(
+    compiled: &CompiledScene,
+    n: usize,
+    mut audio: impl FnMut(&[f64], &[f64]) -> std::io::Result<()>,
+    mut trace: Option<&mut dyn TraceSink>,
+) -> std::io::Result<StreamStats> {
+    let mut st = EngineState::new(compiled);
+    let mut l = vec![0.0; STREAM_CHUNK.min(n)];
+    let mut r = vec![0.0; STREAM_CHUNK.min(n)];
+    let mut stats = StreamStats::default();
+    let mut done = 0;
+    while done < n {
+        let len = STREAM_CHUNK.min(n - done);
+        let (lc, rc) = (&mut l[..len], &mut r[..len]);
+        match trace.as_deref_mut() {
+            None => st.process_block(compiled, lc, rc),
+            Some(sink) => {
+                for k in 0..len {
+                    let i = done + k;
+                    let want = sink.wants_energy(i);
+                    let (out, (m, e)) = st.tick_with(compiled, |s| {
+                        (s.motion(compiled), want.then(|| s.energy(compiled)))
+                    });
+                    sink.record(i, &m, e)?;
+                    lc[k] = out[0];
+                    rc[k] = out[1];
+                }
+            }
+        }
+        for x in lc.iter().chain(rc.iter()) {
+            if x.is_finite() {
+                stats.peak = stats.peak.max(x.abs());
+            } else {
+                stats.nonfinite += 1;
+            }
+        }
+        audio(lc, rc)?;
+        done += len;
+    }
+    stats.samples = n;
+    stats.contacts = st.contacts_started;
+    stats.exact_stats = st.exact_stats;
+    Ok(stats)
+}
+
+/// Every trace row in memory (tests, the report).
+#[derive(Debug, Clone, Default)]
+pub struct TraceRows {
+    /// Sample rate \[Hz\] (row `i` is time `i / rate_hz`).
+    pub rate_hz: f64,
+    /// The rows.
+    pub rows: Vec<TraceRow>,
+}
+
+impl TraceSink for TraceRows {
+    fn wants_energy(&self, _: usize) -> bool {
+        true
+    }
+    fn record(&mut self, i: usize, m: &Motion, e: Option<f64>) -> std::io::Result<()> {
+        self.rows.push(TraceRow {
+            t: i as f64 / self.rate_hz,
+            obs: m.with_energy(e.expect("every energy was asked for")),
+        });
+        Ok(())
+    }
+}
+
+/// Two sinks fed the same samples (e.g. the CSV file and the plot).
+impl<A: TraceSink, B: TraceSink> TraceSink for (A, B) {
+    fn wants_energy(&self, i: usize) -> bool {
+        self.0.wants_energy(i) || self.1.wants_energy(i)
+    }
+    fn record(&mut self, i: usize, m: &Motion, e: Option<f64>) -> std::io::Result<()> {
+        let e0 = if self.0.wants_energy(i) { e } else { None };
+        let e1 = if self.1.wants_energy(i) { e } else { None };
+        self.0.record(i, m, e0)?;
+        self.1.record(i, m, e1)
+    }
+}
+
+/// Writes the trace CSV as it goes (docs/design.md, "The render command and
+/// the trace CSV"): O(1) memory for any length.
+pub struct CsvTrace<W: Write> {
+    rate_hz: f64,
+    out: W,
+}
+
+impl<W: Write> CsvTrace<W> {
+    /// Write the header to `out` and return the sink.
+    pub fn new(rate_hz: f64, mut out: W) -> std::io::Result<Self> {
+        writeln!(out, "{TRACE_HEADER}")?;
+        Ok(Self { rate_hz, out })
+    }
+
+    /// Flush and hand back the writer.
+    pub fn finish(mut self) -> std::io::Result<W> {
+        self.out.flush()?;
+        Ok(self.out)
+    }
+}
+
+impl<W: Write> TraceSink for CsvTrace<W> {
+    fn wants_energy(&self, _: usize) -> bool {
+        true
+    }
+    fn record(&mut self, i: usize, m: &Motion, e: Option<f64>) -> std::io::Result<()> {
+        let row = TraceRow {
+            t: i as f64 / self.rate_hz,
+            obs: m.with_energy(e.expect("every energy was asked for")),
+        };
+        write_row(&mut self.out, &row)
+    }
+}
+
+/// Largest number of buckets of a [`TraceEnvelope`].
+pub const ENVELOPE_BUCKETS: usize = 1024;
+
+/// One bucket of consecutive samples of a [`TraceEnvelope`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EnvelopeBucket {
+    /// First sample.
+    pub start: usize,
+    /// Samples in the bucket.
+    pub len: usize,
+    /// Smallest and largest hammer height \[m\].
+    pub x_hammer: [f64; 2],
+    /// Smallest and largest contact-point displacement \[m\].
+    pub x_contact: [f64; 2],
+    /// Some sample of the bucket is in contact.
+    pub in_contact: bool,
+    /// Energy at the bucket's last sample \[J\] (total energy does not
+    /// increase, so it is the bucket's smallest and the next one's start).
+    pub energy_end: f64,
+}
+
+/// The plot's input: min/max per bucket of at most [`ENVELOPE_BUCKETS`]
+/// buckets, whatever the length, and the energy at the bucket ends only,
+/// so a 10-minute render costs the plot what a 1-second one does.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TraceEnvelope {
+    /// Sample rate \[Hz\].
+    pub rate_hz: f64,
+    /// Samples per bucket (the last may be shorter).
+    pub bucket_len: usize,
+    /// Samples the render will have.
+    pub samples: usize,
+    /// Energy at sample 0 \[J\].
+    pub energy_start: f64,
+    /// The buckets so far.
+    pub buckets: Vec<EnvelopeBucket>,
+}
+
+impl TraceEnvelope {
+    /// An empty envelope for a render of `samples` samples.
+    pub fn new(rate_hz: f64, samples: usize) -> Self {
+        Self {
+            rate_hz,
+            bucket_len: samples.div_ceil(ENVELOPE_BUCKETS).max(1),
+            samples,
+            energy_start: f64::NAN,
+            buckets: Vec::with_capacity(ENVELOPE_BUCKETS),
+        }
+    }
+
+    fn is_bucket_end(&self, i: usize) -> bool {
+        (i + 1).is_multiple_of(self.bucket_len) || i + 1 == self.samples
+    }
+}
+
+impl TraceSink for TraceEnvelope {
+    fn wants_energy(&self, i: usize) -> bool {
+        i == 0 || self.is_bucket_end(i)
+    }
+    fn record(&mut self, i: usize, m: &Motion, e: Option<f64>) -> std::io::Result<()> {
+        if i == 0 {
+            self.energy_start = e.expect("asked for");
+        }
+        if i.is_multiple_of(self.bucket_len) {
+            self.buckets.push(EnvelopeBucket {
+                start: i,
+                len: 0,
+                x_hammer: [m.x_hammer; 2],
+                x_contact: [m.x_contact; 2],
+                in_contact: false,
+                energy_end: f64::NAN,
+            });
+        }
+        let end = self.is_bucket_end(i);
+        let b = self
+            .buckets
+            .last_mut()
+            .expect("a bucket starts at sample 0");
+        b.len += 1;
+        b.x_hammer = [b.x_hammer[0].min(m.x_hammer), b.x_hammer[1].max(m.x_hammer)];
+        b.x_contact = [
+            b.x_contact[0].min(m.x_contact),
+            b.x_contact[1].max(m.x_contact),
+        ];
+        b.in_contact |= m.in_contact;
+        if end {
+            b.energy_end = e.expect("asked for");
+        }
+        Ok(())
     }
 }
 
@@ -168,18 +409,23 @@ pub const TRACE_HEADER: &str = "t,x_hammer,v_hammer,x_contact,v_contact,in_conta
 pub fn write_trace_csv<W: Write>(rows: &[TraceRow], mut w: W) -> std::io::Result<()> {
     writeln!(w, "{TRACE_HEADER}")?;
     for r in rows {
-        let o = &r.obs;
-        writeln!(
-            w,
-            "{:e},{:e},{:e},{:e},{:e},{},{:e}",
-            r.t,
-            o.x_hammer,
-            o.v_hammer,
-            o.x_contact,
-            o.v_contact,
-            u8::from(o.in_contact),
-            o.energy
-        )?;
+        write_row(&mut w, r)?;
     }
     Ok(())
+}
+
+/// One CSV row: `{:e}` for every number (shortest round-trip digits).
+fn write_row<W: Write>(w: &mut W, r: &TraceRow) -> std::io::Result<()> {
+    let o = &r.obs;
+    writeln!(
+        w,
+        "{:e},{:e},{:e},{:e},{:e},{},{:e}",
+        r.t,
+        o.x_hammer,
+        o.v_hammer,
+        o.x_contact,
+        o.v_contact,
+        u8::from(o.in_contact),
+        o.energy
+    )
 }

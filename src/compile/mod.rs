@@ -62,6 +62,11 @@ pub struct CompiledPhase {
     pub dense: Option<(DMatrix<f64>, Vec<f64>)>,
     /// Phase coordinates to energy coordinates (`y = V s`), for energy/traces.
     pub v: DMatrix<f64>,
+    /// `V` by rows, nonzeros only, when it is sparse (a modal object's free
+    /// phase: a permutation; the uncoupled modes of a contact phase), so
+    /// the trace's energy costs O(nonzeros) per sample instead of O(dim^2)
+    /// (docs/design.md, "Offline rendering").
+    pub v_sparse: Option<SparseRows>,
     /// `V^{-1}` (energy coordinates to phase coordinates), for rebinding.
     pub vinv: DMatrix<f64>,
     /// Output rows.
@@ -89,6 +94,60 @@ pub struct CompiledPhase {
     /// What the exact event search needs beyond the rows ([`event`]).
     pub search: EventSearch,
 }
+
+/// A matrix by rows, nonzeros only (compressed sparse rows).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SparseRows {
+    /// Row `i` holds entries `start[i]..start[i + 1]`.
+    pub start: Vec<usize>,
+    /// Column of each entry, ascending within a row.
+    pub col: Vec<usize>,
+    /// Value of each entry.
+    pub val: Vec<f64>,
+}
+
+impl SparseRows {
+    /// The nonzeros of `m` by rows, if there are at most `max_per_row`
+    /// times as many as rows (else `None`: a dense product is as cheap).
+    pub fn of(m: &DMatrix<f64>, max_per_row: usize) -> Option<Self> {
+        let (rows, cols) = m.shape();
+        let mut out = Self {
+            start: Vec::with_capacity(rows + 1),
+            col: Vec::new(),
+            val: Vec::new(),
+        };
+        out.start.push(0);
+        for i in 0..rows {
+            for j in 0..cols {
+                let x = m[(i, j)];
+                if x != 0.0 {
+                    if out.col.len() >= max_per_row * rows {
+                        return None;
+                    }
+                    out.col.push(j);
+                    out.val.push(x);
+                }
+            }
+            out.start.push(out.col.len());
+        }
+        Some(out)
+    }
+
+    /// `(M x)_i`, summed over the row's nonzeros in column order: the same
+    /// value, bit for bit, as the dense row sum (the skipped terms are
+    /// exact zeros).
+    #[inline]
+    pub fn row_dot(&self, i: usize, x: impl Fn(usize) -> f64) -> f64 {
+        let mut acc = 0.0;
+        for e in self.start[i]..self.start[i + 1] {
+            acc += self.val[e] * x(self.col[e]);
+        }
+        acc
+    }
+}
+
+/// Nonzeros per row below which `V` is kept sparse for the trace's energy.
+const SPARSE_V_PER_ROW: usize = 4;
 
 /// `row G` for a block-diagonal or dense generator.
 fn row_times_generator(
@@ -267,11 +326,13 @@ fn to_phase(
         }
     };
     let osc = gens.as_deref().map(OscBlocks::of).unwrap_or_default();
+    let v_sparse = SparseRows::of(&d.v, SPARSE_V_PER_ROW);
     Ok(CompiledPhase {
         dim,
         gens,
         osc,
         dense,
+        v_sparse,
         v: d.v,
         vinv: d.vinv,
         rows,

@@ -523,8 +523,23 @@ impl EngineState {
     }
 
     /// Like [`tick`](Self::tick) but also returns the trace observation taken
-    /// after the switching decision (docs/design.md, "The render command and the trace CSV"). O(N^2): offline only.
+    /// after the switching decision (docs/design.md, "The render command and
+    /// the trace CSV"). O(N) plus the energy's cost ([`energy`](Self::energy)):
+    /// offline only.
     pub fn tick_observed(&mut self, scene: &CompiledScene) -> ([f64; 2], Observation) {
+        self.tick_with(scene, |st| st.observe(scene))
+    }
+
+    /// Like [`tick`](Self::tick), calling `look` on the state at the instant
+    /// the trace records (after the switching decision, before the step):
+    /// a caller that needs only part of the observation (e.g.
+    /// [`motion`](Self::motion), and the energy now and then) pays only for
+    /// that. Same samples as [`tick`](Self::tick). \[offline\]
+    pub fn tick_with<R>(
+        &mut self,
+        scene: &CompiledScene,
+        look: impl FnOnce(&Self) -> R,
+    ) -> ([f64; 2], R) {
         let _flush = FlushDenormals::new(self.flush_denormals);
         self.n_events = 0;
         self.t_in_step = 0.0;
@@ -532,7 +547,7 @@ impl EngineState {
         if rod {
             self.decide(scene);
         }
-        let obs = self.observe(scene);
+        let seen = look(self);
         let (mut l, mut r) = ([0.0], [0.0]);
         let (done, _) = self.run_fast(scene, &mut l, &mut r, rod);
         let out = if done == 1 {
@@ -540,7 +555,7 @@ impl EngineState {
         } else {
             self.slow_sample(scene, rod)
         };
-        (out, obs)
+        (out, seen)
     }
 
     /// Fill `left`/`right` with consecutive samples (f64): the block form of
@@ -1010,41 +1025,95 @@ impl EngineState {
         true
     }
 
-    /// Physical observation of the current state (O(N^2)). \[offline\]
+    /// Physical observation of the current state: [`motion`](Self::motion)
+    /// and [`energy`](Self::energy). \[offline\]
     pub fn observe(&self, scene: &CompiledScene) -> Observation {
+        self.motion(scene).with_energy(self.energy(scene))
+    }
+
+    /// The trace's columns but the energy: O(N) (dot products with the
+    /// compiled rows). \[offline\]
+    pub fn motion(&self, scene: &CompiledScene) -> Motion {
         let s = self.time_scale;
         if self.in_contact() {
             let ph = &scene.contact;
-            let y = energy_coords(ph, &self.phases[CONTACT].s, &scene.s_star);
-            let x_c = dot(&ph.rows.x_c, &self.phases[CONTACT].s) + scene.offsets.x_c;
-            let v_c = dot(&ph.rows.v_c, &self.phases[CONTACT].s) + scene.offsets.v_c;
-            let p_eff = self.penetration(scene);
-            let eta = dot(&ph.rows.eta, &self.phases[CONTACT].s) + scene.offsets.eta;
-            let x_h = x_c - p_eff - self.rod_m;
-            let e_ref: f64 = 0.5 * y.iter().map(|v| v * v).sum::<f64>();
-            Observation {
-                x_hammer: x_h,
+            let st = &self.phases[CONTACT].s;
+            let x_c = dot(&ph.rows.x_c, st) + scene.offsets.x_c;
+            let v_c = dot(&ph.rows.v_c, st) + scene.offsets.v_c;
+            let eta = dot(&ph.rows.eta, st) + scene.offsets.eta;
+            Motion {
+                x_hammer: self.contact_hammer_height(scene, x_c),
                 v_hammer: eta / scene.sm * s,
                 x_contact: x_c,
                 v_contact: v_c * s,
                 in_contact: true,
-                energy: s * s * (e_ref + scene.m_h * scene.g * x_h),
             }
         } else {
             let ph = &scene.free;
-            let z = energy_coords(ph, &self.phases[FREE].s, &[]);
-            let x_c = dot(&ph.rows.x_c, &self.phases[FREE].s);
-            let v_c = dot(&ph.rows.v_c, &self.phases[FREE].s);
-            let e_obj: f64 = 0.5 * z.iter().map(|v| v * v).sum::<f64>();
-            let v = self.v_h;
-            Observation {
+            let st = &self.phases[FREE].s;
+            Motion {
                 x_hammer: self.x_h,
-                v_hammer: v * s,
-                x_contact: x_c,
-                v_contact: v_c * s,
+                v_hammer: self.v_h * s,
+                x_contact: dot(&ph.rows.x_c, st),
+                v_contact: dot(&ph.rows.v_c, st) * s,
                 in_contact: false,
-                energy: s * s * (e_obj + 0.5 * scene.m_h * v * v + scene.m_h * scene.g * self.x_h),
             }
+        }
+    }
+
+    /// Hammer height in contact: the contact point less the effective
+    /// penetration and the rod.
+    fn contact_hammer_height(&self, scene: &CompiledScene, x_c: f64) -> f64 {
+        x_c - self.penetration(scene) - self.rod_m
+    }
+
+    /// Total energy \[J\]: object + hammer (kinetic and gravity) + contact
+    /// spring, from the state in energy coordinates `y = V (s + s*)` as
+    /// `0.5 |y|^2` plus the affine terms. O(nonzeros of V): O(N) where `V`
+    /// is sparse (a modal object in flight), O(dim^2) for a dense `V` (a
+    /// coupled contact phase, a string). \[offline\]
+    pub fn energy(&self, scene: &CompiledScene) -> f64 {
+        let s = self.time_scale;
+        if self.in_contact() {
+            let ph = &scene.contact;
+            let st = &self.phases[CONTACT].s;
+            let e_ref = half_norm_sq_energy_coords(ph, st, &scene.s_star);
+            let x_c = dot(&ph.rows.x_c, st) + scene.offsets.x_c;
+            let x_h = self.contact_hammer_height(scene, x_c);
+            s * s * (e_ref + scene.m_h * scene.g * x_h)
+        } else {
+            let e_obj = half_norm_sq_energy_coords(&scene.free, &self.phases[FREE].s, &[]);
+            let v = self.v_h;
+            s * s * (e_obj + 0.5 * scene.m_h * v * v + scene.m_h * scene.g * self.x_h)
+        }
+    }
+}
+
+/// What the trace records per sample but the energy (see [`Observation`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Motion {
+    /// Hammer contact-face height \[m\].
+    pub x_hammer: f64,
+    /// Hammer velocity \[m/s\].
+    pub v_hammer: f64,
+    /// Object displacement at the contact point \[m\].
+    pub x_contact: f64,
+    /// Object velocity at the contact point \[m/s\].
+    pub v_contact: f64,
+    /// In contact (see [`Observation::in_contact`]).
+    pub in_contact: bool,
+}
+
+impl Motion {
+    /// The observation with `energy` \[J\].
+    pub fn with_energy(self, energy: f64) -> Observation {
+        Observation {
+            x_hammer: self.x_hammer,
+            v_hammer: self.v_hammer,
+            x_contact: self.x_contact,
+            v_contact: self.v_contact,
+            in_contact: self.in_contact,
+            energy,
         }
     }
 }
@@ -1055,18 +1124,28 @@ fn old_p_eff(old: &CompiledScene, pi: f64) -> f64 {
     pi / old.sk
 }
 
-/// `y = V (s + s_star)` (physical energy coordinates).
-fn energy_coords(ph: &CompiledPhase, s: &[f64], s_star: &[f64]) -> Vec<f64> {
-    let mut y = vec![0.0; ph.dim];
-    for i in 0..ph.dim {
-        let mut acc = 0.0;
-        for j in 0..ph.dim {
-            let sj = s[j] + s_star.get(j).copied().unwrap_or(0.0);
-            acc += ph.v[(i, j)] * sj;
+/// `0.5 |y|^2` for `y = V (s + s_star)` (physical energy coordinates).
+/// Each `y_i` is summed over `j` in ascending order, so the sparse and the
+/// dense products give the same value bit for bit. A sparse `V` costs its
+/// nonzeros; a dense one is applied by columns (contiguous in memory).
+fn half_norm_sq_energy_coords(ph: &CompiledPhase, s: &[f64], s_star: &[f64]) -> f64 {
+    let sj = |j: usize| s[j] + s_star.get(j).copied().unwrap_or(0.0);
+    if let Some(sp) = &ph.v_sparse {
+        let mut e = 0.0;
+        for i in 0..ph.dim {
+            let y = sp.row_dot(i, sj);
+            e += y * y;
         }
-        y[i] = acc;
+        return 0.5 * e;
     }
-    y
+    let mut y = vec![0.0; ph.dim];
+    for (j, col) in ph.v.column_iter().enumerate() {
+        let x = sj(j);
+        for (yi, v) in y.iter_mut().zip(col.iter()) {
+            *yi += v * x;
+        }
+    }
+    0.5 * y.iter().map(|v| v * v).sum::<f64>()
 }
 
 /// The one-sample block propagators `exp(G_k dt)` (libm's exp and sin_cos:

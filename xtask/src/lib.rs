@@ -3,6 +3,7 @@
 //!
 //! - [`offline`]: one job (a scene, or a note of a scene played through the
 //!   instrument), WAV writing, note and velocity lists;
+//! - [`render`]: `cargo xtask render`, one scene or a batch;
 //! - [`plot`]: the render plot and the report's diagrams;
 //! - [`report`]: `cargo xtask report` (error against run time, stability);
 //! - [`multisample`]: every note x velocity layer of a scene as WAVs plus
@@ -11,4 +12,5 @@
 pub mod multisample;
 pub mod offline;
 pub mod plot;
+pub mod render;
 pub mod report;

@@ -3,8 +3,12 @@
 //!
 //! - `cargo xtask bundle modal_contact --release` -> `target/bundled/*.clap, *.vst3`
 //!   (any command not below goes to nice-plug's xtask)
-//! - `cargo xtask render SCENE.toml --out OUT.wav [--trace OUT.csv] [--plot OUT.svg]
-//!   [--seconds S] [--rate HZ] [--switching offset-rod|exact]`
+//! - `cargo xtask render SCENE.toml --out OUT.wav [--trace OUT.csv] [--plot [OUT.svg]]
+//!   [--seconds S] [--rate HZ] [--switching offset-rod|exact]`; a batch:
+//!   `cargo xtask render SCENES_OR_DIRS... --out DIR [--notes LIST]
+//!   [--velocities LIST] [--jobs N]`
+//! - `cargo xtask multisample SCENE.toml --notes 36..96 --step 3
+//!   --velocities 4 --out DIR`: WAVs and an SFZ file for any sampler`
 //! - `cargo xtask test [CARGO TEST ARGS]`: every test, including the plugin
 //!   tests on the built bundles and the VST3 test through pedalboard
 //! - `cargo xtask demo`: bundle (release) and render a demo through the built
@@ -18,12 +22,10 @@
 mod golden;
 mod paramdocs;
 
-use xtask::{plot, report};
+use xtask::{render, report};
 
 use anyhow::{bail, Context, Result};
-use clap::{Args, Parser, Subcommand, ValueEnum};
-use modal_contact::render::{render, write_trace_csv, RenderOptions};
-use modal_contact::scene::{Scene, Switching};
+use clap::{Args, Parser, Subcommand};
 use modal_testkit::bundles::{copy_bundles, BUNDLES, BUNDLE_NAME};
 use std::path::{Path, PathBuf};
 
@@ -41,8 +43,10 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Offline render of a scene file: WAV, trace CSV, plot, compile summary.
-    Render(RenderArgs),
+    /// Offline render: one scene file to a WAV (trace CSV and plot if
+    /// asked), or a batch of scene files, directories, notes and
+    /// velocities on all cores with a JSON sidecar per WAV.
+    Render(render::RenderArgs),
     /// Error against run time of the engine and the usual integrators, the
     /// stability table and the f32 study (writes report/report.md).
     Report(report::ReportArgs),
@@ -81,54 +85,10 @@ struct TestArgs {
     cargo_test_args: Vec<String>,
 }
 
-/// The switching method, as the command line spells it.
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-enum SwitchingArg {
-    /// Every crossing located inside the sample on the exact solution.
-    Exact,
-    /// The paper's method: contact starts at a sample instant.
-    OffsetRod,
-}
-
-impl From<SwitchingArg> for Switching {
-    fn from(s: SwitchingArg) -> Self {
-        match s {
-            SwitchingArg::Exact => Switching::Exact,
-            SwitchingArg::OffsetRod => Switching::OffsetRod,
-        }
-    }
-}
-
-/// Offline render of a scene file.
-#[derive(Args, Debug)]
-struct RenderArgs {
-    /// Scene file (TOML).
-    scene: PathBuf,
-    /// Output WAV (32-bit float, stereo).
-    #[arg(long)]
-    out: PathBuf,
-    /// Trace CSV (one row per sample).
-    #[arg(long)]
-    trace: Option<PathBuf>,
-    /// Plot of hammer height, contact-point displacement and energy (SVG).
-    /// Default: next to the WAV with the extension .svg.
-    #[arg(long)]
-    plot: Option<PathBuf>,
-    /// Length in seconds (default: the scene's duration_s).
-    #[arg(long)]
-    seconds: Option<f64>,
-    /// Sample rate in Hz.
-    #[arg(long, default_value_t = 44100.0)]
-    rate: f64,
-    /// Switching method (default: the scene's, else the project default).
-    #[arg(long, value_enum)]
-    switching: Option<SwitchingArg>,
-}
-
 fn main() -> Result<()> {
     let argv: Vec<String> = std::env::args().collect();
     match Cli::parse_from(&argv).command {
-        Some(Command::Render(a)) => run_render(a),
+        Some(Command::Render(a)) => render::run(&a),
         Some(Command::Report(a)) => report::run(a),
         // The arguments go to cargo test verbatim: clap drops the `--` of
         // `cargo xtask test -- --nocapture`, which cargo test needs.
@@ -265,63 +225,4 @@ fn run_demo() -> Result<()> {
         &format!("target/bundled/{BUNDLE_NAME}.clap"),
         "target/demo",
     ]))
-}
-
-fn run_render(a: RenderArgs) -> Result<()> {
-    let scene = Scene::from_file(&a.scene).with_context(|| format!("{}", a.scene.display()))?;
-    let opts = RenderOptions {
-        rate_hz: a.rate,
-        seconds: a.seconds,
-        switching: a.switching.map(Switching::from),
-        trace: true,
-    };
-    let t0 = std::time::Instant::now();
-    let out = render(&scene, &opts)?;
-    let elapsed = t0.elapsed().as_secs_f64();
-    eprint!("{}", out.summary);
-    let n = out.left.len();
-    let peak = out
-        .left
-        .iter()
-        .chain(&out.right)
-        .fold(0.0f64, |m, x| m.max(x.abs()));
-    eprintln!(
-        "rendered {n} samples ({:.3} s) in {elapsed:.3} s with trace; {} contacts; peak {peak:.3e}",
-        n as f64 / a.rate,
-        out.contacts
-    );
-    if out.exact_stats != Default::default() {
-        eprintln!("{}", out.switching_line());
-    }
-    if !out.left.iter().chain(&out.right).all(|x| x.is_finite()) {
-        bail!("render produced non-finite samples");
-    }
-    let spec = hound::WavSpec {
-        channels: 2,
-        sample_rate: a.rate.round() as u32,
-        bits_per_sample: 32,
-        sample_format: hound::SampleFormat::Float,
-    };
-    let mut w = hound::WavWriter::create(&a.out, spec)
-        .with_context(|| format!("cannot create {}", a.out.display()))?;
-    for (l, r) in out.left.iter().zip(&out.right) {
-        w.write_sample(*l as f32)?;
-        w.write_sample(*r as f32)?;
-    }
-    w.finalize()?;
-    eprintln!("wrote {}", a.out.display());
-    let rows = out.trace.as_ref().expect("trace requested");
-    if let Some(path) = &a.trace {
-        let f = std::fs::File::create(path)
-            .with_context(|| format!("cannot create {}", path.display()))?;
-        write_trace_csv(rows, std::io::BufWriter::new(f))?;
-        eprintln!("wrote {}", path.display());
-    }
-    let plot_path = a
-        .plot
-        .clone()
-        .unwrap_or_else(|| a.out.with_extension("svg"));
-    plot::plot_trace(rows, &scene.name, &plot_path)?;
-    eprintln!("wrote {}", plot_path.display());
-    Ok(())
 }

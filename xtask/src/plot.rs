@@ -1,6 +1,7 @@
 //! Every SVG plot of the project's tools, with plotters: the trace of a
-//! render (`cargo xtask render`: hammer height and contact-point
-//! displacement on top, total energy below, contact intervals shaded) and
+//! render (`cargo xtask render --plot`: hammer height and contact-point
+//! displacement on top, total energy below, contact intervals shaded; drawn
+//! from the render's min/max envelope) and
 //! the report's work-precision diagrams (`cargo xtask report`: error
 //! against CPU time per second of audio, log-log, one polyline per method
 //! through its oversampling factors, the exact engine's approximation
@@ -8,42 +9,11 @@
 
 use crate::report::accuracy::{Row, SceneResult, APPROX_SERIES};
 use anyhow::{anyhow, Result};
-use modal_contact::render::TraceRow;
+use modal_contact::render::{EnvelopeBucket, TraceEnvelope};
 use plotters::prelude::*;
 use std::path::Path;
 
 // ------------------------------------------------------------ render trace
-
-/// Most points drawn per series; longer traces are decimated by min/max per
-/// bucket so spikes stay visible.
-const MAX_POINTS: usize = 4000;
-
-fn decimate(xs: &[(f64, f64)]) -> Vec<(f64, f64)> {
-    if xs.len() <= MAX_POINTS {
-        return xs.to_vec();
-    }
-    let bucket = xs.len().div_ceil(MAX_POINTS / 2);
-    let mut out = Vec::with_capacity(MAX_POINTS + 2);
-    for chunk in xs.chunks(bucket) {
-        let (mut lo, mut hi) = (chunk[0], chunk[0]);
-        for p in chunk {
-            if p.1 < lo.1 {
-                lo = *p;
-            }
-            if p.1 > hi.1 {
-                hi = *p;
-            }
-        }
-        if lo.0 <= hi.0 {
-            out.push(lo);
-            out.push(hi);
-        } else {
-            out.push(hi);
-            out.push(lo);
-        }
-    }
-    out
-}
 
 fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -58,15 +28,34 @@ fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
-/// Write the plot to `path` (SVG).
-pub fn plot_trace(rows: &[TraceRow], title: &str, path: &Path) -> Result<()> {
+/// A min/max series through the buckets: per bucket the smaller value at
+/// its start time and the larger at its end, so spikes stay visible.
+fn min_max_series(
+    env: &TraceEnvelope,
+    pick: impl Fn(&EnvelopeBucket) -> [f64; 2],
+) -> Vec<(f64, f64)> {
+    let t = |i: usize| i as f64 / env.rate_hz;
+    env.buckets
+        .iter()
+        .flat_map(|b| {
+            let [lo, hi] = pick(b);
+            let end = (b.start + b.len.max(1) - 1).max(b.start);
+            [(t(b.start), lo), (t(end), hi)]
+        })
+        .collect()
+}
+
+/// Draw the render's plot from its envelope (at most
+/// [`modal_contact::render::ENVELOPE_BUCKETS`] buckets, whatever the
+/// length) to `path` (SVG).
+pub fn plot_envelope(env: &TraceEnvelope, title: &str, path: &Path) -> Result<()> {
     let root = SVGBackend::new(path, (1100, 700)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
     let (top, bottom) = root.split_vertically(420);
-    let t_end = rows.last().map_or(1.0, |r| r.t);
-    let xh: Vec<(f64, f64)> = rows.iter().map(|r| (r.t, r.obs.x_hammer)).collect();
-    let xc: Vec<(f64, f64)> = rows.iter().map(|r| (r.t, r.obs.x_contact)).collect();
-    let en: Vec<(f64, f64)> = rows.iter().map(|r| (r.t, r.obs.energy)).collect();
+    let t = |i: usize| i as f64 / env.rate_hz;
+    let t_end = t(env.samples.saturating_sub(1)).max(1.0 / env.rate_hz);
+    let xh = min_max_series(env, |b| b.x_hammer);
+    let xc = min_max_series(env, |b| b.x_contact);
     let (ylo, yhi) = range(xh.iter().chain(&xc).map(|p| p.1));
     let mut ch = ChartBuilder::on(&top)
         .caption(
@@ -82,27 +71,34 @@ pub fn plot_trace(rows: &[TraceRow], title: &str, path: &Path) -> Result<()> {
         .x_desc("t [s]")
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
-    // contact intervals
+    // contact intervals: runs of buckets that hold a contact sample
     let mut start = None;
-    for r in rows {
-        match (start, r.obs.in_contact) {
-            (None, true) => start = Some(r.t),
+    let mut spans = Vec::new();
+    for b in &env.buckets {
+        match (start, b.in_contact) {
+            (None, true) => start = Some(t(b.start)),
             (Some(s), false) => {
-                ch.draw_series(std::iter::once(Rectangle::new(
-                    [(s, ylo), (r.t, yhi)],
-                    RGBColor(255, 200, 200).mix(0.5).filled(),
-                )))
-                .map_err(|e| anyhow!("{e}"))?;
+                spans.push((s, t(b.start)));
                 start = None;
             }
             _ => {}
         }
     }
-    ch.draw_series(LineSeries::new(decimate(&xh), &BLUE))
+    if let Some(s) = start {
+        spans.push((s, t_end));
+    }
+    ch.draw_series(spans.into_iter().map(|(s, e)| {
+        Rectangle::new(
+            [(s, ylo), (e, yhi)],
+            RGBColor(255, 200, 200).mix(0.5).filled(),
+        )
+    }))
+    .map_err(|e| anyhow!("{e}"))?;
+    ch.draw_series(LineSeries::new(xh, &BLUE))
         .map_err(|e| anyhow!("{e}"))?
         .label("hammer height x_hammer")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-    ch.draw_series(LineSeries::new(decimate(&xc), &RED))
+    ch.draw_series(LineSeries::new(xc, &RED))
         .map_err(|e| anyhow!("{e}"))?
         .label("contact point x_contact (shaded: in contact)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
@@ -112,9 +108,16 @@ pub fn plot_trace(rows: &[TraceRow], title: &str, path: &Path) -> Result<()> {
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
 
+    let en: Vec<(f64, f64)> = std::iter::once((0.0, env.energy_start))
+        .chain(
+            env.buckets
+                .iter()
+                .map(|b| (t(b.start + b.len.max(1) - 1), b.energy_end)),
+        )
+        .collect();
     let (elo, ehi) = range(en.iter().map(|p| p.1));
     let mut ce = ChartBuilder::on(&bottom)
-        .caption("total energy [J]", ("sans-serif", 18))
+        .caption("total energy [J] (at bucket ends)", ("sans-serif", 18))
         .margin(10)
         .x_label_area_size(30)
         .y_label_area_size(80)
@@ -124,7 +127,7 @@ pub fn plot_trace(rows: &[TraceRow], title: &str, path: &Path) -> Result<()> {
         .x_desc("t [s]")
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
-    ce.draw_series(LineSeries::new(decimate(&en), &BLACK))
+    ce.draw_series(LineSeries::new(en, &BLACK))
         .map_err(|e| anyhow!("{e}"))?;
     root.present().map_err(|e| anyhow!("{e}"))?;
     Ok(())

@@ -1,0 +1,625 @@
+//! `cargo xtask render`: one scene to a WAV (with its trace and plot if
+//! asked), or a batch (several scene files, directories, lists of notes and
+//! velocities) rendered on all cores with a JSON sidecar per WAV
+//! (docs/design.md, "Offline rendering").
+
+use crate::offline::{self, check_writable, parse_midi_list, play_note, prepare_for, WavFormat};
+use crate::plot;
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use modal_contact::compile::{compile_with, CompiledScene};
+use modal_contact::instrument::{root_note, InstrumentParams};
+use modal_contact::render::{
+    render_length, render_stream, CsvTrace, StreamStats, TraceEnvelope, TraceSink,
+};
+use modal_contact::scene::{Scene, Switching};
+use rayon::prelude::*;
+use serde_json::json;
+use std::io::{BufWriter, IsTerminal};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// The switching method, as the command line spells it.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SwitchingArg {
+    /// Every crossing located inside the sample on the exact solution.
+    Exact,
+    /// The paper's method: contact starts at a sample instant.
+    OffsetRod,
+}
+
+impl From<SwitchingArg> for Switching {
+    fn from(s: SwitchingArg) -> Self {
+        match s {
+            SwitchingArg::Exact => Switching::Exact,
+            SwitchingArg::OffsetRod => Switching::OffsetRod,
+        }
+    }
+}
+
+/// `cargo xtask render`.
+#[derive(Args, Debug, Clone)]
+pub struct RenderArgs {
+    /// Scene files (TOML) and directories of scene files. One file and no
+    /// --notes/--velocities: --out is the WAV. Otherwise a batch: --out is
+    /// a directory.
+    #[arg(required = true)]
+    pub scenes: Vec<PathBuf>,
+    /// Output WAV (one scene) or directory (batch).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Trace CSV, one row per sample. In a batch, give it without a path:
+    /// each scene's trace goes next to its WAV.
+    #[arg(long, num_args = 0..=1)]
+    pub trace: Option<Option<PathBuf>>,
+    /// Plot of hammer height, contact-point displacement and energy (SVG).
+    /// Without a path: next to the WAV.
+    #[arg(long, num_args = 0..=1)]
+    pub plot: Option<Option<PathBuf>>,
+    /// Length in seconds (default: each scene's duration_s).
+    #[arg(long)]
+    pub seconds: Option<f64>,
+    /// Sample rate in Hz.
+    #[arg(long, default_value_t = 44100.0)]
+    pub rate: f64,
+    /// Switching method (default: the scene's, else the project default).
+    #[arg(long, value_enum)]
+    pub switching: Option<SwitchingArg>,
+    /// MIDI notes to strike, played through the instrument as the plugin
+    /// plays them (e.g. `60`, `48,55,60`, `36..96:3`). Default with
+    /// --velocities: the note that plays each scene as written.
+    #[arg(long)]
+    pub notes: Option<String>,
+    /// MIDI velocities 1-127 (same syntax). Default with --notes: 100.
+    #[arg(long)]
+    pub velocities: Option<String>,
+    /// Worker threads (default: every core).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+}
+
+/// What a job plays.
+#[derive(Debug, Clone, PartialEq)]
+pub enum JobKind {
+    /// The scene as written (its hammer, its initial state), engine only.
+    Scene,
+    /// One strike through the instrument.
+    Note {
+        /// MIDI note.
+        note: u8,
+        /// MIDI velocity.
+        velocity: u8,
+    },
+}
+
+/// One render: a pure function of its scene file and these parameters.
+#[derive(Debug, Clone)]
+pub struct Job {
+    /// The scene file.
+    pub scene_path: PathBuf,
+    /// What is played.
+    pub kind: JobKind,
+    /// The WAV written.
+    pub wav: PathBuf,
+    /// The trace CSV, if any.
+    pub trace: Option<PathBuf>,
+    /// The plot, if any.
+    pub plot: Option<PathBuf>,
+    /// The JSON sidecar, if any (batches).
+    pub sidecar: Option<PathBuf>,
+    /// Samples it renders, as planned (for the progress bar; 0 when the
+    /// scene file could not be read: the job then fails with the reason).
+    pub samples: u64,
+}
+
+impl Job {
+    /// The job's name in messages.
+    pub fn name(&self) -> String {
+        match self.kind {
+            JobKind::Scene => self.scene_path.display().to_string(),
+            JobKind::Note { note, velocity } => format!(
+                "{} note {note} velocity {velocity}",
+                self.scene_path.display()
+            ),
+        }
+    }
+
+    fn outputs(&self) -> impl Iterator<Item = &PathBuf> {
+        std::iter::once(&self.wav)
+            .chain(&self.trace)
+            .chain(&self.plot)
+            .chain(&self.sidecar)
+    }
+}
+
+/// Scene files named on the command line: files as given, directories
+/// expanded to their `*.toml` files (sorted; not recursive).
+pub fn scene_files(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for p in paths {
+        if p.is_dir() {
+            let mut found: Vec<PathBuf> = std::fs::read_dir(p)
+                .with_context(|| format!("cannot read directory {}", p.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| f.is_file() && f.extension().is_some_and(|x| x == "toml"))
+                .collect();
+            if found.is_empty() {
+                bail!("{}: no .toml scene files in this directory", p.display());
+            }
+            found.sort();
+            out.extend(found);
+        } else if p.is_file() {
+            out.push(p.clone());
+        } else {
+            bail!("{}: no such scene file or directory", p.display());
+        }
+    }
+    Ok(out)
+}
+
+/// Resolve an optional path argument: given without a path, next to the
+/// WAV with extension `ext`.
+fn beside(arg: &Option<Option<PathBuf>>, wav: &Path, ext: &str) -> Option<PathBuf> {
+    arg.as_ref()
+        .map(|p| p.clone().unwrap_or_else(|| wav.with_extension(ext)))
+}
+
+/// The jobs of a command line, every output path decided (nothing is
+/// rendered or written).
+pub fn plan(a: &RenderArgs) -> Result<Vec<Job>> {
+    let files = scene_files(&a.scenes)?;
+    let length = |scene: Option<&Scene>| -> u64 {
+        scene
+            .and_then(|sc| render_length(a.seconds.unwrap_or(sc.duration_s), a.rate).ok())
+            .unwrap_or(0) as u64
+    };
+    let by_note = a.notes.is_some() || a.velocities.is_some();
+    let batch = by_note || files.len() > 1 || a.scenes.iter().any(|p| p.is_dir());
+    if !batch {
+        let wav = a.out.clone();
+        return Ok(vec![Job {
+            scene_path: files[0].clone(),
+            kind: JobKind::Scene,
+            trace: beside(&a.trace, &wav, "csv"),
+            plot: beside(&a.plot, &wav, "svg"),
+            sidecar: None,
+            samples: length(load_scene(&files[0]).ok().as_ref()),
+            wav,
+        }]);
+    }
+    for (what, arg) in [("--trace", &a.trace), ("--plot", &a.plot)] {
+        if matches!(arg, Some(Some(_))) {
+            bail!("in a batch, give {what} without a path: each goes next to its WAV");
+        }
+    }
+    if by_note && (a.trace.is_some() || a.plot.is_some()) {
+        bail!("--trace and --plot follow one engine voice: they are for scene renders, not --notes/--velocities");
+    }
+    let notes = a
+        .notes
+        .as_deref()
+        .map(|s| parse_midi_list(s, "note", 0, 127))
+        .transpose()?;
+    let vels = match a.velocities.as_deref() {
+        Some(s) => parse_midi_list(s, "velocity", 1, 127)?,
+        None => vec![100],
+    };
+    let mut jobs = Vec::new();
+    for f in &files {
+        let stem = f
+            .file_stem()
+            .ok_or_else(|| anyhow!("{}: no file name", f.display()))?
+            .to_string_lossy()
+            .into_owned();
+        let scene = load_scene(f).ok();
+        let samples = length(scene.as_ref());
+        if !by_note {
+            let wav = a.out.join(format!("{stem}.wav"));
+            jobs.push(Job {
+                scene_path: f.clone(),
+                kind: JobKind::Scene,
+                trace: beside(&a.trace, &wav, "csv"),
+                plot: beside(&a.plot, &wav, "svg"),
+                sidecar: Some(wav.with_extension("json")),
+                samples,
+                wav,
+            });
+            continue;
+        }
+        let notes = match (&notes, &scene) {
+            (Some(n), _) => n.clone(),
+            (None, Some(sc)) => vec![root_note(sc).round().clamp(0.0, 127.0) as u8],
+            // The job fails with the scene file's error when it runs.
+            (None, None) => vec![60],
+        };
+        for &note in &notes {
+            for &velocity in &vels {
+                let wav = a.out.join(format!("{stem}_n{note:03}_v{velocity:03}.wav"));
+                jobs.push(Job {
+                    scene_path: f.clone(),
+                    kind: JobKind::Note { note, velocity },
+                    trace: None,
+                    plot: None,
+                    sidecar: Some(wav.with_extension("json")),
+                    samples,
+                    wav,
+                });
+            }
+        }
+    }
+    Ok(jobs)
+}
+
+/// Every output path is writable and no two jobs write the same file:
+/// checked before any work starts (a batch's directory is created).
+pub fn check_outputs(jobs: &[Job]) -> Result<()> {
+    let mut seen = std::collections::HashSet::new();
+    for j in jobs {
+        for p in j.outputs() {
+            if !seen.insert(p.clone()) {
+                bail!(
+                    "{} would be written twice (two scene files with the same name?)",
+                    p.display()
+                );
+            }
+            check_writable(p, j.sidecar.is_some())?;
+        }
+    }
+    Ok(())
+}
+
+fn load_scene(path: &Path) -> Result<Scene> {
+    Scene::from_file(path).with_context(|| path.display().to_string())
+}
+
+/// What one job did (printed, and written to its sidecar).
+#[derive(Debug, Clone)]
+pub struct JobReport {
+    /// Sidecar contents.
+    pub json: serde_json::Value,
+    /// One line for the terminal.
+    pub line: String,
+    /// Exact switching's counters line (scene jobs).
+    pub switching_line: Option<String>,
+    /// The compile summary.
+    pub summary: String,
+}
+
+/// The outputs of a scene render.
+#[derive(Debug, Clone, Default)]
+pub struct SceneOutputs<'a> {
+    /// The WAV (32-bit float stereo).
+    pub wav: Option<&'a Path>,
+    /// The trace CSV.
+    pub trace: Option<&'a Path>,
+    /// The plot (SVG) and its title.
+    pub plot: Option<(&'a Path, &'a str)>,
+}
+
+/// Render `n` samples of a compiled scene into its outputs, streaming: the
+/// WAV and the CSV are written as the render goes, the plot is drawn from
+/// the envelope ([`TraceEnvelope`]). Without a trace or a plot the engine
+/// runs its block path and nothing is observed.
+/// `progress` hears how many samples each chunk added.
+pub fn render_scene_to(
+    compiled: &CompiledScene,
+    n: usize,
+    out: &SceneOutputs,
+    progress: &dyn Fn(u64),
+) -> Result<StreamStats> {
+    let spec = hound::WavSpec {
+        channels: 2,
+        sample_rate: compiled.rate_hz.round() as u32,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut wav = match out.wav {
+        Some(p) => Some(
+            hound::WavWriter::create(p, spec)
+                .with_context(|| format!("cannot create {}", p.display()))?,
+        ),
+        None => None,
+    };
+    let audio = |l: &[f64], r: &[f64]| -> std::io::Result<()> {
+        progress(l.len() as u64);
+        if let Some(w) = wav.as_mut() {
+            for (a, b) in l.iter().zip(r) {
+                w.write_sample(*a as f32).map_err(std::io::Error::other)?;
+                w.write_sample(*b as f32).map_err(std::io::Error::other)?;
+            }
+        }
+        Ok(())
+    };
+    let csv = match out.trace {
+        Some(p) => {
+            let f = std::fs::File::create(p)
+                .with_context(|| format!("cannot create {}", p.display()))?;
+            Some(CsvTrace::new(
+                compiled.rate_hz,
+                BufWriter::with_capacity(1 << 20, f),
+            )?)
+        }
+        None => None,
+    };
+    let env = out.plot.map(|_| TraceEnvelope::new(compiled.rate_hz, n));
+    let (stats, env) = match (csv, env) {
+        (None, None) => (render_stream(compiled, n, audio, None)?, None),
+        (Some(mut c), None) => {
+            let s = render_stream(compiled, n, audio, Some(&mut c as &mut dyn TraceSink))?;
+            c.finish()?;
+            (s, None)
+        }
+        (None, Some(mut e)) => {
+            let s = render_stream(compiled, n, audio, Some(&mut e as &mut dyn TraceSink))?;
+            (s, Some(e))
+        }
+        (Some(c), Some(e)) => {
+            let mut both = (c, e);
+            let s = render_stream(compiled, n, audio, Some(&mut both as &mut dyn TraceSink))?;
+            both.0.finish()?;
+            (s, Some(both.1))
+        }
+    };
+    if let Some(w) = wav {
+        w.finalize()?;
+    }
+    if let (Some(e), Some((path, title))) = (env, out.plot) {
+        plot::plot_envelope(&e, title, path)?;
+    }
+    Ok(stats)
+}
+
+fn scene_job(job: &Job, a: &RenderArgs, progress: &dyn Fn(u64)) -> Result<JobReport> {
+    let scene = load_scene(&job.scene_path)?;
+    let n = render_length(a.seconds.unwrap_or(scene.duration_s), a.rate)?;
+    let t0 = Instant::now();
+    let compiled = compile_with(&scene, a.rate, a.switching.map(Switching::from))?;
+    let compile_s = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let stats = render_scene_to(
+        &compiled,
+        n,
+        &SceneOutputs {
+            wav: Some(&job.wav),
+            trace: job.trace.as_deref(),
+            plot: job.plot.as_deref().map(|p| (p, scene.name.as_str())),
+        },
+        progress,
+    )?;
+    let render_s = t1.elapsed().as_secs_f64();
+    if stats.nonfinite > 0 {
+        bail!("{} samples were not finite", stats.nonfinite);
+    }
+    let x = &stats.exact_stats;
+    let seconds = n as f64 / a.rate;
+    let json = json!({
+        "scene": job.scene_path.display().to_string(),
+        "scene_name": scene.name,
+        "kind": "scene",
+        "rate_hz": a.rate,
+        "seconds": seconds,
+        "samples": n,
+        "switching": format!("{:?}", compiled.switching),
+        "compile": compile_json(&compiled, compile_s),
+        "contacts": stats.contacts,
+        "exact_switching": {
+            "located": x.located, "grazing": x.grazing, "capped": x.capped,
+            "rod_fallbacks": x.rod_fallbacks, "uncertified": x.uncertified,
+        },
+        "peak": stats.peak,
+        "render_s": render_s,
+        "realtime_factor": seconds / render_s.max(1e-12),
+        "files": files_json(job),
+    });
+    let line = format!(
+        "rendered {n} samples ({seconds:.3} s) in {render_s:.3} s ({:.0}x real time), compiled in {compile_s:.3} s; {} contacts; peak {:.3e}",
+        seconds / render_s.max(1e-12),
+        stats.contacts,
+        stats.peak
+    );
+    let switching_line = (stats.exact_stats != Default::default())
+        .then(|| modal_contact::render::switching_line(&stats.exact_stats));
+    Ok(JobReport {
+        json,
+        line,
+        switching_line,
+        summary: compiled.summary.clone(),
+    })
+}
+
+fn compile_json(c: &CompiledScene, seconds: f64) -> serde_json::Value {
+    json!({
+        "seconds": seconds,
+        "free": {"dim": c.free.dim, "route": c.free.diag.method},
+        "contact": {"dim": c.contact.dim, "route": c.contact.diag.method},
+        "summary": c.summary,
+    })
+}
+
+fn files_json(job: &Job) -> serde_json::Value {
+    json!({
+        "wav": job.wav.display().to_string(),
+        "trace": job.trace.as_ref().map(|p| p.display().to_string()),
+        "plot": job.plot.as_ref().map(|p| p.display().to_string()),
+    })
+}
+
+/// The jobs of one scene file that strike notes: the scene is prepared
+/// (mapped and compiled) once, its notes render in parallel.
+fn note_jobs(jobs: &[&Job], a: &RenderArgs, done: &(dyn Fn(u64) + Sync)) -> Vec<Result<JobReport>> {
+    let prep = (|| -> Result<_> {
+        let scene = load_scene(&jobs[0].scene_path)?;
+        let params = InstrumentParams::default();
+        let (prepared, compile_s) = prepare_for(&scene, &params, a.rate)?;
+        Ok((scene, params, prepared, compile_s))
+    })();
+    let (scene, params, prepared, compile_s) = match prep {
+        Ok(p) => p,
+        Err(e) => {
+            let msg = format!("{e:#}");
+            return jobs
+                .iter()
+                .map(|j| {
+                    done(j.samples);
+                    Err(anyhow!("{msg}"))
+                })
+                .collect();
+        }
+    };
+    jobs.par_iter()
+        .map(|job| {
+            let r = (|| {
+                let JobKind::Note { note, velocity } = job.kind else {
+                    unreachable!("note jobs only")
+                };
+                let n = render_length(a.seconds.unwrap_or(scene.duration_s), a.rate)?;
+                let r = play_note(&prepared, &params, note, velocity, n);
+                offline::write_wav(&job.wav, a.rate, &r.left, &r.right, WavFormat::Float32)?;
+                let peak = r
+                    .left
+                    .iter()
+                    .chain(&r.right)
+                    .fold(0.0f64, |m, x| m.max(f64::from(x.abs())));
+                let seconds = n as f64 / a.rate;
+                let json = json!({
+                    "scene": job.scene_path.display().to_string(),
+                    "scene_name": scene.name,
+                    "kind": "note",
+                    "note": note,
+                    "velocity": velocity,
+                    "velocity_norm": offline::velocity_norm(velocity),
+                    "rate_hz": a.rate,
+                    "seconds": seconds,
+                    "samples": n,
+                    "switching": format!("{:?}", prepared.switching_used),
+                    "fallback_note": r.fallback_note,
+                    "compile": compile_json(&prepared.scenes.scene, compile_s),
+                    "contacts": r.contacts,
+                    "peak": peak,
+                    "render_s": r.render_s,
+                    "realtime_factor": seconds / r.render_s.max(1e-12),
+                    "files": files_json(job),
+                });
+                let line = format!(
+                    "note {note} velocity {velocity}: {} contacts, peak {peak:.3e}, {:.0}x real time",
+                    r.contacts,
+                    seconds / r.render_s.max(1e-12)
+                );
+                Ok(JobReport {
+                    json,
+                    line,
+                    switching_line: None,
+                    summary: r.summary,
+                })
+            })();
+            done(job.samples);
+            r
+        })
+        .collect()
+}
+
+/// Run a planned list of jobs on the rayon pool; the results in job order.
+/// `progress` is drawn (if `show_after_1s`) once the jobs have run for a
+/// second.
+pub fn run_jobs(
+    jobs: &[Job],
+    a: &RenderArgs,
+    progress: &ProgressBar,
+    show_after_1s: bool,
+) -> Vec<Result<JobReport>> {
+    let t0 = Instant::now();
+    let shown = AtomicBool::new(!show_after_1s);
+    let done = |k: u64| {
+        progress.inc(k);
+        if t0.elapsed().as_secs_f64() > 1.0 && !shown.swap(true, Ordering::Relaxed) {
+            progress.set_draw_target(ProgressDrawTarget::stderr());
+        }
+    };
+    // Group note jobs by scene file (one compile each), keep scene jobs alone.
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (i, j) in jobs.iter().enumerate() {
+        match (&j.kind, groups.last_mut()) {
+            (JobKind::Note { .. }, Some(g))
+                if matches!(jobs[g[0]].kind, JobKind::Note { .. })
+                    && jobs[g[0]].scene_path == j.scene_path =>
+            {
+                g.push(i)
+            }
+            _ => groups.push(vec![i]),
+        }
+    }
+    let results: Vec<Vec<(usize, Result<JobReport>)>> = groups
+        .par_iter()
+        .map(|g| {
+            let first = &jobs[g[0]];
+            let rs = if first.kind == JobKind::Scene {
+                let r = scene_job(first, a, &done);
+                vec![r]
+            } else {
+                let js: Vec<&Job> = g.iter().map(|&i| &jobs[i]).collect();
+                note_jobs(&js, a, &done)
+            };
+            g.iter().copied().zip(rs).collect()
+        })
+        .collect();
+    let mut flat: Vec<(usize, Result<JobReport>)> = results.into_iter().flatten().collect();
+    flat.sort_by_key(|(i, _)| *i);
+    flat.into_iter().map(|(_, r)| r).collect()
+}
+
+/// `cargo xtask render`: plan, check every output, render, report. Fails
+/// (after every job has run) if any job failed.
+pub fn run(a: &RenderArgs) -> Result<()> {
+    let jobs = plan(a)?;
+    check_outputs(&jobs)?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.jobs.unwrap_or(0))
+        .build()?;
+    let total: u64 = jobs.iter().map(|j| j.samples).sum();
+    let progress = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::hidden());
+    let tty = std::io::stderr().is_terminal();
+    if tty {
+        progress.set_style(
+            ProgressStyle::with_template(&format!(
+                "{{bar:40}} {{percent}}% of {} jobs, {{elapsed}} (eta {{eta}})",
+                jobs.len()
+            ))
+            .expect("template"),
+        );
+    }
+    let single = jobs.len() == 1 && jobs[0].sidecar.is_none();
+    let results = pool.install(|| run_jobs(&jobs, a, &progress, tty));
+    progress.finish_and_clear();
+    let mut failed = 0;
+    for (job, r) in jobs.iter().zip(results) {
+        match r {
+            Ok(rep) => {
+                if single {
+                    eprint!("{}", rep.summary);
+                }
+                eprintln!("{}: {}", job.name(), rep.line);
+                if let Some(s) = &rep.switching_line {
+                    eprintln!("{s}");
+                }
+                if let Some(p) = &job.sidecar {
+                    let text = serde_json::to_string_pretty(&rep.json)?;
+                    std::fs::write(p, text + "\n")
+                        .with_context(|| format!("cannot write {}", p.display()))?;
+                }
+                for p in job.outputs() {
+                    eprintln!("wrote {}", p.display());
+                }
+            }
+            Err(e) => {
+                failed += 1;
+                eprintln!("FAILED {}: {e:#}", job.name());
+            }
+        }
+    }
+    if failed > 0 {
+        bail!("{failed} of {} jobs failed", jobs.len());
+    }
+    Ok(())
+}
