@@ -1,0 +1,167 @@
+//! The render command against the engine alone (docs/design.md, "Offline
+//! rendering"): per sample, the command's WAV-only render, its render with
+//! the plot, and with the trace CSV and the plot, at 10, 100 and 1000
+//! modes, against `EngineState::process_block` over the same samples. The
+//! compile is left out of both (it is printed by the command separately).
+//!
+//! `cargo bench -p xtask --bench render_command` prints criterion's
+//! timings and, at the end, the ratios measured in one run with the
+//! variants interleaved (A B C D A B C D ...), median of the repetitions.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use modal_contact::compile::{compile, CompiledScene};
+use modal_contact::engine::EngineState;
+use modal_contact::scene::Scene;
+use modal_testkit::scenes::{Contact, Hammer, Modal, Pickup, SceneBuilder};
+use std::hint::black_box;
+use std::path::PathBuf;
+use std::time::Instant;
+use xtask::render::{render_scene_to, SceneOutputs};
+
+const RATE: f64 = 44100.0;
+
+/// A modal object of `n` modes struck once by a hammer that falls from
+/// 1 mm at 1 m/s, bounces off and flies away.
+fn struck(n: usize) -> Scene {
+    let mut object = Modal::new("o", &["c", "p"]);
+    for i in 0..n {
+        let f = 80.0 * (18000.0f64 / 80.0).powf(i as f64 / (n.max(2) - 1) as f64);
+        let w = 1.0 / (1.0 + 0.01 * i as f64).sqrt();
+        let wp = if i % 2 == 0 { 0.7 * w } else { -0.5 * w };
+        object = object.mode(f, 2.0 / (1.0 + f / 2000.0), &[w, wp]);
+    }
+    SceneBuilder::new("bench")
+        .object(object)
+        .hammer(Hammer::new(0.02).height(1e-3).velocity(-1.0))
+        .contact(Contact::new("o", 1e6).point("c").damping(5.0))
+        .pickup(Pickup::new("o", "p"))
+        .build()
+}
+
+fn samples(n_modes: usize) -> usize {
+    if n_modes >= 1000 {
+        (0.25 * RATE) as usize
+    } else {
+        RATE as usize
+    }
+}
+
+fn engine_only(sc: &CompiledScene, n: usize) -> f64 {
+    let mut st = EngineState::new(sc);
+    let (mut l, mut r) = (vec![0.0; 4096], vec![0.0; 4096]);
+    let mut done = 0;
+    let mut acc = 0.0;
+    while done < n {
+        let k = 4096.min(n - done);
+        st.process_block(sc, &mut l[..k], &mut r[..k]);
+        acc += l[k - 1];
+        done += k;
+    }
+    acc
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Variant {
+    Engine,
+    Wav,
+    WavPlot,
+    WavTracePlot,
+}
+
+const VARIANTS: [Variant; 4] = [
+    Variant::Engine,
+    Variant::Wav,
+    Variant::WavPlot,
+    Variant::WavTracePlot,
+];
+
+fn run(v: Variant, sc: &CompiledScene, n: usize, dir: &std::path::Path) {
+    let wav = dir.join("bench.wav");
+    let csv = dir.join("bench.csv");
+    let svg = dir.join("bench.svg");
+    let out = match v {
+        Variant::Engine => {
+            black_box(engine_only(sc, n));
+            return;
+        }
+        Variant::Wav => SceneOutputs {
+            wav: Some(&wav),
+            ..Default::default()
+        },
+        Variant::WavPlot => SceneOutputs {
+            wav: Some(&wav),
+            plot: Some((&svg, "bench")),
+            ..Default::default()
+        },
+        Variant::WavTracePlot => SceneOutputs {
+            wav: Some(&wav),
+            trace: Some(&csv),
+            plot: Some((&svg, "bench")),
+        },
+    };
+    black_box(render_scene_to(sc, n, &out, &|_| {}).expect("render"));
+}
+
+fn scratch() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("render-command-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&d).expect("temp dir");
+    d
+}
+
+fn command(c: &mut Criterion) {
+    let dir = scratch();
+    let mut g = c.benchmark_group("render_command");
+    g.sample_size(10);
+    for n_modes in [10, 100, 1000] {
+        let sc = compile(&struck(n_modes), RATE).expect("compile");
+        let n = samples(n_modes);
+        g.throughput(Throughput::Elements(n as u64));
+        for v in VARIANTS {
+            g.bench_with_input(
+                BenchmarkId::new(format!("{v:?}"), n_modes),
+                &n_modes,
+                |b, _| b.iter(|| run(v, &sc, n, &dir)),
+            );
+        }
+    }
+    g.finish();
+}
+
+/// Ratios to the engine, the variants interleaved, median of 7 rounds.
+fn summary(_: &mut Criterion) {
+    let dir = scratch();
+    println!(
+        "\nrender command per sample, ratio to the engine alone (median of 7 interleaved rounds):"
+    );
+    println!("| modes | engine ns/sample | WAV only | WAV + plot | WAV + trace CSV + plot | engine x real time |");
+    println!("|---|---|---|---|---|---|");
+    for n_modes in [10, 100, 1000] {
+        let sc = compile(&struck(n_modes), RATE).expect("compile");
+        let n = samples(n_modes);
+        let mut times = [[0.0f64; 7]; 4];
+        for round in 0..7 {
+            for (k, v) in VARIANTS.iter().enumerate() {
+                let t0 = Instant::now();
+                run(*v, &sc, n, &dir);
+                times[k][round] = t0.elapsed().as_secs_f64();
+            }
+        }
+        let med = |xs: &mut [f64; 7]| {
+            xs.sort_by(f64::total_cmp);
+            xs[3]
+        };
+        let m: Vec<f64> = times.iter_mut().map(med).collect();
+        let per = m[0] / n as f64 * 1e9;
+        println!(
+            "| {n_modes} | {per:.1} | {:.2}x | {:.2}x | {:.2}x | {:.0}x |",
+            m[1] / m[0],
+            m[2] / m[0],
+            m[3] / m[0],
+            (n as f64 / RATE) / m[0]
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+criterion_group!(benches, command, summary);
+criterion_main!(benches);
