@@ -295,7 +295,10 @@ mod tests {
             }
             assert!(l.iter().all(|(a, b)| a <= b));
         }
-        assert_eq!(velocity_layers(4).unwrap(), [(1, 31), (32, 63), (64, 95), (96, 127)]);
+        assert_eq!(
+            velocity_layers(4).unwrap(),
+            [(1, 31), (32, 63), (64, 95), (96, 127)]
+        );
         assert!(velocity_layers(0).is_err() && velocity_layers(128).is_err());
     }
 
