@@ -242,6 +242,18 @@ pub struct EngineState {
     search: SearchScratch,
     /// Reference time consumed in the current step (for event times).
     t_in_step: f64,
+    /// Offline observation scratch ([`process_block_observed`](Self::process_block_observed)),
+    /// allocated on its first call.
+    obs: Option<Box<ObsScratch>>,
+}
+
+/// Scratch of [`EngineState::process_block_observed`]: a second kernel
+/// pass over the same start state with the contact point's rows.
+#[derive(Debug, Clone)]
+struct ObsScratch {
+    next: Vec<f64>,
+    zeros: Vec<f64>,
+    rows: Box<BlockRows>,
 }
 
 impl EngineState {
@@ -290,6 +302,7 @@ impl EngineState {
             events_dropped: 0,
             search: SearchScratch::new(df.max(dc)),
             t_in_step: 0.0,
+            obs: None,
         };
         st.set_time_scale(scene, 1.0)
             .expect("time scale 1 is always valid");
@@ -549,7 +562,7 @@ impl EngineState {
         }
         let seen = look(self);
         let (mut l, mut r) = ([0.0], [0.0]);
-        let (done, _) = self.run_fast(scene, &mut l, &mut r, rod);
+        let (done, _) = self.run_fast(scene, &mut l, &mut r, rod, None);
         let out = if done == 1 {
             [l[0], r[0]]
         } else {
@@ -576,7 +589,7 @@ impl EngineState {
         let n = left.len().min(right.len());
         let mut i = 0;
         while i < n {
-            let (done, slow) = self.run_fast(scene, &mut left[i..n], &mut right[i..n], false);
+            let (done, slow) = self.run_fast(scene, &mut left[i..n], &mut right[i..n], false, None);
             i += done;
             if slow && i < n {
                 let o = self.slow_sample(scene, false);
@@ -584,6 +597,128 @@ impl EngineState {
                 right[i] = o[1];
                 i += 1;
             }
+        }
+    }
+
+    /// [`process_block`](Self::process_block) that also writes each
+    /// sample's [`Motion`] into `motion` (as [`tick_with`](Self::tick_with)
+    /// would see it, after the switching decision): fast samples get it from
+    /// a second kernel pass with the contact point's rows, so the cost is
+    /// about twice the block path's instead of a tick per sample. Same
+    /// samples as `process_block` bit for bit; the motion equals
+    /// [`motion`](Self::motion)'s up to the order of the sums (rounding).
+    /// Allocates its scratch on the first call. \[offline\]
+    pub fn process_block_observed(
+        &mut self,
+        scene: &CompiledScene,
+        left: &mut [f64],
+        right: &mut [f64],
+        motion: &mut [Motion],
+    ) {
+        let dim = self.phases[FREE].s.len().max(self.phases[CONTACT].s.len());
+        if self.obs.as_ref().is_none_or(|o| o.next.len() < dim) {
+            self.obs = Some(Box::new(ObsScratch {
+                next: vec![0.0; dim],
+                zeros: vec![0.0; dim],
+                rows: Box::default(),
+            }));
+        }
+        let _flush = FlushDenormals::new(self.flush_denormals);
+        kernel::clean_upper_state(self.simd);
+        let n = left.len().min(right.len()).min(motion.len());
+        let mut i = 0;
+        while i < n {
+            let (done, slow) = self.run_fast(
+                scene,
+                &mut left[i..n],
+                &mut right[i..n],
+                false,
+                Some(&mut motion[i..n]),
+            );
+            i += done;
+            if slow && i < n {
+                let (o, m) = self.tick_with(scene, |st| st.motion(scene));
+                left[i] = o[0];
+                right[i] = o[1];
+                motion[i] = m;
+                i += 1;
+            }
+        }
+    }
+
+    /// The motion of the `k` samples the fast path is about to commit
+    /// (before [`commit_kernel`](Self::commit_kernel)): state 0 is the
+    /// current one, states `1..k` come from a kernel pass with the rows
+    /// `x_c, v_c, eta`; the hammer in flight follows the same parabola as
+    /// the fast path, in contact its height is `x_c - p_eff - rod` with
+    /// `p_eff` the event row the engine's own pass computed.
+    fn observe_run(&mut self, scene: &CompiledScene, k: usize, m: &mut [Motion]) {
+        let in_contact = self.in_contact();
+        let ph = scene.phase(self.phase);
+        let obs = self
+            .obs
+            .as_mut()
+            .expect("allocated by process_block_observed");
+        let ps = &self.phases[self.phase.index()];
+        let dim = ps.s.len();
+        let rows = Rows {
+            ev: &ph.rows.x_c,
+            l: &ph.rows.v_c,
+            r: if in_contact {
+                &ph.rows.eta
+            } else {
+                &obs.zeros[..dim]
+            },
+        };
+        let r0 = rows_of(&ps.s, &rows);
+        if k > 1 {
+            run_block(
+                self.simd,
+                BlockIo {
+                    p: &ps.props,
+                    s: &ps.s,
+                    next: &mut obs.next[..dim],
+                    rows,
+                    acc: &mut self.acc,
+                    out: &mut obs.rows,
+                },
+                k - 1,
+            );
+        }
+        let (sc, dt, g) = (self.time_scale, self.step_s, self.g);
+        let (mut x_h, mut v_h) = (self.x_h, self.v_h);
+        for (j, mj) in m.iter_mut().enumerate().take(k) {
+            let [xc, vc, eta] = if j == 0 {
+                r0
+            } else {
+                [obs.rows.ev[j - 1], obs.rows.l[j - 1], obs.rows.r[j - 1]]
+            };
+            *mj = if in_contact {
+                let ev = if j == 0 {
+                    self.cache[0]
+                } else {
+                    self.brows.ev[j - 1]
+                };
+                let x_c = xc + scene.offsets.x_c;
+                Motion {
+                    x_hammer: x_c - (ev + scene.offsets.pi / scene.sk) - self.rod_m,
+                    v_hammer: (eta + scene.offsets.eta) / scene.sm * sc,
+                    x_contact: x_c,
+                    v_contact: (vc + scene.offsets.v_c) * sc,
+                    in_contact: true,
+                }
+            } else {
+                let here = Motion {
+                    x_hammer: x_h,
+                    v_hammer: v_h * sc,
+                    x_contact: xc,
+                    v_contact: vc * sc,
+                    in_contact: false,
+                };
+                x_h += v_h * dt - 0.5 * g * dt * dt;
+                v_h -= g * dt;
+                here
+            };
         }
     }
 
@@ -599,6 +734,7 @@ impl EngineState {
         left: &mut [f64],
         right: &mut [f64],
         decided: bool,
+        obs: Option<&mut [Motion]>,
     ) -> (usize, bool) {
         let phase = self.phase;
         let in_contact = phase == Phase::Contact;
@@ -675,6 +811,9 @@ impl EngineState {
             self.run_kernel(scene, k_ok);
         } else {
             self.spec_len = (2 * self.spec_len).min(EPOCH);
+        }
+        if let Some(m) = obs {
+            self.observe_run(scene, k_ok, &mut m[..k_ok]);
         }
         self.commit_kernel(k_ok);
         if !in_contact {
@@ -1139,9 +1278,10 @@ fn half_norm_sq_energy_coords(ph: &CompiledPhase, s: &[f64], s_star: &[f64]) -> 
         return 0.5 * e;
     }
     let mut y = vec![0.0; ph.dim];
-    for (j, col) in ph.v.column_iter().enumerate() {
+    // nalgebra stores by columns: column j is one contiguous slice
+    for (j, col) in ph.v.as_slice().chunks_exact(ph.dim.max(1)).enumerate() {
         let x = sj(j);
-        for (yi, v) in y.iter_mut().zip(col.iter()) {
+        for (yi, v) in y.iter_mut().zip(col) {
             *yi += v * x;
         }
     }

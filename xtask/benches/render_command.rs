@@ -38,12 +38,16 @@ fn struck(n: usize) -> Scene {
         .build()
 }
 
+/// Long enough that the per-render costs (creating the files, drawing the
+/// plot) do not hide the per-sample ones: 10 s at 10 modes, 4 s at 100,
+/// 1 s at 1000.
 fn samples(n_modes: usize) -> usize {
-    if n_modes >= 1000 {
-        (0.25 * RATE) as usize
-    } else {
-        RATE as usize
-    }
+    let seconds = match n_modes {
+        0..=10 => 10.0,
+        11..=100 => 4.0,
+        _ => 1.0,
+    };
+    (seconds * RATE) as usize
 }
 
 fn engine_only(sc: &CompiledScene, n: usize) -> f64 {
@@ -112,6 +116,7 @@ fn command(c: &mut Criterion) {
     let dir = scratch();
     let mut g = c.benchmark_group("render_command");
     g.sample_size(10);
+    g.measurement_time(std::time::Duration::from_secs(3));
     for n_modes in [10, 100, 1000] {
         let sc = compile(&struck(n_modes), RATE).expect("compile");
         let n = samples(n_modes);

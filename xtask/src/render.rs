@@ -287,6 +287,73 @@ pub struct JobReport {
     pub summary: String,
 }
 
+/// A 32-bit float stereo WAV of a known length written in bulk: the header
+/// is hound's (made for zero samples, its two sizes set for `n`), the
+/// samples little-endian f32 interleaved, so the file is byte for byte what
+/// hound writes sample by sample, at a fraction of the cost.
+pub struct FloatWav {
+    out: BufWriter<std::fs::File>,
+    buf: Vec<u8>,
+    left: u64,
+}
+
+impl FloatWav {
+    /// Create `path` for `n` stereo samples at `rate_hz`.
+    pub fn create(path: &Path, rate_hz: f64, n: usize) -> Result<Self> {
+        let spec = hound::WavSpec {
+            channels: 2,
+            sample_rate: rate_hz.round() as u32,
+            bits_per_sample: 32,
+            sample_format: hound::SampleFormat::Float,
+        };
+        let mut header = std::io::Cursor::new(Vec::new());
+        hound::WavWriter::new(&mut header, spec)?.finalize()?;
+        let mut header = header.into_inner();
+        let data = u32::try_from(8 * n as u64)
+            .map_err(|_| anyhow!("{}: too long for a WAV file", path.display()))?;
+        let h = header.len();
+        let riff = (h as u32 - 8)
+            .checked_add(data)
+            .ok_or_else(|| anyhow!("{}: too long for a WAV file", path.display()))?;
+        header[4..8].copy_from_slice(&riff.to_le_bytes());
+        header[h - 4..].copy_from_slice(&data.to_le_bytes());
+        let f = std::fs::File::create(path)
+            .with_context(|| format!("cannot create {}", path.display()))?;
+        let mut out = BufWriter::with_capacity(1 << 20, f);
+        std::io::Write::write_all(&mut out, &header)?;
+        Ok(Self {
+            out,
+            buf: Vec::with_capacity(8 * modal_contact::render::STREAM_CHUNK),
+            left: n as u64,
+        })
+    }
+
+    /// Append samples (f64, written as f32).
+    pub fn write(&mut self, l: &[f64], r: &[f64]) -> std::io::Result<()> {
+        if l.len() as u64 > self.left {
+            return Err(std::io::Error::other(
+                "more samples than the WAV was made for",
+            ));
+        }
+        self.left -= l.len() as u64;
+        self.buf.resize(8 * l.len(), 0);
+        for ((frame, a), b) in self.buf.chunks_exact_mut(8).zip(l).zip(r) {
+            frame[..4].copy_from_slice(&(*a as f32).to_le_bytes());
+            frame[4..].copy_from_slice(&(*b as f32).to_le_bytes());
+        }
+        std::io::Write::write_all(&mut self.out, &self.buf)
+    }
+
+    /// Flush; fails if fewer samples came than announced.
+    pub fn finish(mut self) -> Result<()> {
+        if self.left != 0 {
+            bail!("{} samples missing from the WAV", self.left);
+        }
+        std::io::Write::flush(&mut self.out)?;
+        Ok(())
+    }
+}
+
 /// The outputs of a scene render.
 #[derive(Debug, Clone, Default)]
 pub struct SceneOutputs<'a> {
@@ -309,28 +376,16 @@ pub fn render_scene_to(
     out: &SceneOutputs,
     progress: &dyn Fn(u64),
 ) -> Result<StreamStats> {
-    let spec = hound::WavSpec {
-        channels: 2,
-        sample_rate: compiled.rate_hz.round() as u32,
-        bits_per_sample: 32,
-        sample_format: hound::SampleFormat::Float,
-    };
     let mut wav = match out.wav {
-        Some(p) => Some(
-            hound::WavWriter::create(p, spec)
-                .with_context(|| format!("cannot create {}", p.display()))?,
-        ),
+        Some(p) => Some(FloatWav::create(p, compiled.rate_hz, n)?),
         None => None,
     };
     let audio = |l: &[f64], r: &[f64]| -> std::io::Result<()> {
         progress(l.len() as u64);
-        if let Some(w) = wav.as_mut() {
-            for (a, b) in l.iter().zip(r) {
-                w.write_sample(*a as f32).map_err(std::io::Error::other)?;
-                w.write_sample(*b as f32).map_err(std::io::Error::other)?;
-            }
+        match wav.as_mut() {
+            Some(w) => w.write(l, r),
+            None => Ok(()),
         }
-        Ok(())
     };
     let csv = match out.trace {
         Some(p) => {
@@ -363,7 +418,7 @@ pub fn render_scene_to(
         }
     };
     if let Some(w) = wav {
-        w.finalize()?;
+        w.finish()?;
     }
     if let (Some(e), Some((path, title))) = (env, out.plot) {
         plot::plot_envelope(&e, title, path)?;
@@ -622,4 +677,43 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         bail!("{failed} of {} jobs failed", jobs.len());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bulk WAV writer writes hound's bytes, and refuses a wrong length.
+    #[test]
+    fn bulk_wav_is_hounds_wav() {
+        let dir = std::env::temp_dir().join(format!("xtask-wav-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let n = 10_007;
+        let l: Vec<f64> = (0..n).map(|i| (i as f64 * 0.01).sin() * 0.7).collect();
+        let r: Vec<f64> = (0..n).map(|i| -1e-30 * i as f64 + 0.25).collect();
+        let (a, b) = (dir.join("a.wav"), dir.join("b.wav"));
+        let mut w = FloatWav::create(&a, 48000.0, n).unwrap();
+        w.write(&l[..5000], &r[..5000]).unwrap();
+        w.write(&l[5000..], &r[5000..]).unwrap();
+        w.finish().unwrap();
+        let spec = hound::WavSpec {
+            channels: 2,
+            sample_rate: 48000,
+            bits_per_sample: 32,
+            sample_format: hound::SampleFormat::Float,
+        };
+        let mut h = hound::WavWriter::create(&b, spec).unwrap();
+        for (x, y) in l.iter().zip(&r) {
+            h.write_sample(*x as f32).unwrap();
+            h.write_sample(*y as f32).unwrap();
+        }
+        h.finalize().unwrap();
+        assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap());
+        let mut short = FloatWav::create(&a, 48000.0, 3).unwrap();
+        short.write(&l[..2], &r[..2]).unwrap();
+        assert!(short.finish().is_err());
+        let mut long = FloatWav::create(&a, 48000.0, 1).unwrap();
+        assert!(long.write(&l[..2], &r[..2]).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
