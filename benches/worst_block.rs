@@ -1,0 +1,129 @@
+//! The worst block, not the average: per-block CPU time of the instrument
+//! (`Instrument::process`, exactly what the plugin calls per host block)
+//! over a long render at 48 kHz with chords of 1, 4 and 16 notes struck
+//! together every 125 ms on voices that still ring (so strikes land on
+//! sounding voices and steal them), on modal objects of 10, 50, 200 and 1000
+//! modes, in blocks of 32, 64, 128 and 512 samples. Printed: the largest
+//! and the 99.9th percentile block, as a fraction of the block's real-time
+//! budget (`block / 48000` s). Above 100 % a block is late: a dropout.
+//!
+//! `cargo bench --bench worst_block` (a criterion target; the table is
+//! printed, nothing is asserted: timings are never test conditions).
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use modal_contact::instrument::{
+    prepare_scene, Event, Instrument, InstrumentParams, Prepared, TimedEvent,
+};
+use modal_contact::scene::Scene;
+use modal_testkit::scenes::{Contact, Hammer, Modal, Pickup, SceneBuilder};
+use std::time::Instant;
+
+const RATE: f64 = 48000.0;
+/// Seconds rendered per configuration.
+const SECONDS: f64 = 2.0;
+/// Chords repeat this often.
+const CHORD_EVERY_S: f64 = 0.125;
+
+/// A struck modal object of `n` modes (a bar-like spectrum up to 18 kHz,
+/// weights that fall slowly with frequency), hammer as the presets'.
+fn object(n: usize) -> Scene {
+    let mut object = Modal::new("bar", &["c", "p"]);
+    for i in 0..n {
+        let f = 220.0 * (18000.0f64 / 220.0).powf(i as f64 / (n.max(2) - 1) as f64);
+        let w = 1.0 / (1.0 + 0.02 * i as f64).sqrt();
+        let wp = if i % 2 == 0 { 0.8 * w } else { -0.6 * w };
+        object = object.mode(f, 2.5 / (1.0 + f / 1500.0), &[w, wp]);
+    }
+    SceneBuilder::new("worst-block")
+        .duration(SECONDS)
+        .object(object)
+        .hammer(Hammer::new(0.03).height(1e-3).velocity(-1.0))
+        .contact(Contact::new("bar", 2e6).point("c").damping(20.0))
+        .pickup(Pickup::new("bar", "p"))
+        .build()
+}
+
+/// Chords of `chord` notes (a spread of keys around the root) at velocity
+/// 100/127 every `CHORD_EVERY_S`, each chord shifted by a semitone so the
+/// same keys retrigger ringing voices or steal others.
+fn events(chord: usize, total: usize) -> Vec<TimedEvent> {
+    let every = (CHORD_EVERY_S * RATE) as usize;
+    let mut out = Vec::new();
+    let mut k = 0;
+    let mut at = 0;
+    while at < total {
+        for j in 0..chord {
+            out.push(TimedEvent {
+                offset: at,
+                event: Event::NoteOn {
+                    key: (48 + (j * 5 + k) % 36) as u8,
+                    velocity_norm: 100.0 / 127.0,
+                },
+            });
+        }
+        k += 1;
+        at += every;
+    }
+    out
+}
+
+/// Per-block seconds of one render.
+fn block_times(prepared: &Prepared, chord: usize, block: usize) -> Vec<f64> {
+    let total = (SECONDS * RATE) as usize;
+    let evs = events(chord, total);
+    let mut inst = Instrument::new(Box::new(prepared.clone()), InstrumentParams::default().play);
+    let (mut l, mut r) = (vec![0.0f32; block], vec![0.0f32; block]);
+    let mut times = Vec::with_capacity(total / block + 1);
+    let mut e = 0;
+    let mut start = 0;
+    let mut local: Vec<TimedEvent> = Vec::with_capacity(64);
+    while start < total {
+        let len = block.min(total - start);
+        local.clear();
+        while e < evs.len() && evs[e].offset < start + len {
+            local.push(TimedEvent {
+                offset: evs[e].offset - start,
+                event: evs[e].event,
+            });
+            e += 1;
+        }
+        let t0 = Instant::now();
+        inst.process(&local, &mut l[..len], &mut r[..len]);
+        times.push(t0.elapsed().as_secs_f64());
+        std::hint::black_box(&l);
+        start += len;
+    }
+    times
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
+    sorted[i.min(sorted.len() - 1)]
+}
+
+fn worst_block(_: &mut Criterion) {
+    println!("\nworst block at 48 kHz, % of the block's real-time budget (max / 99.9th percentile), {SECONDS} s per cell, chords every {CHORD_EVERY_S} s:");
+    println!("| modes | chord | 32 samples | 64 samples | 128 samples | 512 samples |");
+    println!("|---|---|---|---|---|---|");
+    for n in [10, 50, 200, 1000] {
+        let params = InstrumentParams::default();
+        let prepared = prepare_scene(&object(n), &params.scene, RATE, 0).expect("compile");
+        for chord in [1, 4, 16] {
+            let mut cells = Vec::new();
+            for block in [32, 64, 128, 512] {
+                let mut t = block_times(&prepared, chord, block);
+                t.sort_by(f64::total_cmp);
+                let budget = block as f64 / RATE;
+                cells.push(format!(
+                    "{:.0} / {:.0}",
+                    100.0 * t[t.len() - 1] / budget,
+                    100.0 * percentile(&t, 0.999) / budget
+                ));
+            }
+            println!("| {n} | {chord} | {} |", cells.join(" | "));
+        }
+    }
+}
+
+criterion_group!(benches, worst_block);
+criterion_main!(benches);
