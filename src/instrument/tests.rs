@@ -424,3 +424,28 @@ fn presets_need_no_realtime_warning_at_any_hardness() {
         }
     }
 }
+
+/// The f32 conversion never writes a subnormal, even with the CPU's
+/// flush-to-zero off (this test thread does not turn it on), and leaves
+/// every normal value as `as f32` does.
+#[test]
+fn output_conversion_flushes_f32_subnormals() {
+    assert!(!crate::engine::denormal::FlushDenormals::active());
+    let mut hits = 0;
+    for x in [1e-38, -1e-39, 3e-44, 1.4e-45, 1e-300, -5e-324] {
+        assert!(
+            (x as f32) == 0.0 || !(x as f32).is_normal(),
+            "{x} converts to a normal f32"
+        );
+        assert_eq!(
+            super::mix::guarded(x, &mut hits).to_bits(),
+            0.0f32.to_bits(),
+            "{x}"
+        );
+    }
+    for x in [1.2e-38, -1.5e-38, 1e-20, 0.3, -3.9] {
+        assert_eq!(super::mix::guarded(x, &mut hits), x as f32);
+        assert!(super::mix::guarded(x, &mut hits).is_normal());
+    }
+    assert_eq!(hits, 0);
+}
