@@ -14,7 +14,7 @@
 
 use clack_extensions::params::{ParamInfoBuffer, PluginParams};
 use clack_extensions::state::PluginState;
-use clack_host::events::event_types::{NoteOffEvent, NoteOnEvent, ParamValueEvent};
+use clack_host::events::event_types::{MidiEvent, NoteOffEvent, NoteOnEvent, ParamValueEvent};
 use clack_host::events::Match;
 use clack_host::prelude::*;
 use modal_contact::instrument::{
@@ -198,6 +198,13 @@ pub enum HostEvent {
         /// MIDI key.
         key: u8,
     },
+    /// A raw MIDI 1.0 message (e.g. a controller: `[0xB0, 64, 127]`).
+    Midi {
+        /// Sample position.
+        at: usize,
+        /// The three bytes.
+        data: [u8; 3],
+    },
     /// Parameter value (CLAP value: normalised for continuous parameters,
     /// step index for enums and bools).
     Param {
@@ -216,6 +223,7 @@ impl HostEvent {
         match *self {
             HostEvent::NoteOn { at, .. }
             | HostEvent::NoteOff { at, .. }
+            | HostEvent::Midi { at, .. }
             | HostEvent::Param { at, .. } => at,
         }
     }
@@ -229,6 +237,14 @@ pub fn on(at: usize, key: u8, velocity: f64) -> HostEvent {
 /// A note-off event.
 pub fn off(at: usize, key: u8) -> HostEvent {
     HostEvent::NoteOff { at, key }
+}
+
+/// A MIDI controller change on channel 1 (`value` 0..127).
+pub fn cc(at: usize, controller: u8, value: u8) -> HostEvent {
+    HostEvent::Midi {
+        at,
+        data: [0xB0, controller, value],
+    }
 }
 
 /// A parameter event by string id (CLAP value, see [`HostEvent::Param`]).
@@ -490,6 +506,7 @@ impl Session<'_> {
                     Pckn::new(0u16, 0u16, key as u16, Match::All),
                     0.0,
                 )),
+                HostEvent::Midi { data, .. } => self.in_events.push(&MidiEvent::new(t, 0, data)),
                 HostEvent::Param { id, value, .. } => self.in_events.push(&ParamValueEvent::new(
                     t,
                     ClapId::new(id),
@@ -549,7 +566,7 @@ impl Drop for Session<'_> {
 // ---------------------------------------------------------------------------
 // The same notes through the instrument library, no plugin
 
-/// Render `events` (note events only) with the instrument library directly,
+/// Render `events` (notes and the pedals' controllers) with the instrument library directly,
 /// at the plugin's parameter defaults `params`. Velocities are rounded to f32
 /// as nice-plug does. Returns `[left, right]`.
 pub fn library_render(
@@ -574,7 +591,18 @@ pub fn library_render(
                 offset: at,
                 event: Event::NoteOff { key },
             }),
-            HostEvent::Param { .. } => None,
+            HostEvent::Midi {
+                at,
+                data: [0xB0, c @ (64 | 66), v],
+            } => Some(LibEvent {
+                offset: at,
+                event: if c == 64 {
+                    Event::Sustain { down: v >= 64 }
+                } else {
+                    Event::Sostenuto { down: v >= 64 }
+                },
+            }),
+            HostEvent::Midi { .. } | HostEvent::Param { .. } => None,
         })
         .collect();
     sorted.sort_by_key(|e| e.offset);

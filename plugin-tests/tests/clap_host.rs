@@ -283,3 +283,45 @@ fn saved_state_restores_every_parameter() {
     assert!(peak(&ra[0]) > 1e-4);
     assert_eq!(ra, rb);
 }
+
+/// The pedals through a real host: MIDI controllers 64 (sustain) and 66
+/// (sostenuto) reach the instrument at their sample offsets, so the
+/// plugin's render equals the library's with the same pedal events, and a
+/// note released under the sustain pedal rings on (its tail is louder than
+/// the same note released without the pedal).
+#[test]
+fn pedals_through_the_host_match_the_library() {
+    let bundle = clap_bundle(Variant::Release);
+    let rate = 48_000.0;
+    let total = 48_000;
+    let events = vec![
+        on(100, 60, 0.8),
+        cc(200, 66, 127),
+        cc(300, 64, 100),
+        on(400, 64, 0.7),
+        off(6_000, 60),
+        off(6_000, 64),
+        cc(20_000, 64, 0),
+        cc(30_000, 66, 10),
+    ];
+    let mut p = LoadedPlugin::load(&bundle);
+    let plugin = p.render(&RenderSpec::new(rate, 256, total, events.clone()));
+    let lib = library_render(&InstrumentParams::default(), rate, total, &events);
+    let d = max_abs_diff(&plugin[0], &lib[0]).max(max_abs_diff(&plugin[1], &lib[1]));
+    println!("pedals: max |plugin - library| = {d:.3e}");
+    assert!(d <= 1e-6, "plugin and library differ by {d}");
+    let no_pedal: Vec<_> = events
+        .iter()
+        .copied()
+        .filter(|e| !matches!(e, plugin_tests::HostEvent::Midi { .. }))
+        .collect();
+    let mut p = LoadedPlugin::load(&bundle);
+    let plain = p.render(&RenderSpec::new(rate, 256, total, no_pedal));
+    let tail = 10_000..19_000;
+    let (held, damped) = (rms(&plugin[0][tail.clone()]), rms(&plain[0][tail]));
+    println!("tail rms with the pedals {held:.3e}, without {damped:.3e}");
+    assert!(
+        held > 1.5 * damped,
+        "the pedal did not hold: {held} vs {damped}"
+    );
+}

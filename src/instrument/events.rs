@@ -1,4 +1,4 @@
-//! What a host sends the instrument: notes at sample offsets.
+//! What a host sends the instrument: notes and pedals at sample offsets.
 
 /// What a host sends: notes. Times are sample offsets within the block
 /// passed to \[`Instrument::process`\] (or the caller renders up to the event
@@ -17,8 +17,20 @@ pub enum Event {
         /// MIDI key.
         key: u8,
     },
-    /// Release every voice.
+    /// Release every voice (the pedals do not hold it).
     AllNotesOff,
+    /// Sustain (damper) pedal, MIDI CC 64: while down, released notes are
+    /// not damped; when it comes up, every note no longer held is.
+    Sustain {
+        /// Pedal down.
+        down: bool,
+    },
+    /// Sostenuto pedal, MIDI CC 66: pressed, it holds the notes that are
+    /// down at that moment (only those) until it comes up.
+    Sostenuto {
+        /// Pedal down.
+        down: bool,
+    },
 }
 
 /// An event at a sample offset.

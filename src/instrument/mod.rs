@@ -147,13 +147,68 @@ pub struct Instrument {
     play: PlayParams,
     gain: f64,
     sample_pos: u64,
+    /// The pedals and which keys are down (docs/plugin.md, "Pedals").
+    pedals: Pedals,
     acc: [[f64; CHECK_INTERVAL_SAMPLES]; 2],
     vbuf: [[f64; CHECK_INTERVAL_SAMPLES]; 2],
     /// Counters.
     pub stats: Stats,
 }
 
+/// Which keys are down and what the pedals hold (128 keys as bits).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+struct Pedals {
+    sustain: bool,
+    sostenuto: bool,
+    keys_down: [u64; 2],
+    /// Keys that were down when the sostenuto pedal went down.
+    sostenuto_keys: [u64; 2],
+}
+
+impl Pedals {
+    fn bit(keys: &[u64; 2], key: u8) -> bool {
+        keys[usize::from(key >> 6) & 1] & (1 << (key & 63)) != 0
+    }
+
+    fn set_down(&mut self, key: u8, down: bool) {
+        let (w, b) = (usize::from(key >> 6) & 1, 1u64 << (key & 63));
+        if down {
+            self.keys_down[w] |= b;
+        } else {
+            self.keys_down[w] &= !b;
+        }
+    }
+
+    /// A released key's note keeps ringing undamped.
+    fn holds(&self, key: u8) -> bool {
+        self.sustain || (self.sostenuto && Self::bit(&self.sostenuto_keys, key))
+    }
+}
+
 impl Instrument {
+    /// Key `key` came up: damp its note unless a pedal holds it.
+    fn key_up(&mut self, key: u8) {
+        self.pedals.set_down(key, false);
+        if !self.pedals.holds(key) {
+            self.note_off(Some(key));
+        }
+    }
+
+    /// A pedal came up: damp every sounding note whose key is up and that
+    /// the other pedal does not hold.
+    fn damp_unheld(&mut self) {
+        for i in 0..MAX_VOICES {
+            let v = self.voices[i];
+            if v.active
+                && !v.released
+                && !Pedals::bit(&self.pedals.keys_down, v.key)
+                && !self.pedals.holds(v.key)
+            {
+                self.note_off(Some(v.key));
+            }
+        }
+    }
+
     /// Start with a prepared scene. \[main-thread\]
     pub fn new(prepared: Box<Prepared>, play: PlayParams) -> Self {
         let fade_len = ((FADE_S * prepared.rate_hz).round() as usize).max(1);
@@ -168,6 +223,7 @@ impl Instrument {
             play,
             gain: 1.0,
             sample_pos: 0,
+            pedals: Pedals::default(),
             acc: [[0.0; CHECK_INTERVAL_SAMPLES]; 2],
             vbuf: [[0.0; CHECK_INTERVAL_SAMPLES]; 2],
             stats: Stats::default(),
@@ -281,6 +337,7 @@ impl Instrument {
 
     /// Stop every voice at once (host reset). Allocation-free. \[audio-thread\]
     pub fn silence(&mut self) {
+        self.pedals = Pedals::default();
         self.voices = [Voice::default(); MAX_VOICES];
         self.fade_voices = [None; MAX_VOICES];
         self.fade_left = 0;
@@ -291,12 +348,32 @@ impl Instrument {
         match event {
             // MIDI's convention: a note-on at velocity 0 is a note-off (and
             // a velocity that is not a number strikes nothing).
-            Event::NoteOn { key, velocity_norm } if !(velocity_norm > 0.0) => {
-                self.note_off(Some(key))
+            Event::NoteOn { key, velocity_norm } if !(velocity_norm > 0.0) => self.key_up(key),
+            Event::NoteOn { key, velocity_norm } => {
+                self.pedals.set_down(key, true);
+                self.note_on(key, velocity_norm)
             }
-            Event::NoteOn { key, velocity_norm } => self.note_on(key, velocity_norm),
-            Event::NoteOff { key } => self.note_off(Some(key)),
-            Event::AllNotesOff => self.note_off(None),
+            Event::NoteOff { key } => self.key_up(key),
+            Event::AllNotesOff => {
+                self.pedals.keys_down = [0; 2];
+                self.note_off(None)
+            }
+            Event::Sustain { down } => {
+                self.pedals.sustain = down;
+                if !down {
+                    self.damp_unheld();
+                }
+            }
+            Event::Sostenuto { down } => {
+                if down && !self.pedals.sostenuto {
+                    self.pedals.sostenuto_keys = self.pedals.keys_down;
+                }
+                self.pedals.sostenuto = down;
+                if !down {
+                    self.pedals.sostenuto_keys = [0; 2];
+                    self.damp_unheld();
+                }
+            }
         }
     }
 }

@@ -115,6 +115,14 @@ impl Drop for ModalContact {
     }
 }
 
+/// MIDI controller of the sustain (damper) pedal.
+const SUSTAIN_CC: u8 = 64;
+/// MIDI controller of the sostenuto pedal.
+const SOSTENUTO_CC: u8 = 66;
+/// A pedal is down from controller value 64 of 127 (nice-plug gives the
+/// value divided by 127).
+const PEDAL_DOWN: f32 = 64.0 / 127.0;
+
 fn note_event(event: &NoteEvent<()>) -> Option<Event> {
     match *event {
         NoteEvent::NoteOn { key, velocity, .. } => key.number().map(|key| Event::NoteOn {
@@ -125,6 +133,16 @@ fn note_event(event: &NoteEvent<()>) -> Option<Event> {
             Some(key) => Event::NoteOff { key },
             None => Event::AllNotesOff,
         }),
+        // The pedals (docs/plugin.md, "Pedals"): down from 64 of 127 on,
+        // MIDI's convention for switch controllers.
+        NoteEvent::MidiCC { cc, value, .. } if cc == SUSTAIN_CC || cc == SOSTENUTO_CC => {
+            let down = value >= PEDAL_DOWN;
+            Some(if cc == SUSTAIN_CC {
+                Event::Sustain { down }
+            } else {
+                Event::Sostenuto { down }
+            })
+        }
         _ => None,
     }
 }
@@ -144,7 +162,8 @@ impl Plugin for ModalContact {
         names: PortNames::const_default(),
     }];
 
-    const MIDI_INPUT: MidiConfig = MidiConfig::Basic;
+    // Notes and controllers (the pedals, CC 64 and 66).
+    const MIDI_INPUT: MidiConfig = MidiConfig::MidiCCs;
     // The wrapper splits blocks at parameter changes: a change is requested
     // at its sample (the swap itself follows when the worker is done).
     const SAMPLE_ACCURATE_AUTOMATION: bool = true;
