@@ -22,7 +22,7 @@
 mod golden;
 mod paramdocs;
 
-use xtask::{render, report};
+use xtask::{multisample, render, report};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -47,6 +47,9 @@ enum Command {
     /// asked), or a batch of scene files, directories, notes and
     /// velocities on all cores with a JSON sidecar per WAV.
     Render(render::RenderArgs),
+    /// Every note x velocity layer of a scene through the instrument, as
+    /// 24-bit WAVs and an SFZ file for any sampler.
+    Multisample(multisample::MultisampleArgs),
     /// Error against run time of the engine and the usual integrators, the
     /// stability table and the f32 study (writes report/report.md).
     Report(report::ReportArgs),
@@ -89,6 +92,7 @@ fn main() -> Result<()> {
     let argv: Vec<String> = std::env::args().collect();
     match Cli::parse_from(&argv).command {
         Some(Command::Render(a)) => render::run(&a),
+        Some(Command::Multisample(a)) => multisample::run(&a),
         Some(Command::Report(a)) => report::run(a),
         // The arguments go to cargo test verbatim: clap drops the `--` of
         // `cargo xtask test -- --nocapture`, which cargo test needs.
