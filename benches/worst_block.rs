@@ -125,5 +125,51 @@ fn worst_block(_: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, worst_block);
+/// The block holding one strike, beyond a plain block of a ringing voice,
+/// measured on one voice (`EngineState`, 64-sample blocks at 48 kHz, the
+/// slowest of the blocks the strike touches, median of 41 strikes), next to
+/// the estimate the plugin logs its warning from
+/// (`Prepared::strike_cost_estimate_s`).
+fn strike_cost(_: &mut Criterion) {
+    use modal_contact::engine::EngineState;
+    println!("\nstrike cost, one voice, 64-sample blocks at 48 kHz (measured: slowest block of the strike less a plain block; median of 41):");
+    println!("| modes | switch flops | measured us | estimated us |");
+    println!("|---|---|---|---|");
+    for n in [10, 50, 100, 200, 400, 1000] {
+        let params = InstrumentParams::default();
+        let prepared = prepare_scene(&object(n), &params.scene, RATE, 0).expect("compile");
+        let sc = &prepared.scenes.scene;
+        let mut ringing = EngineState::new(sc);
+        ringing.strike(sc, 0.0, -1.0);
+        let (mut l, mut r) = (vec![0.0; 64], vec![0.0; 64]);
+        for _ in 0..200 {
+            ringing.process_block(sc, &mut l, &mut r);
+        }
+        let mut extra = Vec::new();
+        for _ in 0..41 {
+            let mut plain = ringing.clone();
+            let t0 = Instant::now();
+            plain.process_block(sc, &mut l, &mut r);
+            let base = t0.elapsed().as_secs_f64();
+            let mut st = ringing.clone();
+            st.strike(sc, 0.0, -1.0);
+            let mut worst = 0.0f64;
+            for _ in 0..8 {
+                let t0 = Instant::now();
+                st.process_block(sc, &mut l, &mut r);
+                worst = worst.max(t0.elapsed().as_secs_f64());
+            }
+            extra.push((worst - base).max(0.0));
+        }
+        extra.sort_by(f64::total_cmp);
+        println!(
+            "| {n} | {} | {:.1} | {:.1} |",
+            2 * sc.free.dim * sc.contact.dim,
+            extra[20] * 1e6,
+            prepared.strike_cost_estimate_s() * 1e6
+        );
+    }
+}
+
+criterion_group!(benches, strike_cost, worst_block);
 criterion_main!(benches);

@@ -61,7 +61,69 @@ impl Scenes {
     }
 }
 
+/// Cost model of the block that holds a strike, beyond a plain block
+/// (`benches/worst_block.rs` prints it next to the measurement): per flop
+/// of the two changes of basis (the compile summary's `switch ~N flops`),
+/// per state of the contact phase (the located switch's partial steps and
+/// event search), and a fixed part. Fitted on this project's development
+/// machine (2-core AMD EPYC, AVX2), where it is within 0.6x-1.7x of the
+/// measured cost from 10 to 1000 modes (the changes of basis stream their
+/// dense matrices from memory: about 0.8 ns per flop); a slower CPU takes
+/// longer, so the warning below leaves a margin.
+pub const STRIKE_NS_PER_SWITCH_FLOP: f64 = 0.8;
+/// See [`STRIKE_NS_PER_SWITCH_FLOP`].
+pub const STRIKE_NS_PER_STATE: f64 = 20.0;
+/// See [`STRIKE_NS_PER_SWITCH_FLOP`].
+pub const STRIKE_NS_FIXED: f64 = 4_000.0;
+/// The strike warning fires when a chord of [`MAX_VOICES`] strikes in one
+/// block is estimated to need more than this fraction of the block's
+/// real-time budget (the rest is the voices' own running cost, the host
+/// and a slower CPU).
+pub const STRIKE_BUDGET_FRACTION: f64 = 0.5;
+
 impl Prepared {
+    /// Estimated CPU time of the block that holds one strike, beyond a plain
+    /// block (seconds; see [`STRIKE_NS_PER_SWITCH_FLOP`]). \[any-thread\]
+    pub fn strike_cost_estimate_s(&self) -> f64 {
+        let sc = &self.scenes.scene;
+        let flops = 2.0 * sc.free.dim as f64 * sc.contact.dim as f64;
+        (flops * STRIKE_NS_PER_SWITCH_FLOP
+            + sc.contact.dim as f64 * STRIKE_NS_PER_STATE
+            + STRIKE_NS_FIXED)
+            * 1e-9
+    }
+
+    /// A warning when a chord of [`MAX_VOICES`] notes struck in one block of
+    /// `block_len` samples is estimated to take more than
+    /// [`STRIKE_BUDGET_FRACTION`] of the block's real-time budget: how many
+    /// simultaneous strikes fit, and what helps. `None` when it fits.
+    /// \[worker\] \[main-thread\]
+    pub fn strike_warning(&self, block_len: usize) -> Option<String> {
+        let budget = block_len as f64 / self.rate_hz;
+        let strike = self.strike_cost_estimate_s();
+        let chord = MAX_VOICES as f64 * strike;
+        (chord > STRIKE_BUDGET_FRACTION * budget).then(|| {
+            let fit = (STRIKE_BUDGET_FRACTION * budget / strike).floor() as usize;
+            let fits = match fit {
+                0 => "even one strike takes more than half the block".to_string(),
+                1 => "one strike at a time fits in half the block".to_string(),
+                k => format!("about {k} simultaneous strikes fit in half the block"),
+            };
+            format!(
+                "scene {:?}: a strike costs about {:.0} us of CPU in the block that holds it \
+                 (estimate; {} states in contact); at {block_len} samples per block \
+                 ({:.2} ms) {fits}, and a {MAX_VOICES}-note chord needs about {:.0} % of \
+                 the block: expect dropouts on chords unless the host's buffer is larger \
+                 (or the object has fewer modes)",
+                self.scenes.scene.name,
+                strike * 1e6,
+                self.scenes.scene.contact.dim,
+                budget * 1e3,
+                100.0 * chord / budget
+            )
+        })
+    }
+
     /// A warning when the scene's exact event search may cost more than a
     /// sample period in a sample that holds a switch (the compile summary's
     /// estimate, at the root pitch: higher notes step further per sample and

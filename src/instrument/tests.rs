@@ -568,3 +568,53 @@ fn each_pedal_keeps_what_the_other_holds() {
     );
     assert_eq!(other, play(&[on(10, 60, 0.8), off(12_000, 60)], n));
 }
+
+/// The strike-cost warning: no shipped preset needs it even at 32-sample
+/// blocks, a 400-mode object at 64-sample blocks does (a 16-note chord
+/// would take several blocks' worth of CPU), and a large buffer fits it.
+#[test]
+fn strike_warning_names_what_fits_at_the_hosts_block_size() {
+    for i in 0..presets::PRESETS.len() {
+        let p = SceneParams {
+            preset: i,
+            ..SceneParams::default()
+        };
+        let pr = prepare(&p, RATE, 1).unwrap();
+        assert!(
+            pr.strike_warning(32).is_none(),
+            "{:?}",
+            pr.strike_warning(32)
+        );
+        assert!(
+            pr.strike_cost_estimate_s() < 40e-6,
+            "{}",
+            pr.scenes.scene.name
+        );
+    }
+    let mut big = base("marimba-bar");
+    let ObjectSpec::Modal(m) = &mut big.object[0] else {
+        panic!("marimba-bar is modal")
+    };
+    let first = m.mode[0].clone();
+    m.mode = (0..400)
+        .map(|k| {
+            let mut md = first.clone();
+            md.freq_hz = first.freq_hz * (1.0 + 0.37 * k as f64);
+            md
+        })
+        .collect();
+    let pr = prepare_scene(&big, &SceneParams::default(), 48_000.0, 1).unwrap();
+    let est = pr.strike_cost_estimate_s();
+    let w = pr.strike_warning(64).expect("400 modes at 64 samples");
+    println!("{w}");
+    assert!(
+        w.contains("even one strike takes more than half the block") && w.contains("64 samples"),
+        "{w}"
+    );
+    assert!(est > 200e-6 && est < 5e-3, "{est}");
+    assert!(pr.strike_warning(8192).is_none());
+    let mid = pr
+        .strike_warning(1024)
+        .expect("a chord still overruns 1024 samples");
+    assert!(mid.contains("simultaneous strikes fit"), "{mid}");
+}

@@ -35,6 +35,8 @@ pub struct ModalContact {
     /// Audio thread: a scene taken from the queue that could not be installed yet.
     pending: Option<Box<crate::instrument::Prepared>>,
     rate_hz: f64,
+    /// The host's largest block \[samples\], from activation.
+    max_block: usize,
     /// Panics caught at the process boundary since activation.
     panics: u64,
     #[cfg(feature = "alloc-bug")]
@@ -54,6 +56,7 @@ impl Default for ModalContact {
             revision: 0,
             pending: None,
             rate_hz: 0.0,
+            max_block: 0,
             panics: 0,
             #[cfg(feature = "alloc-bug")]
             leak: Vec::new(),
@@ -88,6 +91,7 @@ impl ModalContact {
             let req = CompileRequest {
                 revision: self.revision + 1,
                 rate_hz: self.rate_hz,
+                max_block: self.max_block,
                 params: wanted,
             };
             if self.handoff.request(req) {
@@ -220,6 +224,11 @@ impl Plugin for ModalContact {
         if let Some(w) = prepared.realtime_warning() {
             nice_log!("modal_contact: {w}");
         }
+        let max_block = buffer_config.max_buffer_size as usize;
+        if let Some(w) = prepared.strike_warning(max_block) {
+            nice_log!("modal_contact: {w}");
+        }
+        self.max_block = max_block;
         self.requested = prepared.params;
         self.revision = 0;
         self.rate_hz = rate_hz;

@@ -41,6 +41,8 @@ pub struct CompileRequest {
     pub revision: u64,
     /// Sample rate \[Hz\].
     pub rate_hz: f64,
+    /// The host's largest block \[samples\] (for the strike-cost warning).
+    pub max_block: usize,
     /// What to compile.
     pub params: SceneParams,
 }
@@ -163,6 +165,9 @@ fn run(h: &Handoff) {
                     nice_plug::nice_log!("modal_contact: {note}");
                 }
                 if let Some(w) = p.realtime_warning() {
+                    nice_plug::nice_log!("modal_contact: {w}");
+                }
+                if let Some(w) = p.strike_warning(req.max_block) {
                     nice_plug::nice_log!("modal_contact: {w}");
                 }
                 h.last_compile_ms
