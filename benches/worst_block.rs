@@ -171,5 +171,52 @@ fn strike_cost(_: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, strike_cost, worst_block);
+/// 64 overlapping notes of the heaviest preset (the 29-mode steel plate) at
+/// the largest polyphony: CPU time per second of audio, as a fraction of
+/// one core (median of 5 renders of 2 s, the notes struck in the first
+/// 64 ms).
+fn polyphony_64(_: &mut Criterion) {
+    let mut params = InstrumentParams::default();
+    params.scene.preset = modal_contact::presets::index_of("steel-plate").expect("preset");
+    params.play.polyphony = modal_contact::instrument::MAX_VOICES;
+    let prepared = modal_contact::instrument::prepare(&params.scene, RATE, 0).expect("compile");
+    let total = (2.0 * RATE) as usize;
+    let events: Vec<TimedEvent> = (0..64)
+        .map(|k| TimedEvent {
+            offset: 48 * k,
+            event: Event::NoteOn {
+                key: 30 + k as u8,
+                velocity_norm: 0.8,
+            },
+        })
+        .collect();
+    let mut times = Vec::new();
+    for _ in 0..5 {
+        let mut inst = Instrument::new(prepared.clone(), params.play);
+        let (mut l, mut r) = (vec![0.0f32; 512], vec![0.0f32; 512]);
+        let t0 = Instant::now();
+        let mut start = 0;
+        while start < total {
+            let evs: Vec<TimedEvent> = events
+                .iter()
+                .filter(|e| e.offset >= start && e.offset < start + 512)
+                .map(|e| TimedEvent {
+                    offset: e.offset - start,
+                    event: e.event,
+                })
+                .collect();
+            inst.process(&evs, &mut l, &mut r);
+            start += 512;
+        }
+        assert_eq!(inst.stats.steals, 0, "all 64 notes got their own voice");
+        times.push(t0.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    println!(
+        "\n64 voices of steel-plate (29 modes) at 48 kHz, 512-sample blocks: {:.1} % of one core (median of 5)",
+        100.0 * times[2] / 2.0
+    );
+}
+
+criterion_group!(benches, strike_cost, polyphony_64, worst_block);
 criterion_main!(benches);

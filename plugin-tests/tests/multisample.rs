@@ -281,7 +281,10 @@ fn a_real_sfz_player_plays_the_export_as_the_plugin_does() {
         assert!(cents.abs() <= 1.0, "{key}/{vel}: pitch {fs} vs {fp} Hz");
         // between sampled keys too: the plugin's pitch is a time scaling,
         // which is what the sampler's resampling does
-        assert!((ls - lp).abs() <= 0.25, "{key}/{vel}: level {ls} vs {lp} dB");
+        assert!(
+            (ls - lp).abs() <= 0.25,
+            "{key}/{vel}: level {ls} vs {lp} dB"
+        );
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }

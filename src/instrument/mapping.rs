@@ -3,8 +3,8 @@
 //! the audio thread), and the velocity and pitch mappings.
 
 use super::{
-    DAMPER_T60_DIVISOR, DEFAULT_ROOT_NOTE, IMPACT_SPEED_RANGE_M_PER_S, MIN_IMPACT_SPEED_M_PER_S,
-    UNDAMPED_RELEASE_T60_S,
+    DAMPER_T60_DIVISOR, DEFAULT_POLYPHONY, DEFAULT_ROOT_NOTE, IMPACT_SPEED_RANGE_M_PER_S,
+    MIN_IMPACT_SPEED_M_PER_S, UNDAMPED_RELEASE_T60_S,
 };
 use crate::presets;
 use crate::scene::{ObjectSpec, Scene, Switching};
@@ -69,6 +69,8 @@ pub struct PlayParams {
     pub drop_height_m: f64,
     /// Output gain \[dB\].
     pub gain_db: f64,
+    /// Voices that may sound at once, 1..=[`MAX_VOICES`](super::MAX_VOICES).
+    pub polyphony: usize,
 }
 
 impl Default for PlayParams {
@@ -77,6 +79,7 @@ impl Default for PlayParams {
             pitch_tracking: true,
             drop_height_m: 0.02,
             gain_db: -6.0,
+            polyphony: DEFAULT_POLYPHONY,
         }
     }
 }

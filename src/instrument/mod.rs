@@ -34,7 +34,8 @@
 //!   decay times are divided by `1 + 50 * damper` ([`damped_scene`]). A new
 //!   note on the same key carries it back. Damper 0 means no damping on
 //!   release (the bar rings on, as a struck bar does).
-//! - **Voices**: one voice per note, [`MAX_VOICES`] of them. A repeated note
+//! - **Voices**: one voice per note, up to the polyphony
+//!   ([`PlayParams::polyphony`], at most [`MAX_VOICES`], all allocated once). A repeated note
 //!   strikes its own voice again while it rings: the hammer hits the moving
 //!   surface ([`EngineState::strike`]). A new note takes a free voice, else
 //!   steals the quietest one (lowest energy). A voice whose energy falls below
@@ -65,13 +66,18 @@ pub use mapping::{
     damped_scene, impact_speed_m_per_s, lowest_frequency_hz, root_note, scene_for,
     InstrumentParams, PlayParams, SceneParams,
 };
-pub use prepared::{prepare, prepare_scene, PrepareError, Prepared, Scenes};
+pub use prepared::{
+    prepare, prepare_scene, PrepareError, Prepared, Scenes, STRIKE_BUDGET_FRACTION,
+    STRIKE_NS_FIXED, STRIKE_NS_PER_STATE, STRIKE_NS_PER_SWITCH_FLOP,
+};
 
 use crate::engine::EngineState;
 use voices::Voice;
 
 /// Number of voices (one per sounding note).
-pub const MAX_VOICES: usize = 16;
+pub const MAX_VOICES: usize = 64;
+/// Voices that sound at once unless the Polyphony parameter says otherwise.
+pub const DEFAULT_POLYPHONY: usize = 16;
 /// Voices are checked for silence on this grid of the instrument's own sample
 /// clock (a power of two; 64 samples = 1.5 ms at 44.1 kHz).
 pub const CHECK_INTERVAL_SAMPLES: usize = 64;
@@ -239,7 +245,18 @@ impl Instrument {
 
     /// Update the parameters that need no compile (gain now; pitch tracking
     /// and drop height at the next note). \[audio-thread\]
-    pub fn set_play(&mut self, play: PlayParams) {
+    pub fn set_play(&mut self, mut play: PlayParams) {
+        play.polyphony = play.polyphony.clamp(1, MAX_VOICES);
+        if play.polyphony < self.play.polyphony {
+            // voices above a lowered limit are released (damped), as the
+            // player would lift the keys
+            for i in play.polyphony..MAX_VOICES {
+                let v = self.voices[i];
+                if v.active && !v.released {
+                    self.release_voice(i);
+                }
+            }
+        }
         self.play = play;
         let g = 10f64.powf(play.gain_db / 20.0);
         self.gain = if g.is_finite() { g } else { 0.0 };

@@ -75,8 +75,8 @@ pub const STRIKE_NS_PER_SWITCH_FLOP: f64 = 0.8;
 pub const STRIKE_NS_PER_STATE: f64 = 20.0;
 /// See [`STRIKE_NS_PER_SWITCH_FLOP`].
 pub const STRIKE_NS_FIXED: f64 = 4_000.0;
-/// The strike warning fires when a chord of [`MAX_VOICES`] strikes in one
-/// block is estimated to need more than this fraction of the block's
+/// The strike warning fires when a chord of as many strikes as the
+/// polyphony allows, in one block, is estimated to need more than this fraction of the block's
 /// real-time budget (the rest is the voices' own running cost, the host
 /// and a slower CPU).
 pub const STRIKE_BUDGET_FRACTION: f64 = 0.5;
@@ -93,15 +93,15 @@ impl Prepared {
             * 1e-9
     }
 
-    /// A warning when a chord of [`MAX_VOICES`] notes struck in one block of
+    /// A warning when a chord of `polyphony` notes struck in one block of
     /// `block_len` samples is estimated to take more than
     /// [`STRIKE_BUDGET_FRACTION`] of the block's real-time budget: how many
     /// simultaneous strikes fit, and what helps. `None` when it fits.
     /// \[worker\] \[main-thread\]
-    pub fn strike_warning(&self, block_len: usize) -> Option<String> {
+    pub fn strike_warning(&self, block_len: usize, polyphony: usize) -> Option<String> {
         let budget = block_len as f64 / self.rate_hz;
         let strike = self.strike_cost_estimate_s();
-        let chord = MAX_VOICES as f64 * strike;
+        let chord = polyphony.clamp(1, MAX_VOICES) as f64 * strike;
         (chord > STRIKE_BUDGET_FRACTION * budget).then(|| {
             let fit = (STRIKE_BUDGET_FRACTION * budget / strike).floor() as usize;
             let fits = match fit {
@@ -112,7 +112,7 @@ impl Prepared {
             format!(
                 "scene {:?}: a strike costs about {:.0} us of CPU in the block that holds it \
                  (estimate; {} states in contact); at {block_len} samples per block \
-                 ({:.2} ms) {fits}, and a {MAX_VOICES}-note chord needs about {:.0} % of \
+                 ({:.2} ms) {fits}, and a {polyphony}-note chord needs about {:.0} % of \
                  the block: expect dropouts on chords unless the host's buffer is larger \
                  (or the object has fewer modes)",
                 self.scenes.scene.name,

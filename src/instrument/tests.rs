@@ -295,8 +295,10 @@ fn repeated_note_restrikes_its_ringing_voice() {
 
 #[test]
 fn voice_stealing_takes_the_quietest_voice() {
-    let mut inst = instrument(&params("marimba-bar"));
-    let mut events: Vec<TimedEvent> = (0..MAX_VOICES as u8)
+    let p = params("marimba-bar");
+    let poly = p.play.polyphony;
+    let mut inst = instrument(&p);
+    let mut events: Vec<TimedEvent> = (0..poly as u8)
         .map(|i| on(10 * i as usize, 40 + i, if i == 5 { 0.05 } else { 0.9 }))
         .collect();
     events.push(on(1000, 100, 0.9));
@@ -308,7 +310,7 @@ fn voice_stealing_takes_the_quietest_voice() {
         "the soft note was stolen: {keys:?}"
     );
     assert!(keys.contains(&Some(100)));
-    assert_eq!(inst.active_voices(), MAX_VOICES);
+    assert_eq!(inst.active_voices(), poly);
 }
 
 #[test]
@@ -581,9 +583,9 @@ fn strike_warning_names_what_fits_at_the_hosts_block_size() {
         };
         let pr = prepare(&p, RATE, 1).unwrap();
         assert!(
-            pr.strike_warning(32).is_none(),
+            pr.strike_warning(32, DEFAULT_POLYPHONY).is_none(),
             "{:?}",
-            pr.strike_warning(32)
+            pr.strike_warning(32, DEFAULT_POLYPHONY)
         );
         assert!(
             pr.strike_cost_estimate_s() < 40e-6,
@@ -605,16 +607,55 @@ fn strike_warning_names_what_fits_at_the_hosts_block_size() {
         .collect();
     let pr = prepare_scene(&big, &SceneParams::default(), 48_000.0, 1).unwrap();
     let est = pr.strike_cost_estimate_s();
-    let w = pr.strike_warning(64).expect("400 modes at 64 samples");
+    let w = pr
+        .strike_warning(64, DEFAULT_POLYPHONY)
+        .expect("400 modes at 64 samples");
     println!("{w}");
     assert!(
         w.contains("even one strike takes more than half the block") && w.contains("64 samples"),
         "{w}"
     );
     assert!(est > 200e-6 && est < 5e-3, "{est}");
-    assert!(pr.strike_warning(8192).is_none());
+    assert!(pr.strike_warning(8192, DEFAULT_POLYPHONY).is_none());
     let mid = pr
-        .strike_warning(1024)
+        .strike_warning(1024, DEFAULT_POLYPHONY)
         .expect("a chord still overruns 1024 samples");
     assert!(mid.contains("simultaneous strikes fit"), "{mid}");
+}
+
+/// Polyphony: at most that many voices sound, the next note steals the
+/// quietest; 64 overlapping notes of the heaviest preset all sound at the
+/// largest setting; lowering it releases the voices above the new limit.
+#[test]
+fn polyphony_limits_the_voices_and_64_notes_sound_together() {
+    let mut p = params("steel-plate");
+    p.play.polyphony = 4;
+    let mut inst = instrument(&p);
+    let notes: Vec<TimedEvent> = (0..5).map(|k| on(100 * k, 50 + k as u8, 0.8)).collect();
+    render(&mut inst, &notes, 2_000);
+    assert_eq!(inst.active_voices(), 4);
+    assert_eq!(inst.stats.steals, 1);
+    assert!(inst.voice_keys()[4..].iter().all(|k| k.is_none()));
+
+    p.play.polyphony = MAX_VOICES;
+    let mut inst = instrument(&p);
+    let notes: Vec<TimedEvent> = (0..64).map(|k| on(10 * k, 30 + k as u8, 0.7)).collect();
+    let [l, r] = render(&mut inst, &notes, 8_000);
+    assert_eq!(inst.active_voices(), 64);
+    assert_eq!(inst.stats.steals, 0);
+    assert!(l.iter().chain(&r).all(|x| x.is_finite()));
+    assert!(rms(&l[7_000..]) > 0.0);
+
+    // lowering the limit releases the voices above it, as lifted keys
+    let mut lower = p.play;
+    lower.polyphony = 8;
+    inst.set_play(lower);
+    for (i, v) in inst.voices.iter().enumerate() {
+        assert!(v.active, "voice {i} still rings out");
+        assert_eq!(v.released, i >= 8, "voice {i}");
+    }
+    let mut bad = p.play;
+    bad.polyphony = 0;
+    inst.set_play(bad);
+    assert_eq!(inst.play.polyphony, 1, "clamped to at least one voice");
 }

@@ -44,11 +44,12 @@ impl Instrument {
             v.released = false;
             i
         } else {
-            let i = match self.voices.iter().position(|v| !v.active) {
+            let poly = self.play.polyphony.clamp(1, MAX_VOICES);
+            let i = match self.voices[..poly].iter().position(|v| !v.active) {
                 Some(i) => i,
                 None => {
                     self.stats.steals += 1;
-                    quietest(p, &self.voices)
+                    quietest(p, &self.voices[..poly])
                 }
             };
             let st = &mut p.states[i];
@@ -91,16 +92,24 @@ impl Instrument {
     }
 
     pub(super) fn note_off(&mut self, key: Option<u8>) {
-        let p = &mut *self.cur;
-        for (i, v) in self.voices.iter_mut().enumerate() {
+        for i in 0..MAX_VOICES {
+            let v = self.voices[i];
             if !v.active || v.released || key.is_some_and(|k| k != v.key) {
                 continue;
             }
-            v.released = true;
-            if let Some(d) = &p.scenes.damped {
-                if p.states[i].rebind(&p.scenes.scene, d) {
-                    v.on_damped = true;
-                }
+            self.release_voice(i);
+        }
+    }
+
+    /// Release voice `i`: the damper falls (it continues on the damped
+    /// scene when there is one).
+    pub(super) fn release_voice(&mut self, i: usize) {
+        let p = &mut *self.cur;
+        let v = &mut self.voices[i];
+        v.released = true;
+        if let Some(d) = &p.scenes.damped {
+            if p.states[i].rebind(&p.scenes.scene, d) {
+                v.on_damped = true;
             }
         }
     }
@@ -143,7 +152,7 @@ fn audible_energy(st: &EngineState, scene: &CompiledScene) -> Option<f64> {
     }
 }
 
-fn quietest(p: &Prepared, voices: &[Voice; MAX_VOICES]) -> usize {
+fn quietest(p: &Prepared, voices: &[Voice]) -> usize {
     let mut best = 0;
     let mut best_e = f64::INFINITY;
     for (i, v) in voices.iter().enumerate() {

@@ -92,6 +92,7 @@ impl ModalContact {
                 revision: self.revision + 1,
                 rate_hz: self.rate_hz,
                 max_block: self.max_block,
+                polyphony: self.params.play_params().polyphony,
                 params: wanted,
             };
             if self.handoff.request(req) {
@@ -225,7 +226,7 @@ impl Plugin for ModalContact {
             nice_log!("modal_contact: {w}");
         }
         let max_block = buffer_config.max_buffer_size as usize;
-        if let Some(w) = prepared.strike_warning(max_block) {
+        if let Some(w) = prepared.strike_warning(max_block, ip.play.polyphony) {
             nice_log!("modal_contact: {w}");
         }
         self.max_block = max_block;

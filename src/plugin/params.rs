@@ -25,7 +25,7 @@
 //! `ids_never_change` holds them), and only append choices at the end (CLAP
 //! automation stores a choice's index).
 
-use crate::instrument::{InstrumentParams, PlayParams, SceneParams};
+use crate::instrument::{InstrumentParams, PlayParams, SceneParams, MAX_VOICES};
 use crate::presets;
 use crate::scene::Switching;
 use nice_plug::plugin::{ParamValue, PluginState};
@@ -64,6 +64,17 @@ pub enum Kind {
         unit: &'static str,
         /// Decimal places hosts show.
         digits: usize,
+    },
+    /// A whole number (hosts show and step it as one).
+    Int {
+        /// Smallest value.
+        min: i32,
+        /// Largest value.
+        max: i32,
+        /// Default value.
+        default: i32,
+        /// Unit appended to the value, with its leading space, or `""`.
+        unit: &'static str,
     },
     /// Off or on.
     Bool {
@@ -112,6 +123,7 @@ impl ParamSpec {
     pub fn default_value(&self) -> ParamValue {
         match self.kind {
             Kind::Float { default, .. } => ParamValue::F32(default),
+            Kind::Int { default, .. } => ParamValue::I32(default),
             Kind::Bool { default } => ParamValue::Bool(default),
             Kind::Choice { ids, default, .. } => ParamValue::String(ids[default].to_string()),
         }
@@ -298,6 +310,24 @@ impl FromSpec for FloatParam {
         FloatParam::new(s.name, default, range)
             .with_unit(unit)
             .with_value_to_string(formatters::v2s_f32_rounded(digits))
+    }
+}
+
+impl FromSpec for IntParam {
+    fn from_spec(s: &ParamSpec) -> Self {
+        let Kind::Int {
+            min,
+            max,
+            default,
+            unit,
+        } = s.kind
+        else {
+            panic!(
+                "{}: declared {:?}, but its field is an IntParam",
+                s.id, s.kind
+            );
+        };
+        IntParam::new(s.name, default, IntRange::Linear { min, max }).with_unit(unit)
     }
 }
 
@@ -507,6 +537,20 @@ parameters! {
               rod and the worker logs `exact switching refused (...); falling back \
               to offset-rod`.",
     },
+    polyphony: IntParam = POLYPHONY {
+        id: "polyphony",
+        name: "Polyphony",
+        kind: Kind::Int {
+            min: 1,
+            max: MAX_VOICES as i32,
+            default: 16,
+            unit: " voices",
+        },
+        applies: Applies::NextNote,
+        doc: "How many notes sound at once. A note beyond it steals the quietest \
+              voice; lowering it releases (damps) the voices above the new limit. \
+              The voices are allocated once: changing it allocates nothing.",
+    },
 }
 
 impl ModalContactParams {
@@ -535,6 +579,7 @@ impl ModalContactParams {
             pitch_tracking: self.pitch_tracking.value(),
             drop_height_m: self.drop_height_mm.value() as f64 / 1000.0,
             gain_db: self.gain_db.value() as f64,
+            polyphony: self.polyphony.value().clamp(1, MAX_VOICES as i32) as usize,
         }
     }
 
@@ -564,6 +609,7 @@ pub fn migrate_state(state: &mut PluginState) -> Vec<String> {
             (Kind::Float { .. }, Some(ParamValue::F32(v))) => {
                 float_in_range(&FloatParam::from_spec(spec), *v)
             }
+            (Kind::Int { min, max, .. }, Some(ParamValue::I32(v))) => (min..=max).contains(v),
             (Kind::Bool { .. }, Some(ParamValue::Bool(_))) => true,
             (Kind::Choice { ids, .. }, Some(ParamValue::String(s))) => ids.contains(&s.as_str()),
             // nice-plug stores an index for enums without ids; accept one
@@ -617,7 +663,11 @@ mod tests {
             params: BTreeMap::new(),
             fields: BTreeMap::new(),
         };
-        assert_eq!(migrate_state(&mut state).len(), 13, "all 13 filled in");
+        assert_eq!(
+            migrate_state(&mut state).len(),
+            PARAMS.len(),
+            "all filled in"
+        );
         state
     }
 
@@ -649,9 +699,12 @@ mod tests {
             "gain",
             "switching",
         ];
-        assert_eq!(ids::ALL, shipped);
+        // later ids are appended, never inserted or renamed
+        let added = ["polyphony"];
+        let all: Vec<&str> = shipped.iter().chain(&added).copied().collect();
+        assert_eq!(ids::ALL.as_slice(), all.as_slice());
         let listed: Vec<&str> = PARAMS.iter().map(|s| s.id).collect();
-        assert_eq!(listed, shipped);
+        assert_eq!(listed, all);
         let p = ModalContactParams::default();
         let mapped: Vec<String> = p
             .param_map()
@@ -659,7 +712,7 @@ mod tests {
             .map(|(id, _, g)| id + &g)
             .collect();
         assert_eq!(
-            mapped, shipped,
+            mapped, all,
             "the param map is the list, in order, ungrouped"
         );
     }
@@ -692,6 +745,18 @@ mod tests {
                         );
                         assert_eq!(q.default_plain_value(), default, "{}", s.id);
                         assert_eq!(q.unmodulated_plain_value(), default, "{}", s.id);
+                    }
+                    Kind::Int {
+                        min,
+                        max,
+                        default,
+                        unit,
+                    } => {
+                        assert_eq!(q.unit(), unit, "{}", s.id);
+                        assert_eq!(q.step_count(), Some((max - min) as usize), "{}", s.id);
+                        assert_eq!(q.preview_plain(0.0), min as f32, "{}", s.id);
+                        assert_eq!(q.preview_plain(1.0), max as f32, "{}", s.id);
+                        assert_eq!(q.default_plain_value(), default as f32, "{}", s.id);
                     }
                     Kind::Bool { default } => {
                         assert_eq!(q.step_count(), Some(1), "{}", s.id);

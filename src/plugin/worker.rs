@@ -41,8 +41,11 @@ pub struct CompileRequest {
     pub revision: u64,
     /// Sample rate \[Hz\].
     pub rate_hz: f64,
-    /// The host's largest block \[samples\] (for the strike-cost warning).
+    /// The host's largest block \[samples\] and the polyphony (for the
+    /// strike-cost warning).
     pub max_block: usize,
+    /// See `max_block`.
+    pub polyphony: usize,
     /// What to compile.
     pub params: SceneParams,
 }
@@ -167,7 +170,7 @@ fn run(h: &Handoff) {
                 if let Some(w) = p.realtime_warning() {
                     nice_plug::nice_log!("modal_contact: {w}");
                 }
-                if let Some(w) = p.strike_warning(req.max_block) {
+                if let Some(w) = p.strike_warning(req.max_block, req.polyphony) {
                     nice_plug::nice_log!("modal_contact: {w}");
                 }
                 h.last_compile_ms

@@ -134,6 +134,12 @@ fn range_and_default(s: &ParamSpec) -> (String, String) {
             };
             (format!("{min} .. {top}{unit}"), format!("{default}{unit}"))
         }
+        Kind::Int {
+            min,
+            max,
+            default,
+            unit,
+        } => (format!("{min} .. {max}{unit}"), format!("{default}{unit}")),
         Kind::Bool { default } => (
             "Off / On".to_string(),
             if default { "On" } else { "Off" }.to_string(),
