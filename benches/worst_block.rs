@@ -218,5 +218,63 @@ fn polyphony_64(_: &mut Criterion) {
     );
 }
 
-criterion_group!(benches, strike_cost, polyphony_64, worst_block);
+/// Bad input at 64 voices, 64-sample blocks at 48 kHz: all 128 keys at
+/// velocity 127 in one block, and a note on every sample of a block
+/// (stealing voices mid-contact); the worst block over 1 s.
+fn bad_input(_: &mut Criterion) {
+    println!("\nbad input at 64 voices, 64-sample blocks at 48 kHz, worst block over 1 s (% of the budget):");
+    println!(
+        "| object | 128 keys at velocity 127 in one block | a note on every sample of a block |"
+    );
+    println!("|---|---|---|");
+    let mut plate = InstrumentParams::default();
+    plate.scene.preset = modal_contact::presets::index_of("steel-plate").expect("preset");
+    let objects = [
+        (
+            "steel-plate (29 modes)",
+            modal_contact::presets::scene(plate.scene.preset).expect("preset"),
+        ),
+        ("200 modes", object(200)),
+    ];
+    for (name, scene) in objects {
+        let mut params = InstrumentParams::default();
+        params.play.polyphony = modal_contact::instrument::MAX_VOICES;
+        let prepared = prepare_scene(&scene, &params.scene, RATE, 0).expect("compile");
+        let chord: Vec<TimedEvent> = (0..128u8)
+            .map(|key| TimedEvent {
+                offset: 0,
+                event: Event::NoteOn {
+                    key,
+                    velocity_norm: 1.0,
+                },
+            })
+            .collect();
+        let run: Vec<TimedEvent> = (0..64usize)
+            .map(|i| TimedEvent {
+                offset: i,
+                event: Event::NoteOn {
+                    key: (i * 37 % 128) as u8,
+                    velocity_norm: 1.0,
+                },
+            })
+            .collect();
+        let mut cells = Vec::new();
+        for first in [&chord, &run] {
+            let mut inst = Instrument::new(prepared.clone(), params.play);
+            let (mut l, mut r) = (vec![0.0f32; 64], vec![0.0f32; 64]);
+            let mut worst = 0.0f64;
+            for b in 0..(RATE as usize / 64) {
+                let evs: &[TimedEvent] = if b == 10 { first } else { &[] };
+                let t0 = Instant::now();
+                inst.process(evs, &mut l, &mut r);
+                worst = worst.max(t0.elapsed().as_secs_f64());
+                assert!(l.iter().chain(&r).all(|x| x.is_finite()));
+            }
+            cells.push(format!("{:.0} %", 100.0 * worst / (64.0 / RATE)));
+        }
+        println!("| {name} | {} | {} |", cells[0], cells[1]);
+    }
+}
+
+criterion_group!(benches, strike_cost, polyphony_64, bad_input, worst_block);
 criterion_main!(benches);

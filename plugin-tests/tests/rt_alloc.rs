@@ -5,7 +5,9 @@
 //! `assert_process_allocs`: any allocation inside `process` aborts the host
 //! process. A stress render (many note-ons, voice stealing, releases on the
 //! damped scene, parameter swaps including a preset change with its fade-out,
-//! a switching change and a strike-position change) runs in a child process
+//! a switching change and a strike-position change, and bad input: all 128
+//! keys at velocity 127 in one block at 64 voices, then a note on every
+//! sample for 256 samples, stealing voices mid-contact) runs in a child process
 //! (this test binary re-executed with `MODAL_CONTACT_CHILD_BUNDLE` set), so an
 //! abort is observed rather than killing the test run. In the `rt-checks`
 //! build note 2 at velocity 0.123 (test-only `alloc-bug` trigger) allocates in `process` on purpose: the child must die; the
@@ -41,6 +43,23 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
             notes.push(HostEvent::NoteOff { at: at + 700, key });
         }
     }
+    // bad input: all 128 keys at velocity 127 in one block, then a note on
+    // every sample for a block, stealing voices in the middle of their
+    // contacts
+    for key in 0..128u8 {
+        notes.push(HostEvent::NoteOn {
+            at: 10_000,
+            key,
+            velocity: 1.0,
+        });
+    }
+    for i in 0..256usize {
+        notes.push(HostEvent::NoteOn {
+            at: 12_000 + i,
+            key: (i * 37 % 128) as u8,
+            velocity: 1.0,
+        });
+    }
     // repeated notes on one key
     for i in 0..10usize {
         notes.push(HostEvent::NoteOn {
@@ -51,6 +70,8 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
     }
     let first_change = 30_000;
     let mut events = notes.clone();
+    // the largest polyphony for the bad-input chords (CLAP value: the step)
+    events.push(param(9_000, ids::POLYPHONY, 63.0));
     if let Some(key) = fault_note {
         events.push(HostEvent::NoteOn {
             at: 25_000,
@@ -136,10 +157,15 @@ fn child_render() {
             let fault = (script == Ok("alloc")).then_some(2);
             let (with, without, change) = stress(bundle, fault);
             let finite = with.iter().flatten().all(|v| v.is_finite());
+            let bounded = with
+                .iter()
+                .chain(&without)
+                .flatten()
+                .all(|v| f64::from(v.abs()) <= modal_contact::instrument::OUTPUT_CEILING);
             let swapped = with[0][change..] != without[0][change..];
             write_wav(&out_dir().join("rt-checks-stress.wav"), 44_100.0, &with);
             println!(
-                "CHILD_RENDER_OK finite={finite} swapped={swapped} peak={:.4}",
+                "CHILD_RENDER_OK finite={finite} bounded={bounded} swapped={swapped} peak={:.4}",
                 peak(&with[0])
             );
         }
@@ -167,6 +193,7 @@ fn rt_checks_build_runs_the_stress_render_without_allocating() {
     println!("{line}");
     assert!(out.status.success(), "{:?}\n{stderr}", out.status);
     assert!(line.contains("finite=true"), "{line}");
+    assert!(line.contains("bounded=true"), "{line}");
     assert!(line.contains("swapped=true"), "{line}");
 }
 
