@@ -19,6 +19,7 @@
 use plugin_tests::*;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::time::Instant;
 use xtask::multisample::{run, MultisampleArgs};
 use xtask::offline::{write_wav, WavFormat};
 
@@ -107,8 +108,8 @@ fn midi_file(path: &Path, notes: &[(u8, u8)]) {
     std::fs::write(path, f).unwrap();
 }
 
-/// Play `notes` from `sf2` in FluidSynth; the left channel.
-fn fluidsynth(sf2: &Path, notes: &[(u8, u8)], dir: &Path, name: &str) -> Vec<f32> {
+/// Play `notes` from `sf2` in FluidSynth; both channels.
+fn fluidsynth(sf2: &Path, notes: &[(u8, u8)], dir: &Path, name: &str) -> [Vec<f32>; 2] {
     let mid = dir.join(format!("{name}.mid"));
     let wav = dir.join(format!("{name}-fluidsynth.wav"));
     midi_file(&mid, notes);
@@ -119,10 +120,10 @@ fn fluidsynth(sf2: &Path, notes: &[(u8, u8)], dir: &Path, name: &str) -> Vec<f32
         .arg(&wav)
         .arg(sf2)
         .arg(&mid));
-    read_left(&wav)
+    read_stereo(&wav)
 }
 
-fn read_left(path: &Path) -> Vec<f32> {
+fn read_stereo(path: &Path) -> [Vec<f32>; 2] {
     let mut r = hound::WavReader::open(path).unwrap();
     let spec = r.spec();
     let ch = spec.channels as usize;
@@ -135,7 +136,8 @@ fn read_left(path: &Path) -> Vec<f32> {
                 .collect()
         }
     };
-    all.chunks(ch).map(|c| c[0]).collect()
+    assert_eq!(ch, 2, "{}: stereo", path.display());
+    [0, 1].map(|c| all.iter().skip(c).step_by(2).copied().collect())
 }
 
 /// First sample above 1e-3 of the signal's peak.
@@ -144,8 +146,42 @@ fn onset(x: &[f32]) -> usize {
     x.iter().position(|v| v.abs() > 1e-3 * p).expect("sound")
 }
 
+/// In-place radix-2 FFT of (`re`, `im`); the length is a power of two.
+fn fft(re: &mut [f64], im: &mut [f64]) {
+    let n = re.len();
+    let mut j = 0;
+    for i in 1..n {
+        let mut bit = n >> 1;
+        while j & bit != 0 {
+            j ^= bit;
+            bit >>= 1;
+        }
+        j |= bit;
+        if i < j {
+            re.swap(i, j);
+            im.swap(i, j);
+        }
+    }
+    let mut len = 2;
+    while len <= n {
+        let ang = -2.0 * std::f64::consts::PI / len as f64;
+        for start in (0..n).step_by(len) {
+            for k in 0..len / 2 {
+                let (c, s) = ((ang * k as f64).cos(), (ang * k as f64).sin());
+                let (a, b) = (start + k, start + k + len / 2);
+                let (tr, ti) = (re[b] * c - im[b] * s, re[b] * s + im[b] * c);
+                (re[b], im[b]) = (re[a] - tr, im[a] - ti);
+                (re[a], im[a]) = (re[a] + tr, im[a] + ti);
+            }
+        }
+        len <<= 1;
+    }
+}
+
 /// Frequency of the strongest spectral peak between 60 Hz and 4 kHz over
-/// `x` (Hann window, DFT on a 0.5 Hz grid, parabolic refinement).
+/// `x` (a power-of-two length): Hann window, the strongest FFT bin, then
+/// the maximum of the windowed spectrum's magnitude (evaluated directly at
+/// any frequency) within one bin of it, by golden-section search.
 fn main_frequency(x: &[f32]) -> f64 {
     let n = x.len();
     let w: Vec<f64> = (0..n)
@@ -154,27 +190,39 @@ fn main_frequency(x: &[f32]) -> f64 {
             h * f64::from(x[i])
         })
         .collect();
+    let (mut re, mut im) = (w.clone(), vec![0.0; n]);
+    fft(&mut re, &mut im);
+    let bin = RATE / n as f64;
+    let k = ((60.0 / bin) as usize..(4000.0 / bin) as usize)
+        .max_by(|&a, &b| (re[a].hypot(im[a])).total_cmp(&re[b].hypot(im[b])))
+        .unwrap();
     let mag = |f: f64| {
-        let (mut re, mut im) = (0.0, 0.0);
         let dphi = 2.0 * std::f64::consts::PI * f / RATE;
         let (c, s) = (dphi.cos(), dphi.sin());
-        let (mut cr, mut ci) = (1.0f64, 0.0f64);
+        let (mut sr, mut si, mut cr, mut ci) = (0.0, 0.0, 1.0f64, 0.0f64);
         for v in &w {
-            re += v * cr;
-            im -= v * ci;
-            let t = cr * c - ci * s;
-            ci = cr * s + ci * c;
-            cr = t;
+            sr += v * cr;
+            si -= v * ci;
+            (cr, ci) = (cr * c - ci * s, cr * s + ci * c);
         }
-        (re * re + im * im).sqrt()
+        sr.hypot(si)
     };
-    let grid: Vec<f64> = (120..8000).map(|k| k as f64 * 0.5).collect();
-    let mags: Vec<f64> = grid.iter().map(|&f| mag(f)).collect();
-    let k = (1..mags.len() - 1)
-        .max_by(|&a, &b| mags[a].total_cmp(&mags[b]))
-        .unwrap();
-    let (a, b, c) = (mags[k - 1].ln(), mags[k].ln(), mags[k + 1].ln());
-    grid[k] + 0.5 * 0.5 * (a - c) / (a - 2.0 * b + c)
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut a, mut b) = ((k as f64 - 1.0) * bin, (k as f64 + 1.0) * bin);
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let (mut fc, mut fd) = (mag(c), mag(d));
+    while b - a > 1e-6 {
+        if fc > fd {
+            (b, d, fd) = (d, c, fc);
+            c = b - g * (b - a);
+            fc = mag(c);
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + g * (b - a);
+            fd = mag(d);
+        }
+    }
+    0.5 * (a + b)
 }
 
 fn db(x: f64) -> f64 {
@@ -187,7 +235,7 @@ fn level(x: &[f32], at: usize) -> f64 {
     rms(&x[a..at + (0.3 * RATE) as usize])
 }
 
-fn plugin_note(bundle: &Path, key: u8, vel: u8) -> Vec<f32> {
+fn plugin_note(bundle: &Path, key: u8, vel: u8) -> [Vec<f32>; 2] {
     let mut p = LoadedPlugin::load(bundle);
     let spec = RenderSpec::new(
         RATE,
@@ -195,20 +243,19 @@ fn plugin_note(bundle: &Path, key: u8, vel: u8) -> Vec<f32> {
         (HOLD_S * RATE) as usize,
         vec![on(0, key, f64::from(vel) / 127.0)],
     );
-    let [l, _] = p.render(&spec);
-    l
+    p.render(&spec)
 }
 
-#[test]
-fn a_real_sfz_player_plays_the_export_as_the_plugin_does() {
-    let dir = temp("sfz");
-    let export = dir.join("export");
+/// Export the preset's notes 48, 54 and 60 at 2 velocity layers with the
+/// command's library function; the export directory.
+fn export(dir: &Path) -> PathBuf {
+    let out = dir.join("export");
     run(&MultisampleArgs {
         scene: modal_testkit::scenes::preset_path("marimba-bar"),
         notes: "48..60".into(),
         step: 6,
         velocities: 2,
-        out: export.clone(),
+        out: out.clone(),
         rate: RATE,
         seconds: Some(1.4),
         name: None,
@@ -216,25 +263,104 @@ fn a_real_sfz_player_plays_the_export_as_the_plugin_does() {
         jobs: None,
     })
     .expect("export");
-    // the calibration instrument: a constant 220 Hz sine at -12 dBFS
+    out
+}
+
+/// The calibration instrument: one constant 220 Hz stereo sine at -12
+/// dBFS for every key and velocity, with the export's opcodes. Its SFZ
+/// and its samples.
+fn calibration(dir: &Path) -> (PathBuf, Vec<f32>) {
     let cal = dir.join("cal");
     std::fs::create_dir_all(&cal).unwrap();
     let sine: Vec<f32> = (0..(1.4 * RATE) as usize)
         .map(|i| 0.25 * (2.0 * std::f64::consts::PI * 220.0 * i as f64 / RATE).sin() as f32)
         .collect();
     write_wav(&cal.join("sine.wav"), RATE, &sine, &sine, WavFormat::Pcm24).unwrap();
+    let sfz = cal.join("cal.sfz");
     std::fs::write(
-        cal.join("cal.sfz"),
+        &sfz,
         "<control>\ndefault_path=./\n<global>\namp_veltrack=0\nloop_mode=one_shot\n\
+         trigger=attack\n\
          <region> sample=sine.wav pitch_keycenter=57 lokey=0 hikey=127 lovel=1 hivel=127\n",
     )
     .unwrap();
-    let sf2 = to_sf2(&export.join("marimba-bar.sfz"), &dir.join("sf2"), "marimba");
-    let cal_sf2 = to_sf2(&cal.join("cal.sfz"), &dir.join("sf2"), "cal");
+    (sfz, sine)
+}
 
+/// One note: the sampler's channels and the calibration sine played in
+/// the same slot (same MIDI timing and velocity), and the plugin's render.
+struct Note<'a> {
+    key: u8,
+    vel: u8,
+    sampler: [&'a [f32]; 2],
+    cal: &'a [f32],
+    plugin: [Vec<f32>; 2],
+}
+
+/// Measure, print and check one note; `cal_ref` is the calibration
+/// sine's own level.
+fn compare(n: &Note, cal_ref: f64) {
+    let (key, vel) = (n.key, n.vel);
+    let (s, p) = (n.sampler, &n.plugin);
+    // FluidSynth starts notes on its 64-sample blocks: the player's start
+    // is the calibration sine's onset in the same slot
+    let (os, oc, op) = (onset(s[0]), onset(n.cal), onset(&p[0]));
+    let rel = os as f64 - oc as f64;
+    let d_onset_ms = (rel - op as f64) / RATE * 1e3;
+    let win = |x: &[f32], at: usize| x[at + 2205..at + 2205 + 16384].to_vec();
+    let (fs, fp) = (
+        main_frequency(&win(s[0], os)),
+        main_frequency(&win(&p[0], op)),
+    );
+    let cents = 1200.0 * (fs / fp).log2();
+    // the player's own gain at this velocity (SF2's default velocity
+    // curve), from the calibration sine, divided out
+    let gain = level(n.cal, oc) / cal_ref;
+    let ls = [0, 1].map(|c| db(level(s[c], os) / gain));
+    let lp = [0, 1].map(|c| db(level(&p[c], op)));
+    println!(
+        "{key} {vel:3} | {:.3} / {:.3} ({d_onset_ms:+.3}) | {fs:.3} / {fp:.3} ({cents:+.4}) | \
+         {:+.2} | L {:.3} / {:.3} ({:+.3}) R {:.3} / {:.3} ({:+.3})",
+        rel / RATE * 1e3,
+        op as f64 / RATE * 1e3,
+        db(gain),
+        ls[0],
+        lp[0],
+        ls[0] - lp[0],
+        ls[1],
+        lp[1],
+        ls[1] - lp[1]
+    );
+    assert!(
+        d_onset_ms.abs() <= 0.5,
+        "{key}/{vel}: onset {os} (player start {oc}) vs {op}"
+    );
+    // between sampled keys too: the plugin's pitch is a time scaling,
+    // which is what the sampler's resampling does
+    assert!(cents.abs() <= 1.0, "{key}/{vel}: pitch {fs} vs {fp} Hz");
+    for c in 0..2 {
+        assert!(
+            (ls[c] - lp[c]).abs() <= 0.25,
+            "{key}/{vel} channel {c}: level {} vs {} dB",
+            ls[c],
+            lp[c]
+        );
+    }
+}
+
+#[test]
+fn a_real_sfz_player_plays_the_export_as_the_plugin_does() {
+    let t0 = Instant::now();
+    let dir = temp("sfz");
+    let export = export(&dir);
+    let (cal_sfz, sine) = calibration(&dir);
+    let t_export = t0.elapsed().as_secs_f64();
+    let sf2 = to_sf2(&export.join("marimba-bar.sfz"), &dir.join("sf2"), "marimba");
+    let cal_sf2 = to_sf2(&cal_sfz, &dir.join("sf2"), "cal");
+    let t_convert = t0.elapsed().as_secs_f64();
     // sampled notes at each layer's top velocity, and two notes between
     // sampled ones (pitch-shifted by the sampler)
-    let notes: Vec<(u8, u8)> = vec![
+    let notes: [(u8, u8); 8] = [
         (48, 63),
         (48, 127),
         (54, 63),
@@ -246,45 +372,39 @@ fn a_real_sfz_player_plays_the_export_as_the_plugin_does() {
     ];
     let played = fluidsynth(&sf2, &notes, &dir, "marimba");
     let cal_notes: Vec<(u8, u8)> = notes.iter().map(|&(_, v)| (57, v)).collect();
-    let cal_played = fluidsynth(&cal_sf2, &cal_notes, &dir, "cal");
-    let cal_ref = level(&sine, 0);
+    let [cal_played, _] = fluidsynth(&cal_sf2, &cal_notes, &dir, "cal");
+    let t_play = t0.elapsed().as_secs_f64();
 
     let bundle = clap_bundle(Variant::Release);
-    let spacing = (SPACING_S * RATE) as usize;
-    let hold = (HOLD_S * RATE) as usize;
-    println!("note vel | onset sampler (after the player's start)/plugin ms | f sampler/plugin Hz (cents) | level sampler/plugin dB");
+    let t_bundle = t0.elapsed().as_secs_f64();
+    let slot = |k: usize| {
+        let a = (k as f64 * SPACING_S * RATE) as usize;
+        a..a + (HOLD_S * RATE) as usize
+    };
+    println!(
+        "note vel | onset sampler (after the player's start) / plugin ms | \
+         f sampler / plugin Hz (cents) | player gain dB | \
+         level sampler (calibrated) / plugin dB, per channel"
+    );
     for (k, &(key, vel)) in notes.iter().enumerate() {
-        let s = &played[k * spacing..k * spacing + hold];
-        let c = &cal_played[k * spacing..k * spacing + hold];
-        let p = plugin_note(&bundle, key, vel);
-        // FluidSynth starts notes on its 64-sample blocks: its onset is
-        // taken from the calibration note of the same slot (same MIDI
-        // timing, a sine that sounds at once)
-        let (os, oc, op) = (onset(s), onset(c), onset(&p));
-        let win = |x: &[f32], at: usize| x[at + 2205..at + 2205 + 16384].to_vec();
-        let (fs, fp) = (main_frequency(&win(s, os)), main_frequency(&win(&p, op)));
-        let cents = 1200.0 * (fs / fp).log2();
-        // the player's own gain at this velocity, from the calibration sine
-        let gain = level(c, onset(c)) / cal_ref;
-        let (ls, lp) = (db(level(s, os) / gain), db(level(&p, op)));
-        let rel = os as f64 - oc as f64;
-        println!(
-            "{key} {vel:3} | {:.2} / {:.2} | {fs:.2} / {fp:.2} ({cents:+.2}) | {ls:.2} / {lp:.2} ({:+.2})",
-            rel / RATE * 1e3,
-            op as f64 / RATE * 1e3,
-            ls - lp
-        );
-        assert!(
-            (rel - op as f64).abs() / RATE <= 0.5e-3,
-            "{key}/{vel}: onset {os} (player start {oc}) vs {op}"
-        );
-        assert!(cents.abs() <= 1.0, "{key}/{vel}: pitch {fs} vs {fp} Hz");
-        // between sampled keys too: the plugin's pitch is a time scaling,
-        // which is what the sampler's resampling does
-        assert!(
-            (ls - lp).abs() <= 0.25,
-            "{key}/{vel}: level {ls} vs {lp} dB"
+        compare(
+            &Note {
+                key,
+                vel,
+                sampler: [&played[0][slot(k)], &played[1][slot(k)]],
+                cal: &cal_played[slot(k)],
+                plugin: plugin_note(&bundle, key, vel),
+            },
+            level(&sine, 0),
         );
     }
+    println!(
+        "seconds: export {t_export:.2}, polyphone {:.2}, fluidsynth {:.2}, \
+         plugin bundle {:.2}, plugin notes and analysis {:.2}",
+        t_convert - t_export,
+        t_play - t_convert,
+        t_bundle - t_play,
+        t0.elapsed().as_secs_f64() - t_bundle
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -11,13 +11,14 @@ use crate::offline::{
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget};
-use modal_contact::instrument::InstrumentParams;
+use modal_contact::instrument::{InstrumentParams, Prepared};
 use modal_contact::render::render_length;
 use modal_contact::scene::Scene;
 use rayon::prelude::*;
 use serde_json::json;
 use std::fmt::Write as _;
 use std::io::IsTerminal;
+use std::panic::AssertUnwindSafe;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -192,10 +193,21 @@ pub fn sfz_text(name: &str, header: &str, regions: &[Region], volume_db: f64) ->
     s
 }
 
-/// Export the multisample. Every output path is checked first; a note that
-/// fails is reported with its name and the others are still written (the
-/// command then fails).
-pub fn run(a: &MultisampleArgs) -> Result<()> {
+/// What an export writes, decided and checked before anything renders.
+struct Plan {
+    scene: Scene,
+    keys: Vec<u8>,
+    regions: Vec<Region>,
+    name: String,
+    /// Samples rendered per note (before the tail is trimmed).
+    samples: usize,
+    sfz: PathBuf,
+    manifest: PathBuf,
+}
+
+/// Parse the arguments and check every output path (refusing files of an
+/// earlier export unless `--force`).
+fn plan(a: &MultisampleArgs) -> Result<Plan> {
     let scene = Scene::from_file(&a.scene).with_context(|| a.scene.display().to_string())?;
     let mut keys = parse_midi_list(&a.notes, "note", 0, 127)?;
     keys.sort_unstable();
@@ -209,7 +221,7 @@ pub fn run(a: &MultisampleArgs) -> Result<()> {
             .to_string_lossy()
             .into_owned(),
     };
-    let n = render_length(a.seconds.unwrap_or(scene.duration_s), a.rate)?;
+    let samples = render_length(a.seconds.unwrap_or(scene.duration_s), a.rate)?;
     let sfz = a.out.join(format!("{name}.sfz"));
     let manifest = a.out.join(format!("{name}.json"));
     let mut outputs: Vec<PathBuf> = regions.iter().map(|r| a.out.join(r.file(&name))).collect();
@@ -223,130 +235,234 @@ pub fn run(a: &MultisampleArgs) -> Result<()> {
         }
         check_writable(p, true)?;
     }
-    let params = InstrumentParams::default();
-    let (prepared, compile_s) = prepare_for(&scene, &params, a.rate)?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(a.jobs.unwrap_or(0))
-        .build()?;
-    let progress =
-        ProgressBar::with_draw_target(Some(regions.len() as u64), ProgressDrawTarget::hidden());
+    Ok(Plan {
+        scene,
+        keys,
+        regions,
+        name,
+        samples,
+        sfz,
+        manifest,
+    })
+}
+
+/// Render every region on the pool, each at its top velocity; a note that
+/// panics is returned as its message, the others still render. The
+/// progress bar appears on a terminal once the job has run for 1 s.
+fn render_all(
+    pool: &rayon::ThreadPool,
+    prepared: &Prepared,
+    params: &InstrumentParams,
+    plan: &Plan,
+) -> Vec<std::result::Result<Sample, String>> {
+    let progress = ProgressBar::with_draw_target(
+        Some(plan.regions.len() as u64),
+        ProgressDrawTarget::hidden(),
+    );
     let t0 = Instant::now();
     let tty = std::io::stderr().is_terminal();
-    let samples: Vec<Sample> = pool.install(|| {
-        regions
+    let out = pool.install(|| {
+        plan.regions
             .par_iter()
             .map(|r| {
-                let mut nr = play_note(&prepared, &params, r.note, r.hivel, n);
-                let peak = trim(&mut nr.left, &mut nr.right);
+                let played = std::panic::catch_unwind(AssertUnwindSafe(|| {
+                    play_note(prepared, params, r.note, r.hivel, plan.samples)
+                }));
                 progress.inc(1);
                 if tty && t0.elapsed().as_secs_f64() > 1.0 && progress.is_hidden() {
                     progress.set_draw_target(ProgressDrawTarget::stderr());
                 }
-                Sample {
+                let mut nr = played.map_err(|e| {
+                    e.downcast_ref::<String>()
+                        .cloned()
+                        .or_else(|| e.downcast_ref::<&str>().map(|s| s.to_string()))
+                        .unwrap_or_else(|| "panicked".into())
+                })?;
+                let peak = trim(&mut nr.left, &mut nr.right);
+                Ok(Sample {
                     left: nr.left,
                     right: nr.right,
                     peak,
                     contacts: nr.contacts,
                     render_s: nr.render_s,
-                }
+                })
             })
             .collect()
     });
     progress.finish_and_clear();
-    let global_peak = samples.iter().fold(0.0f32, |m, s| m.max(s.peak));
-    // Levels are kept across notes and layers; only if something would clip
-    // in 24-bit PCM is everything scaled by one factor, undone by `volume`.
-    let scale = if global_peak > 1.0 {
-        0.999 / global_peak
-    } else {
-        1.0
-    };
-    let volume_db = if scale < 1.0 {
-        -20.0 * f64::from(scale).log10()
-    } else {
-        0.0
-    };
-    if volume_db > 6.0 {
-        eprintln!(
-            "warning: the loudest sample peaks at {global_peak:.2}; scaled by {volume_db:.1} dB, \
-             of which SFZ's volume (at most +6 dB) restores 6"
-        );
+    out
+}
+
+/// The common factor that keeps the loudest sample within 24-bit full
+/// scale (1 when nothing would clip), and the `volume` in dB that undoes it.
+fn level_scale(global_peak: f32) -> (f32, f64) {
+    if global_peak <= 1.0 {
+        return (1.0, 0.0);
     }
-    let mut failed = 0;
-    let mut files = Vec::new();
-    for (r, s) in regions.iter().zip(&samples) {
-        let path = a.out.join(r.file(&name));
-        let (l, rr): (Vec<f32>, Vec<f32>) = if scale < 1.0 {
-            (
-                s.left.iter().map(|x| x * scale).collect(),
-                s.right.iter().map(|x| x * scale).collect(),
-            )
+    let scale = 0.999 / global_peak;
+    (scale, -20.0 * f64::from(scale).log10())
+}
+
+/// The command line that reproduces the export (for the SFZ header).
+pub fn command_line(a: &MultisampleArgs) -> String {
+    let q = |s: String| {
+        if s.is_empty() || s.contains(|c: char| c.is_whitespace() || "'\"\\$`".contains(c)) {
+            format!("'{}'", s.replace('\'', r"'\''"))
         } else {
-            (s.left.clone(), s.right.clone())
-        };
-        match write_wav(&path, a.rate, &l, &rr, WavFormat::Pcm24) {
-            Ok(()) => files.push(json!({
-                "file": r.file(&name),
-                "note": r.note,
-                "keys": [r.lokey, r.hikey],
-                "velocities": [r.lovel, r.hivel],
-                "rendered_velocity": r.hivel,
-                "samples": l.len(),
-                "peak": s.peak,
-                "contacts": s.contacts,
-                "render_s": s.render_s,
-            })),
-            Err(e) => {
-                failed += 1;
-                eprintln!("FAILED note {} velocity {}: {e:#}", r.note, r.hivel);
-            }
+            s
         }
+    };
+    let mut c = format!(
+        "cargo xtask multisample {} --notes {} --step {} --velocities {} --out {} --rate {}",
+        q(a.scene.display().to_string()),
+        q(a.notes.clone()),
+        a.step,
+        a.velocities,
+        q(a.out.display().to_string()),
+        a.rate
+    );
+    if let Some(s) = a.seconds {
+        let _ = write!(c, " --seconds {s}");
     }
-    let header = format!(
-        "{name}: multisample of {} ({}), rendered by cargo xtask multisample\n\
-         {} regions: keys {}..{} sampled every {} key(s), {} velocity layer(s), each rendered at its top velocity\n\
-         {} Hz, at most {:.3} s per sample (silent tails trimmed), 24-bit PCM\n\
-         levels are the instrument's own across notes and layers{}\n\
-         the plugin damps a note at note-off; a sampler plays the whole sample (one_shot)",
+    if let Some(n) = &a.name {
+        let _ = write!(c, " --name {}", q(n.clone()));
+    }
+    c
+}
+
+/// The SFZ's comment header: what was rendered, how, and how the levels
+/// were kept.
+fn header(a: &MultisampleArgs, plan: &Plan, volume_db: f64, failed: usize) -> String {
+    let (keys, n) = (&plan.keys, plan.samples);
+    let mut h = format!(
+        "{}: multisample of {} (scene {:?}), rendered by\n  {}\n\
+         {} regions: keys {}..{} sampled every {} key(s), {} velocity layer(s), \
+         each rendered at its top velocity\n\
+         {} Hz, at most {:.3} s per sample (tails below -120 dB of the sample's peak trimmed), \
+         24-bit PCM\n\
+         levels are the instrument's own across notes and layers (no sample normalised){}\n\
+         note-off does not damp here: the plugin's damper after note-off is not sampled, \
+         each sample plays out (one_shot)",
+        plan.name,
         a.scene.display(),
-        scene.name,
-        regions.len(),
+        plan.scene.name,
+        command_line(a),
+        plan.regions.len(),
         keys[0],
         keys[keys.len() - 1],
         a.step,
         a.velocities,
         a.rate,
         n as f64 / a.rate,
-        if scale < 1.0 {
-            format!(" (scaled by {volume_db:.2} dB to fit; volume restores it)")
+        if volume_db > 0.0 {
+            format!(";\nall scaled by -{volume_db:.2} dB to fit 24-bit full scale, `volume` restores it")
         } else {
             String::new()
         }
     );
-    std::fs::write(&sfz, sfz_text(&name, &header, &regions, volume_db))
-        .with_context(|| format!("cannot write {}", sfz.display()))?;
+    if failed > 0 {
+        let _ = write!(h, "\n{failed} sample(s) FAILED to render and are left out");
+    }
+    h
+}
+
+/// Export the multisample. Every output path is checked first; a note that
+/// fails is reported with its name and the others are still written (the
+/// command then fails).
+pub fn run(a: &MultisampleArgs) -> Result<()> {
+    let plan = plan(a)?;
+    let params = InstrumentParams::default();
+    let (prepared, compile_s) = prepare_for(&plan.scene, &params, a.rate)?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.jobs.unwrap_or(0))
+        .build()?;
+    let t0 = Instant::now();
+    let rendered = render_all(&pool, &prepared, &params, &plan);
+    let global_peak = rendered.iter().flatten().fold(0.0f32, |m, s| m.max(s.peak));
+    // Levels are kept across notes and layers; only if something would clip
+    // in 24-bit PCM is everything scaled by one factor, undone by `volume`.
+    let (scale, volume_db) = level_scale(global_peak);
+    if volume_db > 0.0 {
+        eprintln!(
+            "the loudest sample peaks at {global_peak:.3}: every sample scaled by -{volume_db:.2} dB, \
+             restored by volume={volume_db:.3} in <global>"
+        );
+    }
+    if volume_db > 6.0 {
+        eprintln!(
+            "warning: SFZ 1 players may limit volume to +6 dB; this export will play quieter there"
+        );
+    }
+    let (mut written, mut files, mut failed) = (Vec::new(), Vec::new(), Vec::new());
+    for (r, s) in plan.regions.iter().zip(&rendered) {
+        let path = a.out.join(r.file(&plan.name));
+        let scaled = |x: &[f32]| -> Vec<f32> { x.iter().map(|v| v * scale).collect() };
+        let result = s
+            .as_ref()
+            .map_err(|e| anyhow::anyhow!("panicked: {e}"))
+            .and_then(|s| {
+                let (l, rr) = (scaled(&s.left), scaled(&s.right));
+                write_wav(&path, a.rate, &l, &rr, WavFormat::Pcm24).map(|()| (s, l.len()))
+            });
+        match result {
+            Ok((s, len)) => {
+                written.push(*r);
+                files.push(json!({
+                    "file": r.file(&plan.name),
+                    "note": r.note,
+                    "keys": [r.lokey, r.hikey],
+                    "velocities": [r.lovel, r.hivel],
+                    "rendered_velocity": r.hivel,
+                    "samples": len,
+                    "peak": s.peak,
+                    "contacts": s.contacts,
+                    "render_s": s.render_s,
+                }));
+            }
+            Err(e) => {
+                eprintln!(
+                    "FAILED note {} velocity {} ({}): {e:#}",
+                    r.note,
+                    r.hivel,
+                    r.file(&plan.name)
+                );
+                failed
+                    .push(json!({"note": r.note, "velocity": r.hivel, "error": format!("{e:#}")}));
+            }
+        }
+    }
+    let text = sfz_text(
+        &plan.name,
+        &header(a, &plan, volume_db, failed.len()),
+        &written,
+        volume_db,
+    );
+    std::fs::write(&plan.sfz, text)
+        .with_context(|| format!("cannot write {}", plan.sfz.display()))?;
     let m = json!({
         "scene": a.scene.display().to_string(),
-        "scene_name": scene.name,
+        "scene_name": plan.scene.name,
+        "command": command_line(a),
         "rate_hz": a.rate,
-        "max_seconds": n as f64 / a.rate,
+        "max_seconds": plan.samples as f64 / a.rate,
         "compile_s": compile_s,
         "render_s": t0.elapsed().as_secs_f64(),
         "scale": scale,
         "volume_db": volume_db,
         "files": files,
+        "failed": failed,
     });
-    std::fs::write(&manifest, serde_json::to_string_pretty(&m)? + "\n")
-        .with_context(|| format!("cannot write {}", manifest.display()))?;
+    std::fs::write(&plan.manifest, serde_json::to_string_pretty(&m)? + "\n")
+        .with_context(|| format!("cannot write {}", plan.manifest.display()))?;
     eprintln!(
         "wrote {} samples, {} and {} in {:.2} s (compile {compile_s:.2} s)",
-        regions.len() - failed,
-        sfz.display(),
-        manifest.display(),
+        written.len(),
+        plan.sfz.display(),
+        plan.manifest.display(),
         t0.elapsed().as_secs_f64()
     );
-    if failed > 0 {
-        bail!("{failed} of {} samples failed", regions.len());
+    if !failed.is_empty() {
+        bail!("{} of {} samples failed", failed.len(), plan.regions.len());
     }
     Ok(())
 }
@@ -425,6 +541,38 @@ mod tests {
         ));
         assert_eq!(text.matches("<region>").count(), 4);
         assert!(sfz_text("bar", "", &regions, 3.5).contains("volume=3.500"));
+    }
+
+    #[test]
+    fn levels_are_scaled_only_when_they_would_clip() {
+        assert_eq!(level_scale(0.0), (1.0, 0.0));
+        assert_eq!(level_scale(1.0), (1.0, 0.0));
+        let (scale, db) = level_scale(2.0);
+        assert!((scale * 2.0 - 0.999).abs() < 1e-6);
+        assert!((db - 20.0 * (2.0f64 / 0.999).log10()).abs() < 1e-4, "{db}");
+    }
+
+    #[test]
+    fn the_command_line_reproduces_the_export() {
+        let mut a = MultisampleArgs {
+            scene: "presets/marimba-bar.toml".into(),
+            notes: "36..96".into(),
+            step: 3,
+            velocities: 4,
+            out: "my dir".into(),
+            rate: 44100.0,
+            seconds: None,
+            name: None,
+            force: true,
+            jobs: Some(2),
+        };
+        assert_eq!(
+            command_line(&a),
+            "cargo xtask multisample presets/marimba-bar.toml --notes 36..96 --step 3 \
+             --velocities 4 --out 'my dir' --rate 44100"
+        );
+        (a.seconds, a.name) = (Some(1.5), Some("it's".into()));
+        assert!(command_line(&a).ends_with(r"--seconds 1.5 --name 'it'\''s'"));
     }
 
     #[test]
