@@ -125,16 +125,40 @@ fn worst_block(_: &mut Criterion) {
     }
 }
 
-/// The block holding one strike, beyond a plain block of a ringing voice,
-/// measured on one voice (`EngineState`, 64-sample blocks at 48 kHz, the
-/// slowest of the blocks the strike touches, median of 41 strikes), next to
-/// the estimate the plugin logs its warning from
-/// (`Prepared::strike_cost_estimate_s`).
+/// The slowest of the 8 blocks after `st.strike`, less one plain block of
+/// `plain` (64-sample blocks).
+fn strike_block(
+    sc: &modal_contact::compile::CompiledScene,
+    st: &mut modal_contact::engine::EngineState,
+    plain: &mut modal_contact::engine::EngineState,
+) -> f64 {
+    let (mut l, mut r) = (vec![0.0; 64], vec![0.0; 64]);
+    let t0 = Instant::now();
+    plain.process_block(sc, &mut l, &mut r);
+    let base = t0.elapsed().as_secs_f64();
+    st.strike(sc, 0.0, -1.0);
+    let mut worst = 0.0f64;
+    for _ in 0..8 {
+        let t0 = Instant::now();
+        st.process_block(sc, &mut l, &mut r);
+        worst = worst.max(t0.elapsed().as_secs_f64());
+    }
+    (worst - base).max(0.0)
+}
+
+/// The block holding one strike, beyond a plain block, measured on one
+/// voice (`EngineState`, 64-sample blocks at 48 kHz, the slowest of the
+/// blocks the strike touches, median of 41 strikes): on a ringing voice
+/// (two dense changes of basis), next to the estimate the plugin logs its
+/// warning from (`Prepared::strike_cost_estimate_s`), and on the object at
+/// rest (a new note: the stored release, docs/numerics.md "A strike on an
+/// object at rest"), with the ratio to the same strike through the dense
+/// products in the same run.
 fn strike_cost(_: &mut Criterion) {
     use modal_contact::engine::EngineState;
     println!("\nstrike cost, one voice, 64-sample blocks at 48 kHz (measured: slowest block of the strike less a plain block; median of 41):");
-    println!("| modes | switch flops | measured us | estimated us |");
-    println!("|---|---|---|---|");
+    println!("| modes | switch flops | ringing: measured us | ringing: estimated us | at rest us | at rest, dense products us | ratio |");
+    println!("|---|---|---|---|---|---|---|");
     for n in [10, 50, 100, 200, 400, 1000] {
         let params = InstrumentParams::default();
         let prepared = prepare_scene(&object(n), &params.scene, RATE, 0).expect("compile");
@@ -145,28 +169,29 @@ fn strike_cost(_: &mut Criterion) {
         for _ in 0..200 {
             ringing.process_block(sc, &mut l, &mut r);
         }
-        let mut extra = Vec::new();
+        let mut silent = EngineState::new(sc);
+        silent.strike(sc, 1.0, 0.0);
+        let mut extra = [Vec::new(), Vec::new(), Vec::new()];
         for _ in 0..41 {
-            let mut plain = ringing.clone();
-            let t0 = Instant::now();
-            plain.process_block(sc, &mut l, &mut r);
-            let base = t0.elapsed().as_secs_f64();
-            let mut st = ringing.clone();
-            st.strike(sc, 0.0, -1.0);
-            let mut worst = 0.0f64;
-            for _ in 0..8 {
-                let t0 = Instant::now();
-                st.process_block(sc, &mut l, &mut r);
-                worst = worst.max(t0.elapsed().as_secs_f64());
+            extra[0].push(strike_block(sc, &mut ringing.clone(), &mut ringing.clone()));
+            for (j, rest) in [(1, true), (2, false)] {
+                let mut st = EngineState::new(sc);
+                st.set_rest_strike(rest);
+                extra[j].push(strike_block(sc, &mut st, &mut silent.clone()));
             }
-            extra.push((worst - base).max(0.0));
         }
-        extra.sort_by(f64::total_cmp);
+        let med = extra.map(|mut e| {
+            e.sort_by(f64::total_cmp);
+            e[20]
+        });
         println!(
-            "| {n} | {} | {:.1} | {:.1} |",
+            "| {n} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
             2 * sc.free.dim * sc.contact.dim,
-            extra[20] * 1e6,
-            prepared.strike_cost_estimate_s() * 1e6
+            med[0] * 1e6,
+            prepared.strike_cost_estimate_s() * 1e6,
+            med[1] * 1e6,
+            med[2] * 1e6,
+            med[2] / med[1]
         );
     }
 }

@@ -24,6 +24,7 @@ mod checks;
 pub mod error;
 pub mod event;
 pub mod prune;
+pub mod rest;
 mod routes;
 pub mod rows;
 mod summary;
@@ -238,6 +239,10 @@ pub struct CompiledScene {
     pub s_f_star: Vec<f64>,
     /// Constants of the contact rows.
     pub offsets: RowOffsets,
+    /// A strike on the object at rest, precomputed so that its two switches
+    /// cost O(N) (`None` when the contact is affine or not in block form;
+    /// [`rest`]).
+    pub rest: Option<rest::RestStrike>,
     /// Human-readable summary of what was built.
     pub summary: String,
     /// Estimated nodes per sample the exact event search needs near a
@@ -251,6 +256,10 @@ pub struct CompiledScene {
 /// take longer than a 44.1 kHz sample period (measured 0.2-0.3 us per node
 /// plus the changes of basis; docs/numerics.md, "Why it terminates, and what it costs").
 pub const REALTIME_SEARCH_NODES: f64 = 32.0;
+
+/// The longest contact of a strike from rest that the compiler precomputes
+/// \[s\] ([`rest`]).
+pub const REST_T_MAX_S: f64 = 1.0;
 
 /// Compile a scene for a sample rate.
 pub fn compile(scene: &Scene, rate_hz: f64) -> Result<CompiledScene, CompileError> {
@@ -403,8 +412,18 @@ pub fn compile_opts(
         scene,
         ci,
     )?;
+    // 5b. a strike on the object at rest
+    let rest = rest::rest_strike(&rest::RestInputs {
+        contact: &contact,
+        col_eta: &basis.col_eta,
+        w_fc: &basis.w_fc,
+        s_star: &basis.s_star,
+        offset_pi: rows.offsets.pi,
+        h,
+        t_max: REST_T_MAX_S,
+    });
     // 6. summary
-    let (summary, search_nodes_estimate) = summary::write(&summary::Facts {
+    let (mut summary, search_nodes_estimate) = summary::write(&summary::Facts {
         scene,
         ci,
         rate_hz,
@@ -420,6 +439,7 @@ pub fn compile_opts(
         dropped_modes: &dropped_modes,
         dropped_pickups: &rows.dropped_pickups,
     });
+    summary.push_str(&summary::rest_line(rest.as_ref(), h));
     let p = object.params;
     Ok(CompiledScene {
         name: scene.name.clone(),
@@ -443,6 +463,7 @@ pub fn compile_opts(
         w_fc: basis.w_fc,
         s_f_star: basis.s_f_star,
         offsets: rows.offsets,
+        rest,
         summary,
         search_nodes_estimate,
     })

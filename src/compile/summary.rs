@@ -160,3 +160,17 @@ pub(super) fn write(f: &Facts) -> (String, f64) {
     );
     (s, nodes)
 }
+
+/// The summary's line on strikes from rest ([`super::rest`]).
+pub(super) fn rest_line(rest: Option<&super::rest::RestStrike>, h: f64) -> String {
+    match rest {
+        Some(r) => format!(
+            "strike from rest: contact {:.4} ms ({:.2} samples), both switches O(N)\n",
+            r.t_r * 1e3,
+            r.t_r / h
+        ),
+        None => "strike from rest: not precomputed (affine or dense contact, or a contact \
+                 longer than 1 s): switches take the dense products\n"
+            .into(),
+    }
+}

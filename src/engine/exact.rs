@@ -121,6 +121,14 @@ pub struct ExactStats {
     /// sample is stepped in the current phase, and the caller sees a
     /// non-finite output; the instrument resets such a voice).
     pub nonfinite: u64,
+    /// Contacts that began on the object at rest and ended where the
+    /// compiler found their release: both switches O(N)
+    /// ([`crate::compile::rest`]).
+    pub rest_releases: u64,
+    /// Contacts that began on the object at rest but ended elsewhere
+    /// (another strike, a change of pitch, a grazing release): the dense
+    /// change of basis.
+    pub rest_misses: u64,
 }
 
 /// Which terms of a phase's event function ([`crate::compile::event`])

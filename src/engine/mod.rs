@@ -41,6 +41,7 @@ use exact::{SearchScratch, TermSplit};
 use kernel::SimdPath;
 use kernel::{rows_of, run_block, BlockAcc, BlockIo, BlockProps, BlockRows, Rows, EPOCH};
 
+use crate::compile::rest::{RestStrike, REST_MATCH};
 use crate::compile::{CompiledPhase, CompiledScene};
 use crate::physics::block::exp2;
 use crate::scene::Switching;
@@ -242,6 +243,14 @@ pub struct EngineState {
     search: SearchScratch,
     /// Reference time consumed in the current step (for event times).
     t_in_step: f64,
+    /// A contact that began on the object at rest (exact switching, a
+    /// scene with [`CompiledScene::rest`]): the clock and the time in that
+    /// sample where it began, and the hammer's momentum `eta`
+    /// (docs/numerics.md, "A strike on an object at rest").
+    rest_entry: Option<(u64, f64, f64)>,
+    /// Use the stored release of a strike from rest (default); off only to
+    /// compare with the dense product in tests and benchmarks.
+    rest_enabled: bool,
     /// Offline observation scratch ([`process_block_observed`](Self::process_block_observed)),
     /// allocated on its first call.
     obs: Option<Box<ObsScratch>>,
@@ -302,6 +311,8 @@ impl EngineState {
             events_dropped: 0,
             search: SearchScratch::new(df.max(dc)),
             t_in_step: 0.0,
+            rest_entry: None,
+            rest_enabled: true,
             obs: None,
         };
         st.set_time_scale(scene, 1.0)
@@ -323,6 +334,7 @@ impl EngineState {
         self.exact_stats = ExactStats::default();
         self.events_dropped = 0;
         self.clock = 0;
+        self.rest_entry = None;
         self.discontinuity();
     }
 
@@ -378,6 +390,7 @@ impl EngineState {
     /// tests of the steady contact phase. \[any-thread\]
     pub fn rest_in_contact(&mut self) -> &mut [f64] {
         self.phases[CONTACT].s.iter_mut().for_each(|x| *x = 0.0);
+        self.rest_entry = None;
         self.rod_m = 0.0;
         self.phase = Phase::Contact;
         self.discontinuity();
@@ -425,6 +438,8 @@ impl EngineState {
         let v_phys = self.v_h * self.time_scale;
         self.time_scale = s;
         self.step_s = scene.h * s;
+        // a contact's duration is counted in steps of one length
+        self.rest_entry = None;
         self.v_h = v_phys / s;
         fill_props(&mut self.phases[FREE].props, &scene.free, self.step_s);
         fill_props(&mut self.phases[CONTACT].props, &scene.contact, self.step_s);
@@ -516,6 +531,8 @@ impl EngineState {
     /// O(N^2) when in contact, else O(1). \[audio-thread\]
     pub fn strike(&mut self, scene: &CompiledScene, height_m: f64, velocity_m_per_s: f64) {
         if self.in_contact() {
+            // between samples: at the start of the coming one
+            self.t_in_step = 0.0;
             self.leave_contact(scene);
         }
         let x_c = dot(&scene.free.rows.x_c, &self.phases[FREE].s);
@@ -980,7 +997,8 @@ impl EngineState {
     }
 
     /// Offset rod: the spring starts unstretched (p_eff = 0), so entering
-    /// contact adds no energy. O(N^2): one change of basis.
+    /// contact adds no energy. O(N^2): one change of basis; O(N) when the
+    /// object is at rest (its coordinates are all zero).
     fn enter_contact(&mut self, scene: &CompiledScene, p: f64) {
         self.rod_m = p;
         let eta = scene.sm * self.v_h;
@@ -989,41 +1007,86 @@ impl EngineState {
         for i in 0..dc {
             contact.s[i] = scene.col_eta[i] * eta - scene.s_star[i];
         }
-        kernel::mat_vec_add(
-            self.simd,
-            scene.w_cf.as_slice(),
-            dc,
-            &free.s,
-            &mut contact.s,
-        );
+        let at_rest = free.s.iter().all(|&x| x == 0.0);
+        if !at_rest {
+            kernel::mat_vec_add(
+                self.simd,
+                scene.w_cf.as_slice(),
+                dc,
+                &free.s,
+                &mut contact.s,
+            );
+        }
+        self.rest_entry = (at_rest
+            && self.rest_enabled
+            && scene.rest.is_some()
+            && scene.switching == Switching::Exact)
+            .then_some((self.clock, self.t_in_step, eta));
         self.phase = Phase::Contact;
         self.contacts_started += 1;
         self.discontinuity();
         self.log_event(true);
     }
 
+    /// The stored release of a strike from rest, if the contact now ending
+    /// is one and ends where the compiler found its release: the offset
+    /// `T - t_r` of its duration `T` and the momentum it began with.
+    fn rest_release<'a>(&mut self, scene: &'a CompiledScene) -> Option<(&'a RestStrike, f64, f64)> {
+        let (clock0, t0, eta) = self.rest_entry.take()?;
+        let r = scene.rest.as_ref()?;
+        let t = (self.clock - clock0) as f64 * self.step_s + (self.t_in_step - t0);
+        let d = t - r.t_r;
+        if (d * r.rho).abs() <= REST_MATCH {
+            self.exact_stats.rest_releases += 1;
+            Some((r, d, eta))
+        } else {
+            self.exact_stats.rest_misses += 1;
+            None
+        }
+    }
+
     /// Cut the spring (can only remove its energy). O(N^2): one change of
-    /// basis.
+    /// basis; O(N) at the end of a strike on the object at rest, whose free
+    /// state the compiler stored (docs/numerics.md, "A strike on an object
+    /// at rest").
     fn leave_contact(&mut self, scene: &CompiledScene) {
         let p_eff = self.penetration(scene);
         let x_c = dot(&scene.contact.rows.x_c, &self.phases[CONTACT].s) + scene.offsets.x_c;
         let eta = dot(&scene.contact.rows.eta, &self.phases[CONTACT].s) + scene.offsets.eta;
         let df = scene.free.dim;
+        let rest = self.rest_release(scene);
         let [free, contact] = &mut self.phases;
-        free.s[..df].copy_from_slice(&scene.s_f_star);
-        kernel::mat_vec_add(
-            self.simd,
-            scene.w_fc.as_slice(),
-            df,
-            &contact.s,
-            &mut free.s,
-        );
+        if let Some((r, d, eta0)) = rest {
+            for i in 0..df {
+                free.s[i] = scene.s_f_star[i] + eta0 * (r.f[i] + d * r.f_d[i]);
+            }
+        } else {
+            free.s[..df].copy_from_slice(&scene.s_f_star);
+            kernel::mat_vec_add(
+                self.simd,
+                scene.w_fc.as_slice(),
+                df,
+                &contact.s,
+                &mut free.s,
+            );
+        }
         self.x_h = x_c - p_eff - self.rod_m;
         self.v_h = eta / scene.sm;
         self.rod_m = 0.0;
         self.phase = Phase::Free;
         self.discontinuity();
         self.log_event(false);
+    }
+
+    /// Take strikes from rest through the stored release (`true`, the
+    /// default) or always through the dense change of basis (`false`): only
+    /// for tests and benchmarks that compare the two. \[any-thread\]
+    #[doc(hidden)]
+    pub fn set_rest_strike(&mut self, on: bool) {
+        self.rest_enabled = on;
+        if !on {
+            self.rest_entry = None;
+        }
     }
 
     fn log_event(&mut self, entered: bool) {
