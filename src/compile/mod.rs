@@ -68,6 +68,11 @@ pub struct CompiledPhase {
     /// the trace's energy costs O(nonzeros) per sample instead of O(dim^2)
     /// (docs/design.md, "Offline rendering").
     pub v_sparse: Option<SparseRows>,
+    /// `|V s|^2` as a block-diagonal quadratic form over the blocks' state,
+    /// when no row of `V` mixes two blocks (a modal object in flight; the
+    /// uncoupled modes): the traced render then takes each sample's energy
+    /// from the kernel pass, O(N) (docs/design.md, "Offline rendering").
+    pub energy_quad: Option<EnergyQuad>,
     /// `V^{-1}` (energy coordinates to phase coordinates), for rebinding.
     pub vinv: DMatrix<f64>,
     /// Output rows.
@@ -94,6 +99,53 @@ pub struct CompiledPhase {
     pub ev_dd_block_sum: f64,
     /// What the exact event search needs beyond the rows ([`event`]).
     pub search: EventSearch,
+}
+
+/// A quadratic form over a block phase's state that is block-diagonal:
+/// `sum_k aa[k] a_k^2 + ab[k] a_k b_k + bb[k] b_k^2` with `(a_k, b_k) = (s[k],
+/// s[nb + k])` (twice a phase's stored energy when its energy coordinates
+/// do not mix blocks: docs/design.md, "Offline rendering").
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct EnergyQuad {
+    /// Weight of `a_k^2`.
+    pub aa: Vec<f64>,
+    /// Weight of `a_k b_k`.
+    pub ab: Vec<f64>,
+    /// Weight of `b_k^2`.
+    pub bb: Vec<f64>,
+}
+
+/// `|V s|^2 = sum_k aa_k a_k^2 + ab_k a_k b_k + bb_k b_k^2` over `nb` blocks
+/// `(a_k, b_k) = (s[k], s[nb + k])`, when every row of `V` touches one
+/// block only (then `V^T V` is block-diagonal); `None` otherwise.
+fn energy_quad(v: &SparseRows, nb: usize) -> Option<EnergyQuad> {
+    let mut q = EnergyQuad {
+        aa: vec![0.0; nb],
+        ab: vec![0.0; nb],
+        bb: vec![0.0; nb],
+    };
+    for i in 0..v.start.len().saturating_sub(1) {
+        let (mut blk, mut ca, mut cb) = (None, 0.0, 0.0);
+        for e in v.start[i]..v.start[i + 1] {
+            let (c, x) = (v.col[e], v.val[e]);
+            let (k, is_b) = if c < nb { (c, false) } else { (c - nb, true) };
+            if k >= nb || blk.is_some_and(|b| b != k) {
+                return None;
+            }
+            blk = Some(k);
+            if is_b {
+                cb += x;
+            } else {
+                ca += x;
+            }
+        }
+        if let Some(k) = blk {
+            q.aa[k] += ca * ca;
+            q.ab[k] += 2.0 * ca * cb;
+            q.bb[k] += cb * cb;
+        }
+    }
+    Some(q)
 }
 
 /// A matrix by rows, nonzeros only (compressed sparse rows).
@@ -336,12 +388,17 @@ fn to_phase(
     };
     let osc = gens.as_deref().map(OscBlocks::of).unwrap_or_default();
     let v_sparse = SparseRows::of(&d.v, SPARSE_V_PER_ROW);
+    let energy_quad = match (&gens, &v_sparse) {
+        (Some(g), Some(sp)) => energy_quad(sp, g.len()),
+        _ => None,
+    };
     Ok(CompiledPhase {
         dim,
         gens,
         osc,
         dense,
         v_sparse,
+        energy_quad,
         v: d.v,
         vinv: d.vinv,
         rows,

@@ -23,6 +23,8 @@
 //! function (with fused multiply-adds) and once for the baseline target. The
 //! two paths round differently (FMA), each deterministically.
 
+use crate::compile::EnergyQuad;
+
 /// Most samples one [`run_block`] call advances (the engine's epoch: the
 /// curvature bound of exact switching is refreshed at least this often).
 pub const EPOCH: usize = 64;
@@ -192,6 +194,8 @@ struct Group {
     b: [f64; GROUP],
     p: [[f64; GROUP]; 4],
     row: [[f64; GROUP]; 6],
+    /// Quadratic-form weights `aa, ab, bb` (only read by the `Q` kernels).
+    q: [[f64; GROUP]; 3],
 }
 
 impl Group {
@@ -202,6 +206,7 @@ impl Group {
             b: [0.0; GROUP],
             p: [[0.0; GROUP]; 4],
             row: [[0.0; GROUP]; 6],
+            q: [[0.0; GROUP]; 3],
         };
         let srcs: [&[f64]; 4] = [&p.p00, &p.p01, &p.p10, &p.p11];
         let rsrc: [&[f64]; 3] = [rows.ev, rows.l, rows.r];
@@ -220,14 +225,31 @@ impl Group {
         g
     }
 
-    /// Step the group `k` samples, adding its share of each sample's rows
-    /// into `acc[j]`.
+    /// Load the quadratic-form weights of the group's blocks.
     #[inline(always)]
-    fn run<const FMA: bool>(&mut self, k: usize, acc: &mut [[[f64; LANES]; 3]]) {
+    fn load_quad(&mut self, quad: &EnergyQuad, base: usize, width: usize) {
+        for j in 0..width {
+            self.q[0][j] = quad.aa[base + j];
+            self.q[1][j] = quad.ab[base + j];
+            self.q[2][j] = quad.bb[base + j];
+        }
+    }
+
+    /// Step the group `k` samples, adding its share of each sample's rows
+    /// into `acc[j]` and, in the `Q` copy, of each sample's quadratic form
+    /// into `qacc[j]`.
+    #[inline(always)]
+    fn run<const FMA: bool, const Q: bool>(
+        &mut self,
+        k: usize,
+        acc: &mut [[[f64; LANES]; 3]],
+        qacc: &mut [[f64; LANES]],
+    ) {
         let (mut a, mut b) = (self.a, self.b);
         let [p00, p01, p10, p11] = self.p;
         let row = self.row;
-        for acc_j in acc[..k].iter_mut() {
+        let [qaa, qab, qbb] = self.q;
+        for (j_s, acc_j) in acc[..k].iter_mut().enumerate() {
             let mut x0 = [0.0; GROUP];
             let mut x1 = [0.0; GROUP];
             for j in 0..GROUP {
@@ -244,6 +266,20 @@ impl Group {
                     v = madd::<FMA>(ra[h], x0[h], v);
                     v = madd::<FMA>(rb[h], x1[h], v);
                     acc_q[j] = v;
+                }
+            }
+            if Q {
+                let qa = &mut qacc[j_s];
+                for j in 0..LANES {
+                    let h = j + LANES;
+                    let mut v = qa[j];
+                    v = madd::<FMA>(qaa[j] * x0[j], x0[j], v);
+                    v = madd::<FMA>(qab[j] * x0[j], x1[j], v);
+                    v = madd::<FMA>(qbb[j] * x1[j], x1[j], v);
+                    v = madd::<FMA>(qaa[h] * x0[h], x0[h], v);
+                    v = madd::<FMA>(qab[h] * x0[h], x1[h], v);
+                    v = madd::<FMA>(qbb[h] * x1[h], x1[h], v);
+                    qa[j] = v;
                 }
             }
             a = x0;
@@ -270,8 +306,22 @@ pub struct BlockIo<'a> {
     pub out: &'a mut BlockRows,
 }
 
+/// The quadratic form of [`run_block_quad`]: its weights, the caller's lane
+/// scratch and the per-sample values it writes.
+pub struct QuadIo<'a> {
+    /// The weights.
+    pub quad: &'a EnergyQuad,
+    /// Scratch for the per-sample lane sums.
+    pub acc: &'a mut [[f64; LANES]; EPOCH],
+    /// The form of every stepped state (written).
+    pub out: &'a mut [f64; EPOCH],
+}
+
+/// Lane scratch of a [`QuadIo`].
+pub type QuadAcc = [[f64; LANES]; EPOCH];
+
 #[inline(always)]
-fn block_body<const FMA: bool>(io: BlockIo, k: usize) {
+fn block_body<const FMA: bool, const Q: bool>(io: BlockIo, quad: Option<QuadIo>, k: usize) {
     let BlockIo {
         p,
         s,
@@ -285,11 +335,22 @@ fn block_body<const FMA: bool>(io: BlockIo, k: usize) {
     for a in acc[..k].iter_mut() {
         *a = [[0.0; LANES]; 3];
     }
+    let mut no_qacc = [[0.0; LANES]; 0];
+    let (qw, qacc, qout) = match quad {
+        Some(QuadIo { quad, acc, out }) if Q => (Some(quad), &mut acc[..], Some(out)),
+        _ => (None, &mut no_qacc[..], None),
+    };
+    for a in qacc.iter_mut().take(k) {
+        *a = [0.0; LANES];
+    }
     let mut base = 0;
     while base < nb {
         let width = GROUP.min(nb - base);
         let mut g = Group::load(p, s, &rows, nb, base, width);
-        g.run::<FMA>(k, &mut acc[..k]);
+        if let Some(qw) = qw {
+            g.load_quad(qw, base, width);
+        }
+        g.run::<FMA, Q>(k, &mut acc[..k], qacc);
         next[base..base + width].copy_from_slice(&g.a[..width]);
         next[nb + base..nb + base + width].copy_from_slice(&g.b[..width]);
         base += width;
@@ -299,20 +360,47 @@ fn block_body<const FMA: bool>(io: BlockIo, k: usize) {
         out.l[j] = lane_sum(acc[j][1]);
         out.r[j] = lane_sum(acc[j][2]);
     }
+    if let Some(qout) = qout {
+        for j in 0..k {
+            qout[j] = lane_sum(qacc[j]);
+        }
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn block_avx2(io: BlockIo, k: usize) {
-    block_body::<true>(io, k)
+    block_body::<true, false>(io, None, k)
 }
 
-/// Advance the blocks `k <= EPOCH` samples from `io.s` into `io.next`
-/// (`s` is left untouched, so a caller can re-run fewer samples), and write
-/// the rows of every stepped state into `io.out`. O(N k), allocation-free.
-/// \[audio-thread\]
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn block_quad_avx2(io: BlockIo, quad: QuadIo, k: usize) {
+    block_body::<true, true>(io, Some(quad), k)
+}
+
+/// [`run_block`] that also evaluates the block-diagonal quadratic form
+/// `quad` on every stepped state (the trace's energy, O(N) per sample).
+/// The state and rows are bit-identical to [`run_block`]'s. O(N k),
+/// allocation-free. \[audio-thread\]
 #[inline]
-pub fn run_block(path: SimdPath, io: BlockIo, k: usize) {
+pub fn run_block_quad(path: SimdPath, io: BlockIo, quad: QuadIo, k: usize) {
+    let nb = io.p.len();
+    assert!(
+        quad.quad.aa.len() == nb && quad.quad.ab.len() == nb && quad.quad.bb.len() == nb,
+        "run_block_quad: mismatched lengths"
+    );
+    check_io(&io);
+    match path {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `detect()` makes, after
+        // `is_x86_feature_detected!` confirmed AVX2 and FMA on this CPU.
+        SimdPath::Avx2Fma(_) => unsafe { block_quad_avx2(io, quad, k) },
+        _ => block_body::<false, true>(io, Some(quad), k),
+    }
+}
+
+fn check_io(io: &BlockIo) {
     let n = 2 * io.p.len();
     assert!(
         io.s.len() == n
@@ -322,12 +410,21 @@ pub fn run_block(path: SimdPath, io: BlockIo, k: usize) {
             && io.rows.r.len() == n,
         "run_block: mismatched lengths"
     );
+}
+
+/// Advance the blocks `k <= EPOCH` samples from `io.s` into `io.next`
+/// (`s` is left untouched, so a caller can re-run fewer samples), and write
+/// the rows of every stepped state into `io.out`. O(N k), allocation-free.
+/// \[audio-thread\]
+#[inline]
+pub fn run_block(path: SimdPath, io: BlockIo, k: usize) {
+    check_io(&io);
     match path {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `detect()` makes, after
         // `is_x86_feature_detected!` confirmed AVX2 and FMA on this CPU.
         SimdPath::Avx2Fma(_) => unsafe { block_avx2(io, k) },
-        _ => block_body::<false>(io, k),
+        _ => block_body::<false, false>(io, None, k),
     }
 }
 
@@ -617,6 +714,76 @@ mod tests {
                     "{nb} blocks, {path:?}: worst rel. deviation {worst:.1e} over {EPOCH} samples"
                 );
                 assert!(worst < 1e-13, "{nb} blocks {path:?}: {worst}");
+            }
+        }
+    }
+
+    /// The quadratic-form pass: the same state and rows as `run_block` bit
+    /// for bit, and per sample the form of a plain reference to rounding,
+    /// whatever the number of blocks (partial groups included).
+    #[test]
+    fn quad_pass_matches_a_plain_reference_and_leaves_the_rows_alone() {
+        for nb in [1, 3, 8, 37, 100] {
+            let (p, s, rows) = setup(nb);
+            let quad = EnergyQuad {
+                aa: (0..nb).map(|k| 1.0 + 0.1 * k as f64).collect(),
+                ab: (0..nb).map(|k| 0.3 - 0.01 * k as f64).collect(),
+                bb: (0..nb).map(|k| 2.0 - 0.005 * k as f64).collect(),
+            };
+            for path in [SimdPath::detect(), SimdPath::Generic] {
+                let (next_plain, out_plain) = run(path, &p, &s, &rows, EPOCH);
+                let mut next = vec![0.0; s.len()];
+                let mut acc = Box::new([[[0.0; LANES]; 3]; EPOCH]);
+                let mut out = BlockRows::default();
+                let mut qacc = Box::new([[0.0; LANES]; EPOCH]);
+                let mut qout = Box::new([0.0; EPOCH]);
+                run_block_quad(
+                    path,
+                    BlockIo {
+                        p: &p,
+                        s: &s,
+                        next: &mut next,
+                        rows: Rows {
+                            ev: &rows[0],
+                            l: &rows[1],
+                            r: &rows[2],
+                        },
+                        acc: &mut acc,
+                        out: &mut out,
+                    },
+                    QuadIo {
+                        quad: &quad,
+                        acc: &mut qacc,
+                        out: &mut qout,
+                    },
+                    EPOCH,
+                );
+                assert_eq!(next, next_plain);
+                assert_eq!(out.ev, out_plain.ev);
+                assert_eq!(out.l, out_plain.l);
+                assert_eq!(out.r, out_plain.r);
+                let mut st = s.clone();
+                let mut worst = 0.0f64;
+                for j in 0..EPOCH {
+                    let mut x = vec![0.0; 2 * nb];
+                    for b in 0..nb {
+                        let m = p.get(b);
+                        x[b] = m[0] * st[b] + m[1] * st[nb + b];
+                        x[nb + b] = m[2] * st[b] + m[3] * st[nb + b];
+                    }
+                    let (mut want, mut scale) = (0.0, 0.0);
+                    for b in 0..nb {
+                        let (a, c) = (x[b], x[nb + b]);
+                        want += quad.aa[b] * a * a + quad.ab[b] * a * c + quad.bb[b] * c * c;
+                        scale += quad.aa[b] * a * a
+                            + quad.ab[b].abs() * (a * c).abs()
+                            + quad.bb[b] * c * c;
+                    }
+                    worst = worst.max((qout[j] - want).abs() / scale);
+                    st = x;
+                }
+                println!("{nb} blocks, {path:?}: quadratic form worst rel. deviation {worst:.1e}");
+                assert!(worst < 1e-14, "{nb} blocks {path:?}: {worst}");
             }
         }
     }

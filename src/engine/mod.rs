@@ -39,7 +39,10 @@ mod vmath;
 pub use exact::{ExactStats, ROOT_ULPS};
 use exact::{SearchScratch, TermSplit};
 use kernel::SimdPath;
-use kernel::{rows_of, run_block, BlockAcc, BlockIo, BlockProps, BlockRows, Rows, EPOCH};
+use kernel::{
+    rows_of, run_block, run_block_quad, BlockAcc, BlockIo, BlockProps, BlockRows, QuadAcc, QuadIo,
+    Rows, EPOCH,
+};
 
 use crate::compile::rest::{RestStrike, REST_MATCH};
 use crate::compile::{CompiledPhase, CompiledScene};
@@ -263,6 +266,19 @@ struct ObsScratch {
     next: Vec<f64>,
     zeros: Vec<f64>,
     rows: Box<BlockRows>,
+    qacc: Box<QuadAcc>,
+    qout: Box<[f64; EPOCH]>,
+    /// The energy of the state at this clock, left by the last observed
+    /// run (its last stepped state), so consecutive runs take every energy
+    /// from the same kernel sums.
+    e_next: Option<(u64, f64)>,
+}
+
+/// What an observed run writes per sample: the motion, and the energy when
+/// asked.
+struct ObsOut<'a> {
+    m: &'a mut [Motion],
+    e: Option<&'a mut [f64]>,
 }
 
 impl EngineState {
@@ -632,17 +648,56 @@ impl EngineState {
         right: &mut [f64],
         motion: &mut [Motion],
     ) {
+        self.observed(scene, left, right, motion, None);
+    }
+
+    /// [`process_block_observed`](Self::process_block_observed) that also
+    /// writes each sample's [`energy`](Self::energy) into `energy`. In a
+    /// phase whose energy coordinates do not mix blocks
+    /// ([`CompiledPhase::energy_quad`]: a modal object in flight, its
+    /// uncoupled modes) the energy comes from the same kernel pass as the
+    /// motion, O(N) per sample; elsewhere (a coupled contact phase, a
+    /// string, gravity's equilibrium offset) each sample takes
+    /// [`energy`](Self::energy), O(dim^2). Same samples as `process_block`
+    /// bit for bit; motion and energy equal [`motion`](Self::motion)'s and
+    /// [`energy`](Self::energy)'s up to the order of the sums. Allocates its
+    /// scratch on the first call. \[offline\]
+    pub fn process_block_traced(
+        &mut self,
+        scene: &CompiledScene,
+        left: &mut [f64],
+        right: &mut [f64],
+        motion: &mut [Motion],
+        energy: &mut [f64],
+    ) {
+        self.observed(scene, left, right, motion, Some(energy));
+    }
+
+    fn observed(
+        &mut self,
+        scene: &CompiledScene,
+        left: &mut [f64],
+        right: &mut [f64],
+        motion: &mut [Motion],
+        mut energy: Option<&mut [f64]>,
+    ) {
         let dim = self.phases[FREE].s.len().max(self.phases[CONTACT].s.len());
         if self.obs.as_ref().is_none_or(|o| o.next.len() < dim) {
             self.obs = Some(Box::new(ObsScratch {
                 next: vec![0.0; dim],
                 zeros: vec![0.0; dim],
                 rows: Box::default(),
+                qacc: Box::new([[0.0; 4]; EPOCH]),
+                qout: Box::new([0.0; EPOCH]),
+                e_next: None,
             }));
         }
         let _flush = FlushDenormals::new(self.flush_denormals);
         kernel::clean_upper_state(self.simd);
-        let n = left.len().min(right.len()).min(motion.len());
+        let mut n = left.len().min(right.len()).min(motion.len());
+        if let Some(e) = energy.as_deref() {
+            n = n.min(e.len());
+        }
         let mut i = 0;
         while i < n {
             let (done, slow) = self.run_fast(
@@ -650,17 +705,36 @@ impl EngineState {
                 &mut left[i..n],
                 &mut right[i..n],
                 false,
-                Some(&mut motion[i..n]),
+                Some(ObsOut {
+                    m: &mut motion[i..n],
+                    e: energy.as_deref_mut().map(|e| &mut e[i..n]),
+                }),
             );
             i += done;
             if slow && i < n {
-                let (o, m) = self.tick_with(scene, |st| st.motion(scene));
+                let want = energy.is_some();
+                let (o, (m, e)) = self.tick_with(scene, |st| {
+                    (st.motion(scene), want.then(|| st.energy(scene)))
+                });
                 left[i] = o[0];
                 right[i] = o[1];
                 motion[i] = m;
+                if let (Some(es), Some(e)) = (energy.as_deref_mut(), e) {
+                    es[i] = e;
+                }
                 i += 1;
             }
         }
+    }
+
+    /// Whether the current phase's energy can come from the kernel pass
+    /// (see [`process_block_traced`](Self::process_block_traced)).
+    fn quad_energy_ok(&self, scene: &CompiledScene) -> bool {
+        let ph = scene.phase(self.phase);
+        ph.energy_quad.is_some()
+            && ph.gens.is_some()
+            && ph.dense.is_none()
+            && (!self.in_contact() || scene.s_star.iter().all(|&x| x == 0.0))
     }
 
     /// The motion of the `k` samples the fast path is about to commit
@@ -669,7 +743,20 @@ impl EngineState {
     /// `x_c, v_c, eta`; the hammer in flight follows the same parabola as
     /// the fast path, in contact its height is `x_c - p_eff - rod` with
     /// `p_eff` the event row the engine's own pass computed.
-    fn observe_run(&mut self, scene: &CompiledScene, k: usize, m: &mut [Motion]) {
+    fn observe_run(&mut self, scene: &CompiledScene, k: usize, out: ObsOut) {
+        let ObsOut { m, e } = out;
+        // energy of state 0: the last run's, or the state's own
+        let e0 = e
+            .as_ref()
+            .map(|_| match self.obs.as_ref().and_then(|o| o.e_next) {
+                Some((c, v)) if c == self.clock => v,
+                _ => self.energy(scene),
+            });
+        let quad = if e.is_some() && self.quad_energy_ok(scene) {
+            scene.phase(self.phase).energy_quad.as_ref()
+        } else {
+            None
+        };
         let in_contact = self.in_contact();
         let ph = scene.phase(self.phase);
         let obs = self
@@ -688,7 +775,26 @@ impl EngineState {
             },
         };
         let r0 = rows_of(&ps.s, &rows);
-        if k > 1 {
+        if let Some(quad) = quad {
+            // k steps: states 1..k, the last one's energy kept for the next run
+            run_block_quad(
+                self.simd,
+                BlockIo {
+                    p: &ps.props,
+                    s: &ps.s,
+                    next: &mut obs.next[..dim],
+                    rows,
+                    acc: &mut self.acc,
+                    out: &mut obs.rows,
+                },
+                QuadIo {
+                    quad,
+                    acc: &mut obs.qacc,
+                    out: &mut obs.qout,
+                },
+                k,
+            );
+        } else if k > 1 {
             run_block(
                 self.simd,
                 BlockIo {
@@ -737,6 +843,37 @@ impl EngineState {
                 here
             };
         }
+        if let (Some(es), Some(e0)) = (e, e0) {
+            // the affine terms of `energy`, from the motion just written
+            let q = &obs.qout;
+            let e_at = |j: usize, mj: &Motion| {
+                let stored = 0.5 * q[j - 1];
+                let x_h = mj.x_hammer;
+                let v_h = mj.v_hammer / sc;
+                let affine = if in_contact {
+                    scene.m_h * scene.g * x_h
+                } else {
+                    0.5 * scene.m_h * v_h * v_h + scene.m_h * scene.g * x_h
+                };
+                sc * sc * (stored + affine)
+            };
+            es[0] = e0;
+            if quad.is_some() {
+                for j in 1..k {
+                    es[j] = e_at(j, &m[j]);
+                }
+                // the state after the run: hammer in flight after k steps
+                let (x_k, v_k) = if in_contact { (0.0, 0.0) } else { (x_h, v_h) };
+                let last = Motion {
+                    x_hammer: x_k,
+                    v_hammer: v_k * sc,
+                    ..m[k - 1]
+                };
+                obs.e_next = (!in_contact).then(|| (self.clock + k as u64, e_at(k, &last)));
+            } else {
+                obs.e_next = None;
+            }
+        }
     }
 
     /// The fast path: run up to `left.len()` samples (within the current
@@ -751,7 +888,7 @@ impl EngineState {
         left: &mut [f64],
         right: &mut [f64],
         decided: bool,
-        obs: Option<&mut [Motion]>,
+        obs: Option<ObsOut>,
     ) -> (usize, bool) {
         let phase = self.phase;
         let in_contact = phase == Phase::Contact;
@@ -761,11 +898,15 @@ impl EngineState {
         }
         let exact = scene.switching == Switching::Exact;
         let epoch_left = EPOCH - (self.clock % EPOCH as u64) as usize;
-        let k_max = left
+        let mut k_max = left
             .len()
             .min(right.len())
             .min(epoch_left)
             .min(self.spec_len);
+        if obs.as_ref().is_some_and(|o| o.e.is_some()) && !self.quad_energy_ok(scene) {
+            // energy from the state itself, one sample at a time
+            k_max = k_max.min(1);
+        }
         if k_max == 0 {
             return (0, false);
         }
@@ -829,8 +970,15 @@ impl EngineState {
         } else {
             self.spec_len = (2 * self.spec_len).min(EPOCH);
         }
-        if let Some(m) = obs {
-            self.observe_run(scene, k_ok, &mut m[..k_ok]);
+        if let Some(ObsOut { m, e }) = obs {
+            self.observe_run(
+                scene,
+                k_ok,
+                ObsOut {
+                    m: &mut m[..k_ok],
+                    e: e.map(|e| &mut e[..k_ok]),
+                },
+            );
         }
         self.commit_kernel(k_ok);
         if !in_contact {
