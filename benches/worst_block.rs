@@ -301,5 +301,76 @@ fn bad_input(_: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, strike_cost, polyphony_64, bad_input, worst_block);
+/// A pitch bend while 16 voices ring: the worst 64-sample block of a
+/// 2-semitone glide up and down (every voice gets a new time scale every
+/// 16 samples), against the worst block of the same render without the
+/// bend, at 48 kHz.
+fn pitch_bend(_: &mut Criterion) {
+    println!("\npitch bend, 16 voices ringing, 64-sample blocks at 48 kHz, worst block of 0.5 s (% of the budget):");
+    println!("| object | without a bend | bending 2 semitones up and back |");
+    println!("|---|---|---|");
+    let mut plate = InstrumentParams::default();
+    plate.scene.preset = modal_contact::presets::index_of("steel-plate").expect("preset");
+    let objects = [
+        (
+            "steel-plate (29 modes)",
+            modal_contact::presets::scene(plate.scene.preset).expect("preset"),
+        ),
+        ("200 modes", object(200)),
+    ];
+    for (name, scene) in objects {
+        let params = InstrumentParams::default();
+        let prepared = prepare_scene(&scene, &params.scene, RATE, 0).expect("compile");
+        let mut cells = Vec::new();
+        for bend in [false, true] {
+            let mut best = f64::INFINITY;
+            for _ in 0..5 {
+                let mut inst = Instrument::new(prepared.clone(), params.play);
+                let (mut l, mut r) = (vec![0.0f32; 64], vec![0.0f32; 64]);
+                let chord: Vec<TimedEvent> = (0..16u8)
+                    .map(|k| TimedEvent {
+                        offset: 0,
+                        event: Event::NoteOn {
+                            key: 48 + 2 * k,
+                            velocity_norm: 0.8,
+                        },
+                    })
+                    .collect();
+                inst.process(&chord, &mut l, &mut r);
+                // let the contacts end
+                for _ in 0..40 {
+                    inst.process(&[], &mut l, &mut r);
+                }
+                let mut worst = 0.0f64;
+                for b in 0..(RATE as usize / 2 / 64) {
+                    let value = match b {
+                        0 => 1.0,
+                        150 => 0.0,
+                        _ => f64::NAN,
+                    };
+                    let evs = [TimedEvent {
+                        offset: 0,
+                        event: Event::PitchBend { value },
+                    }];
+                    let evs: &[TimedEvent] = if bend && !value.is_nan() { &evs } else { &[] };
+                    let t0 = Instant::now();
+                    inst.process(evs, &mut l, &mut r);
+                    worst = worst.max(t0.elapsed().as_secs_f64());
+                }
+                best = best.min(worst);
+            }
+            cells.push(format!("{:.0} %", 100.0 * best / (64.0 / RATE)));
+        }
+        println!("| {name} | {} | {} |", cells[0], cells[1]);
+    }
+}
+
+criterion_group!(
+    benches,
+    strike_cost,
+    polyphony_64,
+    bad_input,
+    pitch_bend,
+    worst_block
+);
 criterion_main!(benches);

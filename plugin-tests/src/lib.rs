@@ -247,6 +247,14 @@ pub fn cc(at: usize, controller: u8, value: u8) -> HostEvent {
     }
 }
 
+/// A MIDI pitch bend on channel 1 (`value` 0..16383, centre 8192).
+pub fn pitch_bend(at: usize, value: u16) -> HostEvent {
+    HostEvent::Midi {
+        at,
+        data: [0xE0, (value & 0x7f) as u8, ((value >> 7) & 0x7f) as u8],
+    }
+}
+
 /// A parameter event by string id (CLAP value, see [`HostEvent::Param`]).
 pub fn param(at: usize, id: &str, value: f64) -> HostEvent {
     HostEvent::Param {
@@ -602,6 +610,19 @@ pub fn library_render(
                     Event::Sostenuto { down: v >= 64 }
                 },
             }),
+            HostEvent::Midi {
+                at,
+                data: [0xE0, lsb, msb],
+            } => {
+                // the 14-bit wheel, centre 8192 (the plugin's own mapping)
+                let m = f64::from(u16::from(lsb & 0x7f) | (u16::from(msb & 0x7f) << 7)) - 8192.0;
+                Some(LibEvent {
+                    offset: at,
+                    event: Event::PitchBend {
+                        value: if m >= 0.0 { m / 8191.0 } else { m / 8192.0 },
+                    },
+                })
+            }
             HostEvent::Midi { .. } | HostEvent::Param { .. } => None,
         })
         .collect();

@@ -284,6 +284,38 @@ fn saved_state_restores_every_parameter() {
     assert_eq!(ra, rb);
 }
 
+/// The pitch-bend wheel through a real host: MIDI pitch bends reach the
+/// instrument at their sample offsets, so the plugin's render equals the
+/// library's with the same bends, and a bent note differs from the
+/// unbent one.
+#[test]
+fn pitch_bend_through_the_host_matches_the_library() {
+    let bundle = clap_bundle(Variant::Release);
+    let rate = 48_000.0;
+    let total = 24_000;
+    let events = vec![
+        on(100, 60, 0.8),
+        plugin_tests::pitch_bend(2_000, 16383),
+        plugin_tests::pitch_bend(9_000, 0),
+        on(9_500, 64, 0.7),
+        plugin_tests::pitch_bend(15_000, 8192),
+    ];
+    let mut p = LoadedPlugin::load(&bundle);
+    let plugin = p.render(&RenderSpec::new(rate, 256, total, events.clone()));
+    let lib = library_render(&InstrumentParams::default(), rate, total, &events);
+    let d = max_abs_diff(&plugin[0], &lib[0]).max(max_abs_diff(&plugin[1], &lib[1]));
+    println!("pitch bend: max |plugin - library| = {d:.3e}");
+    assert!(d <= 1e-6, "plugin and library differ by {d}");
+    let plain_events = vec![on(100, 60, 0.8), on(9_500, 64, 0.7)];
+    let plain = library_render(&InstrumentParams::default(), rate, total, &plain_events);
+    let moved = max_abs_diff(&plugin[0][3_000..9_000], &plain[0][3_000..9_000]);
+    println!("bent against unbent: max difference {moved:.3e}");
+    assert!(
+        moved > 1e-3 * peak(&plain[0]),
+        "the bend did nothing: {moved}"
+    );
+}
+
 /// The pedals through a real host: MIDI controllers 64 (sustain) and 66
 /// (sostenuto) reach the instrument at their sample offsets, so the
 /// plugin's render equals the library's with the same pedal events, and a

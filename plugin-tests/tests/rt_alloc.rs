@@ -79,6 +79,11 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
             velocity: 0.123,
         });
     }
+    // the pitch-bend wheel over the repeated notes: full up, full down
+    // within a glide, back to the centre
+    events.push(plugin_tests::pitch_bend(20_100, 16383));
+    events.push(plugin_tests::pitch_bend(20_500, 0));
+    events.push(plugin_tests::pitch_bend(23_000, 8192));
     events.push(param(first_change, ids::HARDNESS, 0.6));
     events.push(param(first_change, ids::DECAY, 0.4));
     events.push(param(45_000, ids::STRIKE_CUSTOM, 1.0));

@@ -38,10 +38,15 @@ const SHIPPED_SCENES: [&str; 7] = [
 /// What saving [`SAVED`] back writes: the same entries, and the parameters
 /// added since that build at their defaults (ids in order).
 fn saved_back(saved: &str) -> String {
-    saved.replace(
-        r#""pitch_tracking":{"bool":false},"#,
-        r#""pitch_tracking":{"bool":false},"polyphony":{"i32":16},"#,
-    )
+    saved
+        .replace(
+            r#""pitch_tracking":{"bool":false},"#,
+            r#""pitch_tracking":{"bool":false},"polyphony":{"i32":16},"#,
+        )
+        .replace(
+            r#""params":{"contact_damping""#,
+            r#""params":{"bend_range":{"f32":2.0},"contact_damping""#,
+        )
 }
 
 fn state_of(json: &str) -> Vec<u8> {

@@ -104,6 +104,9 @@ pub enum TimeScaleError {
     Invalid,
     /// A dense-fallback phase only has its propagator for the base rate.
     DenseFallback,
+    /// A pitch bend on a scene with gravity would change the hammer's
+    /// potential energy ([`EngineState::bend_time_scale`]).
+    Gravity,
 }
 
 /// Which phase a voice is in: the hammer in flight, or in contact.
@@ -447,6 +450,45 @@ impl EngineState {
         }
         self.set_time_scale_inner(scene, s);
         Ok(())
+    }
+
+    /// Change the time scale to `s` as a pitch bend does, without adding or
+    /// removing energy: the object's state is scaled by `s_old / s` (its
+    /// energy in reference units by `(s_old / s)^2`, so the physical energy
+    /// `s^2 E_ref` is unchanged: a higher pitch at the same energy is a
+    /// smaller displacement) and the hammer in flight keeps its physical
+    /// velocity. Nothing happens in contact (the spring, the hammer and the
+    /// object are coupled there): returns `Ok(false)` and the caller tries
+    /// again after the release. In a scene with gravity the hammer's
+    /// potential energy would change with the time axis: refused like
+    /// the dense fallback ([`TimeScaleError::Gravity`]). O(N),
+    /// allocation-free. \[audio-thread\]
+    pub fn bend_time_scale(
+        &mut self,
+        scene: &CompiledScene,
+        s: f64,
+    ) -> Result<bool, TimeScaleError> {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(TimeScaleError::Invalid);
+        }
+        if scene.free.dense.is_some() || scene.contact.dense.is_some() {
+            return Err(TimeScaleError::DenseFallback);
+        }
+        if scene.g != 0.0 {
+            return Err(TimeScaleError::Gravity);
+        }
+        if self.in_contact() {
+            return Ok(false);
+        }
+        if s == self.time_scale {
+            return Ok(true);
+        }
+        let r = self.time_scale / s;
+        for x in self.phases[FREE].s.iter_mut() {
+            *x *= r;
+        }
+        self.set_time_scale_inner(scene, s);
+        Ok(true)
     }
 
     fn set_time_scale_inner(&mut self, scene: &CompiledScene, s: f64) {

@@ -31,6 +31,14 @@ pub enum Event {
         /// Pedal down.
         down: bool,
     },
+    /// The pitch-bend wheel, -1 (down) .. 0 (centre) .. 1 (up): every voice
+    /// bends by `value` times [`PlayParams::bend_range_semitones`](super::PlayParams::bend_range_semitones),
+    /// smoothly (docs/plugin.md, "Pitch bend"). Out of range is clamped, not
+    /// a number is 0.
+    PitchBend {
+        /// Wheel position, -1 .. 1.
+        value: f64,
+    },
 }
 
 /// An event at a sample offset.

@@ -3,8 +3,8 @@
 //! the audio thread), and the velocity and pitch mappings.
 
 use super::{
-    DAMPER_T60_DIVISOR, DEFAULT_POLYPHONY, DEFAULT_ROOT_NOTE, IMPACT_SPEED_RANGE_M_PER_S,
-    MIN_IMPACT_SPEED_M_PER_S, UNDAMPED_RELEASE_T60_S,
+    DAMPER_T60_DIVISOR, DEFAULT_BEND_RANGE_SEMITONES, DEFAULT_POLYPHONY, DEFAULT_ROOT_NOTE,
+    IMPACT_SPEED_RANGE_M_PER_S, MIN_IMPACT_SPEED_M_PER_S, UNDAMPED_RELEASE_T60_S,
 };
 use crate::presets;
 use crate::scene::{ObjectSpec, Scene, Switching};
@@ -71,6 +71,8 @@ pub struct PlayParams {
     pub gain_db: f64,
     /// Voices that may sound at once, 1..=[`MAX_VOICES`](super::MAX_VOICES).
     pub polyphony: usize,
+    /// Pitch bend at full wheel \[semitones\], 0..=[`MAX_BEND_RANGE_SEMITONES`](super::MAX_BEND_RANGE_SEMITONES).
+    pub bend_range_semitones: f64,
 }
 
 impl Default for PlayParams {
@@ -80,6 +82,7 @@ impl Default for PlayParams {
             drop_height_m: 0.02,
             gain_db: -6.0,
             polyphony: DEFAULT_POLYPHONY,
+            bend_range_semitones: DEFAULT_BEND_RANGE_SEMITONES,
         }
     }
 }

@@ -3,7 +3,7 @@
 //! ceiling.
 
 use super::events::TimedEvent;
-use super::{Instrument, CHECK_INTERVAL_SAMPLES, MAX_VOICES, OUTPUT_CEILING};
+use super::{Instrument, BEND_TICK_SAMPLES, CHECK_INTERVAL_SAMPLES, MAX_VOICES, OUTPUT_CEILING};
 use crate::compile::CompiledScene;
 use crate::engine::denormal::FlushDenormals;
 use crate::engine::EngineState;
@@ -15,11 +15,20 @@ impl Instrument {
         let n = left.len().min(right.len());
         let mut i = 0;
         while i < n {
-            let phase = (self.sample_pos % CHECK_INTERVAL_SAMPLES as u64) as usize;
-            let len = (CHECK_INTERVAL_SAMPLES - phase).min(n - i);
+            // a moving bend updates the voices on a finer grid
+            let grid = if self.bend_moving() {
+                BEND_TICK_SAMPLES
+            } else {
+                CHECK_INTERVAL_SAMPLES
+            };
+            let phase = (self.sample_pos % grid as u64) as usize;
+            let len = (grid - phase).min(n - i);
             self.render_chunk(&mut left[i..i + len], &mut right[i..i + len]);
             i += len;
             self.sample_pos += len as u64;
+            if self.sample_pos.is_multiple_of(BEND_TICK_SAMPLES as u64) && self.bend_moving() {
+                self.bend_tick();
+            }
             if self
                 .sample_pos
                 .is_multiple_of(CHECK_INTERVAL_SAMPLES as u64)

@@ -29,6 +29,12 @@
 //!   playing the root gives the scene as written. If the scene uses the
 //!   compiler's dense fallback the engine cannot scale time: that voice plays
 //!   at `s = 1` (counted in [`Stats::dense_pitch_fallbacks`]).
+//! - **Pitch bend** ([`Event::PitchBend`]): the wheel times
+//!   [`PlayParams::bend_range_semitones`] scales every sounding voice's time
+//!   axis again, gliding at most [`BEND_SLEW_SEMITONES_PER_S`] and updated
+//!   every [`BEND_TICK_SAMPLES`] samples of the instrument's clock, keeping
+//!   each voice's physical energy ([`EngineState::bend_time_scale`]);
+//!   bouncing scenes are not bent (docs/plugin.md, "Pitch bend").
 //! - **Damper**: on note-off the voice is carried ([`EngineState::rebind`],
 //!   no energy increase) onto a "damped" compilation of the same scene whose
 //!   decay times are divided by `1 + 50 * damper` ([`damped_scene`]). A new
@@ -109,6 +115,20 @@ pub const OUTPUT_CEILING: f64 = 4.0;
 /// a note pitched up leaves its top modes out of the output instead of
 /// aliasing them back into the audio band. The dynamics keep every mode.
 pub const OUTPUT_BAND_FRACTION: f64 = 1.0;
+/// Pitch bend at full wheel unless the Bend range parameter says otherwise
+/// \[semitones\].
+pub const DEFAULT_BEND_RANGE_SEMITONES: f64 = 2.0;
+/// Largest bend range \[semitones\] (two octaves).
+pub const MAX_BEND_RANGE_SEMITONES: f64 = 24.0;
+/// While a bend moves, every sounding voice's time scale is updated on this
+/// grid of the instrument's own sample clock (so the result does not depend
+/// on how the host splits blocks).
+pub const BEND_TICK_SAMPLES: usize = 16;
+/// A bend moves towards the wheel at most this fast \[semitones/s\]: a step
+/// of the wheel becomes a glide (2 semitones in 20 ms), and each update
+/// changes the pitch by at most `100 * 16 / rate` semitones (0.036 at
+/// 44.1 kHz: the displacement scales by 0.2 %).
+pub const BEND_SLEW_SEMITONES_PER_S: f64 = 100.0;
 /// Root note of scenes without modal frequencies (middle C).
 pub const DEFAULT_ROOT_NOTE: f64 = 60.0;
 /// Fixed slots for retired compiled scenes waiting to be handed back.
@@ -155,6 +175,12 @@ pub struct Instrument {
     sample_pos: u64,
     /// The pedals and which keys are down (docs/plugin.md, "Pedals").
     pedals: Pedals,
+    /// Pitch-bend wheel, -1 .. 1.
+    bend_wheel: f64,
+    /// Bend the voices are at (or moving to) now \[semitones\].
+    bend_now: f64,
+    /// Some voice could not take the last bend (it was in contact).
+    bend_pending: bool,
     acc: [[f64; CHECK_INTERVAL_SAMPLES]; 2],
     vbuf: [[f64; CHECK_INTERVAL_SAMPLES]; 2],
     /// Counters.
@@ -230,6 +256,9 @@ impl Instrument {
             gain: 1.0,
             sample_pos: 0,
             pedals: Pedals::default(),
+            bend_wheel: 0.0,
+            bend_now: 0.0,
+            bend_pending: false,
             acc: [[0.0; CHECK_INTERVAL_SAMPLES]; 2],
             vbuf: [[0.0; CHECK_INTERVAL_SAMPLES]; 2],
             stats: Stats::default(),
@@ -247,6 +276,12 @@ impl Instrument {
     /// and drop height at the next note). \[audio-thread\]
     pub fn set_play(&mut self, mut play: PlayParams) {
         play.polyphony = play.polyphony.clamp(1, MAX_VOICES);
+        play.bend_range_semitones = if play.bend_range_semitones.is_finite() {
+            play.bend_range_semitones
+                .clamp(0.0, MAX_BEND_RANGE_SEMITONES)
+        } else {
+            DEFAULT_BEND_RANGE_SEMITONES
+        };
         if play.polyphony < self.play.polyphony {
             // voices above a lowered limit are released (damped), as the
             // player would lift the keys
@@ -260,6 +295,61 @@ impl Instrument {
         self.play = play;
         let g = 10f64.powf(play.gain_db / 20.0);
         self.gain = if g.is_finite() { g } else { 0.0 };
+    }
+
+    /// The bend the voices are at now \[semitones\] (it glides towards the
+    /// wheel's, see [`BEND_SLEW_SEMITONES_PER_S`]). \[audio-thread\]
+    pub fn bend_semitones(&self) -> f64 {
+        self.bend_now
+    }
+
+    /// The bend the wheel asks for \[semitones\].
+    fn bend_target(&self) -> f64 {
+        self.bend_wheel * self.play.bend_range_semitones
+    }
+
+    /// Whether a bend is still moving (the voices are updated on the
+    /// [`BEND_TICK_SAMPLES`] grid).
+    fn bend_moving(&self) -> bool {
+        self.bend_now != self.bend_target() || self.bend_pending
+    }
+
+    /// One update of a moving bend: step towards the wheel (slew-limited)
+    /// and give every sounding voice its new time scale without adding or
+    /// removing energy ([`EngineState::bend_time_scale`]); a voice in
+    /// contact takes it at a later update. Bouncing scenes are not bent
+    /// (gravity would change with the time axis). O(voices N),
+    /// allocation-free. \[audio-thread\]
+    fn bend_tick(&mut self) {
+        let target = self.bend_target();
+        let step = BEND_SLEW_SEMITONES_PER_S * BEND_TICK_SAMPLES as f64 / self.cur.rate_hz;
+        let d = target - self.bend_now;
+        self.bend_now = if d.abs() <= step {
+            target
+        } else {
+            self.bend_now + step.copysign(d)
+        };
+        let p = &mut *self.cur;
+        let mut pending = false;
+        if !p.bouncing {
+            let f = 2f64.powf(self.bend_now / 12.0);
+            for i in 0..MAX_VOICES {
+                let v = self.voices[i];
+                if !v.active {
+                    continue;
+                }
+                let s = v.base_scale * f;
+                let st = &mut p.states[i];
+                if st.time_scale() == s {
+                    continue;
+                }
+                // Err: a voice that cannot scale time (dense fallback) stays put
+                if let Ok(false) = st.bend_time_scale(p.scenes.bound(v.on_damped), s) {
+                    pending = true;
+                }
+            }
+        }
+        self.bend_pending = pending;
     }
 
     /// The engine state of voice `voice_idx` (for tests and tools, e.g. to
@@ -380,6 +470,13 @@ impl Instrument {
                 if !down {
                     self.damp_unheld();
                 }
+            }
+            Event::PitchBend { value } => {
+                self.bend_wheel = if value.is_nan() {
+                    0.0
+                } else {
+                    value.clamp(-1.0, 1.0)
+                };
             }
             Event::Sostenuto { down } => {
                 if down && !self.pedals.sostenuto {

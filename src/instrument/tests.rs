@@ -659,3 +659,127 @@ fn polyphony_limits_the_voices_and_64_notes_sound_together() {
     inst.set_play(bad);
     assert_eq!(inst.play.polyphony, 1, "clamped to at least one voice");
 }
+
+fn bend(offset: usize, value: f64) -> TimedEvent {
+    TimedEvent {
+        offset,
+        event: Event::PitchBend { value },
+    }
+}
+
+/// A bend glides to the wheel's pitch (2 semitones in 20 ms), ends at
+/// exactly the note's time scale times `2^(2/12)`, never raises the
+/// voice's physical energy (checked after every sample), and no update
+/// makes a step in the output larger than the output's own sample-to-sample
+/// change around it.
+#[test]
+fn pitch_bend_glides_keeps_energy_and_makes_no_step() {
+    let p = params("marimba-bar");
+    let mut inst = instrument(&p);
+    let _ = render(&mut inst, &[on(0, 64, 0.8)], 3000);
+    let base = inst.voice_state_mut(0).time_scale();
+    assert!(!inst.voice_state_mut(0).in_contact());
+    let scene = inst.cur.scenes.scene.clone();
+    let energy = |inst: &mut Instrument| inst.voice_state_mut(0).energy(&scene);
+    let n = 1500;
+    let (mut y, mut e) = (vec![0.0f64], vec![energy(&mut inst)]);
+    let mut ticks = Vec::new();
+    for k in 0..n {
+        let evs = if k == 0 { vec![bend(0, 1.0)] } else { vec![] };
+        let before = inst.bend_semitones();
+        let [l, _] = render(&mut inst, &evs, 1);
+        if inst.bend_semitones() != before {
+            ticks.push(y.len()); // the update happened after this sample
+        }
+        y.push(f64::from(l[0]));
+        e.push(energy(&mut inst));
+    }
+    assert_eq!(inst.bend_semitones(), 2.0);
+    let want = base * 2f64.powf(2.0 / 12.0);
+    let got = inst.voice_state_mut(0).time_scale();
+    assert!((got - want).abs() <= 1e-15 * want, "{got} vs {want}");
+    // 2 semitones at 100 semitones/s: 20 ms, in 16-sample updates
+    let glide = ticks.len();
+    let expect = (0.02 * RATE / BEND_TICK_SAMPLES as f64).ceil() as usize;
+    assert!((expect..=expect + 1).contains(&glide), "{glide} updates");
+    let rise = e
+        .windows(2)
+        .map(|w| (w[1] - w[0]) / w[0])
+        .fold(f64::MIN, f64::max);
+    println!("bend: {glide} updates, largest relative energy change per sample {rise:.1e}");
+    assert!(rise <= 1e-13, "energy rose by {rise:e}");
+    // the step an update makes is at most the change of slope it causes
+    let mut worst = 0.0f64;
+    for &t in &ticks {
+        if t + 1 >= y.len() || t < 40 {
+            continue;
+        }
+        let jump = ((y[t + 1] - y[t]) - (y[t] - y[t - 1])).abs();
+        let mut d: Vec<f64> = (t - 32..t + 32)
+            .filter(|&m| m + 1 < y.len())
+            .map(|m| (y[m + 1] - y[m]).abs())
+            .collect();
+        d.sort_by(f64::total_cmp);
+        let typical = d[d.len() / 2];
+        worst = worst.max(jump / typical);
+    }
+    println!(
+        "bend: largest change of slope at an update / median sample-to-sample change {worst:.3}"
+    );
+    assert!(worst < 1.0, "{worst}");
+}
+
+/// Bends are applied on the instrument's own clock: the output does not
+/// depend on how the host splits blocks; a bouncing scene is not bent; a
+/// voice struck while the wheel is up starts at the bent pitch.
+#[test]
+fn pitch_bend_is_independent_of_blocks_and_spares_bouncing_scenes() {
+    let events = [
+        on(10, 60, 0.7),
+        bend(700, 0.5),
+        on(900, 67, 0.6),
+        bend(2300, -1.0),
+        bend(2310, 0.25),
+        off(5000, 60),
+        bend(6000, 0.0),
+    ];
+    let n = 9000;
+    let mut a = instrument(&params("steel-plate"));
+    let [whole, _] = render(&mut a, &events, n);
+    let mut b = instrument(&params("steel-plate"));
+    let (mut split, mut right) = (vec![0.0f32; n], vec![0.0f32; n]);
+    let (mut pos, mut ev) = (0, 0);
+    for len in [1usize, 7, 64, 100, 333, 15].iter().cycle() {
+        if pos >= n {
+            break;
+        }
+        let end = (pos + len).min(n);
+        let mut evs = Vec::new();
+        while ev < events.len() && events[ev].offset < end {
+            evs.push(TimedEvent {
+                offset: events[ev].offset - pos,
+                ..events[ev]
+            });
+            ev += 1;
+        }
+        b.process(&evs, &mut split[pos..end], &mut right[pos..end]);
+        pos = end;
+    }
+    assert_eq!(whole, split);
+    // the note struck at +1 semitone (wheel 0.5 of 2) plays at that pitch
+    let mut c = instrument(&params("steel-plate"));
+    let _ = render(&mut c, &[bend(0, 0.5), on(2000, 67, 0.6)], 2001);
+    let mut d = instrument(&params("steel-plate"));
+    let _ = render(&mut d, &[on(0, 67, 0.6)], 1);
+    let (sc, sd) = (
+        c.voice_state_mut(0).time_scale(),
+        d.voice_state_mut(0).time_scale(),
+    );
+    assert!((sc / sd - 2f64.powf(1.0 / 12.0)).abs() < 1e-15, "{sc} {sd}");
+    // bouncing: the bend changes nothing
+    let mut e = instrument(&params("paper-bounce"));
+    let [bent, _] = render(&mut e, &[on(0, 60, 0.7), bend(500, 1.0)], 6000);
+    let mut f = instrument(&params("paper-bounce"));
+    let [plain, _] = render(&mut f, &[on(0, 60, 0.7)], 6000);
+    assert_eq!(bent, plain);
+}

@@ -5,7 +5,7 @@
 use super::prepared::Prepared;
 use super::{impact_speed_m_per_s, Instrument, MAX_VOICES, SILENCE_ENERGY_RATIO};
 use crate::compile::CompiledScene;
-use crate::engine::{EngineState, TimeScaleError};
+use crate::engine::EngineState;
 
 #[derive(Debug, Clone, Copy, Default)]
 /// One voice's note bookkeeping (its engine state lives in
@@ -21,6 +21,8 @@ pub(super) struct Voice {
     pub(super) on_damped: bool,
     /// Energy of the last strike (reference units), for the silence test.
     pub(super) strike_energy: f64,
+    /// Time scale of its note without the pitch bend.
+    pub(super) base_scale: f64,
 }
 
 impl Instrument {
@@ -54,14 +56,19 @@ impl Instrument {
             };
             let st = &mut p.states[i];
             st.reset(&p.scenes.scene);
-            let s = if self.play.pitch_tracking {
+            let base = if self.play.pitch_tracking {
                 2f64.powf((key as f64 - p.root_note) / 12.0)
             } else {
                 1.0
             };
+            let s = if p.bouncing || self.bend_now == 0.0 {
+                base
+            } else {
+                base * 2f64.powf(self.bend_now / 12.0)
+            };
             match st.set_time_scale(&p.scenes.scene, s) {
                 Ok(()) => {}
-                Err(TimeScaleError::DenseFallback) | Err(TimeScaleError::Invalid) => {
+                Err(_) => {
                     self.stats.dense_pitch_fallbacks += u64::from(s != 1.0);
                     let _ = st.set_time_scale(&p.scenes.scene, 1.0);
                 }
@@ -73,6 +80,7 @@ impl Instrument {
                 released: false,
                 on_damped: false,
                 strike_energy: 0.0,
+                base_scale: base,
             };
             i
         };

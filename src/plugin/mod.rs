@@ -148,6 +148,20 @@ fn note_event(event: &NoteEvent<()>) -> Option<Event> {
                 Event::Sostenuto { down }
             })
         }
+        // The wheel: nice-plug gives 0 .. 1 with the centre at 0.5.
+        // The centre is 8192 of 0..16383, so 0.5 exactly is not on the
+        // grid: go back to the 14-bit value, centre 0, ends -1 and 1.
+        NoteEvent::MidiPitchBend { value, .. } => {
+            let v = if value.is_nan() {
+                0.5
+            } else {
+                f64::from(value)
+            };
+            let m = (v.clamp(0.0, 1.0) * 16383.0).round() - 8192.0;
+            Some(Event::PitchBend {
+                value: if m >= 0.0 { m / 8191.0 } else { m / 8192.0 },
+            })
+        }
         _ => None,
     }
 }
@@ -387,3 +401,32 @@ impl Vst3Plugin for ModalContact {
 
 nice_export_clap!(ModalContact);
 nice_export_vst3!(ModalContact);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wheel(value: f32) -> f64 {
+        let ev = NoteEvent::MidiPitchBend {
+            timing: 0,
+            channel: 0,
+            value,
+        };
+        match note_event(&ev) {
+            Some(Event::PitchBend { value }) => value,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    /// The wheel's 14-bit values map to -1 .. 1 with the centre (8192 of
+    /// 0..16383, which nice-plug gives as 8192 / 16383) exactly at 0.
+    #[test]
+    fn pitch_bend_wheel_maps_its_centre_to_zero() {
+        assert_eq!(wheel(8192.0 / 16383.0), 0.0);
+        assert_eq!(wheel(0.0), -1.0);
+        assert_eq!(wheel(1.0), 1.0);
+        assert_eq!(wheel(4096.0 / 16383.0), -0.5);
+        assert_eq!(wheel(f32::NAN), 0.0, "not a number: the centre");
+        assert!(wheel(0.75) > 0.49 && wheel(0.75) < 0.51);
+    }
+}

@@ -25,7 +25,10 @@
 //! `ids_never_change` holds them), and only append choices at the end (CLAP
 //! automation stores a choice's index).
 
-use crate::instrument::{InstrumentParams, PlayParams, SceneParams, MAX_VOICES};
+use crate::instrument::{
+    InstrumentParams, PlayParams, SceneParams, DEFAULT_BEND_RANGE_SEMITONES,
+    MAX_BEND_RANGE_SEMITONES, MAX_VOICES,
+};
 use crate::presets;
 use crate::scene::Switching;
 use nice_plug::plugin::{ParamValue, PluginState};
@@ -551,6 +554,16 @@ parameters! {
               voice; lowering it releases (damps) the voices above the new limit. \
               The voices are allocated once: changing it allocates nothing.",
     },
+    bend_range: FloatParam = BEND_RANGE {
+        id: "bend_range",
+        name: "Bend range",
+        kind: linear(0.0, MAX_BEND_RANGE_SEMITONES as f32, DEFAULT_BEND_RANGE_SEMITONES as f32, " st", 1),
+        applies: Applies::NextBlock,
+        doc: "Pitch bend at full wheel, in semitones. A bend glides at most 100 \
+              semitones per second and keeps each voice's energy: the object's \
+              displacement scales by the inverse of the pitch ratio \
+              (docs/plugin.md, \"Pitch bend\"). Bouncing scenes are not bent.",
+    },
 }
 
 impl ModalContactParams {
@@ -580,6 +593,7 @@ impl ModalContactParams {
             drop_height_m: self.drop_height_mm.value() as f64 / 1000.0,
             gain_db: self.gain_db.value() as f64,
             polyphony: self.polyphony.value().clamp(1, MAX_VOICES as i32) as usize,
+            bend_range_semitones: self.bend_range.value() as f64,
         }
     }
 
@@ -700,7 +714,7 @@ mod tests {
             "switching",
         ];
         // later ids are appended, never inserted or renamed
-        let added = ["polyphony"];
+        let added = ["polyphony", "bend_range"];
         let all: Vec<&str> = shipped.iter().chain(&added).copied().collect();
         assert_eq!(ids::ALL.as_slice(), all.as_slice());
         let listed: Vec<&str> = PARAMS.iter().map(|s| s.id).collect();
