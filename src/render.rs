@@ -696,6 +696,22 @@ mod tests {
         }
     }
 
+    /// The left channel of a streamed render into `sink`.
+    fn stream_left(compiled: &CompiledScene, n: usize, sink: &mut dyn TraceSink) -> Vec<f64> {
+        let mut left = Vec::new();
+        render_stream(
+            compiled,
+            n,
+            |l, _| {
+                left.extend_from_slice(l);
+                Ok(())
+            },
+            Some(sink),
+        )
+        .unwrap();
+        left
+    }
+
     /// The CSV's rows, parsed back.
     fn parse_csv(bytes: &[u8]) -> Vec<TraceRow> {
         let text = std::str::from_utf8(bytes).unwrap();
@@ -775,17 +791,7 @@ mod tests {
                 let full = render_compiled(&compiled, n, true);
                 let want = full.trace.unwrap();
                 let mut csv = CsvTrace::new(44100.0, Vec::new()).unwrap();
-                let mut left = Vec::new();
-                render_stream(
-                    &compiled,
-                    n,
-                    |l, _| {
-                        left.extend_from_slice(l);
-                        Ok(())
-                    },
-                    Some(&mut csv),
-                )
-                .unwrap();
+                let left = stream_left(&compiled, n, &mut csv);
                 assert_eq!(left, full.left, "{name} {sw:?}: audio");
                 let got = parse_csv(&csv.finish().unwrap());
                 let worst = worst_row_deviation(&got, &want);
@@ -828,17 +834,7 @@ mod tests {
         let mut csv = CsvTrace::new(44100.0, Vec::new()).unwrap();
         let mut env = TraceEnvelope::new(44100.0, n);
         let mut both = (csv, env);
-        let mut left = Vec::new();
-        render_stream(
-            &compiled,
-            n,
-            |l, _| {
-                left.extend_from_slice(l);
-                Ok(())
-            },
-            Some(&mut both),
-        )
-        .unwrap();
+        let left = stream_left(&compiled, n, &mut both);
         (csv, env) = both;
         assert_eq!(left, full.left);
         let got = parse_csv(&csv.finish().unwrap());
@@ -884,17 +880,7 @@ mod tests {
                 let full = render_compiled(&compiled, n, true);
                 let rows = full.trace.unwrap();
                 let mut env = TraceEnvelope::new(44100.0, n);
-                let mut left = Vec::new();
-                render_stream(
-                    &compiled,
-                    n,
-                    |l, _| {
-                        left.extend_from_slice(l);
-                        Ok(())
-                    },
-                    Some(&mut env),
-                )
-                .unwrap();
+                let left = stream_left(&compiled, n, &mut env);
                 assert_eq!(left, full.left, "{name} {sw:?}: audio");
                 let span = |f: fn(&TraceRow) -> f64| {
                     let (lo, hi) = rows

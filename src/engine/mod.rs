@@ -817,38 +817,24 @@ impl EngineState {
             },
         };
         let r0 = rows_of(&ps.s, &rows);
+        let io = BlockIo {
+            p: &ps.props,
+            s: &ps.s,
+            next: &mut obs.next[..dim],
+            rows,
+            acc: &mut self.acc,
+            out: &mut obs.rows,
+        };
         if let Some(quad) = quad {
             // k steps: states 1..k, the last one's energy kept for the next run
-            run_block_quad(
-                self.simd,
-                BlockIo {
-                    p: &ps.props,
-                    s: &ps.s,
-                    next: &mut obs.next[..dim],
-                    rows,
-                    acc: &mut self.acc,
-                    out: &mut obs.rows,
-                },
-                QuadIo {
-                    quad,
-                    acc: &mut obs.qacc,
-                    out: &mut obs.qout,
-                },
-                k,
-            );
+            let qio = QuadIo {
+                quad,
+                acc: &mut obs.qacc,
+                out: &mut obs.qout,
+            };
+            run_block_quad(self.simd, io, qio, k);
         } else if k > 1 {
-            run_block(
-                self.simd,
-                BlockIo {
-                    p: &ps.props,
-                    s: &ps.s,
-                    next: &mut obs.next[..dim],
-                    rows,
-                    acc: &mut self.acc,
-                    out: &mut obs.rows,
-                },
-                k - 1,
-            );
+            run_block(self.simd, io, k - 1);
         }
         let (sc, dt, g) = (self.time_scale, self.step_s, self.g);
         let (mut x_h, mut v_h) = (self.x_h, self.v_h);

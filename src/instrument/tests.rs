@@ -45,6 +45,35 @@ fn off(offset: usize, key: u8) -> TimedEvent {
     }
 }
 
+/// The left channel of `n` samples rendered in blocks of the lengths
+/// `lens` (cycled), each block given the events that fall in it.
+fn render_split(
+    inst: &mut Instrument,
+    events: &[TimedEvent],
+    n: usize,
+    lens: &[usize],
+) -> Vec<f32> {
+    let (mut left, mut right) = (vec![0.0f32; n], vec![0.0f32; n]);
+    let (mut pos, mut ev) = (0, 0);
+    for len in lens.iter().cycle() {
+        if pos >= n {
+            break;
+        }
+        let end = (pos + len).min(n);
+        let mut evs = Vec::new();
+        while ev < events.len() && events[ev].offset < end {
+            evs.push(TimedEvent {
+                offset: events[ev].offset - pos,
+                ..events[ev]
+            });
+            ev += 1;
+        }
+        inst.process(&evs, &mut left[pos..end], &mut right[pos..end]);
+        pos = end;
+    }
+    left
+}
+
 fn rms(x: &[f32]) -> f64 {
     (x.iter().map(|v| (*v as f64).powi(2)).sum::<f64>() / x.len().max(1) as f64).sqrt()
 }
@@ -257,26 +286,7 @@ fn louder_velocity_is_louder_and_block_splitting_does_not_matter() {
     let mut a = instrument(&params("marimba-bar"));
     let [whole, _] = render(&mut a, &events, 20_000);
     let mut b = instrument(&params("marimba-bar"));
-    let mut split = vec![0.0f32; 20_000];
-    let mut right = vec![0.0f32; 20_000];
-    let mut pos = 0;
-    let mut ev = 0;
-    for len in [1usize, 7, 64, 100, 333, 512].iter().cycle() {
-        if pos >= 20_000 {
-            break;
-        }
-        let end = (pos + len).min(20_000);
-        let mut evs = Vec::new();
-        while ev < events.len() && events[ev].offset < end {
-            evs.push(TimedEvent {
-                offset: events[ev].offset - pos,
-                ..events[ev]
-            });
-            ev += 1;
-        }
-        b.process(&evs, &mut split[pos..end], &mut right[pos..end]);
-        pos = end;
-    }
+    let split = render_split(&mut b, &events, 20_000, &[1, 7, 64, 100, 333, 512]);
     assert_eq!(whole, split);
 }
 
@@ -747,24 +757,7 @@ fn pitch_bend_is_independent_of_blocks_and_spares_bouncing_scenes() {
     let mut a = instrument(&params("steel-plate"));
     let [whole, _] = render(&mut a, &events, n);
     let mut b = instrument(&params("steel-plate"));
-    let (mut split, mut right) = (vec![0.0f32; n], vec![0.0f32; n]);
-    let (mut pos, mut ev) = (0, 0);
-    for len in [1usize, 7, 64, 100, 333, 15].iter().cycle() {
-        if pos >= n {
-            break;
-        }
-        let end = (pos + len).min(n);
-        let mut evs = Vec::new();
-        while ev < events.len() && events[ev].offset < end {
-            evs.push(TimedEvent {
-                offset: events[ev].offset - pos,
-                ..events[ev]
-            });
-            ev += 1;
-        }
-        b.process(&evs, &mut split[pos..end], &mut right[pos..end]);
-        pos = end;
-    }
+    let split = render_split(&mut b, &events, n, &[1, 7, 64, 100, 333, 15]);
     assert_eq!(whole, split);
     // the note struck at +1 semitone (wheel 0.5 of 2) plays at that pitch
     let mut c = instrument(&params("steel-plate"));
