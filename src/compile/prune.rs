@@ -17,25 +17,40 @@
 use super::CompileOptions;
 use crate::scene::{ObjectSpec, Quantity, Scene};
 
-/// The struck object with the unneeded modes removed, and why each went.
-pub fn prune_object(
+/// What the compiler does with one mode of the struck modal object.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModeFate {
+    /// Index in the scene's list.
+    pub index: usize,
+    /// Frequency \[Hz\].
+    pub freq_hz: f64,
+    /// T60 \[s\] (`None`: undamped).
+    pub t60_s: Option<f64>,
+    /// The bound on its pickup level for an impulse at the contact, relative
+    /// to the loudest mode's (1 = the loudest; 0 = silent).
+    pub level: f64,
+    /// Why it is left out, if it is.
+    pub dropped: Option<String>,
+}
+
+/// Every mode of the struck object (object `ci`, a modal object with the
+/// contact point among its points) and what the compiler does with it;
+/// `None` for any other object. The editor draws this as the object's
+/// spectrum. \[worker\]
+pub fn mode_fates(
     scene: &Scene,
     ci: usize,
     rate_hz: f64,
     opts: &CompileOptions,
-) -> (ObjectSpec, Vec<String>) {
-    let spec = scene.object[ci].clone();
-    let ObjectSpec::Modal(mut m) = spec else {
-        return (spec, Vec::new());
+) -> Option<Vec<ModeFate>> {
+    let ObjectSpec::Modal(m) = &scene.object[ci] else {
+        return None;
     };
-    let Some(cp) = scene
+    let cp = scene
         .contact
         .point
         .as_ref()
-        .and_then(|p| m.points.iter().position(|x| x == p))
-    else {
-        return (ObjectSpec::Modal(m), Vec::new());
-    };
+        .and_then(|p| m.points.iter().position(|x| x == p))?;
     // heard pickups on this object: (point index, gain, displacement?)
     let pickups: Vec<(usize, f64, bool)> = scene
         .pickup
@@ -75,37 +90,61 @@ pub fn prune_object(
         mode.weights[cp].abs() * heard
     };
     let loudest = m.mode.iter().map(contribution).fold(0.0, f64::max);
-    let mut dropped = Vec::new();
-    let mut kept = Vec::with_capacity(m.mode.len());
-    for (i, mode) in m.mode.drain(..).enumerate() {
+    let fate = |i: usize, mode: &crate::scene::ModeSpec| -> ModeFate {
+        let c = contribution(mode);
         let silent_everywhere =
             mode.weights[cp] == 0.0 && pickups.iter().all(|&(pi, _, _)| mode.weights[pi] == 0.0);
-        if opts.exact_savings && silent_everywhere {
-            dropped.push(format!(
+        let dropped = if opts.exact_savings && silent_everywhere {
+            Some(format!(
                 "mode {i} ({} Hz): zero at the contact point and every pickup (exact)",
                 mode.freq_hz
-            ));
-            continue;
-        }
-        if mode.freq_hz > limit_hz {
-            dropped.push(format!(
+            ))
+        } else if mode.freq_hz > limit_hz {
+            Some(format!(
                 "mode {i} ({} Hz): above the {limit_hz:.0} Hz limit (approximate)",
                 mode.freq_hz
-            ));
-            continue;
+            ))
+        } else {
+            approx.and_then(|a| a.quiet_below_db).and_then(|db| {
+                let level = 20.0 * (c / loudest).log10();
+                (loudest > 0.0 && level < db).then(|| {
+                    format!(
+                        "mode {i} ({} Hz): bounded at {level:.1} dB re the loudest, below {db} dB (approximate)",
+                        mode.freq_hz
+                    )
+                })
+            })
+        };
+        ModeFate {
+            index: i,
+            freq_hz: mode.freq_hz,
+            t60_s: mode.t60_s,
+            level: if loudest > 0.0 { c / loudest } else { 0.0 },
+            dropped,
         }
-        if let Some(db) = approx.and_then(|a| a.quiet_below_db) {
-            let c = contribution(&mode);
-            let level = 20.0 * (c / loudest).log10();
-            if loudest > 0.0 && level < db {
-                dropped.push(format!(
-                    "mode {i} ({} Hz): bounded at {level:.1} dB re the loudest, below {db} dB (approximate)",
-                    mode.freq_hz
-                ));
-                continue;
-            }
+    };
+    Some(m.mode.iter().enumerate().map(|(i, mode)| fate(i, mode)).collect())
+}
+
+/// The struck object with the unneeded modes removed, and why each went.
+pub fn prune_object(
+    scene: &Scene,
+    ci: usize,
+    rate_hz: f64,
+    opts: &CompileOptions,
+) -> (ObjectSpec, Vec<String>) {
+    let spec = scene.object[ci].clone();
+    let (ObjectSpec::Modal(mut m), Some(fates)) = (spec.clone(), mode_fates(scene, ci, rate_hz, opts))
+    else {
+        return (spec, Vec::new());
+    };
+    let mut dropped = Vec::new();
+    let mut kept = Vec::with_capacity(m.mode.len());
+    for (mode, fate) in m.mode.drain(..).zip(fates) {
+        match fate.dropped {
+            Some(why) => dropped.push(why),
+            None => kept.push(mode),
         }
-        kept.push(mode);
     }
     m.mode = kept;
     if m.mode.is_empty() {

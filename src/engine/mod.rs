@@ -275,6 +275,8 @@ struct ObsScratch {
     /// run (its last stepped state), so consecutive runs take every energy
     /// from the same kernel sums.
     e_next: Option<(u64, f64)>,
+    /// The product vector of [`EngineState::energy_rt`].
+    y: Vec<f64>,
 }
 
 /// What an observed run writes per sample: the motion, and the energy when
@@ -682,7 +684,9 @@ impl EngineState {
     /// about twice the block path's instead of a tick per sample. Same
     /// samples as `process_block` bit for bit; the motion equals
     /// [`motion`](Self::motion)'s up to the order of the sums (rounding).
-    /// Allocates its scratch on the first call. \[offline\]
+    /// Allocates its scratch on the first call unless
+    /// [`reserve_observation`](Self::reserve_observation) did.
+    /// \[offline\] \[audio-thread after `reserve_observation`\]
     pub fn process_block_observed(
         &mut self,
         scene: &CompiledScene,
@@ -715,14 +719,11 @@ impl EngineState {
         self.observed(scene, left, right, motion, Some(energy));
     }
 
-    fn observed(
-        &mut self,
-        scene: &CompiledScene,
-        left: &mut [f64],
-        right: &mut [f64],
-        motion: &mut [Motion],
-        mut energy: Option<&mut [f64]>,
-    ) {
+    /// Allocate the scratch of [`process_block_observed`](Self::process_block_observed)
+    /// and [`process_block_traced`](Self::process_block_traced) now, so that
+    /// their calls allocate nothing (the instrument's live view observes
+    /// voices on the audio thread). Idempotent. \[main-thread / worker\]
+    pub fn reserve_observation(&mut self) {
         let dim = self.phases[FREE].s.len().max(self.phases[CONTACT].s.len());
         if self.obs.as_ref().is_none_or(|o| o.next.len() < dim) {
             self.obs = Some(Box::new(ObsScratch {
@@ -732,8 +733,20 @@ impl EngineState {
                 qacc: Box::new([[0.0; 4]; EPOCH]),
                 qout: Box::new([0.0; EPOCH]),
                 e_next: None,
+                y: vec![0.0; dim],
             }));
         }
+    }
+
+    fn observed(
+        &mut self,
+        scene: &CompiledScene,
+        left: &mut [f64],
+        right: &mut [f64],
+        motion: &mut [Motion],
+        mut energy: Option<&mut [f64]>,
+    ) {
+        self.reserve_observation();
         let _flush = FlushDenormals::new(self.flush_denormals);
         kernel::clean_upper_state(self.simd);
         let mut n = left.len().min(right.len()).min(motion.len());
@@ -1451,16 +1464,37 @@ impl EngineState {
     /// is sparse (a modal object in flight), O(dim^2) for a dense `V` (a
     /// coupled contact phase, a string). \[offline\]
     pub fn energy(&self, scene: &CompiledScene) -> f64 {
+        let mut y = Vec::new();
+        self.energy_using(scene, &mut y)
+    }
+
+    /// [`energy`](Self::energy) without allocating once
+    /// [`reserve_observation`](Self::reserve_observation) ran (a dense `V`
+    /// takes its product vector from the observation scratch): the
+    /// instrument's live view reads it on the audio thread. Same value bit
+    /// for bit. \[audio-thread after `reserve_observation`\]
+    pub fn energy_rt(&mut self, scene: &CompiledScene) -> f64 {
+        let mut y = self.obs.as_mut().map(|o| std::mem::take(&mut o.y)).unwrap_or_default();
+        let e = self.energy_using(scene, &mut y);
+        if let Some(o) = self.obs.as_mut() {
+            o.y = y;
+        }
+        e
+    }
+
+    /// See [`energy`](Self::energy); `y` is grown to the phase's dimension
+    /// when `V` is dense (no allocation when it is already that long).
+    fn energy_using(&self, scene: &CompiledScene, y: &mut Vec<f64>) -> f64 {
         let s = self.time_scale;
         if self.in_contact() {
             let ph = &scene.contact;
             let st = &self.phases[CONTACT].s;
-            let e_ref = half_norm_sq_energy_coords(ph, st, &scene.s_star);
+            let e_ref = half_norm_sq_energy_coords(ph, st, &scene.s_star, y);
             let x_c = dot(&ph.rows.x_c, st) + scene.offsets.x_c;
             let x_h = self.contact_hammer_height(scene, x_c);
             s * s * (e_ref + scene.m_h * scene.g * x_h)
         } else {
-            let e_obj = half_norm_sq_energy_coords(&scene.free, &self.phases[FREE].s, &[]);
+            let e_obj = half_norm_sq_energy_coords(&scene.free, &self.phases[FREE].s, &[], y);
             let v = self.v_h;
             s * s * (e_obj + 0.5 * scene.m_h * v * v + scene.m_h * scene.g * self.x_h)
         }
@@ -1468,7 +1502,7 @@ impl EngineState {
 }
 
 /// What the trace records per sample but the energy (see [`Observation`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Motion {
     /// Hammer contact-face height \[m\].
     pub x_hammer: f64,
@@ -1506,7 +1540,12 @@ fn old_p_eff(old: &CompiledScene, pi: f64) -> f64 {
 /// Each `y_i` is summed over `j` in ascending order, so the sparse and the
 /// dense products give the same value bit for bit. A sparse `V` costs its
 /// nonzeros; a dense one is applied by columns (contiguous in memory).
-fn half_norm_sq_energy_coords(ph: &CompiledPhase, s: &[f64], s_star: &[f64]) -> f64 {
+fn half_norm_sq_energy_coords(
+    ph: &CompiledPhase,
+    s: &[f64],
+    s_star: &[f64],
+    y: &mut Vec<f64>,
+) -> f64 {
     let sj = |j: usize| s[j] + s_star.get(j).copied().unwrap_or(0.0);
     if let Some(sp) = &ph.v_sparse {
         let mut e = 0.0;
@@ -1516,7 +1555,11 @@ fn half_norm_sq_energy_coords(ph: &CompiledPhase, s: &[f64], s_star: &[f64]) -> 
         }
         return 0.5 * e;
     }
-    let mut y = vec![0.0; ph.dim];
+    if y.len() < ph.dim {
+        y.resize(ph.dim, 0.0);
+    }
+    let y = &mut y[..ph.dim];
+    y.iter_mut().for_each(|v| *v = 0.0);
     // nalgebra stores by columns: column j is one contiguous slice
     for (j, col) in ph.v.as_slice().chunks_exact(ph.dim.max(1)).enumerate() {
         let x = sj(j);

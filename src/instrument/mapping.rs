@@ -42,6 +42,10 @@ pub struct SceneParams {
     pub gravity_m_per_s2: f64,
     /// Switching method (exact falls back to offset-rod if the compiler refuses it).
     pub switching: Switching,
+    /// The user's own scene plays instead of the preset when not 0: its
+    /// generation number (the plugin's scene library keeps the text; each
+    /// loaded scene gets a new number).
+    pub user_scene: u64,
 }
 
 impl Default for SceneParams {
@@ -56,6 +60,7 @@ impl Default for SceneParams {
             damper_norm: 0.5,
             gravity_m_per_s2: 9.81,
             switching: Switching::Exact,
+            user_scene: 0,
         }
     }
 }

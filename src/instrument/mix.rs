@@ -3,10 +3,11 @@
 //! ceiling.
 
 use super::events::TimedEvent;
+use super::probe::VoiceChunk;
 use super::{Instrument, BEND_TICK_SAMPLES, CHECK_INTERVAL_SAMPLES, MAX_VOICES, OUTPUT_CEILING};
 use crate::compile::CompiledScene;
 use crate::engine::denormal::FlushDenormals;
-use crate::engine::EngineState;
+use crate::engine::{EngineState, Motion};
 
 impl Instrument {
     /// Render consecutive samples into `left`/`right` (overwritten).
@@ -82,8 +83,24 @@ impl Instrument {
             }
             let scene = p.scenes.bound(v.on_damped);
             let st = &mut p.states[i];
-            if tick_into(st, scene, &mut self.vbuf, len, 1.0, 0.0) {
+            let observe = if self.probe_on {
+                Some(&mut self.motion[..len])
+            } else {
+                None
+            };
+            let start = self.sample_pos;
+            if tick_into(st, scene, &mut self.vbuf, len, 1.0, 0.0, observe) {
                 add_into(&mut self.acc, &self.vbuf, len);
+                if let Some(probe) = self.probe.as_deref_mut().filter(|_| self.probe_on) {
+                    probe.voice_chunk(&VoiceChunk {
+                        voice: i,
+                        key: v.key,
+                        released: v.released,
+                        start,
+                        motion: &self.motion[..len],
+                        energy_j: st.energy_rt(scene),
+                    });
+                }
             } else {
                 st.reset(&p.scenes.scene);
                 v.active = false;
@@ -101,7 +118,7 @@ impl Instrument {
                 let scene = f.scenes.bound(on_damped);
                 let g0 = self.fade_left as f64 / self.fade_len as f64;
                 let dg = 1.0 / self.fade_len as f64;
-                if tick_into(&mut f.states[i], scene, &mut self.vbuf, len, g0, dg) {
+                if tick_into(&mut f.states[i], scene, &mut self.vbuf, len, g0, dg, None) {
                     add_into(&mut self.acc, &self.vbuf, len);
                 } else {
                     self.fade_voices[i] = None;
@@ -150,7 +167,8 @@ pub(super) fn guarded(x: f64, hits: &mut u64) -> f32 {
 }
 
 /// Tick `len` samples of one voice into `buf` with a linear gain ramp
-/// `g0 - k dg`; false if a sample was not finite.
+/// `g0 - k dg`, writing each sample's motion into `observe` if given (the
+/// same samples either way); false if a sample was not finite.
 fn tick_into(
     st: &mut EngineState,
     scene: &CompiledScene,
@@ -158,9 +176,13 @@ fn tick_into(
     len: usize,
     g0: f64,
     dg: f64,
+    observe: Option<&mut [Motion]>,
 ) -> bool {
     let [l, r] = buf;
-    st.process_block(scene, &mut l[..len], &mut r[..len]);
+    match observe {
+        Some(m) => st.process_block_observed(scene, &mut l[..len], &mut r[..len], m),
+        None => st.process_block(scene, &mut l[..len], &mut r[..len]),
+    }
     let mut finite = true;
     for k in 0..len {
         finite &= l[k].is_finite() && r[k].is_finite();

@@ -63,11 +63,13 @@ mod events;
 mod mapping;
 mod mix;
 mod prepared;
+mod probe;
 #[cfg(test)]
 mod tests;
 mod voices;
 
 pub use events::{Event, TimedEvent};
+pub use probe::{VoiceChunk, VoiceProbe};
 pub use mapping::{
     damped_scene, impact_speed_m_per_s, lowest_frequency_hz, root_note, scene_for,
     InstrumentParams, PlayParams, SceneParams,
@@ -77,7 +79,7 @@ pub use prepared::{
     STRIKE_NS_FIXED, STRIKE_NS_PER_STATE, STRIKE_NS_PER_SWITCH_FLOP,
 };
 
-use crate::engine::EngineState;
+use crate::engine::{EngineState, Motion};
 use voices::Voice;
 
 /// Number of voices (one per sounding note).
@@ -183,6 +185,10 @@ pub struct Instrument {
     bend_pending: bool,
     acc: [[f64; CHECK_INTERVAL_SAMPLES]; 2],
     vbuf: [[f64; CHECK_INTERVAL_SAMPLES]; 2],
+    /// The live view's probe and whether it records now.
+    probe: Option<Box<dyn VoiceProbe>>,
+    probe_on: bool,
+    motion: [Motion; CHECK_INTERVAL_SAMPLES],
     /// Counters.
     pub stats: Stats,
 }
@@ -261,10 +267,28 @@ impl Instrument {
             bend_pending: false,
             acc: [[0.0; CHECK_INTERVAL_SAMPLES]; 2],
             vbuf: [[0.0; CHECK_INTERVAL_SAMPLES]; 2],
+            probe: None,
+            probe_on: false,
+            motion: [Motion::default(); CHECK_INTERVAL_SAMPLES],
             stats: Stats::default(),
         };
         inst.set_play(play);
         inst
+    }
+
+    /// Attach (or detach, `None`) a probe that sees every sounding voice's
+    /// motion and energy; returns the previous one. It records only while
+    /// [`set_probe_on`](Self::set_probe_on) says so. \[main-thread\]
+    pub fn set_probe(&mut self, probe: Option<Box<dyn VoiceProbe>>) -> Option<Box<dyn VoiceProbe>> {
+        std::mem::replace(&mut self.probe, probe)
+    }
+
+    /// Switch the probe on or off (e.g. while the editor window is open).
+    /// On, each voice runs the engine's observed block path (the same
+    /// samples bit for bit, about twice the plain path's cost) and its
+    /// energy is taken once per chunk. Allocation-free. \[audio-thread\]
+    pub fn set_probe_on(&mut self, on: bool) {
+        self.probe_on = on && self.probe.is_some();
     }
 
     /// The scene set currently played. \[audio-thread\]
@@ -388,8 +412,9 @@ impl Instrument {
         if !self.can_install() {
             return Err(new);
         }
-        let same_object =
-            new.params.preset == self.cur.params.preset && new.rate_hz == self.cur.rate_hz;
+        let same_object = new.params.preset == self.cur.params.preset
+            && new.params.user_scene == self.cur.params.user_scene
+            && new.rate_hz == self.cur.rate_hz;
         let mut any_fade = false;
         for i in 0..MAX_VOICES {
             let v = &mut self.voices[i];

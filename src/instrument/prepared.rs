@@ -251,6 +251,8 @@ pub fn prepare_scene(
     let states = std::array::from_fn(|_| {
         let mut st = EngineState::new(&scene);
         st.set_output_band(&scene, band_hz);
+        // the live view observes voices on the audio thread: no allocation there
+        st.reserve_observation();
         st
     });
     Ok(Box::new(Prepared {

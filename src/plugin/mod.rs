@@ -9,10 +9,12 @@
 //! atomic loads of the parameters, lock-free queue operations and the
 //! instrument's allocation-free rendering.
 
+pub mod live;
 pub mod params;
+pub mod user_scene;
 pub mod worker;
 
-use crate::instrument::{prepare, Event, Instrument, InstrumentParams, SceneParams, TimedEvent};
+use crate::instrument::{Event, Instrument, InstrumentParams, SceneParams, TimedEvent};
 use nice_plug::prelude::*;
 use nice_plug::util::permit_alloc;
 use params::ModalContactParams;
@@ -216,22 +218,33 @@ impl Plugin for ModalContact {
         self.shut_down();
         let rate_hz = buffer_config.sample_rate as f64;
         let ip: InstrumentParams = self.params.instrument_params();
-        let prepared = match prepare(&ip.scene, rate_hz, 0) {
-            Ok(p) => p,
-            Err(e) => {
-                nice_log!("modal_contact: {e}; trying the preset's defaults");
-                let fallback = SceneParams {
-                    preset: ip.scene.preset,
-                    ..SceneParams::default()
-                };
-                match prepare(&fallback, rate_hz, 0) {
-                    Ok(p) => p,
-                    Err(e) => {
-                        nice_log!("modal_contact: cannot compile: {e}");
-                        return false;
-                    }
+        let library = self.params.persisted.library.clone();
+        // What was asked for; else the preset with the same parameters
+        // (the user scene did not compile); else the preset's defaults.
+        let candidates = [
+            ip.scene,
+            SceneParams {
+                user_scene: 0,
+                ..ip.scene
+            },
+            SceneParams {
+                preset: ip.scene.preset,
+                ..SceneParams::default()
+            },
+        ];
+        let mut prepared = None;
+        for c in candidates {
+            match library.prepare(&c, rate_hz, 0) {
+                Ok(p) => {
+                    prepared = Some(p);
+                    break;
                 }
+                Err(e) => nice_log!("modal_contact: {e}; trying the next fallback"),
             }
+        }
+        let Some(prepared) = prepared else {
+            nice_log!("modal_contact: cannot compile any scene");
+            return false;
         };
         if let Some(note) = &prepared.fallback_note {
             nice_log!("modal_contact: {note}");
@@ -248,7 +261,7 @@ impl Plugin for ModalContact {
         self.revision = 0;
         self.rate_hz = rate_hz;
         self.instrument = Some(Instrument::new(prepared, ip.play));
-        match Worker::spawn(self.handoff.clone()) {
+        match Worker::spawn(self.handoff.clone(), library) {
             Ok(w) => self.worker = Some(w),
             Err(e) => {
                 nice_log!("modal_contact: cannot start the compile worker: {e}");

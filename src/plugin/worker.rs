@@ -16,7 +16,8 @@
 //! `deactivate`/drop; the shared nice-plug background thread is not used (one
 //! long eigensolve there would stall every other plugin instance).
 
-use crate::instrument::{prepare, Prepared, SceneParams};
+use super::user_scene::SceneLibrary;
+use crate::instrument::{Prepared, SceneParams};
 use atomic_float::AtomicF64;
 use crossbeam::queue::ArrayQueue;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -114,12 +115,12 @@ pub struct Worker {
 
 impl Worker {
     /// Spawn the worker. \[main-thread\]
-    pub fn spawn(handoff: Arc<Handoff>) -> std::io::Result<Self> {
+    pub fn spawn(handoff: Arc<Handoff>, library: Arc<SceneLibrary>) -> std::io::Result<Self> {
         handoff.stop.store(false, Ordering::Release);
         let h = handoff.clone();
         let thread = std::thread::Builder::new()
             .name("modal-contact-compile".into())
-            .spawn(move || run(&h))?;
+            .spawn(move || run(&h, &library))?;
         Ok(Self {
             handoff,
             thread: Some(thread),
@@ -146,7 +147,7 @@ impl Drop for Worker {
 
 /// The worker loop: free returned boxes, coalesce requests (newest revision
 /// wins), compile, publish; sleep with `park_timeout` when idle. \[worker\]
-fn run(h: &Handoff) {
+fn run(h: &Handoff, lib: &SceneLibrary) {
     while !h.stop.load(Ordering::Acquire) {
         while let Some(old) = h.returned.pop() {
             drop(old);
@@ -162,7 +163,7 @@ fn run(h: &Handoff) {
             continue;
         };
         let t0 = Instant::now();
-        match prepare(&req.params, req.rate_hz, req.revision) {
+        match lib.prepare(&req.params, req.rate_hz, req.revision) {
             Ok(p) => {
                 if let Some(note) = &p.fallback_note {
                     nice_plug::nice_log!("modal_contact: {note}");

@@ -1,0 +1,406 @@
+//! The user's own scenes in the plugin: the scene text a user loaded (from
+//! the editor's scene browser or a file dialog), compiled on the worker,
+//! reported to the editor, and saved with the host's project.
+//!
+//! Threads (docs/design.md, "The editor"): the audio thread only reads
+//! [`SceneLibrary::active`], an atomic generation number that is part of
+//! [`SceneParams`] (0: the Scene parameter's preset plays). The editor and
+//! the worker share the scene text and the compile report behind mutexes the
+//! audio thread never touches. A scene that fails to parse, validate or
+//! compile never stops the sound: the last good scene keeps playing and the
+//! error, with the field's path, is shown in the window and logged.
+
+use crate::compile::{prune::mode_fates, CompileOptions};
+use crate::instrument::{prepare, prepare_scene, scene_for, InstrumentParams, Prepared, SceneParams};
+use crate::presets;
+use crate::scene::Scene;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Instant;
+
+/// A scene file's text as the user loaded it: saved in the project, so it
+/// plays on a machine without the file.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct UserScene {
+    /// Shown in the window (the file's stem).
+    pub name: String,
+    /// The whole TOML text.
+    pub text: String,
+    /// Where it was loaded from, if from a file (for "changed on disk").
+    #[serde(default)]
+    pub path: Option<PathBuf>,
+}
+
+impl UserScene {
+    /// Read a scene file (not parsed here: the worker validates it).
+    pub fn from_file(path: &std::path::Path) -> Result<Self, String> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        Ok(Self {
+            name: path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "scene".into()),
+            text,
+            path: Some(path.to_path_buf()),
+        })
+    }
+}
+
+/// One mode of the struck object, for the editor's spectrum.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpectrumLine {
+    /// Frequency at the scene's root note \[Hz\].
+    pub freq_hz: f64,
+    /// Level relative to the loudest mode (1 = loudest).
+    pub level: f64,
+    /// Left out by the compiler (why), or `None` if kept.
+    pub pruned: Option<String>,
+    /// Above the output band at the root note (not heard).
+    pub out_of_band: bool,
+}
+
+/// What the worker last did, for the editor (and the log).
+#[derive(Debug, Clone, Default)]
+pub struct CompileReport {
+    /// Increases with every report.
+    pub serial: u64,
+    /// The scene's name.
+    pub scene: String,
+    /// A user scene (else a preset).
+    pub user: bool,
+    /// The compile summary's key facts, one line.
+    pub summary: String,
+    /// The error, if this compile failed (the previous scene plays on).
+    pub error: Option<String>,
+    /// Modes of the struck object (empty for strings and walls).
+    pub spectrum: Vec<SpectrumLine>,
+    /// The scene's root note.
+    pub root_note: f64,
+    /// Sample rate compiled for \[Hz\].
+    pub rate_hz: f64,
+}
+
+/// The user scene state of one plugin instance (see the module doc).
+pub struct SceneLibrary {
+    /// Generation of the user scene to play (0: the preset). \[any-thread\]
+    active: AtomicU64,
+    next_gen: AtomicU64,
+    /// The scene of generation `active` (GUI and worker).
+    requested: Mutex<Option<(u64, Arc<UserScene>)>>,
+    /// The last user scene that compiled (what is heard and saved).
+    playing: Mutex<Option<Arc<UserScene>>>,
+    report: Mutex<CompileReport>,
+}
+
+/// Lock a mutex, taking the value even if a panicking thread poisoned it
+/// (its data is plain values, always consistent).
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl Default for SceneLibrary {
+    fn default() -> Self {
+        Self {
+            active: AtomicU64::new(0),
+            next_gen: AtomicU64::new(1),
+            requested: Mutex::new(None),
+            playing: Mutex::new(None),
+            report: Mutex::new(CompileReport::default()),
+        }
+    }
+}
+
+impl SceneLibrary {
+    /// Generation of the user scene to play, 0 for the preset. Atomic load.
+    /// \[audio-thread\]
+    pub fn active(&self) -> u64 {
+        self.active.load(Ordering::Acquire)
+    }
+
+    /// Ask for `scene` to be played (compiled on the worker at the next
+    /// block). \[gui-thread\] \[main-thread\]
+    pub fn load(&self, scene: UserScene) {
+        let g = self.next_gen.fetch_add(1, Ordering::Relaxed);
+        *lock(&self.requested) = Some((g, Arc::new(scene)));
+        self.active.store(g, Ordering::Release);
+    }
+
+    /// Go back to the Scene parameter's preset. \[gui-thread\]
+    pub fn clear(&self) {
+        *lock(&self.requested) = None;
+        *lock(&self.playing) = None;
+        self.active.store(0, Ordering::Release);
+    }
+
+    /// The user scene heard now, if any.
+    pub fn playing(&self) -> Option<Arc<UserScene>> {
+        lock(&self.playing).clone()
+    }
+
+    /// The user scene asked for (it may not have compiled).
+    pub fn requested(&self) -> Option<Arc<UserScene>> {
+        lock(&self.requested).as_ref().map(|(_, s)| s.clone())
+    }
+
+    /// The last compile report.
+    pub fn report(&self) -> CompileReport {
+        lock(&self.report).clone()
+    }
+
+    /// What a saved project stores: the scene heard, else the one asked
+    /// for (a scene that failed to compile is kept, never lost).
+    pub fn to_saved(&self) -> Option<UserScene> {
+        self.playing()
+            .or_else(|| self.requested())
+            .map(|s| (*s).clone())
+    }
+
+    /// Restore a saved project's user scene (`None`: the preset).
+    pub fn restore(&self, saved: Option<UserScene>) {
+        match saved {
+            Some(s) => self.load(s),
+            None => self.clear(),
+        }
+    }
+
+    /// Build the scene `params` asks for: the preset, or the user scene of
+    /// generation `params.user_scene` (if the editor loaded another since,
+    /// the newest; the result's `params.user_scene` says which). Parses,
+    /// validates and compiles; on failure the previous scene plays on and a
+    /// user scene that fails is not made current. Writes the report.
+    /// \[worker\] \[main-thread\]
+    pub fn prepare(
+        &self,
+        params: &SceneParams,
+        rate_hz: f64,
+        revision: u64,
+    ) -> Result<Box<Prepared>, String> {
+        let t0 = Instant::now();
+        let mut params = *params;
+        let user = if params.user_scene == 0 {
+            None
+        } else {
+            let r = lock(&self.requested).clone();
+            params.user_scene = r.as_ref().map_or(0, |(g, _)| *g);
+            r.map(|(_, s)| s)
+        };
+        let (name, base) = match &user {
+            Some(u) => (
+                u.name.clone(),
+                Scene::from_toml_str(&u.text).map_err(|e| format!("scene {:?}: {e}", u.name)),
+            ),
+            None => (
+                presets::PRESETS
+                    .get(params.preset)
+                    .map_or("?", |p| p.name)
+                    .to_string(),
+                presets::scene(params.preset).map_err(|e| e.to_string()),
+            ),
+        };
+        let result = base.and_then(|base| {
+            let p = match &user {
+                Some(_) => prepare_scene(&base, &params, rate_hz, revision),
+                None => prepare(&params, rate_hz, revision),
+            }
+            .map_err(|e| format!("scene {name:?}: {e}"))?;
+            Ok((base, p))
+        });
+        let mut report = lock(&self.report);
+        report.serial += 1;
+        report.scene = name;
+        report.user = user.is_some();
+        match result {
+            Ok((base, p)) => {
+                if let Some(u) = user {
+                    *lock(&self.playing) = Some(u);
+                }
+                let ms = t0.elapsed().as_secs_f64() * 1e3;
+                report.error = None;
+                report.summary = summary_line(&p, ms);
+                report.spectrum = spectrum(&base, &params, &p);
+                report.root_note = p.root_note;
+                report.rate_hz = rate_hz;
+                Ok(p)
+            }
+            Err(e) => {
+                if user.is_some() {
+                    // the failed scene is not current: go back to what plays
+                    let back = lock(&self.playing).clone();
+                    let mut req = lock(&self.requested);
+                    match back {
+                        Some(b) if req.as_ref().is_some_and(|(g, _)| *g == params.user_scene) => {
+                            let g = self.next_gen.fetch_add(1, Ordering::Relaxed);
+                            *req = Some((g, b));
+                            self.active.store(g, Ordering::Release);
+                        }
+                        None if req.as_ref().is_some_and(|(g, _)| *g == params.user_scene) => {
+                            // keep the text (saved with the project) but play the preset
+                            self.active.store(0, Ordering::Release);
+                        }
+                        _ => {}
+                    }
+                }
+                report.error = Some(e.clone());
+                Err(e)
+            }
+        }
+    }
+}
+
+/// The compile summary's facts for the window: modes kept, route, the
+/// engine's cost per sample (its dimensions), compile time.
+fn summary_line(p: &Prepared, ms: f64) -> String {
+    let sc = &p.scenes.scene;
+    let route = sc
+        .summary
+        .lines()
+        .find(|l| l.starts_with("contact phase"))
+        .and_then(|l| l.split(", ").nth(1))
+        .unwrap_or("?");
+    format!(
+        "{} states free / {} in contact, contact route: {route}, {} switching, root note {:.1}, compiled in {ms:.1} ms",
+        sc.free.dim,
+        sc.contact.dim,
+        p.switching_used.as_str(),
+        p.root_note,
+    )
+}
+
+/// The struck object's modes as the compiler treats them, at the root note.
+fn spectrum(base: &Scene, params: &SceneParams, p: &Prepared) -> Vec<SpectrumLine> {
+    let played = scene_for(
+        base,
+        &InstrumentParams {
+            scene: *params,
+            play: Default::default(),
+        },
+    );
+    let Some(ci) = played.object_index(&played.contact.object) else {
+        return Vec::new();
+    };
+    let band_hz = crate::instrument::OUTPUT_BAND_FRACTION * 0.5 * p.rate_hz;
+    mode_fates(&played, ci, p.rate_hz, &CompileOptions::DEFAULT)
+        .unwrap_or_default()
+        .into_iter()
+        .map(|f| SpectrumLine {
+            freq_hz: f.freq_hz,
+            level: f.level,
+            out_of_band: f.freq_hz > band_hz,
+            pruned: f.dropped,
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The README's "write your first scene" example (docs/plugin.md).
+    const THREE_MODES: &str = r#"
+version = 1
+name = "three"
+duration_s = 1.0
+
+[[object]]
+name = "bar"
+kind = "modal"
+points = ["contact", "pickup"]
+
+[[object.mode]]
+freq_hz = 220.0
+t60_s = 1.0
+weights = [1.0, 1.0]
+
+[[object.mode]]
+freq_hz = 880.0
+t60_s = 0.5
+weights = [0.8, -0.6]
+
+[[object.mode]]
+freq_hz = 2000.0
+t60_s = 0.3
+weights = [0.0, 0.0]
+
+[hammer]
+mass_kg = 0.03
+height_m = 0.001
+velocity_m_per_s = -2.0
+
+[contact]
+object = "bar"
+point = "contact"
+stiffness_n_per_m = 3e5
+damping_n_s_per_m = 40.0
+
+[[pickup]]
+object = "bar"
+point = "pickup"
+quantity = "velocity"
+gain = 0.5
+"#;
+
+    fn user(text: &str) -> UserScene {
+        UserScene {
+            name: "mine".into(),
+            text: text.into(),
+            path: None,
+        }
+    }
+
+    fn wanted(lib: &SceneLibrary) -> SceneParams {
+        SceneParams {
+            user_scene: lib.active(),
+            ..SceneParams::default()
+        }
+    }
+
+    #[test]
+    fn a_user_scene_compiles_and_reports_its_modes() {
+        let lib = SceneLibrary::default();
+        lib.load(user(THREE_MODES));
+        let p = lib.prepare(&wanted(&lib), 48_000.0, 1).expect("compiles");
+        assert_eq!(p.params.user_scene, lib.active());
+        assert_eq!(p.scenes.scene.name, "three");
+        let r = lib.report();
+        assert!(r.user && r.error.is_none(), "{r:?}");
+        assert_eq!(r.spectrum.len(), 3);
+        assert!(r.spectrum[2].pruned.as_deref().unwrap().contains("zero at the contact"));
+        assert_eq!(r.spectrum[0].level, 1.0);
+        assert!(r.summary.contains("compiled in"), "{}", r.summary);
+        assert_eq!(lib.playing().unwrap().name, "mine");
+    }
+
+    #[test]
+    fn a_bad_user_scene_keeps_the_last_good_one() {
+        let lib = SceneLibrary::default();
+        lib.load(user(THREE_MODES));
+        let good = lib.active();
+        lib.prepare(&wanted(&lib), 48_000.0, 1).unwrap();
+        let bad = THREE_MODES.replace("t60_s = 0.5", "t60_s = -1.0");
+        lib.load(user(&bad));
+        let e = lib.prepare(&wanted(&lib), 48_000.0, 2).unwrap_err();
+        assert!(e.contains("object[0].mode[1].t60_s: must be > 0, got -1"), "{e}");
+        assert_eq!(lib.report().error.as_deref(), Some(e.as_str()));
+        // what plays (and is saved) is still the good text, under a new generation
+        assert_eq!(lib.playing().unwrap().text, THREE_MODES);
+        assert_eq!(lib.to_saved().unwrap().text, THREE_MODES);
+        assert!(lib.active() != good && lib.active() != 0);
+        assert!(lib.prepare(&wanted(&lib), 48_000.0, 3).is_ok());
+    }
+
+    #[test]
+    fn a_saved_scene_that_no_longer_validates_plays_the_preset_and_keeps_its_text() {
+        let lib = SceneLibrary::default();
+        lib.restore(Some(user("not = [toml")));
+        let e = lib.prepare(&wanted(&lib), 48_000.0, 1).unwrap_err();
+        assert!(e.contains("mine"), "{e}");
+        assert_eq!(lib.active(), 0, "the preset plays");
+        assert_eq!(lib.to_saved().unwrap().text, "not = [toml", "the text is kept");
+        let p = lib.prepare(&wanted(&lib), 48_000.0, 2).unwrap();
+        assert_eq!(p.params.user_scene, 0);
+        assert!(!lib.report().user);
+    }
+}
