@@ -584,6 +584,17 @@ pub fn library_render(
     events: &[HostEvent],
 ) -> [Vec<f32>; 2] {
     let prepared = prepare(&params.scene, rate_hz, 0).expect("compile");
+    library_render_prepared(prepared, params, total, events)
+}
+
+/// [`library_render`] of an already prepared scene (a user's scene file,
+/// `modal_contact::instrument::prepare_scene`).
+pub fn library_render_prepared(
+    prepared: Box<modal_contact::instrument::Prepared>,
+    params: &InstrumentParams,
+    total: usize,
+    events: &[HostEvent],
+) -> [Vec<f32>; 2] {
     let mut inst = Instrument::new(prepared, params.play);
     let mut sorted: Vec<LibEvent> = events
         .iter()

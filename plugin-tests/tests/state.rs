@@ -248,3 +248,131 @@ mod serde_like {
         }
     }
 }
+
+/// A three-mode scene of the user's own (not a preset).
+const USER_SCENE: &str = r#"
+version = 1
+name = "three-modes"
+duration_s = 1.0
+
+[[object]]
+name = "bar"
+kind = "modal"
+points = ["contact", "pickup"]
+
+[[object.mode]]
+freq_hz = 300.0
+t60_s = 1.0
+weights = [1.0, 1.0]
+
+[[object.mode]]
+freq_hz = 1130.0
+t60_s = 0.5
+weights = [0.8, -0.6]
+
+[[object.mode]]
+freq_hz = 2710.0
+t60_s = 0.3
+weights = [0.5, 0.7]
+
+[hammer]
+mass_kg = 0.03
+height_m = 0.001
+velocity_m_per_s = -2.0
+
+[contact]
+object = "bar"
+point = "contact"
+stiffness_n_per_m = 3e5
+damping_n_s_per_m = 40.0
+
+[[pickup]]
+object = "bar"
+point = "pickup"
+quantity = "velocity"
+gain = 0.5
+"#;
+
+/// `state` (nice-plug's JSON) with the user scene field set to `text`
+/// loaded from `path`, as the editor's scene browser leaves it.
+fn with_user_scene(state: &[u8], name: &str, text: &str, path: &std::path::Path) -> Vec<u8> {
+    let mut v: serde_json::Value = serde_json::from_str(&json_of(state)).unwrap();
+    let scene = serde_json::json!({ "name": name, "text": text, "path": path });
+    v["fields"]["user_scene"] = serde_json::Value::String(scene.to_string());
+    state_of(&v.to_string())
+}
+
+fn strike(p: &mut LoadedPlugin) -> [Vec<f32>; 2] {
+    p.render(&RenderSpec::new(
+        48_000.0,
+        256,
+        24_000,
+        vec![on(100, 60, 0.8), on(9000, 67, 0.5)],
+    ))
+}
+
+/// The user's scene is stored in the project: a fresh instance on a
+/// machine without the file plays it bit for bit, equal to the library's
+/// render of the same scene; a saved scene that no longer validates plays
+/// the preset and keeps its text.
+#[test]
+fn a_user_scene_travels_in_the_project_and_plays_without_its_file() {
+    let bundle = clap_bundle(Variant::Release);
+    let dir = out_dir().join("user-scene-state");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("three-modes.toml");
+    std::fs::write(&file, USER_SCENE).unwrap();
+
+    let mut a = LoadedPlugin::load(&bundle);
+    let fresh = a.save_state();
+    let preset = strike(&mut LoadedPlugin::load(&bundle));
+    a.load_state(&with_user_scene(&fresh, "three-modes", USER_SCENE, &file));
+    let heard_a = strike(&mut a);
+    let saved = a.save_state();
+    println!(
+        "saved fields: {}",
+        serde_json::from_str::<serde_json::Value>(&json_of(&saved)).unwrap()["fields"]
+    );
+    std::fs::remove_file(&file).unwrap();
+
+    let mut b = LoadedPlugin::load(&bundle);
+    b.load_state(&saved);
+    let heard_b = strike(&mut b);
+    assert_eq!(
+        heard_a, heard_b,
+        "the same sound without the file, bit for bit"
+    );
+    assert!(
+        max_abs_diff(&heard_a[0], &preset[0]) > 0.01,
+        "the user scene, not the preset"
+    );
+    assert_eq!(b.save_state(), saved, "saved back unchanged");
+
+    // the library's render of the scene at the default parameters
+    let scene = modal_contact::scene::Scene::from_toml_str(USER_SCENE).unwrap();
+    let ip = modal_contact::instrument::InstrumentParams::default();
+    let prepared =
+        modal_contact::instrument::prepare_scene(&scene, &ip.scene, 48_000.0, 0).unwrap();
+    let lib = library_render_prepared(
+        prepared,
+        &ip,
+        24_000,
+        &[on(100, 60, 0.8), on(9000, 67, 0.5)],
+    );
+    let d = max_abs_diff(&lib[0], &heard_b[0]).max(max_abs_diff(&lib[1], &heard_b[1]));
+    println!(
+        "plugin vs library: max |diff| {d:.2e}, peak {:.3}",
+        peak(&lib[0])
+    );
+    assert!(d < 1e-6, "{d}");
+
+    // a saved scene that no longer validates: the preset plays, the text stays
+    let broken = USER_SCENE.replace("t60_s = 0.5", "t60_s = -0.5");
+    let mut c = LoadedPlugin::load(&bundle);
+    c.load_state(&with_user_scene(&fresh, "three-modes", &broken, &file));
+    assert_eq!(strike(&mut c), preset, "the preset plays");
+    let kept: serde_json::Value = serde_json::from_str(&json_of(&c.save_state())).unwrap();
+    let kept_scene: serde_json::Value =
+        serde_json::from_str(kept["fields"]["user_scene"].as_str().unwrap()).unwrap();
+    assert_eq!(kept_scene["text"], broken, "the user's text is not lost");
+}

@@ -123,7 +123,13 @@ pub fn mode_fates(
             dropped,
         }
     };
-    Some(m.mode.iter().enumerate().map(|(i, mode)| fate(i, mode)).collect())
+    Some(
+        m.mode
+            .iter()
+            .enumerate()
+            .map(|(i, mode)| fate(i, mode))
+            .collect(),
+    )
 }
 
 /// The struck object with the unneeded modes removed, and why each went.
@@ -134,7 +140,8 @@ pub fn prune_object(
     opts: &CompileOptions,
 ) -> (ObjectSpec, Vec<String>) {
     let spec = scene.object[ci].clone();
-    let (ObjectSpec::Modal(mut m), Some(fates)) = (spec.clone(), mode_fates(scene, ci, rate_hz, opts))
+    let (ObjectSpec::Modal(mut m), Some(fates)) =
+        (spec.clone(), mode_fates(scene, ci, rate_hz, opts))
     else {
         return (spec, Vec::new());
     };

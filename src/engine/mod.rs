@@ -1474,7 +1474,11 @@ impl EngineState {
     /// instrument's live view reads it on the audio thread. Same value bit
     /// for bit. \[audio-thread after `reserve_observation`\]
     pub fn energy_rt(&mut self, scene: &CompiledScene) -> f64 {
-        let mut y = self.obs.as_mut().map(|o| std::mem::take(&mut o.y)).unwrap_or_default();
+        let mut y = self
+            .obs
+            .as_mut()
+            .map(|o| std::mem::take(&mut o.y))
+            .unwrap_or_default();
         let e = self.energy_using(scene, &mut y);
         if let Some(o) = self.obs.as_mut() {
             o.y = y;

@@ -69,7 +69,6 @@ mod tests;
 mod voices;
 
 pub use events::{Event, TimedEvent};
-pub use probe::{VoiceChunk, VoiceProbe};
 pub use mapping::{
     damped_scene, impact_speed_m_per_s, lowest_frequency_hz, root_note, scene_for,
     InstrumentParams, PlayParams, SceneParams,
@@ -78,6 +77,7 @@ pub use prepared::{
     prepare, prepare_scene, PrepareError, Prepared, Scenes, STRIKE_BUDGET_FRACTION,
     STRIKE_NS_FIXED, STRIKE_NS_PER_STATE, STRIKE_NS_PER_SWITCH_FLOP,
 };
+pub use probe::{VoiceChunk, VoiceProbe};
 
 use crate::engine::{EngineState, Motion};
 use voices::Voice;

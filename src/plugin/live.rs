@@ -119,7 +119,9 @@ impl LiveRing {
     pub fn new(capacity: usize) -> Arc<Self> {
         let n = capacity.max(1) + 1;
         Arc::new(Self {
-            slots: (0..n).map(|_| UnsafeCell::new(MaybeUninit::uninit())).collect(),
+            slots: (0..n)
+                .map(|_| UnsafeCell::new(MaybeUninit::uninit()))
+                .collect(),
             head: AtomicUsize::new(0),
             tail: AtomicUsize::new(0),
             producer_taken: AtomicBool::new(false),
@@ -137,6 +139,12 @@ impl LiveRing {
     /// The consumer handle, if no one holds it.
     pub fn consumer(self: &Arc<Self>) -> Option<LiveConsumer> {
         (!self.consumer_taken.swap(true, Ordering::AcqRel)).then(|| LiveConsumer(self.clone()))
+    }
+
+    /// Whether someone holds the reading end (the editor is open): the
+    /// audio thread records only then. \[audio-thread\]
+    pub fn has_consumer(&self) -> bool {
+        self.consumer_taken.load(Ordering::Acquire)
     }
 
     /// Frames dropped so far because the ring was full.
@@ -272,7 +280,12 @@ impl LiveHistory {
                 }
                 continue;
             }
-            h.points.push_back((g, f.hammer_m[k], f.contact_m[k], f.contact_bits & (1 << k) != 0));
+            h.points.push_back((
+                g,
+                f.hammer_m[k],
+                f.contact_m[k],
+                f.contact_bits & (1 << k) != 0,
+            ));
         }
         let last = f.first_group + u64::from(f.points.max(1)) - 1;
         h.energy.push_back((last, f.energy_j));
@@ -307,7 +320,10 @@ impl LiveHistory {
 
     /// Voices with points in the span, by voice index.
     pub fn sounding(&self) -> impl Iterator<Item = (usize, &VoiceHistory)> {
-        self.voices.iter().enumerate().filter(|(_, h)| !h.points.is_empty())
+        self.voices
+            .iter()
+            .enumerate()
+            .filter(|(_, h)| !h.points.is_empty())
     }
 }
 
@@ -351,7 +367,9 @@ mod tests {
         }
         assert!(!p.push(frame(0, 99)), "full: the frame is dropped");
         assert_eq!(ring.dropped(), 1);
-        let got: Vec<u64> = std::iter::from_fn(|| c.pop()).map(|f| f.first_group).collect();
+        let got: Vec<u64> = std::iter::from_fn(|| c.pop())
+            .map(|f| f.first_group)
+            .collect();
         assert_eq!(got, [0, 1, 2]);
         assert!(c.pop().is_none());
         // wraps around
@@ -423,7 +441,10 @@ mod tests {
         assert_eq!(&f.hammer_m[..3], &[0.0, 2.0, 6.0]);
         assert_eq!(&f.contact_m[..3], &[-0.0, -2.0, -6.0]);
         assert_eq!(f.contact_bits, 0b010);
-        assert_eq!((f.voice, f.key, f.released, f.energy_j), (3, 61, true, 0.25));
+        assert_eq!(
+            (f.voice, f.key, f.released, f.energy_j),
+            (3, 61, true, 0.25)
+        );
     }
 
     #[test]
@@ -446,7 +467,10 @@ mod tests {
         let last = v.points.back().unwrap().0;
         assert_eq!(last, 3 * span - 1);
         assert_eq!(first, last - span, "exactly the span is kept");
-        assert!(v.points.iter().all(|p| !p.3), "the old contact was forgotten");
+        assert!(
+            v.points.iter().all(|p| !p.3),
+            "the old contact was forgotten"
+        );
         assert_eq!(h.sounding().count(), 1);
     }
 }

@@ -9,12 +9,16 @@
 //! atomic loads of the parameters, lock-free queue operations and the
 //! instrument's allocation-free rendering.
 
+pub mod browser;
+pub mod editor;
 pub mod live;
 pub mod params;
 pub mod user_scene;
 pub mod worker;
 
 use crate::instrument::{Event, Instrument, InstrumentParams, SceneParams, TimedEvent};
+use crossbeam::queue::ArrayQueue;
+use live::{LiveProbe, LiveRing, RING_FRAMES};
 use nice_plug::prelude::*;
 use nice_plug::util::permit_alloc;
 use params::ModalContactParams;
@@ -41,6 +45,10 @@ pub struct ModalContact {
     max_block: usize,
     /// Panics caught at the process boundary since activation.
     panics: u64,
+    /// The live view's ring (the instrument's probe writes, the editor reads).
+    ring: Arc<LiveRing>,
+    /// Audition pad strikes from the editor.
+    pads: Arc<ArrayQueue<Event>>,
     #[cfg(feature = "alloc-bug")]
     leak: Vec<f32>,
 }
@@ -60,6 +68,8 @@ impl Default for ModalContact {
             rate_hz: 0.0,
             max_block: 0,
             panics: 0,
+            ring: LiveRing::new(RING_FRAMES),
+            pads: Arc::new(ArrayQueue::new(editor::PAD_QUEUE)),
             #[cfg(feature = "alloc-bug")]
             leak: Vec::new(),
         }
@@ -189,12 +199,21 @@ impl Plugin for ModalContact {
     // at its sample (the swap itself follows when the worker is done).
     const SAMPLE_ACCURATE_AUTOMATION: bool = true;
 
-    type Editor = ();
+    type Editor = editor::ModalEditor;
     type SysExMessage = ();
     type BackgroundTask = ();
 
     fn params(&self) -> Arc<dyn Params> {
         self.params.clone()
+    }
+
+    /// The editor window (docs/plugin.md, "The editor"). \[main-thread\]
+    fn editor(&mut self, _async_executor: AsyncExecutor<Self>) -> Option<Self::Editor> {
+        editor::create(editor::EditorLink {
+            params: self.params.clone(),
+            ring: self.ring.clone(),
+            pads: self.pads.clone(),
+        })
     }
 
     /// States from older versions get defaults for parameters they lack;
@@ -260,7 +279,15 @@ impl Plugin for ModalContact {
         self.requested = prepared.params;
         self.revision = 0;
         self.rate_hz = rate_hz;
-        self.instrument = Some(Instrument::new(prepared, ip.play));
+        let mut inst = Instrument::new(prepared, ip.play);
+        // the previous instrument (and its probe) was dropped in shut_down
+        self.ring.set_rate_hz(rate_hz);
+        inst.set_probe(
+            self.ring
+                .producer()
+                .map(|p| Box::new(LiveProbe(p)) as Box<dyn crate::instrument::VoiceProbe>),
+        );
+        self.instrument = Some(inst);
         match Worker::spawn(self.handoff.clone(), library) {
             Ok(w) => self.worker = Some(w),
             Err(e) => {
@@ -361,6 +388,12 @@ impl ModalContact {
         }
         let (left, right) = out.split_at_mut(1);
         let (left, right) = (&mut *left[0], &mut *right[0]);
+        // the probe records while the editor holds the ring's reading end
+        inst.set_probe_on(self.ring.has_consumer());
+        // audition pads first, at the block's start, then the host's events
+        let pads = &self.pads;
+        let pad_events =
+            std::iter::from_fn(|| pads.pop()).map(|event| TimedEvent { offset: 0, event });
         #[cfg(feature = "alloc-bug")]
         let leak = &mut self.leak;
         // The host's events as the instrument's, read as the block is
@@ -388,7 +421,7 @@ impl ModalContact {
                 event: e,
             });
         });
-        inst.process_events(events, left, right);
+        inst.process_events(pad_events.chain(events), left, right);
         ProcessStatus::KeepAlive
     }
 }

@@ -25,16 +25,16 @@
 //! `ids_never_change` holds them), and only append choices at the end (CLAP
 //! automation stores a choice's index).
 
+use super::user_scene::{SceneLibrary, UserScene};
 use crate::instrument::{
     InstrumentParams, PlayParams, SceneParams, DEFAULT_BEND_RANGE_SEMITONES,
     MAX_BEND_RANGE_SEMITONES, MAX_VOICES,
 };
 use crate::presets;
 use crate::scene::Switching;
+use crossbeam::atomic::AtomicCell;
 use nice_plug::plugin::{ParamValue, PluginState};
 use nice_plug::prelude::*;
-use super::user_scene::{SceneLibrary, UserScene};
-use crossbeam::atomic::AtomicCell;
 use std::collections::BTreeMap;
 use std::marker::PhantomData;
 use std::path::PathBuf;
@@ -627,7 +627,7 @@ impl ModalContactParams {
 }
 
 /// Default editor window size \[logical pixels\].
-pub const EDITOR_SIZE: (u32, u32) = (960, 640);
+pub const EDITOR_SIZE: (u32, u32) = (1000, 700);
 /// Saved-state keys of [`Persisted`] (never change them).
 pub mod keys {
     /// The user's scene (JSON of [`super::UserScene`]; absent: the preset).
@@ -670,7 +670,12 @@ impl Persisted {
         }
         let (w, h) = self.editor_size.load();
         m.insert(keys::EDITOR_SIZE.into(), format!("[{w},{h}]"));
-        if let Some(f) = self.scene_folder.lock().unwrap_or_else(|e| e.into_inner()).as_ref() {
+        if let Some(f) = self
+            .scene_folder
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .as_ref()
+        {
             if let Ok(j) = serde_json::to_string(f) {
                 m.insert(keys::SCENE_FOLDER.into(), j);
             }
@@ -686,7 +691,11 @@ impl Persisted {
         let mut notes = Vec::new();
         let scene = m.get(keys::USER_SCENE).and_then(|j| {
             serde_json::from_str::<UserScene>(j)
-                .map_err(|e| notes.push(format!("the saved user scene is unreadable ({e}); playing the preset")))
+                .map_err(|e| {
+                    notes.push(format!(
+                        "the saved user scene is unreadable ({e}); playing the preset"
+                    ))
+                })
                 .ok()
         });
         self.library.restore(scene);

@@ -11,7 +11,9 @@
 //! error, with the field's path, is shown in the window and logged.
 
 use crate::compile::{prune::mode_fates, CompileOptions};
-use crate::instrument::{prepare, prepare_scene, scene_for, InstrumentParams, Prepared, SceneParams};
+use crate::instrument::{
+    prepare, prepare_scene, scene_for, InstrumentParams, Prepared, SceneParams,
+};
 use crate::presets;
 use crate::scene::Scene;
 use serde::{Deserialize, Serialize};
@@ -115,7 +117,7 @@ impl Default for SceneLibrary {
 
 impl SceneLibrary {
     /// Generation of the user scene to play, 0 for the preset. Atomic load.
-    /// \[audio-thread\]
+    /// \[any-thread\]
     pub fn active(&self) -> u64 {
         self.active.load(Ordering::Acquire)
     }
@@ -367,7 +369,11 @@ gain = 0.5
         let r = lib.report();
         assert!(r.user && r.error.is_none(), "{r:?}");
         assert_eq!(r.spectrum.len(), 3);
-        assert!(r.spectrum[2].pruned.as_deref().unwrap().contains("zero at the contact"));
+        assert!(r.spectrum[2]
+            .pruned
+            .as_deref()
+            .unwrap()
+            .contains("zero at the contact"));
         assert_eq!(r.spectrum[0].level, 1.0);
         assert!(r.summary.contains("compiled in"), "{}", r.summary);
         assert_eq!(lib.playing().unwrap().name, "mine");
@@ -382,7 +388,10 @@ gain = 0.5
         let bad = THREE_MODES.replace("t60_s = 0.5", "t60_s = -1.0");
         lib.load(user(&bad));
         let e = lib.prepare(&wanted(&lib), 48_000.0, 2).unwrap_err();
-        assert!(e.contains("object[0].mode[1].t60_s: must be > 0, got -1"), "{e}");
+        assert!(
+            e.contains("object[0].mode[1].t60_s: must be > 0, got -1"),
+            "{e}"
+        );
         assert_eq!(lib.report().error.as_deref(), Some(e.as_str()));
         // what plays (and is saved) is still the good text, under a new generation
         assert_eq!(lib.playing().unwrap().text, THREE_MODES);
@@ -398,7 +407,11 @@ gain = 0.5
         let e = lib.prepare(&wanted(&lib), 48_000.0, 1).unwrap_err();
         assert!(e.contains("mine"), "{e}");
         assert_eq!(lib.active(), 0, "the preset plays");
-        assert_eq!(lib.to_saved().unwrap().text, "not = [toml", "the text is kept");
+        assert_eq!(
+            lib.to_saved().unwrap().text,
+            "not = [toml",
+            "the text is kept"
+        );
         let p = lib.prepare(&wanted(&lib), 48_000.0, 2).unwrap();
         assert_eq!(p.params.user_scene, 0);
         assert!(!lib.report().user);

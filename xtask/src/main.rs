@@ -154,7 +154,8 @@ fn ensure_venv() -> Result<PathBuf> {
 
 /// `cargo xtask test`: every test of the project (the README's test command):
 /// bundles the plugin three ways (release; rt-checks with the test-only
-/// alloc-bug trigger; the test-only panic-bug),
+/// alloc-bug trigger; the test-only panic-bug), builds the allocation-checked
+/// standalone application for the editor test,
 /// runs the workspace tests (plugin-tests load those bundles), then renders
 /// the VST3 with pedalboard.
 fn run_tests(extra: &[String]) -> Result<()> {
@@ -164,6 +165,17 @@ fn run_tests(extra: &[String]) -> Result<()> {
     for b in &BUNDLES {
         dirs.push((b, bundle_to(b.name, b.cargo_args)?));
     }
+    // The editor test runs the standalone application with the allocation
+    // checker (plugin-tests/tests/editor_gui.rs).
+    run(std::process::Command::new("cargo").args([
+        "build",
+        "--profile",
+        "test-release",
+        "--features",
+        "standalone,rt-checks",
+        "--bin",
+        "modal-contact-standalone",
+    ]))?;
     // The numerical tests run long loops (1e6 samples with per-sample energy
     // checks): release mode keeps them fast; debug assertions stay on.
     // --no-fail-fast: a failure in one test binary still runs the others
@@ -180,6 +192,10 @@ fn run_tests(extra: &[String]) -> Result<()> {
     for (b, dir) in &dirs {
         cmd.env(b.env_var(), dir.join(format!("{BUNDLE_NAME}.clap")));
     }
+    cmd.env(
+        "MODAL_CONTACT_STANDALONE",
+        std::env::current_dir()?.join("target/test-release/modal-contact-standalone"),
+    );
     let cargo_tests = run(&mut cmd);
     // The VST3 test compares with the library through this binary.
     run(std::process::Command::new("cargo").args([

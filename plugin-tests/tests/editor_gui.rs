@@ -1,0 +1,345 @@
+//! The editor as a user sees it: the standalone application (nice-plug's
+//! standalone wrapper, dummy audio backend) in a headless X server (Xvfb,
+//! Mesa's software OpenGL), built with the allocation checker
+//! (`--features standalone,rt-checks`, test-release profile: any allocation
+//! in `process` aborts, and the live view records inside `process` while
+//! the window is open). Screenshots with `xwd`, clicks with `xdotool`.
+//!
+//! Asserts: the window appears at the editor's default size and is not
+//! blank; the user scene folder lists a valid and an invalid scene (the
+//! invalid one with its error); clicking an audition pad makes the live view
+//! change; clicking the valid user scene loads it (the window's top bar
+//! changes); the process never aborted. The screenshots are written to
+//! `target/plugin-tests/editor/` (README's picture is one of them).
+//!
+//! Needs: Xvfb, xdotool, xwd and xdpyinfo (x11-apps, x11-utils), ImageMagick's
+//! `convert` (Debian: xvfb xdotool x11-apps x11-utils imagemagick
+//! libgl1-mesa-dri; `.ci/run` installs them). The binary comes from
+//! `MODAL_CONTACT_STANDALONE` (`cargo xtask test` builds it) or is built here.
+
+use plugin_tests::workspace_root;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// The editor's default size (src/plugin/params.rs, `EDITOR_SIZE`).
+const SIZE: (u32, u32) = modal_contact::plugin::params::EDITOR_SIZE;
+
+fn standalone() -> PathBuf {
+    if let Ok(p) = std::env::var("MODAL_CONTACT_STANDALONE") {
+        return PathBuf::from(p);
+    }
+    let root = workspace_root();
+    let ok = Command::new("cargo")
+        .current_dir(&root)
+        .args([
+            "build",
+            "--profile",
+            "test-release",
+            "--features",
+            "standalone,rt-checks",
+            "--bin",
+            "modal-contact-standalone",
+        ])
+        .status()
+        .expect("cargo build");
+    assert!(ok.success(), "building the standalone failed");
+    root.join("target/test-release/modal-contact-standalone")
+}
+
+fn tool(name: &str) -> Command {
+    // ImageMagick's own convert (another program of that name may come first
+    // in PATH)
+    let path = match name {
+        "convert" if Path::new("/usr/bin/convert").exists() => "/usr/bin/convert",
+        n => n,
+    };
+    Command::new(path)
+}
+
+/// Kill on drop.
+struct Killed(Child);
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// An RGB image.
+struct Shot {
+    w: usize,
+    h: usize,
+    rgb: Vec<u8>,
+}
+
+impl Shot {
+    fn px(&self, x: usize, y: usize) -> [u8; 3] {
+        let i = 3 * (y * self.w + x);
+        [self.rgb[i], self.rgb[i + 1], self.rgb[i + 2]]
+    }
+
+    /// Distinct colours in a region (a blank window has one or two).
+    fn colours(&self, x0: usize, y0: usize, x1: usize, y1: usize) -> usize {
+        let mut c: Vec<[u8; 3]> = Vec::new();
+        for y in y0..y1.min(self.h) {
+            for x in x0..x1.min(self.w) {
+                c.push(self.px(x, y));
+            }
+        }
+        c.sort_unstable();
+        c.dedup();
+        c.len()
+    }
+
+    /// Pixels that differ in a region.
+    fn diff(&self, o: &Shot, x0: usize, y0: usize, x1: usize, y1: usize) -> usize {
+        let mut n = 0;
+        for y in y0..y1.min(self.h) {
+            for x in x0..x1.min(self.w) {
+                n += usize::from(self.px(x, y) != o.px(x, y));
+            }
+        }
+        n
+    }
+}
+
+/// Screenshot window `wid` (also saved as PNG when `save` is given).
+fn shot(display: &str, wid: &str, save: Option<&Path>) -> Shot {
+    let xwd = Command::new("xwd")
+        .env("DISPLAY", display)
+        .args(["-silent", "-id", wid])
+        .output()
+        .expect("xwd (Debian: x11-apps)");
+    assert!(xwd.status.success(), "xwd failed");
+    let mut conv = tool("convert")
+        .args(["xwd:-", "ppm:-"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("convert (Debian: imagemagick)");
+    {
+        use std::io::Write;
+        conv.stdin.take().unwrap().write_all(&xwd.stdout).unwrap();
+    }
+    let out = conv.wait_with_output().unwrap();
+    assert!(out.status.success(), "convert failed");
+    if let Some(p) = save {
+        let mut c = tool("convert")
+            .args(["ppm:-", &p.display().to_string()])
+            .stdin(Stdio::piped())
+            .spawn()
+            .unwrap();
+        use std::io::Write;
+        c.stdin.take().unwrap().write_all(&out.stdout).unwrap();
+        assert!(c.wait().unwrap().success());
+    }
+    parse_ppm(&out.stdout)
+}
+
+/// A binary PPM (P6, maxval 255).
+fn parse_ppm(b: &[u8]) -> Shot {
+    let mut fields = Vec::new();
+    let mut i = 0;
+    while fields.len() < 4 {
+        while b[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        if b[i] == b'#' {
+            while b[i] != b'\n' {
+                i += 1;
+            }
+            continue;
+        }
+        let s = i;
+        while !b[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        fields.push(String::from_utf8_lossy(&b[s..i]).into_owned());
+    }
+    assert_eq!(fields[0], "P6");
+    assert_eq!(fields[3], "255");
+    let (w, h): (usize, usize) = (fields[1].parse().unwrap(), fields[2].parse().unwrap());
+    let rgb = b[i + 1..i + 1 + 3 * w * h].to_vec();
+    Shot { w, h, rgb }
+}
+
+fn click(display: &str, wid: &str, x: u32, y: u32) {
+    let ok = Command::new("xdotool")
+        .env("DISPLAY", display)
+        .args(["mousemove", "--window", wid, &x.to_string(), &y.to_string()])
+        .args(["mousedown", "1"])
+        .status()
+        .expect("xdotool");
+    assert!(ok.success());
+    std::thread::sleep(Duration::from_millis(120));
+    let ok = Command::new("xdotool")
+        .env("DISPLAY", display)
+        .args(["mouseup", "1"])
+        .status()
+        .unwrap();
+    assert!(ok.success());
+}
+
+/// A free display number (no lock file).
+fn free_display() -> String {
+    (90..200)
+        .find(|n| !Path::new(&format!("/tmp/.X{n}-lock")).exists())
+        .map(|n| format!(":{n}"))
+        .expect("a free X display number")
+}
+
+const USER_SCENE: &str = include_str!("../../presets/wood-block.toml");
+
+#[test]
+fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
+    let bin = standalone();
+    let out = workspace_root().join("target/plugin-tests/editor");
+    let _ = std::fs::remove_dir_all(&out);
+    let scenes = out.join("data/modalcontact/scenes");
+    std::fs::create_dir_all(&scenes).unwrap();
+    std::fs::write(
+        scenes.join("my-block.toml"),
+        USER_SCENE.replace("name = \"wood-block\"", "name = \"my-block\""),
+    )
+    .unwrap();
+    std::fs::write(
+        scenes.join("typo.toml"),
+        USER_SCENE.replacen("t60_s = ", "t60_s = -", 1),
+    )
+    .unwrap();
+
+    let display = free_display();
+    let xvfb = Killed(
+        Command::new("Xvfb")
+            .args([
+                display.as_str(),
+                "-screen",
+                "0",
+                "1280x1024x24",
+                "-nolisten",
+                "tcp",
+            ])
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("Xvfb (Debian: xvfb)"),
+    );
+    let t0 = Instant::now();
+    while !Command::new("xdpyinfo")
+        .env("DISPLAY", &display)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+    {
+        assert!(t0.elapsed() < Duration::from_secs(20), "Xvfb did not start");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let log = std::fs::File::create(out.join("standalone.log")).unwrap();
+    let mut app = Killed(
+        Command::new(&bin)
+            .args([
+                "--backend",
+                "dummy",
+                "--sample-rate",
+                "48000",
+                "--period-size",
+                "256",
+            ])
+            .env("DISPLAY", &display)
+            .env("LIBGL_ALWAYS_SOFTWARE", "1")
+            .env("XDG_DATA_HOME", out.join("data"))
+            .stdout(log.try_clone().unwrap())
+            .stderr(log)
+            .spawn()
+            .expect("the standalone"),
+    );
+    let found = Command::new("timeout")
+        .args([
+            "60",
+            "xdotool",
+            "search",
+            "--sync",
+            "--name",
+            "^Modal Contact$",
+        ])
+        .env("DISPLAY", &display)
+        .output()
+        .expect("xdotool (Debian: xdotool)");
+    let wid = String::from_utf8_lossy(&found.stdout)
+        .lines()
+        .next()
+        .unwrap_or("")
+        .trim()
+        .to_string();
+    assert!(
+        !wid.is_empty(),
+        "no window; the application's log:\n{}",
+        std::fs::read_to_string(out.join("standalone.log")).unwrap_or_default()
+    );
+    println!("window {wid} after {:.2} s", t0.elapsed().as_secs_f64());
+
+    // the first painted frame: more than a handful of colours
+    let t1 = Instant::now();
+    let first = loop {
+        let s = shot(&display, &wid, None);
+        if s.colours(0, 0, s.w, s.h) > 20 {
+            break s;
+        }
+        assert!(
+            t1.elapsed() < Duration::from_secs(30),
+            "the window stays blank"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert_eq!(
+        (first.w as u32, first.h as u32),
+        SIZE,
+        "the window has the editor's size"
+    );
+    // let the folder listing arrive, then the reference picture
+    std::thread::sleep(Duration::from_millis(1500));
+    let before = shot(&display, &wid, Some(&out.join("editor-idle.png")));
+    let (w, h) = (before.w, before.h);
+    println!("idle: {} colours", before.colours(0, 0, w, h));
+
+    // an audition pad (the second, "root", in the bottom row between the
+    // side panels), struck high: the live view must move
+    click(&display, &wid, 390, SIZE.1 - 40);
+    std::thread::sleep(Duration::from_millis(400));
+    let struck = shot(&display, &wid, Some(&out.join("editor-struck.png")));
+    let view = (280, 60, w.min(700), h.min(500));
+    let changed = struck.diff(&before, view.0, view.1, view.2, view.3);
+    println!("live view: {changed} pixels changed after the pad");
+    assert!(
+        changed > 2000,
+        "the live view did not change after a pad ({changed} pixels)"
+    );
+    assert!(
+        app.0.try_wait().unwrap().is_none(),
+        "the application died (allocation in process?)"
+    );
+
+    // the user scene (the first entry of the folder list): the top bar
+    // names it once the worker compiled it
+    let listing = std::fs::read_to_string(out.join("standalone.log")).unwrap_or_default();
+    click(&display, &wid, 56, 327);
+    std::thread::sleep(Duration::from_millis(1500));
+    let loaded = shot(&display, &wid, Some(&out.join("editor-user-scene.png")));
+    let top = loaded.diff(&struck, 0, 0, w, 50);
+    println!("top bar: {top} pixels changed after loading the user scene");
+    assert!(
+        top > 100,
+        "the top bar did not change after loading a user scene\n{listing}"
+    );
+    // strike it: the view moves again
+    click(&display, &wid, 390, SIZE.1 - 40);
+    std::thread::sleep(Duration::from_millis(400));
+    let user_struck = shot(&display, &wid, Some(&out.join("editor-user-struck.png")));
+    assert!(user_struck.diff(&loaded, view.0, view.1, view.2, view.3) > 2000);
+    assert!(app.0.try_wait().unwrap().is_none(), "the application died");
+    let _ = Command::new("kill")
+        .args(["-TERM", &app.0.id().to_string()])
+        .status();
+    drop(xvfb);
+}

@@ -1,0 +1,504 @@
+//! The editor window (egui through nice-plug-egui): the parameters in named
+//! groups, the live view of the voices, the object's mode spectrum, the
+//! scene browser and the audition pads (docs/plugin.md, "The editor").
+//!
+//! Threads: everything here runs on the GUI thread. It talks to the audio
+//! thread only through lock-free structures: the host's parameter gestures
+//! (begin/set/end), the live ring's consumer end ([`super::live`]), and the
+//! pad queue ([`EditorLink::pads`]). The scene library's mutexes are shared
+//! with the worker, never with the audio thread.
+
+mod view;
+
+use super::browser::{self, Entry};
+use super::live::{LiveConsumer, LiveHistory, LiveRing};
+use super::params::{ModalContactParams, EDITOR_SIZE};
+use super::user_scene::UserScene;
+use crate::instrument::Event;
+use crossbeam::queue::ArrayQueue;
+use egui::{self, Color32, RichText};
+use nice_plug::context::gui::GuiContext;
+use nice_plug::editor::dpi::LogicalSize;
+use nice_plug::prelude::*;
+use nice_plug_egui::{
+    create_egui_editor, widgets::ParamSlider, EguiEditor, EguiEditorState, EguiNiceSettings,
+    NiceEguiApp, RepaintNotifier,
+};
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant, SystemTime};
+
+/// Audition pad strikes waiting for the audio thread (it plays them at the
+/// start of its next block, through the same path as MIDI notes).
+pub const PAD_QUEUE: usize = 64;
+
+/// What the editor shares with the plugin instance.
+pub struct EditorLink {
+    /// The parameters (and what is saved with them).
+    pub params: Arc<ModalContactParams>,
+    /// The live view's ring (the editor holds its consumer while open).
+    pub ring: Arc<LiveRing>,
+    /// Pad strikes for the audio thread.
+    pub pads: Arc<ArrayQueue<Event>>,
+}
+
+/// The editor's type (the plugin's `Plugin::Editor`).
+pub type ModalEditor = EguiEditor<App>;
+
+/// Build the editor (a new window state sized as saved). \[main-thread\]
+pub fn create(link: EditorLink) -> Option<ModalEditor> {
+    let (w, h) = link.params.persisted.editor_size.load();
+    let state = EguiEditorState::from_size(LogicalSize::new(w as f32, h as f32), 1.0);
+    let notifier = RepaintNotifier::new();
+    let settings = EguiNiceSettings::new()
+        .with_tile("Modal Contact")
+        .with_resize_hint(ResizeHint {
+            can_resize: true,
+            ..ResizeHint::default()
+        });
+    let app = App::new(link, notifier.clone());
+    create_egui_editor(state, notifier, settings, app)
+}
+
+/// A listing of the user folder, made on a background thread.
+type Listing = Arc<Mutex<Option<(PathBuf, Result<Vec<Entry>, String>)>>>;
+
+/// The editor's state on the GUI thread.
+pub struct App {
+    link: EditorLink,
+    notifier: RepaintNotifier,
+    gui: Option<GuiContext>,
+    consumer: Option<LiveConsumer>,
+    history: LiveHistory,
+    listing: Listing,
+    listed_at: Option<Instant>,
+    folder_text: String,
+    picked: Arc<Mutex<Option<PathBuf>>>,
+    open_error: Option<String>,
+    /// The playing file's modification time when it was loaded, and whether
+    /// the file changed since.
+    loaded_mtime: Option<SystemTime>,
+    changed_on_disk: bool,
+    checked_at: Option<Instant>,
+    /// Pads held down: (key).
+    pad_down: Option<u8>,
+}
+
+impl App {
+    fn new(link: EditorLink, notifier: RepaintNotifier) -> Self {
+        Self {
+            link,
+            notifier,
+            gui: None,
+            consumer: None,
+            history: LiveHistory::default(),
+            listing: Arc::new(Mutex::new(None)),
+            listed_at: None,
+            folder_text: String::new(),
+            picked: Arc::new(Mutex::new(None)),
+            open_error: None,
+            loaded_mtime: None,
+            changed_on_disk: false,
+            checked_at: None,
+            pad_down: None,
+        }
+    }
+
+    fn folder(&self) -> Option<PathBuf> {
+        let saved = self
+            .link
+            .params
+            .persisted
+            .scene_folder
+            .lock()
+            .ok()
+            .and_then(|f| f.clone());
+        saved.or_else(browser::default_folder)
+    }
+
+    /// List the folder on a background thread (validating each file).
+    fn relist(&mut self) {
+        let Some(dir) = self.folder() else {
+            *self.listing.lock().unwrap_or_else(|e| e.into_inner()) = Some((
+                PathBuf::new(),
+                Err("this platform has no user data directory: choose a folder".into()),
+            ));
+            return;
+        };
+        self.listed_at = Some(Instant::now());
+        let out = self.listing.clone();
+        let n = self.notifier.clone();
+        std::thread::spawn(move || {
+            let r = browser::list_folder(&dir);
+            *out.lock().unwrap_or_else(|e| e.into_inner()) = Some((dir, r));
+            n.request_repaint();
+        });
+    }
+
+    fn load_file(&mut self, path: &std::path::Path) {
+        match UserScene::from_file(path) {
+            Ok(s) => {
+                self.loaded_mtime = mtime(path);
+                self.changed_on_disk = false;
+                self.open_error = None;
+                self.link.params.persisted.library.load(s);
+            }
+            Err(e) => self.open_error = Some(e),
+        }
+    }
+
+    /// Whether the playing scene's file changed on disk (checked once a
+    /// second; offered for reload, never swapped silently).
+    fn check_disk(&mut self) {
+        if self
+            .checked_at
+            .is_some_and(|t| t.elapsed() < Duration::from_secs(1))
+        {
+            return;
+        }
+        self.checked_at = Some(Instant::now());
+        let Some(playing) = self.link.params.persisted.library.playing() else {
+            self.changed_on_disk = false;
+            return;
+        };
+        let Some(path) = &playing.path else {
+            return;
+        };
+        let now = mtime(path);
+        if self.loaded_mtime.is_none() {
+            // a project opened with this scene: compare the text once
+            self.loaded_mtime = now;
+            self.changed_on_disk = std::fs::read_to_string(path).is_ok_and(|t| t != playing.text);
+        } else if now != self.loaded_mtime {
+            self.changed_on_disk = std::fs::read_to_string(path).is_ok_and(|t| t != playing.text);
+        }
+    }
+
+    fn top_bar(&mut self, ui: &mut egui::Ui) {
+        let lib = self.link.params.persisted.library.clone();
+        let report = lib.report();
+        ui.horizontal(|ui| {
+            ui.heading("Modal Contact");
+            ui.separator();
+            let what = if report.user { "user scene" } else { "preset" };
+            ui.label(RichText::new(format!("{} ({what})", report.scene)).strong());
+            if self.changed_on_disk {
+                if ui.button("File changed on disk: reload").clicked() {
+                    if let Some(p) = lib.playing().and_then(|s| s.path.clone()) {
+                        self.load_file(&p);
+                    }
+                }
+            }
+        });
+        match &report.error {
+            Some(e) => {
+                ui.colored_label(Color32::from_rgb(240, 90, 80), format!("Not loaded: {e}"));
+            }
+            None => {
+                ui.label(RichText::new(&report.summary).small());
+            }
+        }
+    }
+
+    fn browser_panel(&mut self, ui: &mut egui::Ui, setter: &ParamSetter) {
+        let params = self.link.params.clone();
+        let lib = &params.persisted.library;
+        ui.heading("Scenes");
+        ui.label("Built in");
+        let current = params.scene.value().index();
+        let user_active = lib.active() != 0;
+        for (i, p) in crate::presets::PRESETS.iter().enumerate() {
+            let selected = !user_active && i == current;
+            if ui.selectable_label(selected, p.title).clicked() {
+                lib.clear();
+                setter.begin_set_parameter(&params.scene);
+                setter.set_parameter(&params.scene, super::params::PresetChoice::from_index(i));
+                setter.end_set_parameter(&params.scene);
+            }
+        }
+        ui.separator();
+        ui.label("User folder");
+        if self.listed_at.is_none() {
+            self.folder_text = self
+                .folder()
+                .map(|p| p.display().to_string())
+                .unwrap_or_default();
+            self.relist();
+        }
+        ui.horizontal(|ui| {
+            let r = ui.text_edit_singleline(&mut self.folder_text);
+            if r.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter)) {
+                let f = PathBuf::from(self.folder_text.trim());
+                *params
+                    .persisted
+                    .scene_folder
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner()) = Some(f);
+                self.relist();
+            }
+        });
+        ui.horizontal(|ui| {
+            if ui.button("Refresh").clicked() {
+                self.relist();
+            }
+            if ui.button("Create folder").clicked() {
+                if let Some(f) = self.folder() {
+                    if let Err(e) = std::fs::create_dir_all(&f) {
+                        self.open_error = Some(format!("cannot create {}: {e}", f.display()));
+                    }
+                    self.relist();
+                }
+            }
+            if ui.button("Open file...").clicked() {
+                let out = self.picked.clone();
+                let start = self.folder();
+                let n = self.notifier.clone();
+                // the native dialog blocks: never on the GUI thread
+                std::thread::spawn(move || {
+                    let mut d = rfd::FileDialog::new().add_filter("scene", &["toml"]);
+                    if let Some(s) = start.filter(|s| s.is_dir()) {
+                        d = d.set_directory(s);
+                    }
+                    *out.lock().unwrap_or_else(|e| e.into_inner()) = d.pick_file();
+                    n.request_repaint();
+                });
+            }
+        });
+        let picked = self.picked.lock().unwrap_or_else(|e| e.into_inner()).take();
+        if let Some(p) = picked {
+            self.load_file(&p);
+        }
+        if let Some(e) = &self.open_error {
+            ui.colored_label(Color32::from_rgb(240, 90, 80), e);
+        }
+        let listing = self
+            .listing
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
+        let playing = lib.playing();
+        egui::ScrollArea::vertical().id_salt("user-scenes").show(ui, |ui| match listing {
+            None => {
+                ui.label("listing...");
+            }
+            Some((_, Err(e))) => {
+                ui.colored_label(Color32::from_rgb(240, 90, 80), e);
+            }
+            Some((_, Ok(entries))) if entries.is_empty() => {
+                ui.label("No .toml scene files here yet (see docs/plugin.md, \"Write your first scene\").");
+            }
+            Some((_, Ok(entries))) => {
+                for e in entries {
+                    let selected = playing
+                        .as_ref()
+                        .is_some_and(|p| p.path.as_deref() == Some(e.path.as_path()));
+                    match &e.status {
+                        Ok(desc) => {
+                            if ui.selectable_label(selected, &e.name).on_hover_text(desc).clicked() {
+                                self.load_file(&e.path);
+                            }
+                        }
+                        Err(err) => {
+                            ui.label(RichText::new(&e.name).strikethrough());
+                            ui.colored_label(Color32::from_rgb(240, 90, 80), RichText::new(err).small());
+                        }
+                    }
+                }
+            }
+        });
+    }
+
+    fn params_panel(&self, ui: &mut egui::Ui, setter: &ParamSetter) {
+        let p = &*self.link.params;
+        egui::ScrollArea::vertical()
+            .id_salt("params")
+            .show(ui, |ui| {
+                group(ui, "Mallet", |ui| {
+                    slider(ui, &p.hammer_mass, setter);
+                    slider(ui, &p.hardness, setter);
+                    slider(ui, &p.contact_damping, setter);
+                    toggle(ui, &p.strike_custom, setter);
+                    slider(ui, &p.strike_pos, setter);
+                });
+                group(ui, "Object", |ui| {
+                    slider(ui, &p.decay, setter);
+                    slider(ui, &p.damper, setter);
+                    slider(ui, &p.gravity, setter);
+                    slider(ui, &p.drop_height_mm, setter);
+                });
+                group(ui, "Playing", |ui| {
+                    toggle(ui, &p.pitch_tracking, setter);
+                    slider(ui, &p.bend_range, setter);
+                    slider(ui, &p.polyphony, setter);
+                });
+                group(ui, "Engine and output", |ui| {
+                    slider(ui, &p.switching, setter);
+                    slider(ui, &p.gain_db, setter);
+                });
+            });
+    }
+
+    /// The audition pads: one per note, the click's height is the velocity.
+    fn pads(&mut self, ui: &mut egui::Ui) {
+        let root = self
+            .link
+            .params
+            .persisted
+            .library
+            .report()
+            .root_note
+            .round();
+        let root = if root.is_finite() && root > 0.0 {
+            root as i32
+        } else {
+            60
+        };
+        ui.horizontal(|ui| {
+            ui.label("Audition (click height = velocity):");
+        });
+        const PADS: [(i32, &str); 5] = [
+            (-12, "-1 oct"),
+            (0, "root"),
+            (7, "+5th"),
+            (12, "+1 oct"),
+            (24, "+2 oct"),
+        ];
+        let gap = ui.spacing().item_spacing.x;
+        let w = ((ui.available_width() - gap * (PADS.len() as f32 - 1.0)) / PADS.len() as f32)
+            .max(30.0);
+        ui.horizontal(|ui| {
+            for (dk, label) in PADS {
+                let key = (root + dk).clamp(0, 127) as u8;
+                let size = egui::vec2(w, 64.0);
+                let (resp, painter) = ui.allocate_painter(size, egui::Sense::click_and_drag());
+                let r = resp.rect;
+                let held = self.pad_down == Some(key);
+                painter.rect_filled(
+                    r,
+                    6.0,
+                    if held {
+                        Color32::from_rgb(230, 160, 60)
+                    } else {
+                        Color32::from_gray(60)
+                    },
+                );
+                painter.text(
+                    r.center_top() + egui::vec2(0.0, 12.0),
+                    egui::Align2::CENTER_CENTER,
+                    format!("{} ({label})", view::note_name(key)),
+                    egui::FontId::proportional(12.0),
+                    Color32::WHITE,
+                );
+                if resp.is_pointer_button_down_on() && self.pad_down.is_none() {
+                    if let Some(pos) = resp.interact_pointer_pos() {
+                        let vel: f32 = (1.0 - (pos.y - r.top()) / r.height()).clamp(0.05, 1.0);
+                        self.strike(key, vel as f64);
+                    }
+                }
+            }
+        });
+        if self.pad_down.is_some() && !ui.input(|i| i.pointer.any_down()) {
+            if let Some(key) = self.pad_down.take() {
+                let _ = self.link.pads.push(Event::NoteOff { key });
+            }
+        }
+    }
+
+    fn strike(&mut self, key: u8, velocity_norm: f64) {
+        if self
+            .link
+            .pads
+            .push(Event::NoteOn { key, velocity_norm })
+            .is_ok()
+        {
+            self.pad_down = Some(key);
+        }
+    }
+}
+
+fn mtime(path: &std::path::Path) -> Option<SystemTime> {
+    std::fs::metadata(path).and_then(|m| m.modified()).ok()
+}
+
+fn group(ui: &mut egui::Ui, title: &str, body: impl FnOnce(&mut egui::Ui)) {
+    egui::CollapsingHeader::new(RichText::new(title).strong())
+        .default_open(true)
+        .show(ui, body);
+}
+
+/// A labelled slider with the host's gestures (begin on press, set while
+/// dragging, end on release) and the value with its unit.
+fn slider<P: Param>(ui: &mut egui::Ui, p: &P, setter: &ParamSetter) {
+    ui.label(p.name());
+    ui.add(ParamSlider::for_param(p, setter).with_width(160.0));
+}
+
+/// A check box for a switch, with one complete gesture per click.
+fn toggle(ui: &mut egui::Ui, p: &BoolParam, setter: &ParamSetter) {
+    let mut v = p.value();
+    if ui.checkbox(&mut v, p.name()).changed() {
+        setter.begin_set_parameter(p);
+        setter.set_parameter(p, v);
+        setter.end_set_parameter(p);
+    }
+}
+
+impl NiceEguiApp for App {
+    fn build(
+        &mut self,
+        _egui_ctx: egui::Context,
+        gui: GuiContext,
+        _frame: &mut nice_plug_egui::Frame,
+    ) -> Result<(), nice_plug_egui::baseview::HandlerError> {
+        self.gui = Some(gui);
+        // holding the consumer switches the audio thread's recording on
+        self.consumer = self.link.ring.consumer();
+        self.history = LiveHistory::default();
+        Ok(())
+    }
+
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut nice_plug_egui::Frame) {
+        let Some(gui) = self.gui.clone() else {
+            return;
+        };
+        let setter = gui.param_setter();
+        if let Some(c) = self.consumer.as_mut() {
+            self.history.drain(c);
+        }
+        self.check_disk();
+        egui::Panel::top("top").show(ui, |ui| self.top_bar(ui));
+        egui::Panel::left("browser")
+            .resizable(true)
+            .default_size(240.0)
+            .show(ui, |ui| self.browser_panel(ui, &setter));
+        egui::Panel::right("params")
+            .resizable(true)
+            .default_size(230.0)
+            .show(ui, |ui| self.params_panel(ui, &setter));
+        egui::Panel::bottom("pads").show(ui, |ui| self.pads(ui));
+        egui::CentralPanel::default().show(ui, |ui| {
+            let rate = self.link.ring.rate_hz();
+            let report = self.link.params.persisted.library.report();
+            view::live_view(ui, &self.history, rate, self.link.ring.dropped());
+            view::spectrum(ui, &report);
+        });
+        // the live view moves: repaint at the display (poll) rate
+        self.notifier.request_repaint();
+    }
+
+    fn resized(&mut self, size: nice_plug_egui::baseview::WindowSize) {
+        let l = size.logical;
+        let w = (l.width.round() as u32).max(200);
+        let h = (l.height.round() as u32).max(150);
+        self.link.params.persisted.editor_size.store((w, h));
+    }
+
+    fn editor_closed(&mut self) {
+        // giving the consumer back switches the recording off
+        self.consumer = None;
+        self.gui = None;
+    }
+}
+
+/// The default size, for the standalone's window and the docs.
+pub const DEFAULT_SIZE: (u32, u32) = EDITOR_SIZE;
