@@ -189,6 +189,17 @@ fn free_display() -> String {
         .expect("a free X display number")
 }
 
+/// The application still runs (the allocation checker aborts it on any
+/// allocation in `process`, e.g. in the live view's recording).
+fn assert_alive(app: &mut Child, out: &Path) {
+    if let Some(status) = app.try_wait().unwrap() {
+        panic!(
+            "the application died ({status}); its log:\n{}",
+            std::fs::read_to_string(out.join("standalone.log")).unwrap_or_default()
+        );
+    }
+}
+
 const USER_SCENE: &str = include_str!("../../presets/wood-block.toml");
 
 #[test]
@@ -307,6 +318,7 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
     // side panels), struck high: the live view must move
     click(&display, &wid, 390, SIZE.1 - 40);
     std::thread::sleep(Duration::from_millis(400));
+    assert_alive(&mut app.0, &out);
     let struck = shot(&display, &wid, Some(&out.join("editor-struck.png")));
     let view = (280, 60, w.min(700), h.min(500));
     let changed = struck.diff(&before, view.0, view.1, view.2, view.3);
@@ -337,7 +349,7 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
     std::thread::sleep(Duration::from_millis(400));
     let user_struck = shot(&display, &wid, Some(&out.join("editor-user-struck.png")));
     assert!(user_struck.diff(&loaded, view.0, view.1, view.2, view.3) > 2000);
-    assert!(app.0.try_wait().unwrap().is_none(), "the application died");
+    assert_alive(&mut app.0, &out);
     let _ = Command::new("kill")
         .args(["-TERM", &app.0.id().to_string()])
         .status();

@@ -1129,4 +1129,44 @@ mod tests {
         }
         assert_eq!(spec("no_such_parameter"), None);
     }
+
+    /// The user scene, the editor's size and the scene folder round-trip
+    /// through a saved state's fields; a project without them (older, or
+    /// saved with a preset) gets the defaults; unreadable values are
+    /// reported and replaced by defaults.
+    #[test]
+    fn persisted_fields_round_trip_and_bad_ones_get_defaults() {
+        let a = Persisted::default();
+        a.library.load(UserScene {
+            name: "mine".into(),
+            text: "version = 1".into(),
+            path: Some(PathBuf::from("/somewhere/mine.toml")),
+        });
+        a.editor_size.store((1200, 800));
+        *a.scene_folder.lock().unwrap() = Some(PathBuf::from("/my/scenes"));
+        let saved = a.serialize();
+        println!("{saved:?}");
+        let b = Persisted::default();
+        assert!(b.deserialize(&saved).is_empty());
+        assert_eq!(b.serialize(), saved);
+        assert_eq!(b.library.requested().unwrap().name, "mine");
+        assert_ne!(b.library.active(), 0);
+        assert_eq!(b.editor_size.load(), (1200, 800));
+
+        // an older project: no fields at all
+        let notes = b.deserialize(&BTreeMap::new());
+        assert!(notes.is_empty());
+        assert_eq!(b.library.active(), 0, "the preset plays");
+        assert_eq!(b.editor_size.load(), EDITOR_SIZE);
+        assert!(b.scene_folder.lock().unwrap().is_none());
+
+        // garbage
+        let mut bad = saved.clone();
+        bad.insert(keys::USER_SCENE.into(), "{not json".into());
+        bad.insert(keys::EDITOR_SIZE.into(), "[5, 99999]".into());
+        let notes = b.deserialize(&bad);
+        assert_eq!(notes.len(), 2, "{notes:?}");
+        assert_eq!(b.library.active(), 0);
+        assert_eq!(b.editor_size.load(), EDITOR_SIZE);
+    }
 }

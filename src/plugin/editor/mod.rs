@@ -182,11 +182,9 @@ impl App {
             ui.separator();
             let what = if report.user { "user scene" } else { "preset" };
             ui.label(RichText::new(format!("{} ({what})", report.scene)).strong());
-            if self.changed_on_disk {
-                if ui.button("File changed on disk: reload").clicked() {
-                    if let Some(p) = lib.playing().and_then(|s| s.path.clone()) {
-                        self.load_file(&p);
-                    }
+            if self.changed_on_disk && ui.button("File changed on disk: reload").clicked() {
+                if let Some(p) = lib.playing().and_then(|s| s.path.clone()) {
+                    self.load_file(&p);
                 }
             }
         });
