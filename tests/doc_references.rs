@@ -334,10 +334,20 @@ fn the_layer_picture_matches_the_code() {
     for m in &modules {
         let dir = root.join("src").join(m);
         let files: Vec<PathBuf> = if dir.is_dir() {
-            std::fs::read_dir(&dir)
-                .unwrap()
-                .map(|e| e.unwrap().path())
-                .collect()
+            // every .rs file under it, submodule folders included
+            let mut files = Vec::new();
+            let mut stack = vec![dir.clone()];
+            while let Some(d) = stack.pop() {
+                for e in std::fs::read_dir(&d).unwrap() {
+                    let p = e.unwrap().path();
+                    if p.is_dir() {
+                        stack.push(p);
+                    } else if p.extension().is_some_and(|x| x == "rs") {
+                        files.push(p);
+                    }
+                }
+            }
+            files
         } else {
             vec![root.join("src").join(format!("{m}.rs"))]
         };

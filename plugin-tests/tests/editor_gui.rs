@@ -9,7 +9,8 @@
 //! blank; the user scene folder lists a valid and an invalid scene (the
 //! invalid one with its error); clicking an audition pad makes the live view
 //! change; clicking the valid user scene loads it (the window's top bar
-//! changes); the process never aborted. The screenshots are written to
+//! changes) and it plays; editing its file offers a reload in the top bar;
+//! the process never aborted. The screenshots are written to
 //! `target/plugin-tests/editor/` (README's picture is one of them).
 //!
 //! Needs: Xvfb, xdotool, xwd and xdpyinfo (x11-apps, x11-utils), ImageMagick's
@@ -349,6 +350,25 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
     std::thread::sleep(Duration::from_millis(400));
     let user_struck = shot(&display, &wid, Some(&out.join("editor-user-struck.png")));
     assert!(user_struck.diff(&loaded, view.0, view.1, view.2, view.3) > 2000);
+    assert_alive(&mut app.0, &out);
+
+    // the file changes on disk: the top bar offers a reload (checked once a
+    // second), the scene is not swapped silently
+    let file = scenes.join("my-block.toml");
+    let text = std::fs::read_to_string(&file).unwrap();
+    std::fs::write(&file, text + "\n# edited\n").unwrap();
+    std::thread::sleep(Duration::from_millis(2500));
+    let offered = shot(
+        &display,
+        &wid,
+        Some(&out.join("editor-changed-on-disk.png")),
+    );
+    let top = offered.diff(&user_struck, 0, 0, w, 30);
+    println!("top bar: {top} pixels changed after the file changed on disk");
+    assert!(
+        top > 100,
+        "no reload offered after the file changed on disk"
+    );
     assert_alive(&mut app.0, &out);
     let _ = Command::new("kill")
         .args(["-TERM", &app.0.id().to_string()])

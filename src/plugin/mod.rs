@@ -252,9 +252,17 @@ impl Plugin for ModalContact {
             },
         ];
         let mut prepared = None;
+        let max_block = buffer_config.max_buffer_size as usize;
+        let host = user_scene::HostBlocks {
+            max_block,
+            polyphony: ip.play.polyphony,
+        };
         for c in candidates {
-            match library.prepare(&c, rate_hz, 0) {
-                Ok(p) => {
+            match library.prepare(&c, rate_hz, 0, host) {
+                Ok((p, warnings)) => {
+                    for w in warnings {
+                        nice_log!("modal_contact: {w}");
+                    }
                     prepared = Some(p);
                     break;
                 }
@@ -265,16 +273,6 @@ impl Plugin for ModalContact {
             nice_log!("modal_contact: cannot compile any scene");
             return false;
         };
-        if let Some(note) = &prepared.fallback_note {
-            nice_log!("modal_contact: {note}");
-        }
-        if let Some(w) = prepared.realtime_warning() {
-            nice_log!("modal_contact: {w}");
-        }
-        let max_block = buffer_config.max_buffer_size as usize;
-        if let Some(w) = prepared.strike_warning(max_block, ip.play.polyphony) {
-            nice_log!("modal_contact: {w}");
-        }
         self.max_block = max_block;
         self.requested = prepared.params;
         self.revision = 0;

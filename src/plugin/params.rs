@@ -668,8 +668,12 @@ impl Persisted {
                 m.insert(keys::USER_SCENE.into(), j);
             }
         }
+        // only what differs from the defaults: a project that never opened
+        // the editor saves exactly what it saved before the editor existed
         let (w, h) = self.editor_size.load();
-        m.insert(keys::EDITOR_SIZE.into(), format!("[{w},{h}]"));
+        if (w, h) != EDITOR_SIZE {
+            m.insert(keys::EDITOR_SIZE.into(), format!("[{w},{h}]"));
+        }
         if let Some(f) = self
             .scene_folder
             .lock()

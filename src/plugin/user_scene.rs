@@ -83,6 +83,9 @@ pub struct CompileReport {
     pub root_note: f64,
     /// Sample rate compiled for \[Hz\].
     pub rate_hz: f64,
+    /// What the user should know (exact switching refused, a stiff
+    /// contact, strikes that may overrun the host's block).
+    pub warnings: Vec<String>,
 }
 
 /// The user scene state of one plugin instance (see the module doc).
@@ -172,14 +175,17 @@ impl SceneLibrary {
     /// generation `params.user_scene` (if the editor loaded another since,
     /// the newest; the result's `params.user_scene` says which). Parses,
     /// validates and compiles; on failure the previous scene plays on and a
-    /// user scene that fails is not made current. Writes the report.
+    /// user scene that fails is not made current. Writes the report, with
+    /// the warnings (also returned, for the log): a switching fallback, a
+    /// stiff contact, a strike that may overrun the host's block.
     /// \[worker\] \[main-thread\]
     pub fn prepare(
         &self,
         params: &SceneParams,
         rate_hz: f64,
         revision: u64,
-    ) -> Result<Box<Prepared>, String> {
+        host: HostBlocks,
+    ) -> Result<(Box<Prepared>, Vec<String>), String> {
         let t0 = Instant::now();
         let mut params = *params;
         let user = if params.user_scene == 0 {
@@ -221,11 +227,19 @@ impl SceneLibrary {
                 }
                 let ms = t0.elapsed().as_secs_f64() * 1e3;
                 report.error = None;
-                report.summary = summary_line(&p, ms);
                 report.spectrum = spectrum(&base, &params, &p);
+                report.summary = summary_line(&p, &report.spectrum, ms);
                 report.root_note = p.root_note;
                 report.rate_hz = rate_hz;
-                Ok(p)
+                report.warnings = [
+                    p.fallback_note.clone(),
+                    p.realtime_warning(),
+                    p.strike_warning(host.max_block, host.polyphony),
+                ]
+                .into_iter()
+                .flatten()
+                .collect();
+                Ok((p, report.warnings.clone()))
             }
             Err(e) => {
                 if user.is_some() {
@@ -252,9 +266,19 @@ impl SceneLibrary {
     }
 }
 
+/// The host's largest block and the polyphony, for the strike-cost warning.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct HostBlocks {
+    /// Largest block \[samples\].
+    pub max_block: usize,
+    /// Voices.
+    pub polyphony: usize,
+}
+
 /// The compile summary's facts for the window: modes kept, route, the
-/// engine's cost per sample (its dimensions), compile time.
-fn summary_line(p: &Prepared, ms: f64) -> String {
+/// engine's cost per sample (its dimensions) and per strike (the estimate
+/// the strike warning uses), compile time.
+fn summary_line(p: &Prepared, spectrum: &[SpectrumLine], ms: f64) -> String {
     let sc = &p.scenes.scene;
     let route = sc
         .summary
@@ -262,11 +286,21 @@ fn summary_line(p: &Prepared, ms: f64) -> String {
         .find(|l| l.starts_with("contact phase"))
         .and_then(|l| l.split(", ").nth(1))
         .unwrap_or("?");
+    let modes = if spectrum.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "{} of {} modes kept, ",
+            spectrum.iter().filter(|m| m.pruned.is_none()).count(),
+            spectrum.len()
+        )
+    };
     format!(
-        "{} states free / {} in contact, contact route: {route}, {} switching, root note {:.1}, compiled in {ms:.1} ms",
+        "{modes}{} states free / {} in contact (per sample O(states)), contact route: {route}, {} switching, strike ~{:.0} us, root note {:.1}, compiled in {ms:.1} ms",
         sc.free.dim,
         sc.contact.dim,
         p.switching_used.as_str(),
+        p.strike_cost_estimate_s() * 1e6,
         p.root_note,
     )
 }
@@ -352,6 +386,11 @@ gain = 0.5
         }
     }
 
+    const HOST: HostBlocks = HostBlocks {
+        max_block: 512,
+        polyphony: 16,
+    };
+
     fn wanted(lib: &SceneLibrary) -> SceneParams {
         SceneParams {
             user_scene: lib.active(),
@@ -363,7 +402,10 @@ gain = 0.5
     fn a_user_scene_compiles_and_reports_its_modes() {
         let lib = SceneLibrary::default();
         lib.load(user(THREE_MODES));
-        let p = lib.prepare(&wanted(&lib), 48_000.0, 1).expect("compiles");
+        let p = lib
+            .prepare(&wanted(&lib), 48_000.0, 1, HOST)
+            .expect("compiles")
+            .0;
         assert_eq!(p.params.user_scene, lib.active());
         assert_eq!(p.scenes.scene.name, "three");
         let r = lib.report();
@@ -384,10 +426,10 @@ gain = 0.5
         let lib = SceneLibrary::default();
         lib.load(user(THREE_MODES));
         let good = lib.active();
-        lib.prepare(&wanted(&lib), 48_000.0, 1).unwrap();
+        lib.prepare(&wanted(&lib), 48_000.0, 1, HOST).unwrap();
         let bad = THREE_MODES.replace("t60_s = 0.5", "t60_s = -1.0");
         lib.load(user(&bad));
-        let e = lib.prepare(&wanted(&lib), 48_000.0, 2).unwrap_err();
+        let e = lib.prepare(&wanted(&lib), 48_000.0, 2, HOST).unwrap_err();
         assert!(
             e.contains("object[0].mode[1].t60_s: must be > 0, got -1"),
             "{e}"
@@ -397,14 +439,14 @@ gain = 0.5
         assert_eq!(lib.playing().unwrap().text, THREE_MODES);
         assert_eq!(lib.to_saved().unwrap().text, THREE_MODES);
         assert!(lib.active() != good && lib.active() != 0);
-        assert!(lib.prepare(&wanted(&lib), 48_000.0, 3).is_ok());
+        assert!(lib.prepare(&wanted(&lib), 48_000.0, 3, HOST).is_ok());
     }
 
     #[test]
     fn a_saved_scene_that_no_longer_validates_plays_the_preset_and_keeps_its_text() {
         let lib = SceneLibrary::default();
         lib.restore(Some(user("not = [toml")));
-        let e = lib.prepare(&wanted(&lib), 48_000.0, 1).unwrap_err();
+        let e = lib.prepare(&wanted(&lib), 48_000.0, 1, HOST).unwrap_err();
         assert!(e.contains("mine"), "{e}");
         assert_eq!(lib.active(), 0, "the preset plays");
         assert_eq!(
@@ -412,7 +454,7 @@ gain = 0.5
             "not = [toml",
             "the text is kept"
         );
-        let p = lib.prepare(&wanted(&lib), 48_000.0, 2).unwrap();
+        let p = lib.prepare(&wanted(&lib), 48_000.0, 2, HOST).unwrap().0;
         assert_eq!(p.params.user_scene, 0);
         assert!(!lib.report().user);
     }

@@ -16,7 +16,7 @@
 //! `deactivate`/drop; the shared nice-plug background thread is not used (one
 //! long eigensolve there would stall every other plugin instance).
 
-use super::user_scene::SceneLibrary;
+use super::user_scene::{HostBlocks, SceneLibrary};
 use crate::instrument::{Prepared, SceneParams};
 use atomic_float::AtomicF64;
 use crossbeam::queue::ArrayQueue;
@@ -163,15 +163,13 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
             continue;
         };
         let t0 = Instant::now();
-        match lib.prepare(&req.params, req.rate_hz, req.revision) {
-            Ok(p) => {
-                if let Some(note) = &p.fallback_note {
-                    nice_plug::nice_log!("modal_contact: {note}");
-                }
-                if let Some(w) = p.realtime_warning() {
-                    nice_plug::nice_log!("modal_contact: {w}");
-                }
-                if let Some(w) = p.strike_warning(req.max_block, req.polyphony) {
+        let host = HostBlocks {
+            max_block: req.max_block,
+            polyphony: req.polyphony,
+        };
+        match lib.prepare(&req.params, req.rate_hz, req.revision, host) {
+            Ok((p, warnings)) => {
+                for w in warnings {
                     nice_plug::nice_log!("modal_contact: {w}");
                 }
                 h.last_compile_ms

@@ -196,6 +196,9 @@ impl App {
                 ui.label(RichText::new(&report.summary).small());
             }
         }
+        for w in &report.warnings {
+            ui.colored_label(Color32::from_rgb(240, 180, 60), RichText::new(w).small());
+        }
     }
 
     fn browser_panel(&mut self, ui: &mut egui::Ui, setter: &ParamSetter) {
