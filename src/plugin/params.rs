@@ -25,7 +25,7 @@
 //! `ids_never_change` holds them), and only append choices at the end (CLAP
 //! automation stores a choice's index).
 
-use super::user_scene::{SceneLibrary, UserScene};
+use super::user_scene::{lock, SceneLibrary, UserScene};
 use crate::instrument::{
     InstrumentParams, PlayParams, SceneParams, DEFAULT_BEND_RANGE_SEMITONES,
     MAX_BEND_RANGE_SEMITONES, MAX_VOICES,
@@ -674,12 +674,7 @@ impl Persisted {
         if (w, h) != EDITOR_SIZE {
             m.insert(keys::EDITOR_SIZE.into(), format!("[{w},{h}]"));
         }
-        if let Some(f) = self
-            .scene_folder
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .as_ref()
-        {
+        if let Some(f) = lock(&self.scene_folder).as_ref() {
             if let Ok(j) = serde_json::to_string(f) {
                 m.insert(keys::SCENE_FOLDER.into(), j);
             }
@@ -716,7 +711,7 @@ impl Persisted {
         let folder = m
             .get(keys::SCENE_FOLDER)
             .and_then(|j| serde_json::from_str::<PathBuf>(j).ok());
-        *self.scene_folder.lock().unwrap_or_else(|e| e.into_inner()) = folder;
+        *lock(&self.scene_folder) = folder;
         notes
     }
 }

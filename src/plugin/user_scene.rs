@@ -102,7 +102,7 @@ pub struct SceneLibrary {
 
 /// Lock a mutex, taking the value even if a panicking thread poisoned it
 /// (its data is plain values, always consistent).
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
 

@@ -13,7 +13,7 @@ mod view;
 use super::browser::{self, Entry};
 use super::live::{LiveConsumer, LiveHistory, LiveRing};
 use super::params::{ModalContactParams, EDITOR_SIZE};
-use super::user_scene::UserScene;
+use super::user_scene::{lock, UserScene};
 use crate::instrument::Event;
 use crossbeam::queue::ArrayQueue;
 use egui::{self, Color32, RichText};
@@ -105,21 +105,14 @@ impl App {
     }
 
     fn folder(&self) -> Option<PathBuf> {
-        let saved = self
-            .link
-            .params
-            .persisted
-            .scene_folder
-            .lock()
-            .ok()
-            .and_then(|f| f.clone());
+        let saved = lock(&self.link.params.persisted.scene_folder).clone();
         saved.or_else(browser::default_folder)
     }
 
     /// List the folder on a background thread (validating each file).
     fn relist(&mut self) {
         let Some(dir) = self.folder() else {
-            *self.listing.lock().unwrap_or_else(|e| e.into_inner()) = Some((
+            *lock(&self.listing) = Some((
                 PathBuf::new(),
                 Err("this platform has no user data directory: choose a folder".into()),
             ));
@@ -130,7 +123,7 @@ impl App {
         let n = self.notifier.clone();
         std::thread::spawn(move || {
             let r = browser::list_folder(&dir);
-            *out.lock().unwrap_or_else(|e| e.into_inner()) = Some((dir, r));
+            *lock(&out) = Some((dir, r));
             n.request_repaint();
         });
     }
@@ -230,11 +223,7 @@ impl App {
             let r = ui.text_edit_singleline(&mut self.folder_text);
             if r.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter)) {
                 let f = PathBuf::from(self.folder_text.trim());
-                *params
-                    .persisted
-                    .scene_folder
-                    .lock()
-                    .unwrap_or_else(|e| e.into_inner()) = Some(f);
+                *lock(&params.persisted.scene_folder) = Some(f);
                 self.relist();
             }
         });
@@ -260,23 +249,19 @@ impl App {
                     if let Some(s) = start.filter(|s| s.is_dir()) {
                         d = d.set_directory(s);
                     }
-                    *out.lock().unwrap_or_else(|e| e.into_inner()) = d.pick_file();
+                    *lock(&out) = d.pick_file();
                     n.request_repaint();
                 });
             }
         });
-        let picked = self.picked.lock().unwrap_or_else(|e| e.into_inner()).take();
+        let picked = lock(&self.picked).take();
         if let Some(p) = picked {
             self.load_file(&p);
         }
         if let Some(e) = &self.open_error {
             ui.colored_label(Color32::from_rgb(240, 90, 80), e);
         }
-        let listing = self
-            .listing
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone();
+        let listing = lock(&self.listing).clone();
         let playing = lib.playing();
         egui::ScrollArea::vertical().id_salt("user-scenes").show(ui, |ui| match listing {
             None => {
