@@ -18,6 +18,7 @@
 //! libgl1-mesa-dri; `.ci/run` installs them). The binary comes from
 //! `MODAL_CONTACT_STANDALONE` (`cargo xtask test` builds it) or is built here.
 
+use modal_testkit::bundles::{STANDALONE_BIN, STANDALONE_BUILD_ARGS};
 use plugin_tests::workspace_root;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -33,19 +34,11 @@ fn standalone() -> PathBuf {
     let root = workspace_root();
     let ok = Command::new("cargo")
         .current_dir(&root)
-        .args([
-            "build",
-            "--profile",
-            "test-release",
-            "--features",
-            "standalone,rt-checks",
-            "--bin",
-            "modal-contact-standalone",
-        ])
+        .args(STANDALONE_BUILD_ARGS)
         .status()
         .expect("cargo build");
     assert!(ok.success(), "building the standalone failed");
-    root.join("target/test-release/modal-contact-standalone")
+    root.join("target/test-release").join(STANDALONE_BIN)
 }
 
 fn tool(name: &str) -> Command {

@@ -249,49 +249,10 @@ mod serde_like {
     }
 }
 
-/// A three-mode scene of the user's own (not a preset).
-const USER_SCENE: &str = r#"
-version = 1
-name = "three-modes"
-duration_s = 1.0
-
-[[object]]
-name = "bar"
-kind = "modal"
-points = ["contact", "pickup"]
-
-[[object.mode]]
-freq_hz = 300.0
-t60_s = 1.0
-weights = [1.0, 1.0]
-
-[[object.mode]]
-freq_hz = 1130.0
-t60_s = 0.5
-weights = [0.8, -0.6]
-
-[[object.mode]]
-freq_hz = 2710.0
-t60_s = 0.3
-weights = [0.5, 0.7]
-
-[hammer]
-mass_kg = 0.03
-height_m = 0.001
-velocity_m_per_s = -2.0
-
-[contact]
-object = "bar"
-point = "contact"
-stiffness_n_per_m = 3e5
-damping_n_s_per_m = 40.0
-
-[[pickup]]
-object = "bar"
-point = "pickup"
-quantity = "velocity"
-gain = 0.5
-"#;
+/// A scene of the user's own (not a preset): the one docs/plugin.md's
+/// "Write your first scene" shows (the guide's text is checked against the
+/// file below, so the guide's example is one that loads and plays).
+const USER_SCENE: &str = include_str!("../../docs/first-scene.toml");
 
 /// `state` (nice-plug's JSON) with the user scene field set to `text`
 /// loaded from `path`, as the editor's scene browser leaves it.
@@ -317,16 +278,21 @@ fn strike(p: &mut LoadedPlugin) -> [Vec<f32>; 2] {
 /// the preset and keeps its text.
 #[test]
 fn a_user_scene_travels_in_the_project_and_plays_without_its_file() {
+    let guide = std::fs::read_to_string(workspace_root().join("docs/plugin.md")).unwrap();
+    assert!(
+        guide.contains(USER_SCENE),
+        "docs/plugin.md shows docs/first-scene.toml as it is"
+    );
     let bundle = clap_bundle(Variant::Release);
     let dir = out_dir().join("user-scene-state");
     std::fs::create_dir_all(&dir).unwrap();
-    let file = dir.join("three-modes.toml");
+    let file = dir.join("my-bar.toml");
     std::fs::write(&file, USER_SCENE).unwrap();
 
     let mut a = LoadedPlugin::load(&bundle);
     let fresh = a.save_state();
     let preset = strike(&mut LoadedPlugin::load(&bundle));
-    a.load_state(&with_user_scene(&fresh, "three-modes", USER_SCENE, &file));
+    a.load_state(&with_user_scene(&fresh, "my-bar", USER_SCENE, &file));
     let heard_a = strike(&mut a);
     let saved = a.save_state();
     println!(
@@ -369,7 +335,7 @@ fn a_user_scene_travels_in_the_project_and_plays_without_its_file() {
     // a saved scene that no longer validates: the preset plays, the text stays
     let broken = USER_SCENE.replace("t60_s = 0.5", "t60_s = -0.5");
     let mut c = LoadedPlugin::load(&bundle);
-    c.load_state(&with_user_scene(&fresh, "three-modes", &broken, &file));
+    c.load_state(&with_user_scene(&fresh, "my-bar", &broken, &file));
     assert_eq!(strike(&mut c), preset, "the preset plays");
     let kept: serde_json::Value = serde_json::from_str(&json_of(&c.save_state())).unwrap();
     let kept_scene: serde_json::Value =

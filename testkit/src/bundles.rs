@@ -33,6 +33,22 @@ impl Bundle {
     }
 }
 
+/// `cargo build` arguments of the standalone application the editor test
+/// runs (with the allocation checker); the binary lands in
+/// `target/test-release/`.
+pub const STANDALONE_BUILD_ARGS: [&str; 7] = [
+    "build",
+    "--profile",
+    "test-release",
+    "--features",
+    "standalone,rt-checks",
+    "--bin",
+    STANDALONE_BIN,
+];
+
+/// The standalone application's binary name.
+pub const STANDALONE_BIN: &str = "modal-contact-standalone";
+
 /// Every build the plugin tests use. The checked builds use the
 /// `test-release` profile (optimised, debug assertions on, so nice-plug's
 /// `assert_process_allocs` is active) and share its dependencies with the

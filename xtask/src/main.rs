@@ -167,15 +167,7 @@ fn run_tests(extra: &[String]) -> Result<()> {
     }
     // The editor test runs the standalone application with the allocation
     // checker (plugin-tests/tests/editor_gui.rs).
-    run(std::process::Command::new("cargo").args([
-        "build",
-        "--profile",
-        "test-release",
-        "--features",
-        "standalone,rt-checks",
-        "--bin",
-        "modal-contact-standalone",
-    ]))?;
+    run(std::process::Command::new("cargo").args(modal_testkit::bundles::STANDALONE_BUILD_ARGS))?;
     // The numerical tests run long loops (1e6 samples with per-sample energy
     // checks): release mode keeps them fast; debug assertions stay on.
     // --no-fail-fast: a failure in one test binary still runs the others
@@ -194,7 +186,9 @@ fn run_tests(extra: &[String]) -> Result<()> {
     }
     cmd.env(
         "MODAL_CONTACT_STANDALONE",
-        std::env::current_dir()?.join("target/test-release/modal-contact-standalone"),
+        std::env::current_dir()?
+            .join("target/test-release")
+            .join(modal_testkit::bundles::STANDALONE_BIN),
     );
     let cargo_tests = run(&mut cmd);
     // The VST3 test compares with the library through this binary.
