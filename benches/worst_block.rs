@@ -108,19 +108,38 @@ fn worst_block(_: &mut Criterion) {
     for n in [10, 50, 200, 1000] {
         let params = InstrumentParams::default();
         let prepared = prepare_scene(&object(n), &params.scene, RATE, 0).expect("compile");
+        // the same scene switching through its dense matrices, for the
+        // ratio in the same run
+        let mut dense = prepared.clone();
+        let structured = dense.scenes.scene.w_cf_h.take().is_some();
+        dense.scenes.scene.w_fc_h = None;
+        if let Some(d) = dense.scenes.damped.as_mut() {
+            d.w_cf_h = None;
+            d.w_fc_h = None;
+        }
+        let variants: Vec<(&Prepared, String)> = if structured {
+            vec![
+                (&prepared, n.to_string()),
+                (&dense, format!("{n}, dense switches")),
+            ]
+        } else {
+            vec![(&prepared, n.to_string())]
+        };
         for chord in [1, 4, 16] {
-            let mut cells = Vec::new();
-            for block in [32, 64, 128, 512] {
-                let mut t = block_times(&prepared, chord, block);
-                t.sort_by(f64::total_cmp);
-                let budget = block as f64 / RATE;
-                cells.push(format!(
-                    "{:.0} / {:.0}",
-                    100.0 * t[t.len() - 1] / budget,
-                    100.0 * percentile(&t, 0.999) / budget
-                ));
+            for (prepared, label) in &variants {
+                let mut cells = Vec::new();
+                for block in [32, 64, 128, 512] {
+                    let mut t = block_times(prepared, chord, block);
+                    t.sort_by(f64::total_cmp);
+                    let budget = block as f64 / RATE;
+                    cells.push(format!(
+                        "{:.0} / {:.0}",
+                        100.0 * t[t.len() - 1] / budget,
+                        100.0 * percentile(&t, 0.999) / budget
+                    ));
+                }
+                println!("| {label} | {chord} | {} |", cells.join(" | "));
             }
-            println!("| {n} | {chord} | {} |", cells.join(" | "));
         }
     }
 }
@@ -149,16 +168,18 @@ fn strike_block(
 /// The block holding one strike, beyond a plain block, measured on one
 /// voice (`EngineState`, 64-sample blocks at 48 kHz, the slowest of the
 /// blocks the strike touches, median of 41 strikes): on a ringing voice
-/// (two dense changes of basis), next to the estimate the plugin logs its
-/// warning from (`Prepared::strike_cost_estimate_s`), and on the object at
+/// (two changes of basis: hierarchical where the scene has them, and the
+/// same strike through the dense matrices, with their ratio), next to the
+/// estimate the plugin logs its warning from
+/// (`Prepared::strike_cost_estimate_s`), and on the object at
 /// rest (a new note: the stored release, docs/numerics.md "A strike on an
 /// object at rest"), with the ratio to the same strike through the dense
 /// products in the same run.
 fn strike_cost(_: &mut Criterion) {
     use modal_contact::engine::EngineState;
     println!("\nstrike cost, one voice, 64-sample blocks at 48 kHz (measured: slowest block of the strike less a plain block; median of 41):");
-    println!("| modes | switch flops | ringing: measured us | ringing: estimated us | at rest us | at rest, dense products us | ratio |");
-    println!("|---|---|---|---|---|---|---|");
+    println!("| modes | switch multiply-adds (dense) | ringing: measured us | ringing: estimated us | ringing, dense products us | ratio | at rest us | at rest, dense products us | ratio |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for n in [10, 50, 100, 200, 400, 1000] {
         let params = InstrumentParams::default();
         let prepared = prepare_scene(&object(n), &params.scene, RATE, 0).expect("compile");
@@ -171,9 +192,12 @@ fn strike_cost(_: &mut Criterion) {
         }
         let mut silent = EngineState::new(sc);
         silent.strike(sc, 1.0, 0.0);
-        let mut extra = [Vec::new(), Vec::new(), Vec::new()];
+        let mut extra = [Vec::new(), Vec::new(), Vec::new(), Vec::new()];
         for _ in 0..41 {
             extra[0].push(strike_block(sc, &mut ringing.clone(), &mut ringing.clone()));
+            let mut dense = ringing.clone();
+            dense.set_structured_switch(false);
+            extra[3].push(strike_block(sc, &mut dense, &mut ringing.clone()));
             for (j, rest) in [(1, true), (2, false)] {
                 let mut st = EngineState::new(sc);
                 st.set_rest_strike(rest);
@@ -185,10 +209,13 @@ fn strike_cost(_: &mut Criterion) {
             e[20]
         });
         println!(
-            "| {n} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            "| {n} | {} ({}) | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            sc.switch_multiply_adds(),
             2 * sc.free.dim * sc.contact.dim,
             med[0] * 1e6,
             prepared.strike_cost_estimate_s() * 1e6,
+            med[3] * 1e6,
+            med[3] / med[0],
             med[1] * 1e6,
             med[2] * 1e6,
             med[2] / med[1]

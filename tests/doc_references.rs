@@ -239,6 +239,7 @@ fn every_tolerance_is_documented() {
         "src/physics/decomp.rs",
         "src/physics/secular.rs",
         "src/physics/block.rs",
+        "src/physics/hodlr.rs",
         "src/engine/exact.rs",
     ]
     .iter()

@@ -149,6 +149,53 @@ fn panic_script(bundle: &Path) -> String {
     )
 }
 
+/// A user scene of `n` modes (200 Hz .. 15 kHz), large enough that the
+/// compiler stores its changes of basis in hierarchical form.
+fn large_scene(n: usize) -> String {
+    let mut t = String::from(
+        "version = 1\nname = \"large\"\nduration_s = 1.0\n\n[[object]]\nname = \"bar\"\n\
+         kind = \"modal\"\npoints = [\"contact\", \"pickup\"]\n",
+    );
+    for i in 0..n {
+        let f = 200.0 * (75.0f64).powf(i as f64 / (n - 1) as f64);
+        let w = 1.0 / (1.0 + 0.02 * i as f64).sqrt();
+        let wp = if i % 2 == 0 { 0.8 * w } else { -0.6 * w };
+        t += &format!(
+            "\n[[object.mode]]\nfreq_hz = {f}\nt60_s = {}\nweights = [{w}, {wp}]\n",
+            2.5 / (1.0 + f / 1500.0)
+        );
+    }
+    t + "\n[hammer]\nmass_kg = 0.03\nheight_m = 0.001\nvelocity_m_per_s = -1.0\n\n\
+         [contact]\nobject = \"bar\"\npoint = \"contact\"\nstiffness_n_per_m = 2e6\n\
+         damping_n_s_per_m = 20.0\n\n[[pickup]]\nobject = \"bar\"\npoint = \"pickup\"\n\
+         quantity = \"velocity\"\ngain = 0.5\n"
+}
+
+/// The large scene as a user scene: repeated notes and chords on ringing
+/// voices, so strikes switch through the hierarchical changes of basis.
+fn large_script(bundle: &Path) -> String {
+    let text = large_scene(150);
+    let path = out_dir().join("rt-checks-large.toml");
+    std::fs::write(&path, &text).unwrap();
+    let mut p = LoadedPlugin::load(bundle);
+    let fresh = p.save_state();
+    p.load_state(&with_user_scene(&fresh, "large", &text, &path));
+    let mut events = Vec::new();
+    for i in 0..24usize {
+        for k in 0..(1 + i % 4) {
+            events.push(on(100 + 1000 * i, 57 + 3 * k as u8, 0.5 + 0.02 * i as f64));
+        }
+    }
+    let out = p.render(&RenderSpec::new(48_000.0, 64, 28_000, events));
+    let finite = out.iter().flatten().all(|v| v.is_finite());
+    write_wav(&out_dir().join("rt-checks-large.wav"), 48_000.0, &out);
+    format!(
+        "CHILD_LARGE_OK finite={finite} peak={:.4} rms_late={:.3e}",
+        peak(&out[0]),
+        rms(&out[0][20_000..])
+    )
+}
+
 /// Does nothing unless spawned by `run_child`.
 #[test]
 fn child_render() {
@@ -158,6 +205,7 @@ fn child_render() {
     let bundle = Path::new(&bundle);
     match std::env::var(SCRIPT_ENV).as_deref() {
         Ok("panic") => println!("{}", panic_script(bundle)),
+        Ok("large") => println!("{}", large_script(bundle)),
         script => {
             let fault = (script == Ok("alloc")).then_some(2);
             let (with, without, change) = stress(bundle, fault);
@@ -200,6 +248,36 @@ fn rt_checks_build_runs_the_stress_render_without_allocating() {
     assert!(line.contains("finite=true"), "{line}");
     assert!(line.contains("bounded=true"), "{line}");
     assert!(line.contains("swapped=true"), "{line}");
+}
+
+/// Strikes on ringing voices of a 150-mode user scene switch through the
+/// structured changes of basis (the library compiles the same text with
+/// both in hierarchical form) without allocating in the checked build.
+#[test]
+fn rt_checks_build_switches_a_large_scene_without_allocating() {
+    let scene = modal_contact::scene::Scene::from_toml_str(&large_scene(150)).expect("valid scene");
+    let sc = modal_contact::compile::compile(&scene, 48_000.0).unwrap();
+    assert!(sc.w_cf_h.is_some() && sc.w_fc_h.is_some(), "{}", sc.summary);
+    let out = run_child(&clap_bundle(Variant::RtChecks), "large");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let line = stdout
+        .lines()
+        .find(|l| l.contains("CHILD_LARGE_OK"))
+        .unwrap_or_else(|| panic!("child failed: {:?}\n{stdout}\n{stderr}", out.status));
+    println!("{line}");
+    assert!(out.status.success(), "{:?}\n{stderr}", out.status);
+    assert!(line.contains("finite=true"), "{line}");
+    let peak: f64 = line
+        .split("peak=")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(peak > 1e-3, "the large scene sounds: {line}");
 }
 
 #[test]

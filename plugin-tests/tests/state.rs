@@ -40,17 +40,6 @@ fn set_non_defaults(p: &mut LoadedPlugin) {
     p.render(&RenderSpec::new(48_000.0, 64, 64, events));
 }
 
-fn json_of(state: &[u8]) -> String {
-    let n = u64::from_le_bytes(state[..8].try_into().unwrap()) as usize;
-    String::from_utf8(state[8..8 + n].to_vec()).expect("utf-8 JSON")
-}
-
-fn state_of(json: &str) -> Vec<u8> {
-    let mut out = (json.len() as u64).to_le_bytes().to_vec();
-    out.extend_from_slice(json.as_bytes());
-    out
-}
-
 fn plays(p: &mut LoadedPlugin) -> f64 {
     let out = p.render(&RenderSpec::new(
         44_100.0,
@@ -253,15 +242,6 @@ mod serde_like {
 /// "Write your first scene" shows (the guide's text is checked against the
 /// file below, so the guide's example is one that loads and plays).
 const USER_SCENE: &str = include_str!("../../docs/first-scene.toml");
-
-/// `state` (nice-plug's JSON) with the user scene field set to `text`
-/// loaded from `path`, as the editor's scene browser leaves it.
-fn with_user_scene(state: &[u8], name: &str, text: &str, path: &std::path::Path) -> Vec<u8> {
-    let mut v: serde_json::Value = serde_json::from_str(&json_of(state)).unwrap();
-    let scene = serde_json::json!({ "name": name, "text": text, "path": path });
-    v["fields"]["user_scene"] = serde_json::Value::String(scene.to_string());
-    state_of(&v.to_string())
-}
 
 fn strike(p: &mut LoadedPlugin) -> [Vec<f32>; 2] {
     p.render(&RenderSpec::new(

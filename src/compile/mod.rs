@@ -37,6 +37,7 @@ pub use rows::{pan_gains, PhaseRows, RowOffsets};
 
 use crate::physics::block::OscBlocks;
 use crate::physics::decomp::{self, DecompDiagnostics, Form, PhaseDecomp};
+use crate::physics::hodlr::Hodlr;
 use crate::scene::{Scene, Switching};
 use nalgebra::DMatrix;
 
@@ -289,6 +290,13 @@ pub struct CompiledScene {
     pub w_fc: DMatrix<f64>,
     /// `W_fc s_star`.
     pub s_f_star: Vec<f64>,
+    /// `W_cf` and `W_fc` in hierarchical low-rank form where that pays
+    /// (large modal objects; docs/numerics.md, "Structured changes of
+    /// basis"): the engine's switches use these instead of the dense
+    /// matrices.
+    pub w_cf_h: Option<Hodlr>,
+    /// See `w_cf_h`.
+    pub w_fc_h: Option<Hodlr>,
     /// Constants of the contact rows.
     pub offsets: RowOffsets,
     /// A strike on the object at rest, precomputed so that its two switches
@@ -302,6 +310,17 @@ pub struct CompiledScene {
     /// compile summary's `event search` line. The plugin warns above
     /// [`REALTIME_SEARCH_NODES`].
     pub search_nodes_estimate: f64,
+}
+
+impl CompiledScene {
+    /// Multiply-adds of the two changes of basis of a strike on a ringing
+    /// object (enter and leave contact): the stored entries of the
+    /// hierarchical forms, or of the dense matrices. \[any-thread\]
+    pub fn switch_multiply_adds(&self) -> usize {
+        let cf = self.w_cf_h.as_ref().map_or(self.w_cf.len(), Hodlr::stored);
+        let fc = self.w_fc_h.as_ref().map_or(self.w_fc.len(), Hodlr::stored);
+        cf + fc
+    }
 }
 
 /// Event-search nodes per sample beyond which a sample holding a switch may
@@ -497,6 +516,12 @@ pub fn compile_opts(
         dropped_pickups: &rows.dropped_pickups,
     });
     summary.push_str(&summary::rest_line(rest.as_ref(), h));
+    let [w_cf_h, w_fc_h] = basis::structured(&free, &contact, &basis);
+    summary.push_str(&summary::structured_line(
+        [&w_cf_h, &w_fc_h],
+        free.dim * contact.dim,
+    ));
+    let (w_cf_h, w_fc_h) = (w_cf_h.ok(), w_fc_h.ok());
     let p = object.params;
     Ok(CompiledScene {
         name: scene.name.clone(),
@@ -519,6 +544,8 @@ pub fn compile_opts(
         s_star: basis.s_star,
         w_fc: basis.w_fc,
         s_f_star: basis.s_f_star,
+        w_cf_h,
+        w_fc_h,
         offsets: rows.offsets,
         rest,
         summary,

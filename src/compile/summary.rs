@@ -174,3 +174,26 @@ pub(super) fn rest_line(rest: Option<&super::rest::RestStrike>, h: f64) -> Strin
             .into(),
     }
 }
+
+/// The summary's line on the switches' changes of basis: hierarchical
+/// with its size, ranks and measured check, or dense and why.
+pub(super) fn structured_line(
+    forms: [&Result<crate::physics::hodlr::Hodlr, String>; 2],
+    dense: usize,
+) -> String {
+    let parts: Vec<String> = ["W_cf", "W_fc"]
+        .iter()
+        .zip(forms)
+        .map(|(name, form)| match form {
+            Ok(h) => format!(
+                "{name} hierarchical ({:.0} % of the dense entries, ranks <= {}, \
+                 within {:.1} u |W| |x| of the dense product)",
+                100.0 * h.stored() as f64 / dense as f64,
+                h.max_rank,
+                h.check_u
+            ),
+            Err(why) => format!("{name} dense ({why})"),
+        })
+        .collect();
+    format!("changes of basis: {}\n", parts.join("; "))
+}

@@ -24,6 +24,7 @@
 //! two paths round differently (FMA), each deterministically.
 
 use crate::compile::EnergyQuad;
+use crate::physics::hodlr::Hodlr;
 
 /// Most samples one [`run_block`] call advances (the engine's epoch: the
 /// curvature bound of exact switching is refreshed at least this often).
@@ -622,6 +623,42 @@ pub fn mat_vec_add(path: SimdPath, m: &[f64], nrows: usize, x: &[f64], y: &mut [
         // SAFETY: as in `run_block`.
         SimdPath::Avx2Fma(_) => unsafe { mat_vec_avx2(m, nrows, x, y) },
         _ => mat_vec_body::<false>(m, nrows, x, y),
+    }
+}
+
+/// `y += W x` for `W` in hierarchical low-rank form (the structured change
+/// of basis at a switch): the permutations, then each piece through
+/// [`mat_vec_add`] (a dense leaf, or `V^T` then `U` of a low-rank block).
+/// O(stored entries), allocation-free: `xp`, `yp` and `t` are scratch of at
+/// least `cols`, `rows` and `max_rank` entries. \[audio-thread\]
+pub fn hodlr_mat_vec_add(
+    path: SimdPath,
+    h: &Hodlr,
+    x: &[f64],
+    y: &mut [f64],
+    [xp, yp, t]: [&mut [f64]; 3],
+) {
+    let (xp, yp, t) = (&mut xp[..h.cols], &mut yp[..h.rows], &mut t[..h.max_rank]);
+    for (v, &j) in xp.iter_mut().zip(&h.col_perm) {
+        *v = x[j];
+    }
+    yp.fill(0.0);
+    for p in &h.pieces {
+        let xs = &xp[p.c0..p.c0 + p.nc];
+        let ys = &mut yp[p.r0..p.r0 + p.nr];
+        match p.rank {
+            None => mat_vec_add(path, &h.data[p.off..p.off + p.nr * p.nc], p.nr, xs, ys),
+            Some(r) => {
+                let t = &mut t[..r];
+                t.fill(0.0);
+                mat_vec_add(path, &h.data[p.off..p.off + r * p.nc], r, xs, t);
+                let u0 = p.off + r * p.nc;
+                mat_vec_add(path, &h.data[u0..u0 + p.nr * r], p.nr, t, ys);
+            }
+        }
+    }
+    for (v, &i) in yp.iter().zip(&h.row_perm) {
+        y[i] += v;
     }
 }
 

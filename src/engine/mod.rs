@@ -257,6 +257,10 @@ pub struct EngineState {
     /// Use the stored release of a strike from rest (default); off only to
     /// compare with the dense product in tests and benchmarks.
     rest_enabled: bool,
+    /// Switch through the hierarchical changes of basis where the scene has
+    /// them (default); off only to compare with the dense product in tests
+    /// and benchmarks.
+    structured: bool,
     /// Offline observation scratch ([`process_block_observed`](Self::process_block_observed)),
     /// allocated on its first call.
     obs: Option<Box<ObsScratch>>,
@@ -334,6 +338,7 @@ impl EngineState {
             t_in_step: 0.0,
             rest_entry: None,
             rest_enabled: true,
+            structured: true,
             obs: None,
         };
         st.set_time_scale(scene, 1.0)
@@ -1198,13 +1203,19 @@ impl EngineState {
         }
         let at_rest = free.s.iter().all(|&x| x == 0.0);
         if !at_rest {
-            kernel::mat_vec_add(
-                self.simd,
-                scene.w_cf.as_slice(),
-                dc,
-                &free.s,
-                &mut contact.s,
-            );
+            match scene.w_cf_h.as_ref().filter(|_| self.structured) {
+                Some(h) => {
+                    let [a, b, c] = &mut self.dense_tmp;
+                    kernel::hodlr_mat_vec_add(self.simd, h, &free.s, &mut contact.s, [a, b, c]);
+                }
+                None => kernel::mat_vec_add(
+                    self.simd,
+                    scene.w_cf.as_slice(),
+                    dc,
+                    &free.s,
+                    &mut contact.s,
+                ),
+            }
         }
         self.rest_entry = (at_rest
             && self.rest_enabled
@@ -1251,13 +1262,19 @@ impl EngineState {
             }
         } else {
             free.s[..df].copy_from_slice(&scene.s_f_star);
-            kernel::mat_vec_add(
-                self.simd,
-                scene.w_fc.as_slice(),
-                df,
-                &contact.s,
-                &mut free.s,
-            );
+            match scene.w_fc_h.as_ref().filter(|_| self.structured) {
+                Some(h) => {
+                    let [a, b, c] = &mut self.dense_tmp;
+                    kernel::hodlr_mat_vec_add(self.simd, h, &contact.s, &mut free.s, [a, b, c]);
+                }
+                None => kernel::mat_vec_add(
+                    self.simd,
+                    scene.w_fc.as_slice(),
+                    df,
+                    &contact.s,
+                    &mut free.s,
+                ),
+            }
         }
         self.x_h = x_c - p_eff - self.rod_m;
         self.v_h = eta / scene.sm;
@@ -1276,6 +1293,15 @@ impl EngineState {
         if !on {
             self.rest_entry = None;
         }
+    }
+
+    /// Switch through the hierarchical changes of basis where the scene has
+    /// them (`true`, the default) or always through the dense matrices
+    /// (`false`): only for tests and benchmarks that compare the two.
+    /// \[any-thread\]
+    #[doc(hidden)]
+    pub fn set_structured_switch(&mut self, on: bool) {
+        self.structured = on;
     }
 
     fn log_event(&mut self, entered: bool) {

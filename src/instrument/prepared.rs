@@ -62,15 +62,18 @@ impl Scenes {
 }
 
 /// Cost model of the block that holds a strike, beyond a plain block
-/// (`benches/worst_block.rs` prints it next to the measurement): per flop
-/// of the two changes of basis (the compile summary's `switch ~N flops`),
-/// per state of the contact phase (the located switch's partial steps and
-/// event search), and a fixed part. Fitted on this project's development
-/// machine (2-core AMD EPYC, AVX2), where it is within 0.6x-1.7x of the
-/// measured cost from 10 to 1000 modes (the changes of basis stream their
-/// dense matrices from memory: about 0.8 ns per flop); a slower CPU takes
-/// longer, so the warning below leaves a margin.
-pub const STRIKE_NS_PER_SWITCH_FLOP: f64 = 0.8;
+/// (`benches/worst_block.rs` prints it next to the measurement): per
+/// multiply-add of the two changes of basis
+/// ([`CompiledScene::switch_multiply_adds`](crate::compile::CompiledScene::switch_multiply_adds):
+/// the hierarchical forms' stored entries, or the dense matrices'), per
+/// state of the contact phase (the located switch's partial steps and
+/// event search), and a fixed part. A strike usually makes two or three
+/// contacts (the hammer meets the ringing object again), so the per
+/// multiply-add figure covers them. Fitted on this project's development
+/// machine (2-core AMD EPYC, AVX2), where it is within 0.6x-1.9x of the
+/// measured cost from 10 to 1000 modes; a slower CPU takes longer, so the
+/// warning below leaves a margin.
+pub const STRIKE_NS_PER_SWITCH_FLOP: f64 = 1.6;
 /// See [`STRIKE_NS_PER_SWITCH_FLOP`].
 pub const STRIKE_NS_PER_STATE: f64 = 20.0;
 /// See [`STRIKE_NS_PER_SWITCH_FLOP`].
@@ -86,7 +89,7 @@ impl Prepared {
     /// block (seconds; see [`STRIKE_NS_PER_SWITCH_FLOP`]). \[any-thread\]
     pub fn strike_cost_estimate_s(&self) -> f64 {
         let sc = &self.scenes.scene;
-        let flops = 2.0 * sc.free.dim as f64 * sc.contact.dim as f64;
+        let flops = sc.switch_multiply_adds() as f64;
         (flops * STRIKE_NS_PER_SWITCH_FLOP
             + sc.contact.dim as f64 * STRIKE_NS_PER_STATE
             + STRIKE_NS_FIXED)

@@ -4,6 +4,7 @@
 pub mod block;
 pub mod decomp;
 pub mod error;
+pub mod hodlr;
 pub mod linalg;
 pub mod model;
 pub mod secular;
