@@ -33,6 +33,13 @@ impl Bundle {
     }
 }
 
+/// Features of the allocation-checked builds: the `rt-checks` bundle and
+/// the standalone application share them (and so one compilation of the
+/// library and of nice-plug: the bundle carries the standalone's audio
+/// dependencies unused, the application the test-only `alloc-bug` trigger
+/// unplayed).
+pub const CHECKED_FEATURES: &str = "rt-checks,alloc-bug,standalone";
+
 /// `cargo build` arguments of the standalone application the editor test
 /// runs (with the allocation checker); the binary lands in
 /// `target/test-release/`.
@@ -41,7 +48,7 @@ pub const STANDALONE_BUILD_ARGS: [&str; 7] = [
     "--profile",
     "test-release",
     "--features",
-    "standalone,rt-checks",
+    CHECKED_FEATURES,
     "--bin",
     STANDALONE_BIN,
 ];
@@ -56,15 +63,11 @@ pub const STANDALONE_BIN: &str = "modal-contact-standalone";
 /// `target/bundled/` holds the release bundle users install.
 pub const BUNDLES: [Bundle; 3] = [
     // The checked build also carries the test-only alloc-bug trigger (note 2
-    // at velocity 0.123, played by no other test): one build instead of two.
+    // at velocity 0.123, played by no other test) and the standalone's
+    // features (see CHECKED_FEATURES): one build instead of three.
     Bundle {
         name: "rt-checks",
-        cargo_args: &[
-            "--profile",
-            "test-release",
-            "--features",
-            "rt-checks,alloc-bug",
-        ],
+        cargo_args: &["--profile", "test-release", "--features", CHECKED_FEATURES],
     },
     // Without rt-checks: the allocation checker aborts on the unwinder's own
     // (de)allocations, so a caught panic can only be shown in a build
