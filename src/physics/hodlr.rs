@@ -266,9 +266,10 @@ fn mat_vec(m: &[f64], nrows: usize, x: &[f64], y: &mut [f64]) {
 
 /// Truncated factors `U` (`m x r`) and `V^T` (`r x n`) of `a`: the
 /// smallest rank whose discarded singular values are within `tol`
-/// (Frobenius). A randomized range finder first (`O(m n k)` with `k` samples,
-/// doubled until the rank is revealed), the full singular value
-/// decomposition when that does not meet the check. Returns the measured
+/// (Frobenius). A randomized range finder first ([`range`]: `O(m n k)` for
+/// a range of `k` columns) for blocks of at least `4 RANGE_SAMPLES` rows and
+/// columns, the full singular value decomposition when that does not meet
+/// the check or the block is smaller. Returns the measured
 /// residual `|a - U V^T|_F`, or `None` when even the full decomposition
 /// exceeds `2 tol + HODLR_ROUNDING_U u sqrt(min(m, n)) |a|_F` (what a
 /// backward-stable decomposition and the residual's own evaluation round
