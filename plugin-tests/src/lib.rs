@@ -39,10 +39,8 @@ pub use modal_testkit::bundles::BUNDLE_NAME;
 pub enum Variant {
     /// `--release`, default features (what users install).
     Release,
-    /// `--profile test-release --features rt-checks,alloc-bug,standalone`
-    /// (`modal_testkit::bundles::CHECKED_FEATURES`, shared with the
-    /// standalone application): optimised, debug assertions on, so
-    /// nice-plug's `assert_process_allocs` is active.
+    /// `--profile test-release --features rt-checks,alloc-bug`: optimised, debug
+    /// assertions on, so nice-plug's `assert_process_allocs` is active.
     RtChecks,
     /// The same build as `RtChecks` (which carries the test-only
     /// `alloc-bug` trigger): note 2 at velocity 0.123 allocates in `process`.

@@ -33,13 +33,6 @@ impl Bundle {
     }
 }
 
-/// Features of the allocation-checked builds: the `rt-checks` bundle and
-/// the standalone application share them (and so one compilation of the
-/// library and of nice-plug: the bundle carries the standalone's audio
-/// dependencies unused, the application the test-only `alloc-bug` trigger
-/// unplayed).
-pub const CHECKED_FEATURES: &str = "rt-checks,alloc-bug,standalone";
-
 /// `cargo build` arguments of the standalone application the editor test
 /// runs (with the allocation checker); the binary lands in
 /// `target/test-release/`.
@@ -48,7 +41,7 @@ pub const STANDALONE_BUILD_ARGS: [&str; 7] = [
     "--profile",
     "test-release",
     "--features",
-    CHECKED_FEATURES,
+    "standalone,rt-checks",
     "--bin",
     STANDALONE_BIN,
 ];
@@ -63,11 +56,15 @@ pub const STANDALONE_BIN: &str = "modal-contact-standalone";
 /// `target/bundled/` holds the release bundle users install.
 pub const BUNDLES: [Bundle; 3] = [
     // The checked build also carries the test-only alloc-bug trigger (note 2
-    // at velocity 0.123, played by no other test) and the standalone's
-    // features (see CHECKED_FEATURES): one build instead of three.
+    // at velocity 0.123, played by no other test): one build instead of two.
     Bundle {
         name: "rt-checks",
-        cargo_args: &["--profile", "test-release", "--features", CHECKED_FEATURES],
+        cargo_args: &[
+            "--profile",
+            "test-release",
+            "--features",
+            "rt-checks,alloc-bug",
+        ],
     },
     // Without rt-checks: the allocation checker aborts on the unwinder's own
     // (de)allocations, so a caught panic can only be shown in a build
