@@ -39,13 +39,13 @@ pub use modal_testkit::bundles::BUNDLE_NAME;
 pub enum Variant {
     /// `--release`, default features (what users install).
     Release,
-    /// `--profile test-release --features rt-checks,alloc-bug`: optimised, debug
+    /// `--profile test-release --features standalone,rt-checks,alloc-bug`: optimised, debug
     /// assertions on, so nice-plug's `assert_process_allocs` is active.
     RtChecks,
     /// The same build as `RtChecks` (which carries the test-only
     /// `alloc-bug` trigger): note 2 at velocity 0.123 allocates in `process`.
     AllocBug,
-    /// `--profile test-release --features panic-bug` (no allocation
+    /// `--profile test-release --features standalone,panic-bug` (no allocation
     /// checker): note 1 panics inside `process`.
     PanicBug,
 }

@@ -33,45 +33,61 @@ impl Bundle {
     }
 }
 
+/// The features of every `test-release` build `cargo xtask test` makes (the
+/// checked bundle, the standalone, the workspace's tests): one feature set
+/// of the plugin crate, so they share one compilation of nice-plug and of
+/// everything built on it (`feature-union/Cargo.toml` aligns the rest). The
+/// panic-bug bundle differs only in nice-plug's allocation checker.
+pub const TEST_FEATURES: &str = "standalone,rt-checks,alloc-bug";
+
 /// `cargo build` arguments of the standalone application the editor test
 /// runs (with the allocation checker); the binary lands in
-/// `target/test-release/`.
-pub const STANDALONE_BUILD_ARGS: [&str; 7] = [
+/// `target/test-release/`. `-p` keeps the other workspace members' features
+/// out of the build (they would make it a different one).
+pub const STANDALONE_BUILD_ARGS: [&str; 9] = [
     "build",
+    "-p",
+    "modal_contact",
     "--profile",
     "test-release",
     "--features",
-    "standalone,rt-checks",
+    TEST_FEATURES,
     "--bin",
     STANDALONE_BIN,
 ];
+
+/// `cargo test --workspace` / `cargo build --package plugin-tests` feature
+/// argument that gives the plugin crate [`TEST_FEATURES`].
+pub const TEST_FEATURES_ARG: &str =
+    "modal_contact/standalone,modal_contact/rt-checks,modal_contact/alloc-bug";
 
 /// The standalone application's binary name.
 pub const STANDALONE_BIN: &str = "modal-contact-standalone";
 
 /// Every build the plugin tests use. The checked builds use the
 /// `test-release` profile (optimised, debug assertions on, so nice-plug's
-/// `assert_process_allocs` is active) and share its dependencies with the
-/// test build. Release comes last so that after `cargo xtask test`,
+/// `assert_process_allocs` is active) and the features of the test build
+/// ([`TEST_FEATURES`]; the standalone code compiled in is not used by the
+/// bundles), so the dependency tree is compiled once for all of them. Release comes last so that after `cargo xtask test`,
 /// `target/bundled/` holds the release bundle users install.
 pub const BUNDLES: [Bundle; 3] = [
     // The checked build also carries the test-only alloc-bug trigger (note 2
     // at velocity 0.123, played by no other test): one build instead of two.
     Bundle {
         name: "rt-checks",
-        cargo_args: &[
-            "--profile",
-            "test-release",
-            "--features",
-            "rt-checks,alloc-bug",
-        ],
+        cargo_args: &["--profile", "test-release", "--features", TEST_FEATURES],
     },
     // Without rt-checks: the allocation checker aborts on the unwinder's own
     // (de)allocations, so a caught panic can only be shown in a build
     // without it (as users run it).
     Bundle {
         name: "panic-bug",
-        cargo_args: &["--profile", "test-release", "--features", "panic-bug"],
+        cargo_args: &[
+            "--profile",
+            "test-release",
+            "--features",
+            "standalone,panic-bug",
+        ],
     },
     Bundle {
         name: "release",

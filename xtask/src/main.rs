@@ -179,6 +179,8 @@ fn run_tests(extra: &[String]) -> Result<()> {
         "--profile",
         "test-release",
         "--no-fail-fast",
+        "--features",
+        modal_testkit::bundles::TEST_FEATURES_ARG,
     ])
     .args(extra);
     for (b, dir) in &dirs {
@@ -200,6 +202,8 @@ fn run_tests(extra: &[String]) -> Result<()> {
         "test-release",
         "--bin",
         "render-reference",
+        "--features",
+        modal_testkit::bundles::TEST_FEATURES_ARG,
     ]))?;
     let release = &dirs
         .iter()
