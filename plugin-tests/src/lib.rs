@@ -13,6 +13,8 @@
 //!    what is there.
 
 use clack_extensions::params::{ParamInfoBuffer, PluginParams};
+use clack_extensions::preset_discovery::prelude::{HostPresetLoad, Location, PluginPresetLoad};
+use clack_extensions::preset_discovery::HostPresetLoadImpl;
 use clack_extensions::state::PluginState;
 use clack_host::events::event_types::{MidiEvent, NoteOffEvent, NoteOnEvent, ParamValueEvent};
 use clack_host::events::Match;
@@ -164,8 +166,52 @@ pub struct TestHost;
 
 impl HostHandlers for TestHost {
     type Shared<'a> = TestShared;
-    type MainThread<'a> = ();
+    type MainThread<'a> = TestMainThread;
     type AudioProcessor<'a> = ();
+
+    fn declare_extensions(builder: &mut HostExtensions<Self>, _shared: &Self::Shared<'_>) {
+        builder.register::<HostPresetLoad>();
+    }
+}
+
+/// Main-thread host state: what the plugin told the host through the
+/// preset-load extension (`loaded KEY` / `error KEY: MESSAGE`).
+#[derive(Default)]
+pub struct TestMainThread {
+    /// The callbacks received, in order.
+    pub preset_events: std::cell::RefCell<Vec<String>>,
+}
+
+impl MainThreadHandler<'_> for TestMainThread {}
+
+fn location_text(location: Location, load_key: Option<&std::ffi::CStr>) -> String {
+    let key = load_key.map(|k| k.to_string_lossy().into_owned());
+    match location {
+        Location::Plugin => key.unwrap_or_default(),
+        Location::File { path } => path.to_string_lossy().into_owned(),
+    }
+}
+
+impl HostPresetLoadImpl for TestMainThread {
+    fn on_error(
+        &self,
+        location: Location,
+        load_key: Option<&std::ffi::CStr>,
+        _os_error: i32,
+        message: Option<&std::ffi::CStr>,
+    ) {
+        self.preset_events.borrow_mut().push(format!(
+            "error {}: {}",
+            location_text(location, load_key),
+            message.map(|m| m.to_string_lossy()).unwrap_or_default()
+        ));
+    }
+
+    fn loaded(&self, location: Location, load_key: Option<&std::ffi::CStr>) {
+        self.preset_events
+            .borrow_mut()
+            .push(format!("loaded {}", location_text(location, load_key)));
+    }
 }
 
 /// Descriptor data read from the plugin factory.
@@ -177,6 +223,10 @@ pub struct DescriptorInfo {
     pub name: String,
     /// Feature strings.
     pub features: Vec<String>,
+    /// Vendor.
+    pub vendor: String,
+    /// Web page (empty or absent: none).
+    pub url: String,
 }
 
 /// An event at an absolute sample position of a render.
@@ -280,7 +330,8 @@ pub struct LoadedPlugin {
     _entry: PluginEntry,
 }
 
-fn host_info() -> HostInfo {
+/// What the test host says about itself.
+pub fn host_info() -> HostInfo {
     HostInfo::new(
         "modal-contact-test-host",
         "modal_contact",
@@ -295,7 +346,8 @@ fn host_info() -> HostInfo {
 /// registered by the plugin runs after its code was unmapped).
 static KEEP_LOADED: Mutex<Vec<(PathBuf, PluginEntry)>> = Mutex::new(Vec::new());
 
-fn load_entry(bundle: &Path) -> PluginEntry {
+/// The bundle's entry, loaded once per process (see [`KEEP_LOADED`]).
+pub fn load_entry(bundle: &Path) -> PluginEntry {
     let mut kept = KEEP_LOADED.lock().unwrap_or_else(|e| e.into_inner());
     if let Some((_, e)) = kept.iter().find(|(p, _)| p == bundle) {
         return e.clone();
@@ -320,6 +372,14 @@ pub fn descriptors(bundle: &Path) -> Vec<DescriptorInfo> {
                 .features()
                 .map(|f| f.to_string_lossy().into_owned())
                 .collect(),
+            vendor: d
+                .vendor()
+                .map(|v| v.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            url: d
+                .url()
+                .map(|v| v.to_string_lossy().into_owned())
+                .unwrap_or_default(),
         })
         .collect()
 }
@@ -362,9 +422,14 @@ impl LoadedPlugin {
     pub fn load(bundle: &Path) -> Self {
         let entry = load_entry(bundle);
         let id = CString::new(PLUGIN_ID).expect("id");
-        let instance =
-            PluginInstance::<TestHost>::new(|_| TestShared, |_| (), &entry, &id, &host_info())
-                .expect("instantiate plugin");
+        let instance = PluginInstance::<TestHost>::new(
+            |_| TestShared,
+            |_| TestMainThread::default(),
+            &entry,
+            &id,
+            &host_info(),
+        )
+        .expect("instantiate plugin");
         Self {
             instance,
             _entry: entry,
@@ -416,6 +481,22 @@ impl LoadedPlugin {
         let handle = self.instance.plugin_handle();
         let state: PluginState = handle.get_extension().expect("state extension");
         state.load(&handle, &mut &bytes[..]).is_ok()
+    }
+
+    /// Load a preset the way a host's preset browser does (CLAP
+    /// preset-load): `Location::Plugin` with a built-in scene's key, or a
+    /// scene file. Returns whether the plugin accepted it and the
+    /// preset-load callbacks the host received during the call.
+    pub fn load_preset(
+        &mut self,
+        location: Location,
+        load_key: Option<&std::ffi::CStr>,
+    ) -> (bool, Vec<String>) {
+        let handle = self.instance.plugin_handle();
+        let ext: PluginPresetLoad = handle.get_extension().expect("preset-load extension");
+        let ok = ext.load_from_location(&handle, location, load_key).is_ok();
+        let events = self.instance.access_handler(|h| h.preset_events.take());
+        (ok, events)
     }
 
     /// Activate at `rate_hz` for blocks of `min_frames..=max_frames` and

@@ -38,6 +38,12 @@ fn descriptor_is_an_instrument() {
     assert_eq!(d.len(), 1);
     assert_eq!(d[0].id, PLUGIN_ID);
     assert_eq!(d[0].name, "Modal Contact");
+    assert_eq!(d[0].vendor, "Modal Contact");
+    assert!(
+        !d[0].url.contains("example.invalid"),
+        "no placeholder address: {:?}",
+        d[0].url
+    );
     for f in ["instrument", "synthesizer", "stereo"] {
         assert!(d[0].features.iter().any(|x| x == f), "{:?}", d[0].features);
     }

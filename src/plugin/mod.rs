@@ -10,6 +10,7 @@
 //! instrument's allocation-free rendering.
 
 pub mod browser;
+pub mod clap_entry;
 pub mod editor;
 pub mod live;
 pub mod params;
@@ -180,9 +181,12 @@ fn note_event(event: &NoteEvent<()>) -> Option<Event> {
 
 impl Plugin for ModalContact {
     const NAME: &'static str = "Modal Contact";
-    const VENDOR: &'static str = "modal_contact";
-    const URL: &'static str = "https://example.invalid/modal_contact";
-    const EMAIL: &'static str = "modal_contact@example.invalid";
+    const VENDOR: &'static str = "Modal Contact";
+    // The project has no public web page or support address yet: hosts get
+    // none (an empty field) rather than a made-up one. Fill both in when it
+    // has them (CLAP and VST3 descriptors, and the preset provider's vendor).
+    const URL: &'static str = "";
+    const EMAIL: &'static str = "";
     const VERSION: &'static str = env!("CARGO_PKG_VERSION");
 
     const AUDIO_IO_LAYOUTS: &'static [AudioIOLayout] = &[AudioIOLayout {
@@ -443,7 +447,8 @@ impl Vst3Plugin for ModalContact {
         &[Vst3SubCategory::Instrument, Vst3SubCategory::Synth];
 }
 
-nice_export_clap!(ModalContact);
+// The CLAP entry point is `clap_entry` (the plugin factory plus preset
+// discovery); nice_export_clap! would offer the plugin factory only.
 nice_export_vst3!(ModalContact);
 
 #[cfg(test)]
