@@ -346,7 +346,7 @@ pub fn host_info() -> HostInfo {
 /// registered by the plugin runs after its code was unmapped).
 static KEEP_LOADED: Mutex<Vec<(PathBuf, PluginEntry)>> = Mutex::new(Vec::new());
 
-/// The bundle's entry, loaded once per process (see [`KEEP_LOADED`]).
+/// The bundle's entry, loaded once per process and never unloaded.
 pub fn load_entry(bundle: &Path) -> PluginEntry {
     let mut kept = KEEP_LOADED.lock().unwrap_or_else(|e| e.into_inner());
     if let Some((_, e)) = kept.iter().find(|(p, _)| p == bundle) {
