@@ -16,7 +16,9 @@ use clack_extensions::params::{ParamInfoBuffer, PluginParams};
 use clack_extensions::preset_discovery::prelude::{HostPresetLoad, Location, PluginPresetLoad};
 use clack_extensions::preset_discovery::HostPresetLoadImpl;
 use clack_extensions::state::PluginState;
-use clack_host::events::event_types::{MidiEvent, NoteOffEvent, NoteOnEvent, ParamValueEvent};
+use clack_host::events::event_types::{
+    MidiEvent, NoteExpressionEvent, NoteExpressionType, NoteOffEvent, NoteOnEvent, ParamValueEvent,
+};
 use clack_host::events::Match;
 use clack_host::prelude::*;
 use modal_contact::instrument::{
@@ -255,6 +257,15 @@ pub enum HostEvent {
         /// The three bytes.
         data: [u8; 3],
     },
+    /// A CLAP "tuning" note expression for `key` on channel 1 \[semitones\].
+    Tuning {
+        /// Sample position.
+        at: usize,
+        /// MIDI key.
+        key: u8,
+        /// Semitones.
+        semitones: f64,
+    },
     /// Parameter value (CLAP value: normalised for continuous parameters,
     /// step index for enums and bools).
     Param {
@@ -274,6 +285,7 @@ impl HostEvent {
             HostEvent::NoteOn { at, .. }
             | HostEvent::NoteOff { at, .. }
             | HostEvent::Midi { at, .. }
+            | HostEvent::Tuning { at, .. }
             | HostEvent::Param { at, .. } => at,
         }
     }
@@ -303,6 +315,11 @@ pub fn pitch_bend(at: usize, value: u16) -> HostEvent {
         at,
         data: [0xE0, (value & 0x7f) as u8, ((value >> 7) & 0x7f) as u8],
     }
+}
+
+/// A per-note tuning (CLAP note expression) for `key`.
+pub fn note_tuning(at: usize, key: u8, semitones: f64) -> HostEvent {
+    HostEvent::Tuning { at, key, semitones }
 }
 
 /// A parameter event by string id (CLAP value, see [`HostEvent::Param`]).
@@ -596,6 +613,14 @@ impl Session<'_> {
                     0.0,
                 )),
                 HostEvent::Midi { data, .. } => self.in_events.push(&MidiEvent::new(t, 0, data)),
+                HostEvent::Tuning { key, semitones, .. } => {
+                    self.in_events.push(&NoteExpressionEvent::new(
+                        t,
+                        Pckn::new(0u16, 0u16, key as u16, Match::All),
+                        NoteExpressionType::Tuning,
+                        semitones,
+                    ))
+                }
                 HostEvent::Param { id, value, .. } => self.in_events.push(&ParamValueEvent::new(
                     t,
                     ClapId::new(id),
@@ -715,6 +740,13 @@ pub fn library_render_prepared(
                     },
                 })
             }
+            HostEvent::Tuning { at, key, semitones } => Some(LibEvent {
+                offset: at,
+                event: Event::NoteTuning {
+                    key: Some(key),
+                    semitones,
+                },
+            }),
             HostEvent::Midi { .. } | HostEvent::Param { .. } => None,
         })
         .collect();

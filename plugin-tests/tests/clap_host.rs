@@ -322,6 +322,51 @@ fn pitch_bend_through_the_host_matches_the_library() {
     );
 }
 
+/// Per-note tuning through a real host: CLAP "tuning" note expressions
+/// reach the voice of their key at their sample offsets (one at the onset
+/// starts the note at its tuned pitch, a later one glides that note only),
+/// so the plugin's render equals the library's with the same expressions;
+/// note 60 tuned +7 at its onset sounds like note 67.
+#[test]
+fn note_tuning_expressions_through_the_host_match_the_library() {
+    let bundle = clap_bundle(Variant::Release);
+    let rate = 48_000.0;
+    let total = 24_000;
+    let events = vec![
+        on(100, 60, 0.8),
+        plugin_tests::note_tuning(100, 60, 7.0),
+        on(3_000, 64, 0.7),
+        plugin_tests::note_tuning(6_000, 64, -0.5),
+        plugin_tests::note_tuning(12_000, 60, 0.25),
+    ];
+    let mut p = LoadedPlugin::load(&bundle);
+    let plugin = p.render(&RenderSpec::new(rate, 256, total, events.clone()));
+    let lib = library_render(&InstrumentParams::default(), rate, total, &events);
+    let d = max_abs_diff(&plugin[0], &lib[0]).max(max_abs_diff(&plugin[1], &lib[1]));
+    println!("note tuning: max |plugin - library| = {d:.3e}");
+    assert!(d <= 1e-6, "plugin and library differ by {d}");
+    let fifth = library_render(
+        &InstrumentParams::default(),
+        rate,
+        2_900,
+        &[on(100, 67, 0.8)],
+    );
+    let d5 = max_abs_diff(&plugin[0][..2_900], &fifth[0]);
+    println!("note 60 tuned +7 at its onset vs note 67: max diff {d5:.3e}");
+    assert!(peak(&fifth[0]) > 0.01 && d5 <= 1e-6, "{d5}");
+    let untuned = library_render(
+        &InstrumentParams::default(),
+        rate,
+        total,
+        &[on(100, 60, 0.8), on(3_000, 64, 0.7)],
+    );
+    let moved = max_abs_diff(&plugin[0][7_000..12_000], &untuned[0][7_000..12_000]);
+    assert!(
+        moved > 1e-3 * peak(&untuned[0]),
+        "the tuning did nothing: {moved}"
+    );
+}
+
 /// The pedals through a real host: MIDI controllers 64 (sustain) and 66
 /// (sostenuto) reach the instrument at their sample offsets, so the
 /// plugin's render equals the library's with the same pedal events, and a

@@ -39,6 +39,21 @@ pub enum Event {
         /// Wheel position, -1 .. 1.
         value: f64,
     },
+    /// Per-note tuning (the CLAP and VST3 "tuning" note expression): the
+    /// voice of `key` (every voice when `None`, CLAP's wildcard) moves to
+    /// its note's pitch plus `semitones`, on top of the wheel, like a bend of
+    /// that note alone (docs/plugin.md, "Per-note tuning"). Sent at the
+    /// note's onset (before the voice has rendered a sample) it applies at
+    /// once, so the note starts at its tuned pitch; later, it glides like
+    /// the wheel. Clamped to
+    /// ±[`MAX_NOTE_TUNING_SEMITONES`](super::MAX_NOTE_TUNING_SEMITONES); not
+    /// a number is 0. A new note on the key starts untuned.
+    NoteTuning {
+        /// MIDI key, or `None` for every voice.
+        key: Option<u8>,
+        /// Offset from the note's pitch \[semitones\].
+        semitones: f64,
+    },
 }
 
 /// An event at a sample offset.

@@ -35,6 +35,9 @@
 //!   every [`BEND_TICK_SAMPLES`] samples of the instrument's clock, keeping
 //!   each voice's physical energy ([`EngineState::bend_time_scale`]);
 //!   bouncing scenes are not bent (docs/plugin.md, "Pitch bend").
+//! - **Per-note tuning** ([`Event::NoteTuning`]): the same for one voice,
+//!   on top of the wheel; at the note's onset it applies at once
+//!   (docs/plugin.md, "Per-note tuning").
 //! - **Damper**: on note-off the voice is carried ([`EngineState::rebind`],
 //!   no energy increase) onto a "damped" compilation of the same scene whose
 //!   decay times are divided by `1 + 50 * damper` ([`damped_scene`]). A new
@@ -131,10 +134,23 @@ pub const BEND_TICK_SAMPLES: usize = 16;
 /// changes the pitch by at most `100 * 16 / rate` semitones (0.036 at
 /// 44.1 kHz: the displacement scales by 0.2 %).
 pub const BEND_SLEW_SEMITONES_PER_S: f64 = 100.0;
+/// Largest per-note tuning \[semitones\] ([`Event::NoteTuning`]; four
+/// octaves, MPE's default per-note bend range).
+pub const MAX_NOTE_TUNING_SEMITONES: f64 = 48.0;
 /// Root note of scenes without modal frequencies (middle C).
 pub const DEFAULT_ROOT_NOTE: f64 = 60.0;
 /// Fixed slots for retired compiled scenes waiting to be handed back.
 pub const RETIRED_SLOTS: usize = 4;
+
+/// `now` moved towards `target` by at most `step`.
+fn slew(now: f64, target: f64, step: f64) -> f64 {
+    let d = target - now;
+    if d.abs() <= step {
+        target
+    } else {
+        now + step.copysign(d)
+    }
+}
 
 /// Counters for tests and diagnostics.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -183,6 +199,8 @@ pub struct Instrument {
     bend_now: f64,
     /// Some voice could not take the last bend (it was in contact).
     bend_pending: bool,
+    /// Some voice's per-note tuning is still gliding.
+    tuning_moving: bool,
     acc: [[f64; CHECK_INTERVAL_SAMPLES]; 2],
     vbuf: [[f64; CHECK_INTERVAL_SAMPLES]; 2],
     /// The live view's probe and whether it records now.
@@ -265,6 +283,7 @@ impl Instrument {
             bend_wheel: 0.0,
             bend_now: 0.0,
             bend_pending: false,
+            tuning_moving: false,
             acc: [[0.0; CHECK_INTERVAL_SAMPLES]; 2],
             vbuf: [[0.0; CHECK_INTERVAL_SAMPLES]; 2],
             probe: None,
@@ -335,7 +354,7 @@ impl Instrument {
     /// Whether a bend is still moving (the voices are updated on the
     /// [`BEND_TICK_SAMPLES`] grid).
     fn bend_moving(&self) -> bool {
-        self.bend_now != self.bend_target() || self.bend_pending
+        self.bend_now != self.bend_target() || self.bend_pending || self.tuning_moving
     }
 
     /// One update of a moving bend: step towards the wheel (slew-limited)
@@ -347,33 +366,66 @@ impl Instrument {
     fn bend_tick(&mut self) {
         let target = self.bend_target();
         let step = BEND_SLEW_SEMITONES_PER_S * BEND_TICK_SAMPLES as f64 / self.cur.rate_hz;
-        let d = target - self.bend_now;
-        self.bend_now = if d.abs() <= step {
-            target
-        } else {
-            self.bend_now + step.copysign(d)
-        };
+        self.bend_now = slew(self.bend_now, target, step);
         let p = &mut *self.cur;
         let mut pending = false;
-        if !p.bouncing {
-            let f = 2f64.powf(self.bend_now / 12.0);
-            for i in 0..MAX_VOICES {
-                let v = self.voices[i];
-                if !v.active {
-                    continue;
-                }
-                let s = v.base_scale * f;
-                let st = &mut p.states[i];
-                if st.time_scale() == s {
-                    continue;
-                }
-                // Err: a voice that cannot scale time (dense fallback) stays put
-                if let Ok(false) = st.bend_time_scale(p.scenes.bound(v.on_damped), s) {
-                    pending = true;
-                }
+        let mut tuning_moving = false;
+        for i in 0..MAX_VOICES {
+            let v = &mut self.voices[i];
+            if !v.active {
+                continue;
+            }
+            v.tuning_now = slew(v.tuning_now, v.tuning_target, step);
+            if p.bouncing {
+                continue;
+            }
+            tuning_moving |= v.tuning_now != v.tuning_target;
+            let s = v.base_scale * 2f64.powf((self.bend_now + v.tuning_now) / 12.0);
+            let st = &mut p.states[i];
+            if st.time_scale() == s {
+                continue;
+            }
+            // Err: a voice that cannot scale time (dense fallback) stays put
+            if let Ok(false) = st.bend_time_scale(p.scenes.bound(v.on_damped), s) {
+                pending = true;
             }
         }
         self.bend_pending = pending;
+        self.tuning_moving = tuning_moving;
+    }
+
+    /// A per-note tuning ([`Event::NoteTuning`]). \[audio-thread\]
+    fn note_tuning(&mut self, key: Option<u8>, semitones: f64) {
+        let t = if semitones.is_nan() {
+            0.0
+        } else {
+            semitones.clamp(-MAX_NOTE_TUNING_SEMITONES, MAX_NOTE_TUNING_SEMITONES)
+        };
+        let p = &mut *self.cur;
+        for i in 0..MAX_VOICES {
+            let v = &mut self.voices[i];
+            if !v.active || key.is_some_and(|k| k != v.key) {
+                continue;
+            }
+            v.tuning_target = t;
+            if p.bouncing || v.tuning_now == t {
+                continue;
+            }
+            let st = &mut p.states[i];
+            if v.onset_pos == self.sample_pos && !st.in_contact() {
+                // at the onset: the note starts at its tuned pitch (the
+                // hammer keeps its physical speed, the object its energy;
+                // the silence test's reference follows the units)
+                let s = v.base_scale * 2f64.powf((self.bend_now + t) / 12.0);
+                let s_old = st.time_scale();
+                if let Ok(true) = st.bend_time_scale(p.scenes.bound(v.on_damped), s) {
+                    v.tuning_now = t;
+                    v.strike_energy *= (s_old / s) * (s_old / s);
+                    continue;
+                }
+            }
+            self.tuning_moving = true;
+        }
     }
 
     /// The engine state of voice `voice_idx` (for tests and tools, e.g. to
@@ -503,6 +555,7 @@ impl Instrument {
                     value.clamp(-1.0, 1.0)
                 };
             }
+            Event::NoteTuning { key, semitones } => self.note_tuning(key, semitones),
             Event::Sostenuto { down } => {
                 if down && !self.pedals.sostenuto {
                     self.pedals.sostenuto_keys = self.pedals.keys_down;

@@ -888,3 +888,123 @@ fn energy_rt_equals_energy() {
         assert!(checked_contact, "{}: never in contact", preset.name);
     }
 }
+
+fn tuning(offset: usize, key: Option<u8>, semitones: f64) -> TimedEvent {
+    TimedEvent {
+        offset,
+        event: Event::NoteTuning { key, semitones },
+    }
+}
+
+/// A per-note tuning sent with the note-on (as a host sends a microtonal
+/// note's expression) starts the note at the tuned pitch: note 60 tuned
+/// +12 semitones sounds like note 72, to rounding; sent one sample later it
+/// glides instead (and so differs).
+#[test]
+fn a_tuning_at_the_onset_starts_the_note_at_its_pitch() {
+    let p = params("marimba-bar");
+    let n = 6000;
+    let tuned = render(
+        &mut instrument(&p),
+        &[on(5, 60, 0.8), tuning(5, Some(60), 12.0)],
+        n,
+    );
+    let played = render(&mut instrument(&p), &[on(5, 72, 0.8)], n);
+    let peak = played[0].iter().fold(0f32, |m, x| m.max(x.abs())) as f64;
+    let d = tuned[0]
+        .iter()
+        .zip(&played[0])
+        .map(|(a, b)| (f64::from(*a) - f64::from(*b)).abs())
+        .fold(0.0, f64::max);
+    println!("note 60 tuned +12 at its onset vs note 72: max diff {d:.2e} (peak {peak:.3})");
+    assert!(peak > 0.01 && d <= 1e-6 * peak, "{d} vs peak {peak}");
+    let late = render(
+        &mut instrument(&p),
+        &[on(5, 60, 0.8), tuning(6, Some(60), 12.0)],
+        n,
+    );
+    let d_late = late[0]
+        .iter()
+        .zip(&played[0])
+        .map(|(a, b)| (f64::from(*a) - f64::from(*b)).abs())
+        .fold(0.0, f64::max);
+    assert!(d_late > 1e-3 * peak, "a later tuning glides: {d_late}");
+}
+
+/// A tuning moves only its note's voice, glides like the wheel (2 semitones
+/// in 20 ms, in 16-sample updates), ends at exactly the note's time scale
+/// times `2^(2/12)`, adds to the wheel, and never raises the voice's
+/// physical energy; the wildcard moves every voice; a new note on the key
+/// starts untuned; bad values are clamped (NaN is 0).
+#[test]
+fn a_note_tuning_glides_one_voice_without_adding_energy() {
+    let p = params("marimba-bar");
+    let mut inst = instrument(&p);
+    let _ = render(&mut inst, &[on(0, 60, 0.8), on(0, 67, 0.6)], 3000);
+    let (i60, i67) = (0, 1);
+    assert_eq!((inst.voices[i60].key, inst.voices[i67].key), (60, 67));
+    let base60 = inst.voice_state_mut(i60).time_scale();
+    let base67 = inst.voice_state_mut(i67).time_scale();
+    let scene = inst.cur.scenes.scene.clone();
+    let mut e_prev = inst.voice_state_mut(i60).energy(&scene);
+    let mut rise = f64::MIN;
+    let mut updates = 0;
+    for k in 0..1500 {
+        let evs = if k == 0 {
+            vec![tuning(0, Some(60), 2.0)]
+        } else {
+            vec![]
+        };
+        let before = inst.voice_state_mut(i60).time_scale();
+        let _ = render(&mut inst, &evs, 1);
+        let st = inst.voice_state_mut(i60);
+        updates += usize::from(st.time_scale() != before);
+        let e = st.energy(&scene);
+        rise = rise.max((e - e_prev) / e_prev);
+        e_prev = e;
+    }
+    let want = base60 * 2f64.powf(2.0 / 12.0);
+    let got = inst.voice_state_mut(i60).time_scale();
+    println!("tuning +2: {updates} updates, largest relative energy change per sample {rise:.1e}");
+    assert!((got - want).abs() <= 1e-15 * want, "{got} vs {want}");
+    assert_eq!(
+        inst.voice_state_mut(i67).time_scale(),
+        base67,
+        "the other note stays"
+    );
+    let expect = (0.02 * RATE / BEND_TICK_SAMPLES as f64).ceil() as usize;
+    assert!(
+        (expect..=expect + 1).contains(&updates),
+        "{updates} updates"
+    );
+    assert!(rise <= 1e-13, "energy rose by {rise:e}");
+
+    // adds to the wheel; the wildcard moves both; clamps; NaN is 0
+    let _ = render(&mut inst, &[bend(0, 1.0), tuning(0, None, -1.0)], 3000);
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-14 * b;
+    assert!(close(
+        inst.voice_state_mut(i60).time_scale(),
+        base60 * 2f64.powf(1.0 / 12.0)
+    ));
+    assert!(close(
+        inst.voice_state_mut(i67).time_scale(),
+        base67 * 2f64.powf(1.0 / 12.0)
+    ));
+    // (the targets: a glide of 48 semitones outlasts the quickened decay)
+    let _ = render(
+        &mut inst,
+        &[
+            bend(0, 0.0),
+            tuning(0, Some(60), 1e9),
+            tuning(0, Some(67), f64::NAN),
+        ],
+        16,
+    );
+    assert_eq!(inst.voices[i60].tuning_target, MAX_NOTE_TUNING_SEMITONES);
+    assert_eq!(inst.voices[i67].tuning_target, 0.0);
+    // a new note on the key glides back to the note's own pitch
+    let _ = render(&mut inst, &[on(0, 60, 0.5)], 30_000);
+    assert!(close(inst.voice_state_mut(i60).time_scale(), base60));
+    let y = render(&mut inst, &[], 100);
+    assert!(y[0].iter().all(|x| x.is_finite()));
+}

@@ -23,6 +23,13 @@ pub(super) struct Voice {
     pub(super) strike_energy: f64,
     /// Time scale of its note without the pitch bend.
     pub(super) base_scale: f64,
+    /// Per-note tuning asked for \[semitones\] ([`super::Event::NoteTuning`]).
+    pub(super) tuning_target: f64,
+    /// Per-note tuning the voice is at (gliding towards the target).
+    pub(super) tuning_now: f64,
+    /// The instrument's clock at its last note-on: a tuning at this very
+    /// sample applies at once.
+    pub(super) onset_pos: u64,
 }
 
 impl Instrument {
@@ -44,6 +51,11 @@ impl Instrument {
                 v.on_damped = false;
             }
             v.released = false;
+            // a new note starts untuned (from where it is, gliding)
+            v.tuning_target = 0.0;
+            if v.tuning_now != 0.0 {
+                self.tuning_moving = true;
+            }
             i
         } else {
             let poly = self.play.polyphony.clamp(1, MAX_VOICES);
@@ -81,6 +93,9 @@ impl Instrument {
                 on_damped: false,
                 strike_energy: 0.0,
                 base_scale: base,
+                tuning_target: 0.0,
+                tuning_now: 0.0,
+                onset_pos: 0,
             };
             i
         };
@@ -97,6 +112,7 @@ impl Instrument {
             st.strike(&p.scenes.scene, 0.0, -speed);
         }
         self.voices[idx].strike_energy = e;
+        self.voices[idx].onset_pos = self.sample_pos;
     }
 
     pub(super) fn note_off(&mut self, key: Option<u8>) {

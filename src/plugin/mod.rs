@@ -175,6 +175,12 @@ fn note_event(event: &NoteEvent<()>) -> Option<Event> {
                 value: if m >= 0.0 { m / 8191.0 } else { m / 8192.0 },
             })
         }
+        // Per-note tuning (CLAP and VST3 note expressions; nice-plug gives
+        // semitones). Voices are one per key, so the key finds the voice.
+        NoteEvent::PolyTuning { key, tuning, .. } => Some(Event::NoteTuning {
+            key: key.number(),
+            semitones: f64::from(tuning),
+        }),
         _ => None,
     }
 }
