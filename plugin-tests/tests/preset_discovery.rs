@@ -188,7 +188,12 @@ fn hosts_list_the_built_in_and_user_scenes_and_load_them() {
         desc.name(),
         desc.vendor()
     );
-    assert!(desc.vendor().is_some_and(|v| !v.is_empty()));
+    let vendor = <modal_contact::plugin::ModalContact as nice_plug::prelude::Plugin>::VENDOR;
+    assert_eq!(
+        desc.vendor().map(text).as_deref(),
+        Some(vendor),
+        "the plugin's vendor"
+    );
     let mut provider = Provider::instantiate(Indexer::default(), &entry, PROVIDER_ID, &host_info())
         .expect("provider");
     let idx = provider.indexer();
