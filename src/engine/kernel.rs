@@ -626,6 +626,28 @@ pub fn mat_vec_add(path: SimdPath, m: &[f64], nrows: usize, x: &[f64], y: &mut [
     }
 }
 
+/// `y += W x` for a change of basis at a switch: through its hierarchical
+/// form `h` when there is one (and `structured`), else through the dense
+/// row-major `w` of `nrows` rows. `tmp`: scratch for [`hodlr_mat_vec_add`].
+/// \[audio-thread\]
+pub fn change_of_basis_add(
+    path: SimdPath,
+    structured: Option<&Hodlr>,
+    w: &[f64],
+    nrows: usize,
+    x: &[f64],
+    y: &mut [f64],
+    tmp: &mut [Vec<f64>; 3],
+) {
+    match structured {
+        Some(h) => {
+            let [a, b, c] = tmp;
+            hodlr_mat_vec_add(path, h, x, y, [a, b, c]);
+        }
+        None => mat_vec_add(path, w, nrows, x, y),
+    }
+}
+
 /// `y += W x` for `W` in hierarchical low-rank form (the structured change
 /// of basis at a switch): the permutations, then each piece through
 /// [`mat_vec_add`] (a dense leaf, or `V^T` then `U` of a low-rank block).

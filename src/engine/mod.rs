@@ -1203,19 +1203,15 @@ impl EngineState {
         }
         let at_rest = free.s.iter().all(|&x| x == 0.0);
         if !at_rest {
-            match scene.w_cf_h.as_ref().filter(|_| self.structured) {
-                Some(h) => {
-                    let [a, b, c] = &mut self.dense_tmp;
-                    kernel::hodlr_mat_vec_add(self.simd, h, &free.s, &mut contact.s, [a, b, c]);
-                }
-                None => kernel::mat_vec_add(
-                    self.simd,
-                    scene.w_cf.as_slice(),
-                    dc,
-                    &free.s,
-                    &mut contact.s,
-                ),
-            }
+            kernel::change_of_basis_add(
+                self.simd,
+                scene.w_cf_h.as_ref().filter(|_| self.structured),
+                scene.w_cf.as_slice(),
+                dc,
+                &free.s,
+                &mut contact.s,
+                &mut self.dense_tmp,
+            );
         }
         self.rest_entry = (at_rest
             && self.rest_enabled
@@ -1262,19 +1258,15 @@ impl EngineState {
             }
         } else {
             free.s[..df].copy_from_slice(&scene.s_f_star);
-            match scene.w_fc_h.as_ref().filter(|_| self.structured) {
-                Some(h) => {
-                    let [a, b, c] = &mut self.dense_tmp;
-                    kernel::hodlr_mat_vec_add(self.simd, h, &contact.s, &mut free.s, [a, b, c]);
-                }
-                None => kernel::mat_vec_add(
-                    self.simd,
-                    scene.w_fc.as_slice(),
-                    df,
-                    &contact.s,
-                    &mut free.s,
-                ),
-            }
+            kernel::change_of_basis_add(
+                self.simd,
+                scene.w_fc_h.as_ref().filter(|_| self.structured),
+                scene.w_fc.as_slice(),
+                df,
+                &contact.s,
+                &mut free.s,
+                &mut self.dense_tmp,
+            );
         }
         self.x_h = x_c - p_eff - self.rod_m;
         self.v_h = eta / scene.sm;
