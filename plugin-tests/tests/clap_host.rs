@@ -367,6 +367,79 @@ fn note_tuning_expressions_through_the_host_match_the_library() {
     );
 }
 
+/// MPE over MIDI 1.0 through a real host: after the MPE Configuration
+/// Message (RPN 6 on channel 1), a member channel's pitch bend retunes the
+/// notes of that channel only (48 semitones at full bend), a note-on on an
+/// already bent channel starts at that pitch, and channel 1 stays the
+/// wheel: the plugin's render equals the library's with the per-note
+/// tunings and wheel bends those messages mean. Without the configuration
+/// message, a bend on channel 2 is the wheel.
+#[test]
+fn mpe_member_channel_bends_tune_their_notes_through_the_host() {
+    let bundle = clap_bundle(Variant::Release);
+    let rate = 48_000.0;
+    let total = 24_000;
+    let midi = |at: usize, data: [u8; 3]| HostEvent::Midi { at, data };
+    let bend14 = |m: i32| {
+        let v = (m + 8192) as u16;
+        [(v & 0x7f) as u8, (v >> 7) as u8]
+    };
+    // the plugin's own mapping: 14 bits -> -1 .. 1 -> 48 semitones
+    let semis = |m: i32| {
+        let m = f64::from(m);
+        (if m >= 0.0 { m / 8191.0 } else { m / 8192.0 }) * 48.0
+    };
+    let (b2, b3) = (bend14(1024), bend14(-2048));
+    let events = vec![
+        midi(0, [0xB0, 101, 0]),
+        midi(0, [0xB0, 100, 6]),
+        midi(0, [0xB0, 6, 15]),
+        midi(50, [0xE1, b2[0], b2[1]]),
+        midi(100, [0x91, 60, 100]),
+        midi(3_000, [0x92, 64, 90]),
+        midi(6_000, [0xE2, b3[0], b3[1]]),
+        plugin_tests::pitch_bend(12_000, 16383),
+    ];
+    let expected = vec![
+        on(100, 60, 100.0 / 127.0),
+        plugin_tests::note_tuning(100, 60, semis(1024)),
+        on(3_000, 64, 90.0 / 127.0),
+        plugin_tests::note_tuning(6_000, 64, semis(-2048)),
+        plugin_tests::pitch_bend(12_000, 16383),
+    ];
+    let mut p = LoadedPlugin::load(&bundle);
+    let plugin = p.render(&RenderSpec::new(rate, 256, total, events));
+    let lib = library_render(&InstrumentParams::default(), rate, total, &expected);
+    let d = max_abs_diff(&plugin[0], &lib[0]).max(max_abs_diff(&plugin[1], &lib[1]));
+    println!(
+        "MPE: {:+.3} and {:+.3} semitones on channels 2 and 3; max |plugin - library| = {d:.3e}",
+        semis(1024),
+        semis(-2048)
+    );
+    assert!(
+        peak(&lib[0]) > 0.01 && d <= 1e-6,
+        "plugin and library differ by {d}"
+    );
+
+    // no configuration message: channel 2's bend is the wheel (2 semitones)
+    let events = vec![
+        midi(100, [0x91, 60, 100]),
+        midi(6_000, [0xE1, b2[0], b2[1]]),
+    ];
+    let v = 1024.0 / 8191.0;
+    let wheel_bend = (8192.0 + v * 8191.0) as u16;
+    let expected = vec![
+        on(100, 60, 100.0 / 127.0),
+        plugin_tests::pitch_bend(6_000, wheel_bend),
+    ];
+    let mut p = LoadedPlugin::load(&bundle);
+    let plugin = p.render(&RenderSpec::new(rate, 256, total, events));
+    let lib = library_render(&InstrumentParams::default(), rate, total, &expected);
+    let d = max_abs_diff(&plugin[0], &lib[0]).max(max_abs_diff(&plugin[1], &lib[1]));
+    println!("without MPE, channel 2's bend as the wheel: max |plugin - library| = {d:.3e}");
+    assert!(d <= 1e-6, "{d}");
+}
+
 /// The pedals through a real host: MIDI controllers 64 (sustain) and 66
 /// (sostenuto) reach the instrument at their sample offsets, so the
 /// plugin's render equals the library's with the same pedal events, and a

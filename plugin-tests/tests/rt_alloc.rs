@@ -84,6 +84,22 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
     events.push(plugin_tests::pitch_bend(20_100, 16383));
     events.push(plugin_tests::pitch_bend(20_500, 0));
     events.push(plugin_tests::pitch_bend(23_000, 8192));
+    // MPE: the zone's configuration message, then notes on every member
+    // channel (two per channel) and a bend on each, which retunes every
+    // note of its channel; then the zone is turned off again
+    let midi = |at: usize, data: [u8; 3]| HostEvent::Midi { at, data };
+    events.extend([
+        midi(24_000, [0xB0, 101, 0]),
+        midi(24_000, [0xB0, 100, 6]),
+        midi(24_000, [0xB0, 6, 15]),
+    ]);
+    for ch in 1..16u8 {
+        let at = 24_010 + 10 * ch as usize;
+        events.push(midi(at, [0x90 | ch, 30 + ch, 100]));
+        events.push(midi(at, [0x90 | ch, 80 + ch, 90]));
+        events.push(midi(24_300, [0xE0 | ch, 0, (ch * 8) & 0x7f]));
+    }
+    events.push(midi(24_600, [0xB0, 6, 0]));
     events.push(param(first_change, ids::HARDNESS, 0.6));
     events.push(param(first_change, ids::DECAY, 0.4));
     events.push(param(45_000, ids::STRIKE_CUSTOM, 1.0));

@@ -13,6 +13,7 @@ pub mod browser;
 pub mod clap_entry;
 pub mod editor;
 pub mod live;
+pub mod mpe;
 pub mod params;
 pub mod user_scene;
 pub mod worker;
@@ -50,6 +51,10 @@ pub struct ModalContact {
     ring: Arc<LiveRing>,
     /// Audition pad strikes from the editor.
     pads: Arc<ArrayQueue<Event>>,
+    /// Audio thread: MIDI 1.0 MPE (docs/plugin.md, "MPE").
+    mpe: mpe::Mpe,
+    /// Audio thread: what the last host event became (MPE may make many).
+    translated: mpe::Out,
     #[cfg(feature = "alloc-bug")]
     leak: Vec<f32>,
 }
@@ -71,6 +76,8 @@ impl Default for ModalContact {
             panics: 0,
             ring: LiveRing::new(RING_FRAMES),
             pads: Arc::new(ArrayQueue::new(editor::PAD_QUEUE)),
+            mpe: mpe::Mpe::default(),
+            translated: mpe::Out::new(),
             #[cfg(feature = "alloc-bug")]
             leak: Vec::new(),
         }
@@ -406,9 +413,24 @@ impl ModalContact {
         let leak = &mut self.leak;
         // The host's events as the instrument's, read as the block is
         // rendered (no buffer): the instrument applies each at its offset.
+        // One host event may become several (an MPE member channel's bend
+        // retunes each of its notes): they wait in `translated`.
+        let (mpe, out) = (&mut self.mpe, &mut self.translated);
+        out.clear();
+        let (mut next, mut at) = (0usize, 0usize);
         let events = std::iter::from_fn(|| loop {
+            if let Some(&event) = out.as_slice().get(next) {
+                next += 1;
+                return Some(TimedEvent { offset: at, event });
+            }
             let event = context.next_event()?;
             let Some(e) = note_event(&event) else {
+                if let NoteEvent::MidiCC {
+                    channel, cc, value, ..
+                } = event
+                {
+                    mpe.controller(channel, cc, (value.clamp(0.0, 1.0) * 127.0).round() as u8);
+                }
                 continue;
             };
             // TEST ONLY fault injection (test bundles; never in a shipped
@@ -424,10 +446,16 @@ impl ModalContact {
             if matches!(e, Event::NoteOn { key: 1, .. }) {
                 panic!("panic-bug: deliberate panic on note 1");
             }
-            return Some(TimedEvent {
-                offset: event.timing() as usize,
-                event: e,
-            });
+            *out = match (event, e) {
+                (NoteEvent::NoteOn { channel, .. }, _) => {
+                    mpe.note_on(channel.number().unwrap_or(0), e)
+                }
+                (NoteEvent::MidiPitchBend { channel, .. }, Event::PitchBend { value }) => mpe
+                    .pitch_bend(channel, value)
+                    .unwrap_or_else(|| mpe::Out::one(e)),
+                _ => mpe::Out::one(e),
+            };
+            (next, at) = (0, event.timing() as usize);
         });
         inst.process_events(pad_events.chain(events), left, right);
         ProcessStatus::KeepAlive

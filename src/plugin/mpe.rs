@@ -1,0 +1,254 @@
+//! MIDI Polyphonic Expression (MPE) over MIDI 1.0: per-note pitch from the
+//! pitch bend of each note's own channel (docs/plugin.md, "MPE").
+//!
+//! MPE is off until the controller or host sends the MPE Configuration
+//! Message for the lower zone (RPN 6 on channel 1: CC 101 = 0, CC 100 = 6,
+//! CC 6 = the number of member channels, 1 to 15; 0 turns MPE off). Then
+//! channels 2 ..= members + 1 are member channels: a pitch bend on one
+//! retunes the notes sounding from that channel (an
+//! [`Event::NoteTuning`] per key, at the bend's sample), by the channel's
+//! bend range (48 semitones unless RPN 0 on that channel says otherwise); a
+//! note-on on a member channel whose bend is off centre starts at that
+//! pitch (its tuning follows the note-on at the same sample). Channel 1
+//! stays the wheel for every voice (the Bend range parameter), as do bends
+//! on channels outside the zone. The upper zone (RPN 6 on channel 16) is
+//! not read.
+//!
+//! Plain data, fixed size: the audio thread owns it; no allocation.
+
+use crate::instrument::{Event, MAX_NOTE_TUNING_SEMITONES};
+
+/// Per-note bend range of member channels after the configuration message
+/// \[semitones\] (MPE's default).
+pub const MEMBER_BEND_RANGE_SEMITONES: f64 = 48.0;
+
+/// No channel (a key not sounding from any member channel).
+const NONE: u8 = u8::MAX;
+
+/// What one MIDI message becomes: at most one event per key, plus one.
+#[derive(Debug, Clone)]
+pub struct Out {
+    events: [Event; 129],
+    len: usize,
+}
+
+impl Default for Out {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Out {
+    /// No events.
+    pub fn new() -> Self {
+        Self {
+            events: [Event::AllNotesOff; 129],
+            len: 0,
+        }
+    }
+
+    /// One event.
+    pub fn one(e: Event) -> Self {
+        let mut out = Self::new();
+        out.push(e);
+        out
+    }
+
+    fn push(&mut self, e: Event) {
+        if self.len < self.events.len() {
+            self.events[self.len] = e;
+            self.len += 1;
+        }
+    }
+
+    /// Forget the events.
+    pub fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    /// The events, in order.
+    pub fn as_slice(&self) -> &[Event] {
+        &self.events[..self.len]
+    }
+}
+
+/// The MPE state of one plugin instance.
+#[derive(Debug, Clone)]
+pub struct Mpe {
+    /// Member channels of the lower zone (0: MPE off).
+    members: u8,
+    /// Per channel: the RPN selected by CC 101 / CC 100 (MSB, LSB).
+    rpn: [(u8, u8); 16],
+    /// Per channel: pitch-bend range \[semitones\] (RPN 0).
+    range: [f64; 16],
+    /// Per channel: the bend now, -1 .. 1.
+    bend: [f64; 16],
+    /// Per key: the member channel its last note-on came from.
+    key_channel: [u8; 128],
+}
+
+impl Default for Mpe {
+    fn default() -> Self {
+        Self {
+            members: 0,
+            rpn: [(127, 127); 16],
+            range: [MEMBER_BEND_RANGE_SEMITONES; 16],
+            bend: [0.0; 16],
+            key_channel: [NONE; 128],
+        }
+    }
+}
+
+impl Mpe {
+    /// Whether a lower zone is configured.
+    pub fn enabled(&self) -> bool {
+        self.members > 0
+    }
+
+    fn is_member(&self, channel: u8) -> bool {
+        (1..=self.members).contains(&channel)
+    }
+
+    /// A note-on `event` (already translated) from `channel`: remembers the
+    /// key's channel and adds the channel's tuning after it.
+    pub fn note_on(&mut self, channel: u8, event: Event) -> Out {
+        let mut out = Out::new();
+        out.push(event);
+        if let Event::NoteOn { key, velocity_norm } = event {
+            let member = self.is_member(channel);
+            self.key_channel[key as usize & 127] = if member { channel } else { NONE };
+            if velocity_norm > 0.0 && member {
+                let c = channel as usize;
+                if self.bend[c] != 0.0 {
+                    out.push(Event::NoteTuning {
+                        key: Some(key),
+                        semitones: self.semitones(c),
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    fn semitones(&self, c: usize) -> f64 {
+        (self.bend[c] * self.range[c]).clamp(-MAX_NOTE_TUNING_SEMITONES, MAX_NOTE_TUNING_SEMITONES)
+    }
+
+    /// A pitch bend (`value` -1 .. 1, already mapped from the 14 bits) on
+    /// `channel`: `None` when it is the wheel (MPE off, the manager channel
+    /// or a channel outside the zone), else the tunings of the keys sounding
+    /// from that member channel.
+    pub fn pitch_bend(&mut self, channel: u8, value: f64) -> Option<Out> {
+        if !self.is_member(channel) {
+            return None;
+        }
+        let c = channel as usize;
+        self.bend[c] = value;
+        let mut out = Out::new();
+        let semitones = self.semitones(c);
+        for (key, &ch) in self.key_channel.iter().enumerate() {
+            if ch == channel {
+                out.push(Event::NoteTuning {
+                    key: Some(key as u8),
+                    semitones,
+                });
+            }
+        }
+        Some(out)
+    }
+
+    /// A controller (`value` 0 ..= 127): follows RPN selection and data
+    /// entry for RPN 6 (the zone) on channel 1 and RPN 0 (bend range) on
+    /// member channels. Returns whether it was one of those controllers.
+    pub fn controller(&mut self, channel: u8, cc: u8, value: u8) -> bool {
+        let c = channel as usize & 15;
+        match cc {
+            101 => self.rpn[c].0 = value,
+            100 => self.rpn[c].1 = value,
+            6 => match self.rpn[c] {
+                (0, 6) if c == 0 => {
+                    self.members = value.min(15);
+                    // the configuration message resets the ranges and bends
+                    self.range = [MEMBER_BEND_RANGE_SEMITONES; 16];
+                    self.bend = [0.0; 16];
+                    self.key_channel = [NONE; 128];
+                }
+                (0, 0) => self.range[c] = f64::from(value),
+                _ => return false,
+            },
+            _ => return false,
+        }
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn configure(m: &mut Mpe, members: u8) {
+        assert!(m.controller(0, 101, 0));
+        assert!(m.controller(0, 100, 6));
+        assert!(m.controller(0, 6, members));
+    }
+
+    fn on(key: u8) -> Event {
+        Event::NoteOn {
+            key,
+            velocity_norm: 0.5,
+        }
+    }
+
+    #[test]
+    fn off_until_configured_then_member_bends_retune_their_notes_only() {
+        let mut m = Mpe::default();
+        assert!(
+            m.pitch_bend(1, 0.5).is_none(),
+            "off: every bend is the wheel"
+        );
+        configure(&mut m, 3);
+        assert!(m.enabled());
+        assert_eq!(m.note_on(1, on(60)).as_slice(), &[on(60)]);
+        assert_eq!(m.note_on(2, on(64)).as_slice(), &[on(64)]);
+        let out = m.pitch_bend(1, 0.25).unwrap();
+        assert_eq!(
+            out.as_slice(),
+            &[Event::NoteTuning {
+                key: Some(60),
+                semitones: 12.0
+            }]
+        );
+        assert!(
+            m.pitch_bend(0, 0.5).is_none(),
+            "the manager channel is the wheel"
+        );
+        assert!(
+            m.pitch_bend(5, 0.5).is_none(),
+            "outside the zone: the wheel"
+        );
+        // a note-on on a bent channel starts at the channel's pitch
+        assert_eq!(
+            m.note_on(1, on(67)).as_slice(),
+            &[
+                on(67),
+                Event::NoteTuning {
+                    key: Some(67),
+                    semitones: 12.0
+                }
+            ]
+        );
+        // RPN 0 sets a member channel's range; the zone message resets it
+        assert!(m.controller(2, 101, 0) && m.controller(2, 100, 0) && m.controller(2, 6, 2));
+        let out = m.pitch_bend(2, -1.0).unwrap();
+        assert_eq!(
+            out.as_slice(),
+            &[Event::NoteTuning {
+                key: Some(64),
+                semitones: -2.0
+            }]
+        );
+        configure(&mut m, 0);
+        assert!(!m.enabled() && m.pitch_bend(1, 1.0).is_none());
+        assert!(!m.controller(0, 7, 100), "other controllers are not MPE's");
+    }
+}
