@@ -51,7 +51,7 @@ pub struct ModalContact {
     ring: Arc<LiveRing>,
     /// Audition pad strikes from the editor.
     pads: Arc<ArrayQueue<Event>>,
-    /// Audio thread: MIDI 1.0 MPE (docs/plugin.md, "MPE").
+    /// Audio thread: MIDI 1.0 MPE (docs/plugin.md, "Per-note tuning").
     mpe: mpe::Mpe,
     /// Audio thread: what the last host event became (MPE may make many).
     translated: mpe::Out,

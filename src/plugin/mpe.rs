@@ -1,5 +1,5 @@
 //! MIDI Polyphonic Expression (MPE) over MIDI 1.0: per-note pitch from the
-//! pitch bend of each note's own channel (docs/plugin.md, "MPE").
+//! pitch bend of each note's own channel (docs/plugin.md, "Per-note tuning").
 //!
 //! MPE is off until the controller or host sends the MPE Configuration
 //! Message for the lower zone (RPN 6 on channel 1: CC 101 = 0, CC 100 = 6,
