@@ -290,13 +290,36 @@ fn saved_state_restores_every_parameter() {
     assert_eq!(ra, rb);
 }
 
+/// `played` through the plugin (release build, default parameters,
+/// 256-sample blocks) against the library driven with `meant`, the events
+/// `played` should become: prints and bounds the largest difference, and
+/// returns the plugin's render.
+fn plugin_equals_library(
+    what: &str,
+    rate: f64,
+    total: usize,
+    played: Vec<HostEvent>,
+    meant: &[HostEvent],
+) -> [Vec<f32>; 2] {
+    let mut p = LoadedPlugin::load(&clap_bundle(Variant::Release));
+    let plugin = p.render(&RenderSpec::new(rate, 256, total, played));
+    let lib = library_render(&InstrumentParams::default(), rate, total, meant);
+    let d = max_abs_diff(&plugin[0], &lib[0]).max(max_abs_diff(&plugin[1], &lib[1]));
+    println!("{what}: max |plugin - library| = {d:.3e}");
+    assert!(
+        peak(&lib[0]) > 1e-3,
+        "{what}: the library's render is silent"
+    );
+    assert!(d <= 1e-6, "{what}: plugin and library differ by {d}");
+    plugin
+}
+
 /// The pitch-bend wheel through a real host: MIDI pitch bends reach the
 /// instrument at their sample offsets, so the plugin's render equals the
 /// library's with the same bends, and a bent note differs from the
 /// unbent one.
 #[test]
 fn pitch_bend_through_the_host_matches_the_library() {
-    let bundle = clap_bundle(Variant::Release);
     let rate = 48_000.0;
     let total = 24_000;
     let events = vec![
@@ -306,12 +329,7 @@ fn pitch_bend_through_the_host_matches_the_library() {
         on(9_500, 64, 0.7),
         plugin_tests::pitch_bend(15_000, 8192),
     ];
-    let mut p = LoadedPlugin::load(&bundle);
-    let plugin = p.render(&RenderSpec::new(rate, 256, total, events.clone()));
-    let lib = library_render(&InstrumentParams::default(), rate, total, &events);
-    let d = max_abs_diff(&plugin[0], &lib[0]).max(max_abs_diff(&plugin[1], &lib[1]));
-    println!("pitch bend: max |plugin - library| = {d:.3e}");
-    assert!(d <= 1e-6, "plugin and library differ by {d}");
+    let plugin = plugin_equals_library("pitch bend", rate, total, events.clone(), &events);
     let plain_events = vec![on(100, 60, 0.8), on(9_500, 64, 0.7)];
     let plain = library_render(&InstrumentParams::default(), rate, total, &plain_events);
     let moved = max_abs_diff(&plugin[0][3_000..9_000], &plain[0][3_000..9_000]);
@@ -329,7 +347,6 @@ fn pitch_bend_through_the_host_matches_the_library() {
 /// note 60 tuned +7 at its onset sounds like note 67.
 #[test]
 fn note_tuning_expressions_through_the_host_match_the_library() {
-    let bundle = clap_bundle(Variant::Release);
     let rate = 48_000.0;
     let total = 24_000;
     let events = vec![
@@ -339,12 +356,7 @@ fn note_tuning_expressions_through_the_host_match_the_library() {
         plugin_tests::note_tuning(6_000, 64, -0.5),
         plugin_tests::note_tuning(12_000, 60, 0.25),
     ];
-    let mut p = LoadedPlugin::load(&bundle);
-    let plugin = p.render(&RenderSpec::new(rate, 256, total, events.clone()));
-    let lib = library_render(&InstrumentParams::default(), rate, total, &events);
-    let d = max_abs_diff(&plugin[0], &lib[0]).max(max_abs_diff(&plugin[1], &lib[1]));
-    println!("note tuning: max |plugin - library| = {d:.3e}");
-    assert!(d <= 1e-6, "plugin and library differ by {d}");
+    let plugin = plugin_equals_library("note tuning", rate, total, events.clone(), &events);
     let fifth = library_render(
         &InstrumentParams::default(),
         rate,
@@ -376,7 +388,6 @@ fn note_tuning_expressions_through_the_host_match_the_library() {
 /// message, a bend on channel 2 is the wheel.
 #[test]
 fn mpe_member_channel_bends_tune_their_notes_through_the_host() {
-    let bundle = clap_bundle(Variant::Release);
     let rate = 48_000.0;
     let total = 24_000;
     let midi = |at: usize, data: [u8; 3]| HostEvent::Midi { at, data };
@@ -407,19 +418,12 @@ fn mpe_member_channel_bends_tune_their_notes_through_the_host() {
         plugin_tests::note_tuning(6_000, 64, semis(-2048)),
         plugin_tests::pitch_bend(12_000, 16383),
     ];
-    let mut p = LoadedPlugin::load(&bundle);
-    let plugin = p.render(&RenderSpec::new(rate, 256, total, events));
-    let lib = library_render(&InstrumentParams::default(), rate, total, &expected);
-    let d = max_abs_diff(&plugin[0], &lib[0]).max(max_abs_diff(&plugin[1], &lib[1]));
-    println!(
-        "MPE: {:+.3} and {:+.3} semitones on channels 2 and 3; max |plugin - library| = {d:.3e}",
+    let what = format!(
+        "MPE: {:+.3} and {:+.3} semitones on channels 2 and 3",
         semis(1024),
         semis(-2048)
     );
-    assert!(
-        peak(&lib[0]) > 0.01 && d <= 1e-6,
-        "plugin and library differ by {d}"
-    );
+    plugin_equals_library(&what, rate, total, events, &expected);
 
     // no configuration message: channel 2's bend is the wheel (2 semitones)
     let events = vec![
@@ -432,12 +436,13 @@ fn mpe_member_channel_bends_tune_their_notes_through_the_host() {
         on(100, 60, 100.0 / 127.0),
         plugin_tests::pitch_bend(6_000, wheel_bend),
     ];
-    let mut p = LoadedPlugin::load(&bundle);
-    let plugin = p.render(&RenderSpec::new(rate, 256, total, events));
-    let lib = library_render(&InstrumentParams::default(), rate, total, &expected);
-    let d = max_abs_diff(&plugin[0], &lib[0]).max(max_abs_diff(&plugin[1], &lib[1]));
-    println!("without MPE, channel 2's bend as the wheel: max |plugin - library| = {d:.3e}");
-    assert!(d <= 1e-6, "{d}");
+    plugin_equals_library(
+        "without MPE, channel 2's bend as the wheel",
+        rate,
+        total,
+        events,
+        &expected,
+    );
 }
 
 /// The pedals through a real host: MIDI controllers 64 (sustain) and 66
