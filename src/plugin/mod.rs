@@ -446,15 +446,14 @@ impl ModalContact {
             if matches!(e, Event::NoteOn { key: 1, .. }) {
                 panic!("panic-bug: deliberate panic on note 1");
             }
-            *out = match (event, e) {
+            match (event, e) {
                 (NoteEvent::NoteOn { channel, .. }, _) => {
-                    mpe.note_on(channel.number().unwrap_or(0), e)
+                    mpe.note_on(channel.number().unwrap_or(0), e, out)
                 }
-                (NoteEvent::MidiPitchBend { channel, .. }, Event::PitchBend { value }) => mpe
-                    .pitch_bend(channel, value)
-                    .unwrap_or_else(|| mpe::Out::one(e)),
-                _ => mpe::Out::one(e),
-            };
+                (NoteEvent::MidiPitchBend { channel, .. }, Event::PitchBend { value })
+                    if mpe.pitch_bend(channel, value, out) => {}
+                _ => out.set_one(e),
+            }
             (next, at) = (0, event.timing() as usize);
         });
         inst.process_events(pad_events.chain(events), left, right);

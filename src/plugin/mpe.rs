@@ -47,11 +47,10 @@ impl Out {
         }
     }
 
-    /// One event.
-    pub fn one(e: Event) -> Self {
-        let mut out = Self::new();
-        out.push(e);
-        out
+    /// Only `e`.
+    pub fn set_one(&mut self, e: Event) {
+        self.len = 0;
+        self.push(e);
     }
 
     fn push(&mut self, e: Event) {
@@ -109,11 +108,10 @@ impl Mpe {
         (1..=self.members).contains(&channel)
     }
 
-    /// A note-on `event` (already translated) from `channel`: remembers the
-    /// key's channel and adds the channel's tuning after it.
-    pub fn note_on(&mut self, channel: u8, event: Event) -> Out {
-        let mut out = Out::new();
-        out.push(event);
+    /// A note-on `event` (already translated) from `channel`, into `out`:
+    /// remembers the key's channel and adds the channel's tuning after it.
+    pub fn note_on(&mut self, channel: u8, event: Event, out: &mut Out) {
+        out.set_one(event);
         if let Event::NoteOn { key, velocity_norm } = event {
             let member = self.is_member(channel);
             self.key_channel[key as usize & 127] = if member { channel } else { NONE };
@@ -127,7 +125,6 @@ impl Mpe {
                 }
             }
         }
-        out
     }
 
     fn semitones(&self, c: usize) -> f64 {
@@ -135,16 +132,17 @@ impl Mpe {
     }
 
     /// A pitch bend (`value` -1 .. 1, already mapped from the 14 bits) on
-    /// `channel`: `None` when it is the wheel (MPE off, the manager channel
-    /// or a channel outside the zone), else the tunings of the keys sounding
-    /// from that member channel.
-    pub fn pitch_bend(&mut self, channel: u8, value: f64) -> Option<Out> {
+    /// `channel`: `false` (and `out` untouched) when it is the wheel (MPE
+    /// off, the manager channel or a channel outside the zone), else `true`
+    /// with the tunings of the keys sounding from that member channel in
+    /// `out`.
+    pub fn pitch_bend(&mut self, channel: u8, value: f64, out: &mut Out) -> bool {
         if !self.is_member(channel) {
-            return None;
+            return false;
         }
         let c = channel as usize;
         self.bend[c] = value;
-        let mut out = Out::new();
+        out.clear();
         let semitones = self.semitones(c);
         for (key, &ch) in self.key_channel.iter().enumerate() {
             if ch == channel {
@@ -154,7 +152,7 @@ impl Mpe {
                 });
             }
         }
-        Some(out)
+        true
     }
 
     /// A controller (`value` 0 ..= 127): follows RPN selection and data
@@ -199,56 +197,52 @@ mod tests {
         }
     }
 
+    fn tune(key: u8, semitones: f64) -> Event {
+        Event::NoteTuning {
+            key: Some(key),
+            semitones,
+        }
+    }
+
+    fn note_on(m: &mut Mpe, channel: u8, e: Event) -> Vec<Event> {
+        let mut out = Out::new();
+        m.note_on(channel, e, &mut out);
+        out.as_slice().to_vec()
+    }
+
+    fn bend(m: &mut Mpe, channel: u8, value: f64) -> Option<Vec<Event>> {
+        let mut out = Out::new();
+        m.pitch_bend(channel, value, &mut out)
+            .then(|| out.as_slice().to_vec())
+    }
+
     #[test]
     fn off_until_configured_then_member_bends_retune_their_notes_only() {
         let mut m = Mpe::default();
         assert!(
-            m.pitch_bend(1, 0.5).is_none(),
+            bend(&mut m, 1, 0.5).is_none(),
             "off: every bend is the wheel"
         );
         configure(&mut m, 3);
         assert!(m.enabled());
-        assert_eq!(m.note_on(1, on(60)).as_slice(), &[on(60)]);
-        assert_eq!(m.note_on(2, on(64)).as_slice(), &[on(64)]);
-        let out = m.pitch_bend(1, 0.25).unwrap();
-        assert_eq!(
-            out.as_slice(),
-            &[Event::NoteTuning {
-                key: Some(60),
-                semitones: 12.0
-            }]
-        );
+        assert_eq!(note_on(&mut m, 1, on(60)), [on(60)]);
+        assert_eq!(note_on(&mut m, 2, on(64)), [on(64)]);
+        assert_eq!(bend(&mut m, 1, 0.25).unwrap(), [tune(60, 12.0)]);
         assert!(
-            m.pitch_bend(0, 0.5).is_none(),
+            bend(&mut m, 0, 0.5).is_none(),
             "the manager channel is the wheel"
         );
         assert!(
-            m.pitch_bend(5, 0.5).is_none(),
+            bend(&mut m, 5, 0.5).is_none(),
             "outside the zone: the wheel"
         );
         // a note-on on a bent channel starts at the channel's pitch
-        assert_eq!(
-            m.note_on(1, on(67)).as_slice(),
-            &[
-                on(67),
-                Event::NoteTuning {
-                    key: Some(67),
-                    semitones: 12.0
-                }
-            ]
-        );
+        assert_eq!(note_on(&mut m, 1, on(67)), [on(67), tune(67, 12.0)]);
         // RPN 0 sets a member channel's range; the zone message resets it
         assert!(m.controller(2, 101, 0) && m.controller(2, 100, 0) && m.controller(2, 6, 2));
-        let out = m.pitch_bend(2, -1.0).unwrap();
-        assert_eq!(
-            out.as_slice(),
-            &[Event::NoteTuning {
-                key: Some(64),
-                semitones: -2.0
-            }]
-        );
+        assert_eq!(bend(&mut m, 2, -1.0).unwrap(), [tune(64, -2.0)]);
         configure(&mut m, 0);
-        assert!(!m.enabled() && m.pitch_bend(1, 1.0).is_none());
+        assert!(!m.enabled() && bend(&mut m, 1, 1.0).is_none());
         assert!(!m.controller(0, 7, 100), "other controllers are not MPE's");
     }
 }
