@@ -364,34 +364,107 @@ impl<A: TraceSink, B: TraceSink> TraceSink for (A, B) {
     }
 }
 
+/// Rows per chunk a [`CsvTrace`] hands to its writer thread.
+const CSV_CHUNK_ROWS: usize = 4096;
+/// Chunks in flight between the render and the writer thread (memory
+/// stays O(chunk) for any length).
+const CSV_CHUNKS_IN_FLIGHT: usize = 4;
+
 /// Writes the trace CSV as it goes (docs/design.md, "The render command and
-/// the trace CSV"): O(1) memory for any length.
-pub struct CsvTrace<W: Write> {
+/// the trace CSV"): the render hands rows in chunks of
+/// [`CSV_CHUNK_ROWS`] to a writer thread that formats and writes them, so
+/// the text (the CSV's largest cost) runs beside the engine on another
+/// core; O(1) memory for any length, the bytes those of writing the rows
+/// in order on one thread.
+pub struct CsvTrace<W: Write + Send + 'static> {
     rate_hz: f64,
-    out: W,
-    buf: Vec<u8>,
+    rows: Vec<TraceRow>,
+    to_writer: Option<crossbeam::channel::Sender<Vec<TraceRow>>>,
+    spare: crossbeam::channel::Receiver<Vec<TraceRow>>,
+    writer: Option<std::thread::JoinHandle<std::io::Result<W>>>,
 }
 
-impl<W: Write> CsvTrace<W> {
-    /// Write the header to `out` and return the sink.
+impl<W: Write + Send + 'static> CsvTrace<W> {
+    /// Write the header to `out` and return the sink (its writer thread
+    /// started).
     pub fn new(rate_hz: f64, mut out: W) -> std::io::Result<Self> {
         writeln!(out, "{TRACE_HEADER}")?;
+        let (to_writer, chunks) =
+            crossbeam::channel::bounded::<Vec<TraceRow>>(CSV_CHUNKS_IN_FLIGHT);
+        let (give_back, spare) = crossbeam::channel::bounded(CSV_CHUNKS_IN_FLIGHT + 1);
+        let writer = std::thread::Builder::new()
+            .name("trace-csv".into())
+            .spawn(move || {
+                let mut buf = Vec::with_capacity(CSV_CHUNK_ROWS * 160);
+                for mut rows in chunks {
+                    buf.clear();
+                    for r in &rows {
+                        push_row(&mut buf, r);
+                    }
+                    out.write_all(&buf)?;
+                    rows.clear();
+                    let _ = give_back.try_send(rows);
+                }
+                out.flush()?;
+                Ok(out)
+            })?;
         Ok(Self {
             rate_hz,
-            out,
-            buf: Vec::with_capacity(1 << 16),
+            rows: Vec::with_capacity(CSV_CHUNK_ROWS),
+            to_writer: Some(to_writer),
+            spare,
+            writer: Some(writer),
         })
     }
 
-    /// Flush and hand back the writer.
+    /// Hand the rows so far to the writer; an error if it has stopped (a
+    /// failed write: [`finish`](Self::finish) returns it).
+    fn send(&mut self) -> std::io::Result<()> {
+        let fresh = self
+            .spare
+            .try_recv()
+            .unwrap_or_else(|_| Vec::with_capacity(CSV_CHUNK_ROWS));
+        let rows = std::mem::replace(&mut self.rows, fresh);
+        let stopped = || std::io::Error::other("the trace writer stopped");
+        self.to_writer
+            .as_ref()
+            .ok_or_else(stopped)?
+            .send(rows)
+            .map_err(|_| stopped())
+    }
+
+    /// Write the remaining rows, wait for the writer, flush and hand back
+    /// the writer (or the first write error).
     pub fn finish(mut self) -> std::io::Result<W> {
-        self.out.write_all(&self.buf)?;
-        self.out.flush()?;
-        Ok(self.out)
+        let sent = if self.rows.is_empty() {
+            Ok(())
+        } else {
+            self.send()
+        };
+        self.to_writer = None;
+        let written = self
+            .writer
+            .take()
+            .expect("joined once")
+            .join()
+            .map_err(|_| std::io::Error::other("the trace writer panicked"))?;
+        let out = written?;
+        sent.map(|_| out)
     }
 }
 
-impl<W: Write> TraceSink for CsvTrace<W> {
+impl<W: Write + Send + 'static> Drop for CsvTrace<W> {
+    fn drop(&mut self) {
+        // a sink dropped without `finish` (an error elsewhere): stop the
+        // writer and wait for it, so no thread outlives the render
+        self.to_writer = None;
+        if let Some(w) = self.writer.take() {
+            let _ = w.join();
+        }
+    }
+}
+
+impl<W: Write + Send + 'static> TraceSink for CsvTrace<W> {
     fn wants_energy(&self, _: usize) -> bool {
         true
     }
@@ -399,14 +472,12 @@ impl<W: Write> TraceSink for CsvTrace<W> {
         false
     }
     fn record(&mut self, i: usize, m: &Motion, e: Option<f64>) -> std::io::Result<()> {
-        let row = TraceRow {
+        self.rows.push(TraceRow {
             t: i as f64 / self.rate_hz,
             obs: m.with_energy(e.expect("every energy was asked for")),
-        };
-        push_row(&mut self.buf, &row);
-        if self.buf.len() >= 1 << 16 {
-            self.out.write_all(&self.buf)?;
-            self.buf.clear();
+        });
+        if self.rows.len() >= CSV_CHUNK_ROWS {
+            self.send()?;
         }
         Ok(())
     }
@@ -813,6 +884,61 @@ mod tests {
                 assert!(rg <= rw.max(0.0) + 1e-15, "{name} {sw:?}: {rg:e} vs {rw:e}");
             }
         }
+    }
+
+    /// A writer that fails after `left` bytes.
+    struct FailAfter {
+        left: usize,
+    }
+
+    impl Write for FailAfter {
+        fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+            if b.len() > self.left {
+                return Err(std::io::Error::other("disk full"));
+            }
+            self.left -= b.len();
+            Ok(b.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    /// A failed write of the trace's writer thread stops the render with
+    /// that error (not a hang, not a silent short file), and a sink dropped
+    /// without `finish` leaves no thread behind.
+    #[test]
+    fn trace_write_errors_reach_the_render() {
+        let scene =
+            crate::presets::scene(crate::presets::index_of("steel-plate").unwrap()).unwrap();
+        let compiled = compile_with(&scene, 44100.0, None).unwrap();
+        let n = 20 * CSV_CHUNK_ROWS;
+        let mut csv = CsvTrace::new(44100.0, FailAfter { left: 200_000 }).unwrap();
+        let streamed = render_stream(
+            &compiled,
+            n,
+            |_, _| Ok(()),
+            Some(&mut csv as &mut dyn TraceSink),
+        );
+        let finished = csv.finish();
+        let msg = format!(
+            "{:?} / {:?}",
+            streamed.as_ref().err(),
+            finished.as_ref().err()
+        );
+        assert!(streamed.is_err(), "the render went on: {msg}");
+        assert!(
+            finished
+                .err()
+                .is_some_and(|e| e.to_string().contains("disk full")),
+            "{msg}"
+        );
+        // dropped mid-way: joins its writer
+        let mut csv = CsvTrace::new(44100.0, Vec::new()).unwrap();
+        for i in 0..3 * CSV_CHUNK_ROWS {
+            csv.record(i, &Motion::default(), Some(0.0)).unwrap();
+        }
+        drop(csv);
     }
 
     /// Streaming gives the in-memory render's samples and rows, whatever

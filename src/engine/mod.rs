@@ -370,6 +370,10 @@ impl EngineState {
     fn discontinuity(&mut self) {
         self.cache_ok = false;
         self.bound_epoch = NO_EPOCH;
+        // and the energy an observed run kept for the next run's first sample
+        if let Some(o) = self.obs.as_mut() {
+            o.e_next = None;
+        }
     }
 
     /// Flush subnormal numbers to zero while stepping (default: on; see
@@ -633,7 +637,7 @@ impl EngineState {
     pub fn tick_with<R>(
         &mut self,
         scene: &CompiledScene,
-        look: impl FnOnce(&Self) -> R,
+        look: impl FnOnce(&mut Self) -> R,
     ) -> ([f64; 2], R) {
         let _flush = FlushDenormals::new(self.flush_denormals);
         self.n_events = 0;
@@ -774,7 +778,7 @@ impl EngineState {
             if slow && i < n {
                 let want = energy.is_some();
                 let (o, (m, e)) = self.tick_with(scene, |st| {
-                    (st.motion(scene), want.then(|| st.energy(scene)))
+                    (st.motion(scene), want.then(|| st.energy_observed(scene)))
                 });
                 left[i] = o[0];
                 right[i] = o[1];
@@ -806,12 +810,11 @@ impl EngineState {
     fn observe_run(&mut self, scene: &CompiledScene, k: usize, out: ObsOut) {
         let ObsOut { m, e } = out;
         // energy of state 0: the last run's, or the state's own
-        let e0 = e
-            .as_ref()
-            .map(|_| match self.obs.as_ref().and_then(|o| o.e_next) {
-                Some((c, v)) if c == self.clock => v,
-                _ => self.energy(scene),
-            });
+        let e0 = match (&e, self.obs.as_ref().and_then(|o| o.e_next)) {
+            (None, _) => None,
+            (Some(_), Some((c, v))) if c == self.clock => Some(v),
+            (Some(_), _) => Some(self.energy_observed(scene)),
+        };
         let quad = if e.is_some() && self.quad_energy_ok(scene) {
             scene.phase(self.phase).energy_quad.as_ref()
         } else {
@@ -1502,6 +1505,42 @@ impl EngineState {
             o.y = y;
         }
         e
+    }
+
+    /// [`energy`](Self::energy) for the traced block path: in a coupled
+    /// contact phase whose change of basis back to the free phase has a
+    /// hierarchical form (a large modal object), through the free
+    /// coordinates: `s_f = W_fc (s + s*)` in O(N r log N), the object's
+    /// energy from the free phase's sparse `V` in O(N), plus the spring's
+    /// `pi^2 / 2` and the hammer's `eta^2 / 2` from their rows. The same
+    /// energy as the dense `0.5 |V (s + s*)|^2` to within the hierarchical
+    /// form's tolerance (docs/numerics.md, "Structured changes of basis");
+    /// elsewhere exactly [`energy_rt`](Self::energy_rt). \[offline\]
+    fn energy_observed(&mut self, scene: &CompiledScene) -> f64 {
+        let structured = scene.w_fc_h.as_ref().filter(|_| self.structured);
+        let (Some(h), true, true) = (structured, self.in_contact(), scene.free.v_sparse.is_some())
+        else {
+            return self.energy_rt(scene);
+        };
+        self.reserve_observation();
+        let obs = self.obs.as_mut().expect("reserved");
+        let df = scene.free.dim;
+        if obs.y.len() < df {
+            obs.y.resize(df, 0.0);
+        }
+        let st = &self.phases[CONTACT].s;
+        let s_f = &mut obs.y[..df];
+        s_f.copy_from_slice(&scene.s_f_star);
+        let [a, b, c] = &mut self.dense_tmp;
+        kernel::hodlr_mat_vec_add(self.simd, h, st, s_f, [a, b, c]);
+        let e_obj = half_norm_sq_energy_coords(&scene.free, s_f, &[], &mut Vec::new());
+        let rows = &scene.contact.rows;
+        let pi = dot(&rows.pi, st) + scene.offsets.pi;
+        let eta = dot(&rows.eta, st) + scene.offsets.eta;
+        let x_c = dot(&rows.x_c, st) + scene.offsets.x_c;
+        let x_h = self.contact_hammer_height(scene, x_c);
+        let s = self.time_scale;
+        s * s * (e_obj + 0.5 * (pi * pi + eta * eta) + scene.m_h * scene.g * x_h)
     }
 
     /// See [`energy`](Self::energy); `y` is grown to the phase's dimension
