@@ -212,6 +212,13 @@ impl Plugin for ModalContact {
 
     // Notes and controllers (the pedals, CC 64 and 66).
     const MIDI_INPUT: MidiConfig = MidiConfig::MidiCCs;
+    // Room for every event one process call can bring without the wrapper
+    // growing its queues on the audio thread: MIDI CCs make the VST3
+    // wrapper expose 16 x 130 hidden controller parameters, and a host
+    // restoring a session (Ardour does) sends all of them, with ours, in one
+    // call: 2095 changes. nice-plug's default is 1024 (docs/plugin.md,
+    // "How the tests show it").
+    const INPUT_EVENT_CAPACITY: usize = 4096;
     // The wrapper splits blocks at parameter changes: a change is requested
     // at its sample (the swap itself follows when the worker is done).
     const SAMPLE_ACCURATE_AUTOMATION: bool = true;

@@ -10,7 +10,8 @@
 //! - `cargo xtask multisample SCENE.toml --notes 36..96 --step 3
 //!   --velocities 4 --out DIR`: WAVs and an SFZ file for any sampler`
 //! - `cargo xtask test [CARGO TEST ARGS]`: every test, including the plugin
-//!   tests on the built bundles and the VST3 test through pedalboard
+//!   tests on the built bundles and the VST3 tests through pedalboard and
+//!   in Ardour
 //! - `cargo xtask demo`: bundle (release) and render a demo through the built
 //!   CLAP plugin into `target/demo/*.wav`
 //! - `cargo xtask report [--quick] [--out DIR] [--only SECTION] [--scene NAME]`
@@ -54,7 +55,8 @@ enum Command {
     /// stability table and the f32 study (writes report/report.md).
     Report(report::ReportArgs),
     /// Every test: bundles the plugin three ways, runs the workspace tests
-    /// (the plugin tests load those bundles), then the VST3 test.
+    /// (the plugin tests load those bundles), then the VST3 tests
+    /// (pedalboard, Ardour).
     Test(TestArgs),
     /// Bundle the release plugin and render a demo through the built CLAP
     /// plugin into target/demo/.
@@ -157,7 +159,7 @@ fn ensure_venv() -> Result<PathBuf> {
 /// alloc-bug trigger; the test-only panic-bug), builds the allocation-checked
 /// standalone application for the editor test,
 /// runs the workspace tests (plugin-tests load those bundles), then renders
-/// the VST3 with pedalboard.
+/// the VST3 with pedalboard and in Ardour.
 fn run_tests(extra: &[String]) -> Result<()> {
     nice_plug_xtask::chdir_workspace_root()?;
     let python = ensure_venv()?;
@@ -220,8 +222,20 @@ fn run_tests(extra: &[String]) -> Result<()> {
             "MODAL_CONTACT_REFERENCE",
             "target/test-release/render-reference",
         ));
+    // The same bundle in a real DAW: Ardour 7, headless (Debian's `ardour`).
+    let ardour_test = run(std::process::Command::new(&python)
+        .arg("plugin-tests/ardour/test_ardour.py")
+        .env(
+            "MODAL_CONTACT_VST3",
+            release.join(format!("{BUNDLE_NAME}.vst3")),
+        )
+        .env(
+            "MODAL_CONTACT_REFERENCE",
+            "target/test-release/render-reference",
+        ));
     cargo_tests?;
-    vst3_test
+    vst3_test?;
+    ardour_test
 }
 
 /// `cargo xtask demo`: bundle the release plugin and render the demo through
