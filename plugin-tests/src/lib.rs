@@ -266,6 +266,15 @@ pub enum HostEvent {
         /// Semitones.
         semitones: f64,
     },
+    /// A CLAP "pressure" note expression for `key` on channel 1 (0 .. 1).
+    Pressure {
+        /// Sample position.
+        at: usize,
+        /// MIDI key.
+        key: u8,
+        /// Pressure.
+        value: f64,
+    },
     /// Parameter value (CLAP value: normalised for continuous parameters,
     /// step index for enums and bools).
     Param {
@@ -286,6 +295,7 @@ impl HostEvent {
             | HostEvent::NoteOff { at, .. }
             | HostEvent::Midi { at, .. }
             | HostEvent::Tuning { at, .. }
+            | HostEvent::Pressure { at, .. }
             | HostEvent::Param { at, .. } => at,
         }
     }
@@ -320,6 +330,11 @@ pub fn pitch_bend(at: usize, value: u16) -> HostEvent {
 /// A per-note tuning (CLAP note expression) for `key`.
 pub fn note_tuning(at: usize, key: u8, semitones: f64) -> HostEvent {
     HostEvent::Tuning { at, key, semitones }
+}
+
+/// A per-note pressure (CLAP note expression) for `key`.
+pub fn note_pressure(at: usize, key: u8, value: f64) -> HostEvent {
+    HostEvent::Pressure { at, key, value }
 }
 
 /// A parameter event by string id (CLAP value, see [`HostEvent::Param`]).
@@ -621,6 +636,14 @@ impl Session<'_> {
                         semitones,
                     ))
                 }
+                HostEvent::Pressure { key, value, .. } => {
+                    self.in_events.push(&NoteExpressionEvent::new(
+                        t,
+                        Pckn::new(0u16, 0u16, key as u16, Match::All),
+                        NoteExpressionType::Pressure,
+                        value,
+                    ))
+                }
                 HostEvent::Param { id, value, .. } => self.in_events.push(&ParamValueEvent::new(
                     t,
                     ClapId::new(id),
@@ -745,6 +768,33 @@ pub fn library_render_prepared(
                 event: Event::NoteTuning {
                     key: Some(key),
                     semitones,
+                },
+            }),
+            // the mod wheel and channel aftertouch as nice-plug gives them
+            // (value / 127 in f32)
+            HostEvent::Midi {
+                at,
+                data: [0xB0, 1, v],
+            } => Some(LibEvent {
+                offset: at,
+                event: Event::ModWheel {
+                    value: f64::from(f32::from(v) / 127.0),
+                },
+            }),
+            HostEvent::Midi {
+                at,
+                data: [0xD0, v, _],
+            } => Some(LibEvent {
+                offset: at,
+                event: Event::ChannelPressure {
+                    value: f64::from(f32::from(v) / 127.0),
+                },
+            }),
+            HostEvent::Pressure { at, key, value } => Some(LibEvent {
+                offset: at,
+                event: Event::NotePressure {
+                    key: Some(key),
+                    value: f64::from(value as f32),
                 },
             }),
             HostEvent::Midi { .. } | HostEvent::Param { .. } => None,

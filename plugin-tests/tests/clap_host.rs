@@ -486,3 +486,53 @@ fn pedals_through_the_host_match_the_library() {
         "the pedal did not hold: {held} vs {damped}"
     );
 }
+
+/// Pressure through a real host: a CLAP "pressure" note expression on one
+/// note, channel aftertouch and the mod wheel (MIDI 1.0), and, after the
+/// MPE configuration message, a member channel's pressure on that
+/// channel's note: the plugin's render equals the library's with the
+/// pressures those messages mean, and the pressed notes die away faster
+/// than the same notes unpressed.
+#[test]
+fn pressure_aftertouch_and_mod_wheel_through_the_host_match_the_library() {
+    let rate = 48_000.0;
+    let total = 30_000;
+    let midi = |at: usize, data: [u8; 3]| HostEvent::Midi { at, data };
+    let notes = vec![on(100, 60, 0.8), on(4_000, 64, 0.7)];
+    let mut events = notes.clone();
+    events.extend([
+        plugin_tests::note_pressure(3_000, 60, 0.7),
+        midi(9_000, [0xD0, 90, 0]),
+        midi(14_000, [0xD0, 0, 0]),
+        midi(16_000, [0xB0, 1, 127]),
+        midi(22_000, [0xB0, 1, 40]),
+    ]);
+    let plugin = plugin_equals_library("pressure", rate, total, events.clone(), &events);
+    let free = library_render(&InstrumentParams::default(), rate, total, &notes);
+    let late = |x: &[f32]| plugin_tests::rms(&x[24_000..]);
+    println!(
+        "pressed vs unpressed, last 6000 samples: rms {:.3e} vs {:.3e}",
+        late(&plugin[0]),
+        late(&free[0])
+    );
+    assert!(late(&plugin[0]) < 0.1 * late(&free[0]));
+    // the first note's strike is untouched: pressure acts once the hammer
+    // has left
+    assert_eq!(plugin[0][..3_000], free[0][..3_000]);
+
+    // MPE: member channel 2's pressure presses its note only
+    let mpe = vec![
+        midi(0, [0xB0, 101, 0]),
+        midi(0, [0xB0, 100, 6]),
+        midi(0, [0xB0, 6, 15]),
+        midi(100, [0x91, 60, 100]),
+        midi(200, [0x92, 64, 90]),
+        midi(5_000, [0xD2, 127, 0]),
+    ];
+    let meant = vec![
+        on(100, 60, 100.0 / 127.0),
+        on(200, 64, 90.0 / 127.0),
+        plugin_tests::note_pressure(5_000, 64, 1.0),
+    ];
+    plugin_equals_library("MPE pressure", rate, total, mpe, &meant);
+}

@@ -4,7 +4,8 @@
 //! The `rt-checks` bundles are built with debug assertions and nice-plug's
 //! `assert_process_allocs`: any allocation inside `process` aborts the host
 //! process. A stress render (many note-ons, voice stealing, releases on the
-//! damped scene, parameter swaps including a preset change with its fade-out,
+//! damped scene, pressure (note expressions, aftertouch, mod wheel, MPE),
+//! parameter swaps including a preset change with its fade-out,
 //! a switching change and a strike-position change, and bad input: all 128
 //! keys at velocity 127 in one block at 64 voices, then a note on every
 //! sample for 256 samples, stealing voices mid-contact) runs in a child process
@@ -98,7 +99,21 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
         events.push(midi(at, [0x90 | ch, 30 + ch, 100]));
         events.push(midi(at, [0x90 | ch, 80 + ch, 90]));
         events.push(midi(24_300, [0xE0 | ch, 0, (ch * 8) & 0x7f]));
+        // and its pressure, pressing every note of the channel
+        events.push(midi(24_400, [0xD0 | ch, 8 * ch, 0]));
     }
+    // pressure: per note (CLAP note expressions, polyphonic aftertouch),
+    // channel aftertouch and the mod wheel, up and back to 0
+    for (k, key) in [60u8, 64, 67].into_iter().enumerate() {
+        events.push(plugin_tests::note_pressure(21_000 + 100 * k, key, 0.9));
+        events.push(midi(21_500 + 100 * k, [0xA0, key, 127]));
+    }
+    events.extend([
+        midi(22_000, [0xD0, 100, 0]),
+        midi(22_400, [0xB0, 1, 127]),
+        midi(23_500, [0xD0, 0, 0]),
+        midi(23_600, [0xB0, 1, 0]),
+    ]);
     events.push(midi(24_600, [0xB0, 6, 0]));
     events.push(param(first_change, ids::HARDNESS, 0.6));
     events.push(param(first_change, ids::DECAY, 0.4));

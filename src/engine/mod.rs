@@ -439,6 +439,23 @@ impl EngineState {
         (!self.in_contact()).then_some((self.x_h, self.v_h * self.time_scale))
     }
 
+    /// Multiply the free phase's state by `factor` (in `(0, 1]`): added
+    /// mass-proportional damping over the samples it stands for (the
+    /// instrument's pressure, docs/plugin.md, "Pressure and the mod
+    /// wheel"). With `z(t) = e^(-a t) x(t)` every mode keeps its damped
+    /// frequency and decays `a` faster; the free state has no affine part,
+    /// so its energy is multiplied by `factor^2`. Refused (false, nothing
+    /// changed) in contact or for a factor outside `(0, 1]`. O(N).
+    /// \[audio-thread\]
+    pub fn scale_free_state(&mut self, factor: f64) -> bool {
+        if self.in_contact() || !(factor > 0.0 && factor <= 1.0) {
+            return false;
+        }
+        self.phases[FREE].s.iter_mut().for_each(|x| *x *= factor);
+        self.discontinuity();
+        true
+    }
+
     /// Whether the hammer is in contact (for the coming step).
     pub fn in_contact(&self) -> bool {
         self.phase == Phase::Contact

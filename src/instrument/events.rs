@@ -54,6 +54,32 @@ pub enum Event {
         /// Offset from the note's pitch \[semitones\].
         semitones: f64,
     },
+    /// Pressure on a note, 0 .. 1 (the CLAP and VST3 "pressure" note
+    /// expression, MIDI polyphonic aftertouch, an MPE member channel's
+    /// pressure): a damper pressed on that note's object, every mode
+    /// decaying faster by up to [`MAX_PRESSURE_DECAY_PER_S`](super::MAX_PRESSURE_DECAY_PER_S)
+    /// (docs/plugin.md, "Pressure and the mod wheel"). `key: None`: every
+    /// voice. Out of range is clamped, not a number is 0; a new note on
+    /// the key starts without pressure.
+    NotePressure {
+        /// MIDI key, or `None` for every voice.
+        key: Option<u8>,
+        /// Pressure, 0 .. 1.
+        value: f64,
+    },
+    /// Channel aftertouch, 0 .. 1: the same damper on every voice (a voice
+    /// takes the largest of its note's pressure, this and the mod wheel).
+    ChannelPressure {
+        /// Pressure, 0 .. 1.
+        value: f64,
+    },
+    /// The mod wheel (MIDI CC 1), 0 .. 1: the damper of
+    /// [`ChannelPressure`](Self::ChannelPressure), for keyboards without
+    /// aftertouch.
+    ModWheel {
+        /// Wheel position, 0 .. 1.
+        value: f64,
+    },
 }
 
 /// An event at a sample offset.

@@ -4,7 +4,10 @@
 
 use super::events::TimedEvent;
 use super::probe::VoiceChunk;
-use super::{Instrument, BEND_TICK_SAMPLES, CHECK_INTERVAL_SAMPLES, MAX_VOICES, OUTPUT_CEILING};
+use super::{
+    Instrument, BEND_TICK_SAMPLES, CHECK_INTERVAL_SAMPLES, MAX_PRESSURE_DECAY_PER_S, MAX_VOICES,
+    OUTPUT_CEILING,
+};
 use crate::compile::CompiledScene;
 use crate::engine::denormal::FlushDenormals;
 use crate::engine::{EngineState, Motion};
@@ -89,7 +92,25 @@ impl Instrument {
                 None
             };
             let start = self.sample_pos;
+            // damper pressure (docs/plugin.md, "Pressure and the mod
+            // wheel"): applied exactly where the hammer has left for good
+            // (no gravity, above the object's rest position and rising) and
+            // the chunk held no contact
+            let press = v.pressure.max(self.channel_pressure).max(self.mod_wheel);
+            let leaving = press > 0.0
+                && !p.bouncing
+                && st
+                    .hammer_in_flight()
+                    .is_some_and(|(x, up)| x > 0.0 && up >= 0.0);
+            let contacts = st.contacts_started;
+            let observing = observe.is_some();
             if tick_into(st, scene, &mut self.vbuf, len, 1.0, 0.0, observe) {
+                if leaving && !st.in_contact() && st.contacts_started == contacts {
+                    let q = (-MAX_PRESSURE_DECAY_PER_S * press / p.rate_hz).exp();
+                    let motion = observing.then_some(&mut self.motion[..len]);
+                    let g = decay_into(&mut self.vbuf, len, q, motion);
+                    st.scale_free_state(g);
+                }
                 add_into(&mut self.acc, &self.vbuf, len);
                 if let Some(probe) = self.probe.as_deref_mut().filter(|_| self.probe_on) {
                     probe.voice_chunk(&VoiceChunk {
@@ -193,6 +214,29 @@ fn tick_into(
         }
     }
     finite
+}
+
+/// The samples of a chunk rendered without the pressure, as with it: sample
+/// `k` (the state at the chunk's start `k` samples on) times `q^k`, and
+/// the contact point's motion likewise; returns `q^len`, the factor the
+/// state after the chunk takes.
+fn decay_into(
+    buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
+    len: usize,
+    q: f64,
+    mut motion: Option<&mut [Motion]>,
+) -> f64 {
+    let mut g = 1.0;
+    for k in 0..len {
+        buf[0][k] *= g;
+        buf[1][k] *= g;
+        if let Some(m) = motion.as_deref_mut() {
+            m[k].x_contact *= g;
+            m[k].v_contact *= g;
+        }
+        g *= q;
+    }
+    g
 }
 
 fn add_into(

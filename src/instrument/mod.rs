@@ -120,6 +120,11 @@ pub const OUTPUT_CEILING: f64 = 4.0;
 /// a note pitched up leaves its top modes out of the output instead of
 /// aliasing them back into the audio band. The dynamics keep every mode.
 pub const OUTPUT_BAND_FRACTION: f64 = 1.0;
+/// Damper pressure at its full value (a note's pressure, channel
+/// aftertouch or the mod wheel at 1) adds this decay rate to every mode
+/// \[1/s\]: `ln(1000) / 0.25`, 60 dB more in every quarter second
+/// (docs/plugin.md, "Pressure and the mod wheel").
+pub const MAX_PRESSURE_DECAY_PER_S: f64 = crate::physics::model::LN_1000 / 0.25;
 /// Pitch bend at full wheel unless the Bend range parameter says otherwise
 /// \[semitones\].
 pub const DEFAULT_BEND_RANGE_SEMITONES: f64 = 2.0;
@@ -201,6 +206,10 @@ pub struct Instrument {
     bend_pending: bool,
     /// Some voice's per-note tuning is still gliding.
     tuning_moving: bool,
+    /// Channel aftertouch, 0 .. 1.
+    channel_pressure: f64,
+    /// Mod wheel, 0 .. 1.
+    mod_wheel: f64,
     acc: [[f64; CHECK_INTERVAL_SAMPLES]; 2],
     vbuf: [[f64; CHECK_INTERVAL_SAMPLES]; 2],
     /// The live view's probe and whether it records now.
@@ -284,6 +293,8 @@ impl Instrument {
             bend_now: 0.0,
             bend_pending: false,
             tuning_moving: false,
+            channel_pressure: 0.0,
+            mod_wheel: 0.0,
             acc: [[0.0; CHECK_INTERVAL_SAMPLES]; 2],
             vbuf: [[0.0; CHECK_INTERVAL_SAMPLES]; 2],
             probe: None,
@@ -556,6 +567,16 @@ impl Instrument {
                 };
             }
             Event::NoteTuning { key, semitones } => self.note_tuning(key, semitones),
+            Event::NotePressure { key, value } => {
+                let value = unit(value);
+                for v in &mut self.voices {
+                    if v.active && key.is_none_or(|k| k == v.key) {
+                        v.pressure = value;
+                    }
+                }
+            }
+            Event::ChannelPressure { value } => self.channel_pressure = unit(value),
+            Event::ModWheel { value } => self.mod_wheel = unit(value),
             Event::Sostenuto { down } => {
                 if down && !self.pedals.sostenuto {
                     self.pedals.sostenuto_keys = self.pedals.keys_down;
@@ -567,5 +588,14 @@ impl Instrument {
                 }
             }
         }
+    }
+}
+
+/// A controller's value in 0 .. 1: clamped, not a number is 0.
+fn unit(x: f64) -> f64 {
+    if x.is_nan() {
+        0.0
+    } else {
+        x.clamp(0.0, 1.0)
     }
 }

@@ -30,6 +30,8 @@ pub(super) struct Voice {
     /// The instrument's clock at its last note-on: a tuning at this very
     /// sample applies at once.
     pub(super) onset_pos: u64,
+    /// Its note's pressure, 0 .. 1 ([`super::Event::NotePressure`]).
+    pub(super) pressure: f64,
 }
 
 impl Instrument {
@@ -51,6 +53,7 @@ impl Instrument {
                 v.on_damped = false;
             }
             v.released = false;
+            v.pressure = 0.0;
             // a new note starts untuned (from where it is, gliding)
             v.tuning_target = 0.0;
             if v.tuning_now != 0.0 {
@@ -96,6 +99,7 @@ impl Instrument {
                 tuning_target: 0.0,
                 tuning_now: 0.0,
                 onset_pos: 0,
+                pressure: 0.0,
             };
             i
         };

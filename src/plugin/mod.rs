@@ -140,6 +140,8 @@ impl Drop for ModalContact {
     }
 }
 
+/// MIDI controller of the mod wheel.
+const MOD_WHEEL_CC: u8 = 1;
 /// MIDI controller of the sustain (damper) pedal.
 const SUSTAIN_CC: u8 = 64;
 /// MIDI controller of the sostenuto pedal.
@@ -187,6 +189,19 @@ fn note_event(event: &NoteEvent<()>) -> Option<Event> {
         NoteEvent::PolyTuning { key, tuning, .. } => Some(Event::NoteTuning {
             key: key.number(),
             semitones: f64::from(tuning),
+        }),
+        // Pressure (docs/plugin.md, "Pressure and the mod wheel"): per note
+        // (CLAP/VST3 note expression, polyphonic aftertouch), the channel's
+        // aftertouch, the mod wheel; nice-plug gives 0 .. 1.
+        NoteEvent::PolyPressure { key, pressure, .. } => Some(Event::NotePressure {
+            key: key.number(),
+            value: f64::from(pressure),
+        }),
+        NoteEvent::MidiChannelPressure { pressure, .. } => Some(Event::ChannelPressure {
+            value: f64::from(pressure),
+        }),
+        NoteEvent::MidiCC { cc, value, .. } if cc == MOD_WHEEL_CC => Some(Event::ModWheel {
+            value: f64::from(value),
         }),
         _ => None,
     }
@@ -459,6 +474,10 @@ impl ModalContact {
                 }
                 (NoteEvent::MidiPitchBend { channel, .. }, Event::PitchBend { value })
                     if mpe.pitch_bend(channel, value, out) => {}
+                (
+                    NoteEvent::MidiChannelPressure { channel, .. },
+                    Event::ChannelPressure { value },
+                ) if mpe.pressure(channel, value, out) => {}
                 _ => out.set_one(e),
             }
             (next, at) = (0, event.timing() as usize);

@@ -82,6 +82,8 @@ pub struct Mpe {
     range: [f64; 16],
     /// Per channel: the bend now, -1 .. 1.
     bend: [f64; 16],
+    /// Per channel: the pressure now, 0 .. 1.
+    pressure: [f64; 16],
     /// Per key: the member channel its last note-on came from.
     key_channel: [u8; 128],
 }
@@ -93,6 +95,7 @@ impl Default for Mpe {
             rpn: [(127, 127); 16],
             range: [MEMBER_BEND_RANGE_SEMITONES; 16],
             bend: [0.0; 16],
+            pressure: [0.0; 16],
             key_channel: [NONE; 128],
         }
     }
@@ -121,6 +124,12 @@ impl Mpe {
                     out.push(Event::NoteTuning {
                         key: Some(key),
                         semitones: self.semitones(c),
+                    });
+                }
+                if self.pressure[c] != 0.0 {
+                    out.push(Event::NotePressure {
+                        key: Some(key),
+                        value: self.pressure[c],
                     });
                 }
             }
@@ -155,6 +164,29 @@ impl Mpe {
         true
     }
 
+    /// Channel pressure (`value` 0 .. 1) on `channel`: `false` (and `out`
+    /// untouched) when it is the channel's aftertouch for every voice (MPE
+    /// off, the manager channel or a channel outside the zone), else `true`
+    /// with the pressures of the keys sounding from that member channel in
+    /// `out`.
+    pub fn pressure(&mut self, channel: u8, value: f64, out: &mut Out) -> bool {
+        if !self.is_member(channel) {
+            return false;
+        }
+        let c = channel as usize;
+        self.pressure[c] = value;
+        out.clear();
+        for (key, &ch) in self.key_channel.iter().enumerate() {
+            if ch == channel {
+                out.push(Event::NotePressure {
+                    key: Some(key as u8),
+                    value,
+                });
+            }
+        }
+        true
+    }
+
     /// A controller (`value` 0 ..= 127): follows RPN selection and data
     /// entry for RPN 6 (the zone) on channel 1 and RPN 0 (bend range) on
     /// member channels. Returns whether it was one of those controllers.
@@ -169,6 +201,7 @@ impl Mpe {
                     // the configuration message resets the ranges and bends
                     self.range = [MEMBER_BEND_RANGE_SEMITONES; 16];
                     self.bend = [0.0; 16];
+                    self.pressure = [0.0; 16];
                     self.key_channel = [NONE; 128];
                 }
                 (0, 0) => self.range[c] = f64::from(value),
@@ -208,6 +241,41 @@ mod tests {
         let mut out = Out::new();
         m.note_on(channel, e, &mut out);
         out.as_slice().to_vec()
+    }
+
+    fn press(m: &mut Mpe, channel: u8, value: f64) -> Option<Vec<Event>> {
+        let mut out = Out::new();
+        m.pressure(channel, value, &mut out)
+            .then(|| out.as_slice().to_vec())
+    }
+
+    fn pressed(key: u8, value: f64) -> Event {
+        Event::NotePressure {
+            key: Some(key),
+            value,
+        }
+    }
+
+    /// A member channel's pressure presses its notes (and a later note on
+    /// that channel starts pressed); off, on the manager channel or outside
+    /// the zone it is the channel's aftertouch.
+    #[test]
+    fn member_channel_pressure_presses_its_notes_only() {
+        let mut m = Mpe::default();
+        assert!(press(&mut m, 2, 0.5).is_none(), "off: aftertouch");
+        configure(&mut m, 3);
+        note_on(&mut m, 2, on(60));
+        note_on(&mut m, 3, on(64));
+        assert_eq!(press(&mut m, 2, 0.5).unwrap(), [pressed(60, 0.5)]);
+        assert!(press(&mut m, 0, 0.5).is_none(), "manager channel");
+        assert!(press(&mut m, 9, 0.5).is_none(), "outside the zone");
+        assert_eq!(note_on(&mut m, 2, on(67)), [on(67), pressed(67, 0.5)]);
+        configure(&mut m, 3);
+        assert_eq!(
+            note_on(&mut m, 2, on(69)),
+            [on(69)],
+            "the zone message resets"
+        );
     }
 
     fn bend(m: &mut Mpe, channel: u8, value: f64) -> Option<Vec<Event>> {
