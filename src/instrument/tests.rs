@@ -1136,7 +1136,7 @@ fn pressure_only_takes_energy_and_spares_strikes_and_bouncing_scenes() {
     let first = ya.iter().zip(&yb).position(|(x, y)| x != y).unwrap();
     assert!(b.voice_state_mut(0).contacts_started >= 1);
     println!("pressed from the onset: the first sample that differs is {first}");
-    assert!(first >= 10 && first < 4000, "{first}");
+    assert!((10..4000).contains(&first), "{first}");
     // a new note on the key starts unpressed
     let _ = render(&mut a, &[on(0, 60, 0.8)], 1);
     assert_eq!(a.voices[0].pressure, 0.0);
