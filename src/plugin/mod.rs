@@ -140,6 +140,9 @@ impl Drop for ModalContact {
     }
 }
 
+/// The value nice-plug's VST3 wrapper reports for its hidden MIDI
+/// controller parameters (not a 7-bit MIDI value).
+const VST3_CC_PLACEHOLDER: f32 = 0.5;
 /// MIDI controller of the mod wheel.
 const MOD_WHEEL_CC: u8 = 1;
 /// MIDI controller of the sustain (damper) pedal.
@@ -197,12 +200,23 @@ fn note_event(event: &NoteEvent<()>) -> Option<Event> {
             key: key.number(),
             value: f64::from(pressure),
         }),
-        NoteEvent::MidiChannelPressure { pressure, .. } => Some(Event::ChannelPressure {
-            value: f64::from(pressure),
-        }),
-        NoteEvent::MidiCC { cc, value, .. } if cc == MOD_WHEEL_CC => Some(Event::ModWheel {
-            value: f64::from(value),
-        }),
+        // A value of exactly 0.5 is not a 7-bit MIDI value (v / 127): it is
+        // what nice-plug's VST3 wrapper answers when a host reads one of its
+        // hidden MIDI controller parameters, which a host restoring a
+        // session (Ardour) sends back: every voice would be pressed halfway
+        // after a reload (docs/plugin.md, "Pressure and the mod wheel").
+        NoteEvent::MidiChannelPressure { pressure, .. } if pressure != VST3_CC_PLACEHOLDER => {
+            Some(Event::ChannelPressure {
+                value: f64::from(pressure),
+            })
+        }
+        NoteEvent::MidiCC { cc, value, .. }
+            if cc == MOD_WHEEL_CC && value != VST3_CC_PLACEHOLDER =>
+        {
+            Some(Event::ModWheel {
+                value: f64::from(value),
+            })
+        }
         _ => None,
     }
 }
@@ -528,6 +542,44 @@ mod tests {
 
     /// The wheel's 14-bit values map to -1 .. 1 with the centre (8192 of
     /// 0..16383, which nice-plug gives as 8192 / 16383) exactly at 0.
+    /// Aftertouch and the mod wheel pass every 7-bit value, and not the
+    /// VST3 wrapper's 0.5 that hosts echo back when restoring a session.
+    #[test]
+    fn pressure_controllers_skip_the_vst3_placeholder() {
+        let pressure = |v: f32| {
+            note_event(&NoteEvent::MidiChannelPressure {
+                timing: 0,
+                channel: 0,
+                pressure: v,
+            })
+        };
+        let wheel = |v: f32| {
+            note_event(&NoteEvent::MidiCC {
+                timing: 0,
+                channel: 0,
+                cc: MOD_WHEEL_CC,
+                value: v,
+            })
+        };
+        for k in 0..=127u8 {
+            let v = f32::from(k) / 127.0;
+            assert_eq!(
+                pressure(v),
+                Some(Event::ChannelPressure {
+                    value: f64::from(v)
+                })
+            );
+            assert_eq!(
+                wheel(v),
+                Some(Event::ModWheel {
+                    value: f64::from(v)
+                })
+            );
+        }
+        assert_eq!(pressure(0.5), None);
+        assert_eq!(wheel(0.5), None);
+    }
+
     #[test]
     fn pitch_bend_wheel_maps_its_centre_to_zero() {
         assert_eq!(wheel(8192.0 / 16383.0), 0.0);

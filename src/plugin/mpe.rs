@@ -1,18 +1,23 @@
 //! MIDI Polyphonic Expression (MPE) over MIDI 1.0: per-note pitch from the
 //! pitch bend of each note's own channel (docs/plugin.md, "Per-note tuning").
 //!
-//! MPE is off until the controller or host sends the MPE Configuration
-//! Message for the lower zone (RPN 6 on channel 1: CC 101 = 0, CC 100 = 6,
-//! CC 6 = the number of member channels, 1 to 15; 0 turns MPE off). Then
-//! channels 2 ..= members + 1 are member channels: a pitch bend on one
-//! retunes the notes sounding from that channel (an
-//! [`Event::NoteTuning`] per key, at the bend's sample), by the channel's
-//! bend range (48 semitones unless RPN 0 on that channel says otherwise); a
-//! note-on on a member channel whose bend is off centre starts at that
-//! pitch (its tuning follows the note-on at the same sample). Channel 1
-//! stays the wheel for every voice (the Bend range parameter), as do bends
-//! on channels outside the zone. The upper zone (RPN 6 on channel 16) is
-//! not read.
+//! MPE is off until the controller or host sends an MPE Configuration
+//! Message (RPN 6: CC 101 = 0, CC 100 = 6, CC 6 = the number of member
+//! channels, 0 to 15; 0 turns the zone off): on channel 1 for the lower
+//! zone (members: channels 2 ..= members + 1), on channel 16 for the upper
+//! zone (members: channels 15 - members + 1 ..= 15, counting down from 15).
+//! Both zones may be on; a zone configured over the other's channels
+//! shrinks the other (MPE's rule), and each message resets the bend
+//! ranges, bends, pressures and notes of the channels it touches. On a
+//! member channel a pitch bend retunes the notes sounding from that
+//! channel (an [`Event::NoteTuning`] per key, at the bend's sample), by the
+//! channel's bend range (48 semitones unless RPN 0 on that channel says
+//! otherwise), and its channel pressure presses them
+//! ([`Event::NotePressure`]); a note-on on a member channel whose bend is
+//! off centre or whose pressure is up starts that way (its tuning and
+//! pressure follow the note-on at the same sample). The manager channels
+//! (1 and 16) and channels outside both zones stay the wheel and the
+//! channel aftertouch for every voice.
 //!
 //! Plain data, fixed size: the audio thread owns it; no allocation.
 
@@ -74,8 +79,10 @@ impl Out {
 /// The MPE state of one plugin instance.
 #[derive(Debug, Clone)]
 pub struct Mpe {
-    /// Member channels of the lower zone (0: MPE off).
-    members: u8,
+    /// Member channels of the lower zone (0: off).
+    lower: u8,
+    /// Member channels of the upper zone (0: off).
+    upper: u8,
     /// Per channel: the RPN selected by CC 101 / CC 100 (MSB, LSB).
     rpn: [(u8, u8); 16],
     /// Per channel: pitch-bend range \[semitones\] (RPN 0).
@@ -91,7 +98,8 @@ pub struct Mpe {
 impl Default for Mpe {
     fn default() -> Self {
         Self {
-            members: 0,
+            lower: 0,
+            upper: 0,
             rpn: [(127, 127); 16],
             range: [MEMBER_BEND_RANGE_SEMITONES; 16],
             bend: [0.0; 16],
@@ -102,13 +110,50 @@ impl Default for Mpe {
 }
 
 impl Mpe {
-    /// Whether a lower zone is configured.
+    /// Whether a zone is configured.
     pub fn enabled(&self) -> bool {
-        self.members > 0
+        self.lower > 0 || self.upper > 0
     }
 
     fn is_member(&self, channel: u8) -> bool {
-        (1..=self.members).contains(&channel)
+        member_of(self.lower, self.upper, channel)
+    }
+
+    /// Configure the lower (`upper == false`) or upper zone with `members`
+    /// member channels: the other zone shrinks off the channels taken, and
+    /// every channel whose role changes or that is in the configured zone
+    /// starts afresh.
+    fn configure(&mut self, upper: bool, members: u8) {
+        let (lower0, upper0) = (self.lower, self.upper);
+        let members = members.min(15);
+        if upper {
+            self.upper = members;
+            if members > 0 && self.lower + members > 14 {
+                self.lower = 14u8.saturating_sub(members);
+            }
+        } else {
+            self.lower = members;
+            if members > 0 && self.upper + members > 14 {
+                self.upper = 14u8.saturating_sub(members);
+            }
+        }
+        for c in 0..16u8 {
+            let in_zone = if upper {
+                member_of(0, self.upper, c) || c == 15
+            } else {
+                member_of(self.lower, 0, c) || c == 0
+            };
+            if in_zone || member_of(lower0, upper0, c) != self.is_member(c) {
+                let i = c as usize;
+                self.range[i] = MEMBER_BEND_RANGE_SEMITONES;
+                self.bend[i] = 0.0;
+                self.pressure[i] = 0.0;
+                self.key_channel
+                    .iter_mut()
+                    .filter(|k| **k == c)
+                    .for_each(|k| *k = NONE);
+            }
+        }
     }
 
     /// A note-on `event` (already translated) from `channel`, into `out`:
@@ -196,14 +241,7 @@ impl Mpe {
             101 => self.rpn[c].0 = value,
             100 => self.rpn[c].1 = value,
             6 => match self.rpn[c] {
-                (0, 6) if c == 0 => {
-                    self.members = value.min(15);
-                    // the configuration message resets the ranges and bends
-                    self.range = [MEMBER_BEND_RANGE_SEMITONES; 16];
-                    self.bend = [0.0; 16];
-                    self.pressure = [0.0; 16];
-                    self.key_channel = [NONE; 128];
-                }
+                (0, 6) if c == 0 || c == 15 => self.configure(c == 15, value),
                 (0, 0) => self.range[c] = f64::from(value),
                 _ => return false,
             },
@@ -211,6 +249,13 @@ impl Mpe {
         }
         true
     }
+}
+
+/// Whether `channel` is a member channel of a lower zone of `lower` and an
+/// upper zone of `upper` member channels.
+fn member_of(lower: u8, upper: u8, channel: u8) -> bool {
+    (lower > 0 && (1..=lower).contains(&channel))
+        || (upper > 0 && (15 - upper.min(15)..15).contains(&channel))
 }
 
 #[cfg(test)]
@@ -254,6 +299,53 @@ mod tests {
             key: Some(key),
             value,
         }
+    }
+
+    fn configure_upper(m: &mut Mpe, members: u8) {
+        assert!(m.controller(15, 101, 0));
+        assert!(m.controller(15, 100, 6));
+        assert!(m.controller(15, 6, members));
+    }
+
+    /// The upper zone (RPN 6 on channel 16) counts its members down from
+    /// channel 15; both zones at once; a zone configured over the other's
+    /// channels shrinks it; channel 16 stays the wheel.
+    #[test]
+    fn upper_zone_and_both_zones() {
+        let mut m = Mpe::default();
+        configure_upper(&mut m, 3);
+        assert!(m.enabled());
+        // 0-based channels 12, 13, 14 are members; 11 and 15 are not
+        note_on(&mut m, 14, on(60));
+        note_on(&mut m, 11, on(62));
+        assert_eq!(bend(&mut m, 14, 0.25).unwrap(), [tune(60, 12.0)]);
+        assert!(bend(&mut m, 11, 0.5).is_none(), "outside the zone");
+        assert!(bend(&mut m, 15, 0.5).is_none(), "the manager is the wheel");
+        // the lower zone beside it
+        configure(&mut m, 5);
+        note_on(&mut m, 3, on(64));
+        assert_eq!(bend(&mut m, 3, -0.5).unwrap(), [tune(64, -24.0)]);
+        assert_eq!(
+            bend(&mut m, 14, 0.5).unwrap(),
+            [tune(60, 24.0)],
+            "the upper zone stays"
+        );
+        // a lower zone of 13 takes channels 1..=13: the upper zone keeps 1
+        configure(&mut m, 13);
+        assert!(m.is_member(13) && m.is_member(14));
+        assert_eq!(m.upper, 1);
+        assert_eq!(
+            bend(&mut m, 14, 0.5).unwrap(),
+            [tune(60, 24.0)],
+            "channel 14 kept its note"
+        );
+        assert!(
+            bend(&mut m, 12, 0.5).unwrap().is_empty(),
+            "channel 12 changed zones: afresh"
+        );
+        configure(&mut m, 0);
+        configure_upper(&mut m, 0);
+        assert!(!m.enabled());
     }
 
     /// A member channel's pressure presses its notes (and a later note on
