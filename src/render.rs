@@ -372,7 +372,7 @@ const CSV_CHUNKS_IN_FLIGHT: usize = 4;
 
 /// Writes the trace CSV as it goes (docs/design.md, "The render command and
 /// the trace CSV"): the render hands rows in chunks of
-/// [`CSV_CHUNK_ROWS`] to a writer thread that formats and writes them, so
+/// `CSV_CHUNK_ROWS` (4096) to a writer thread that formats and writes them, so
 /// the text (the CSV's largest cost) runs beside the engine on another
 /// core; O(1) memory for any length, the bytes those of writing the rows
 /// in order on one thread.

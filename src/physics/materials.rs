@@ -26,32 +26,32 @@
 //!   orders of magnitude and depend strongly on alloy, temper and amplitude.
 //!
 //! Sources (short names used in the comments):
-//! - [WH]: Forest Products Laboratory, *Wood Handbook: Wood as an Engineering
+//! - \[WH\]: Forest Products Laboratory, *Wood Handbook: Wood as an Engineering
 //!   Material*, USDA FPL-GTR-190 (2010), Tables 5-1 (elastic ratios), 5-2
 //!   (Poisson's ratios), 5-3a (properties of US hardwoods and softwoods).
-//! - [Bre12]: I. Bremaud, "Acoustical properties of wood in string instruments
+//! - \[Bre12\]: I. Bremaud, "Acoustical properties of wood in string instruments
 //!   soundboards and tuned idiophones: biological and cultural diversity",
 //!   JASA 131(1), 807-818 (2012), and Bremaud et al., "Anisotropy of wood
 //!   vibrational properties" (Wood Sci. Technol. 2011): `E_L` of Dalbergia
 //!   stevensonii 17-26 GPa, lowest `tan delta` of the idiophone woods.
-//! - [ATIBT]: ATIBT (1990), *Atlas de maderas tropicales de America Latina*:
+//! - \[ATIBT\]: ATIBT (1990), *Atlas de maderas tropicales de America Latina*:
 //!   Honduras rosewood 900-1050 kg/m^3 at 12 % MC.
-//! - [WDB]: E. Meier, *The Wood Database* (wood-database.com), species pages.
-//! - [BrB10]: L. Brancheriau et al., "Acoustic quality of vene wood
+//! - \[WDB\]: E. Meier, *The Wood Database* (wood-database.com), species pages.
+//! - \[BrB10\]: L. Brancheriau et al., "Acoustic quality of vene wood
 //!   (Pterocarpus erinaceus) for xylophone manufacture in Mali", Ann. For. Sci.
 //!   67, 815 (2010): `tan delta` of Pterocarpus xylophone wood ~ 0.006-0.009.
-//! - [CH]: L. Cremer, M. Heckl, B. A. T. Petersson, *Structure-Borne Sound*,
+//! - \[CH\]: L. Cremer, M. Heckl, B. A. T. Petersson, *Structure-Borne Sound*,
 //!   3rd ed., Springer (2005), table of loss factors of materials (aluminium
 //!   ~1e-4; steel 1e-4..6e-4; brass <1e-3; glass 6e-4..2e-3; plexiglass
 //!   2e-2..4e-2; wood (oak, fir) 8e-3..1e-2).
-//! - [MW]: MatWeb material datasheets (matweb.com): "Aluminum 6061-T6",
+//! - \[MW\]: MatWeb material datasheets (matweb.com): "Aluminum 6061-T6",
 //!   "AISI 1018 Steel, cold drawn", "Copper C26000 (cartridge brass)",
 //!   "Soda-lime glass", "ABS, molded" and "Acrylic (PMMA)" overviews,
 //!   "Nylon 66, dry as molded" overview.
-//! - [CDA]: Copper Development Association data for cast tin bronzes:
+//! - \[CDA\]: Copper Development Association data for cast tin bronzes:
 //!   C91300 (bell metal, 79-82 Cu, 18-20 Sn) density 0.318 lb/in^3
 //!   (8.80 g/cm^3); C91100 (16 Sn) modulus 15,000 ksi (103 GPa).
-//! - [FR]: N. H. Fletcher, T. D. Rossing, *The Physics of Musical
+//! - \[FR\]: N. H. Fletcher, T. D. Rossing, *The Physics of Musical
 //!   Instruments*, 2nd ed., Springer (1998).
 //!
 //! Values marked *(estimate)* have no direct tabulated source in the list
