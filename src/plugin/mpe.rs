@@ -196,17 +196,22 @@ impl Mpe {
         }
         let c = channel as usize;
         self.bend[c] = value;
-        out.clear();
         let semitones = self.semitones(c);
+        self.for_keys_of(channel, out, |key| Event::NoteTuning {
+            key: Some(key),
+            semitones,
+        });
+        true
+    }
+
+    /// `out` = one event per key sounding from `channel`.
+    fn for_keys_of(&self, channel: u8, out: &mut Out, event: impl Fn(u8) -> Event) {
+        out.clear();
         for (key, &ch) in self.key_channel.iter().enumerate() {
             if ch == channel {
-                out.push(Event::NoteTuning {
-                    key: Some(key as u8),
-                    semitones,
-                });
+                out.push(event(key as u8));
             }
         }
-        true
     }
 
     /// Channel pressure (`value` 0 .. 1) on `channel`: `false` (and `out`
@@ -218,17 +223,11 @@ impl Mpe {
         if !self.is_member(channel) {
             return false;
         }
-        let c = channel as usize;
-        self.pressure[c] = value;
-        out.clear();
-        for (key, &ch) in self.key_channel.iter().enumerate() {
-            if ch == channel {
-                out.push(Event::NotePressure {
-                    key: Some(key as u8),
-                    value,
-                });
-            }
-        }
+        self.pressure[channel as usize] = value;
+        self.for_keys_of(channel, out, |key| Event::NotePressure {
+            key: Some(key),
+            value,
+        });
         true
     }
 

@@ -212,27 +212,22 @@ fn run_tests(extra: &[String]) -> Result<()> {
         .find(|(b, _)| b.name == "release")
         .expect("release")
         .1;
-    let vst3_test = run(std::process::Command::new(&python)
-        .arg("plugin-tests/vst3/test_vst3.py")
-        .env(
-            "MODAL_CONTACT_VST3",
-            release.join(format!("{BUNDLE_NAME}.vst3")),
-        )
-        .env(
-            "MODAL_CONTACT_REFERENCE",
-            "target/test-release/render-reference",
-        ));
-    // The same bundle in a real DAW: Ardour 7, headless (Debian's `ardour`).
-    let ardour_test = run(std::process::Command::new(&python)
-        .arg("plugin-tests/ardour/test_ardour.py")
-        .env(
-            "MODAL_CONTACT_VST3",
-            release.join(format!("{BUNDLE_NAME}.vst3")),
-        )
-        .env(
-            "MODAL_CONTACT_REFERENCE",
-            "target/test-release/render-reference",
-        ));
+    // The VST3 in pedalboard, then the same bundle in a real DAW: Ardour 7,
+    // headless (Debian's `ardour`); both compare with the library.
+    let host_test = |script: &str| {
+        run(std::process::Command::new(&python)
+            .arg(script)
+            .env(
+                "MODAL_CONTACT_VST3",
+                release.join(format!("{BUNDLE_NAME}.vst3")),
+            )
+            .env(
+                "MODAL_CONTACT_REFERENCE",
+                "target/test-release/render-reference",
+            ))
+    };
+    let vst3_test = host_test("plugin-tests/vst3/test_vst3.py");
+    let ardour_test = host_test("plugin-tests/ardour/test_ardour.py");
     cargo_tests?;
     vst3_test?;
     ardour_test
