@@ -11,6 +11,12 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt;
 
+mod physical;
+pub use physical::{
+    BarSpec, EdgesSpec, LossSpec, MaterialSpec, MembraneSpec, PhysicalSpec, PlateSpec, PointSpec,
+    StiffStringSpec, SupportSpec, TubeSpec,
+};
+
 /// The only scene file layout version this build reads.
 pub const SCENE_VERSION: u32 = 1;
 /// Largest number of lumped masses in a `kind = "string"` object. The contact
@@ -197,6 +203,21 @@ pub enum ObjectSpec {
     /// A rigid, immovable surface at x = 0.
     #[serde(rename = "wall")]
     Wall(WallSpec),
+    /// A rectangular bar from geometry and material.
+    #[serde(rename = "bar")]
+    Bar(BarSpec),
+    /// A round tube or rod from geometry and material.
+    #[serde(rename = "tube")]
+    Tube(TubeSpec),
+    /// A rectangular plate from geometry and material.
+    #[serde(rename = "plate")]
+    Plate(PlateSpec),
+    /// A circular membrane from radius, tension and areal density.
+    #[serde(rename = "membrane")]
+    Membrane(MembraneSpec),
+    /// A string with bending stiffness.
+    #[serde(rename = "stiff_string")]
+    StiffString(StiffStringSpec),
 }
 
 impl ObjectSpec {
@@ -206,6 +227,7 @@ impl ObjectSpec {
             ObjectSpec::Modal(m) => &m.name,
             ObjectSpec::String(s) => &s.name,
             ObjectSpec::Wall(w) => &w.name,
+            _ => self.physical().map_or("", |p| p.name()),
         }
     }
     /// Names of the object's points, in the order the object defines them.
@@ -214,6 +236,31 @@ impl ObjectSpec {
             ObjectSpec::Modal(m) => m.points.clone(),
             ObjectSpec::String(s) => s.points.keys().cloned().collect(),
             ObjectSpec::Wall(_) => Vec::new(),
+            _ => self
+                .physical()
+                .map(|p| p.points().keys().cloned().collect())
+                .unwrap_or_default(),
+        }
+    }
+    /// The object as a physical description (bar, tube, plate, membrane,
+    /// stiff string), if it is one.
+    pub fn physical(&self) -> Option<PhysicalSpec<'_>> {
+        match self {
+            ObjectSpec::Bar(s) => Some(PhysicalSpec::Bar(s)),
+            ObjectSpec::Tube(s) => Some(PhysicalSpec::Tube(s)),
+            ObjectSpec::Plate(s) => Some(PhysicalSpec::Plate(s)),
+            ObjectSpec::Membrane(s) => Some(PhysicalSpec::Membrane(s)),
+            ObjectSpec::StiffString(s) => Some(PhysicalSpec::StiffString(s)),
+            ObjectSpec::Modal(_) | ObjectSpec::String(_) | ObjectSpec::Wall(_) => None,
+        }
+    }
+    /// The scene-file spelling of the object's kind.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            ObjectSpec::Modal(_) => "modal",
+            ObjectSpec::String(_) => "string",
+            ObjectSpec::Wall(_) => "wall",
+            _ => self.physical().map_or("", |p| p.kind()),
         }
     }
 }
@@ -465,6 +512,21 @@ impl Scene {
         toml::to_string(self).expect("a validated scene always serialises")
     }
 
+    /// The scene with every physically described object (bar, tube,
+    /// plate, membrane, stiff string) replaced by the modal object it
+    /// describes at `rate_hz` (docs/design.md, "Objects from geometry and
+    /// material"); other objects as they are. The compiler runs on this.
+    pub fn expanded(&self, rate_hz: f64) -> Result<Scene, SceneError> {
+        let mut out = self.clone();
+        for (i, obj) in out.object.iter_mut().enumerate() {
+            if let Some(p) = obj.physical() {
+                let modal = p.to_modal(&format!("object[{i}]"), rate_hz)?;
+                *obj = ObjectSpec::Modal(modal);
+            }
+        }
+        Ok(out)
+    }
+
     /// Index of the object named `name`.
     pub fn object_index(&self, name: &str) -> Option<usize> {
         self.object.iter().position(|o| o.name() == name)
@@ -509,6 +571,11 @@ impl Scene {
                 ObjectSpec::Modal(m) => validate_modal(&base, m)?,
                 ObjectSpec::String(s) => validate_string(&base, s)?,
                 ObjectSpec::Wall(_) => {}
+                _ => {
+                    if let Some(p) = obj.physical() {
+                        p.validate(&base)?;
+                    }
+                }
             }
         }
         Ok(())

@@ -201,6 +201,13 @@ impl CompileCost {
                 Self::from_dims(s.masses, s.masses, true, 2 * s.masses + 2, gravity, false)
             }
             ObjectSpec::Wall(_) => Self::from_dims(0, 0, false, 2, gravity, true),
+            // the compiler estimates the expanded scene
+            // ([`Scene::expanded`]), where a physical object is modal
+            ObjectSpec::Bar(_)
+            | ObjectSpec::Tube(_)
+            | ObjectSpec::Plate(_)
+            | ObjectSpec::Membrane(_)
+            | ObjectSpec::StiffString(_) => Self::from_dims(0, 0, false, 2, gravity, true),
         }
     }
 

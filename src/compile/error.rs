@@ -263,6 +263,10 @@ pub(crate) fn stiffness_hint(phase: PhaseKind, scene: &Scene, ci: usize) -> Stri
             "lengthen the shortest t60_s of object[{ci}] or lower its weights at the contact point (|w| is 1/sqrt(effective mass))"
         ),
         ObjectSpec::Wall(_) => String::new(),
+        obj => format!(
+            "lower the loss of object[{ci}] ({}: loss, material.loss_factor) or choose its contact point nearer a node",
+            obj.kind()
+        ),
     };
     match phase {
         PhaseKind::Free => obj,

@@ -38,7 +38,7 @@ pub use rows::{pan_gains, PhaseRows, RowOffsets};
 use crate::physics::block::OscBlocks;
 use crate::physics::decomp::{self, DecompDiagnostics, Form, PhaseDecomp};
 use crate::physics::hodlr::Hodlr;
-use crate::scene::{Scene, Switching};
+use crate::scene::{ObjectSpec, Scene, Switching};
 use nalgebra::DMatrix;
 
 /// Largest contact-system dimension the compiler attempts whatever the
@@ -444,6 +444,12 @@ pub fn compile_opts(
     if !(rate_hz.is_finite() && (RATE_RANGE_HZ.0..=RATE_RANGE_HZ.1).contains(&rate_hz)) {
         return Err(CompileError::SampleRate(rate_hz));
     }
+    // 0. objects described by geometry and material become their modes at
+    // this rate (docs/design.md, "Objects from geometry and material")
+    let original = scene;
+    let expanded = scene.expanded(rate_hz)?;
+    let scene = &expanded;
+    scene.validate()?;
     let asked = switching.or(scene.contact.switching).unwrap_or_default();
     let h = 1.0 / rate_hz;
     let ci = scene
@@ -507,7 +513,10 @@ pub fn compile_opts(
         switching_note: switching_note.as_deref(),
         object_name: &object.obj.name,
         n: object.obj.n,
-        kind: summary::kind(&spec),
+        kind: match &spec {
+            ObjectSpec::Wall(_) => "wall",
+            _ => original.object[ci].kind(),
+        },
         params: &object.params,
         free: &free,
         contact: &contact,

@@ -27,15 +27,6 @@ pub(super) struct Facts<'a> {
     pub dropped_pickups: &'a [String],
 }
 
-/// The kind of object, for the summary.
-pub(super) fn kind(spec: &ObjectSpec) -> &'static str {
-    match spec {
-        ObjectSpec::Modal(_) => "modal",
-        ObjectSpec::String(_) => "string",
-        ObjectSpec::Wall(_) => "wall",
-    }
-}
-
 fn phase_line(what: &str, ph: &CompiledPhase) -> String {
     let d = &ph.diag;
     format!(

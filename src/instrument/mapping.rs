@@ -111,6 +111,15 @@ fn scale_damping(
     rate: impl Fn(f64) -> f64,
 ) {
     for obj in &mut s.object {
+        if let Some(p) = obj.physical() {
+            // sigma of every mode is linear in the loss model's rates
+            let eta = p.shape("").map_or(0.0, |(_, eta)| eta);
+            let undamped = t60(None).map_or(0.0, |t| crate::physics::model::LN_1000 / t);
+            if let Some((loss, _)) = obj.physical_mut() {
+                *loss = loss.scaled(eta, undamped, &rate);
+            }
+            continue;
+        }
         match obj {
             ObjectSpec::Modal(m) => {
                 for mode in &mut m.mode {
@@ -124,7 +133,7 @@ fn scale_damping(
                     d.n_s_per_m = rate(d.n_s_per_m);
                 }
             }
-            ObjectSpec::Wall(_) => {}
+            _ => {}
         }
     }
 }
@@ -148,7 +157,10 @@ fn positive_or(v: f64, fallback: f64) -> f64 {
 ///   points, the points in their listed order are taken as evenly spaced
 ///   samples of the striking line and each mode's contact weight becomes the
 ///   linear interpolation of its weights at `pos * (points - 1)`; objects
-///   with fewer points (and walls) ignore it;
+///   with fewer points (and walls) ignore it; on an object from geometry
+///   and material (bar, tube, plate, membrane, stiff string) the contact
+///   point moves to [`crate::scene::PhysicalSpec::strike_point`] and its
+///   weights come from the mode shapes there;
 /// - gravity: scenes whose hammer has gravity (bouncing scenes) get the
 ///   parameter's value; others stay without gravity;
 /// - switching is set in the scene's contact section.
@@ -189,6 +201,16 @@ fn set_strike_position(s: &mut Scene, pos: f64) {
     let Some(ci) = s.object_index(&s.contact.object) else {
         return;
     };
+    if let Some(p) = s.object[ci].physical() {
+        let Some(&current) = p.points().get(&point) else {
+            return;
+        };
+        let new = p.strike_point(pos, current);
+        if let Some((_, points)) = s.object[ci].physical_mut() {
+            points.insert(point, new);
+        }
+        return;
+    }
     match &mut s.object[ci] {
         ObjectSpec::String(st) => {
             if st.masses == 0 {
@@ -216,7 +238,7 @@ fn set_strike_position(s: &mut Scene, pos: f64) {
                 mode.weights[pi] = w;
             }
         }
-        ObjectSpec::Wall(_) => {}
+        _ => {}
     }
 }
 
@@ -253,6 +275,7 @@ pub fn lowest_frequency_hz(scene: &Scene) -> Option<f64> {
             (f.is_finite() && f > 0.0).then_some(f)
         }
         ObjectSpec::Wall(_) => None,
+        obj => obj.physical()?.lowest_frequency_hz(),
     }
 }
 

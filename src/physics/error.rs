@@ -192,6 +192,9 @@ impl From<SecularError> for DecompError {
 pub enum ModelError {
     /// A lumped object's stiffness matrix is not positive definite.
     StiffnessNotPositiveDefinite,
+    /// A physically described object reached the model without being
+    /// turned into its modes first (`Scene::expanded`).
+    NotExpanded,
 }
 
 impl fmt::Display for ModelError {
@@ -200,6 +203,10 @@ impl fmt::Display for ModelError {
             Self::StiffnessNotPositiveDefinite => {
                 write!(f, "stiffness matrix is not positive definite")
             }
+            Self::NotExpanded => write!(
+                f,
+                "the object is described by geometry and material; expand the scene to its modes first"
+            ),
         }
     }
 }

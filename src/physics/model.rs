@@ -65,6 +65,11 @@ impl ObjectModel {
         match spec {
             ObjectSpec::Modal(m) => Ok(modal_model(m)),
             ObjectSpec::String(s) => string_model(s),
+            ObjectSpec::Bar(_)
+            | ObjectSpec::Tube(_)
+            | ObjectSpec::Plate(_)
+            | ObjectSpec::Membrane(_)
+            | ObjectSpec::StiffString(_) => Err(ModelError::NotExpanded),
             ObjectSpec::Wall(w) => Ok(ObjectModel {
                 name: w.name.clone(),
                 n: 0,

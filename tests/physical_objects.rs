@@ -1,0 +1,383 @@
+//! Objects from geometry and material in scene files (docs/design.md,
+//! "Objects from geometry and material"): each kind against its modal
+//! equivalent written out here from the closed forms (not through the
+//! shapes module), the instrument's parameters on them, and bad input.
+
+use modal_contact::instrument::{damped_scene, scene_for, InstrumentParams};
+use modal_contact::render::{render, RenderOptions};
+use modal_contact::scene::{ObjectSpec, Scene};
+use std::f64::consts::PI;
+
+const RATE: f64 = 48000.0;
+const LN_1000: f64 = 6.907_755_278_982_137;
+
+/// A scene around one object table (TOML), struck at `contact`, heard at
+/// `pickup`.
+fn scene_with(object: &str) -> String {
+    format!(
+        r#"
+version = 1
+name = "physical"
+duration_s = 0.25
+
+[[object]]
+{object}
+
+[hammer]
+mass_kg = 0.02
+height_m = 0.0
+velocity_m_per_s = -1.0
+
+[contact]
+object = "o"
+point = "contact"
+stiffness_n_per_m = 2e6
+damping_n_s_per_m = 10.0
+
+[[pickup]]
+object = "o"
+point = "pickup"
+"#
+    )
+}
+
+fn parse(object: &str) -> Scene {
+    Scene::from_toml_str(&scene_with(object)).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn err(object: &str) -> String {
+    match Scene::from_toml_str(&scene_with(object)) {
+        Err(e) => e.to_string(),
+        Ok(s) => match s.expanded(RATE) {
+            Err(e) => e.to_string(),
+            Ok(_) => panic!("accepted: {object}"),
+        },
+    }
+}
+
+/// The modal object a scene's physical object expands to.
+fn modal_of(scene: &Scene) -> modal_contact::scene::ModalSpec {
+    let ex = scene.expanded(RATE).unwrap_or_else(|e| panic!("{e}"));
+    match &ex.object[0] {
+        ObjectSpec::Modal(m) => m.clone(),
+        o => panic!("not expanded: {}", o.kind()),
+    }
+}
+
+/// `scene` with its object replaced by a modal object of these modes
+/// (frequency, T60, weights at contact and pickup).
+fn hand_expanded(scene: &Scene, modes: &[(f64, Option<f64>, f64, f64)]) -> Scene {
+    let mut text = String::from("name = \"o\"\nkind = \"modal\"\npoints = [\"contact\", \"pickup\"]\n");
+    for (f, t60, wc, wp) in modes {
+        text.push_str(&format!("[[object.mode]]\nfreq_hz = {f:e}\n"));
+        if let Some(t) = t60 {
+            text.push_str(&format!("t60_s = {t:e}\n"));
+        }
+        text.push_str(&format!("weights = [{wc:e}, {wp:e}]\n"));
+    }
+    let hand = parse(&text);
+    let mut out = scene.clone();
+    out.object = hand.object;
+    out
+}
+
+fn max_abs_diff(a: &[f64], b: &[f64]) -> (f64, f64) {
+    assert_eq!(a.len(), b.len());
+    let d = a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+    let peak = b.iter().map(|x| x.abs()).fold(0.0, f64::max);
+    (d, peak)
+}
+
+/// The ends of the chain: the scene file in the new kind and its modal
+/// equivalent written out from the closed form render the same to
+/// rounding (both through the whole compiler and engine).
+fn renders_like(scene: &Scene, modes: &[(f64, Option<f64>, f64, f64)], what: &str) {
+    let hand = hand_expanded(scene, modes);
+    let opts = RenderOptions {
+        rate_hz: RATE,
+        ..RenderOptions::default()
+    };
+    let a = render(scene, &opts).unwrap_or_else(|e| panic!("{e}"));
+    let b = render(&hand, &opts).unwrap_or_else(|e| panic!("{e}"));
+    let (d, peak) = max_abs_diff(&a.left, &b.left);
+    println!("{what}: {} modes, max |difference| {d:.3e} of peak {peak:.3e}", modes.len());
+    assert!(peak > 0.0, "{what}: silent");
+    assert!(d <= 1e-12 * peak, "{what}: {d:e} vs peak {peak:e}");
+}
+
+/// Simply supported steel plate: `omega_mn = pi^2 (m^2/a^2 + n^2/b^2)
+/// sqrt(D / (rho h))`, `Phi = 2 / sqrt(rho h a b) sin sin`, T60 from the
+/// loss factor and a constant rate; every mode up to the Nyquist frequency.
+#[test]
+fn plate_is_its_closed_form() {
+    let (a, b, h, rho, e, nu, eta, s0): (f64, f64, f64, f64, f64, f64, f64, f64) = (0.4, 0.28, 0.008, 7850.0, 2.0e11, 0.29, 2e-4, 0.3);
+    let scene = parse(&format!(
+        r#"name = "o"
+kind = "plate"
+material = {{ name = "steel", density_kg_per_m3 = {rho}, youngs_modulus_pa = {e}, poisson_ratio = {nu}, loss_factor = {eta} }}
+length_x_m = {a}
+length_y_m = {b}
+thickness_m = {h}
+loss = {{ decay_rate_per_s = {s0} }}
+points = {{ contact = [0.13, 0.09], pickup = [0.31, 0.2] }}"#
+    ));
+    let d = e * h * h * h / (12.0 * (1.0 - nu * nu));
+    let mut modes = Vec::new();
+    for m in 1..200 {
+        for n in 1..200 {
+            let w = PI * PI * ((m * m) as f64 / (a * a) + (n * n) as f64 / (b * b))
+                * (d / (rho * h)).sqrt();
+            let f = w / (2.0 * PI);
+            if f <= RATE / 2.0 {
+                let phi = |x: f64, y: f64| {
+                    2.0 / (rho * h * a * b).sqrt()
+                        * (m as f64 * PI * x / a).sin()
+                        * (n as f64 * PI * y / b).sin()
+                };
+                let t60 = LN_1000 / (s0 + eta * PI * f);
+                modes.push((f, Some(t60), phi(0.13, 0.09), phi(0.31, 0.2)));
+            }
+        }
+    }
+    modes.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let got = modal_of(&scene);
+    assert_eq!(got.mode.len(), modes.len(), "modes below Nyquist");
+    let mut worst = 0.0f64;
+    for (g, w) in got.mode.iter().zip(&modes) {
+        worst = worst.max((g.freq_hz / w.0 - 1.0).abs());
+        assert!((g.t60_s.unwrap() / w.1.unwrap() - 1.0).abs() < 1e-13);
+    }
+    println!("plate: {} modes, worst relative frequency error {worst:.2e}", modes.len());
+    assert!(worst < 1e-13);
+    renders_like(&scene, &modes, "plate");
+}
+
+/// A stiff steel wire: `f_n = n f_0 sqrt(1 + B n^2)`, `B = pi^2 E I / (T
+/// L^2)`, `Phi = sqrt(2 / (mu L)) sin(n pi x / L)`, damping `sigma_0 +
+/// sigma_r (f / f_r)^2` (the usual frequency-dependent string loss).
+#[test]
+fn stiff_string_is_its_closed_form() {
+    let (l, t, dia, rho, e): (f64, f64, f64, f64, f64) = (0.65, 700.0, 1.0e-3, 7850.0, 2.0e11);
+    let scene = parse(&format!(
+        r#"name = "o"
+kind = "stiff_string"
+material = {{ name = "steel", density_kg_per_m3 = {rho}, youngs_modulus_pa = {e}, loss_factor = 0.0 }}
+length_m = {l}
+tension_n = {t}
+diameter_m = {dia}
+max_freq_hz = 12000.0
+loss = {{ decay_rate_per_s = 0.4, radiation_per_s = 2.0, radiation_ref_hz = 1000.0 }}
+points = {{ contact = 0.08, pickup = 0.5 }}"#
+    ));
+    let mu = rho * PI * dia * dia / 4.0;
+    let ei = e * PI * dia.powi(4) / 64.0;
+    let f0 = (t / mu).sqrt() / (2.0 * l);
+    let bb = PI * PI * ei / (t * l * l);
+    let mut modes = Vec::new();
+    for n in 1.. {
+        let f = n as f64 * f0 * (1.0 + bb * (n * n) as f64).sqrt();
+        if f > 12000.0 {
+            break;
+        }
+        let phi = |x: f64| (2.0 / (mu * l)).sqrt() * (n as f64 * PI * x / l).sin();
+        let t60 = LN_1000 / (0.4 + 2.0 * (f / 1000.0).powi(2));
+        modes.push((f, Some(t60), phi(0.08), phi(0.5)));
+    }
+    println!("stiff string: B = {bb:.3e}, f0 = {f0:.3} Hz");
+    let got = modal_of(&scene);
+    assert_eq!(got.mode.len(), modes.len());
+    for (g, w) in got.mode.iter().zip(&modes) {
+        assert!((g.freq_hz / w.0 - 1.0).abs() < 1e-13, "{} vs {}", g.freq_hz, w.0);
+    }
+    renders_like(&scene, &modes, "stiff string");
+}
+
+/// Circular membrane: `f_mn = j_mn c / (2 pi a)` with the published Bessel
+/// zeros; a point at `(r, theta)` weighs the `cos` and `sin` partners by
+/// `cos(m theta)` and `sin(m theta)`.
+#[test]
+fn membrane_frequencies_and_angles() {
+    let scene = parse(
+        r#"name = "o"
+kind = "membrane"
+radius_m = 0.2
+tension_n_per_m = 3000.0
+areal_density_kg_per_m2 = 0.25
+max_modes = 12
+loss = { loss_factor = 0.01 }
+points = { contact = [0.1, 30.0], pickup = 0.05 }"#,
+    );
+    let got = modal_of(&scene);
+    let c = (3000.0f64 / 0.25).sqrt();
+    // j_01, j_11 (x2), j_21 (x2), j_02, j_31 (x2) (Abramowitz & Stegun 9.5)
+    let zeros = [2.404825557695773, 3.831705970207512, 5.135622301840683, 5.520078110286311, 6.380161895923984];
+    let f = |j: f64| j * c / (2.0 * PI * 0.2);
+    let want = [zeros[0], zeros[1], zeros[1], zeros[2], zeros[2], zeros[3], zeros[4], zeros[4]];
+    for (g, j) in got.mode.iter().zip(want) {
+        assert!((g.freq_hz / f(j) - 1.0).abs() < 1e-12, "{} vs {}", g.freq_hz, f(j));
+    }
+    // the (1,1) pair at theta = 30 degrees: weights in ratio cos 30 : sin 30
+    let (wc, ws) = (got.mode[1].weights[0], got.mode[2].weights[0]);
+    assert!((ws / wc - (30f64.to_radians()).tan()).abs() < 1e-12, "{ws} / {wc}");
+    // the pickup at theta = 0 hears no sin partner
+    assert_eq!(got.mode[2].weights[1], 0.0);
+    let _ = render(
+        &scene,
+        &RenderOptions {
+            rate_hz: RATE,
+            ..RenderOptions::default()
+        },
+    )
+    .unwrap();
+}
+
+/// Material values: a scene may override the table's; the frequencies of
+/// a bar scale as `sqrt(E / rho)`.
+#[test]
+fn material_overrides_scale_a_bar() {
+    let bar = |extra: &str| {
+        parse(&format!(
+            r#"name = "o"
+kind = "bar"
+material = {{ name = "aluminium"{extra} }}
+length_m = 0.3
+width_m = 0.04
+thickness_m = 0.008
+timoshenko = false
+points = {{ contact = 0.15, pickup = 0.02 }}"#
+        ))
+    };
+    let base = modal_of(&bar(""));
+    let stiffer = modal_of(&bar(", youngs_modulus_pa = 1.38e11"));
+    let al = modal_contact::physics::materials::material("aluminium").unwrap();
+    let ratio = (1.38e11 / al.youngs_modulus_pa).sqrt();
+    for (a, b) in base.mode.iter().zip(&stiffer.mode) {
+        assert!((b.freq_hz / a.freq_hz / ratio - 1.0).abs() < 1e-12);
+    }
+    // free-free Euler-Bernoulli: f_1 = 4.730040744862704^2 / (2 pi L^2) sqrt(E I / (rho A))
+    let f1 = 4.730040744862704f64.powi(2) / (2.0 * PI * 0.09)
+        * (al.youngs_modulus_pa * 0.008 * 0.008 / (12.0 * al.density_kg_m3)).sqrt();
+    println!("aluminium bar f1 = {:.4} Hz (closed form {f1:.4})", base.mode[0].freq_hz);
+    assert!((base.mode[0].freq_hz / f1 - 1.0).abs() < 1e-12);
+    // the default Timoshenko correction lowers every mode, the higher ones more
+    let timo = modal_of(&parse(
+        r#"name = "o"
+kind = "bar"
+material = "aluminium"
+length_m = 0.3
+width_m = 0.04
+thickness_m = 0.008
+points = { contact = 0.15, pickup = 0.02 }"#,
+    ));
+    let low: Vec<f64> = timo.mode.iter().zip(&base.mode).map(|(t, e)| t.freq_hz / e.freq_hz).collect();
+    assert!(low.iter().all(|r| *r < 1.0) && low.windows(2).all(|w| w[1] < w[0]), "{low:?}");
+}
+
+/// The instrument's strike position moves the contact point along the
+/// object and its weights come from the mode shapes there; the decay scale
+/// and the damper scale every T60 exactly.
+#[test]
+fn instrument_parameters_on_physical_objects() {
+    let scene = parse(
+        r#"name = "o"
+kind = "stiff_string"
+linear_density_kg_per_m = 0.006
+bending_stiffness_n_m2 = 1e-4
+length_m = 0.65
+tension_n = 700.0
+max_modes = 20
+loss = { decay_rate_per_s = 0.5, loss_factor = 1e-4 }
+points = { contact = 0.1, pickup = 0.3 }"#,
+    );
+    let mut p = InstrumentParams::default();
+    for pos in [0.0, 0.137, 0.5, 1.0] {
+        p.scene.strike_pos_norm = Some(pos);
+        let m = modal_of(&scene_for(&scene, &p));
+        let ci = m.points.iter().position(|x| x == "contact").unwrap();
+        for (n, mode) in m.mode.iter().enumerate() {
+            let want = (2.0f64 / (0.006 * 0.65)).sqrt() * ((n + 1) as f64 * PI * pos).sin();
+            assert!((mode.weights[ci] - want).abs() < 1e-12 * (1.0 + want.abs()), "pos {pos}");
+        }
+    }
+    let base = modal_of(&scene);
+    p.scene.strike_pos_norm = None;
+    p.scene.decay_scale = 2.5;
+    let longer = modal_of(&scene_for(&scene, &p));
+    let damped = modal_of(&damped_scene(&scene, 0.4));
+    let f = 1.0 + modal_contact::instrument::DAMPER_T60_DIVISOR * 0.4;
+    for ((a, b), c) in base.mode.iter().zip(&longer.mode).zip(&damped.mode) {
+        assert_eq!(a.freq_hz, b.freq_hz);
+        assert!((b.t60_s.unwrap() / a.t60_s.unwrap() / 2.5 - 1.0).abs() < 1e-13);
+        assert!((a.t60_s.unwrap() / c.t60_s.unwrap() / f - 1.0).abs() < 1e-13);
+    }
+    // a lossless object released gets the documented release decay
+    let lossless = parse(
+        r#"name = "o"
+kind = "membrane"
+radius_m = 0.2
+tension_n_per_m = 3000.0
+areal_density_kg_per_m2 = 0.25
+max_modes = 4
+points = { contact = 0.1, pickup = 0.05 }"#,
+    );
+    assert!(modal_of(&lossless).mode.iter().all(|m| m.t60_s.is_none()));
+    let released = modal_of(&damped_scene(&lossless, 0.0));
+    for m in &released.mode {
+        let t = m.t60_s.expect("damped");
+        assert!((t / modal_contact::instrument::UNDAMPED_RELEASE_T60_S - 1.0).abs() < 1e-13);
+    }
+}
+
+/// Bad input: each a clear error naming the field, never a panic.
+#[test]
+fn bad_physical_objects_are_refused_with_the_field() {
+    let bar = |geom: &str| {
+        format!(
+            "name = \"o\"\nkind = \"bar\"\nmaterial = \"rosewood\"\n{geom}\npoints = {{ contact = 0.1, pickup = 0.02 }}"
+        )
+    };
+    let cases = [
+        (bar("length_m = -0.3\nwidth_m = 0.05\nthickness_m = 0.02"), "object[0].length_m"),
+        (bar("length_m = 0.3\nwidth_m = 0.0\nthickness_m = 0.02"), "object[0].width_m"),
+        (
+            "name = \"o\"\nkind = \"tube\"\nmaterial = \"brass\"\nlength_m = 1.0\nouter_diameter_m = 0.03\ninner_diameter_m = 0.03\npoints = { contact = 0.1, pickup = 0.2 }".into(),
+            "object[0].inner_diameter_m",
+        ),
+        (
+            "name = \"o\"\nkind = \"plate\"\nmaterial = { name = \"steel\", poisson_ratio = 0.6 }\nlength_x_m = 0.3\nlength_y_m = 0.2\nthickness_m = 0.002\npoints = { contact = [0.1, 0.1], pickup = [0.2, 0.1] }".into(),
+            "object[0].material.poisson_ratio",
+        ),
+        (bar("length_m = 0.3\nwidth_m = 0.05\nthickness_m = 0.02\npoints_extra = 1"), "unknown field"),
+        (
+            "name = \"o\"\nkind = \"bar\"\nmaterial = \"rosewood\"\nlength_m = 0.3\nwidth_m = 0.05\nthickness_m = 0.02\npoints = { contact = 0.4, pickup = 0.02 }".into(),
+            "object[0].points.contact",
+        ),
+        (
+            "name = \"o\"\nkind = \"plate\"\nmaterial = \"steel\"\nlength_x_m = 0.3\nlength_y_m = 0.2\nthickness_m = 0.002\npoints = { contact = 0.1, pickup = [0.2, 0.1] }".into(),
+            "object[0].points.contact",
+        ),
+        (
+            "name = \"o\"\nkind = \"membrane\"\nradius_m = 0.2\ntension_n_per_m = 3000.0\nareal_density_kg_per_m2 = 0.25\npoints = { contact = [0.3, 0.0], pickup = 0.05 }".into(),
+            "object[0].points.contact",
+        ),
+        (bar("length_m = 0.3\nwidth_m = 0.05\nthickness_m = 0.02\nmax_freq_hz = 10.0"), "object[0].max_freq_hz"),
+        (
+            "name = \"o\"\nkind = \"bar\"\nmaterial = \"unobtainium\"\nlength_m = 0.3\nwidth_m = 0.05\nthickness_m = 0.02\npoints = { contact = 0.1, pickup = 0.02 }".into(),
+            "object[0].material.name",
+        ),
+        (
+            "name = \"o\"\nkind = \"stiff_string\"\nlength_m = 0.6\ntension_n = 500.0\npoints = { contact = 0.1, pickup = 0.2 }".into(),
+            "object[0]: give either",
+        ),
+        // very fine geometry: a huge thin plate has far too many modes
+        (
+            "name = \"o\"\nkind = \"plate\"\nmaterial = \"steel\"\nlength_x_m = 3.0\nlength_y_m = 2.0\nthickness_m = 0.0005\npoints = { contact = [0.1, 0.1], pickup = [0.2, 0.1] }".into(),
+            "more than the limit",
+        ),
+    ];
+    for (object, want) in cases {
+        let e = err(&object);
+        println!("{want}: {e}");
+        assert!(e.contains(want), "expected {want:?} in {e:?}");
+    }
+}
