@@ -56,6 +56,10 @@ pub const PRESETS: &[Preset] = &[
     preset!("paper-string", "Paper string"),
     preset!("steel-plate", "Steel plate"),
     preset!("wood-block", "Wood block"),
+    preset!("vibraphone-bar", "Vibraphone bar"),
+    preset!("tubular-chime", "Tubular chime"),
+    preset!("frame-drum", "Frame drum"),
+    preset!("piano-string", "Piano string"),
 ];
 
 /// How many presets there are.

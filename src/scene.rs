@@ -13,7 +13,7 @@ use std::fmt;
 
 mod physical;
 pub use physical::{
-    BarSpec, EdgesSpec, LossSpec, MaterialSpec, MembraneSpec, PhysicalSpec, PlateSpec, PointSpec,
+    plate_radiation_rate, BarSpec, EdgesSpec, LossSpec, MaterialSpec, MembraneSpec, PhysicalSpec, PlateSpec, PointSpec,
     StiffStringSpec, SupportSpec, TubeSpec,
 };
 

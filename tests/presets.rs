@@ -190,3 +190,64 @@ fn every_preset_compiles_and_renders_finite_audio() {
     }
     assert!(count >= 5);
 }
+
+/// Presets rewritten as physical descriptions (docs/design.md, "Objects
+/// from geometry and material") against the hand-typed modal objects they
+/// replaced (`tests/data/modal-presets/`, as the earlier generator wrote
+/// them): mode by mode, frequency, T60 and weights at every point, and the
+/// first second of both renders at 48 kHz. Each preset's tolerances say
+/// where its model is the same physics (1e-6: rounding of the printed
+/// tables) and where it changed (documented in the preset's comments).
+#[test]
+fn rewritten_presets_keep_their_sound() {
+    use modal_contact::scene::Scene;
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    // name, frequency, T60, weight (relative to the largest weight), render
+    // (relative L2 of the first second); the old tables were printed to 5
+    // or 6 significant digits (T60 to 5: 1e-4 relative)
+    let cases: [(&str, f64, f64, f64, f64); 1] = [("steel-plate", 1e-6, 1e-4, 1e-5, 1e-3)];
+    let dir = root.join("tests/data/modal-presets");
+    let fixtures = std::fs::read_dir(&dir).unwrap().count();
+    assert_eq!(fixtures, cases.len(), "every fixture has its tolerances");
+    for (name, tf, tt, tw, tr) in cases {
+        let old = Scene::from_file(&dir.join(format!("{name}.toml"))).unwrap();
+        let new = Scene::from_file(&root.join(format!("presets/{name}.toml"))).unwrap();
+        assert!(new.object[0].physical().is_some(), "{name} is physical");
+        let ex = new.expanded(48000.0).unwrap();
+        let (ObjectSpec::Modal(a), ObjectSpec::Modal(b)) = (&old.object[0], &ex.object[0]) else {
+            panic!("{name}: not modal");
+        };
+        assert_eq!(a.mode.len(), b.mode.len(), "{name}: mode count");
+        let wmax = a
+            .mode
+            .iter()
+            .flat_map(|m| m.weights.iter())
+            .fold(0.0f64, |x, w| x.max(w.abs()));
+        let (mut df, mut dt, mut dw) = (0.0f64, 0.0f64, 0.0f64);
+        for (x, y) in a.mode.iter().zip(&b.mode) {
+            df = df.max((y.freq_hz / x.freq_hz - 1.0).abs());
+            dt = dt.max((y.t60_s.unwrap() / x.t60_s.unwrap() - 1.0).abs());
+            for p in &a.points {
+                let i = a.points.iter().position(|q| q == p).unwrap();
+                let j = b.points.iter().position(|q| q == p).unwrap();
+                dw = dw.max((x.weights[i] - y.weights[j]).abs() / wmax);
+            }
+        }
+        let opts = RenderOptions {
+            rate_hz: 48000.0,
+            seconds: Some(1.0),
+            ..Default::default()
+        };
+        let ra = render(&old, &opts).unwrap();
+        let rb = render(&new, &opts).unwrap();
+        let both = |r: &modal_contact::render::RenderOutput| {
+            r.left.iter().chain(&r.right).copied().collect::<Vec<f64>>()
+        };
+        let dr = modal_testkit::metrics::rel_l2(&both(&rb), &both(&ra));
+        println!(
+            "{name}: {} modes; worst relative difference: frequency {df:.2e}, T60 {dt:.2e}, weight {dw:.2e} of the largest; render {dr:.2e} (relative L2, 1 s)",
+            a.mode.len()
+        );
+        assert!(df <= tf && dt <= tt && dw <= tw && dr <= tr, "{name}");
+    }
+}

@@ -12,17 +12,18 @@
 //! equivalent compile to the same thing.
 
 use super::{
-    check_finite, check_positive, ModalSpec, ModeSpec, SceneError,
+    check_finite, check_non_negative, check_positive, ModalSpec, ModeSpec, SceneError,
     MAX_FREQ_HZ, MAX_MODES_PER_OBJECT, MAX_WEIGHT, MIN_FREQ_HZ, MIN_T60_S,
 };
 use crate::physics::materials::{self, Material};
 use crate::physics::shapes::{
-    Bar, BeamSupport, LossModel, Membrane, Plate, PlateEdges, Point, Shape, ShapeMode,
+    Bar, BeamSupport, LossModel, Membrane, ModeLabel, Plate, PlateEdges, Point, Shape, ShapeMode,
     StiffString, Tube,
 };
 use serde::de::{self, MapAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize};
 use std::collections::BTreeMap;
+use crate::physics::model::LN_1000;
 use std::f64::consts::PI;
 use std::fmt;
 
@@ -107,6 +108,58 @@ pub struct LossSpec {
     /// Exponent of the radiation term.
     #[serde(default = "default_radiation_exponent")]
     pub radiation_exponent: f64,
+    /// Plates only: the sound radiation of a baffled plate into air
+    /// ([`plate_radiation_rate`]) times this factor (1: the plate in air at
+    /// 20 C; 0, the default: none), beside the power law above.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub plate_radiation: f64,
+}
+
+/// Density of air \[kg/m^3\] (20 C) for [`plate_radiation_rate`].
+pub const RHO_AIR: f64 = 1.204;
+/// Speed of sound in air \[m/s\] (20 C) for [`plate_radiation_rate`].
+pub const C_AIR: f64 = 343.0;
+
+/// Decay rate \[1/s\] of a mode at `f` of a thin rectangular plate (sides
+/// `a`, `b`, areal density `rho_h`, flexural rigidity `d`) radiating into
+/// air from a baffle: `rho_0 c / (2 rho h) sigma(f)` with the radiation
+/// efficiency `sigma` of a baffled simply supported plate by Maidanik
+/// (1962), as given in Beranek & Ver, *Noise and Vibration Control
+/// Engineering* (1992): below the coincidence frequency `f_c = c^2 / (2 pi)
+/// sqrt(rho h / D)` edge and corner radiation, `sigma = lambda_c P / S g_2
+/// + 2 lambda_c^2 / S g_1` (`alpha = sqrt(f / f_c)`, `g_2 = ((1 - alpha^2)
+/// ln((1 + alpha) / (1 - alpha)) + 2 alpha) / (4 pi^2 (1 -
+/// alpha^2)^1.5)`, `g_1 = 4 / pi^4 (1 - 2 alpha^2) / (alpha sqrt(1 -
+/// alpha^2))` below `f_c / 2`, else 0); above it `1 / sqrt(1 - f_c / f)`;
+/// both capped at `sqrt(a / lambda_c) + sqrt(b / lambda_c)`. Used for
+/// free plates too (an estimate: Maidanik's result is for simple supports).
+pub fn plate_radiation_rate(f: f64, a: f64, b: f64, rho_h: f64, d: f64) -> f64 {
+    let f_co = C_AIR * C_AIR / (2.0 * PI) * (rho_h / d).sqrt();
+    let lam_c = C_AIR / f_co;
+    let (p, s) = (2.0 * (a + b), a * b);
+    let cap = (a / lam_c).sqrt() + (b / lam_c).sqrt();
+    let sigma = if f >= f_co {
+        if f > f_co {
+            1.0 / (1.0 - f_co / f).sqrt()
+        } else {
+            f64::INFINITY
+        }
+    } else {
+        let al = (f / f_co).sqrt();
+        let g2 = ((1.0 - al * al) * ((1.0 + al) / (1.0 - al)).ln() + 2.0 * al)
+            / (4.0 * PI * PI * (1.0 - al * al).powf(1.5));
+        let g1 = if f < f_co / 2.0 {
+            4.0 / PI.powi(4) * (1.0 - 2.0 * al * al) / (al * (1.0 - al * al).sqrt())
+        } else {
+            0.0
+        };
+        lam_c * p / s * g2 + 2.0 * lam_c * lam_c / s * g1
+    };
+    RHO_AIR * C_AIR / (2.0 * rho_h) * sigma.min(cap)
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 fn default_radiation_ref_hz() -> f64 {
@@ -125,6 +178,7 @@ impl Default for LossSpec {
             radiation_per_s: 0.0,
             radiation_ref_hz: default_radiation_ref_hz(),
             radiation_exponent: default_radiation_exponent(),
+            plate_radiation: 0.0,
         }
     }
 }
@@ -199,6 +253,12 @@ pub struct BarSpec {
     /// `[1, 4, 10]`); empty: a uniform bar.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub tuning: Vec<f64>,
+    /// With `tuning`: the frequency the maker tunes the fundamental to
+    /// \[Hz\] (the undercut lowers it below the uniform bar's); every
+    /// bending mode is scaled by the same factor. Default: the uniform
+    /// bar's fundamental.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fundamental_hz: Option<f64>,
     /// Decay.
     #[serde(default)]
     pub loss: LossSpec,
@@ -462,17 +522,31 @@ impl LossSpec {
     /// any loss gets the constant rate `undamped_rate` instead.
     pub fn scaled(&self, material_eta: f64, undamped_rate: f64, rate: impl Fn(f64) -> f64) -> Self {
         let eta = self.loss_factor.unwrap_or(material_eta);
-        if eta == 0.0 && self.decay_rate_per_s == 0.0 && self.radiation_per_s == 0.0 {
+        if eta == 0.0
+            && self.decay_rate_per_s == 0.0
+            && self.radiation_per_s == 0.0
+            && self.plate_radiation == 0.0
+        {
+            if undamped_rate == 0.0 {
+                return self.clone();
+            }
             return LossSpec {
                 loss_factor: Some(0.0),
                 decay_rate_per_s: undamped_rate,
                 ..self.clone()
             };
         }
+        let scaled_eta = rate(eta);
         LossSpec {
-            loss_factor: Some(rate(eta)),
+            // unchanged stays as written (a unit scale keeps the scene)
+            loss_factor: if self.loss_factor.is_none() && scaled_eta == eta {
+                None
+            } else {
+                Some(scaled_eta)
+            },
             decay_rate_per_s: rate(self.decay_rate_per_s),
             radiation_per_s: rate(self.radiation_per_s),
+            plate_radiation: rate(self.plate_radiation),
             ..self.clone()
         }
     }
@@ -693,9 +767,20 @@ impl<'a> PhysicalSpec<'a> {
                 ));
             }
         }
-        let modes = shape
-            .modes(max_freq, max_count + 1)
+        // a tuned bar's bending modes scaled to the given fundamental
+        let bend_scale = self.bending_scale(base, &shape)?;
+        let mut modes = shape
+            .modes(max_freq / bend_scale.min(1.0), max_count + 1)
             .map_err(|e| shape_error(base, e))?;
+        if bend_scale != 1.0 {
+            for m in &mut modes {
+                if matches!(m.label, ModeLabel::Bending { .. }) {
+                    m.freq_hz *= bend_scale;
+                }
+            }
+            modes.retain(|m| m.freq_hz <= max_freq);
+            modes.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
+        }
         if modes.len() > max_count && limits.max_modes.is_none() {
             return Err(SceneError::new(
                 base.to_string(),
@@ -725,11 +810,11 @@ impl<'a> PhysicalSpec<'a> {
             ));
         }
         let mut mode = Vec::with_capacity(modes.len());
+        let radiation = self.plate_radiation(base, &shape)?;
         for (k, m) in modes.iter().enumerate() {
-            let t60_s = loss
-                .t60_s(m.freq_hz)
-                .map_err(|e| shape_error(base, e))?
-                .map(|t| t.max(MIN_T60_S));
+            let sigma = loss.decay_rate(m.freq_hz).map_err(|e| shape_error(base, e))?
+                + radiation.as_ref().map_or(0.0, |r| r(m.freq_hz));
+            let t60_s = (sigma > 0.0).then(|| (LN_1000 / sigma).max(MIN_T60_S));
             let mut weights = Vec::with_capacity(points.len());
             for (name, p) in &points {
                 let w = m.shape_at(*p).map_err(|e| {
@@ -760,6 +845,62 @@ impl<'a> PhysicalSpec<'a> {
         })
     }
 
+    /// The factor from a tuned bar's uniform fundamental to its
+    /// `fundamental_hz` (1 for everything else).
+    fn bending_scale(&self, base: &str, shape: &Shape) -> Result<f64, SceneError> {
+        let PhysicalSpec::Bar(bar) = self else {
+            return Ok(1.0);
+        };
+        let Some(f) = bar.fundamental_hz else {
+            return Ok(1.0);
+        };
+        let path = format!("{base}.fundamental_hz");
+        check_positive(&path, f)?;
+        if bar.tuning.is_empty() {
+            return Err(SceneError::new(
+                path,
+                "only a tuned bar (`tuning`) has a fundamental apart from its geometry",
+            ));
+        }
+        let uniform = shape
+            .modes(f64::INFINITY, 8)
+            .map_err(|e| shape_error(base, e))?
+            .into_iter()
+            .find(|m| matches!(m.label, ModeLabel::Bending { n: 1 }))
+            .map(|m| m.freq_hz)
+            .ok_or_else(|| SceneError::new(path.clone(), "the bar has no bending mode"))?;
+        Ok(f / uniform)
+    }
+
+    /// The plate radiation term of the loss, when asked for (plates only).
+    #[allow(clippy::type_complexity)]
+    fn plate_radiation(
+        &self,
+        base: &str,
+        shape: &Shape,
+    ) -> Result<Option<Box<dyn Fn(f64) -> f64>>, SceneError> {
+        let scale = self.loss().plate_radiation;
+        check_non_negative(&format!("{base}.loss.plate_radiation"), scale)?;
+        if scale == 0.0 {
+            return Ok(None);
+        }
+        let Shape::Plate(p) = shape else {
+            return Err(SceneError::new(
+                format!("{base}.loss.plate_radiation"),
+                format!("only a plate radiates as a plate, not a {}", self.kind()),
+            ));
+        };
+        let (a, b, rho_h, d) = (
+            p.length_x_m,
+            p.length_y_m,
+            p.density_kg_m3 * p.thickness_m,
+            p.flexural_rigidity(),
+        );
+        Ok(Some(Box::new(move |f| {
+            scale * plate_radiation_rate(f, a, b, rho_h, d)
+        })))
+    }
+
     /// Check the values that do not depend on the sample rate (geometry,
     /// material, loss, points on the object).
     pub fn validate(&self, base: &str) -> Result<(), SceneError> {
@@ -768,6 +909,8 @@ impl<'a> PhysicalSpec<'a> {
             .model(eta)
             .validate()
             .map_err(|e| shape_error(&format!("{base}.loss"), e))?;
+        self.plate_radiation(base, &shape)?;
+        self.bending_scale(base, &shape)?;
         if let Some(f) = self.limits().max_freq_hz {
             check_positive(&format!("{base}.max_freq_hz"), f)?;
         }
@@ -809,7 +952,16 @@ impl<'a> PhysicalSpec<'a> {
     /// Lowest mode frequency \[Hz\] (whatever the limits).
     pub fn lowest_frequency_hz(&self) -> Option<f64> {
         let (shape, _) = self.shape("").ok()?;
-        shape.modes(f64::INFINITY, 1).ok()?.first().map(|m| m.freq_hz)
+        let scale = self.bending_scale("", &shape).ok()?;
+        shape
+            .modes(f64::INFINITY, 16)
+            .ok()?
+            .iter()
+            .map(|m| match m.label {
+                ModeLabel::Bending { .. } => m.freq_hz * scale,
+                _ => m.freq_hz,
+            })
+            .min_by(f64::total_cmp)
     }
 }
 
