@@ -1,10 +1,12 @@
 //! Energy-stable modal contact instrument (after Rath, "Energy-stable modelling
 //! of contacting modal objects with piece-wise linear interaction force").
 //!
-//! Layers (docs/design.md, "Layers"): [`scene`] (parse, validate) -> [`compile`]
+//! Layers (docs/design.md, "Layers"): [`bodies`] (modes from geometry and
+//! material) -> [`scene`] (parse, validate) -> [`compile`]
 //! (off the audio thread: decompositions, propagators) -> [`compile::CompiledScene`]
 //! -> [`engine`] (per sample, allocation-free) ; [`render`] drives it offline.
 
+pub mod bodies;
 pub mod compile;
 pub mod engine;
 pub mod instrument;

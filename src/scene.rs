@@ -13,8 +13,8 @@ use std::fmt;
 
 mod physical;
 pub use physical::{
-    plate_radiation_rate, BarSpec, EdgesSpec, LossSpec, MaterialSpec, MembraneSpec, PhysicalSpec, PlateSpec, PointSpec,
-    StiffStringSpec, SupportSpec, TubeSpec,
+    plate_radiation_rate, BarSpec, EdgesSpec, LossSpec, MaterialSpec, MembraneSpec, PhysicalSpec,
+    PlateSpec, PointSpec, StiffStringSpec, SupportSpec, TubeSpec,
 };
 
 /// The only scene file layout version this build reads.

@@ -67,7 +67,8 @@ fn modal_of(scene: &Scene) -> modal_contact::scene::ModalSpec {
 /// `scene` with its object replaced by a modal object of these modes
 /// (frequency, T60, weights at contact and pickup).
 fn hand_expanded(scene: &Scene, modes: &[(f64, Option<f64>, f64, f64)]) -> Scene {
-    let mut text = String::from("name = \"o\"\nkind = \"modal\"\npoints = [\"contact\", \"pickup\"]\n");
+    let mut text =
+        String::from("name = \"o\"\nkind = \"modal\"\npoints = [\"contact\", \"pickup\"]\n");
     for (f, t60, wc, wp) in modes {
         text.push_str(&format!("[[object.mode]]\nfreq_hz = {f:e}\n"));
         if let Some(t) = t60 {
@@ -83,7 +84,11 @@ fn hand_expanded(scene: &Scene, modes: &[(f64, Option<f64>, f64, f64)]) -> Scene
 
 fn max_abs_diff(a: &[f64], b: &[f64]) -> (f64, f64) {
     assert_eq!(a.len(), b.len());
-    let d = a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+    let d = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max);
     let peak = b.iter().map(|x| x.abs()).fold(0.0, f64::max);
     (d, peak)
 }
@@ -100,7 +105,10 @@ fn renders_like(scene: &Scene, modes: &[(f64, Option<f64>, f64, f64)], what: &st
     let a = render(scene, &opts).unwrap_or_else(|e| panic!("{e}"));
     let b = render(&hand, &opts).unwrap_or_else(|e| panic!("{e}"));
     let (d, peak) = max_abs_diff(&a.left, &b.left);
-    println!("{what}: {} modes, max |difference| {d:.3e} of peak {peak:.3e}", modes.len());
+    println!(
+        "{what}: {} modes, max |difference| {d:.3e} of peak {peak:.3e}",
+        modes.len()
+    );
     assert!(peak > 0.0, "{what}: silent");
     assert!(d <= 1e-12 * peak, "{what}: {d:e} vs peak {peak:e}");
 }
@@ -110,7 +118,8 @@ fn renders_like(scene: &Scene, modes: &[(f64, Option<f64>, f64, f64)], what: &st
 /// loss factor and a constant rate; every mode up to the Nyquist frequency.
 #[test]
 fn plate_is_its_closed_form() {
-    let (a, b, h, rho, e, nu, eta, s0): (f64, f64, f64, f64, f64, f64, f64, f64) = (0.4, 0.28, 0.008, 7850.0, 2.0e11, 0.29, 2e-4, 0.3);
+    let (a, b, h, rho, e, nu, eta, s0): (f64, f64, f64, f64, f64, f64, f64, f64) =
+        (0.4, 0.28, 0.008, 7850.0, 2.0e11, 0.29, 2e-4, 0.3);
     let scene = parse(&format!(
         r#"name = "o"
 kind = "plate"
@@ -125,7 +134,9 @@ points = {{ contact = [0.13, 0.09], pickup = [0.31, 0.2] }}"#
     let mut modes = Vec::new();
     for m in 1..200 {
         for n in 1..200 {
-            let w = PI * PI * ((m * m) as f64 / (a * a) + (n * n) as f64 / (b * b))
+            let w = PI
+                * PI
+                * ((m * m) as f64 / (a * a) + (n * n) as f64 / (b * b))
                 * (d / (rho * h)).sqrt();
             let f = w / (2.0 * PI);
             if f <= RATE / 2.0 {
@@ -147,7 +158,10 @@ points = {{ contact = [0.13, 0.09], pickup = [0.31, 0.2] }}"#
         worst = worst.max((g.freq_hz / w.0 - 1.0).abs());
         assert!((g.t60_s.unwrap() / w.1.unwrap() - 1.0).abs() < 1e-13);
     }
-    println!("plate: {} modes, worst relative frequency error {worst:.2e}", modes.len());
+    println!(
+        "plate: {} modes, worst relative frequency error {worst:.2e}",
+        modes.len()
+    );
     assert!(worst < 1e-13);
     renders_like(&scene, &modes, "plate");
 }
@@ -187,7 +201,12 @@ points = {{ contact = 0.08, pickup = 0.5 }}"#
     let got = modal_of(&scene);
     assert_eq!(got.mode.len(), modes.len());
     for (g, w) in got.mode.iter().zip(&modes) {
-        assert!((g.freq_hz / w.0 - 1.0).abs() < 1e-13, "{} vs {}", g.freq_hz, w.0);
+        assert!(
+            (g.freq_hz / w.0 - 1.0).abs() < 1e-13,
+            "{} vs {}",
+            g.freq_hz,
+            w.0
+        );
     }
     renders_like(&scene, &modes, "stiff string");
 }
@@ -210,15 +229,31 @@ points = { contact = [0.1, 30.0], pickup = 0.05 }"#,
     let got = modal_of(&scene);
     let c = (3000.0f64 / 0.25).sqrt();
     // j_01, j_11 (x2), j_21 (x2), j_02, j_31 (x2) (Abramowitz & Stegun 9.5)
-    let zeros = [2.404825557695773, 3.831705970207512, 5.135622301840683, 5.520078110286311, 6.380161895923984];
+    let zeros = [
+        2.404825557695773,
+        3.831705970207512,
+        5.135622301840683,
+        5.520078110286311,
+        6.380161895923984,
+    ];
     let f = |j: f64| j * c / (2.0 * PI * 0.2);
-    let want = [zeros[0], zeros[1], zeros[1], zeros[2], zeros[2], zeros[3], zeros[4], zeros[4]];
+    let want = [
+        zeros[0], zeros[1], zeros[1], zeros[2], zeros[2], zeros[3], zeros[4], zeros[4],
+    ];
     for (g, j) in got.mode.iter().zip(want) {
-        assert!((g.freq_hz / f(j) - 1.0).abs() < 1e-12, "{} vs {}", g.freq_hz, f(j));
+        assert!(
+            (g.freq_hz / f(j) - 1.0).abs() < 1e-12,
+            "{} vs {}",
+            g.freq_hz,
+            f(j)
+        );
     }
     // the (1,1) pair at theta = 30 degrees: weights in ratio cos 30 : sin 30
     let (wc, ws) = (got.mode[1].weights[0], got.mode[2].weights[0]);
-    assert!((ws / wc - (30f64.to_radians()).tan()).abs() < 1e-12, "{ws} / {wc}");
+    assert!(
+        (ws / wc - (30f64.to_radians()).tan()).abs() < 1e-12,
+        "{ws} / {wc}"
+    );
     // the pickup at theta = 0 hears no sin partner
     assert_eq!(got.mode[2].weights[1], 0.0);
     let _ = render(
@@ -249,7 +284,7 @@ points = {{ contact = 0.15, pickup = 0.02 }}"#
     };
     let base = modal_of(&bar(""));
     let stiffer = modal_of(&bar(", youngs_modulus_pa = 1.38e11"));
-    let al = modal_contact::physics::materials::material("aluminium").unwrap();
+    let al = modal_contact::bodies::materials::material("aluminium").unwrap();
     let ratio = (1.38e11 / al.youngs_modulus_pa).sqrt();
     for (a, b) in base.mode.iter().zip(&stiffer.mode) {
         assert!((b.freq_hz / a.freq_hz / ratio - 1.0).abs() < 1e-12);
@@ -257,7 +292,10 @@ points = {{ contact = 0.15, pickup = 0.02 }}"#
     // free-free Euler-Bernoulli: f_1 = 4.730040744862704^2 / (2 pi L^2) sqrt(E I / (rho A))
     let f1 = 4.730040744862704f64.powi(2) / (2.0 * PI * 0.09)
         * (al.youngs_modulus_pa * 0.008 * 0.008 / (12.0 * al.density_kg_m3)).sqrt();
-    println!("aluminium bar f1 = {:.4} Hz (closed form {f1:.4})", base.mode[0].freq_hz);
+    println!(
+        "aluminium bar f1 = {:.4} Hz (closed form {f1:.4})",
+        base.mode[0].freq_hz
+    );
     assert!((base.mode[0].freq_hz / f1 - 1.0).abs() < 1e-12);
     // the default Timoshenko correction lowers every mode, the higher ones more
     let timo = modal_of(&parse(
@@ -269,8 +307,16 @@ width_m = 0.04
 thickness_m = 0.008
 points = { contact = 0.15, pickup = 0.02 }"#,
     ));
-    let low: Vec<f64> = timo.mode.iter().zip(&base.mode).map(|(t, e)| t.freq_hz / e.freq_hz).collect();
-    assert!(low.iter().all(|r| *r < 1.0) && low.windows(2).all(|w| w[1] < w[0]), "{low:?}");
+    let low: Vec<f64> = timo
+        .mode
+        .iter()
+        .zip(&base.mode)
+        .map(|(t, e)| t.freq_hz / e.freq_hz)
+        .collect();
+    assert!(
+        low.iter().all(|r| *r < 1.0) && low.windows(2).all(|w| w[1] < w[0]),
+        "{low:?}"
+    );
 }
 
 /// The instrument's strike position moves the contact point along the
@@ -296,7 +342,10 @@ points = { contact = 0.1, pickup = 0.3 }"#,
         let ci = m.points.iter().position(|x| x == "contact").unwrap();
         for (n, mode) in m.mode.iter().enumerate() {
             let want = (2.0f64 / (0.006 * 0.65)).sqrt() * ((n + 1) as f64 * PI * pos).sin();
-            assert!((mode.weights[ci] - want).abs() < 1e-12 * (1.0 + want.abs()), "pos {pos}");
+            assert!(
+                (mode.weights[ci] - want).abs() < 1e-12 * (1.0 + want.abs()),
+                "pos {pos}"
+            );
         }
     }
     let base = modal_of(&scene);

@@ -157,8 +157,10 @@ fn strike_position_moves_the_string_contact_and_interpolates_modal_weights() {
     // a modal object with 3 points: contact, pickup, pickup2 (samples at 0,
     // 0.5, 1): the steel plate as a table of modes, before it became a
     // physical description
-    let b = Scene::from_toml_str(include_str!("../../tests/data/modal-presets/steel-plate.toml"))
-        .unwrap();
+    let b = Scene::from_toml_str(include_str!(
+        "../../tests/data/modal-presets/steel-plate.toml"
+    ))
+    .unwrap();
     let mut p = params("steel-plate");
     p.scene.strike_pos_norm = Some(0.75);
     let s = scene_for(&b, &p);

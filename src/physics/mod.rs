@@ -6,9 +6,7 @@ pub mod decomp;
 pub mod error;
 pub mod hodlr;
 pub mod linalg;
-pub mod materials;
 pub mod model;
 pub mod secular;
-pub mod shapes;
 
 pub use error::{Check, DecompError, ModelError, SecularError};

@@ -5,25 +5,24 @@
 //! Each kind is plain data parsed from TOML. The compiler turns it into an
 //! abstract modal object ([`ModalSpec`]) for the rate it compiles for
 //! ([`PhysicalSpec::to_modal`]): frequencies and mass-normalised shapes from
-//! [`crate::physics::shapes`], decay times from the loss model, values from
-//! the material table [`crate::physics::materials`] with the scene's
+//! [`crate::bodies::shapes`], decay times from the loss model, values from
+//! the material table [`crate::bodies::materials`] with the scene's
 //! overrides. Everything after that (pruning, budget, decompositions) sees
 //! only the modal object, so a physical object and its hand-expanded modal
 //! equivalent compile to the same thing.
 
 use super::{
-    check_finite, check_non_negative, check_positive, ModalSpec, ModeSpec, SceneError,
-    MAX_FREQ_HZ, MAX_MODES_PER_OBJECT, MAX_WEIGHT, MIN_FREQ_HZ, MIN_T60_S,
+    check_finite, check_non_negative, check_positive, ModalSpec, ModeSpec, SceneError, MAX_FREQ_HZ,
+    MAX_MODES_PER_OBJECT, MAX_WEIGHT, MIN_FREQ_HZ, MIN_T60_S,
 };
-use crate::physics::materials::{self, Material};
-use crate::physics::shapes::{
+use crate::bodies::materials::{self, Material};
+use crate::bodies::shapes::{
     Bar, BeamSupport, LossModel, Membrane, ModeLabel, Plate, PlateEdges, Point, Shape, ShapeMode,
     StiffString, Tube,
 };
 use serde::de::{self, MapAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize};
 use std::collections::BTreeMap;
-use crate::physics::model::LN_1000;
 use std::f64::consts::PI;
 use std::fmt;
 
@@ -461,9 +460,21 @@ impl MaterialSpec {
             },
         };
         let fields = [
-            (&mut m.density_kg_m3, self.density_kg_per_m3, "density_kg_per_m3"),
-            (&mut m.youngs_modulus_pa, self.youngs_modulus_pa, "youngs_modulus_pa"),
-            (&mut m.shear_modulus_pa, self.shear_modulus_pa, "shear_modulus_pa"),
+            (
+                &mut m.density_kg_m3,
+                self.density_kg_per_m3,
+                "density_kg_per_m3",
+            ),
+            (
+                &mut m.youngs_modulus_pa,
+                self.youngs_modulus_pa,
+                "youngs_modulus_pa",
+            ),
+            (
+                &mut m.shear_modulus_pa,
+                self.shear_modulus_pa,
+                "shear_modulus_pa",
+            ),
             (&mut m.poisson_ratio, self.poisson_ratio, "poisson_ratio"),
             (&mut m.loss_factor, self.loss_factor, "loss_factor"),
         ];
@@ -491,7 +502,10 @@ impl MaterialSpec {
             }
         }
         m.validate().map_err(|e| {
-            let reason = e.split_once(": ").map_or(e.as_str(), |(_, r)| r).to_string();
+            let reason = e
+                .split_once(": ")
+                .map_or(e.as_str(), |(_, r)| r)
+                .to_string();
             let field = reason
                 .split_once(':')
                 .map_or("", |(f, _)| f)
@@ -812,14 +826,16 @@ impl<'a> PhysicalSpec<'a> {
         let mut mode = Vec::with_capacity(modes.len());
         let radiation = self.plate_radiation(base, &shape)?;
         for (k, m) in modes.iter().enumerate() {
-            let sigma = loss.decay_rate(m.freq_hz).map_err(|e| shape_error(base, e))?
+            let sigma = loss
+                .decay_rate(m.freq_hz)
+                .map_err(|e| shape_error(base, e))?
                 + radiation.as_ref().map_or(0.0, |r| r(m.freq_hz));
-            let t60_s = (sigma > 0.0).then(|| (LN_1000 / sigma).max(MIN_T60_S));
+            let t60_s = (sigma > 0.0).then(|| (1000f64.ln() / sigma).max(MIN_T60_S));
             let mut weights = Vec::with_capacity(points.len());
             for (name, p) in &points {
-                let w = m.shape_at(*p).map_err(|e| {
-                    SceneError::new(format!("{base}.points.{name}"), e.to_string())
-                })?;
+                let w = m
+                    .shape_at(*p)
+                    .map_err(|e| SceneError::new(format!("{base}.points.{name}"), e.to_string()))?;
                 if !(w.abs() <= MAX_WEIGHT) {
                     return Err(SceneError::new(
                         base.to_string(),
@@ -941,9 +957,8 @@ impl<'a> PhysicalSpec<'a> {
             }
             let point = self.point(base, name, *p)?;
             if let Some(m) = first.first() {
-                m.shape_at(point).map_err(|e| {
-                    SceneError::new(format!("{base}.points.{name}"), e.to_string())
-                })?;
+                m.shape_at(point)
+                    .map_err(|e| SceneError::new(format!("{base}.points.{name}"), e.to_string()))?;
             }
         }
         Ok(())
@@ -982,8 +997,7 @@ fn mode_count_estimate(shape: &Shape, f: f64) -> f64 {
         }
         Shape::Plate(p) => {
             let area = p.length_x_m * p.length_y_m;
-            area * w * (p.density_kg_m3 * p.thickness_m / p.flexural_rigidity()).sqrt()
-                / (4.0 * PI)
+            area * w * (p.density_kg_m3 * p.thickness_m / p.flexural_rigidity()).sqrt() / (4.0 * PI)
         }
         Shape::Membrane(m) => {
             let k = w * (m.areal_density_kg_m2 / m.tension_n_per_m).sqrt();
@@ -992,7 +1006,6 @@ fn mode_count_estimate(shape: &Shape, f: f64) -> f64 {
         Shape::StiffString(s) => f / s.ideal_fundamental_hz(),
     }
 }
-
 
 impl PhysicalSpec<'_> {
     /// The point at `pos` (0..1) of the object's striking line, for the

@@ -1,4 +1,4 @@
-//! A small table of common instrument materials for [`crate::physics::shapes`]:
+//! A small table of common instrument materials for [`crate::bodies::shapes`]:
 //! density, Young's modulus, shear modulus, Poisson's ratio and a loss factor.
 //!
 //! Every value carries its source in a comment. Natural materials vary a lot

@@ -162,7 +162,7 @@ use std::collections::BinaryHeap;
 use std::f64::consts::PI;
 use std::fmt;
 
-use crate::physics::materials::Material;
+use crate::bodies::materials::Material;
 
 /// The most modes one call lists (a guard against runaway requests).
 pub const MAX_MODE_COUNT: usize = 100_000;
@@ -1570,7 +1570,7 @@ impl LossModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::materials::material;
+    use crate::bodies::materials::material;
 
     /// Gauss-Legendre nodes and weights on [-1, 1] (Newton on P_n).
     fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
