@@ -124,14 +124,18 @@ pub const C_AIR: f64 = 343.0;
 /// air from a baffle: `rho_0 c / (2 rho h) sigma(f)` with the radiation
 /// efficiency `sigma` of a baffled simply supported plate by Maidanik
 /// (1962), as given in Beranek & Ver, *Noise and Vibration Control
-/// Engineering* (1992): below the coincidence frequency `f_c = c^2 / (2 pi)
-/// sqrt(rho h / D)` edge and corner radiation, `sigma = lambda_c P / S g_2
-/// + 2 lambda_c^2 / S g_1` (`alpha = sqrt(f / f_c)`, `g_2 = ((1 - alpha^2)
-/// ln((1 + alpha) / (1 - alpha)) + 2 alpha) / (4 pi^2 (1 -
-/// alpha^2)^1.5)`, `g_1 = 4 / pi^4 (1 - 2 alpha^2) / (alpha sqrt(1 -
-/// alpha^2))` below `f_c / 2`, else 0); above it `1 / sqrt(1 - f_c / f)`;
-/// both capped at `sqrt(a / lambda_c) + sqrt(b / lambda_c)`. Used for
-/// free plates too (an estimate: Maidanik's result is for simple supports).
+/// Engineering* (1992). Below the coincidence frequency
+/// `f_c = c^2 / (2 pi) sqrt(rho h / D)`, edge and corner radiation:
+///
+/// `sigma = lambda_c P / S g_2 + 2 lambda_c^2 / S g_1`, `alpha = sqrt(f / f_c)`,
+///
+/// `g_2 = ((1 - alpha^2) ln((1 + alpha) / (1 - alpha)) + 2 alpha) / (4 pi^2 (1 - alpha^2)^1.5)`,
+///
+/// `g_1 = 4 / pi^4 (1 - 2 alpha^2) / (alpha sqrt(1 - alpha^2))` below `f_c / 2`, else 0;
+///
+/// above it `1 / sqrt(1 - f_c / f)`; both capped at `sqrt(a / lambda_c) +
+/// sqrt(b / lambda_c)`. Used for free plates too (an estimate: Maidanik's
+/// result is for simple supports).
 pub fn plate_radiation_rate(f: f64, a: f64, b: f64, rho_h: f64, d: f64) -> f64 {
     let f_co = C_AIR * C_AIR / (2.0 * PI) * (rho_h / d).sqrt();
     let lam_c = C_AIR / f_co;
