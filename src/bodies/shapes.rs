@@ -19,6 +19,11 @@
 //!
 //! # Bars and tubes (Euler-Bernoulli, optional Timoshenko correction)
 //!
+//! Points are [`Point::Bar`]`{ x, y }`: `x` along the axis in `[0, L]`, `y`
+//! across the width from the centre line (`|y| <= b / 2` for a bar, `<= D /
+//! 2` for a tube); [`Point::Line`]`(x)` is the point `(x, 0)`. Bending modes
+//! do not depend on `y`; torsional modes (below) do.
+//!
 //! Length `L`, density `rho`, Young's modulus `E`, cross-section area `A`,
 //! second moment `I` about the bending axis (rectangle of width `b` and
 //! thickness `h` in the direction of vibration: `A = b h`, `I = b h^3 / 12`;
@@ -30,23 +35,33 @@
 //! - free-free: `cos u cosh u = 1` (`u_n -> (2n+1) pi/2`; 4.7300, 7.8532,
 //!   10.9956, ...),
 //! - clamped (`x = 0`) - free: `cos u cosh u = -1` (`u_n -> (2n-1) pi/2`;
-//!   1.8751, 4.6941, 7.8548, ...).
+//!   1.8751, 4.6941, 7.8548, ...),
+//! - clamped-clamped (both ends clamped, e.g. a wood block's lips): `cos u
+//!   cosh u = 1`, the same roots as free-free.
 //!
 //! Solved as `cos u -+ sech u = 0` (no overflow) by Newton's method from the
 //! asymptote, safeguarded by bisection in the bracket `[n pi, (n+1) pi]`
-//! (free-free) or `[(n-1) pi, n pi]` (clamped-free).
+//! (free-free, clamped-clamped) or `[(n-1) pi, n pi]` (clamped-free).
 //!
 //! Shapes (`xi = x / L`), normalised to `integral_0^L phi^2 dx = L`:
 //! - free-free: `phi = cosh(u xi) + cos(u xi) - s (sinh(u xi) + sin(u xi))`,
 //!   `s = (cosh u - cos u) / (sinh u - sin u)`;
 //! - clamped-free: `phi = cosh(u xi) - cos(u xi) - s (sinh(u xi) - sin(u
 //!   xi))`, `s = (cosh u + cos u) / (sinh u + sin u)`;
+//! - clamped-clamped: `phi = cosh(u xi) - cos(u xi) - s (sinh(u xi) - sin(u
+//!   xi))`, `s = (cosh u - cos u) / (sinh u - sin u)` (the free-free `s`:
+//!   the clamped-clamped shape is `d^2 phi_ff / d xi^2 / u^2`, and is 0 with
+//!   zero slope at both ends);
 //!
 //! and `Phi = phi / sqrt(rho A L)`. Evaluated in the overflow-free form
-//! `cosh(u xi) - s sinh(u xi) = c_g exp(u (xi - 1)) + (1 + s)/2 exp(-u xi)`
-//! with `E1 = exp(-u)` and
-//! - free-free: `s = (1 + E1^2 - 2 E1 cos u) / Q`, `c_g = (cos u - sin u -
-//!   E1) / Q`, `Q = 1 - E1^2 - 2 E1 sin u`;
+//! `phi = c_g exp(u (xi - 1)) + c_d exp(-u xi) + t (cos(u xi) - s sin(u
+//! xi))`, where `cosh(u xi) - s sinh(u xi) = c_g exp(u (xi - 1)) + c_d
+//! exp(-u xi)` with `c_g = (1 - s) e^u / 2`, `c_d = (1 + s) / 2`, and `t =
+//! +1` (free-free) or `-1` (clamped-free, clamped-clamped). With `E1 =
+//! exp(-u)`, multiplying numerator and denominator of `s` by `2 E1`:
+//! - free-free and clamped-clamped: `s = (1 + E1^2 - 2 E1 cos u) / Q`, `c_g =
+//!   (cos u - sin u - E1) / Q`, `Q = 1 - E1^2 - 2 E1 sin u` (from `1 - s = 2
+//!   E1 (cos u - sin u - E1) / Q`);
 //! - clamped-free: `s = (1 + E1^2 + 2 E1 cos u) / Q`, `c_g = (sin u - cos u
 //!   - E1) / Q`, `Q = 1 - E1^2 + 2 E1 sin u`.
 //!
@@ -77,7 +92,8 @@
 //! frequency lowering by about 6.5 % of the lowering (isotropic, `nu =
 //! 0.3`, `h / L` from 0.01 to 0.1, tested below): for a bar with `h / L =
 //! 0.1` the lowering is 3.59 % instead of 3.38 %. Shapes stay the
-//! Euler-Bernoulli ones.
+//! Euler-Bernoulli ones. Clamped-clamped modes use the same wavenumber
+//! `k = u_n / L` as the others.
 //!
 //! **Tuned (undercut) bars**: target ratios `t_1 : t_2 : ... : t_k` for the
 //! first `k` bending modes. The fundamental keeps the uniform bar's frequency
@@ -86,6 +102,50 @@
 //! f_i^uniform / f_k^uniform`. Shapes (and so weights) stay those of the
 //! uniform bar. All of this is an approximation: a real undercut moves nodes
 //! toward the centre, lowers the fundamental and changes the weights.
+//!
+//! **Torsional modes** (off by default; [`Bar::with_torsion`],
+//! [`Tube::with_torsion`] with the shear modulus `G`). Saint-Venant torsion
+//! of the twist angle `theta(x, t)`: `rho J_p theta_tt = G K_t theta_xx`,
+//! with `J_p` the polar moment of the section about the axis (rotary inertia
+//! per length `rho J_p`) and `K_t` the torsion constant; wave speed `c_t =
+//! sqrt(G K_t / (rho J_p))`.
+//! - Rectangle of sides `b >= h` (swap them otherwise): `K_t = beta b h^3`,
+//!   `beta = 1/3 (1 - 192 / pi^5 (h / b) S)`, `S = sum_{n odd} tanh(n pi b /
+//!   (2 h)) / n^5`, and `J_p = b h (b^2 + h^2) / 12`. `S` is summed as
+//!   `lambda(5) - sum_{n odd} (1 - tanh z_n) / n^5`, `z_n = n pi b / (2 h)`,
+//!   `lambda(5) = sum_{n odd} n^-5 = (31 / 32) zeta(5)`, `1 - tanh z = 2
+//!   exp(-2 z) / (1 + exp(-2 z))`: the terms fall like `exp(-n pi)`, so a
+//!   few terms reach full precision. `beta` = 0.1406 (square), 0.229 (`b / h
+//!   = 2`), 0.312 (10), `-> 1/3` (thin strip).
+//! - Tube: `K_t = J_p = pi (D^4 - d^4) / 32`, so `c_t = sqrt(G / rho)`.
+//!
+//! Modes `n >= 1`, with `A = sqrt(2 / (rho J_p L))` so that `integral_0^L
+//! rho J_p theta^2 dx = 1`:
+//! - free-free: `f_n = n c_t / (2 L)`, `theta = A cos(n pi x / L)` (the rigid
+//!   rotation is left out, like the rigid bending modes);
+//! - clamped-free: `f_n = (2n - 1) c_t / (4 L)`, `theta = A sin((2n - 1) pi
+//!   x / (2 L))`;
+//! - clamped-clamped: `f_n = n c_t / (2 L)`, `theta = A sin(n pi x / L)`.
+//!
+//! A point at `(x, y)` moves in the direction of vibration (across the
+//! thickness) by `Phi = y theta(x)`, the weight of the mode there; `y = 0`
+//! (and so [`Point::Line`]) does not move. The sideways motion `-z theta` of
+//! points off the mid-plane is not a weight. Over the whole section `integral
+//! rho (y^2 + z^2) theta^2 dA dx = integral rho J_p theta^2 dx = 1`, and a
+//! torsional mode is orthogonal to every bending mode (its motion is odd in
+//! `y`, theirs even).
+//!
+//! Approximations: Saint-Venant theory lets the section warp freely and
+//! uniformly. That is exact for a round tube, which does not warp; for a
+//! rectangle it leaves out the warping stiffness (which raises the
+//! frequencies, more for higher modes, short bars and woods with a large
+//! `E / G`) and the warping inertia (which lowers them); neither is
+//! quantified here. A wooden bar twists with both `G_LR` and `G_LT`; one `G`
+//! is used. The Timoshenko correction does not apply to torsion. For a tuned
+//! bar the torsional modes keep the uniform bar's frequencies (a real
+//! undercut lowers them too). Bending and torsional modes are merged by
+//! frequency (bending first on a tie) and `max_freq_hz` and `max_count`
+//! apply to the merged list.
 //!
 //! # Rectangular plates (Kirchhoff)
 //!
@@ -207,6 +267,14 @@ fn in_range(field: &str, v: f64, hi: f64) -> Result<f64, String> {
     }
 }
 
+fn in_symmetric_range(field: &str, v: f64, half: f64) -> Result<f64, String> {
+    if v.is_finite() && v.abs() <= half {
+        Ok(v)
+    } else {
+        Err(format!("{field}: must be in [-{half}, {half}], got {v}"))
+    }
+}
+
 // ---------------------------------------------------------------------------
 // Points, labels, modes
 // ---------------------------------------------------------------------------
@@ -214,8 +282,18 @@ fn in_range(field: &str, v: f64, hi: f64) -> Result<f64, String> {
 /// A point on an object, in the coordinates of its kind.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Point {
-    /// Bar, tube, string: position along the axis \[m\], `0..=L`.
+    /// Bar, tube, string: position along the axis \[m\], `0..=L`. On a bar
+    /// or tube, the point on the centre line (`Point::Bar` with `y = 0`).
     Line(f64),
+    /// Bar or tube \[m\]: `x` along the axis, `0..=L`; `y` across the width
+    /// from the centre line, `|y| <= b/2` (bar) or `<= D/2` (tube). Only
+    /// torsional modes depend on `y`.
+    Bar {
+        /// Along the axis.
+        x: f64,
+        /// Across the width, from the centre line.
+        y: f64,
+    },
     /// Rectangular plate \[m\]: `x` in `0..=a`, `y` in `0..=b`.
     Plane {
         /// Along side `a`.
@@ -263,6 +341,11 @@ pub enum ModeLabel {
         /// Mode number from 1.
         n: usize,
     },
+    /// Bar or tube torsional mode `n` (1 = lowest).
+    Torsion {
+        /// Mode number from 1.
+        n: usize,
+    },
 }
 
 impl fmt::Display for ModeLabel {
@@ -278,6 +361,7 @@ impl fmt::Display for ModeLabel {
                 Ok(())
             }
             ModeLabel::String { n } => write!(f, "string {n}"),
+            ModeLabel::Torsion { n } => write!(f, "torsion {n}"),
         }
     }
 }
@@ -299,8 +383,10 @@ impl ShapeMode {
     }
 
     /// The mass-normalised mode shape at `point` \[1/sqrt(kg)\]: the weight
-    /// `w_{p,i}` of a modal object. Errors for a point of another kind, out
-    /// of the object or not finite.
+    /// `w_{p,i}` of a modal object. Bars and tubes take [`Point::Bar`] or
+    /// [`Point::Line`] (`y = 0`), strings [`Point::Line`], plates
+    /// [`Point::Plane`], membranes [`Point::Polar`]. Errors for a point of
+    /// another kind, out of the object (naming the coordinate) or not finite.
     pub fn shape_at(&self, point: Point) -> Result<f64, String> {
         self.shape.eval(point)
     }
@@ -312,6 +398,15 @@ enum ModeShape {
     Beam {
         f: BeamFn,
         length: f64,
+        half_width: f64,
+        scale: f64,
+    },
+    /// `Phi = y theta(x)`, `theta = scale * (cos or sin)` by `support`.
+    Torsion {
+        support: BeamSupport,
+        n: usize,
+        length: f64,
+        half_width: f64,
         scale: f64,
     },
     PlateSs {
@@ -345,9 +440,30 @@ enum ModeShape {
 impl ModeShape {
     fn eval(&self, point: Point) -> Result<f64, String> {
         match (self, point) {
-            (&ModeShape::Beam { f, length, scale }, Point::Line(x)) => {
-                let x = in_range("point.x", x, length)?;
+            (
+                &ModeShape::Beam {
+                    f,
+                    length,
+                    half_width,
+                    scale,
+                },
+                Point::Line(_) | Point::Bar { .. },
+            ) => {
+                let (x, _) = bar_point(point, length, half_width)?;
                 Ok(scale * f.eval(x / length))
+            }
+            (
+                &ModeShape::Torsion {
+                    support,
+                    n,
+                    length,
+                    half_width,
+                    scale,
+                },
+                Point::Line(_) | Point::Bar { .. },
+            ) => {
+                let (x, y) = bar_point(point, length, half_width)?;
+                Ok(y * scale * torsion_fn(support, n, x / length))
             }
             (&ModeShape::String { length, n, scale }, Point::Line(x)) => {
                 let x = in_range("point.x", x, length)?;
@@ -396,7 +512,8 @@ impl ModeShape {
             (shape, p) => Err(format!(
                 "point: {p:?} is not a point of a {}",
                 match shape {
-                    ModeShape::Beam { .. } => "bar or tube (use Point::Line)",
+                    ModeShape::Beam { .. } | ModeShape::Torsion { .. } =>
+                        "bar or tube (use Point::Bar or Point::Line)",
                     ModeShape::String { .. } => "string (use Point::Line)",
                     ModeShape::PlateSs { .. } | ModeShape::PlateFree { .. } =>
                         "plate (use Point::Plane)",
@@ -404,6 +521,19 @@ impl ModeShape {
                 }
             )),
         }
+    }
+}
+
+/// `(x, y)` of a [`Point::Line`] (`y = 0`) or [`Point::Bar`] on a bar or
+/// tube of length `length`, checked.
+fn bar_point(point: Point, length: f64, half_width: f64) -> Result<(f64, f64), String> {
+    match point {
+        Point::Line(x) => Ok((in_range("point.x", x, length)?, 0.0)),
+        Point::Bar { x, y } => Ok((
+            in_range("point.x", x, length)?,
+            in_symmetric_range("point.y", y, half_width)?,
+        )),
+        p => Err(format!("point: {p:?} is not a point of a bar or tube")),
     }
 }
 
@@ -418,6 +548,8 @@ pub enum BeamSupport {
     FreeFree,
     /// Clamped at `x = 0`, free at `x = L` (kalimba tine, tuning-fork prong).
     ClampedFree,
+    /// Both ends clamped (the lips of a wood block).
+    ClampedClamped,
 }
 
 /// `sech x` without overflow (`x >= 0`).
@@ -427,12 +559,15 @@ fn sech(x: f64) -> f64 {
 }
 
 /// `u_n = beta_n L`, the `n`-th (from 1) positive root of `cos u cosh u = 1`
-/// (free-free) or `= -1` (clamped-free).
+/// (free-free, clamped-clamped) or `= -1` (clamped-free).
 pub fn beam_root(support: BeamSupport, n: usize) -> f64 {
     let n = n.max(1) as f64;
-    // g(u) = cos u - c sech u, c = +1 (free-free) or -1 (clamped-free).
+    // g(u) = cos u - c sech u, c = +1 (free-free, clamped-clamped) or -1
+    // (clamped-free).
     let (c, lo, hi, guess) = match support {
-        BeamSupport::FreeFree => (1.0, n * PI, (n + 1.0) * PI, (2.0 * n + 1.0) * PI / 2.0),
+        BeamSupport::FreeFree | BeamSupport::ClampedClamped => {
+            (1.0, n * PI, (n + 1.0) * PI, (2.0 * n + 1.0) * PI / 2.0)
+        }
         BeamSupport::ClampedFree => (-1.0, (n - 1.0) * PI, n * PI, (2.0 * n - 1.0) * PI / 2.0),
     };
     let g = |u: f64| u.cos() - c * sech(u);
@@ -498,7 +633,8 @@ enum BeamFn {
     /// `phi = sqrt(3) (1 - 2 xi)` (rigid rotation).
     Rigid1,
     /// Elastic mode: `phi = c_g e^{u(xi-1)} + c_d e^{-u xi} + t (cos(u xi) -
-    /// s sin(u xi))`, `t = +1` free-free, `-1` clamped-free.
+    /// s sin(u xi))`, `t = +1` free-free, `-1` clamped-free and
+    /// clamped-clamped.
     Elastic {
         u: f64,
         c_grow: f64,
@@ -514,9 +650,19 @@ impl BeamFn {
         let e1 = (-u).exp();
         let (su, cu) = u.sin_cos();
         let (s, c_grow, trig) = match support {
-            BeamSupport::FreeFree => {
+            BeamSupport::FreeFree | BeamSupport::ClampedClamped => {
+                // The same hyperbolic part; the trigonometric part changes sign.
                 let q = 1.0 - e1 * e1 - 2.0 * e1 * su;
-                ((1.0 + e1 * e1 - 2.0 * e1 * cu) / q, (cu - su - e1) / q, 1.0)
+                let trig = if support == BeamSupport::FreeFree {
+                    1.0
+                } else {
+                    -1.0
+                };
+                (
+                    (1.0 + e1 * e1 - 2.0 * e1 * cu) / q,
+                    (cu - su - e1) / q,
+                    trig,
+                )
             }
             BeamSupport::ClampedFree => {
                 let q = 1.0 - e1 * e1 + 2.0 * e1 * su;
@@ -618,10 +764,22 @@ pub fn timoshenko_ratio(k: f64, r2: f64, e: f64) -> f64 {
     (2.0 / (b + (b * b - 4.0 * e * s * s).max(0.0).sqrt())).sqrt()
 }
 
+/// Torsion data of a bar or tube.
+#[derive(Debug, Clone, Copy)]
+struct TorsionData {
+    /// Wave speed `c_t = sqrt(G K_t / (rho J_p))` \[m/s\].
+    speed: f64,
+    /// Rotary inertia per length `rho J_p` \[kg m\].
+    rho_jp: f64,
+}
+
 /// What bars and tubes share.
 struct BeamData<'a> {
     owner: &'a str,
     length: f64,
+    /// Largest `|y|` of a point: `b / 2` or `D / 2`.
+    half_width: f64,
+    torsion: Option<TorsionData>,
     rho_a: f64,
     ei: f64,
     r2: f64,
@@ -644,12 +802,113 @@ fn check_tuning(owner: &str, tuning: &[f64]) -> Result<(), String> {
     Ok(())
 }
 
+/// Bending and (when on) torsional modes, merged by frequency, then limited.
 fn beam_modes(
     d: &BeamData<'_>,
     max_freq_hz: f64,
     max_count: usize,
 ) -> Result<Vec<ShapeMode>, String> {
     check_limits(max_freq_hz, max_count)?;
+    let mut out = bending_modes(d, max_freq_hz, max_count)?;
+    if let Some(t) = d.torsion {
+        // Each list holds its family's lowest `max_count` modes, so the
+        // lowest `max_count` of the union are among them.
+        out.extend(torsion_modes(d, t, max_freq_hz, max_count)?);
+        // Stable: bending before torsion on a tie.
+        out.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
+        out.truncate(max_count);
+    }
+    Ok(out)
+}
+
+/// `theta(xi) / A` of torsional mode `n`, `xi = x / L`.
+fn torsion_fn(support: BeamSupport, n: usize, xi: f64) -> f64 {
+    let n = n as f64;
+    match support {
+        BeamSupport::FreeFree => (n * PI * xi).cos(),
+        BeamSupport::ClampedFree => ((2.0 * n - 1.0) * PI * xi / 2.0).sin(),
+        BeamSupport::ClampedClamped => (n * PI * xi).sin(),
+    }
+}
+
+/// Frequency \[Hz\] of torsional mode `n` for wave speed `c_t` and length `L`.
+fn torsion_freq(support: BeamSupport, n: usize, speed: f64, length: f64) -> f64 {
+    let n = n as f64;
+    match support {
+        BeamSupport::FreeFree | BeamSupport::ClampedClamped => n * speed / (2.0 * length),
+        BeamSupport::ClampedFree => (2.0 * n - 1.0) * speed / (4.0 * length),
+    }
+}
+
+fn torsion_modes(
+    d: &BeamData<'_>,
+    t: TorsionData,
+    max_freq_hz: f64,
+    max_count: usize,
+) -> Result<Vec<ShapeMode>, String> {
+    let scale = (2.0 / (t.rho_jp * d.length)).sqrt();
+    let mut out = Vec::new();
+    for n in 1..=max_count {
+        let freq = torsion_freq(d.support, n, t.speed, d.length);
+        if !(freq.is_finite() && scale.is_finite()) {
+            return Err(format!(
+                "{}: torsional mode {n} has a non-finite frequency ({freq}) or scale ({scale})",
+                d.owner
+            ));
+        }
+        if freq > max_freq_hz {
+            break;
+        }
+        out.push(ShapeMode {
+            freq_hz: freq,
+            label: ModeLabel::Torsion { n },
+            shape: ModeShape::Torsion {
+                support: d.support,
+                n,
+                length: d.length,
+                half_width: d.half_width,
+                scale,
+            },
+        });
+    }
+    Ok(out)
+}
+
+/// `beta` of the Saint-Venant torsion constant `K_t = beta b h^3` of a
+/// rectangle with sides `b >= h` (the sides are swapped when `b < h`):
+/// `beta = 1/3 (1 - 192 / pi^5 (h / b) sum_{n odd} tanh(n pi b / (2 h)) /
+/// n^5)`. 0.1406 for a square, `-> 1/3` for a thin strip. NaN unless both
+/// sides are positive and finite.
+pub fn rectangle_torsion_coefficient(b: f64, h: f64) -> f64 {
+    if !(b.is_finite() && h.is_finite() && b > 0.0 && h > 0.0) {
+        return f64::NAN;
+    }
+    let (b, h) = if b >= h { (b, h) } else { (h, b) };
+    // lambda(5) = sum over odd n of n^-5 = (31/32) zeta(5).
+    const ZETA5: f64 = 1.036_927_755_143_37;
+    let lambda5 = 31.0 / 32.0 * ZETA5;
+    // S = lambda(5) - sum_{n odd} (1 - tanh z_n) / n^5, 1 - tanh z = 2 e / (1
+    // + e), e = exp(-2 z), 2 z_n = n pi b / h >= n pi.
+    let mut tail = 0.0;
+    let mut n = 1.0f64;
+    loop {
+        let e = (-n * PI * b / h).exp();
+        let term = 2.0 * e / (1.0 + e) / n.powi(5);
+        tail += term;
+        if term <= 1e-18 * lambda5 {
+            break;
+        }
+        n += 2.0;
+    }
+    let sum = lambda5 - tail;
+    (1.0 - 192.0 / PI.powi(5) * (h / b) * sum) / 3.0
+}
+
+fn bending_modes(
+    d: &BeamData<'_>,
+    max_freq_hz: f64,
+    max_count: usize,
+) -> Result<Vec<ShapeMode>, String> {
     let c = (d.ei / d.rho_a).sqrt();
     let scale = 1.0 / (d.rho_a * d.length).sqrt();
     let uniform = |f: &BeamFn| -> f64 {
@@ -699,6 +958,7 @@ fn beam_modes(
             shape: ModeShape::Beam {
                 f,
                 length: d.length,
+                half_width: d.half_width,
                 scale,
             },
         });
@@ -726,6 +986,9 @@ pub struct Bar {
     /// Target frequency ratios of the first bending modes (empty: uniform
     /// bar). See the module docs, "Tuned (undercut) bars".
     pub tuning: Vec<f64>,
+    /// Shear modulus `G` \[Pa\] of the torsional modes (none: bending
+    /// only). See the module docs, "Torsional modes".
+    pub torsion: Option<f64>,
 }
 
 impl Bar {
@@ -746,6 +1009,7 @@ impl Bar {
             support,
             shear: None,
             tuning: Vec::new(),
+            torsion: None,
         }
     }
 
@@ -761,6 +1025,26 @@ impl Bar {
         self
     }
 
+    /// With torsional modes (Saint-Venant), shear modulus `G`.
+    pub fn with_torsion(mut self, shear_modulus_pa: f64) -> Self {
+        self.torsion = Some(shear_modulus_pa);
+        self
+    }
+
+    /// Polar moment of the section `J_p = b h (b^2 + h^2) / 12` \[m^4\].
+    pub fn polar_moment_m4(&self) -> f64 {
+        let (b, h) = (self.width_m, self.thickness_m);
+        b * h * (b * b + h * h) / 12.0
+    }
+
+    /// Saint-Venant torsion constant `K_t = beta b h^3` (`b >= h`, see
+    /// [`rectangle_torsion_coefficient`]) \[m^4\].
+    pub fn torsion_constant_m4(&self) -> f64 {
+        let long = self.width_m.max(self.thickness_m);
+        let short = self.width_m.min(self.thickness_m);
+        rectangle_torsion_coefficient(long, short) * long * short.powi(3)
+    }
+
     /// Check every field; errors name it.
     pub fn validate(&self) -> Result<(), String> {
         positive("bar.length_m", self.length_m)?;
@@ -771,6 +1055,9 @@ impl Bar {
         if let Some(s) = &self.shear {
             s.validate("bar")?;
         }
+        if let Some(g) = self.torsion {
+            positive("bar.torsion", g)?;
+        }
         check_tuning("bar", &self.tuning)
     }
 
@@ -779,15 +1066,22 @@ impl Bar {
         self.density_kg_m3 * self.length_m * self.width_m * self.thickness_m
     }
 
-    /// Bending modes up to `max_freq_hz`, at most `max_count`.
+    /// Bending (and, when on, torsional) modes up to `max_freq_hz`, at most
+    /// `max_count`, lowest first.
     pub fn modes(&self, max_freq_hz: f64, max_count: usize) -> Result<Vec<ShapeMode>, String> {
         self.validate()?;
         let a = self.width_m * self.thickness_m;
         let i = self.width_m * self.thickness_m.powi(3) / 12.0;
+        let rho_jp = self.density_kg_m3 * self.polar_moment_m4();
         beam_modes(
             &BeamData {
                 owner: "bar",
                 length: self.length_m,
+                half_width: 0.5 * self.width_m,
+                torsion: self.torsion.map(|g| TorsionData {
+                    speed: (g * self.torsion_constant_m4() / rho_jp).sqrt(),
+                    rho_jp,
+                }),
                 rho_a: self.density_kg_m3 * a,
                 ei: self.youngs_modulus_pa * i,
                 r2: i / a,
@@ -820,6 +1114,9 @@ pub struct Tube {
     pub support: BeamSupport,
     /// Timoshenko correction (none: Euler-Bernoulli).
     pub shear: Option<ShearCorrection>,
+    /// Shear modulus `G` \[Pa\] of the torsional modes (none: bending
+    /// only). See the module docs, "Torsional modes".
+    pub torsion: Option<f64>,
 }
 
 impl Tube {
@@ -838,6 +1135,7 @@ impl Tube {
             youngs_modulus_pa: material.youngs_modulus_pa,
             support: BeamSupport::FreeFree,
             shear: None,
+            torsion: None,
         }
     }
 
@@ -849,6 +1147,12 @@ impl Tube {
             self.outer_diameter_m,
             self.inner_diameter_m,
         ));
+        self
+    }
+
+    /// With torsional modes, shear modulus `G`.
+    pub fn with_torsion(mut self, shear_modulus_pa: f64) -> Self {
+        self.torsion = Some(shear_modulus_pa);
         self
     }
 
@@ -868,6 +1172,9 @@ impl Tube {
         if let Some(s) = &self.shear {
             s.validate("tube")?;
         }
+        if let Some(g) = self.torsion {
+            positive("tube.torsion", g)?;
+        }
         Ok(())
     }
 
@@ -881,12 +1188,19 @@ impl Tube {
         PI * (self.outer_diameter_m.powi(4) - self.inner_diameter_m.powi(4)) / 64.0
     }
 
+    /// Polar moment `J_p = pi (D^4 - d^4) / 32`, also the torsion constant
+    /// `K_t` \[m^4\].
+    pub fn polar_moment_m4(&self) -> f64 {
+        PI * (self.outer_diameter_m.powi(4) - self.inner_diameter_m.powi(4)) / 32.0
+    }
+
     /// Mass \[kg\].
     pub fn mass_kg(&self) -> f64 {
         self.density_kg_m3 * self.area_m2() * self.length_m
     }
 
-    /// Bending modes up to `max_freq_hz`, at most `max_count`.
+    /// Bending (and, when on, torsional) modes up to `max_freq_hz`, at most
+    /// `max_count`, lowest first.
     pub fn modes(&self, max_freq_hz: f64, max_count: usize) -> Result<Vec<ShapeMode>, String> {
         self.validate()?;
         let a = self.area_m2();
@@ -895,6 +1209,12 @@ impl Tube {
             &BeamData {
                 owner: "tube",
                 length: self.length_m,
+                half_width: 0.5 * self.outer_diameter_m,
+                // K_t = J_p: c_t = sqrt(G / rho).
+                torsion: self.torsion.map(|g| TorsionData {
+                    speed: (g / self.density_kg_m3).sqrt(),
+                    rho_jp: self.density_kg_m3 * self.polar_moment_m4(),
+                }),
                 rho_a: self.density_kg_m3 * a,
                 ei: self.youngs_modulus_pa * i,
                 // (D^2 + d^2) / 16, without the cancellation of I / A.
@@ -1877,6 +2197,7 @@ mod tests {
                 support: BeamSupport::FreeFree,
                 shear: None,
                 tuning: Vec::new(),
+                torsion: None,
             };
             let eb = bar.modes(f64::INFINITY, 6).unwrap();
             let ti = bar
@@ -2338,6 +2659,507 @@ mod tests {
             .contains("loss.radiation_ref_hz"));
     }
 
+    // -- clamped-clamped beams ----------------------------------------------
+
+    #[test]
+    fn clamped_clamped_roots_ends_pde_and_quadrature() {
+        // The same equation cos u cosh u = 1 as free-free: the same roots.
+        for n in 1..=200 {
+            assert_eq!(
+                beam_root(BeamSupport::ClampedClamped, n),
+                beam_root(BeamSupport::FreeFree, n)
+            );
+        }
+        for (n, t) in [(1, 4.730040745), (2, 7.853204624), (3, 10.99560784)] {
+            let u = beam_root(BeamSupport::ClampedClamped, n);
+            println!(
+                "clamped-clamped u_{n} = {u:.12}, table {t}, residual {:.2e}",
+                u - t
+            );
+            assert!((u - t).abs() < 5.01e-9);
+        }
+        let ff = rosewood_bar();
+        let bar = Bar {
+            support: BeamSupport::ClampedClamped,
+            ..ff.clone()
+        };
+        let l = bar.length_m;
+        let rho_a = bar.density_kg_m3 * bar.width_m * bar.thickness_m;
+        // phi (with integral_0^1 phi^2 d xi = 1) = Phi sqrt(rho A L).
+        let norm = bar.mass_kg().sqrt();
+        let modes = bar.modes(f64::INFINITY, 20).unwrap();
+        let ff_modes = ff.modes(f64::INFINITY, 20).unwrap();
+        // Same frequencies as free-free, also with the Timoshenko correction.
+        for (a, b) in modes.iter().zip(&ff_modes) {
+            assert_eq!(a.freq_hz, b.freq_hz);
+        }
+        let g_rw = material("rosewood").unwrap().shear_modulus_pa;
+        let t_cc = bar.clone().with_timoshenko(g_rw).modes(1e5, 8).unwrap();
+        let t_ff = ff.clone().with_timoshenko(g_rw).modes(1e5, 8).unwrap();
+        assert!(t_cc.iter().zip(&t_ff).all(|(a, b)| a.freq_hz == b.freq_hz));
+        assert!(t_cc[0].freq_hz < modes[0].freq_hz);
+        let mut end_value: f64 = 0.0;
+        let mut end_slope: f64 = 0.0;
+        let mut pde: f64 = 0.0;
+        let mut second: f64 = 0.0;
+        for (m, mf) in modes.iter().zip(&ff_modes) {
+            let ModeLabel::Bending { n } = m.label else {
+                unreachable!()
+            };
+            let u = beam_root(BeamSupport::ClampedClamped, n);
+            let phi = |xi: f64| m.shape_at(Point::Line(xi * l)).unwrap() * norm;
+            let phi_ff = |xi: f64| mf.shape_at(Point::Line(xi * l)).unwrap() * norm;
+            end_value = end_value.max(phi(0.0).abs()).max(phi(1.0).abs());
+            // Second-order one-sided slopes d phi / d xi at both ends,
+            // relative to the interior slope scale u.
+            let h = 1e-6;
+            let s0 = (-3.0 * phi(0.0) + 4.0 * phi(h) - phi(2.0 * h)) / (2.0 * h);
+            let s1 = (3.0 * phi(1.0) - 4.0 * phi(1.0 - h) + phi(1.0 - 2.0 * h)) / (2.0 * h);
+            end_slope = end_slope.max(s0.abs() / u).max(s1.abs() / u);
+            // The beam equation phi'''' = u^4 phi at interior points, and
+            // phi_cc = phi_ff'' / u^2 (both in xi), by central differences.
+            for xi in [0.1371, 0.5, 0.8113] {
+                let h4 = 0.005 / u;
+                let d4 = (phi(xi + 2.0 * h4) - 4.0 * phi(xi + h4) + 6.0 * phi(xi)
+                    - 4.0 * phi(xi - h4)
+                    + phi(xi - 2.0 * h4))
+                    / h4.powi(4);
+                pde = pde.max((d4 - u.powi(4) * phi(xi)).abs() / (2.0 * u.powi(4)));
+                let h2 = 1e-3 / u;
+                let d2 = (phi_ff(xi + h2) - 2.0 * phi_ff(xi) + phi_ff(xi - h2)) / (h2 * h2);
+                second = second.max((d2 / (u * u) - phi(xi)).abs() / 2.0);
+            }
+        }
+        println!(
+            "clamped-clamped, 20 modes: max |phi| at the ends {end_value:.2e}, \
+             max |phi'|/u at the ends {end_slope:.2e}, \
+             beam equation rel residual {pde:.2e}, |phi_ff''/u^2 - phi_cc| / 2 {second:.2e}"
+        );
+        assert!(end_value < 1e-12, "{end_value}");
+        assert!(end_slope < 1e-6, "{end_slope}");
+        assert!(pde < 1e-4, "{pde}");
+        assert!(second < 1e-6, "{second}");
+        let g = line_gram(&modes, rho_a, l, 64);
+        let res = identity_residual("bar ClampedClamped", &g);
+        assert!(res < 1e-10, "{res}");
+        // High modes stay bounded and normalised in the overflow-free form.
+        let modes = bar.modes(f64::INFINITY, 64).unwrap();
+        let g = line_gram(&modes[62..64], rho_a, l, 400);
+        let res = identity_residual("bar clamped-clamped modes 63-64", &g);
+        assert!(res < 1e-9, "{res}");
+        // A clamped-clamped tube.
+        let al = material("aluminium").unwrap();
+        let tube = Tube {
+            support: BeamSupport::ClampedClamped,
+            ..Tube::new(1.0, 0.0254, 0.0224, &al)
+        };
+        let tm = tube.modes(f64::INFINITY, 10).unwrap();
+        let g = line_gram(&tm, al.density_kg_m3 * tube.area_m2(), 1.0, 64);
+        assert!(identity_residual("tube ClampedClamped", &g) < 1e-10);
+    }
+
+    // -- torsion ------------------------------------------------------------
+
+    #[test]
+    fn torsion_coefficient_matches_the_published_table() {
+        // Timoshenko & Goodier, Theory of Elasticity, sec. 109 (k_1 of the
+        // rectangle); 0.1406 for the square to four places.
+        for (ratio, want, tol) in [(1.0, 0.1406, 5e-5), (2.0, 0.229, 5e-4), (10.0, 0.312, 5e-4)] {
+            let beta = rectangle_torsion_coefficient(ratio * 0.01, 0.01);
+            println!(
+                "torsion beta(b/h = {ratio}) = {beta:.6}, table {want}, residual {:.1e}",
+                beta - want
+            );
+            assert!((beta - want).abs() < tol, "{beta}");
+            // The sides may come in either order.
+            assert_eq!(beta, rectangle_torsion_coefficient(0.01, ratio * 0.01));
+        }
+        // Against the series evaluated in 40-digit arithmetic (offline,
+        // rounded to f64), and against the series summed directly here in
+        // f64 (smallest terms first; the tail beyond n = 20001 is below
+        // 1e-18).
+        let reference = [
+            (1.0, 0.1405770149551537),
+            (1.25, 0.17173254224128393),
+            (1.5, 0.19576070887554403),
+            (2.0, 0.22868167711957077),
+            (3.0, 0.2633169310015001),
+            (5.0, 0.29131675418798886),
+            (10.0, 0.3123250374572054),
+            (100.0, 0.33123250374572044),
+            (1000.0, 0.333123250374572),
+        ];
+        let mut worst_ref: f64 = 0.0;
+        let mut worst_direct: f64 = 0.0;
+        for (ratio, want) in reference {
+            let beta = rectangle_torsion_coefficient(ratio, 1.0);
+            worst_ref = worst_ref.max((beta - want).abs());
+            let direct: f64 = (0..10_001)
+                .rev()
+                .map(|k| {
+                    let n = (2 * k + 1) as f64;
+                    (n * PI * ratio / 2.0).tanh() / n.powi(5)
+                })
+                .sum();
+            let direct = (1.0 - 192.0 / PI.powi(5) / ratio * direct) / 3.0;
+            worst_direct = worst_direct.max((beta - direct).abs());
+        }
+        println!(
+            "torsion beta, b/h 1 to 1000: max |beta - 40-digit reference| {worst_ref:.1e}, \
+             max |beta - direct f64 series| {worst_direct:.1e}"
+        );
+        assert!(worst_ref < 3e-16, "{worst_ref}");
+        assert!(worst_direct < 1e-15, "{worst_direct}");
+        // Thin strip: beta -> 1/3 - 0.21 h / b (192 lambda(5) / (3 pi^5) = 0.2101).
+        let thin = rectangle_torsion_coefficient(1000.0, 1.0);
+        assert!(
+            (thin - (1.0 / 3.0 - 0.2101 / 1000.0)).abs() < 1e-7,
+            "{thin}"
+        );
+        assert!(rectangle_torsion_coefficient(0.0, 1.0).is_nan());
+        assert!(rectangle_torsion_coefficient(f64::NAN, 1.0).is_nan());
+    }
+
+    fn torsion_bar() -> Bar {
+        rosewood_bar().with_torsion(material("rosewood").unwrap().shear_modulus_pa)
+    }
+
+    fn torsion_only(modes: &[ShapeMode]) -> Vec<ShapeMode> {
+        modes
+            .iter()
+            .filter(|m| matches!(m.label, ModeLabel::Torsion { .. }))
+            .cloned()
+            .collect()
+    }
+
+    #[test]
+    fn torsion_frequencies_shapes_and_normalisation_against_the_closed_form() {
+        let rw = material("rosewood").unwrap();
+        let al = material("aluminium").unwrap();
+        // Rosewood bar 0.4 x 0.06 x 0.02, G = 1.4 GPa: b/h = 3, beta =
+        // 0.26332, K_t = beta b h^3 = 1.2639e-7 m^4, J_p = b h (b^2 + h^2) /
+        // 12 = 4.0e-7 m^4, c_t = sqrt(G K_t / (rho J_p)) = 665.11 m/s.
+        let (b, h) = (0.06f64, 0.02f64);
+        let jp_bar = b * h * (b * b + h * h) / 12.0;
+        let beta = rectangle_torsion_coefficient(b, h);
+        assert!((beta - 0.263_316_931).abs() < 1e-9, "{beta}");
+        let kt_bar = beta * b * h.powi(3);
+        let ct_bar = (rw.shear_modulus_pa * kt_bar / (rw.density_kg_m3 * jp_bar)).sqrt();
+        let bar = torsion_bar();
+        println!(
+            "torsion bar: K_t {:.5e} m^4, J_p {:.5e} m^4, c_t {ct_bar:.3} m/s",
+            bar.torsion_constant_m4(),
+            bar.polar_moment_m4()
+        );
+        assert!((bar.torsion_constant_m4() / kt_bar - 1.0).abs() < 1e-8);
+        assert!((bar.polar_moment_m4() / jp_bar - 1.0).abs() < 1e-15);
+        assert!((ct_bar / 665.11 - 1.0).abs() < 1e-5);
+        // Aluminium chime with torsion: K_t = J_p, c_t = sqrt(G / rho).
+        let tube = Tube::new(1.0, 0.0254, 0.0224, &al).with_torsion(al.shear_modulus_pa);
+        let jp_tube = PI * (0.0254f64.powi(4) - 0.0224f64.powi(4)) / 32.0;
+        let ct_tube = (al.shear_modulus_pa / al.density_kg_m3).sqrt();
+        assert!((tube.polar_moment_m4() / jp_tube - 1.0).abs() < 1e-14);
+        for support in [
+            BeamSupport::FreeFree,
+            BeamSupport::ClampedFree,
+            BeamSupport::ClampedClamped,
+        ] {
+            let cases = [
+                (
+                    "bar",
+                    Shape::Bar(Bar {
+                        support,
+                        ..bar.clone()
+                    }),
+                    rw.density_kg_m3 * jp_bar,
+                    rw.shear_modulus_pa * kt_bar,
+                    ct_bar,
+                    0.4,
+                    b / 2.0,
+                ),
+                (
+                    "tube",
+                    Shape::Tube(Tube {
+                        support,
+                        ..tube.clone()
+                    }),
+                    al.density_kg_m3 * jp_tube,
+                    al.shear_modulus_pa * jp_tube,
+                    ct_tube,
+                    1.0,
+                    0.0127,
+                ),
+            ];
+            for (name, shape, rho_jp, gkt, ct, l, hw) in cases {
+                let modes = torsion_only(&shape.modes(f64::INFINITY, 80).unwrap());
+                assert!(modes.len() >= 20, "{name}: {} torsional modes", modes.len());
+                let amp = (2.0 / (rho_jp * l)).sqrt();
+                let mut freq_res: f64 = 0.0;
+                let mut shape_res: f64 = 0.0;
+                let mut pde: f64 = 0.0;
+                let mut ends: f64 = 0.0;
+                for (i, m) in modes.iter().enumerate() {
+                    let n = i + 1;
+                    assert_eq!(m.label, ModeLabel::Torsion { n });
+                    let nf = n as f64;
+                    let (want, k) = match support {
+                        BeamSupport::ClampedFree => (
+                            (2.0 * nf - 1.0) * ct / (4.0 * l),
+                            (2.0 * nf - 1.0) * PI / (2.0 * l),
+                        ),
+                        _ => (nf * ct / (2.0 * l), nf * PI / l),
+                    };
+                    freq_res = freq_res.max((m.freq_hz / want - 1.0).abs());
+                    let theta = |x: f64| m.shape_at(Point::Bar { x, y: hw }).unwrap() / hw;
+                    for x in [0.0, 0.123 * l, 0.5 * l, 0.77 * l, l] {
+                        let closed = amp
+                            * match support {
+                                BeamSupport::FreeFree => (k * x).cos(),
+                                _ => (k * x).sin(),
+                            };
+                        shape_res = shape_res.max((theta(x) - closed).abs() / amp);
+                    }
+                    // G K_t theta'' + rho J_p omega^2 theta = 0.
+                    let x = 0.3137 * l;
+                    let dx = 1e-3 / k;
+                    let d2 = (theta(x + dx) - 2.0 * theta(x) + theta(x - dx)) / (dx * dx);
+                    let r = gkt * d2 + rho_jp * m.omega().powi(2) * theta(x);
+                    pde = pde.max(r.abs() / (rho_jp * m.omega().powi(2) * amp));
+                    // Ends: a clamp does not turn, a free end has no torque
+                    // (zero slope, second-order one-sided difference).
+                    let dx = 1e-6 * l;
+                    let slope0 =
+                        (-3.0 * theta(0.0) + 4.0 * theta(dx) - theta(2.0 * dx)) / (2.0 * dx);
+                    let slope1 =
+                        (3.0 * theta(l) - 4.0 * theta(l - dx) + theta(l - 2.0 * dx)) / (2.0 * dx);
+                    let (at0, at1) = match support {
+                        BeamSupport::FreeFree => (slope0 / k, slope1 / k),
+                        BeamSupport::ClampedFree => (theta(0.0), slope1 / k),
+                        BeamSupport::ClampedClamped => (theta(0.0), theta(l)),
+                    };
+                    ends = ends.max(at0.abs() / amp).max(at1.abs() / amp);
+                }
+                println!(
+                    "torsion {name} {support:?}: f1 {:.3} Hz, {} modes, rel freq residual \
+                     {freq_res:.1e}, shape {shape_res:.1e}, wave equation {pde:.1e}, \
+                     end conditions {ends:.1e}",
+                    modes[0].freq_hz,
+                    modes.len()
+                );
+                assert!(freq_res < 1e-14, "{freq_res}");
+                assert!(shape_res < 1e-13, "{shape_res}");
+                assert!(pde < 1e-6, "{pde}");
+                assert!(ends < 1e-8, "{ends}");
+                // integral rho J_p theta_i theta_j dx = delta_ij by quadrature.
+                let q = composite(0.0, l, 64);
+                let vals: Vec<Vec<f64>> = modes[..20]
+                    .iter()
+                    .map(|m| {
+                        q.iter()
+                            .map(|&(x, _)| m.shape_at(Point::Bar { x, y: hw }).unwrap() / hw)
+                            .collect()
+                    })
+                    .collect();
+                let w: Vec<f64> = q.iter().map(|&(_, w)| rho_jp * w).collect();
+                let res =
+                    identity_residual(&format!("torsion {name} {support:?}"), &gram(&vals, &w));
+                assert!(res < 1e-12, "{res}");
+            }
+        }
+        // Hand values: the free-free bar's first torsional mode, c_t / (2 L)
+        // = 665.11 / 0.8 = 831.39 Hz; the chime's, sqrt(26e9 / 2700) / 2.
+        let f1 = torsion_only(&bar.modes(1e4, 100).unwrap())[0].freq_hz;
+        println!("rosewood bar: torsion 1 at {f1:.2} Hz (hand: 831.39 Hz)");
+        assert!((f1 / 831.39 - 1.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn bar_with_torsion_is_mass_normalised_over_the_whole_section() {
+        // M_ij = integral rho (w_i w_j + v_i v_j) dV over the 3-D bar: w (in
+        // the direction of vibration) is shape_at(x, y); the sideways motion
+        // v is -z theta for a torsional mode, 0 for a bending mode. Bending
+        // and torsional modes must come out orthogonal and each normalised.
+        let bar = torsion_bar();
+        let (l, b, h) = (bar.length_m, bar.width_m, bar.thickness_m);
+        let rho = bar.density_kg_m3;
+        let modes = bar.modes(f64::INFINITY, 12).unwrap();
+        let qx = composite(0.0, l, 24);
+        let qy = composite(-b / 2.0, b / 2.0, 1);
+        let qz = composite(-h / 2.0, h / 2.0, 1);
+        let mut vals = vec![Vec::new(); modes.len()];
+        let mut w = Vec::new();
+        for &(x, wx) in &qx {
+            for &(y, wy) in &qy {
+                for &(z, wz) in &qz {
+                    let wt = rho * wx * wy * wz;
+                    w.push(wt);
+                    w.push(wt);
+                    for (m, v) in modes.iter().zip(vals.iter_mut()) {
+                        let up = m.shape_at(Point::Bar { x, y }).unwrap();
+                        let side = match m.label {
+                            ModeLabel::Torsion { .. } => {
+                                -z * m.shape_at(Point::Bar { x, y: b / 2.0 }).unwrap() / (b / 2.0)
+                            }
+                            _ => 0.0,
+                        };
+                        v.push(up);
+                        v.push(side);
+                    }
+                }
+            }
+        }
+        let kinds: Vec<String> = modes.iter().map(|m| m.label.to_string()).collect();
+        println!("bar with torsion, 12 lowest: {kinds:?}");
+        assert!(modes
+            .iter()
+            .any(|m| matches!(m.label, ModeLabel::Torsion { .. })));
+        let res = identity_residual("bar bending + torsion, 3-D", &gram(&vals, &w));
+        assert!(res < 1e-10, "{res}");
+    }
+
+    #[test]
+    fn points_across_the_bar_torsion_is_odd_in_y_bending_ignores_y() {
+        let bar = torsion_bar();
+        let hw = bar.width_m / 2.0;
+        let modes = bar.modes(f64::INFINITY, 10).unwrap();
+        let mut lin: f64 = 0.0;
+        for m in &modes {
+            for x in [0.0, 0.0917, 0.2, 0.3333, 0.4] {
+                let edge = m.shape_at(Point::Bar { x, y: hw }).unwrap();
+                let line = m.shape_at(Point::Line(x)).unwrap();
+                for y in [-hw, -0.0123, 0.0, 0.007, hw] {
+                    let v = m.shape_at(Point::Bar { x, y }).unwrap();
+                    let mirror = m.shape_at(Point::Bar { x, y: -y }).unwrap();
+                    match m.label {
+                        ModeLabel::Torsion { .. } => {
+                            lin = lin.max((v - y / hw * edge).abs());
+                            assert_eq!(v, -mirror);
+                            assert_eq!(line, 0.0);
+                        }
+                        _ => assert_eq!(v, line),
+                    }
+                }
+            }
+        }
+        println!("torsion: max |Phi(x, y) - (y / (b/2)) Phi(x, b/2)| = {lin:.1e} / sqrt(kg)");
+        assert!(lin < 1e-13, "{lin}");
+        // A torsional mode's weight at the edge of the free-free bar's end:
+        // (b/2) sqrt(2 / (rho J_p L)) = 0.03 sqrt(2 / (1000 * 4e-7 * 0.4)).
+        let t1 = modes
+            .iter()
+            .find(|m| m.label == ModeLabel::Torsion { n: 1 })
+            .unwrap();
+        let edge = t1.shape_at(Point::Bar { x: 0.0, y: hw }).unwrap();
+        let want = 0.03 * (2.0f64 / (1000.0 * 4e-7 * 0.4)).sqrt();
+        println!("torsion 1 at (0, b/2): {edge:.6} / sqrt(kg), hand {want:.6}");
+        assert!((edge / want - 1.0).abs() < 1e-12);
+        // Out of range: errors name the coordinate.
+        for m in [&modes[0], t1] {
+            for y in [
+                hw * (1.0 + 1e-9),
+                -hw * (1.0 + 1e-9),
+                f64::NAN,
+                f64::INFINITY,
+            ] {
+                let err = m.shape_at(Point::Bar { x: 0.1, y }).unwrap_err();
+                assert!(err.contains("point.y"), "{err}");
+            }
+            for x in [-1e-9, 0.4 + 1e-9, f64::NAN] {
+                let err = m.shape_at(Point::Bar { x, y: 0.0 }).unwrap_err();
+                assert!(err.contains("point.x"), "{err}");
+            }
+            let err = m.shape_at(Point::Plane { x: 0.1, y: 0.0 }).unwrap_err();
+            assert!(err.contains("Point::Bar"), "{err}");
+        }
+        println!(
+            "out of range: {}",
+            t1.shape_at(Point::Bar { x: 0.1, y: 0.031 }).unwrap_err()
+        );
+        // A tube's half-width is D / 2.
+        let al = material("aluminium").unwrap();
+        let tube = Tube::new(1.0, 0.0254, 0.0224, &al).with_torsion(al.shear_modulus_pa);
+        for m in tube.modes(5000.0, 10).unwrap() {
+            assert!(m.shape_at(Point::Bar { x: 0.5, y: 0.0127 }).is_ok());
+            let err = m.shape_at(Point::Bar { x: 0.5, y: -0.0128 }).unwrap_err();
+            assert!(err.contains("point.y"), "{err}");
+        }
+        // Point::Bar belongs to bars and tubes only.
+        let p = Plate::new(0.3, 0.2, 0.002, &al, PlateEdges::SimplySupported);
+        let pm = &p.modes(1e4, 1).unwrap()[0];
+        let err = pm.shape_at(Point::Bar { x: 0.1, y: 0.0 }).unwrap_err();
+        assert!(err.contains("point") && err.contains("plate"), "{err}");
+    }
+
+    #[test]
+    fn torsion_merges_with_bending_by_frequency_under_both_limits() {
+        let bar = torsion_bar();
+        let all = bar.modes(6000.0, 100).unwrap();
+        let labels: Vec<String> = all.iter().map(|m| m.label.to_string()).collect();
+        println!("bar with torsion up to 6 kHz: {labels:?}");
+        // By hand: bending 574.6, 1584.0, 3105.2, 5133.1 Hz; torsion 831.4 n
+        // Hz.
+        let want = [
+            "bending 1",
+            "torsion 1",
+            "bending 2",
+            "torsion 2",
+            "torsion 3",
+            "bending 3",
+            "torsion 4",
+            "torsion 5",
+            "torsion 6",
+            "bending 4",
+            "torsion 7",
+        ];
+        assert_eq!(labels, want);
+        // The bending modes are exactly those of the bar without torsion.
+        let bending: Vec<f64> = rosewood_bar()
+            .modes(6000.0, 100)
+            .unwrap()
+            .iter()
+            .map(|m| m.freq_hz)
+            .collect();
+        let merged_bending: Vec<f64> = all
+            .iter()
+            .filter(|m| matches!(m.label, ModeLabel::Bending { .. }))
+            .map(|m| m.freq_hz)
+            .collect();
+        assert_eq!(bending, merged_bending);
+        // Both limits apply to the merged list.
+        for k in 0..=all.len() {
+            let few = bar.modes(f64::INFINITY, k).unwrap();
+            assert_eq!(few.len(), k);
+            assert!(few.iter().zip(&all).all(|(a, b)| a == b));
+        }
+        assert_eq!(bar.modes(all[4].freq_hz, 100).unwrap().len(), 5);
+        assert_eq!(bar.modes(all[4].freq_hz * 0.999_999, 100).unwrap().len(), 4);
+        // A tuned bar: bending retuned, torsion kept, still in order.
+        let tuned = bar
+            .clone()
+            .with_tuning(&[1.0, 4.0, 10.0])
+            .modes(6000.0, 100)
+            .unwrap();
+        assert!(tuned.windows(2).all(|w| w[0].freq_hz <= w[1].freq_hz));
+        let tf: Vec<f64> = torsion_only(&tuned).iter().map(|m| m.freq_hz).collect();
+        let uf: Vec<f64> = torsion_only(&all).iter().map(|m| m.freq_hz).collect();
+        assert_eq!(tf, uf);
+        let tl: Vec<String> = tuned.iter().map(|m| m.label.to_string()).collect();
+        println!("tuned 1 : 4 : 10 with torsion: {tl:?}");
+        assert_eq!(
+            &tl[..4],
+            ["bending 1", "torsion 1", "torsion 2", "bending 2"]
+        );
+        // Invalid shear moduli are errors naming the field.
+        let err = rosewood_bar().with_torsion(0.0).modes(1e4, 5).unwrap_err();
+        assert!(err.contains("bar.torsion"), "{err}");
+        let al = material("aluminium").unwrap();
+        let err = Tube::new(1.0, 0.02, 0.01, &al)
+            .with_torsion(f64::NAN)
+            .modes(1e4, 5)
+            .unwrap_err();
+        assert!(err.contains("tube.torsion"), "{err}");
+    }
+
     // -- validation and limits ----------------------------------------------
 
     #[test]
@@ -2405,7 +3227,9 @@ mod tests {
         let al = material("aluminium").unwrap();
         let names = [
             "bar",
+            "bar + torsion",
             "tube",
+            "tube clamped-clamped + torsion",
             "SS plate",
             "free plate",
             "membrane",
@@ -2413,7 +3237,12 @@ mod tests {
         ];
         let kinds = [
             Shape::Bar(rosewood_bar()),
+            Shape::Bar(torsion_bar()),
             Shape::Tube(Tube::new(1.0, 0.0254, 0.0224, &al)),
+            Shape::Tube(Tube {
+                support: BeamSupport::ClampedClamped,
+                ..Tube::new(1.0, 0.0254, 0.0224, &al).with_torsion(al.shear_modulus_pa)
+            }),
             Shape::Plate(Plate::new(
                 0.4,
                 0.3,
