@@ -194,22 +194,64 @@ fn every_preset_compiles_and_renders_finite_audio() {
 /// Presets rewritten as physical descriptions (docs/design.md, "Objects
 /// from geometry and material") against the hand-typed modal objects they
 /// replaced (`tests/data/modal-presets/`, as the earlier generator wrote
-/// them): mode by mode, frequency, T60 and weights at every point, and the
-/// first second of both renders at 48 kHz. Each preset's tolerances say
-/// where its model is the same physics (1e-6: rounding of the printed
-/// tables) and where it changed (documented in the preset's comments).
+/// them). Each old mode is matched to the new mode nearest in frequency and
+/// weights; where the model is the same physics its frequency must agree
+/// within 1 % (in fact within the old tables' printed digits), its T60 and
+/// its weights at every point too. The modes whose model changed are listed
+/// with the change the preset's comments document; old modes with no
+/// counterpart (estimates the new description replaces) are listed too.
 #[test]
 fn rewritten_presets_keep_their_sound() {
-    use modal_contact::scene::Scene;
+    use modal_contact::scene::{ModeSpec, Scene};
+    struct Case {
+        name: &'static str,
+        /// old mode index, allowed relative frequency difference (the
+        /// modes whose model changed; all others: 1e-5)
+        changed: &'static [(usize, f64)],
+        /// old modes with no counterpart in the new description
+        replaced: &'static [usize],
+        /// relative L2 of the first second of both renders, when the
+        /// whole model is the same
+        render: Option<f64>,
+    }
+    let cases = [
+        Case {
+            name: "steel-plate",
+            changed: &[],
+            replaced: &[],
+            render: Some(1e-3),
+        },
+        // the torsional modes at the uniform bar's frequencies instead of
+        // an arch estimate
+        Case {
+            name: "marimba-bar",
+            changed: &[],
+            replaced: &[1, 3],
+            render: None,
+        },
+        // the exact Timoshenko root instead of its first-order expansion
+        Case {
+            name: "glockenspiel-bar",
+            changed: &[(0, 3e-4), (2, 2e-3), (3, 7e-3), (6, 1.7e-2)],
+            replaced: &[],
+            render: None,
+        },
+        Case {
+            name: "wood-block",
+            changed: &[(0, 1e-3), (3, 7e-3), (4, 2.5e-2)],
+            replaced: &[],
+            render: None,
+        },
+    ];
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    // name, frequency, T60, weight (relative to the largest weight), render
-    // (relative L2 of the first second); the old tables were printed to 5
-    // or 6 significant digits (T60 to 5: 1e-4 relative)
-    let cases: [(&str, f64, f64, f64, f64); 1] = [("steel-plate", 1e-6, 1e-4, 1e-5, 1e-3)];
     let dir = root.join("tests/data/modal-presets");
-    let fixtures = std::fs::read_dir(&dir).unwrap().count();
-    assert_eq!(fixtures, cases.len(), "every fixture has its tolerances");
-    for (name, tf, tt, tw, tr) in cases {
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        cases.len(),
+        "every fixture has a case"
+    );
+    for case in cases {
+        let name = case.name;
         let old = Scene::from_file(&dir.join(format!("{name}.toml"))).unwrap();
         let new = Scene::from_file(&root.join(format!("presets/{name}.toml"))).unwrap();
         assert!(new.object[0].physical().is_some(), "{name} is physical");
@@ -217,37 +259,77 @@ fn rewritten_presets_keep_their_sound() {
         let (ObjectSpec::Modal(a), ObjectSpec::Modal(b)) = (&old.object[0], &ex.object[0]) else {
             panic!("{name}: not modal");
         };
-        assert_eq!(a.mode.len(), b.mode.len(), "{name}: mode count");
         let wmax = a
             .mode
             .iter()
             .flat_map(|m| m.weights.iter())
             .fold(0.0f64, |x, w| x.max(w.abs()));
-        let (mut df, mut dt, mut dw) = (0.0f64, 0.0f64, 0.0f64);
-        for (x, y) in a.mode.iter().zip(&b.mode) {
-            df = df.max((y.freq_hz / x.freq_hz - 1.0).abs());
-            dt = dt.max((y.t60_s.unwrap() / x.t60_s.unwrap() - 1.0).abs());
-            for p in &a.points {
-                let i = a.points.iter().position(|q| q == p).unwrap();
-                let j = b.points.iter().position(|q| q == p).unwrap();
-                dw = dw.max((x.weights[i] - y.weights[j]).abs() / wmax);
+        let weights = |m: &ModeSpec, pts: &[String]| -> Vec<f64> {
+            a.points
+                .iter()
+                .map(|p| m.weights[pts.iter().position(|q| q == p).unwrap()] / wmax)
+                .collect()
+        };
+        println!("{name}: {} old modes, {} new", a.mode.len(), b.mode.len());
+        let (mut dt, mut dw) = (0.0f64, 0.0f64);
+        for (i, x) in a.mode.iter().enumerate() {
+            let wx = weights(x, &a.points);
+            let cost = |y: &ModeSpec| {
+                let wy = weights(y, &b.points);
+                (y.freq_hz / x.freq_hz - 1.0).abs()
+                    + wx.iter().zip(&wy).map(|(p, q)| (p - q).abs()).sum::<f64>()
+            };
+            let y = b
+                .mode
+                .iter()
+                .min_by(|p, q| cost(p).total_cmp(&cost(q)))
+                .unwrap();
+            let df = (y.freq_hz / x.freq_hz - 1.0).abs();
+            let wy = weights(y, &b.points);
+            let dwi = wx
+                .iter()
+                .zip(&wy)
+                .map(|(p, q)| (p - q).abs())
+                .fold(0.0, f64::max);
+            println!(
+                "  old mode {i}: {:.2} Hz -> {:.2} Hz ({:+.2e}), weights {dwi:.1e}",
+                x.freq_hz,
+                y.freq_hz,
+                y.freq_hz / x.freq_hz - 1.0
+            );
+            if case.replaced.contains(&i) {
+                continue;
             }
+            let tol = case.changed.iter().find(|c| c.0 == i).map_or(1e-5, |c| c.1);
+            assert!(
+                df <= tol,
+                "{name}: old mode {i} moved by {df:e} (allowed {tol:e})"
+            );
+            assert!(df <= 1e-2 || case.changed.iter().any(|c| c.0 == i));
+            assert!(
+                dwi <= 1e-5,
+                "{name}: old mode {i} weights differ by {dwi:e}"
+            );
+            // T60 = ln(1000) / sigma(f): a moved mode decays at its new frequency
+            let dti = (y.t60_s.unwrap() / x.t60_s.unwrap() - 1.0).abs();
+            assert!(dti <= 1e-4 + tol, "{name}: old mode {i} T60 {dti:e}");
+            dt = dt.max(dti);
+            dw = dw.max(dwi);
         }
-        let opts = RenderOptions {
-            rate_hz: 48000.0,
-            seconds: Some(1.0),
-            ..Default::default()
-        };
-        let ra = render(&old, &opts).unwrap();
-        let rb = render(&new, &opts).unwrap();
-        let both = |r: &modal_contact::render::RenderOutput| {
-            r.left.iter().chain(&r.right).copied().collect::<Vec<f64>>()
-        };
-        let dr = modal_testkit::metrics::rel_l2(&both(&rb), &both(&ra));
-        println!(
-            "{name}: {} modes; worst relative difference: frequency {df:.2e}, T60 {dt:.2e}, weight {dw:.2e} of the largest; render {dr:.2e} (relative L2, 1 s)",
-            a.mode.len()
-        );
-        assert!(df <= tf && dt <= tt && dw <= tw && dr <= tr, "{name}");
+        println!("  worst T60 {dt:.2e}, worst weight {dw:.2e} of the largest");
+        if let Some(tr) = case.render {
+            let opts = RenderOptions {
+                rate_hz: 48000.0,
+                seconds: Some(1.0),
+                ..Default::default()
+            };
+            let both = |s: &Scene| {
+                let r = render(s, &opts).unwrap();
+                r.left.iter().chain(&r.right).copied().collect::<Vec<f64>>()
+            };
+            let dr = modal_testkit::metrics::rel_l2(&both(&new), &both(&old));
+            println!("  render: relative L2 {dr:.2e} (1 s)");
+            assert!(dr <= tr, "{name}: render {dr:e}");
+        }
     }
 }

@@ -174,8 +174,9 @@ fn compiled_contact_propagator_matches_dense_expm() {
         "steel-plate",
         "bell",
     ] {
-        let sc = preset(name);
         let rate = 44100.0;
+        // physical objects as the modes the compiler computes at this rate
+        let sc = preset(name).expanded(rate).unwrap();
         let compiled = compile(&sc, rate).unwrap();
         let obj_idx = sc.object_index(&sc.contact.object).unwrap();
         let obj = ObjectModel::from_spec(&sc.object[obj_idx]).unwrap();

@@ -74,7 +74,7 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let good = crate::presets::PRESETS
             .iter()
-            .find(|p| p.name == "marimba-bar")
+            .find(|p| p.name == "bell")
             .unwrap()
             .toml;
         std::fs::write(dir.join("b-good.toml"), good).unwrap();

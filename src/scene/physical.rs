@@ -17,8 +17,8 @@ use super::{
 };
 use crate::bodies::materials::{self, Material};
 use crate::bodies::shapes::{
-    Bar, BeamSupport, LossModel, Membrane, ModeLabel, Plate, PlateEdges, Point, Shape, ShapeMode,
-    StiffString, Tube,
+    Bar, BeamSupport, LossModel, Membrane, Plate, PlateEdges, Point, Shape, ShapeMode, StiffString,
+    Tube,
 };
 use serde::de::{self, MapAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize};
@@ -204,6 +204,9 @@ pub enum SupportSpec {
     /// Clamped at `x = 0`, free at the other end (tines, reeds).
     #[serde(rename = "clamped-free")]
     ClampedFree,
+    /// Clamped at both ends (the lip of a slit drum or wood block).
+    #[serde(rename = "clamped-clamped")]
+    ClampedClamped,
 }
 
 impl SupportSpec {
@@ -211,6 +214,7 @@ impl SupportSpec {
         match self {
             SupportSpec::FreeFree => BeamSupport::FreeFree,
             SupportSpec::ClampedFree => BeamSupport::ClampedFree,
+            SupportSpec::ClampedClamped => BeamSupport::ClampedClamped,
         }
     }
 }
@@ -252,16 +256,25 @@ pub struct BarSpec {
     /// Timoshenko correction (shear and rotary inertia); default on.
     #[serde(default = "yes")]
     pub timoshenko: bool,
+    /// Torsional modes (Saint-Venant, the material's shear modulus);
+    /// default off. They move points off the centre line (`[x, y]`).
+    #[serde(default)]
+    pub torsion: bool,
     /// Target ratios of the first bending modes (an undercut bar, e.g.
     /// `[1, 4, 10]`); empty: a uniform bar.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub tuning: Vec<f64>,
     /// With `tuning`: the frequency the maker tunes the fundamental to
-    /// \[Hz\] (the undercut lowers it below the uniform bar's); every
-    /// bending mode is scaled by the same factor. Default: the uniform
-    /// bar's fundamental.
+    /// \[Hz\] (the undercut lowers it below the uniform bar's). Default: the
+    /// uniform bar's fundamental.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fundamental_hz: Option<f64>,
+    /// With `tuning`: the bar's mass after the undercut \[kg\] (at most the
+    /// uniform bar's); the uniform bar's mass-normalised shapes are scaled
+    /// by `sqrt(m_uniform / mass_kg)` (an estimate: the undercut removes
+    /// mass where the shapes do not change). Default: the uniform bar's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mass_kg: Option<f64>,
     /// Decay.
     #[serde(default)]
     pub loss: LossSpec,
@@ -298,6 +311,9 @@ pub struct TubeSpec {
     /// Timoshenko correction; default on.
     #[serde(default = "yes")]
     pub timoshenko: bool,
+    /// Torsional modes (Saint-Venant); default off.
+    #[serde(default)]
+    pub torsion: bool,
     /// Decay.
     #[serde(default)]
     pub loss: LossSpec,
@@ -648,6 +664,10 @@ impl<'a> PhysicalSpec<'a> {
                 if !s.tuning.is_empty() {
                     bar = bar.with_tuning(&s.tuning);
                 }
+                bar.fundamental_hz = s.fundamental_hz;
+                if s.torsion {
+                    bar = bar.with_torsion(m.shear_modulus_pa);
+                }
                 (Shape::Bar(bar), m.loss_factor)
             }
             PhysicalSpec::Tube(s) => {
@@ -656,6 +676,9 @@ impl<'a> PhysicalSpec<'a> {
                 tube.support = s.support.support();
                 if s.timoshenko {
                     tube = tube.with_timoshenko(m.shear_modulus_pa, m.poisson_ratio);
+                }
+                if s.torsion {
+                    tube = tube.with_torsion(m.shear_modulus_pa);
                 }
                 (Shape::Tube(tube), m.loss_factor)
             }
@@ -725,6 +748,9 @@ impl<'a> PhysicalSpec<'a> {
                 PointSpec::Along(x),
             ) => Ok(Point::Line(x)),
             (PhysicalSpec::Plate(_), PointSpec::Pair([x, y])) => Ok(Point::Plane { x, y }),
+            (PhysicalSpec::Bar(_) | PhysicalSpec::Tube(_), PointSpec::Pair([x, y])) => {
+                Ok(Point::Bar { x, y })
+            }
             (PhysicalSpec::Membrane(_), PointSpec::Along(r)) => Ok(Point::Polar { r, theta: 0.0 }),
             (PhysicalSpec::Membrane(_), PointSpec::Pair([r, deg])) => Ok(Point::Polar {
                 r,
@@ -734,7 +760,7 @@ impl<'a> PhysicalSpec<'a> {
                 Err(bad("a point on a plate is [x, y] in metres"))
             }
             (_, PointSpec::Pair(_)) => Err(bad(
-                "a point on a bar, tube or string is one position along it, in metres",
+                "a point on a string is one position along it, in metres",
             )),
         }
     }
@@ -785,20 +811,9 @@ impl<'a> PhysicalSpec<'a> {
                 ));
             }
         }
-        // a tuned bar's bending modes scaled to the given fundamental
-        let bend_scale = self.bending_scale(base, &shape)?;
-        let mut modes = shape
-            .modes(max_freq / bend_scale.min(1.0), max_count + 1)
+        let modes = shape
+            .modes(max_freq, max_count + 1)
             .map_err(|e| shape_error(base, e))?;
-        if bend_scale != 1.0 {
-            for m in &mut modes {
-                if matches!(m.label, ModeLabel::Bending { .. }) {
-                    m.freq_hz *= bend_scale;
-                }
-            }
-            modes.retain(|m| m.freq_hz <= max_freq);
-            modes.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
-        }
         if modes.len() > max_count && limits.max_modes.is_none() {
             return Err(SceneError::new(
                 base.to_string(),
@@ -827,6 +842,7 @@ impl<'a> PhysicalSpec<'a> {
                 ),
             ));
         }
+        let weight_scale = self.weight_scale(base, &shape)?;
         let mut mode = Vec::with_capacity(modes.len());
         let radiation = self.plate_radiation(base, &shape)?;
         for (k, m) in modes.iter().enumerate() {
@@ -837,9 +853,10 @@ impl<'a> PhysicalSpec<'a> {
             let t60_s = (sigma > 0.0).then(|| (1000f64.ln() / sigma).max(MIN_T60_S));
             let mut weights = Vec::with_capacity(points.len());
             for (name, p) in &points {
-                let w = m
-                    .shape_at(*p)
-                    .map_err(|e| SceneError::new(format!("{base}.points.{name}"), e.to_string()))?;
+                let w = weight_scale
+                    * m.shape_at(*p).map_err(|e| {
+                        SceneError::new(format!("{base}.points.{name}"), e.to_string())
+                    })?;
                 if !(w.abs() <= MAX_WEIGHT) {
                     return Err(SceneError::new(
                         base.to_string(),
@@ -865,31 +882,27 @@ impl<'a> PhysicalSpec<'a> {
         })
     }
 
-    /// The factor from a tuned bar's uniform fundamental to its
-    /// `fundamental_hz` (1 for everything else).
-    fn bending_scale(&self, base: &str, shape: &Shape) -> Result<f64, SceneError> {
-        let PhysicalSpec::Bar(bar) = self else {
+    /// `sqrt(m_uniform / mass_kg)` of an undercut bar whose mass is given
+    /// (1 otherwise).
+    fn weight_scale(&self, base: &str, shape: &Shape) -> Result<f64, SceneError> {
+        let (PhysicalSpec::Bar(spec), Shape::Bar(bar)) = (self, shape) else {
             return Ok(1.0);
         };
-        let Some(f) = bar.fundamental_hz else {
+        let Some(m) = spec.mass_kg else {
             return Ok(1.0);
         };
-        let path = format!("{base}.fundamental_hz");
-        check_positive(&path, f)?;
-        if bar.tuning.is_empty() {
+        let path = format!("{base}.mass_kg");
+        check_positive(&path, m)?;
+        let uniform = bar.mass_kg();
+        if spec.tuning.is_empty() || m > uniform {
             return Err(SceneError::new(
                 path,
-                "only a tuned bar (`tuning`) has a fundamental apart from its geometry",
+                format!(
+                    "only a tuned (undercut) bar takes a mass, at most the uniform bar's {uniform} kg; got {m}"
+                ),
             ));
         }
-        let uniform = shape
-            .modes(f64::INFINITY, 8)
-            .map_err(|e| shape_error(base, e))?
-            .into_iter()
-            .find(|m| matches!(m.label, ModeLabel::Bending { n: 1 }))
-            .map(|m| m.freq_hz)
-            .ok_or_else(|| SceneError::new(path.clone(), "the bar has no bending mode"))?;
-        Ok(f / uniform)
+        Ok((uniform / m).sqrt())
     }
 
     /// The plate radiation term of the loss, when asked for (plates only).
@@ -930,7 +943,7 @@ impl<'a> PhysicalSpec<'a> {
             .validate()
             .map_err(|e| shape_error(&format!("{base}.loss"), e))?;
         self.plate_radiation(base, &shape)?;
-        self.bending_scale(base, &shape)?;
+        self.weight_scale(base, &shape)?;
         if let Some(f) = self.limits().max_freq_hz {
             check_positive(&format!("{base}.max_freq_hz"), f)?;
         }
@@ -971,16 +984,11 @@ impl<'a> PhysicalSpec<'a> {
     /// Lowest mode frequency \[Hz\] (whatever the limits).
     pub fn lowest_frequency_hz(&self) -> Option<f64> {
         let (shape, _) = self.shape("").ok()?;
-        let scale = self.bending_scale("", &shape).ok()?;
         shape
-            .modes(f64::INFINITY, 16)
+            .modes(f64::INFINITY, 1)
             .ok()?
-            .iter()
-            .map(|m| match m.label {
-                ModeLabel::Bending { .. } => m.freq_hz * scale,
-                _ => m.freq_hz,
-            })
-            .min_by(f64::total_cmp)
+            .first()
+            .map(|m| m.freq_hz)
     }
 }
 
@@ -990,14 +998,24 @@ impl<'a> PhysicalSpec<'a> {
 fn mode_count_estimate(shape: &Shape, f: f64) -> f64 {
     let w = 2.0 * PI * f;
     match shape {
+        // bending (omega = (n pi / L)^2 sqrt(E I / (rho A))) plus torsion
+        // (f = n c_t / (2 L))
         Shape::Bar(b) => {
             let ei_ra = b.youngs_modulus_pa * b.thickness_m.powi(2) / (12.0 * b.density_kg_m3);
-            b.length_m * (w * w / ei_ra).powf(0.25) / PI
+            let torsion = b.torsion.map_or(0.0, |g| {
+                let c_t =
+                    (g * b.torsion_constant_m4() / (b.density_kg_m3 * b.polar_moment_m4())).sqrt();
+                2.0 * b.length_m * f / c_t
+            });
+            b.length_m * (w * w / ei_ra).powf(0.25) / PI + torsion
         }
         Shape::Tube(t) => {
             let r2 = (t.outer_diameter_m.powi(2) + t.inner_diameter_m.powi(2)) / 16.0;
             let ei_ra = t.youngs_modulus_pa * r2 / t.density_kg_m3;
-            t.length_m * (w * w / ei_ra).powf(0.25) / PI
+            let torsion = t
+                .torsion
+                .map_or(0.0, |g| 2.0 * t.length_m * f / (g / t.density_kg_m3).sqrt());
+            t.length_m * (w * w / ei_ra).powf(0.25) / PI + torsion
         }
         Shape::Plate(p) => {
             let area = p.length_x_m * p.length_y_m;
@@ -1019,8 +1037,8 @@ impl PhysicalSpec<'_> {
     /// angle of `current` (the scene's contact point).
     pub fn strike_point(&self, pos: f64, current: PointSpec) -> PointSpec {
         match self {
-            PhysicalSpec::Bar(s) => PointSpec::Along(pos * s.length_m),
-            PhysicalSpec::Tube(s) => PointSpec::Along(pos * s.length_m),
+            PhysicalSpec::Bar(s) => along_keeping_y(pos * s.length_m, current),
+            PhysicalSpec::Tube(s) => along_keeping_y(pos * s.length_m, current),
             PhysicalSpec::StiffString(s) => PointSpec::Along(pos * s.length_m),
             PhysicalSpec::Plate(s) => PointSpec::Pair([pos * s.length_x_m, pos * s.length_y_m]),
             PhysicalSpec::Membrane(s) => {
@@ -1031,6 +1049,15 @@ impl PhysicalSpec<'_> {
                 PointSpec::Pair([pos * s.radius_m, theta])
             }
         }
+    }
+}
+
+/// A point at `x` along a bar or tube, as far off the centre line as
+/// `current` (torsion).
+fn along_keeping_y(x: f64, current: PointSpec) -> PointSpec {
+    match current {
+        PointSpec::Pair([_, y]) => PointSpec::Pair([x, y]),
+        PointSpec::Along(_) => PointSpec::Along(x),
     }
 }
 
