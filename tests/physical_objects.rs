@@ -430,3 +430,93 @@ fn bad_physical_objects_are_refused_with_the_field() {
         assert!(e.contains(want), "expected {want:?} in {e:?}");
     }
 }
+
+/// The strike position on a bar (keeping the contact's offset from the
+/// centre line, so torsion still sounds), a plate (its diagonal) and a
+/// membrane (the radius at the contact's angle): the contact weights are
+/// the closed-form shapes there.
+#[test]
+fn strike_position_on_bars_plates_and_membranes() {
+    let mut p = InstrumentParams::default();
+    // a simply supported plate: Phi = 2 / sqrt(rho h a b) sin(m pi x / a) sin(n pi y / b)
+    let plate = parse(
+        r#"name = "o"
+kind = "plate"
+material = { name = "steel", density_kg_per_m3 = 7800.0 }
+length_x_m = 0.5
+length_y_m = 0.3
+thickness_m = 0.004
+max_modes = 30
+points = { contact = [0.1, 0.1], pickup = [0.3, 0.2] }"#,
+    );
+    let pos = 0.37;
+    p.scene.strike_pos_norm = Some(pos);
+    let m = modal_of(&scene_for(&plate, &p));
+    let norm = 2.0 / (7800.0f64 * 0.004 * 0.5 * 0.3).sqrt();
+    // every (m, n) with the frequency order of the closed form
+    let mut want: Vec<(f64, f64)> = Vec::new();
+    for i in 1..20 {
+        for j in 1..20 {
+            let f = (i * i) as f64 / 0.25 + (j * j) as f64 / 0.09;
+            let w = norm * (i as f64 * PI * pos).sin() * (j as f64 * PI * pos).sin();
+            want.push((f, w));
+        }
+    }
+    want.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let ci = m.points.iter().position(|x| x == "contact").unwrap();
+    for (mode, (_, w)) in m.mode.iter().zip(&want) {
+        assert!((mode.weights[ci] - w).abs() < 1e-12, "{} vs {w}", mode.weights[ci]);
+    }
+    // a membrane: the radius moves, the angle stays (the (1,1) pair keeps
+    // its cos : sin ratio at 40 degrees)
+    let drum = parse(
+        r#"name = "o"
+kind = "membrane"
+radius_m = 0.2
+tension_n_per_m = 3000.0
+areal_density_kg_per_m2 = 0.25
+max_modes = 6
+points = { contact = [0.05, 40.0], pickup = 0.1 }"#,
+    );
+    p.scene.strike_pos_norm = Some(0.6);
+    let m = modal_of(&scene_for(&drum, &p));
+    let ci = m.points.iter().position(|x| x == "contact").unwrap();
+    let (wc, ws) = (m.mode[1].weights[ci], m.mode[2].weights[ci]);
+    assert!((ws / wc - 40f64.to_radians().tan()).abs() < 1e-12);
+    // (0,1) mode at r = 0.6 a: N J_0(j_01 0.6), N = 1 / (sqrt(pi sigma) a |J_1(j_01)|)
+    let j01 = 2.404825557695773f64;
+    // J_0 and J_1 by their power series (converges fast for these arguments)
+    let bessel = |n: i32, x: f64| {
+        (0..30)
+            .map(|k| {
+                let fact = |m: i32| (1..=m).map(f64::from).product::<f64>();
+                (-1f64).powi(k) * (x / 2.0).powi(2 * k + n) / (fact(k) * fact(k + n))
+            })
+            .sum::<f64>()
+    };
+    let n = 1.0 / ((PI * 0.25).sqrt() * 0.2 * bessel(1, j01).abs());
+    let want = n * bessel(0, j01 * 0.6);
+    println!("membrane (0,1) at r = 0.6 a: {} (closed form {want})", m.mode[0].weights[ci]);
+    assert!((m.mode[0].weights[ci] - want).abs() < 1e-10 * want.abs());
+    // a bar with torsion: the contact moves along, stays 10 mm off the
+    // centre line, so its torsional weights are y times the twist shape
+    let bar = parse(
+        r#"name = "o"
+kind = "bar"
+material = "aluminium"
+length_m = 0.3
+width_m = 0.04
+thickness_m = 0.008
+torsion = true
+max_modes = 12
+points = { contact = [0.05, 0.01], pickup = [0.02, -0.01] }"#,
+    );
+    p.scene.strike_pos_norm = Some(0.25);
+    let moved = scene_for(&bar, &p);
+    let ObjectSpec::Bar(b) = &moved.object[0] else {
+        panic!("bar")
+    };
+    assert_eq!(b.points["contact"], modal_contact::scene::PointSpec::Pair([0.075, 0.01]));
+    let m = modal_of(&moved);
+    assert!(m.mode.iter().any(|x| x.weights[0] != 0.0), "struck");
+}
