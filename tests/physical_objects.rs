@@ -465,7 +465,11 @@ points = { contact = [0.1, 0.1], pickup = [0.3, 0.2] }"#,
     want.sort_by(|a, b| a.0.total_cmp(&b.0));
     let ci = m.points.iter().position(|x| x == "contact").unwrap();
     for (mode, (_, w)) in m.mode.iter().zip(&want) {
-        assert!((mode.weights[ci] - w).abs() < 1e-12, "{} vs {w}", mode.weights[ci]);
+        assert!(
+            (mode.weights[ci] - w).abs() < 1e-12,
+            "{} vs {w}",
+            mode.weights[ci]
+        );
     }
     // a membrane: the radius moves, the angle stays (the (1,1) pair keeps
     // its cos : sin ratio at 40 degrees)
@@ -496,7 +500,10 @@ points = { contact = [0.05, 40.0], pickup = 0.1 }"#,
     };
     let n = 1.0 / ((PI * 0.25).sqrt() * 0.2 * bessel(1, j01).abs());
     let want = n * bessel(0, j01 * 0.6);
-    println!("membrane (0,1) at r = 0.6 a: {} (closed form {want})", m.mode[0].weights[ci]);
+    println!(
+        "membrane (0,1) at r = 0.6 a: {} (closed form {want})",
+        m.mode[0].weights[ci]
+    );
     assert!((m.mode[0].weights[ci] - want).abs() < 1e-10 * want.abs());
     // a bar with torsion: the contact moves along, stays 10 mm off the
     // centre line, so its torsional weights are y times the twist shape
@@ -516,7 +523,10 @@ points = { contact = [0.05, 0.01], pickup = [0.02, -0.01] }"#,
     let ObjectSpec::Bar(b) = &moved.object[0] else {
         panic!("bar")
     };
-    assert_eq!(b.points["contact"], modal_contact::scene::PointSpec::Pair([0.075, 0.01]));
+    assert_eq!(
+        b.points["contact"],
+        modal_contact::scene::PointSpec::Pair([0.075, 0.01])
+    );
     let m = modal_of(&moved);
     assert!(m.mode.iter().any(|x| x.weights[0] != 0.0), "struck");
 }
