@@ -326,10 +326,12 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
         "the application died (allocation in process?)"
     );
 
-    // the user scene (the first entry of the folder list): the top bar
-    // names it once the worker compiled it
+    // the user scene (the first entry of the folder list, below the
+    // built-in list: one 23-pixel row per preset; at 7 presets it sat at
+    // y = 327): the top bar names it once the worker compiled it
     let listing = std::fs::read_to_string(out.join("standalone.log")).unwrap_or_default();
-    click(&display, &wid, 56, 327);
+    let user_row_y = 327 + 23 * (modal_contact::presets::COUNT as u32 - 7);
+    click(&display, &wid, 56, user_row_y);
     std::thread::sleep(Duration::from_millis(1500));
     let loaded = shot(&display, &wid, Some(&out.join("editor-user-scene.png")));
     let top = loaded.diff(&struck, 0, 0, w, 50);
