@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt;
 
+mod mallet;
 mod physical;
 pub use physical::{
     plate_radiation_rate, BarSpec, EdgesSpec, LossSpec, MaterialSpec, MembraneSpec, PhysicalSpec,
@@ -361,6 +362,15 @@ pub struct HammerSpec {
     /// Gravity acting on the hammer \[m/s^2\] (pulls down); 0 = none.
     #[serde(default)]
     pub gravity_m_per_s2: f64,
+    /// A modal mallet: the object of the scene whose modes are the
+    /// hammer's own (free-free elastic) vibration; `mass_kg` is then the
+    /// whole mallet's mass, its rigid-body motion (docs/design.md, "Modal
+    /// mallets"). `None`: a point mass.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub object: Option<String>,
+    /// The mallet's point that touches the struck object (with `object`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub point: Option<String>,
 }
 
 /// The contact spring-damper (paper eq. 9).
@@ -515,7 +525,9 @@ impl Scene {
     /// The scene with every physically described object (bar, tube,
     /// plate, membrane, stiff string) replaced by the modal object it
     /// describes at `rate_hz` (docs/design.md, "Objects from geometry and
-    /// material"); other objects as they are. The compiler runs on this.
+    /// material"); other objects as they are; a modal mallet's modes joined
+    /// to the struck object's (docs/design.md, "Modal mallets"). The
+    /// compiler runs on this.
     pub fn expanded(&self, rate_hz: f64) -> Result<Scene, SceneError> {
         let mut out = self.clone();
         for (i, obj) in out.object.iter_mut().enumerate() {
@@ -524,6 +536,7 @@ impl Scene {
                 *obj = ObjectSpec::Modal(modal);
             }
         }
+        out.merge_mallet()?;
         Ok(out)
     }
 
@@ -551,6 +564,7 @@ impl Scene {
         }
         self.hammer.validate()?;
         self.validate_contact()?;
+        self.validate_mallet()?;
         self.validate_pickups()
     }
 

@@ -336,6 +336,7 @@ impl Numbers {
                 stiffness_n_per_m: self.k,
                 damping_n_s_per_m: self.c,
             },
+            back: None,
         }
     }
 }

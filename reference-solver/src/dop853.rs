@@ -126,8 +126,13 @@ fn rhs(model: &Model, contact: bool, z: &[f64], out: &mut [f64]) {
         out[i] = z[n + i];
         out[n + i] = -w * w * z[i] - 2.0 * md.sigma() * z[n + i] - md.weight * f;
     }
+    let (g_back, _, v_b) = model.back_force(z);
     out[2 * n] = v_h;
-    out[2 * n + 1] = -model.hammer.gravity_m_per_s2 + f / model.hammer.mass_kg;
+    out[2 * n + 1] = -model.hammer.gravity_m_per_s2 + (f + g_back) / model.hammer.mass_kg;
+    if let Some(b) = model.back {
+        out[2 * n + 2] = v_b;
+        out[2 * n + 3] = -model.hammer.gravity_m_per_s2 - g_back / b.mass_kg;
+    }
 }
 
 /// The integrator's working set for one model.
@@ -264,7 +269,7 @@ impl Dop<'_> {
 pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
     let h = 1.0 / rate_hz;
     let nm = model.n_modes();
-    let dim = 2 * nm + 2;
+    let dim = model.state_dim();
     let m_h = model.hammer.mass_kg;
     let g = model.hammer.gravity_m_per_s2;
     let v0 = model.hammer.velocity_m_per_s;
@@ -282,6 +287,10 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
     }
     atol[2 * nm] = rtol * x0.max(v_s / w_c);
     atol[2 * nm + 1] = rtol * v_s;
+    if dim > 2 * nm + 2 {
+        atol[2 * nm + 2] = atol[2 * nm];
+        atol[2 * nm + 3] = atol[2 * nm + 1];
+    }
     let w_max = model.modes.iter().map(|m| m.omega()).fold(0.0, f64::max);
     let mut h_try = [
         if w_max > 0.0 { (0.1 / w_max).min(h) } else { h },

@@ -95,22 +95,61 @@ pub struct Contact {
     pub damping_n_s_per_m: f64,
 }
 
+/// A second point mass behind the hammer's face, joined to it by a
+/// spring-damper: the simplest mallet with a ring of its own (a head on a
+/// flexible shaft, lumped), in physical coordinates. Its position `x_b` is
+/// measured from where it rests relative to the face, so the spring pulls
+/// with `k_s (x_b - x_h) + c_s (v_b - v_h)`; gravity pulls it too.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BackMass {
+    /// Mass \[kg\].
+    pub mass_kg: f64,
+    /// Spring to the face \[N/m\].
+    pub spring_n_per_m: f64,
+    /// Dashpot to the face \[N s/m\].
+    pub damping_n_s_per_m: f64,
+}
+
 /// A scene: a modal object (no modes = a rigid wall at height 0), a hammer
 /// and the contact between them.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Model {
     /// The struck object's modes; empty for a rigid wall.
     pub modes: Vec<Mode>,
-    /// The hammer.
+    /// The hammer (with a back mass: its face).
     pub hammer: Hammer,
     /// The contact law.
     pub contact: Contact,
+    /// A mass behind the face, `None` for a point-mass hammer. The
+    /// physical state is then `[q; q'; x_h; v_h; x_b; v_b]`.
+    pub back: Option<BackMass>,
 }
 
 impl Model {
-    /// Number of modes `N` (the physical state has `2 N + 2` entries).
+    /// Number of modes `N` (the physical state has `2 N + 2` entries, `2 N
+    /// + 4` with a back mass).
     pub fn n_modes(&self) -> usize {
         self.modes.len()
+    }
+
+    /// Length of the physical state `z`.
+    pub fn state_dim(&self) -> usize {
+        2 * self.n_modes() + 2 + if self.back.is_some() { 2 } else { 0 }
+    }
+
+    /// Force of the back mass's spring-damper on the face (up) in `z`, and
+    /// the back mass's position and velocity (zeros without one).
+    pub fn back_force(&self, z: &[f64]) -> (f64, f64, f64) {
+        let n = self.n_modes();
+        match self.back {
+            Some(b) => {
+                let (x_b, v_b) = (z[2 * n + 2], z[2 * n + 3]);
+                let f = b.spring_n_per_m * (x_b - z[2 * n])
+                    + b.damping_n_s_per_m * (v_b - z[2 * n + 1]);
+                (f, x_b, v_b)
+            }
+            None => (0.0, 0.0, 0.0),
+        }
     }
 
     /// Total energy \[J\] of the physical state `z = [q; q'; x_h; v_h]`, with
@@ -125,6 +164,13 @@ impl Model {
         let (x_h, v_h) = (z[2 * n], z[2 * n + 1]);
         let m = self.hammer.mass_kg;
         e += 0.5 * m * v_h * v_h + m * self.hammer.gravity_m_per_s2 * x_h;
+        if let Some(b) = self.back {
+            let (x_b, v_b) = (z[2 * n + 2], z[2 * n + 3]);
+            let s = x_b - x_h;
+            e += 0.5 * b.mass_kg * v_b * v_b
+                + b.mass_kg * self.hammer.gravity_m_per_s2 * x_b
+                + 0.5 * b.spring_n_per_m * s * s;
+        }
         if in_contact {
             let p = self.penetration(z);
             e += 0.5 * self.contact.stiffness_n_per_m * p * p;
@@ -153,9 +199,14 @@ impl Model {
     /// and velocity.
     pub fn initial_state(&self) -> Vec<f64> {
         let n = self.n_modes();
-        let mut z = vec![0.0; 2 * n + 2];
+        let mut z = vec![0.0; self.state_dim()];
         z[2 * n] = self.hammer.height_m;
         z[2 * n + 1] = self.hammer.velocity_m_per_s;
+        if self.back.is_some() {
+            // at rest relative to the face, moving with it
+            z[2 * n + 2] = self.hammer.height_m;
+            z[2 * n + 3] = self.hammer.velocity_m_per_s;
+        }
         z
     }
 
@@ -186,7 +237,10 @@ impl Model {
     pub fn observe(&self, z: &[f64], in_contact: bool) -> Sample {
         let n = self.n_modes();
         let (x_c, v_c) = self.contact_point(z);
+        let (_, x_back, v_back) = self.back_force(z);
         Sample {
+            x_back,
+            v_back,
             x_hammer: z[2 * n],
             v_hammer: z[2 * n + 1],
             x_contact: x_c,
@@ -212,6 +266,9 @@ pub struct Sample {
     pub in_contact: bool,
     /// Total energy \[J\].
     pub energy: f64,
+    /// Back mass position \[m\] and velocity \[m/s\] (0 without one).
+    pub x_back: f64,
+    pub v_back: f64,
 }
 
 /// One contact: from `start_s` to `end_s` \[s\], `end_s = None` if still in

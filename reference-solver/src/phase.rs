@@ -1,7 +1,8 @@
 //! One phase (flight or contact) as an affine linear system in physical
 //! coordinates, balanced, with the dense exponentials the solver steps with.
 //!
-//! The augmented state is `[z; 1]`, `z = [q; q'; x_h; v_h]`, and the phase
+//! The augmented state is `[z; 1]`, `z = [q; q'; x_h; v_h]` (then `x_b;
+//! v_b` with a back mass), and the phase
 //! matrix `[[A, b], [0, 0]]` carries gravity as the affine term `b`, so that
 //! `exp` of the augmented matrix gives the affine part of the flow exactly.
 //!
@@ -45,7 +46,7 @@ pub const RESYNC: usize = 256;
 pub struct Phase {
     /// Contact phase (`true`) or flight.
     pub contact: bool,
-    /// Augmented dimension `2 N + 3`.
+    /// Augmented dimension `2 N + 3` (`2 N + 5` with a back mass).
     pub dim: usize,
     /// Balancing scales: `z_i = d_i y_i` (the last entry scales the constant
     /// coordinate: `y_last = 1 / d_last`).
@@ -83,7 +84,7 @@ impl Phase {
     /// `|B|_1 h_sub <= max_norm_step`.
     pub fn new(model: &Model, contact: bool, h: f64, max_norm_step: f64) -> Self {
         let n = model.n_modes();
-        let dim = 2 * n + 3;
+        let dim = model.state_dim() + 1;
         let a_dd = augmented_matrix(model, contact);
         let a = DMatrix::from_row_iterator(dim, dim, a_dd.iter().map(|v| v.to_f64()));
         let (b, d) = balance(&a);
@@ -237,8 +238,8 @@ impl Phase {
 /// to ~1e-32 relative, so `F` keeps `~1e-32 |k x|` of error.
 pub fn augmented_matrix(model: &Model, contact: bool) -> Vec<Dd> {
     let n = model.n_modes();
-    let dim = 2 * n + 3;
-    let (xh, vh, one) = (2 * n, 2 * n + 1, 2 * n + 2);
+    let dim = model.state_dim() + 1;
+    let (xh, vh, one) = (2 * n, 2 * n + 1, dim - 1);
     let mut a = vec![Dd::ZERO; dim * dim];
     let at = |i: usize, j: usize| i * dim + j;
     for (i, md) in model.modes.iter().enumerate() {
@@ -249,6 +250,22 @@ pub fn augmented_matrix(model: &Model, contact: bool) -> Vec<Dd> {
     }
     a[at(xh, vh)] = Dd::ONE;
     a[at(vh, one)] = Dd::from_f64(-model.hammer.gravity_m_per_s2);
+    if let Some(b) = model.back {
+        // G = k_s (x_b - x_h) + c_s (v_b - v_h): +G / m_h on the face,
+        // -G / m_b on the back mass
+        let (xb, vb) = (2 * n + 2, 2 * n + 3);
+        let (ks, cs) = (
+            Dd::from_f64(b.spring_n_per_m),
+            Dd::from_f64(b.damping_n_s_per_m),
+        );
+        let (mh, mb) = (model.hammer.mass_kg, b.mass_kg);
+        a[at(xb, vb)] = Dd::ONE;
+        a[at(vb, one)] = Dd::from_f64(-model.hammer.gravity_m_per_s2);
+        for (col, g) in [(xb, ks), (xh, -ks), (vb, cs), (vh, -cs)] {
+            a[at(vh, col)] = a[at(vh, col)] + g.div_f64(mh);
+            a[at(vb, col)] = a[at(vb, col)] - g.div_f64(mb);
+        }
+    }
     if contact {
         let k = Dd::from_f64(model.contact.stiffness_n_per_m);
         let c = Dd::from_f64(model.contact.damping_n_s_per_m);

@@ -110,7 +110,12 @@ fn scale_damping(
     t60: impl Fn(Option<f64>) -> Option<f64>,
     rate: impl Fn(f64) -> f64,
 ) {
+    // a modal mallet keeps its own ring: decay and damper act on what it strikes
+    let mallet = s.hammer.object.clone();
     for obj in &mut s.object {
+        if mallet.as_deref() == Some(obj.name()) {
+            continue;
+        }
         if let Some(p) = obj.physical() {
             // sigma of every mode is linear in the loss model's rates
             let eta = p.shape("").map_or(0.0, |(_, eta)| eta);

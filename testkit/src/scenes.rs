@@ -243,7 +243,17 @@ impl Hammer {
             height_m: 0.0,
             velocity_m_per_s: 0.0,
             gravity_m_per_s2: 0.0,
+            object: None,
+            point: None,
         })
+    }
+
+    /// A modal mallet: `object`'s modes are the hammer's own, touching at
+    /// its `point`.
+    pub fn mallet(mut self, object: &str, point: &str) -> Self {
+        self.0.object = Some(object.to_string());
+        self.0.point = Some(point.to_string());
+        self
     }
 
     /// Initial height of the contact face above the surface \[m\].

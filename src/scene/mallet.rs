@@ -1,0 +1,191 @@
+//! Modal mallets (docs/design.md, "Modal mallets"): a hammer whose own
+//! elastic modes take part in the contact.
+//!
+//! A mallet is a rigid-body motion (the hammer's `mass_kg`, height and
+//! velocity, gravity) plus the free modes of a modal object of the scene,
+//! mass-normalised and orthogonal to the rigid motion, so its contact face
+//! is at `x_h + sum_k psi_k a_k` with `psi_k` the modes' weights at the
+//! touching point. The penetration is then
+//!
+//! `p = sum_i w_i q_i - sum_k psi_k a_k - x_h`,
+//!
+//! and the contact force `F` acts with `-w_i F` on the struck modes and
+//! `+psi_k F` on the mallet's: exactly what a mode of the struck object
+//! with contact weight `-psi_k` feels. So the mallet's modes join the
+//! struck object's as more modes, with weight `-psi_k` at the contact and
+//! zero at the struck object's own points: the contact is still a rank-one
+//! update of a diagonal free system, and every route the compiler has for
+//! a modal object (the secular equation, the structured changes of basis,
+//! the strike at rest) serves it unchanged. Gravity does no work on the
+//! mallet's elastic modes (they are orthogonal to the rigid motion), so it
+//! stays on `x_h` alone.
+
+use super::{ModalSpec, ModeSpec, ObjectSpec, Scene, SceneError, MAX_MODES_PER_OBJECT};
+
+impl Scene {
+    /// The mallet's keys: `hammer.object` names a modal object (or one
+    /// from geometry and material) other than the struck one, which must be
+    /// one of those too, and `hammer.point` one of its points.
+    pub(super) fn validate_mallet(&self) -> Result<(), SceneError> {
+        let h = &self.hammer;
+        let Some(name) = &h.object else {
+            if h.point.is_some() {
+                return Err(SceneError::new(
+                    "hammer.point",
+                    "a point-mass hammer has no points; name the mallet object in hammer.object or omit the key",
+                ));
+            }
+            return Ok(());
+        };
+        let Some(mi) = self.object_index(name) else {
+            return Err(SceneError::new(
+                "hammer.object",
+                format!("no object named {name:?}"),
+            ));
+        };
+        if *name == self.contact.object {
+            return Err(SceneError::new(
+                "hammer.object",
+                format!(
+                    "{name:?} is the struck object (contact.object); a mallet is another object"
+                ),
+            ));
+        }
+        let modal = |o: &ObjectSpec| matches!(o, ObjectSpec::Modal(_)) || o.physical().is_some();
+        let mallet = &self.object[mi];
+        if !modal(mallet) {
+            return Err(SceneError::new(
+                "hammer.object",
+                format!(
+                    "a mallet is a modal object or one from geometry and material (its free modes); {name:?} is a {}",
+                    mallet.kind()
+                ),
+            ));
+        }
+        if let Some(ci) = self.object_index(&self.contact.object) {
+            let struck = &self.object[ci];
+            if !modal(struck) {
+                return Err(SceneError::new(
+                    "hammer.object",
+                    format!(
+                        "a modal mallet strikes a modal object or one from geometry and material; contact.object {:?} is a {}",
+                        self.contact.object,
+                        struck.kind()
+                    ),
+                ));
+            }
+        }
+        let points = mallet.point_names();
+        match &h.point {
+            None => Err(SceneError::new(
+                "hammer.point",
+                format!("missing: name the point of {name:?} that touches, one of {points:?}"),
+            )),
+            Some(p) if !points.contains(p) => Err(SceneError::new(
+                "hammer.point",
+                format!("object {name:?} has no point {p:?}"),
+            )),
+            Some(_) => Ok(()),
+        }
+    }
+
+    /// Join a modal mallet's modes to the struck object's (see the module
+    /// documentation); called on a validated scene whose physical objects
+    /// are already modal. The struck object gains the mallet's points as
+    /// `"<mallet>.<point>"` (pickups on the mallet move there) and the
+    /// contact point `"<point> against <mallet>.<point>"`, whose weights are
+    /// the struck point's for its own modes and minus the touching point's
+    /// for the mallet's. The mallet object stays in the list, unexcited.
+    pub(super) fn merge_mallet(&mut self) -> Result<(), SceneError> {
+        let (Some(mname), Some(tip)) = (self.hammer.object.clone(), self.hammer.point.clone())
+        else {
+            return Ok(());
+        };
+        let (Some(mi), Some(ci)) = (
+            self.object_index(&mname),
+            self.object_index(&self.contact.object),
+        ) else {
+            return Err(SceneError::new("hammer.object", "not validated"));
+        };
+        let (ObjectSpec::Modal(mallet), ObjectSpec::Modal(struck), Some(cp)) = (
+            self.object[mi].clone(),
+            self.object[ci].clone(),
+            self.contact.point.clone(),
+        ) else {
+            return Err(SceneError::new(
+                "hammer.object",
+                "a modal mallet needs a modal struck object and point",
+            ));
+        };
+        let total = struck.mode.len() + mallet.mode.len();
+        if total > MAX_MODES_PER_OBJECT {
+            return Err(SceneError::new(
+                "hammer.object",
+                format!(
+                    "the struck object's {} modes and the mallet's {} are more than the limit of {MAX_MODES_PER_OBJECT}",
+                    struck.mode.len(),
+                    mallet.mode.len()
+                ),
+            ));
+        }
+        let c_idx = struck.points.iter().position(|p| *p == cp);
+        let t_idx = mallet.points.iter().position(|p| *p == tip);
+        let (Some(c_idx), Some(t_idx)) = (c_idx, t_idx) else {
+            return Err(SceneError::new("hammer.point", "not validated"));
+        };
+        let renamed: Vec<String> = mallet
+            .points
+            .iter()
+            .map(|p| format!("{mname}.{p}"))
+            .collect();
+        let contact_point = format!("{cp} against {mname}.{tip}");
+        let mut points = struck.points.clone();
+        for p in renamed.iter().chain(std::iter::once(&contact_point)) {
+            if points.contains(p) {
+                return Err(SceneError::new(
+                    "hammer.point",
+                    format!(
+                        "the struck object {:?} already has a point {p:?}, the name the mallet's point takes when joined; rename one",
+                        struck.name
+                    ),
+                ));
+            }
+            points.push(p.clone());
+        }
+        let (np, nq) = (struck.points.len(), mallet.points.len());
+        let mut modes: Vec<ModeSpec> = Vec::with_capacity(total);
+        for m in &struck.mode {
+            let mut w = m.weights.clone();
+            w.resize(np + nq, 0.0);
+            w.push(m.weights[c_idx]);
+            modes.push(ModeSpec {
+                weights: w,
+                ..m.clone()
+            });
+        }
+        for m in &mallet.mode {
+            let mut w = vec![0.0; np];
+            w.extend_from_slice(&m.weights);
+            w.push(-m.weights[t_idx]);
+            modes.push(ModeSpec {
+                weights: w,
+                ..m.clone()
+            });
+        }
+        self.object[ci] = ObjectSpec::Modal(ModalSpec {
+            name: struck.name.clone(),
+            points,
+            mode: modes,
+        });
+        for pk in &mut self.pickup {
+            if pk.object == mname {
+                pk.object = struck.name.clone();
+                pk.point = format!("{mname}.{}", pk.point);
+            }
+        }
+        self.contact.point = Some(contact_point);
+        self.hammer.object = None;
+        self.hammer.point = None;
+        Ok(())
+    }
+}

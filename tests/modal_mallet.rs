@@ -1,0 +1,510 @@
+//! Modal mallets (issue 17, item 1; docs/design.md, "Modal mallets"): a
+//! hammer with modes of its own, joined to the struck object's modes by the
+//! compiler.
+//!
+//! The independent check: a mallet of two lumped masses (the face `m1`
+//! that touches, a back mass `m2` behind it on a spring-damper `k_s`,
+//! `c_s`: a head on a flexible shaft) is solved by the reference solver
+//! (`pwl_reference`, its `BackMass`) in *physical* coordinates, the two
+//! masses as they are. The engine is given the same mallet the way a scene
+//! describes one: a hammer of the whole mass `M = m1 + m2` (the rigid-body
+//! motion) and a modal object with its one free-free elastic mode, written
+//! here from the closed form of a two-mass chain:
+//!
+//! - `omega^2 = k_s (1/m1 + 1/m2)`, decay rate `sigma = c_s (1/m1 +
+//!   1/m2) / 2` (the dashpot is proportional to the spring, so the mode is
+//!   classically damped), `T60 = ln(1000) / sigma`;
+//! - mass-normalised shape `psi_face = sqrt(m2 / (m1 M))`, `psi_back =
+//!   -sqrt(m1 / (m2 M))` (unit modal mass, orthogonal to the rigid motion).
+//!
+//! What is compared, on the 44.1 kHz grid and on the window where a 1e-9
+//! disturbance of the reference does not yet change its traces by 1e-7 or
+//! its contact instants by 1e-6 samples (as in tests/stiff_switching.rs):
+//! the engine's hammer height and velocity (the rigid motion) against the
+//! reference's centre of mass `(m1 x_face + m2 x_back) / M`; the engine's
+//! penetration `x_contact - x_hammer` (its contact point carries minus the
+//! mallet's deflection) against the reference's `x_c - x_face`; the energy;
+//! the contact instants. Relative L2 within 1e-6 and instants within 1e-6
+//! samples, the tolerances of the stiff-switching family, which these
+//! cases extend: contact at 3.17x..317.3x Nyquist, a mallet mode from 300 Hz
+//! to above the Nyquist frequency, damped and undamped shafts, gravity.
+
+use modal_contact::compile::{compile_with, CompileError};
+use modal_contact::engine::{EngineState, Observation};
+use modal_contact::render::{render, RenderOptions};
+use modal_contact::scene::{Scene, Switching};
+use modal_testkit::metrics::{
+    energy_rounding_bound, energy_scale, instant_horizon, match_contacts, rel_l2, ContactLog, Ends,
+    Interval,
+};
+use modal_testkit::scenes::{Chain, Contact, Hammer, Modal, Pickup, SceneBuilder, Wall};
+use pwl_reference as reference;
+use std::f64::consts::PI;
+
+const RATE: f64 = 44_100.0;
+const NYQUIST: f64 = RATE / 2.0;
+const SAMPLES: usize = 2205;
+const LN_1000: f64 = 6.907_755_278_982_137;
+
+/// The struck object of the reference solver's own tests: four modes, one
+/// above the Nyquist frequency, one undamped: `(f, T60, weight at the
+/// contact, weight at the pickup)`.
+const OBJECT: [(f64, Option<f64>, f64, f64); 4] = [
+    (311.0, Some(0.6), 2.0, 1.1),
+    (1303.0, Some(0.3), -1.5, 0.7),
+    (7411.0, None, 1.2, -0.4),
+    (1.2 * NYQUIST, Some(0.02), 0.9, 0.2),
+];
+
+/// A two-mass mallet against [`OBJECT`].
+#[derive(Debug, Clone, Copy)]
+struct Case {
+    name: &'static str,
+    /// Face and back mass [kg].
+    m1: f64,
+    m2: f64,
+    /// The mallet's own frequency [Hz] and damping ratio.
+    f_b: f64,
+    zeta_b: f64,
+    /// Contact frequency (face against the object's effective mass) as a
+    /// multiple of Nyquist, and its damping ratio.
+    fc_ratio: f64,
+    zeta_c: f64,
+    /// Initial height [m], velocity [m/s], gravity [m/s^2].
+    x0: f64,
+    v0: f64,
+    g: f64,
+}
+
+impl Case {
+    fn m(&self) -> f64 {
+        self.m1 + self.m2
+    }
+
+    /// `(k_s, c_s)` of the shaft.
+    fn shaft(&self) -> (f64, f64) {
+        let inv = 1.0 / self.m1 + 1.0 / self.m2;
+        let w = 2.0 * PI * self.f_b;
+        let k = w * w / inv;
+        (k, 2.0 * self.zeta_b * (k / inv).sqrt())
+    }
+
+    /// `(k, c)` of the contact: the face against the object.
+    fn contact(&self) -> (f64, f64) {
+        let inv_eff: f64 = OBJECT.iter().map(|m| m.2 * m.2).sum();
+        let inv = 1.0 / self.m1 + inv_eff;
+        let w = 2.0 * PI * self.fc_ratio * NYQUIST;
+        let k = w * w / inv;
+        (k, 2.0 * self.zeta_c * (k / inv).sqrt())
+    }
+
+    /// The mallet's mode, from the closed form of the two-mass chain:
+    /// `(f, T60, psi_face, psi_back)`.
+    fn mallet_mode(&self) -> (f64, Option<f64>, f64, f64) {
+        let (m1, m2, m) = (self.m1, self.m2, self.m());
+        let (_, c_s) = self.shaft();
+        let sigma = 0.5 * c_s * (1.0 / m1 + 1.0 / m2);
+        let t60 = (sigma > 0.0).then(|| LN_1000 / sigma);
+        (
+            self.f_b,
+            t60,
+            (m2 / (m1 * m)).sqrt(),
+            -(m1 / (m2 * m)).sqrt(),
+        )
+    }
+
+    fn scene(&self) -> Scene {
+        let mut object = Modal::new("o", &["c", "p"]);
+        for &(f, t60, w, wp) in &OBJECT {
+            object = object.mode(f, t60, &[w, wp]);
+        }
+        let (f, t60, face, back) = self.mallet_mode();
+        let mallet = Modal::new("mallet", &["face", "back"]).mode(f, t60, &[face, back]);
+        let (k, c) = self.contact();
+        SceneBuilder::new(self.name)
+            .object(object)
+            .object(mallet)
+            .hammer(
+                Hammer::new(self.m())
+                    .height(self.x0)
+                    .velocity(self.v0)
+                    .gravity(self.g)
+                    .mallet("mallet", "face"),
+            )
+            .contact(
+                Contact::new("o", k)
+                    .point("c")
+                    .damping(c)
+                    .switching(Switching::Exact),
+            )
+            .pickup(Pickup::new("o", "p").pan(-1.0))
+            .pickup(Pickup::new("mallet", "back").pan(1.0))
+            .try_build()
+            .expect("valid scene")
+    }
+
+    fn model(&self) -> reference::Model {
+        let (k, c) = self.contact();
+        let (k_s, c_s) = self.shaft();
+        reference::Model {
+            modes: OBJECT
+                .iter()
+                .map(|&(freq_hz, t60_s, weight, _)| reference::Mode {
+                    freq_hz,
+                    t60_s,
+                    weight,
+                })
+                .collect(),
+            hammer: reference::Hammer {
+                mass_kg: self.m1,
+                height_m: self.x0,
+                velocity_m_per_s: self.v0,
+                gravity_m_per_s2: self.g,
+            },
+            contact: reference::Contact {
+                stiffness_n_per_m: k,
+                damping_n_s_per_m: c,
+            },
+            back: Some(reference::BackMass {
+                mass_kg: self.m2,
+                spring_n_per_m: k_s,
+                damping_n_s_per_m: c_s,
+            }),
+        }
+    }
+}
+
+fn cases() -> Vec<Case> {
+    let base = Case {
+        name: "rubber head 5+20 g, shaft 900 Hz, 3.17x",
+        m1: 0.005,
+        m2: 0.02,
+        f_b: 900.0,
+        zeta_b: 0.02,
+        fc_ratio: 3.17,
+        zeta_c: 0.1,
+        x0: 2e-4,
+        v0: -1.0,
+        g: 0.0,
+    };
+    vec![
+        base,
+        Case {
+            name: "hard head, 31.3x, undamped shaft",
+            fc_ratio: 31.3,
+            zeta_b: 0.0,
+            zeta_c: 0.0,
+            ..base
+        },
+        Case {
+            name: "stiff critical contact 317.3x, heavy back",
+            m2: 0.2,
+            f_b: 300.0,
+            fc_ratio: 317.3,
+            zeta_c: 1.0,
+            ..base
+        },
+        Case {
+            name: "mallet mode above Nyquist (1.4x)",
+            f_b: 1.4 * NYQUIST,
+            zeta_b: 0.05,
+            fc_ratio: 31.3,
+            ..base
+        },
+        Case {
+            name: "dropped under gravity, 31.3x",
+            m1: 0.01,
+            m2: 0.1,
+            f_b: 450.0,
+            zeta_b: 0.05,
+            fc_ratio: 31.3,
+            zeta_c: 0.3,
+            x0: 1e-3,
+            v0: 0.0,
+            g: 9.81,
+        },
+    ]
+}
+
+fn intervals(sol: &reference::Solution) -> Vec<Interval> {
+    sol.contacts
+        .iter()
+        .map(|c| (c.start_s * RATE, c.end_s.map(|e| e * RATE)))
+        .collect()
+}
+
+/// The engine's observations and contact intervals over `SAMPLES`.
+fn run_engine(scene: &Scene) -> (Vec<Observation>, Vec<Interval>, f64, EngineState) {
+    let sc = compile_with(scene, RATE, Some(Switching::Exact)).expect("compiles");
+    let mut st = EngineState::new(&sc);
+    let mut obs = vec![st.observe(&sc)];
+    let mut log = ContactLog::default();
+    for i in 0..SAMPLES {
+        st.tick(&sc);
+        for ev in st.switch_events() {
+            log.record(i as f64 + ev.after_s * RATE, ev.entered)
+                .expect("contacts alternate");
+        }
+        obs.push(st.observe(&sc));
+    }
+    (obs, log.finish(None), energy_rounding_bound(&sc), st)
+}
+
+#[test]
+fn two_mass_mallet_matches_the_reference_in_physical_coordinates() {
+    let mut failures = Vec::new();
+    for case in cases() {
+        let model = case.model();
+        let sol = reference::solve(&model, RATE, SAMPLES);
+        let twin = reference::solve(&model.perturbed(1e-9), RATE, SAMPLES);
+        let ref_c = intervals(&sol);
+        let hz = reference::horizon(&sol, &twin, 1e-7).min(instant_horizon(
+            &ref_c,
+            &intervals(&twin),
+            1e-6,
+            SAMPLES,
+        ));
+        let w = hz + 1;
+        let (obs, eng_c, bound, st) = run_engine(&case.scene());
+        let (m1, m2, m) = (case.m1, case.m2, case.m());
+        let cm_x: Vec<f64> = sol.samples[..w]
+            .iter()
+            .map(|s| (m1 * s.x_hammer + m2 * s.x_back) / m)
+            .collect();
+        let cm_v: Vec<f64> = sol.samples[..w]
+            .iter()
+            .map(|s| (m1 * s.v_hammer + m2 * s.v_back) / m)
+            .collect();
+        let pen_ref: Vec<f64> = sol.samples[..w]
+            .iter()
+            .map(|s| s.x_contact - s.x_hammer)
+            .collect();
+        let e_ref: Vec<f64> = sol.samples[..w].iter().map(|s| s.energy).collect();
+        let ex = rel_l2(
+            &obs[..w].iter().map(|o| o.x_hammer).collect::<Vec<_>>(),
+            &cm_x,
+        );
+        let ev = rel_l2(
+            &obs[..w].iter().map(|o| o.v_hammer).collect::<Vec<_>>(),
+            &cm_v,
+        );
+        let ep = rel_l2(
+            &obs[..w]
+                .iter()
+                .map(|o| o.x_contact - o.x_hammer)
+                .collect::<Vec<_>>(),
+            &pen_ref,
+        );
+        let ee = rel_l2(
+            &obs[..w].iter().map(|o| o.energy).collect::<Vec<_>>(),
+            &e_ref,
+        );
+        let mc = match_contacts(&eng_c, &ref_c, hz as f64, 1.0, Ends::EitherEnded);
+        // the mallet really rings: its face moves relative to the centre
+        let deflection = sol.samples[..w]
+            .iter()
+            .map(|s| (s.x_hammer - s.x_back).abs())
+            .fold(0.0, f64::max);
+        let mg = m * case.g;
+        let rise = obs
+            .windows(2)
+            .map(|p| {
+                (p[1].energy - p[0].energy) / energy_scale(&p[0], mg).max(energy_scale(&p[1], mg))
+            })
+            .fold(f64::NEG_INFINITY, f64::max);
+        println!(
+            "{:<44} window {hz:>4}, contacts {}/{}, x_cm {ex:.1e}, v_cm {ev:.1e}, penetration {ep:.1e}, \
+             energy {ee:.1e}, instants {:.1e} samples, max dE/E {rise:.1e} (bound {bound:.1e}), deflection {deflection:.1e} m",
+            case.name,
+            mc.n_ref,
+            mc.n_run,
+            mc.worst()
+        );
+        for (what, e) in [
+            ("centre-of-mass height", ex),
+            ("centre-of-mass velocity", ev),
+            ("penetration", ep),
+            ("energy", ee),
+        ] {
+            if !(e <= 1e-6) {
+                failures.push(format!("{}: {what} relative L2 {e:e}", case.name));
+            }
+        }
+        if mc.n_ref != mc.n_run || mc.n_ref == 0 || !(mc.worst() <= 1e-6) {
+            failures.push(format!(
+                "{}: contacts {} vs {}, worst instant {:e} samples",
+                case.name,
+                mc.n_ref,
+                mc.n_run,
+                mc.worst()
+            ));
+        }
+        if hz < 200 {
+            failures.push(format!("{}: window {hz} samples < 200", case.name));
+        }
+        if !(rise <= bound) {
+            failures.push(format!(
+                "{}: energy rose by {rise:e} > {bound:e}",
+                case.name
+            ));
+        }
+        let s = &st.exact_stats;
+        if s.capped + s.rod_fallbacks + s.uncertified != 0 {
+            failures.push(format!("{}: exact switching counters {s:?}", case.name));
+        }
+        if !(deflection > 1e-9) {
+            failures.push(format!(
+                "{}: the mallet never deformed ({deflection:e} m)",
+                case.name
+            ));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The mallet is heard: a pickup on its back point (moved onto the joined
+/// object by the compiler) rings at the mallet's own frequency, the struck
+/// object's pickup hears a different strike than from a rigid hammer of
+/// the same mass, and a mallet with a very stiff shaft strikes like that
+/// rigid hammer.
+#[test]
+fn the_mallet_rings_and_a_stiff_one_is_a_point_mass() {
+    let case = cases()[1];
+    let opts = RenderOptions {
+        rate_hz: RATE,
+        seconds: Some(0.1),
+        ..RenderOptions::default()
+    };
+    let out = render(&case.scene(), &opts).expect("renders");
+    // the right channel is the mallet's back point alone
+    let right = &out.right;
+    let peak = right.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    assert!(peak > 0.0, "the mallet's pickup is silent");
+    // its frequency: zero crossings after the last contact (one mode only)
+    let (_, contacts, _, _) = run_engine(&case.scene());
+    let last = contacts
+        .last()
+        .and_then(|c| c.1)
+        .expect("the mallet leaves");
+    let tail = &right[last.ceil() as usize + 1..SAMPLES];
+    let crossings: Vec<f64> = tail
+        .windows(2)
+        .enumerate()
+        .filter(|(_, p)| p[0] < 0.0 && p[1] >= 0.0)
+        .map(|(i, p)| i as f64 + p[0] / (p[0] - p[1]))
+        .collect();
+    let periods = crossings.len() - 1;
+    let f = periods as f64 * RATE / (crossings[periods] - crossings[0]);
+    // damped frequency of the mode: f sqrt(1 - zeta^2)
+    let fd = case.f_b * (1.0 - case.zeta_b * case.zeta_b).sqrt();
+    println!(
+        "mallet pickup: peak {peak:.3e} m/s, {} contacts, after the last one {periods} periods at {f:.2} Hz (damped mode {fd:.2} Hz)",
+        contacts.len()
+    );
+    assert!(
+        periods >= 10 && (f - fd).abs() < 1e-3 * fd,
+        "mallet rings at {f} Hz"
+    );
+
+    // the same strike with a rigid hammer of the whole mass
+    let rigid = |scene: &Scene| {
+        let mut s = scene.clone();
+        s.hammer.object = None;
+        s.hammer.point = None;
+        s.pickup.truncate(1);
+        s.object.truncate(1);
+        s
+    };
+    let left_of = |scene: &Scene| render(scene, &opts).expect("renders").left;
+    let mallet_left = &out.left;
+    let rigid_left = left_of(&rigid(&case.scene()));
+    let d = rel_l2(mallet_left, &rigid_left);
+    println!("object pickup, mallet vs rigid hammer: relative L2 {d:.3}");
+    assert!(d > 0.05, "the mallet changes the strike by only {d}");
+
+    // a shaft 1000x stiffer (mode far above the contact): nearly rigid
+    let stiff = Case {
+        f_b: 2.0e6,
+        zeta_b: 0.0,
+        ..case
+    };
+    let stiff_left = left_of(&stiff.scene());
+    let d_stiff = rel_l2(&stiff_left, &rigid_left);
+    println!("object pickup, 2 MHz shaft vs rigid hammer: relative L2 {d_stiff:.2e}");
+    assert!(d_stiff < d / 50.0, "{d_stiff} vs {d}");
+}
+
+/// Bad mallet keys: each a clear error naming the field.
+#[test]
+fn bad_mallets_are_refused_by_name() {
+    let good = cases()[0].scene();
+    let check = |f: &dyn Fn(&mut Scene), path: &str, words: &str| {
+        let mut s = good.clone();
+        f(&mut s);
+        let e = s.validate().expect_err(path);
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with(path) && msg.contains(words),
+            "{path}: got {msg:?}"
+        );
+    };
+    check(
+        &|s| s.hammer.object = Some("nope".into()),
+        "hammer.object",
+        "no object named",
+    );
+    check(
+        &|s| s.hammer.object = Some("o".into()),
+        "hammer.object",
+        "struck object",
+    );
+    check(&|s| s.hammer.point = None, "hammer.point", "missing");
+    check(
+        &|s| s.hammer.point = Some("tip".into()),
+        "hammer.point",
+        "no point",
+    );
+    check(
+        &|s| {
+            s.hammer.object = None;
+        },
+        "hammer.point",
+        "point-mass hammer has no points",
+    );
+    // a lumped string or a wall as mallet, and a wall as the struck object
+    let mut with_chain = good.clone();
+    with_chain
+        .object
+        .push(Chain::new("chain", 3, 0.01, 1e4).point("end", 0).into());
+    with_chain.hammer.object = Some("chain".into());
+    with_chain.hammer.point = Some("end".into());
+    let e = with_chain.validate().unwrap_err().to_string();
+    assert!(
+        e.starts_with("hammer.object") && e.contains("string"),
+        "{e}"
+    );
+    let mut on_wall = good.clone();
+    on_wall.object.push(Wall::new("floor").into());
+    on_wall.contact.object = "floor".into();
+    on_wall.contact.point = None;
+    let e = on_wall.validate().unwrap_err().to_string();
+    assert!(e.starts_with("hammer.object") && e.contains("wall"), "{e}");
+    // a point name the join would produce already on the struck object
+    let mut clash = good.clone();
+    if let modal_contact::scene::ObjectSpec::Modal(m) = &mut clash.object[0] {
+        m.points[1] = "mallet.back".into();
+    }
+    clash.pickup[0].point = "mallet.back".into();
+    let e = compile_with(&clash, RATE, None).unwrap_err();
+    assert!(
+        matches!(&e, CompileError::Scene(s) if s.to_string().starts_with("hammer.point")),
+        "{e}"
+    );
+    // the scene file keys
+    let text = good.to_toml_string();
+    assert!(
+        text.contains("object = \"mallet\"") && text.contains("point = \"face\""),
+        "{text}"
+    );
+    assert_eq!(Scene::from_toml_str(&text).unwrap(), good);
+}
