@@ -60,6 +60,7 @@ pub const PRESETS: &[Preset] = &[
     preset!("tubular-chime", "Tubular chime"),
     preset!("frame-drum", "Frame drum"),
     preset!("piano-string", "Piano string"),
+    preset!("marimba-rubber-mallet", "Marimba, rubber mallet"),
 ];
 
 /// How many presets there are.

@@ -508,3 +508,62 @@ fn bad_mallets_are_refused_by_name() {
     );
     assert_eq!(Scene::from_toml_str(&text).unwrap(), good);
 }
+
+/// The rubber-mallet preset's table of modes is the free-free modes of the
+/// four-mass chain its file describes (cap 6 g, head 14 g, shaft 6 + 8 g;
+/// springs 5.4e5, 4.0e3, 3.0e3 N/m), computed here again with nalgebra's
+/// symmetric eigensolver: frequencies and mass-normalised weights within
+/// 1e-9, and the hammer's mass the chain's (the rigid mode's weight is `1 /
+/// sqrt(M)` at every point).
+#[test]
+fn rubber_mallet_preset_is_the_chain_it_describes() {
+    use modal_contact::scene::ObjectSpec;
+    let masses: [f64; 4] = [0.006, 0.014, 0.006, 0.008];
+    let springs = [5.4e5, 4.0e3, 3.0e3];
+    let n = masses.len();
+    let mut k = nalgebra::DMatrix::<f64>::zeros(n, n);
+    for (i, s) in springs.iter().enumerate() {
+        k[(i, i)] += s;
+        k[(i + 1, i + 1)] += s;
+        k[(i, i + 1)] -= s;
+        k[(i + 1, i)] -= s;
+    }
+    let inv_sqrt_m = nalgebra::DVector::from_iterator(n, masses.iter().map(|m| 1.0 / m.sqrt()));
+    let a = nalgebra::DMatrix::from_fn(n, n, |i, j| k[(i, j)] * inv_sqrt_m[i] * inv_sqrt_m[j]);
+    let eig = a.symmetric_eigen();
+    let mut modes: Vec<(f64, Vec<f64>)> = (0..n)
+        .map(|j| {
+            let f = eig.eigenvalues[j].max(0.0).sqrt() / (2.0 * PI);
+            let mut phi: Vec<f64> = (0..n)
+                .map(|i| eig.eigenvectors[(i, j)] * inv_sqrt_m[i])
+                .collect();
+            if phi[0] < 0.0 {
+                phi.iter_mut().for_each(|x| *x = -*x);
+            }
+            (f, phi)
+        })
+        .collect();
+    modes.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let index = modal_contact::presets::index_of("marimba-rubber-mallet").expect("preset");
+    let scene = modal_contact::presets::scene(index).expect("parses");
+    let total: f64 = masses.iter().sum();
+    assert!((scene.hammer.mass_kg - total).abs() < 1e-15);
+    assert!(modes[0].0 < 1e-3, "rigid mode at {} Hz", modes[0].0);
+    for w in &modes[0].1 {
+        assert!((w - 1.0 / total.sqrt()).abs() < 1e-9, "rigid weight {w}");
+    }
+    let i = scene.object_index("mallet").unwrap();
+    let ObjectSpec::Modal(m) = &scene.object[i] else {
+        panic!("the mallet is a table of modes")
+    };
+    assert_eq!(m.mode.len(), n - 1);
+    let mut worst: f64 = 0.0;
+    for (got, (f, phi)) in m.mode.iter().zip(&modes[1..]) {
+        worst = worst.max((got.freq_hz - f).abs() / f);
+        for (a, b) in got.weights.iter().zip(phi) {
+            worst = worst.max((a - b).abs() / 10.0);
+        }
+    }
+    println!("rubber mallet table vs the chain's modes: worst relative difference {worst:.1e}");
+    assert!(worst < 1e-9, "{worst:e}");
+}
