@@ -64,11 +64,11 @@ impl Scene {
         }
         if let Some(ci) = self.object_index(&self.contact.object) {
             let struck = &self.object[ci];
-            if !modal(struck) {
+            if !modal(struck) && !matches!(struck, ObjectSpec::Wall(_)) {
                 return Err(SceneError::new(
                     "hammer.object",
                     format!(
-                        "a modal mallet strikes a modal object or one from geometry and material; contact.object {:?} is a {}",
+                        "a modal mallet strikes a modal object, one from geometry and material or a wall; contact.object {:?} is a {}",
                         self.contact.object,
                         struck.kind()
                     ),
@@ -95,7 +95,9 @@ impl Scene {
     /// `"<mallet>.<point>"` (pickups on the mallet move there) and the
     /// contact point `"<point> against <mallet>.<point>"`, whose weights are
     /// the struck point's for its own modes and minus the touching point's
-    /// for the mallet's. The mallet object stays in the list, unexcited.
+    /// for the mallet's. The mallet object stays in the list, unexcited. A
+    /// struck wall becomes a modal object of the mallet's modes alone, its
+    /// contact point `"surface against <mallet>.<point>"`.
     pub(super) fn merge_mallet(&mut self) -> Result<(), SceneError> {
         let (Some(mname), Some(tip)) = (self.hammer.object.clone(), self.hammer.point.clone())
         else {
@@ -107,15 +109,27 @@ impl Scene {
         ) else {
             return Err(SceneError::new("hammer.object", "not validated"));
         };
-        let (ObjectSpec::Modal(mallet), ObjectSpec::Modal(struck), Some(cp)) = (
-            self.object[mi].clone(),
-            self.object[ci].clone(),
-            self.contact.point.clone(),
-        ) else {
-            return Err(SceneError::new(
-                "hammer.object",
-                "a modal mallet needs a modal struck object and point",
-            ));
+        // a wall is a struck object without modes whose surface is the
+        // contact point
+        let (struck, cp) = match (&self.object[ci], &self.contact.point) {
+            (ObjectSpec::Wall(w), None) => (
+                ModalSpec {
+                    name: w.name.clone(),
+                    points: vec!["surface".to_string()],
+                    mode: Vec::new(),
+                },
+                "surface".to_string(),
+            ),
+            (ObjectSpec::Modal(m), Some(p)) => (m.clone(), p.clone()),
+            _ => {
+                return Err(SceneError::new(
+                    "hammer.object",
+                    "a modal mallet needs a modal struck object and point, or a wall",
+                ))
+            }
+        };
+        let ObjectSpec::Modal(mallet) = self.object[mi].clone() else {
+            return Err(SceneError::new("hammer.object", "not validated"));
         };
         let total = struck.mode.len() + mallet.mode.len();
         if total > MAX_MODES_PER_OBJECT {
