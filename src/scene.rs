@@ -13,6 +13,7 @@ use std::fmt;
 
 mod mallet;
 mod physical;
+pub use mallet::{ChainSpec, MAX_CHAIN_MASSES};
 pub use physical::{
     plate_radiation_rate, BarSpec, EdgesSpec, LossSpec, MaterialSpec, MembraneSpec, PhysicalSpec,
     PlateSpec, PointSpec, StiffStringSpec, SupportSpec, TubeSpec,
@@ -219,6 +220,10 @@ pub enum ObjectSpec {
     /// A string with bending stiffness.
     #[serde(rename = "stiff_string")]
     StiffString(StiffStringSpec),
+    /// A free lumped chain: a mallet's head and shaft (only as
+    /// `hammer.object`).
+    #[serde(rename = "chain")]
+    Chain(ChainSpec),
 }
 
 impl ObjectSpec {
@@ -228,6 +233,7 @@ impl ObjectSpec {
             ObjectSpec::Modal(m) => &m.name,
             ObjectSpec::String(s) => &s.name,
             ObjectSpec::Wall(w) => &w.name,
+            ObjectSpec::Chain(c) => &c.name,
             _ => self.physical().map_or("", |p| p.name()),
         }
     }
@@ -237,6 +243,7 @@ impl ObjectSpec {
             ObjectSpec::Modal(m) => m.points.clone(),
             ObjectSpec::String(s) => s.points.keys().cloned().collect(),
             ObjectSpec::Wall(_) => Vec::new(),
+            ObjectSpec::Chain(c) => c.points.keys().cloned().collect(),
             _ => self
                 .physical()
                 .map(|p| p.points().keys().cloned().collect())
@@ -252,7 +259,10 @@ impl ObjectSpec {
             ObjectSpec::Plate(s) => Some(PhysicalSpec::Plate(s)),
             ObjectSpec::Membrane(s) => Some(PhysicalSpec::Membrane(s)),
             ObjectSpec::StiffString(s) => Some(PhysicalSpec::StiffString(s)),
-            ObjectSpec::Modal(_) | ObjectSpec::String(_) | ObjectSpec::Wall(_) => None,
+            ObjectSpec::Modal(_)
+            | ObjectSpec::String(_)
+            | ObjectSpec::Wall(_)
+            | ObjectSpec::Chain(_) => None,
         }
     }
     /// The scene-file spelling of the object's kind.
@@ -261,6 +271,7 @@ impl ObjectSpec {
             ObjectSpec::Modal(_) => "modal",
             ObjectSpec::String(_) => "string",
             ObjectSpec::Wall(_) => "wall",
+            ObjectSpec::Chain(_) => "chain",
             _ => self.physical().map_or("", |p| p.kind()),
         }
     }
@@ -534,6 +545,8 @@ impl Scene {
             if let Some(p) = obj.physical() {
                 let modal = p.to_modal(&format!("object[{i}]"), rate_hz)?;
                 *obj = ObjectSpec::Modal(modal);
+            } else if let ObjectSpec::Chain(c) = obj {
+                *obj = ObjectSpec::Modal(c.to_modal());
             }
         }
         out.merge_mallet()?;
@@ -585,6 +598,7 @@ impl Scene {
                 ObjectSpec::Modal(m) => validate_modal(&base, m)?,
                 ObjectSpec::String(s) => validate_string(&base, s)?,
                 ObjectSpec::Wall(_) => {}
+                ObjectSpec::Chain(c) => c.validate(&base)?,
                 _ => {
                     if let Some(p) = obj.physical() {
                         p.validate(&base)?;

@@ -1,8 +1,9 @@
 //! Vibrating bodies from geometry and material: the modes of bars, tubes,
-//! plates, membranes and stiff strings ([`shapes`]) and a table of
-//! materials ([`materials`]). Pure functions of plain numbers; nothing here
+//! plates, membranes and stiff strings ([`shapes`]), a table of materials
+//! ([`materials`]), and the free lumped chain of a mallet ([`chain`]). Pure functions of plain numbers; nothing here
 //! knows about scenes or the engine (docs/design.md, "Objects from geometry
 //! and material").
 
+pub mod chain;
 pub mod materials;
 pub mod shapes;

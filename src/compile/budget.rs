@@ -207,7 +207,8 @@ impl CompileCost {
             | ObjectSpec::Tube(_)
             | ObjectSpec::Plate(_)
             | ObjectSpec::Membrane(_)
-            | ObjectSpec::StiffString(_) => Self::from_dims(0, 0, false, 2, gravity, true),
+            | ObjectSpec::StiffString(_)
+            | ObjectSpec::Chain(_) => Self::from_dims(0, 0, false, 2, gravity, true),
         }
     }
 

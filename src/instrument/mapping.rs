@@ -138,6 +138,10 @@ fn scale_damping(
                     d.n_s_per_m = rate(d.n_s_per_m);
                 }
             }
+            ObjectSpec::Chain(c) => {
+                c.rayleigh_alpha_per_s = rate(c.rayleigh_alpha_per_s);
+                c.rayleigh_beta_s = rate(c.rayleigh_beta_s);
+            }
             _ => {}
         }
     }
@@ -154,7 +158,7 @@ fn positive_or(v: f64, fallback: f64) -> f64 {
 /// The scene a parameter set describes (pure; allocates).
 ///
 /// - hammer mass, contact stiffness and contact damping are multiplied by
-///   their factors;
+///   their factors (a chain mallet's masses with the hammer's);
 /// - decay scale: every T60 is multiplied by it, a string's Rayleigh
 ///   `alpha`, `beta` and dashpots are divided by it;
 /// - strike position (when `Some`): on a string, the contact point moves to
@@ -174,7 +178,14 @@ fn positive_or(v: f64, fallback: f64) -> f64 {
 pub fn scene_for(base: &Scene, p: &InstrumentParams) -> Scene {
     let sp = &p.scene;
     let mut s = base.clone();
-    s.hammer.mass_kg *= positive_or(sp.hammer_mass_factor, 1.0);
+    let mass_factor = positive_or(sp.hammer_mass_factor, 1.0);
+    s.hammer.mass_kg *= mass_factor;
+    // a chain mallet's rigid motion is its masses' sum: heavier together
+    if let Some(mi) = s.hammer.object.as_deref().and_then(|m| s.object_index(m)) {
+        if let ObjectSpec::Chain(c) = &mut s.object[mi] {
+            c.masses_kg.iter_mut().for_each(|m| *m *= mass_factor);
+        }
+    }
     s.contact.stiffness_n_per_m *= positive_or(sp.stiffness_factor, 1.0);
     let cf = if sp.damping_factor.is_finite() && sp.damping_factor >= 0.0 {
         sp.damping_factor
@@ -279,7 +290,7 @@ pub fn lowest_frequency_hz(scene: &Scene) -> Option<f64> {
             let f = st.mode_freq_hz(1);
             (f.is_finite() && f > 0.0).then_some(f)
         }
-        ObjectSpec::Wall(_) => None,
+        ObjectSpec::Wall(_) | ObjectSpec::Chain(_) => None,
         obj => obj.physical()?.lowest_frequency_hz(),
     }
 }

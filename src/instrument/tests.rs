@@ -1161,3 +1161,32 @@ fn pressure_only_takes_energy_and_spares_strikes_and_bouncing_scenes() {
     let yd = render(&mut d, &[on(0, 60, 0.8)], 30_000)[0].clone();
     assert_eq!(yc, yd);
 }
+
+/// A chain mallet follows the hammer-mass parameter (its masses with the
+/// hammer's, so the played scene stays valid) and keeps its own ring under
+/// the decay and damper parameters, which act on the struck bar.
+#[test]
+fn a_chain_mallet_scales_with_the_hammer_and_keeps_its_ring() {
+    let b = base("marimba-rubber-mallet");
+    let mi = b.object_index("mallet").unwrap();
+    let mut p = params("marimba-rubber-mallet");
+    p.scene.hammer_mass_factor = 2.5;
+    p.scene.decay_scale = 0.25;
+    let s = scene_for(&b, &p);
+    s.validate().expect("the played scene is valid");
+    let (ObjectSpec::Chain(c0), ObjectSpec::Chain(c1)) = (&b.object[mi], &s.object[mi]) else {
+        panic!("chain mallet")
+    };
+    for (m0, m1) in c0.masses_kg.iter().zip(&c1.masses_kg) {
+        assert_eq!(*m1, m0 * 2.5);
+    }
+    assert_eq!(c1.rayleigh_alpha_per_s, c0.rayleigh_alpha_per_s);
+    assert_eq!(c1.rayleigh_beta_s, c0.rayleigh_beta_s);
+    let d = damped_scene(&s, 1.0);
+    assert_eq!(
+        d.object[mi], s.object[mi],
+        "the damper leaves the mallet alone"
+    );
+    assert_ne!(d.object[0], s.object[0], "the damper presses the bar");
+    compile_with(&d, RATE, None).expect("compiles");
+}

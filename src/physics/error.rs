@@ -205,7 +205,7 @@ impl fmt::Display for ModelError {
             }
             Self::NotExpanded => write!(
                 f,
-                "the object is described by geometry and material; expand the scene to its modes first"
+                "the object is described by geometry and material or as a free chain; expand the scene to its modes first"
             ),
         }
     }

@@ -69,7 +69,8 @@ impl ObjectModel {
             | ObjectSpec::Tube(_)
             | ObjectSpec::Plate(_)
             | ObjectSpec::Membrane(_)
-            | ObjectSpec::StiffString(_) => Err(ModelError::NotExpanded),
+            | ObjectSpec::StiffString(_)
+            | ObjectSpec::Chain(_) => Err(ModelError::NotExpanded),
             ObjectSpec::Wall(w) => Ok(ObjectModel {
                 name: w.name.clone(),
                 n: 0,

@@ -20,7 +20,140 @@
 //! mallet's elastic modes (they are orthogonal to the rigid motion), so it
 //! stays on `x_h` alone.
 
-use super::{ModalSpec, ModeSpec, ObjectSpec, Scene, SceneError, MAX_MODES_PER_OBJECT};
+use super::{
+    check_max, check_min, check_non_negative, check_positive, ModalSpec, ModeSpec, ObjectSpec,
+    Scene, SceneError, MAX_FREQ_HZ, MAX_MASS_KG, MAX_MODES_PER_OBJECT, MAX_RAYLEIGH_ALPHA_PER_S,
+    MAX_RAYLEIGH_BETA_S, MAX_STIFFNESS_N_PER_M, MIN_FREQ_HZ, MIN_MASS_KG,
+};
+use crate::bodies::chain::free_chain_modes;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Most masses in a chain (a mallet needs a handful).
+pub const MAX_CHAIN_MASSES: usize = 64;
+
+/// A free lumped chain, `kind = "chain"`: masses in a line joined by
+/// springs, free at both ends, with Rayleigh damping `C = alpha M + beta
+/// K`. A mallet's head and shaft: it may only be `hammer.object`, whose
+/// `mass_kg` must then be the chain's total mass (its rigid motion). Its
+/// elastic modes come from [`free_chain_modes`]; each decays at `sigma_j =
+/// (alpha + beta omega_j^2) / 2` (Rayleigh damping keeps the modes real).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChainSpec {
+    /// Object name.
+    pub name: String,
+    /// The masses from one end to the other \[kg\].
+    pub masses_kg: Vec<f64>,
+    /// The springs between neighbours \[N/m\] (one fewer than masses).
+    pub springs_n_per_m: Vec<f64>,
+    /// Rayleigh damping, mass part \[1/s\].
+    #[serde(default)]
+    pub rayleigh_alpha_per_s: f64,
+    /// Rayleigh damping, stiffness part \[s\].
+    #[serde(default)]
+    pub rayleigh_beta_s: f64,
+    /// Named points: 0-based mass indices.
+    pub points: BTreeMap<String, usize>,
+}
+
+impl ChainSpec {
+    /// Total mass \[kg\].
+    pub fn mass_kg(&self) -> f64 {
+        self.masses_kg.iter().sum()
+    }
+
+    pub(super) fn validate(&self, base: &str) -> Result<(), SceneError> {
+        let n = self.masses_kg.len();
+        if !(2..=MAX_CHAIN_MASSES).contains(&n) {
+            return Err(SceneError::new(
+                format!("{base}.masses_kg"),
+                format!("a chain has 2..={MAX_CHAIN_MASSES} masses, got {n}"),
+            ));
+        }
+        for (i, &m) in self.masses_kg.iter().enumerate() {
+            let path = format!("{base}.masses_kg[{i}]");
+            check_positive(&path, m)?;
+            check_min(&path, m, MIN_MASS_KG)?;
+            check_max(&path, m, MAX_MASS_KG)?;
+        }
+        if self.springs_n_per_m.len() + 1 != n {
+            return Err(SceneError::new(
+                format!("{base}.springs_n_per_m"),
+                format!(
+                    "{n} masses need {} springs between them, got {}",
+                    n - 1,
+                    self.springs_n_per_m.len()
+                ),
+            ));
+        }
+        for (i, &k) in self.springs_n_per_m.iter().enumerate() {
+            let path = format!("{base}.springs_n_per_m[{i}]");
+            check_positive(&path, k)?;
+            check_max(&path, k, MAX_STIFFNESS_N_PER_M)?;
+        }
+        check_non_negative(
+            &format!("{base}.rayleigh_alpha_per_s"),
+            self.rayleigh_alpha_per_s,
+        )?;
+        check_max(
+            &format!("{base}.rayleigh_alpha_per_s"),
+            self.rayleigh_alpha_per_s,
+            MAX_RAYLEIGH_ALPHA_PER_S,
+        )?;
+        check_non_negative(&format!("{base}.rayleigh_beta_s"), self.rayleigh_beta_s)?;
+        check_max(
+            &format!("{base}.rayleigh_beta_s"),
+            self.rayleigh_beta_s,
+            MAX_RAYLEIGH_BETA_S,
+        )?;
+        for (name, &j) in &self.points {
+            if name.is_empty() || j >= n {
+                return Err(SceneError::new(
+                    format!("{base}.points.{name}"),
+                    format!("must name a mass index in 0..{n}, got {j}"),
+                ));
+            }
+        }
+        // the modes must lie where a modal object's may
+        let modes = free_chain_modes(&self.masses_kg, &self.springs_n_per_m);
+        let f = |m: &crate::bodies::chain::ChainMode| m.omega / (2.0 * std::f64::consts::PI);
+        if let (Some(lo), Some(hi)) = (modes.first().map(f), modes.last().map(f)) {
+            if !(lo >= MIN_FREQ_HZ && hi <= MAX_FREQ_HZ) {
+                return Err(SceneError::new(
+                    format!("{base}.springs_n_per_m"),
+                    format!(
+                        "the chain's modes lie at {lo:.3e}..{hi:.3e} Hz, outside {MIN_FREQ_HZ:e}..{MAX_FREQ_HZ:e} Hz"
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The chain's elastic modes as a modal object (the rigid translation
+    /// left to the hammer).
+    pub fn to_modal(&self) -> ModalSpec {
+        let modes = free_chain_modes(&self.masses_kg, &self.springs_n_per_m);
+        let points: Vec<(&String, usize)> = self.points.iter().map(|(n, &j)| (n, j)).collect();
+        ModalSpec {
+            name: self.name.clone(),
+            points: points.iter().map(|(n, _)| (*n).clone()).collect(),
+            mode: modes
+                .iter()
+                .map(|md| {
+                    let sigma = 0.5
+                        * (self.rayleigh_alpha_per_s + self.rayleigh_beta_s * md.omega * md.omega);
+                    ModeSpec {
+                        freq_hz: md.omega / (2.0 * std::f64::consts::PI),
+                        t60_s: (sigma > 0.0).then(|| 1000f64.ln() / sigma),
+                        weights: points.iter().map(|&(_, j)| md.shape[j]).collect(),
+                    }
+                })
+                .collect(),
+        }
+    }
+}
 
 impl Scene {
     /// The mallet's keys: `hammer.object` names a modal object (or one
@@ -28,6 +161,17 @@ impl Scene {
     /// one of those too, and `hammer.point` one of its points.
     pub(super) fn validate_mallet(&self) -> Result<(), SceneError> {
         let h = &self.hammer;
+        if let Some(ci) = self.object_index(&self.contact.object) {
+            if matches!(self.object[ci], ObjectSpec::Chain(_)) {
+                return Err(SceneError::new(
+                    "contact.object",
+                    format!(
+                        "{:?} is a free chain, which only a mallet may be (hammer.object): struck, it would float away",
+                        self.contact.object
+                    ),
+                ));
+            }
+        }
         let Some(name) = &h.object else {
             if h.point.is_some() {
                 return Err(SceneError::new(
@@ -51,8 +195,22 @@ impl Scene {
                 ),
             ));
         }
-        let modal = |o: &ObjectSpec| matches!(o, ObjectSpec::Modal(_)) || o.physical().is_some();
+        let modal = |o: &ObjectSpec| {
+            matches!(o, ObjectSpec::Modal(_) | ObjectSpec::Chain(_)) || o.physical().is_some()
+        };
         let mallet = &self.object[mi];
+        if let ObjectSpec::Chain(c) = mallet {
+            let m = c.mass_kg();
+            if !((h.mass_kg - m).abs() <= 1e-9 * m) {
+                return Err(SceneError::new(
+                    "hammer.mass_kg",
+                    format!(
+                        "a chain mallet's rigid motion is the whole chain: must be the sum of {name:?}'s masses, {m:e} kg, got {:e}",
+                        h.mass_kg
+                    ),
+                ));
+            }
+        }
         if !modal(mallet) {
             return Err(SceneError::new(
                 "hammer.object",
@@ -64,6 +222,7 @@ impl Scene {
         }
         if let Some(ci) = self.object_index(&self.contact.object) {
             let struck = &self.object[ci];
+            // (a struck chain was refused above)
             if !modal(struck) && !matches!(struck, ObjectSpec::Wall(_)) {
                 return Err(SceneError::new(
                     "hammer.object",

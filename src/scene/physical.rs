@@ -1072,7 +1072,7 @@ impl super::ObjectSpec {
             O::Plate(s) => Some((&mut s.loss, &mut s.points)),
             O::Membrane(s) => Some((&mut s.loss, &mut s.points)),
             O::StiffString(s) => Some((&mut s.loss, &mut s.points)),
-            O::Modal(_) | O::String(_) | O::Wall(_) => None,
+            O::Modal(_) | O::String(_) | O::Wall(_) | O::Chain(_) => None,
         }
     }
 }
