@@ -13,7 +13,7 @@ use std::fmt;
 
 mod mallet;
 mod physical;
-pub use mallet::{ChainSpec, MAX_CHAIN_MASSES};
+pub use mallet::{mallet_contact_point, ChainSpec, MAX_CHAIN_MASSES};
 pub use physical::{
     plate_radiation_rate, BarSpec, EdgesSpec, LossSpec, MaterialSpec, MembraneSpec, PhysicalSpec,
     PlateSpec, PointSpec, StiffStringSpec, SupportSpec, TubeSpec,

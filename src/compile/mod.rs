@@ -458,12 +458,26 @@ pub fn compile_opts(
     // 1. leave out what is not needed; refuse before any O(d^2) allocation
     // or O(d^3) work when too big
     let (spec, dropped_modes) = prune::prune_object(scene, ci, rate_hz, opts);
-    let cost = CompileCost::estimate(
+    let mut cost = CompileCost::estimate(
         &spec,
         scene.contact.point.as_deref(),
         scene.hammer.gravity_m_per_s2 != 0.0,
         opts.exact_savings,
     );
+    // a lumped string with a modal mallet: the general eigensolver takes
+    // the string's masses and the mallet's modes together
+    if let (ObjectSpec::String(st), Some(ObjectSpec::Modal(m))) = (
+        &spec,
+        scene
+            .hammer
+            .object
+            .as_deref()
+            .and_then(|m| scene.object_index(m))
+            .map(|mi| &scene.object[mi]),
+    ) {
+        let n = st.masses + m.mode.len();
+        cost = CompileCost::from_dims(n, n, true, 2 * n + 2, cost.gravity, false);
+    }
     if cost.contact_dim > MAX_CONTACT_DIM {
         return Err(CompileError::TooLarge {
             dim: cost.contact_dim,

@@ -31,19 +31,38 @@ pub(super) struct Object {
 
 /// Build the struck object's model and find its contact point.
 pub(super) fn object(scene: &Scene, spec: &ObjectSpec, ci: usize) -> Result<Object, CompileError> {
-    let obj = ObjectModel::from_spec(spec).map_err(|source| CompileError::Model {
-        object: ci,
-        name: scene.contact.object.clone(),
-        source,
-    })?;
+    let model = |spec: &ObjectSpec, object: usize| {
+        ObjectModel::from_spec(spec).map_err(|source| CompileError::Model {
+            object,
+            name: spec.name().to_string(),
+            source,
+        })
+    };
+    let mut obj = model(spec, ci)?;
     // A modal object whose every mode was pruned is a rigid wall: it has no
     // points, and the hammer meets it as a wall (the scene fuzzer found
     // `[approximate] max_freq_hz` below every mode giving "no point c").
-    let contact_point = match spec {
+    let mut contact_point = match spec {
         ObjectSpec::Wall(_) => None,
-        _ => scene.contact.point.as_ref(),
+        _ => scene.contact.point.clone(),
     };
-    let contact_rows = match contact_point {
+    // a modal mallet still named here strikes a lumped string (stage 0
+    // joined it to every modal object): join the models
+    if let (Some(m), Some(tip), Some(p)) = (
+        scene.hammer.object.as_deref(),
+        scene.hammer.point.as_deref(),
+        contact_point.clone(),
+    ) {
+        let mi = scene
+            .object_index(m)
+            .ok_or_else(|| CompileError::MissingObject(m.to_string()))?;
+        let name = crate::scene::mallet_contact_point(&p, m, tip);
+        obj = obj
+            .joined_with_mallet(&model(&scene.object[mi], mi)?, &p, tip, &name)
+            .ok_or_else(|| CompileError::MissingPoint(name.clone()))?;
+        contact_point = Some(name);
+    }
+    let contact_rows = match &contact_point {
         Some(p) => Some(
             obj.point(p)
                 .ok_or_else(|| CompileError::MissingPoint(p.clone()))?

@@ -78,15 +78,21 @@ fn mixed_pickups(scene: &Scene, o: &Object) -> ([DVector<f64>; 4], Vec<String>) 
     let zero = DVector::zeros(2 * o.obj.n);
     let (mut dl, mut dr, mut vl, mut vr) = (zero.clone(), zero.clone(), zero.clone(), zero);
     let mut dropped = Vec::new();
+    // a mallet joined to the struck model in stage 1 (a lumped string's)
+    let mallet = scene.hammer.object.as_deref();
     for (i, p) in scene.pickup.iter().enumerate() {
-        if p.object != scene.contact.object {
+        let point = if Some(p.object.as_str()) == mallet {
+            format!("{}.{}", p.object, p.point)
+        } else if p.object == scene.contact.object {
+            p.point.clone()
+        } else {
             dropped.push(format!(
                 "pickup[{i}] on {:?}: object never excited",
                 p.object
             ));
             continue;
-        }
-        let Some(rows) = o.obj.point(&p.point) else {
+        };
+        let Some(rows) = o.obj.point(&point) else {
             dropped.push(format!("pickup[{i}]: every mode of its object was dropped"));
             continue;
         };

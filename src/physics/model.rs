@@ -83,6 +83,78 @@ impl ObjectModel {
     }
 }
 
+impl ObjectModel {
+    /// This object and a modal mallet as one object (docs/design.md, "Modal
+    /// mallets"): the free dynamics side by side, `z = [xi; xi_m; u; u_m]`,
+    /// the mallet's points as `"<mallet>.<point>"`, and the contact point
+    /// `contact_name`, whose rows are this object's point `point` minus the
+    /// mallet's point `tip` (the penetration `x_c - (x_h + x_tip)`). The
+    /// route for objects whose contact is not a rank-one update of modes
+    /// (a lumped string): the general eigensolver takes the joined model.
+    /// `None` if a point is missing.
+    pub fn joined_with_mallet(
+        &self,
+        mallet: &ObjectModel,
+        point: &str,
+        tip: &str,
+        contact_name: &str,
+    ) -> Option<ObjectModel> {
+        let (n1, n2) = (self.n, mallet.n);
+        let n = n1 + n2;
+        // where entry j of each part's z goes in the joined z
+        let at1 = |j: usize| if j < n1 { j } else { n2 + j };
+        let at2 = |j: usize| if j < n2 { n1 + j } else { n1 + n + (j - n2) };
+        let mut a = DMatrix::zeros(2 * n, 2 * n);
+        for i in 0..2 * n1 {
+            for j in 0..2 * n1 {
+                a[(at1(i), at1(j))] = self.a[(i, j)];
+            }
+        }
+        for i in 0..2 * n2 {
+            for j in 0..2 * n2 {
+                a[(at2(i), at2(j))] = mallet.a[(i, j)];
+            }
+        }
+        let embed = |row: &DVector<f64>, at: &dyn Fn(usize) -> usize| {
+            let mut out = DVector::zeros(2 * n);
+            for (j, v) in row.iter().enumerate() {
+                out[at(j)] = *v;
+            }
+            out
+        };
+        let mut points: Vec<PointRows> = self
+            .points
+            .iter()
+            .map(|p| PointRows {
+                name: p.name.clone(),
+                disp: embed(&p.disp, &at1),
+                vel: embed(&p.vel, &at1),
+            })
+            .collect();
+        points.extend(mallet.points.iter().map(|p| PointRows {
+            name: format!("{}.{}", mallet.name, p.name),
+            disp: embed(&p.disp, &at2),
+            vel: embed(&p.vel, &at2),
+        }));
+        let (c, t) = (self.point(point)?, mallet.point(tip)?);
+        points.push(PointRows {
+            name: contact_name.to_string(),
+            disp: embed(&c.disp, &at1) - embed(&t.disp, &at2),
+            vel: embed(&c.vel, &at1) - embed(&t.vel, &at2),
+        });
+        let mut freqs_hz = self.freqs_hz.clone();
+        freqs_hz.extend_from_slice(&mallet.freqs_hz);
+        Some(ObjectModel {
+            name: self.name.clone(),
+            n,
+            a,
+            modal_blocks: None,
+            points,
+            freqs_hz,
+        })
+    }
+}
+
 /// Abstract modal object (paper eq. 16-18): `xi_i = omega_i q_i`, `u_i = q_i'`.
 fn modal_model(m: &ModalSpec) -> ObjectModel {
     let n = m.mode.len();

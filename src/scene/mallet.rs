@@ -155,6 +155,12 @@ impl ChainSpec {
     }
 }
 
+/// The name of the contact point a mallet's join gives the struck object:
+/// `"<point> against <mallet>.<tip>"`.
+pub fn mallet_contact_point(point: &str, mallet: &str, tip: &str) -> String {
+    format!("{point} against {mallet}.{tip}")
+}
+
 impl Scene {
     /// The mallet's keys: `hammer.object` names a modal object (or one
     /// from geometry and material) other than the struck one, which must be
@@ -220,20 +226,7 @@ impl Scene {
                 ),
             ));
         }
-        if let Some(ci) = self.object_index(&self.contact.object) {
-            let struck = &self.object[ci];
-            // (a struck chain was refused above)
-            if !modal(struck) && !matches!(struck, ObjectSpec::Wall(_)) {
-                return Err(SceneError::new(
-                    "hammer.object",
-                    format!(
-                        "a modal mallet strikes a modal object, one from geometry and material or a wall; contact.object {:?} is a {}",
-                        self.contact.object,
-                        struck.kind()
-                    ),
-                ));
-            }
-        }
+        // any struck object but a chain (refused above) may take a mallet
         let points = mallet.point_names();
         match &h.point {
             None => Err(SceneError::new(
@@ -269,8 +262,10 @@ impl Scene {
             return Err(SceneError::new("hammer.object", "not validated"));
         };
         // a wall is a struck object without modes whose surface is the
-        // contact point
+        // contact point; a lumped string's model is joined in compile
+        // stage 1 (`ObjectModel::joined_with_mallet`)
         let (struck, cp) = match (&self.object[ci], &self.contact.point) {
+            (ObjectSpec::String(_), _) => return Ok(()),
             (ObjectSpec::Wall(w), None) => (
                 ModalSpec {
                     name: w.name.clone(),
