@@ -171,18 +171,25 @@ impl Case {
     }
 
     fn model(&self) -> reference::Model {
+        let modes = self
+            .object()
+            .iter()
+            .map(|&(freq_hz, t60_s, weight, _)| reference::Mode {
+                freq_hz,
+                t60_s,
+                weight,
+            })
+            .collect();
         let (k, c) = self.contact();
+        self.model_with(modes, k, c)
+    }
+
+    /// The reference's model of this mallet striking `modes` through the
+    /// contact `(k, c)`.
+    fn model_with(&self, modes: Vec<reference::Mode>, k: f64, c: f64) -> reference::Model {
         let (k_s, c_s) = self.shaft();
         reference::Model {
-            modes: self
-                .object()
-                .iter()
-                .map(|&(freq_hz, t60_s, weight, _)| reference::Mode {
-                    freq_hz,
-                    t60_s,
-                    weight,
-                })
-                .collect(),
+            modes,
             hammer: reference::Hammer {
                 mass_kg: self.m1,
                 height_m: self.x0,
@@ -293,114 +300,127 @@ fn run_engine(scene: &Scene) -> (Vec<Observation>, Vec<Interval>, f64, EngineSta
     (obs, log.finish(None), energy_rounding_bound(&sc), st)
 }
 
+/// Compare the engine's run of `scene` with the reference's of `model` (a
+/// two-mass mallet: face `m1`, back `m2`, gravity `g`) as the module
+/// documentation says; prints one line, returns the failures.
+fn against_reference(
+    name: &str,
+    scene: &Scene,
+    model: &reference::Model,
+    m1: f64,
+    m2: f64,
+    g: f64,
+) -> Vec<String> {
+    let mut failures = Vec::new();
+    let sol = reference::solve(model, RATE, SAMPLES);
+    let twin = reference::solve(&model.perturbed(1e-9), RATE, SAMPLES);
+    let ref_c = intervals(&sol);
+    let hz = reference::horizon(&sol, &twin, 1e-7).min(instant_horizon(
+        &ref_c,
+        &intervals(&twin),
+        1e-6,
+        SAMPLES,
+    ));
+    let w = hz + 1;
+    let (obs, eng_c, bound, st) = run_engine(scene);
+    let m = m1 + m2;
+    let reference_of = |f: &dyn Fn(&reference::Sample) -> f64| -> Vec<f64> {
+        sol.samples[..w].iter().map(f).collect()
+    };
+    let engine_of =
+        |f: &dyn Fn(&Observation) -> f64| -> Vec<f64> { obs[..w].iter().map(f).collect() };
+    let errors = [
+        (
+            "centre-of-mass height",
+            rel_l2(
+                &engine_of(&|o| o.x_hammer),
+                &reference_of(&|s| (m1 * s.x_hammer + m2 * s.x_back) / m),
+            ),
+        ),
+        (
+            "centre-of-mass velocity",
+            rel_l2(
+                &engine_of(&|o| o.v_hammer),
+                &reference_of(&|s| (m1 * s.v_hammer + m2 * s.v_back) / m),
+            ),
+        ),
+        (
+            "penetration",
+            rel_l2(
+                &engine_of(&|o| o.x_contact - o.x_hammer),
+                &reference_of(&|s| s.x_contact - s.x_hammer),
+            ),
+        ),
+        (
+            "energy",
+            rel_l2(&engine_of(&|o| o.energy), &reference_of(&|s| s.energy)),
+        ),
+    ];
+    let mc = match_contacts(&eng_c, &ref_c, hz as f64, 1.0, Ends::EitherEnded);
+    // the mallet really rings: its face moves relative to the centre
+    let deflection = sol.samples[..w]
+        .iter()
+        .map(|s| (s.x_hammer - s.x_back).abs())
+        .fold(0.0, f64::max);
+    let mg = m * g;
+    let rise = obs
+        .windows(2)
+        .map(|p| (p[1].energy - p[0].energy) / energy_scale(&p[0], mg).max(energy_scale(&p[1], mg)))
+        .fold(f64::NEG_INFINITY, f64::max);
+    println!(
+        "{name:<44} window {hz:>4}, contacts {}/{}, x_cm {:.1e}, v_cm {:.1e}, penetration {:.1e}, \
+         energy {:.1e}, instants {:.1e} samples, max dE/E {rise:.1e} (bound {bound:.1e}), deflection {deflection:.1e} m",
+        mc.n_ref,
+        mc.n_run,
+        errors[0].1,
+        errors[1].1,
+        errors[2].1,
+        errors[3].1,
+        mc.worst()
+    );
+    for (what, e) in errors {
+        if !(e <= 1e-6) {
+            failures.push(format!("{name}: {what} relative L2 {e:e}"));
+        }
+    }
+    if mc.n_ref != mc.n_run || mc.n_ref == 0 || !(mc.worst() <= 1e-6) {
+        failures.push(format!(
+            "{name}: contacts {} vs {}, worst instant {:e} samples",
+            mc.n_ref,
+            mc.n_run,
+            mc.worst()
+        ));
+    }
+    if hz < 200 {
+        failures.push(format!("{name}: window {hz} samples < 200"));
+    }
+    if !(rise <= bound) {
+        failures.push(format!("{name}: energy rose by {rise:e} > {bound:e}"));
+    }
+    let s = &st.exact_stats;
+    if s.capped + s.rod_fallbacks + s.uncertified != 0 {
+        failures.push(format!("{name}: exact switching counters {s:?}"));
+    }
+    if !(deflection > 1e-9) {
+        failures.push(format!(
+            "{name}: the mallet never deformed ({deflection:e} m)"
+        ));
+    }
+    failures
+}
+
 #[test]
 fn two_mass_mallet_matches_the_reference_in_physical_coordinates() {
     let mut failures = Vec::new();
     for case in cases() {
-        let model = case.model();
-        let sol = reference::solve(&model, RATE, SAMPLES);
-        let twin = reference::solve(&model.perturbed(1e-9), RATE, SAMPLES);
-        let ref_c = intervals(&sol);
-        let hz = reference::horizon(&sol, &twin, 1e-7).min(instant_horizon(
-            &ref_c,
-            &intervals(&twin),
-            1e-6,
-            SAMPLES,
-        ));
-        let w = hz + 1;
-        let (obs, eng_c, bound, st) = run_engine(&case.scene());
-        let (m1, m2, m) = (case.m1, case.m2, case.m());
-        let cm_x: Vec<f64> = sol.samples[..w]
-            .iter()
-            .map(|s| (m1 * s.x_hammer + m2 * s.x_back) / m)
-            .collect();
-        let cm_v: Vec<f64> = sol.samples[..w]
-            .iter()
-            .map(|s| (m1 * s.v_hammer + m2 * s.v_back) / m)
-            .collect();
-        let pen_ref: Vec<f64> = sol.samples[..w]
-            .iter()
-            .map(|s| s.x_contact - s.x_hammer)
-            .collect();
-        let e_ref: Vec<f64> = sol.samples[..w].iter().map(|s| s.energy).collect();
-        let ex = rel_l2(
-            &obs[..w].iter().map(|o| o.x_hammer).collect::<Vec<_>>(),
-            &cm_x,
-        );
-        let ev = rel_l2(
-            &obs[..w].iter().map(|o| o.v_hammer).collect::<Vec<_>>(),
-            &cm_v,
-        );
-        let ep = rel_l2(
-            &obs[..w]
-                .iter()
-                .map(|o| o.x_contact - o.x_hammer)
-                .collect::<Vec<_>>(),
-            &pen_ref,
-        );
-        let ee = rel_l2(
-            &obs[..w].iter().map(|o| o.energy).collect::<Vec<_>>(),
-            &e_ref,
-        );
-        let mc = match_contacts(&eng_c, &ref_c, hz as f64, 1.0, Ends::EitherEnded);
-        // the mallet really rings: its face moves relative to the centre
-        let deflection = sol.samples[..w]
-            .iter()
-            .map(|s| (s.x_hammer - s.x_back).abs())
-            .fold(0.0, f64::max);
-        let mg = m * case.g;
-        let rise = obs
-            .windows(2)
-            .map(|p| {
-                (p[1].energy - p[0].energy) / energy_scale(&p[0], mg).max(energy_scale(&p[1], mg))
-            })
-            .fold(f64::NEG_INFINITY, f64::max);
-        println!(
-            "{:<44} window {hz:>4}, contacts {}/{}, x_cm {ex:.1e}, v_cm {ev:.1e}, penetration {ep:.1e}, \
-             energy {ee:.1e}, instants {:.1e} samples, max dE/E {rise:.1e} (bound {bound:.1e}), deflection {deflection:.1e} m",
+        failures.extend(against_reference(
             case.name,
-            mc.n_ref,
-            mc.n_run,
-            mc.worst()
-        );
-        for (what, e) in [
-            ("centre-of-mass height", ex),
-            ("centre-of-mass velocity", ev),
-            ("penetration", ep),
-            ("energy", ee),
-        ] {
-            if !(e <= 1e-6) {
-                failures.push(format!("{}: {what} relative L2 {e:e}", case.name));
-            }
-        }
-        if mc.n_ref != mc.n_run || mc.n_ref == 0 || !(mc.worst() <= 1e-6) {
-            failures.push(format!(
-                "{}: contacts {} vs {}, worst instant {:e} samples",
-                case.name,
-                mc.n_ref,
-                mc.n_run,
-                mc.worst()
-            ));
-        }
-        if hz < 200 {
-            failures.push(format!("{}: window {hz} samples < 200", case.name));
-        }
-        if !(rise <= bound) {
-            failures.push(format!(
-                "{}: energy rose by {rise:e} > {bound:e}",
-                case.name
-            ));
-        }
-        let s = &st.exact_stats;
-        if s.capped + s.rod_fallbacks + s.uncertified != 0 {
-            failures.push(format!("{}: exact switching counters {s:?}", case.name));
-        }
-        if !(deflection > 1e-9) {
-            failures.push(format!(
-                "{}: the mallet never deformed ({deflection:e} m)",
-                case.name
-            ));
-        }
+            &case.scene(),
+            &case.model(),
+            case.m1,
+            case.m2,
+            case.g,
+        ));
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
@@ -897,7 +917,6 @@ fn a_chain_mallet_is_the_two_mass_closed_form() {
 /// comparison and tolerances as the modal cases.
 #[test]
 fn a_mallet_on_a_lumped_string_takes_the_general_route() {
-    use modal_contact::scene::{ObjectSpec, StringSpec};
     let (n, m, s, alpha, beta) = (12usize, 2e-3, 4e4, 2.0, 1e-6);
     let (c_idx, p_idx) = (3usize, 8usize);
     let mallet = Case {
@@ -913,27 +932,19 @@ fn a_mallet_on_a_lumped_string_takes_the_general_route() {
         g: 0.0,
         wall: false,
     };
-    let (k_s, c_s) = mallet.shaft();
     // the contact against the face and the string's mass at the point
     let inv = 1.0 / mallet.m1 + 1.0 / m;
     let w = 2.0 * PI * mallet.fc_ratio * NYQUIST;
     let k = w * w / inv;
     let c = 2.0 * mallet.zeta_c * (k / inv).sqrt();
     let (f, t60, face, back) = mallet.mallet_mode();
-    let string = StringSpec {
-        name: "o".into(),
-        masses: n,
-        mass_kg: m,
-        spring_n_per_m: s,
-        rayleigh_alpha_per_s: alpha,
-        rayleigh_beta_s: beta,
-        dashpots: Vec::new(),
-        points: [("c".to_string(), c_idx), ("p".to_string(), p_idx)]
-            .into_iter()
-            .collect(),
-    };
-    let mut scene = SceneBuilder::new("string and mallet")
-        .object(free_mass("placeholder", 1.0))
+    let scene = SceneBuilder::new("string and mallet")
+        .object(
+            Chain::new("o", n, m, s)
+                .rayleigh(alpha, beta)
+                .point("c", c_idx)
+                .point("p", p_idx),
+        )
         .object(Modal::new("mallet", &["face", "back"]).mode(f, t60, &[face, back]))
         .hammer(
             Hammer::new(mallet.m())
@@ -942,15 +953,13 @@ fn a_mallet_on_a_lumped_string_takes_the_general_route() {
                 .mallet("mallet", "face"),
         )
         .contact(
-            Contact::new("placeholder", k)
+            Contact::new("o", k)
                 .point("c")
                 .damping(c)
                 .switching(Switching::Exact),
         )
         .try_build()
         .expect("valid");
-    scene.object[0] = ObjectSpec::String(string);
-    scene.contact.object = "o".into();
     let scene = Scene::from_toml_str(&scene.to_toml_string()).expect("a valid scene file");
     let sc = compile_with(&scene, RATE, Some(Switching::Exact)).expect("compiles");
     println!("{}", sc.summary.lines().next().unwrap_or(""));
@@ -971,79 +980,14 @@ fn a_mallet_on_a_lumped_string_takes_the_general_route() {
             }
         })
         .collect();
-    let model = reference::Model {
-        modes,
-        hammer: reference::Hammer {
-            mass_kg: mallet.m1,
-            height_m: mallet.x0,
-            velocity_m_per_s: mallet.v0,
-            gravity_m_per_s2: 0.0,
-        },
-        contact: reference::Contact {
-            stiffness_n_per_m: k,
-            damping_n_s_per_m: c,
-        },
-        back: Some(reference::BackMass {
-            mass_kg: mallet.m2,
-            spring_n_per_m: k_s,
-            damping_n_s_per_m: c_s,
-        }),
-    };
-    let sol = reference::solve(&model, RATE, SAMPLES);
-    let twin = reference::solve(&model.perturbed(1e-9), RATE, SAMPLES);
-    let ref_c = intervals(&sol);
-    let hz = reference::horizon(&sol, &twin, 1e-7).min(instant_horizon(
-        &ref_c,
-        &intervals(&twin),
-        1e-6,
-        SAMPLES,
-    ));
-    let wdw = hz + 1;
-    let (obs, eng_c, bound, st) = run_engine(&scene);
-    let (m1, m2, mm) = (mallet.m1, mallet.m2, mallet.m());
-    let cm: Vec<f64> = sol.samples[..wdw]
-        .iter()
-        .map(|x| (m1 * x.x_hammer + m2 * x.x_back) / mm)
-        .collect();
-    let pen: Vec<f64> = sol.samples[..wdw]
-        .iter()
-        .map(|x| x.x_contact - x.x_hammer)
-        .collect();
-    let energy: Vec<f64> = sol.samples[..wdw].iter().map(|x| x.energy).collect();
-    let ex = rel_l2(
-        &obs[..wdw].iter().map(|o| o.x_hammer).collect::<Vec<_>>(),
-        &cm,
+    let model = mallet.model_with(modes, k, c);
+    let failures = against_reference(
+        "mallet on a 12-mass string",
+        &scene,
+        &model,
+        mallet.m1,
+        mallet.m2,
+        0.0,
     );
-    let ep = rel_l2(
-        &obs[..wdw]
-            .iter()
-            .map(|o| o.x_contact - o.x_hammer)
-            .collect::<Vec<_>>(),
-        &pen,
-    );
-    let ee = rel_l2(
-        &obs[..wdw].iter().map(|o| o.energy).collect::<Vec<_>>(),
-        &energy,
-    );
-    let mc = match_contacts(&eng_c, &ref_c, hz as f64, 1.0, Ends::EitherEnded);
-    let rise = obs
-        .windows(2)
-        .map(|p| (p[1].energy - p[0].energy) / p[0].energy.abs().max(p[1].energy.abs()))
-        .fold(f64::NEG_INFINITY, f64::max);
-    println!(
-        "mallet on a 12-mass string: window {hz}, contacts {}/{}, x_cm {ex:.1e}, penetration {ep:.1e}, energy {ee:.1e}, \
-         instants {:.1e} samples, max dE/E {rise:.1e} (bound {bound:.1e})",
-        mc.n_ref,
-        mc.n_run,
-        mc.worst()
-    );
-    assert!(hz >= 200, "window {hz}");
-    assert!(ex < 1e-6 && ep < 1e-6 && ee < 1e-6, "traces");
-    assert!(
-        mc.n_ref == mc.n_run && mc.n_ref > 0 && mc.worst() < 1e-6,
-        "contacts"
-    );
-    assert!(rise <= bound, "energy rose by {rise:e}");
-    let sw = &st.exact_stats;
-    assert_eq!(sw.capped + sw.rod_fallbacks + sw.uncertified, 0, "{sw:?}");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
