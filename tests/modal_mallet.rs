@@ -205,6 +205,7 @@ impl Case {
                 spring_n_per_m: k_s,
                 damping_n_s_per_m: c_s,
             }),
+            extra: Vec::new(),
         }
     }
 }

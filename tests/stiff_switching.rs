@@ -337,6 +337,7 @@ impl Numbers {
                 damping_n_s_per_m: self.c,
             },
             back: None,
+            extra: Vec::new(),
         }
     }
 }

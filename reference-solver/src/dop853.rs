@@ -267,6 +267,10 @@ impl Dop<'_> {
 /// tolerance `rtol` (absolute tolerances: `rtol` times each component's
 /// scale, from the initial energy; see the body).
 pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
+    assert!(
+        model.extra.is_empty(),
+        "the DOP853 check covers one contact"
+    );
     let h = 1.0 / rate_hz;
     let nm = model.n_modes();
     let dim = model.state_dim();
@@ -340,6 +344,7 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
                     stats.switches += 1;
                     if c {
                         contacts.push(ContactInterval {
+                            contact: 0,
                             start_s: t_n + t,
                             end_s: None,
                         });

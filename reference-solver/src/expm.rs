@@ -82,19 +82,38 @@ impl Flow<'_> {
     }
 }
 
-/// Search one step for the first switch. `y0`, `y1`: exact states at its
-/// start and end (`y0` not switched). Returns the unit count and the exact
-/// state of the first switched point found, or `None`.
+/// Search one step for the first switch of any contact. `y0`, `y1`: exact
+/// states at its start and end (`y0` not switched). Returns the unit count
+/// and the exact state of the earliest switched point found, or `None`.
 fn search(flow: &Flow, y0: &[Dd], y1: &[Dd], stats: &mut Stats) -> Option<(u64, Vec<Dd>)> {
-    let ph = flow.phase();
-    let c = ph.contact;
-    let total = 1u64 << flow.levels();
-    let (p1, d1) = ph.event_dd(y1);
-    if switched(c, p1) {
-        return Some(refine(flow, 0, y0.to_vec(), total, y1.to_vec()));
+    let mut best: Option<(u64, Vec<Dd>)> = None;
+    for c in 0..flow.phase().row_p.len() {
+        if let Some((u, y)) = search_contact(flow, c, y0, y1, stats) {
+            if best.as_ref().is_none_or(|(b, _)| u < *b) {
+                best = Some((u, y));
+            }
+        }
     }
-    let (_, d0) = ph.event_dd(y0);
-    if !(toward(c, d0) > 0.0 && toward(c, d1) <= 0.0) {
+    best
+}
+
+/// [`search`] for contact `c` alone.
+fn search_contact(
+    flow: &Flow,
+    c: usize,
+    y0: &[Dd],
+    y1: &[Dd],
+    stats: &mut Stats,
+) -> Option<(u64, Vec<Dd>)> {
+    let ph = flow.phase();
+    let inc = ph.in_contact(c);
+    let total = 1u64 << flow.levels();
+    let (p1, d1) = ph.event_dd(c, y1);
+    if switched(inc, p1) {
+        return Some(refine(flow, c, 0, y0.to_vec(), total, y1.to_vec()));
+    }
+    let (_, d0) = ph.event_dd(c, y0);
+    if !(toward(inc, d0) > 0.0 && toward(inc, d1) <= 0.0) {
         return None;
     }
     // an interior extremum of p toward switching: bisection on p'
@@ -103,11 +122,11 @@ fn search(flow: &Flow, y0: &[Dd], y1: &[Dd], stats: &mut Stats) -> Option<(u64, 
     while hi - lo > 1 {
         let mid = lo + (hi - lo) / 2;
         let ym = flow.advance(&ylo, mid - lo);
-        let (pm, dm) = ph.event_dd(&ym);
-        if switched(c, pm) {
-            return Some(refine(flow, 0, y0.to_vec(), mid, ym));
+        let (pm, dm) = ph.event_dd(c, &ym);
+        if switched(inc, pm) {
+            return Some(refine(flow, c, 0, y0.to_vec(), mid, ym));
         }
-        if toward(c, dm) > 0.0 {
+        if toward(inc, dm) > 0.0 {
             lo = mid;
             ylo = ym;
         } else {
@@ -115,21 +134,29 @@ fn search(flow: &Flow, y0: &[Dd], y1: &[Dd], stats: &mut Stats) -> Option<(u64, 
         }
     }
     let yh = flow.advance(&ylo, 1);
-    if switched(c, ph.event_dd(&yh).0) {
-        return Some(refine(flow, 0, y0.to_vec(), hi, yh));
+    if switched(inc, ph.event_dd(c, &yh).0) {
+        return Some(refine(flow, c, 0, y0.to_vec(), hi, yh));
     }
     None
 }
 
 /// Bisection on `[a, b]` (unit counts) with `a` not switched and `b`
-/// switched, down to one unit. Returns `b` and the state there, as evaluated
-/// when `b` was found switched (so the new phase starts exactly on its side).
-fn refine(flow: &Flow, mut a: u64, mut ya: Vec<Dd>, mut b: u64, mut yb: Vec<Dd>) -> (u64, Vec<Dd>) {
+/// switched (contact `c`), down to one unit. Returns `b` and the state
+/// there, as evaluated when `b` was found switched (so the new phase starts
+/// exactly on its side).
+fn refine(
+    flow: &Flow,
+    c: usize,
+    mut a: u64,
+    mut ya: Vec<Dd>,
+    mut b: u64,
+    mut yb: Vec<Dd>,
+) -> (u64, Vec<Dd>) {
     let ph = flow.phase();
     while b - a > 1 {
         let mid = a + (b - a) / 2;
         let ym = flow.advance(&ya, mid - a);
-        if switched(ph.contact, ph.event_dd(&ym).0) {
+        if switched(ph.in_contact(c), ph.event_dd(c, &ym).0) {
             b = mid;
             yb = ym;
         } else {
@@ -140,26 +167,27 @@ fn refine(flow: &Flow, mut a: u64, mut ya: Vec<Dd>, mut b: u64, mut yb: Vec<Dd>)
     (b, yb)
 }
 
-/// Whether the marched f64 step `y0 -> y1` may hold a switch (the tests
-/// [`search`] makes first, with a margin: a point within 1e-12 of the
-/// largest term of `p` from the switching side counts, so the marched
-/// copy's drift, ~`RESYNC u` = 3e-14, cannot hide a crossing the exact
-/// states have; a wider margin would flag every sub-step of a hammer
+/// Whether the marched f64 step `y0 -> y1` may hold a switch of any
+/// contact (the tests [`search`] makes first, with a margin: a point within
+/// 1e-12 of the largest term of `p` from the switching side counts, so the
+/// marched copy's drift, ~`RESYNC u` = 3e-14, cannot hide a crossing the
+/// exact states have; a wider margin would flag every sub-step of a hammer
 /// resting under gravity on a stiff contact, compressed by `m g / k` ~
 /// 1e-10 of its height at 1000x Nyquist).
 fn may_switch(ph: &Phase, y0: &[f64], y1: &[f64]) -> bool {
-    let (p0, d0) = ph.event(y0);
-    let (p1, d1) = ph.event(y1);
-    let scale = ph
-        .row_p
-        .iter()
-        .zip(y1)
-        .map(|(r, y)| (r * y).abs())
-        .fold(0.0, f64::max);
-    let margin = 1e-12 * scale;
-    let c = ph.contact;
-    let near = |p: f64| if c { p <= margin } else { p > -margin };
-    near(p0) || near(p1) || (toward(c, d0) > 0.0 && toward(c, d1) <= 0.0)
+    (0..ph.row_p.len()).any(|c| {
+        let (p0, d0) = ph.event(c, y0);
+        let (p1, d1) = ph.event(c, y1);
+        let scale = ph.row_p[c]
+            .iter()
+            .zip(y1)
+            .map(|(r, y)| (r * y).abs())
+            .fold(0.0, f64::max);
+        let margin = 1e-12 * scale;
+        let inc = ph.in_contact(c);
+        let near = |p: f64| if inc { p <= margin } else { p > -margin };
+        near(p0) || near(p1) || (toward(inc, d0) > 0.0 && toward(inc, d1) <= 0.0)
+    })
 }
 
 fn to_f64(y: &[Dd]) -> Vec<f64> {
@@ -176,16 +204,21 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize) -> Solution {
 /// rounding (a convergence check of the reference itself).
 pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step: f64) -> Solution {
     let h = 1.0 / rate_hz;
-    let phases = [
-        Phase::new(model, false, h, max_norm_step),
-        Phase::new(model, true, h, max_norm_step),
-    ];
+    assert!(
+        model.extra.len() <= crate::MAX_EXTRA,
+        "at most {} contacts",
+        crate::MAX_EXTRA + 1
+    );
+    // every subset of contacts in contact, by its bit set
+    let phases: Vec<Phase> = (0..1u32 << model.n_contacts())
+        .map(|active| Phase::new(model, active, h, max_norm_step))
+        .collect();
     let mut stats = Stats {
         substeps_per_sample: [phases[0].m, phases[1].m],
         norms: [phases[0].norm, phases[1].norm],
         ..Stats::default()
     };
-    let mut in_contact = false;
+    let mut active = 0u32;
     let z0: Vec<Dd> = model
         .initial_state()
         .into_iter()
@@ -193,9 +226,10 @@ pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step:
         .collect();
     // the exact state at the current sample instant
     let mut y = phases[0].to_balanced(&z0);
-    let observe = |ph: &Phase, y: &[Dd], c: bool| model.observe(&to_f64(&ph.to_physical(y)), c);
+    let observe =
+        |ph: &Phase, y: &[Dd], active: u32| model.observe_of(&to_f64(&ph.to_physical(y)), active);
     let mut samples = Vec::with_capacity(n + 1);
-    samples.push(observe(&phases[0], &y, false));
+    samples.push(observe(&phases[0], &y, 0));
     let mut contacts: Vec<ContactInterval> = Vec::new();
     for i in 0..n {
         let t_n = i as f64 * h;
@@ -211,7 +245,7 @@ pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step:
         let mut t = 0.0;
         let mut switches = 0usize;
         loop {
-            let ph = &phases[in_contact as usize];
+            let ph = &phases[active as usize];
             let found;
             let (flow, t_start);
             if on_grid {
@@ -278,17 +312,29 @@ pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step:
             let frac = units as f64 / 2f64.powi(flow.levels() as i32);
             t = (t_start + frac * flow.length()).min(h);
             let z = ph.to_physical(&ys);
-            in_contact = !in_contact;
-            let ph_new = &phases[in_contact as usize];
-            y = ph_new.to_balanced(&z);
-            if in_contact {
-                contacts.push(ContactInterval {
-                    start_s: t_n + t,
-                    end_s: None,
-                });
-            } else if let Some(last) = contacts.last_mut() {
-                last.end_s = Some(t_n + t);
+            // every contact switched at this point changes side (the one
+            // found first, and any that switched at the same instant)
+            for c in 0..model.n_contacts() {
+                if !switched(ph.in_contact(c), ph.event_dd(c, &ys).0) {
+                    continue;
+                }
+                active ^= 1 << c;
+                if active & (1 << c) != 0 {
+                    contacts.push(ContactInterval {
+                        contact: c,
+                        start_s: t_n + t,
+                        end_s: None,
+                    });
+                } else if let Some(open) = contacts
+                    .iter_mut()
+                    .rev()
+                    .find(|x| x.contact == c && x.end_s.is_none())
+                {
+                    open.end_s = Some(t_n + t);
+                }
             }
+            let ph_new = &phases[active as usize];
+            y = ph_new.to_balanced(&z);
             stats.switches += 1;
             switches += 1;
             assert!(
@@ -304,8 +350,8 @@ pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step:
                 on_grid = false;
             }
         }
-        let ph = &phases[in_contact as usize];
-        samples.push(observe(ph, &y, in_contact));
+        let ph = &phases[active as usize];
+        samples.push(observe(ph, &y, active));
     }
     Solution {
         rate_hz,

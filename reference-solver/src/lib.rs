@@ -40,6 +40,17 @@
 //! (position-based release, so a damper pulling just before release is
 //! allowed). A touch at zero relative speed that does not cross is no
 //! contact. Positions and velocities never jump at a switch.
+//!
+//! Beyond the paper's scene (for the engine's next steps, issue 17): a
+//! second mass behind the hammer's face ([`BackMass`], a mallet with a ring
+//! of its own), and up to [`MAX_EXTRA`] more hammers with contacts of their
+//! own on the same object ([`ExtraHammer`]). With several contacts each
+//! phase is a subset of contacts in contact (all `2^K` phases are built up
+//! front), each contact has its own event function, the first switch of
+//! any contact in a step is taken, and every contact switched at that
+//! instant changes side together. DOP853 checks one contact only; several
+//! are checked by the separable case (two contacts on two objects are two
+//! runs) and by energy and symmetry (`tests.rs`).
 
 mod dd;
 pub mod dop853;
@@ -110,8 +121,26 @@ pub struct BackMass {
     pub damping_n_s_per_m: f64,
 }
 
+/// Another point-mass hammer with a contact of its own on the same modal
+/// object (several contacts at once): its own contact point (a weight per
+/// mode) and contact law. Its state `x_k, v_k` follows the first hammer's
+/// (and the back mass's) in `z`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExtraHammer {
+    /// The hammer.
+    pub hammer: Hammer,
+    /// Each mode's weight at this hammer's contact point [1/sqrt(kg)].
+    pub weights: Vec<f64>,
+    /// The contact law.
+    pub contact: Contact,
+}
+
+/// Most extra hammers (so at most four contacts).
+pub const MAX_EXTRA: usize = 3;
+
 /// A scene: a modal object (no modes = a rigid wall at height 0), a hammer
-/// and the contact between them.
+/// and the contact between them (and up to [`MAX_EXTRA`] more hammers with
+/// contacts of their own).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Model {
     /// The struck object's modes; empty for a rigid wall.
@@ -123,6 +152,9 @@ pub struct Model {
     /// A mass behind the face, `None` for a point-mass hammer. The
     /// physical state is then `[q; q'; x_h; v_h; x_b; v_b]`.
     pub back: Option<BackMass>,
+    /// More hammers with contacts of their own (contact `k + 1` is
+    /// `extra[k]`'s); empty for the one contact of the paper.
+    pub extra: Vec<ExtraHammer>,
 }
 
 impl Model {
@@ -134,7 +166,77 @@ impl Model {
 
     /// Length of the physical state `z`.
     pub fn state_dim(&self) -> usize {
-        2 * self.n_modes() + 2 + if self.back.is_some() { 2 } else { 0 }
+        2 * self.n_modes() + 2 + if self.back.is_some() { 2 } else { 0 } + 2 * self.extra.len()
+    }
+
+    /// Number of contacts (1 + extra hammers).
+    pub fn n_contacts(&self) -> usize {
+        1 + self.extra.len()
+    }
+
+    /// Index of contact `c`'s hammer height in `z` (its velocity follows).
+    pub fn hammer_index(&self, c: usize) -> usize {
+        let n = self.n_modes();
+        if c == 0 {
+            2 * n
+        } else {
+            2 * n + 2 + if self.back.is_some() { 2 } else { 0 } + 2 * (c - 1)
+        }
+    }
+
+    /// Contact `c`'s hammer.
+    pub fn hammer_of(&self, c: usize) -> &Hammer {
+        if c == 0 {
+            &self.hammer
+        } else {
+            &self.extra[c - 1].hammer
+        }
+    }
+
+    /// Contact `c`'s law.
+    pub fn contact_of(&self, c: usize) -> &Contact {
+        if c == 0 {
+            &self.contact
+        } else {
+            &self.extra[c - 1].contact
+        }
+    }
+
+    /// Mode `i`'s weight at contact `c`'s point.
+    pub fn weight(&self, c: usize, i: usize) -> f64 {
+        if c == 0 {
+            self.modes[i].weight
+        } else {
+            self.extra[c - 1].weights[i]
+        }
+    }
+
+    /// Contact `c`'s point displacement and velocity, and its hammer's.
+    pub fn contact_pair(&self, c: usize, z: &[f64]) -> ((f64, f64), (f64, f64)) {
+        let n = self.n_modes();
+        let (mut x, mut v) = (0.0, 0.0);
+        for i in 0..n {
+            x += self.weight(c, i) * z[i];
+            v += self.weight(c, i) * z[n + i];
+        }
+        let k = self.hammer_index(c);
+        ((x, v), (z[k], z[k + 1]))
+    }
+
+    /// Energy with the springs of the contacts in the bit set `active`.
+    pub fn energy_of(&self, z: &[f64], active: u32) -> f64 {
+        let mut e = self.energy(z, active & 1 != 0);
+        for (k, x) in self.extra.iter().enumerate() {
+            let c = k + 1;
+            let ((x_c, _), (x_h, v_h)) = self.contact_pair(c, z);
+            let m = x.hammer.mass_kg;
+            e += 0.5 * m * v_h * v_h + m * x.hammer.gravity_m_per_s2 * x_h;
+            if active & (1 << c) != 0 {
+                let p = x_c - x_h;
+                e += 0.5 * x.contact.stiffness_n_per_m * p * p;
+            }
+        }
+        e
     }
 
     /// Force of the back mass's spring-damper on the face (up) in `z`, and
@@ -153,7 +255,8 @@ impl Model {
     }
 
     /// Total energy \[J\] of the physical state `z = [q; q'; x_h; v_h]`, with
-    /// the contact spring's `0.5 k p^2` when `in_contact`.
+    /// the contact spring's `0.5 k p^2` when `in_contact` (the first
+    /// hammer's part only: [`Model::energy_of`] adds the extra hammers).
     pub fn energy(&self, z: &[f64], in_contact: bool) -> f64 {
         let n = self.n_modes();
         let mut e = 0.0;
@@ -207,6 +310,11 @@ impl Model {
             z[2 * n + 2] = self.hammer.height_m;
             z[2 * n + 3] = self.hammer.velocity_m_per_s;
         }
+        for (k, x) in self.extra.iter().enumerate() {
+            let j = self.hammer_index(k + 1);
+            z[j] = x.hammer.height_m;
+            z[j + 1] = x.hammer.velocity_m_per_s;
+        }
         z
     }
 
@@ -233,6 +341,19 @@ impl Model {
         m
     }
 
+    /// The observation of `z` with the contacts in `active` (see
+    /// [`Sample`]).
+    pub fn observe_of(&self, z: &[f64], active: u32) -> Sample {
+        let mut s = self.observe(z, active & 1 != 0);
+        s.energy = self.energy_of(z, active);
+        s.active = active;
+        for c in 1..self.n_contacts() {
+            let ((x_c, _), (x_h, v_h)) = self.contact_pair(c, z);
+            s.extra[c - 1] = [x_h, v_h, x_c];
+        }
+        s
+    }
+
     /// The observation of `z` at time `t` (see [`Sample`]).
     pub fn observe(&self, z: &[f64], in_contact: bool) -> Sample {
         let n = self.n_modes();
@@ -241,6 +362,8 @@ impl Model {
         Sample {
             x_back,
             v_back,
+            active: in_contact as u32,
+            extra: [[0.0; 3]; MAX_EXTRA],
             x_hammer: z[2 * n],
             v_hammer: z[2 * n + 1],
             x_contact: x_c,
@@ -269,12 +392,19 @@ pub struct Sample {
     /// Back mass position \[m\] and velocity \[m/s\] (0 without one).
     pub x_back: f64,
     pub v_back: f64,
+    /// The contacts in contact (bit `c` for contact `c`).
+    pub active: u32,
+    /// Each extra hammer's height and velocity and its contact point's
+    /// displacement (zeros past the model's).
+    pub extra: [[f64; 3]; MAX_EXTRA],
 }
 
 /// One contact: from `start_s` to `end_s` \[s\], `end_s = None` if still in
 /// contact at the end of the run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContactInterval {
+    /// Which contact (0: the first hammer's).
+    pub contact: usize,
     /// Instant the penetration became positive \[s\].
     pub start_s: f64,
     /// Instant it returned to zero \[s\], if it did within the run.

@@ -44,8 +44,8 @@ pub const RESYNC: usize = 256;
 /// A phase ready to step.
 #[derive(Debug, Clone)]
 pub struct Phase {
-    /// Contact phase (`true`) or flight.
-    pub contact: bool,
+    /// The contacts in contact (bit `c` for contact `c`; flight: 0).
+    pub active: u32,
     /// Augmented dimension `2 N + 3` (`2 N + 5` with a back mass).
     pub dim: usize,
     /// Balancing scales: `z_i = d_i y_i` (the last entry scales the constant
@@ -74,18 +74,19 @@ pub struct Phase {
     /// double-double (see [`augmented_matrix`]; `e1` and the balancing use
     /// its rounding to f64).
     pub b_dd: Vec<Dd>,
-    /// Rows giving `p` and `p'` from the balanced state `y`.
-    pub row_p: Vec<f64>,
-    pub row_v: Vec<f64>,
+    /// Rows giving each contact's `p` and `p'` from the balanced state `y`.
+    pub row_p: Vec<Vec<f64>>,
+    pub row_v: Vec<Vec<f64>>,
 }
 
 impl Phase {
-    /// Build the phase of `model` for sample period `h`, with sub-steps of
-    /// `|B|_1 h_sub <= max_norm_step`.
-    pub fn new(model: &Model, contact: bool, h: f64, max_norm_step: f64) -> Self {
+    /// Build the phase of `model` with the contacts `active` (bit `c` for
+    /// contact `c`) for sample period `h`, with sub-steps of `|B|_1 h_sub
+    /// <= max_norm_step`.
+    pub fn new(model: &Model, active: u32, h: f64, max_norm_step: f64) -> Self {
         let n = model.n_modes();
         let dim = model.state_dim() + 1;
-        let a_dd = augmented_matrix(model, contact);
+        let a_dd = augmented_matrix(model, active);
         let a = DMatrix::from_row_iterator(dim, dim, a_dd.iter().map(|v| v.to_f64()));
         let (b, d) = balance(&a);
         // the same similarity on the exact entries (powers of two: exact)
@@ -121,17 +122,24 @@ impl Phase {
             let g = big.last().expect("level 0");
             big.push(g.mul(g));
         }
-        // p = sum w_i q_i - x_h, p' = sum w_i q_i' - v_h, in y = D^-1 z
-        let mut row_p = vec![0.0; dim];
-        let mut row_v = vec![0.0; dim];
-        for (i, md) in model.modes.iter().enumerate() {
-            row_p[i] = md.weight * d[i];
-            row_v[n + i] = md.weight * d[n + i];
+        // p = sum w_i q_i - x_h, p' = sum w_i q_i' - v_h, in y = D^-1 z,
+        // per contact
+        let (mut row_p, mut row_v) = (Vec::new(), Vec::new());
+        for c in 0..model.n_contacts() {
+            let mut rp = vec![0.0; dim];
+            let mut rv = vec![0.0; dim];
+            for i in 0..n {
+                rp[i] = model.weight(c, i) * d[i];
+                rv[n + i] = model.weight(c, i) * d[n + i];
+            }
+            let k = model.hammer_index(c);
+            rp[k] = -d[k];
+            rv[k + 1] = -d[k + 1];
+            row_p.push(rp);
+            row_v.push(rv);
         }
-        row_p[2 * n] = -d[2 * n];
-        row_v[2 * n + 1] = -d[2 * n + 1];
         Phase {
-            contact,
+            active,
             dim,
             d,
             norm,
@@ -177,8 +185,8 @@ impl Phase {
         cur
     }
 
-    /// `(p, p')` of the exact state `y`.
-    pub fn event_dd(&self, y: &[Dd]) -> (f64, f64) {
+    /// Contact `c`'s `(p, p')` of the exact state `y`.
+    pub fn event_dd(&self, c: usize, y: &[Dd]) -> (f64, f64) {
         let dot = |row: &[f64]| {
             row.iter()
                 .zip(y)
@@ -188,7 +196,7 @@ impl Phase {
                 )
                 .to_f64()
         };
-        (dot(&self.row_p), dot(&self.row_v))
+        (dot(&self.row_p[c]), dot(&self.row_v[c]))
     }
 
     /// Balanced state of the physical state `z` (exact: the scales are
@@ -212,10 +220,16 @@ impl Phase {
             .collect()
     }
 
-    /// `(p, p')` of the balanced state `y`.
+    /// Contact `c`'s `(p, p')` of the balanced state `y`.
     #[inline]
-    pub fn event(&self, y: &[f64]) -> (f64, f64) {
-        (dot(&self.row_p, y), dot(&self.row_v, y))
+    pub fn event(&self, c: usize, y: &[f64]) -> (f64, f64) {
+        (dot(&self.row_p[c], y), dot(&self.row_v[c], y))
+    }
+
+    /// Whether contact `c` is in contact in this phase.
+    #[inline]
+    pub fn in_contact(&self, c: usize) -> bool {
+        self.active & (1 << c) != 0
     }
 }
 
@@ -236,7 +250,7 @@ impl Phase {
 /// forms `p` first; a one-ulp change of three entries moved them by 9e-9.
 /// Here each entry is the exact sum and product of the model's f64 numbers
 /// to ~1e-32 relative, so `F` keeps `~1e-32 |k x|` of error.
-pub fn augmented_matrix(model: &Model, contact: bool) -> Vec<Dd> {
+pub fn augmented_matrix(model: &Model, active: u32) -> Vec<Dd> {
     let n = model.n_modes();
     let dim = model.state_dim() + 1;
     let (xh, vh, one) = (2 * n, 2 * n + 1, dim - 1);
@@ -266,22 +280,30 @@ pub fn augmented_matrix(model: &Model, contact: bool) -> Vec<Dd> {
             a[at(vb, col)] = a[at(vb, col)] - g.div_f64(mb);
         }
     }
-    if contact {
-        let k = Dd::from_f64(model.contact.stiffness_n_per_m);
-        let c = Dd::from_f64(model.contact.damping_n_s_per_m);
-        let m = model.hammer.mass_kg;
+    for (k, x) in model.extra.iter().enumerate() {
+        let j = model.hammer_index(k + 1);
+        a[at(j, j + 1)] = Dd::ONE;
+        a[at(j + 1, one)] = Dd::from_f64(-x.hammer.gravity_m_per_s2);
+    }
+    for cc in (0..model.n_contacts()).filter(|c| active & (1 << c) != 0) {
+        let law = model.contact_of(cc);
+        let k = Dd::from_f64(law.stiffness_n_per_m);
+        let c = Dd::from_f64(law.damping_n_s_per_m);
+        let m = model.hammer_of(cc).mass_kg;
+        let (xh, vh) = (model.hammer_index(cc), model.hammer_index(cc) + 1);
         // F = k p + c p' with p = sum w_j q_j - x_h: row of F in z
         let mut f = vec![Dd::ZERO; dim];
-        for (j, md) in model.modes.iter().enumerate() {
-            f[j] = k.mul_f64(md.weight);
-            f[n + j] = c.mul_f64(md.weight);
+        for j in 0..n {
+            f[j] = k.mul_f64(model.weight(cc, j));
+            f[n + j] = c.mul_f64(model.weight(cc, j));
         }
         f[xh] = -k;
         f[vh] = -c;
         // object: q_i'' += -w_i F; hammer: v_h' += F / m
-        for (i, md) in model.modes.iter().enumerate() {
+        for i in 0..n {
+            let w = model.weight(cc, i);
             for (col, fc) in f.iter().enumerate() {
-                a[at(n + i, col)] = a[at(n + i, col)] - fc.mul_f64(md.weight);
+                a[at(n + i, col)] = a[at(n + i, col)] - fc.mul_f64(w);
             }
         }
         for (col, fc) in f.iter().enumerate() {

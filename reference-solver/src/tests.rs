@@ -26,6 +26,7 @@ fn wall(m: f64, ratio: f64, zeta: f64) -> Model {
             damping_n_s_per_m: 2.0 * zeta * (k * m).sqrt(),
         },
         back: None,
+        extra: Vec::new(),
     }
 }
 
@@ -217,6 +218,7 @@ fn object(m_h: f64, x0: f64, v0: f64, g: f64, ratio: f64, zeta: f64) -> Model {
             damping_n_s_per_m: 2.0 * zeta * (k / inv_m).sqrt(),
         },
         back: None,
+        extra: Vec::new(),
     }
 }
 
@@ -665,4 +667,174 @@ fn back_mass_expm_matches_dop853() {
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// Several contacts: two hammers, each on its own object, the two objects'
+/// modes in one model (each mode weighs 0 at the other hammer's point). The
+/// contacts never interact, so the run must be the two single-contact runs
+/// side by side: hammer heights, contact points and contact instants of
+/// each within rounding of its own run, and the energy their sum.
+#[test]
+fn two_contacts_that_never_interact_are_two_runs() {
+    use crate::ExtraHammer;
+    // soft contacts (0.05x and 0.07x Nyquist, about 0.3 ms long) that
+    // start about together, so the two are in contact at once
+    let a = object(0.01, 2e-4, -1.0, 0.0, 0.05, 0.1);
+    let mut b = object(0.03, 1.5e-4, -0.7, 9.81, 0.07, 0.3);
+    for m in &mut b.modes {
+        m.freq_hz *= 1.37;
+        m.weight *= 0.8;
+    }
+    let (na, nb) = (a.modes.len(), b.modes.len());
+    let mut modes = a.modes.clone();
+    for m in &b.modes {
+        modes.push(Mode { weight: 0.0, ..*m });
+    }
+    let mut extra_weights = vec![0.0; na];
+    extra_weights.extend(b.modes.iter().map(|m| m.weight));
+    let both = Model {
+        modes,
+        hammer: a.hammer,
+        contact: a.contact,
+        back: None,
+        extra: vec![ExtraHammer {
+            hammer: b.hammer,
+            weights: extra_weights,
+            contact: b.contact,
+        }],
+    };
+    let n = 2205;
+    let (sa, sb, s2) = (
+        solve(&a, RATE, n),
+        solve(&b, RATE, n),
+        solve(&both, RATE, n),
+    );
+    let rel = |x: &[f64], y: &[f64]| rel_l2(x, y);
+    let col = |s: &Solution, f: &dyn Fn(&crate::Sample) -> f64| {
+        s.samples.iter().map(f).collect::<Vec<f64>>()
+    };
+    let errs = [
+        rel(&col(&s2, &|x| x.x_hammer), &col(&sa, &|x| x.x_hammer)),
+        rel(&col(&s2, &|x| x.x_contact), &col(&sa, &|x| x.x_contact)),
+        rel(&col(&s2, &|x| x.extra[0][0]), &col(&sb, &|x| x.x_hammer)),
+        rel(&col(&s2, &|x| x.extra[0][2]), &col(&sb, &|x| x.x_contact)),
+        rel(
+            &col(&s2, &|x| x.energy),
+            &sa.samples
+                .iter()
+                .zip(&sb.samples)
+                .map(|(x, y)| x.energy + y.energy)
+                .collect::<Vec<_>>(),
+        ),
+    ];
+    let of = |s: &Solution, c: usize| {
+        s.contacts
+            .iter()
+            .filter(|x| x.contact == c)
+            .copied()
+            .collect::<Vec<_>>()
+    };
+    let (ca, cb) = (of(&s2, 0), of(&s2, 1));
+    assert_eq!(ca.len(), sa.contacts.len());
+    assert_eq!(cb.len(), sb.contacts.len());
+    let mut dt: f64 = 0.0;
+    for (x, y) in ca
+        .iter()
+        .zip(&sa.contacts)
+        .chain(cb.iter().zip(&sb.contacts))
+    {
+        dt = dt.max((x.start_s - y.start_s).abs());
+        if let (Some(ex), Some(ey)) = (x.end_s, y.end_s) {
+            dt = dt.max((ex - ey).abs());
+        }
+    }
+    let both_at_once = s2.samples.iter().filter(|x| x.active == 3).count();
+    println!(
+        "two separate contacts ({na} + {nb} modes): traces {:.1e}, contacts {}+{}, instants {:.1e} samples, {both_at_once} samples with both in contact",
+        errs.iter().fold(0.0f64, |m, e| m.max(*e)),
+        ca.len(),
+        cb.len(),
+        dt * RATE
+    );
+    for e in errs {
+        assert!(e < 1e-10, "{errs:?}");
+    }
+    assert!(dt * RATE < 1e-8, "instants {dt:e} s");
+    assert!(!ca.is_empty() && !cb.is_empty() && both_at_once > 0);
+}
+
+/// Two hammers on one undamped object, struck elastically so that their
+/// contacts overlap: the energy (object, both hammers, both springs) is
+/// kept to rounding through every switch of either contact, and two equal
+/// hammers struck symmetrically on a one-mode object (equal weights) move
+/// alike.
+#[test]
+fn two_hammers_on_one_object_keep_the_energy() {
+    use crate::ExtraHammer;
+    // soft contacts (0.08x Nyquist) arriving 0.1 and 0.16 ms after the start
+    let mut model = object(0.02, 1e-4, -1.0, 0.0, 0.08, 0.0);
+    for m in &mut model.modes {
+        m.t60_s = None;
+    }
+    let weights: Vec<f64> = model.modes.iter().map(|m| -0.6 * m.weight + 0.3).collect();
+    model.extra.push(ExtraHammer {
+        hammer: Hammer {
+            mass_kg: 0.015,
+            height_m: 1.3e-4,
+            velocity_m_per_s: -0.8,
+            gravity_m_per_s2: 0.0,
+        },
+        weights,
+        contact: model.contact,
+    });
+    let sol = solve(&model, RATE, 2205);
+    let e0 = sol.samples[0].energy;
+    let drift = sol
+        .samples
+        .iter()
+        .map(|s| (s.energy - e0).abs() / e0)
+        .fold(0.0, f64::max);
+    let overlap = sol.samples.iter().filter(|s| s.active == 3).count();
+    let per = |c: usize| sol.contacts.iter().filter(|x| x.contact == c).count();
+    println!(
+        "two hammers on one lossless object: contacts {} + {}, {overlap} samples both in contact, max |E/E0 - 1| = {drift:.1e}",
+        per(0),
+        per(1)
+    );
+    assert!(per(0) > 0 && per(1) > 0 && overlap > 0);
+    assert!(drift < 1e-10, "energy drift {drift:e}");
+
+    // symmetric: one mode, both hammers alike on equal weights
+    let one = Mode {
+        freq_hz: 311.0,
+        t60_s: None,
+        weight: 2.0,
+    };
+    let mut sym = object(0.01, 1e-4, -1.0, 0.0, 0.3, 0.2);
+    sym.modes = vec![one];
+    sym.extra.push(ExtraHammer {
+        hammer: sym.hammer,
+        weights: vec![2.0],
+        contact: sym.contact,
+    });
+    let s = solve(&sym, RATE, 1000);
+    let diff = s
+        .samples
+        .iter()
+        .map(|x| (x.x_hammer - x.extra[0][0]).abs())
+        .fold(0.0, f64::max);
+    let scale = s
+        .samples
+        .iter()
+        .map(|x| x.x_hammer.abs())
+        .fold(0.0, f64::max);
+    println!(
+        "symmetric hammers: max height difference {:.1e} of {scale:.1e} m",
+        diff
+    );
+    assert!(diff <= 1e-12 * scale, "{diff:e}");
+    assert!(
+        s.contacts.iter().filter(|x| x.contact == 0).count()
+            == s.contacts.iter().filter(|x| x.contact == 1).count()
+    );
 }
