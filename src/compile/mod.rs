@@ -537,6 +537,12 @@ pub fn compile_opts(
         uncoupled,
         dropped_modes: &dropped_modes,
         dropped_pickups: &rows.dropped_pickups,
+        mallet: original.hammer.object.as_deref().and_then(|m| {
+            match scene.object_index(m).map(|mi| &scene.object[mi]) {
+                Some(ObjectSpec::Modal(mm)) => Some((m, mm.mode.len())),
+                _ => None,
+            }
+        }),
     });
     summary.push_str(&summary::rest_line(rest.as_ref(), h));
     let [w_cf_h, w_fc_h] = basis::structured(&free, &contact, &basis);

@@ -25,18 +25,30 @@ pub(super) struct Facts<'a> {
     pub uncoupled: usize,
     pub dropped_modes: &'a [String],
     pub dropped_pickups: &'a [String],
+    /// A modal mallet's name and how many modes of it joined the struck
+    /// object's (docs/design.md, "Modal mallets").
+    pub mallet: Option<(&'a str, usize)>,
 }
 
 fn phase_line(what: &str, ph: &CompiledPhase) -> String {
     let d = &ph.diag;
+    // the diagnostics mark a check that was not made with NaN (a closed
+    // form's exact 2x2 exponentials are not compared with a dense one)
+    let checked = |x: f64| {
+        if x.is_nan() {
+            "not computed".to_string()
+        } else {
+            format!("{x:.1e}")
+        }
+    };
     format!(
-        "{what} phase: dim {}, {}, residual {:.1e}, kappa(V) {}{:.2}, |V exp(Gh) V^-1 - exp(Ah)| {:.1e}, sigma_max(P) - 1 {} {:.1e}{}{}",
+        "{what} phase: dim {}, {}, residual {}, kappa(V) {}{:.2}, |V exp(Gh) V^-1 - exp(Ah)| {}, sigma_max(P) - 1 {} {:.1e}{}{}",
         d.dim,
         d.method,
-        d.residual,
+        checked(d.residual),
         if d.estimated { ">= " } else { "" },
         d.kappa,
-        d.expm_rel_diff,
+        checked(d.expm_rel_diff),
         if d.estimated { ">=" } else { "=" },
         d.sigma_max - 1.0,
         if d.estimated {
@@ -90,9 +102,12 @@ pub(super) fn write(f: &Facts) -> (String, f64) {
         f.rate_hz,
         f.switching.as_str()
     );
+    let mallet = f.mallet.map_or(String::new(), |(name, k)| {
+        format!(", a modal mallet ({name:?}: its {k} modes joined to the struck object's)")
+    });
     let _ = writeln!(
         s,
-        "struck object {:?} ({}, {} degrees of freedom); hammer {} kg, g = {} m/s^2",
+        "struck object {:?} ({}, {} degrees of freedom); hammer {} kg{mallet}, g = {} m/s^2",
         f.object_name, f.kind, f.n, p.m_h, p.g
     );
     let _ = writeln!(s, "{}", phase_line("free", f.free));
