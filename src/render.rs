@@ -364,46 +364,93 @@ impl<A: TraceSink, B: TraceSink> TraceSink for (A, B) {
     }
 }
 
-/// Rows per chunk a [`CsvTrace`] hands to its writer thread.
+/// Rows per chunk a [`CsvTrace`] hands to its formatting threads.
 const CSV_CHUNK_ROWS: usize = 4096;
-/// Chunks in flight between the render and the writer thread (memory
-/// stays O(chunk) for any length).
+/// Chunks waiting for a formatting thread (memory stays O(chunk) for any
+/// length: at most this many, plus one per formatting thread, plus as many
+/// formatted ones waiting for their turn to be written).
 const CSV_CHUNKS_IN_FLIGHT: usize = 4;
+/// Most formatting threads of one [`CsvTrace`].
+const CSV_MAX_FORMATTERS: usize = 4;
+
+/// A chunk of rows and its place in the file.
+type Chunk = (u64, Vec<TraceRow>);
 
 /// Writes the trace CSV as it goes (docs/design.md, "The render command and
-/// the trace CSV"): the render hands rows in chunks of
-/// `CSV_CHUNK_ROWS` (4096) to a writer thread that formats and writes them, so
-/// the text (the CSV's largest cost) runs beside the engine on another
-/// core; O(1) memory for any length, the bytes those of writing the rows
-/// in order on one thread.
+/// the trace CSV"): the render hands rows in chunks of `CSV_CHUNK_ROWS`
+/// (4096) to formatting threads (one per core, at most
+/// `CSV_MAX_FORMATTERS`), which turn them into text side by side, and a
+/// writer thread writes the texts in the chunks' order. The text is the
+/// CSV's largest cost, so it runs beside the engine on every core; O(1)
+/// memory for any length, the bytes those of writing the rows in order on
+/// one thread.
 pub struct CsvTrace<W: Write + Send + 'static> {
     rate_hz: f64,
     rows: Vec<TraceRow>,
-    to_writer: Option<crossbeam::channel::Sender<Vec<TraceRow>>>,
+    seq: u64,
+    to_format: Option<crossbeam::channel::Sender<Chunk>>,
     spare: crossbeam::channel::Receiver<Vec<TraceRow>>,
+    formatters: Vec<std::thread::JoinHandle<()>>,
     writer: Option<std::thread::JoinHandle<std::io::Result<W>>>,
 }
 
 impl<W: Write + Send + 'static> CsvTrace<W> {
-    /// Write the header to `out` and return the sink (its writer thread
-    /// started).
-    pub fn new(rate_hz: f64, mut out: W) -> std::io::Result<Self> {
+    /// Write the header to `out` and return the sink (its threads started:
+    /// one formatting thread per core, at most `CSV_MAX_FORMATTERS`).
+    pub fn new(rate_hz: f64, out: W) -> std::io::Result<Self> {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        Self::with_formatters(rate_hz, out, cores.min(CSV_MAX_FORMATTERS))
+    }
+
+    /// [`new`](Self::new) with `formatters` formatting threads (at least 1).
+    pub fn with_formatters(rate_hz: f64, mut out: W, formatters: usize) -> std::io::Result<Self> {
+        use crossbeam::channel::bounded;
         writeln!(out, "{TRACE_HEADER}")?;
-        let (to_writer, chunks) =
-            crossbeam::channel::bounded::<Vec<TraceRow>>(CSV_CHUNKS_IN_FLIGHT);
-        let (give_back, spare) = crossbeam::channel::bounded(CSV_CHUNKS_IN_FLIGHT + 1);
+        let formatters = formatters.max(1);
+        let (to_format, chunks) = bounded::<Chunk>(CSV_CHUNKS_IN_FLIGHT);
+        let (to_writer, texts) = bounded::<(u64, Vec<u8>)>(CSV_CHUNKS_IN_FLIGHT);
+        let (give_rows, spare) = bounded(CSV_CHUNKS_IN_FLIGHT + formatters + 1);
+        let (give_text, spare_text) = bounded::<Vec<u8>>(2 * CSV_CHUNKS_IN_FLIGHT + formatters + 1);
+        let mut threads = Vec::with_capacity(formatters);
+        for k in 0..formatters {
+            let (chunks, to_writer) = (chunks.clone(), to_writer.clone());
+            let (give_rows, spare_text) = (give_rows.clone(), spare_text.clone());
+            threads.push(
+                std::thread::Builder::new()
+                    .name(format!("trace-csv-format-{k}"))
+                    .spawn(move || {
+                        for (seq, mut rows) in chunks {
+                            let mut text = spare_text
+                                .try_recv()
+                                .unwrap_or_else(|_| Vec::with_capacity(CSV_CHUNK_ROWS * 160));
+                            text.clear();
+                            for r in &rows {
+                                push_row(&mut text, r);
+                            }
+                            rows.clear();
+                            let _ = give_rows.try_send(rows);
+                            if to_writer.send((seq, text)).is_err() {
+                                // the writer stopped (a failed write)
+                                return;
+                            }
+                        }
+                    })?,
+            );
+        }
+        drop((to_writer, chunks, give_rows, spare_text));
         let writer = std::thread::Builder::new()
-            .name("trace-csv".into())
+            .name("trace-csv-write".into())
             .spawn(move || {
-                let mut buf = Vec::with_capacity(CSV_CHUNK_ROWS * 160);
-                for mut rows in chunks {
-                    buf.clear();
-                    for r in &rows {
-                        push_row(&mut buf, r);
+                // texts arrive in any order: write each at its turn
+                let mut waiting = std::collections::BTreeMap::new();
+                let mut next = 0u64;
+                for (seq, text) in texts {
+                    waiting.insert(seq, text);
+                    while let Some(text) = waiting.remove(&next) {
+                        out.write_all(&text)?;
+                        let _ = give_text.try_send(text);
+                        next += 1;
                     }
-                    out.write_all(&buf)?;
-                    rows.clear();
-                    let _ = give_back.try_send(rows);
                 }
                 out.flush()?;
                 Ok(out)
@@ -411,14 +458,17 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
         Ok(Self {
             rate_hz,
             rows: Vec::with_capacity(CSV_CHUNK_ROWS),
-            to_writer: Some(to_writer),
+            seq: 0,
+            to_format: Some(to_format),
             spare,
+            formatters: threads,
             writer: Some(writer),
         })
     }
 
-    /// Hand the rows so far to the writer; an error if it has stopped (a
-    /// failed write: [`finish`](Self::finish) returns it).
+    /// Hand the rows so far to the formatting threads; an error if the
+    /// writer has stopped (a failed write: [`finish`](Self::finish) returns
+    /// it).
     fn send(&mut self) -> std::io::Result<()> {
         let fresh = self
             .spare
@@ -426,14 +476,36 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
             .unwrap_or_else(|_| Vec::with_capacity(CSV_CHUNK_ROWS));
         let rows = std::mem::replace(&mut self.rows, fresh);
         let stopped = || std::io::Error::other("the trace writer stopped");
-        self.to_writer
+        self.to_format
             .as_ref()
             .ok_or_else(stopped)?
-            .send(rows)
-            .map_err(|_| stopped())
+            .send((self.seq, rows))
+            .map_err(|_| stopped())?;
+        self.seq += 1;
+        Ok(())
     }
 
-    /// Write the remaining rows, wait for the writer, flush and hand back
+    /// Stop the threads and wait for them: the writer's result, or an error
+    /// if a thread panicked.
+    fn join(&mut self) -> std::io::Result<W> {
+        self.to_format = None;
+        let mut panicked = false;
+        for t in self.formatters.drain(..) {
+            panicked |= t.join().is_err();
+        }
+        let written = self
+            .writer
+            .take()
+            .expect("joined once")
+            .join()
+            .map_err(|_| std::io::Error::other("the trace writer panicked"))?;
+        if panicked {
+            return Err(std::io::Error::other("a trace formatting thread panicked"));
+        }
+        written
+    }
+
+    /// Write the remaining rows, wait for the threads, flush and hand back
     /// the writer (or the first write error).
     pub fn finish(mut self) -> std::io::Result<W> {
         let sent = if self.rows.is_empty() {
@@ -441,14 +513,7 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
         } else {
             self.send()
         };
-        self.to_writer = None;
-        let written = self
-            .writer
-            .take()
-            .expect("joined once")
-            .join()
-            .map_err(|_| std::io::Error::other("the trace writer panicked"))?;
-        let out = written?;
+        let out = self.join()?;
         sent.map(|_| out)
     }
 }
@@ -456,10 +521,9 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
 impl<W: Write + Send + 'static> Drop for CsvTrace<W> {
     fn drop(&mut self) {
         // a sink dropped without `finish` (an error elsewhere): stop the
-        // writer and wait for it, so no thread outlives the render
-        self.to_writer = None;
-        if let Some(w) = self.writer.take() {
-            let _ = w.join();
+        // threads and wait for them, so none outlives the render
+        if self.writer.is_some() {
+            let _ = self.join();
         }
     }
 }
@@ -603,86 +667,84 @@ fn write_row<W: Write>(w: &mut W, r: &TraceRow) -> std::io::Result<()> {
 /// Append one CSV row to `buf`, byte for byte what `{:e}` writes.
 fn push_row(buf: &mut Vec<u8>, r: &TraceRow) {
     let o = &r.obs;
-    let mut ryu = ryu::Buffer::new();
+    let mut fmt = zmij::Buffer::new();
     for x in [r.t, o.x_hammer, o.v_hammer, o.x_contact, o.v_contact] {
-        push_e(buf, &mut ryu, x);
+        push_e(buf, &mut fmt, x);
         buf.push(b',');
     }
     buf.push(if o.in_contact { b'1' } else { b'0' });
     buf.push(b',');
-    push_e(buf, &mut ryu, o.energy);
+    push_e(buf, &mut fmt, o.energy);
     buf.push(b'\n');
 }
 
 /// Append `x` as `format!("{x:e}")` would: the shortest digits that read
-/// back to `x`, as `d.ddde-x`. ryu finds them several times faster than
-/// core; the two differ only on an exact tie between two shortest
-/// candidates (ryu rounds it to even, core up), which needs a short exact
-/// decimal expansion (at most 18 digits): such numbers go to core.
-/// Tested byte for byte on random numbers of every magnitude.
-pub fn push_e(buf: &mut Vec<u8>, ryu: &mut ryu::Buffer, x: f64) {
-    if x.is_finite() && x != 0.0 && short_decimal_expansion(x) {
-        buf.extend_from_slice(format!("{x:e}").as_bytes());
-        return;
-    }
-    if !x.is_finite() {
-        buf.extend_from_slice(if x.is_nan() {
-            b"NaN"
-        } else if x > 0.0 {
-            b"inf"
+/// back to `x`, as `d.ddde-x`. zmij (Schubfach) finds them several times
+/// faster than core; the two could differ only on an exact tie between two
+/// shortest candidates (core rounds it up), which needs a short exact
+/// decimal expansion (at most 18 digits): such numbers go to core. zmij
+/// writes exponents of 16 and more and below -5 exactly as `{:e}` does;
+/// between, it writes a decimal fraction (`0.00036`, `123.5`), moved here
+/// into `d.ddde-x` by copying slices. Tested byte for byte on random
+/// numbers of every magnitude.
+pub fn push_e(buf: &mut Vec<u8>, fmt: &mut zmij::Buffer, x: f64) {
+    if x == 0.0 {
+        buf.extend_from_slice(if x.is_sign_negative() {
+            b"-0e0"
         } else {
-            b"-inf"
+            b"0e0"
         });
         return;
     }
-    if x.is_sign_negative() {
-        buf.push(b'-');
-    }
-    if x == 0.0 {
-        buf.extend_from_slice(b"0e0");
+    if !x.is_finite() || short_decimal_expansion(x) {
+        buf.extend_from_slice(format!("{x:e}").as_bytes());
         return;
     }
-    let s = ryu.format_finite(x.abs()).as_bytes();
-    let (mant, exp) = match s.iter().position(|&c| c == b'e') {
-        Some(e) => (&s[..e], parse_exp(&s[e + 1..])),
-        None => (s, 0),
-    };
-    let int_len = mant.iter().position(|&c| c == b'.').unwrap_or(mant.len()) as i32;
-    let mut digits = [0u8; 32];
-    let mut n = 0;
-    for &c in mant.iter().filter(|&&c| c != b'.') {
-        digits[n] = c;
-        n += 1;
+    let s = fmt.format_finite(x).as_bytes();
+    let (sign, s) = s.split_at(usize::from(s[0] == b'-'));
+    buf.extend_from_slice(sign);
+    if s[s.len().saturating_sub(5)..].contains(&b'e') {
+        // `d.ddde-x` or `de-x` already
+        buf.extend_from_slice(s);
+        return;
     }
-    let mut first = 0;
-    while first < n && digits[first] == b'0' {
-        first += 1;
-    }
-    while n > first && digits[n - 1] == b'0' {
-        n -= 1;
-    }
-    let exp10 = exp + int_len - 1 - first as i32;
-    buf.push(digits[first]);
-    if n - first > 1 {
-        buf.push(b'.');
-        buf.extend_from_slice(&digits[first + 1..n]);
-    }
-    buf.push(b'e');
-    let mut itoa = [0u8; 8];
-    let mut k = itoa.len();
-    let mut e = exp10.unsigned_abs();
-    loop {
-        k -= 1;
-        itoa[k] = b'0' + (e % 10) as u8;
-        e /= 10;
-        if e == 0 {
-            break;
+    // a decimal fraction `int.frac`; zmij always writes the point
+    let dot = s.iter().position(|&c| c == b'.').unwrap_or(s.len());
+    let (int, frac) = (&s[..dot], s.get(dot + 1..).unwrap_or(&[]));
+    let frac = &frac[..frac.len() - frac.iter().rev().take_while(|&&c| c == b'0').count()];
+    let exp10 = if int != b"0" {
+        // `123.45` -> `1.2345e2`, `120.0` -> `1.2e2`
+        let int_kept = if frac.is_empty() {
+            int.len() - int.iter().rev().take_while(|&&c| c == b'0').count()
+        } else {
+            int.len()
+        };
+        buf.push(int[0]);
+        if int_kept > 1 || !frac.is_empty() {
+            buf.push(b'.');
+            buf.extend_from_slice(&int[1..int_kept]);
+            buf.extend_from_slice(frac);
         }
-    }
+        int.len() as i32 - 1
+    } else {
+        // `0.00036` -> `3.6e-4`
+        let zeros = frac.iter().take_while(|&&c| c == b'0').count();
+        buf.push(frac[zeros]);
+        if frac.len() > zeros + 1 {
+            buf.push(b'.');
+            buf.extend_from_slice(&frac[zeros + 1..]);
+        }
+        -(zeros as i32) - 1
+    };
+    buf.push(b'e');
     if exp10 < 0 {
         buf.push(b'-');
     }
-    buf.extend_from_slice(&itoa[k..]);
+    let e = exp10.unsigned_abs();
+    if e >= 10 {
+        buf.push(b'0' + (e / 10 % 10) as u8);
+    }
+    buf.push(b'0' + (e % 10) as u8);
 }
 
 /// Whether the exact decimal expansion of `x` (finite, nonzero) may have
@@ -702,22 +764,13 @@ fn short_decimal_expansion(x: f64) -> bool {
         // an integer: below 1e15 its shortest digits are exact (no tie)
         return x.abs() >= 1e15;
     }
+    if e2 < -27 {
+        // 5^28 > 1e19: more than 19 digits whatever m (most numbers end here)
+        return false;
+    }
     // x = m 5^-e2 / 10^-e2: digits of m 5^-e2, over-estimated
     let sig_bits = f64::from(64 - m.leading_zeros());
     sig_bits * std::f64::consts::LOG10_2 + f64::from(-e2) * 5f64.log10() <= 19.0
-}
-
-fn parse_exp(s: &[u8]) -> i32 {
-    let (neg, d) = match s.first() {
-        Some(b'-') => (true, &s[1..]),
-        _ => (false, s),
-    };
-    let v = d.iter().fold(0i32, |a, &c| a * 10 + i32::from(c - b'0'));
-    if neg {
-        -v
-    } else {
-        v
-    }
 }
 
 #[cfg(test)]
@@ -727,7 +780,7 @@ mod tests {
 
     fn e(x: f64) -> String {
         let mut buf = Vec::new();
-        push_e(&mut buf, &mut ryu::Buffer::new(), x);
+        push_e(&mut buf, &mut zmij::Buffer::new(), x);
         String::from_utf8(buf).unwrap()
     }
 
@@ -754,8 +807,21 @@ mod tests {
             f64::INFINITY,
             f64::NEG_INFINITY,
             2.2675736961451248e-5,
+            120.0,
+            1234567.0,
+            -0.25,
+            9.999e-6,
+            1e-5,
+            1e-4,
+            1e15,
+            1e16,
+            2e-320,
         ];
         cases.extend((-320..=308).map(|k| 10f64.powi(k)));
+        // sample times, and numbers with short expansions (ties go to core)
+        cases.extend((0..100_000).map(|i| f64::from(i) / 44100.0));
+        cases.extend((0..100_000).map(|i| f64::from(i) / 48000.0));
+        cases.extend((1..20_000).map(|i| f64::from(i) / 1024.0 - 7.0));
         let mut rng = TestRng(7);
         for _ in 0..300_000 {
             cases.push(f64::from_bits(rng.next_u64()));
@@ -989,6 +1055,45 @@ mod tests {
             assert_eq!(b.energy_end, span.last().unwrap().obs.energy);
         }
         assert!(env.buckets.iter().any(|b| b.in_contact));
+    }
+
+    /// The CSV written by several formatting threads (chunks formatted side
+    /// by side, written in order) is byte for byte the one written on one
+    /// thread, for 1, 2 and 5 threads and lengths around the chunk size.
+    #[test]
+    fn csv_from_several_formatting_threads_is_the_one_thread_csv() {
+        let mut rng = TestRng(11);
+        let rows: Vec<TraceRow> = (0..7 * CSV_CHUNK_ROWS + 5)
+            .map(|i| TraceRow {
+                t: i as f64 / 48000.0,
+                obs: Observation {
+                    x_hammer: rng.uniform(-1e-3, 1e-3),
+                    v_hammer: rng.uniform(-2.0, 2.0),
+                    x_contact: rng.uniform(-1e-5, 1e-5),
+                    v_contact: rng.uniform(-1e-2, 1e-2),
+                    in_contact: rng.uniform(0.0, 1.0) < 0.1,
+                    energy: rng.uniform(0.0, 1e-2),
+                },
+            })
+            .collect();
+        for n in [0, 1, CSV_CHUNK_ROWS, CSV_CHUNK_ROWS + 1, rows.len()] {
+            let mut want = Vec::new();
+            write_trace_csv(&rows[..n], &mut want).unwrap();
+            for threads in [1, 2, 5] {
+                let mut csv = CsvTrace::with_formatters(48000.0, Vec::new(), threads).unwrap();
+                for (i, r) in rows[..n].iter().enumerate() {
+                    let m = Motion {
+                        x_hammer: r.obs.x_hammer,
+                        v_hammer: r.obs.v_hammer,
+                        x_contact: r.obs.x_contact,
+                        v_contact: r.obs.v_contact,
+                        in_contact: r.obs.in_contact,
+                    };
+                    csv.record(i, &m, Some(r.obs.energy)).unwrap();
+                }
+                assert!(csv.finish().unwrap() == want, "{n} rows, {threads} threads");
+            }
+        }
     }
 
     /// The plot's envelope on the block path with the motion equals the one

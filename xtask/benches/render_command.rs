@@ -6,7 +6,9 @@
 //!
 //! `cargo bench -p xtask --bench render_command` prints criterion's
 //! timings and, at the end, the ratios measured in one run with the
-//! variants interleaved (A B C D A B C D ...), median of the repetitions.
+//! variants interleaved (A B C D A B C D ...), median of the repetitions:
+//! per sample (the slope between two lengths) and the fixed cost of one
+//! render beside it (`-- summary` prints only those).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use modal_contact::compile::{compile, CompiledScene};
@@ -132,37 +134,66 @@ fn command(c: &mut Criterion) {
     g.finish();
 }
 
-/// Ratios to the engine, the variants interleaved, median of 7 rounds.
+/// Per-sample ratios to the engine and each variant's fixed cost per
+/// render, the variants interleaved, median of 7 rounds. Each variant runs
+/// at two lengths, `L` and `3 L`: its cost per sample is the difference of
+/// the two times over `2 L` samples (what one more sample costs, whatever
+/// the render's length), its fixed cost what is left of the `L` render
+/// (creating the files, starting the trace threads, drawing the plot's
+/// 1024 buckets).
 fn summary(_: &mut Criterion) {
     let dir = scratch();
     println!(
-        "\nrender command per sample, ratio to the engine alone (median of 7 interleaved rounds):"
+        "\nrender command per sample (marginal: lengths L and 3 L), ratio to the engine alone, median of 7 interleaved rounds:"
     );
-    println!("| modes | engine ns/sample | WAV only | WAV + plot | WAV + trace CSV + plot | engine x real time |");
-    println!("|---|---|---|---|---|---|");
+    println!("| modes | engine ns/sample | WAV only | WAV + plot | WAV + trace CSV + plot | engine x real time | fixed ms per render (WAV / plot / CSV + plot) |");
+    println!("|---|---|---|---|---|---|---|");
     for n_modes in [10, 100, 1000] {
         let sc = compile(&struck(n_modes), RATE).expect("compile");
         let n = samples(n_modes);
-        let mut times = [[0.0f64; 7]; 4];
+        // [variant][round] of (time at L, time at 3 L)
+        let mut short = [[0.0f64; 7]; 4];
+        let mut slope = [[0.0f64; 7]; 4];
         for round in 0..7 {
             for (k, v) in VARIANTS.iter().enumerate() {
                 let t0 = Instant::now();
                 run(*v, &sc, n, &dir);
-                times[k][round] = t0.elapsed().as_secs_f64();
+                let t1 = t0.elapsed().as_secs_f64();
+                let t0 = Instant::now();
+                run(*v, &sc, 3 * n, &dir);
+                let t3 = t0.elapsed().as_secs_f64();
+                short[k][round] = t1;
+                slope[k][round] = (t3 - t1) / (2 * n) as f64;
             }
         }
-        let med = |xs: &mut [f64; 7]| {
+        let med = |xs: &[f64; 7]| {
+            let mut xs = *xs;
             xs.sort_by(f64::total_cmp);
             xs[3]
         };
-        let m: Vec<f64> = times.iter_mut().map(med).collect();
-        let per = m[0] / n as f64 * 1e9;
+        let per: Vec<f64> = slope.iter().map(med).collect();
+        // what is left of the L render beyond its per-sample cost, beyond
+        // the engine's own (a few allocations)
+        let intercept = |k: usize| {
+            let mut f = [0.0; 7];
+            for (r, fr) in f.iter_mut().enumerate() {
+                *fr = short[k][r] - slope[k][r] * n as f64;
+            }
+            med(&f)
+        };
+        let fixed: Vec<f64> = (0..4)
+            .map(|k| (intercept(k) - intercept(0)) * 1e3)
+            .collect();
         println!(
-            "| {n_modes} | {per:.1} | {:.2}x | {:.2}x | {:.2}x | {:.0}x |",
-            m[1] / m[0],
-            m[2] / m[0],
-            m[3] / m[0],
-            (n as f64 / RATE) / m[0]
+            "| {n_modes} | {:.1} | {:.2}x | {:.2}x | {:.2}x | {:.0}x | {:.1} / {:.1} / {:.1} |",
+            per[0] * 1e9,
+            per[1] / per[0],
+            per[2] / per[0],
+            per[3] / per[0],
+            1.0 / (RATE * per[0]),
+            fixed[1],
+            fixed[2],
+            fixed[3],
         );
     }
     let _ = std::fs::remove_dir_all(&dir);
