@@ -275,6 +275,15 @@ pub enum HostEvent {
         /// Pressure.
         value: f64,
     },
+    /// A CLAP "brightness" note expression for `key` on channel 1 (0 .. 1).
+    Brightness {
+        /// Sample position.
+        at: usize,
+        /// MIDI key.
+        key: u8,
+        /// Brightness.
+        value: f64,
+    },
     /// Parameter value (CLAP value: normalised for continuous parameters,
     /// step index for enums and bools).
     Param {
@@ -296,6 +305,7 @@ impl HostEvent {
             | HostEvent::Midi { at, .. }
             | HostEvent::Tuning { at, .. }
             | HostEvent::Pressure { at, .. }
+            | HostEvent::Brightness { at, .. }
             | HostEvent::Param { at, .. } => at,
         }
     }
@@ -335,6 +345,11 @@ pub fn note_tuning(at: usize, key: u8, semitones: f64) -> HostEvent {
 /// A per-note pressure (CLAP note expression) for `key`.
 pub fn note_pressure(at: usize, key: u8, value: f64) -> HostEvent {
     HostEvent::Pressure { at, key, value }
+}
+
+/// A per-note brightness (CLAP note expression) for `key`.
+pub fn note_brightness(at: usize, key: u8, value: f64) -> HostEvent {
+    HostEvent::Brightness { at, key, value }
 }
 
 /// A parameter event by string id (CLAP value, see [`HostEvent::Param`]).
@@ -644,6 +659,14 @@ impl Session<'_> {
                         value,
                     ))
                 }
+                HostEvent::Brightness { key, value, .. } => {
+                    self.in_events.push(&NoteExpressionEvent::new(
+                        t,
+                        Pckn::new(0u16, 0u16, key as u16, Match::All),
+                        NoteExpressionType::Brightness,
+                        value,
+                    ))
+                }
                 HostEvent::Param { id, value, .. } => self.in_events.push(&ParamValueEvent::new(
                     t,
                     ClapId::new(id),
@@ -793,6 +816,13 @@ pub fn library_render_prepared(
             HostEvent::Pressure { at, key, value } => Some(LibEvent {
                 offset: at,
                 event: Event::NotePressure {
+                    key: Some(key),
+                    value: f64::from(value as f32),
+                },
+            }),
+            HostEvent::Brightness { at, key, value } => Some(LibEvent {
+                offset: at,
+                event: Event::NoteBrightness {
                     key: Some(key),
                     value: f64::from(value as f32),
                 },

@@ -487,6 +487,48 @@ fn pedals_through_the_host_match_the_library() {
     );
 }
 
+/// Brightness through a real host: a CLAP "brightness" note expression at
+/// one note's onset and, after the MPE configuration message, a member
+/// channel's timbre (CC 74) before its note and during another: the
+/// plugin's render equals the library's with the brightness those messages
+/// mean, and a bright note is brighter than the same note without.
+#[test]
+fn brightness_and_mpe_timbre_through_the_host_match_the_library() {
+    let rate = 48_000.0;
+    let total = 12_000;
+    let midi = |at: usize, data: [u8; 3]| HostEvent::Midi { at, data };
+    let notes = vec![on(100, 60, 0.8)];
+    let mut events = notes.clone();
+    events.push(plugin_tests::note_brightness(100, 60, 1.0));
+    let plugin = plugin_equals_library("brightness", rate, total, events.clone(), &events);
+    let plain = library_render(&InstrumentParams::default(), rate, total, &notes);
+    let high = |x: &[f32]| {
+        let d: f64 = x.windows(2).map(|w| f64::from(w[1] - w[0]).powi(2)).sum();
+        d / x.iter().map(|&v| f64::from(v).powi(2)).sum::<f64>()
+    };
+    let (b, p) = (high(&plugin[0][..3_000]), high(&plain[0][..3_000]));
+    println!("high-frequency share, bright vs plain: {b:.3e} vs {p:.3e}");
+    assert!(b > 1.2 * p, "{b} vs {p}");
+
+    // MPE: channel 2's timbre before its note, channel 3's during its note
+    let mpe = vec![
+        midi(0, [0xB0, 101, 0]),
+        midi(0, [0xB0, 100, 6]),
+        midi(0, [0xB0, 6, 15]),
+        midi(50, [0xB1, 74, 127]),
+        midi(100, [0x91, 60, 100]),
+        midi(200, [0x92, 64, 90]),
+        midi(5_000, [0xB2, 74, 0]),
+    ];
+    let meant = vec![
+        on(100, 60, 100.0 / 127.0),
+        plugin_tests::note_brightness(100, 60, 1.0),
+        on(200, 64, 90.0 / 127.0),
+        plugin_tests::note_brightness(5_000, 64, 0.0),
+    ];
+    plugin_equals_library("MPE timbre", rate, total, mpe, &meant);
+}
+
 /// Pressure through a real host: a CLAP "pressure" note expression on one
 /// note, channel aftertouch and the mod wheel (MIDI 1.0), and, after the
 /// MPE configuration message, a member channel's pressure on that

@@ -5,6 +5,8 @@
 //! `assert_process_allocs`: any allocation inside `process` aborts the host
 //! process. A stress render (many note-ons, voice stealing, releases on the
 //! damped scene, pressure (note expressions, aftertouch, mod wheel, MPE),
+//! brightness (note expressions, MPE timbre: voices moved between hardness
+//! levels),
 //! parameter swaps including a preset change with its fade-out,
 //! a switching change and a strike-position change, and bad input: all 128
 //! keys at velocity 127 in one block at 64 voices, then a note on every
@@ -99,8 +101,18 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
         events.push(midi(at, [0x90 | ch, 30 + ch, 100]));
         events.push(midi(at, [0x90 | ch, 80 + ch, 90]));
         events.push(midi(24_300, [0xE0 | ch, 0, (ch * 8) & 0x7f]));
-        // and its pressure, pressing every note of the channel
+        // and its pressure, pressing every note of the channel, and its
+        // timbre, moving them to another hardness level
         events.push(midi(24_400, [0xD0 | ch, 8 * ch, 0]));
+        events.push(midi(24_450, [0xB0 | ch, 74, (ch * 9) & 0x7f]));
+    }
+    // brightness: per note (CLAP note expressions), at the onset (a new
+    // level for the strike), during contacts and while ringing, NaN-free
+    // extremes
+    for (k, key) in [57u8, 60, 64, 67].into_iter().enumerate() {
+        events.push(plugin_tests::note_brightness(20_000 + 100 * k, key, 1.0));
+        events.push(plugin_tests::note_brightness(20_003 + 100 * k, key, 0.0));
+        events.push(plugin_tests::note_brightness(22_800 + 100 * k, key, 0.6));
     }
     // pressure: per note (CLAP note expressions, polyphonic aftertouch),
     // channel aftertouch and the mod wheel, up and back to 0

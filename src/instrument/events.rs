@@ -67,6 +67,21 @@ pub enum Event {
         /// Pressure, 0 .. 1.
         value: f64,
     },
+    /// Brightness of a note, 0 .. 1 (the CLAP and VST3 "brightness" note
+    /// expression, an MPE member channel's timbre, CC 74): the hardness of
+    /// that note's strikes, in five levels around the Hardness parameter
+    /// (0.5 is the parameter's own; 0 a quarter of its contact stiffness, 1
+    /// four times it; docs/plugin.md, "Brightness"). It applies to the
+    /// note's next contact: at once when its hammer is not touching the
+    /// object (a brightness at the note's onset shapes its first strike),
+    /// else after that contact. `key: None`: every voice. Out of range is
+    /// clamped, not a number is 0.5; a new note on the key starts at 0.5.
+    NoteBrightness {
+        /// MIDI key, or `None` for every voice.
+        key: Option<u8>,
+        /// Brightness, 0 .. 1.
+        value: f64,
+    },
     /// Channel aftertouch, 0 .. 1: the same damper on every voice (a voice
     /// takes the largest of its note's pressure, this and the mod wheel).
     ChannelPressure {

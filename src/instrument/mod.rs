@@ -43,6 +43,14 @@
 //!   decay times are divided by `1 + 50 * damper` ([`damped_scene`]). A new
 //!   note on the same key carries it back. Damper 0 means no damping on
 //!   release (the bar rings on, as a struck bar does).
+//! - **Brightness** ([`Event::NoteBrightness`]): a note's brightness picks
+//!   the hardness of its strikes, the contact stiffness times
+//!   `2^level` for `level = round(4 b) - 2` ([`timbre_level`]), from scenes
+//!   compiled with the played one ([`Scenes::timbre`]). The voice moves to
+//!   its level's scene ([`EngineState::rebind`]) at once when its hammer is
+//!   out of contact (the object's free motion is the same in every level's
+//!   scene, so nothing changes but the next contact), else on the
+//!   silence-check grid after the contact; a new note starts at level 0.
 //! - **Voices**: one voice per note, up to the polyphony
 //!   ([`PlayParams::polyphony`], at most [`MAX_VOICES`], all allocated once). A repeated note
 //!   strikes its own voice again while it rings: the hammer hits the moving
@@ -77,8 +85,9 @@ pub use mapping::{
     InstrumentParams, PlayParams, SceneParams,
 };
 pub use prepared::{
-    prepare, prepare_scene, PrepareError, Prepared, Scenes, STRIKE_BUDGET_FRACTION,
-    STRIKE_NS_FIXED, STRIKE_NS_PER_STATE, STRIKE_NS_PER_SWITCH_FLOP,
+    prepare, prepare_scene, timbre_level, PrepareError, Prepared, Scenes, STRIKE_BUDGET_FRACTION,
+    STRIKE_NS_FIXED, STRIKE_NS_PER_STATE, STRIKE_NS_PER_SWITCH_FLOP, TIMBRE_LEVEL_MAX,
+    TIMBRE_MAX_STATES, TIMBRE_STIFFNESS_STEP,
 };
 pub use probe::{VoiceChunk, VoiceProbe};
 
@@ -188,8 +197,9 @@ pub struct Instrument {
     voices: [Voice; MAX_VOICES],
     /// Previous scene while voices that could not be carried fade out.
     fading: Option<Box<Prepared>>,
-    /// Which voices of `fading` sound, and whether each is on its damped scene.
-    fade_voices: [Option<bool>; MAX_VOICES],
+    /// Which voices of `fading` sound: each one's brightness level and
+    /// whether it is on its damped scene.
+    fade_voices: [Option<(i8, bool)>; MAX_VOICES],
     fade_left: usize,
     fade_len: usize,
     retired: [Option<Box<Prepared>>; RETIRED_SLOTS],
@@ -206,6 +216,9 @@ pub struct Instrument {
     bend_pending: bool,
     /// Some voice's per-note tuning is still gliding.
     tuning_moving: bool,
+    /// Some voice waits for its brightness level (its hammer was in
+    /// contact when the brightness came).
+    timbre_pending: bool,
     /// Channel aftertouch, 0 .. 1.
     channel_pressure: f64,
     /// Mod wheel, 0 .. 1.
@@ -293,6 +306,7 @@ impl Instrument {
             bend_now: 0.0,
             bend_pending: false,
             tuning_moving: false,
+            timbre_pending: false,
             channel_pressure: 0.0,
             mod_wheel: 0.0,
             acc: [[0.0; CHECK_INTERVAL_SAMPLES]; 2],
@@ -397,7 +411,7 @@ impl Instrument {
                 continue;
             }
             // Err: a voice that cannot scale time (dense fallback) stays put
-            if let Ok(false) = st.bend_time_scale(p.scenes.bound(v.on_damped), s) {
+            if let Ok(false) = st.bend_time_scale(p.scenes.bound(v.level, v.on_damped), s) {
                 pending = true;
             }
         }
@@ -429,7 +443,7 @@ impl Instrument {
                 // the silence test's reference follows the units)
                 let s = v.base_scale * 2f64.powf((self.bend_now + t) / 12.0);
                 let s_old = st.time_scale();
-                if let Ok(true) = st.bend_time_scale(p.scenes.bound(v.on_damped), s) {
+                if let Ok(true) = st.bend_time_scale(p.scenes.bound(v.level, v.on_damped), s) {
                     v.tuning_now = t;
                     v.strike_energy *= (s_old / s) * (s_old / s);
                     continue;
@@ -485,10 +499,16 @@ impl Instrument {
                 continue;
             }
             let to_damped = v.released && new.scenes.damped.is_some();
+            // a brightness level the new scene set lacks plays at level 0
+            let to_level = if new.scenes.has_level(v.level) {
+                v.level
+            } else {
+                0
+            };
             let carried = same_object && {
                 let Prepared { states, scenes, .. } = &mut *self.cur;
-                let from = scenes.bound(v.on_damped);
-                let ok = states[i].rebind(from, new.scenes.bound(to_damped));
+                let from = scenes.bound(v.level, v.on_damped);
+                let ok = states[i].rebind(from, new.scenes.bound(to_level, to_damped));
                 if ok {
                     // The running state moves into the new box; the new box's
                     // fresh state goes back with the old one.
@@ -499,9 +519,11 @@ impl Instrument {
             let v = &mut self.voices[i];
             if carried {
                 v.on_damped = to_damped;
+                v.level = to_level;
                 self.stats.voices_carried += 1;
+                self.timbre_pending |= v.level != v.level_wanted;
             } else {
-                self.fade_voices[i] = Some(v.on_damped);
+                self.fade_voices[i] = Some((v.level, v.on_damped));
                 v.active = false;
                 any_fade = true;
                 self.stats.voices_faded += 1;
@@ -573,6 +595,18 @@ impl Instrument {
                     if v.active && key.is_none_or(|k| k == v.key) {
                         v.pressure = value;
                     }
+                }
+            }
+            Event::NoteBrightness { key, value } => {
+                let level = timbre_level(value);
+                for v in &mut self.voices {
+                    if v.active && key.is_none_or(|k| k == v.key) {
+                        v.level_wanted = level;
+                        self.timbre_pending |= v.level != level;
+                    }
+                }
+                if self.timbre_pending {
+                    self.apply_timbre();
                 }
             }
             Event::ChannelPressure { value } => self.channel_pressure = unit(value),

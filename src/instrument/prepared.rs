@@ -38,27 +38,77 @@ pub struct Prepared {
     pub(super) states: [EngineState; MAX_VOICES],
 }
 
-/// The scene as played and the one released voices continue on. Kept apart
-/// from the voice states so a voice's scene can be read while its state is
-/// being stepped.
+/// The scene as played, the one released voices continue on, and the
+/// scene at the other hardness levels a note's brightness selects. Kept
+/// apart from the voice states so a voice's scene can be read while its
+/// state is being stepped.
 #[derive(Clone)]
 pub struct Scenes {
     /// The scene as played.
     pub scene: CompiledScene,
     /// Released voices continue on this (`None` when the damper is 0).
     pub damped: Option<CompiledScene>,
+    /// The played scene at the hardness levels -2, -1, +1, +2 (contact
+    /// stiffness times `TIMBRE_STIFFNESS_STEP^level`), for a note's
+    /// brightness (docs/plugin.md, "Brightness"); `None` where the scene is
+    /// too large ([`TIMBRE_MAX_STATES`]) or the level did not compile.
+    pub timbre: [Option<CompiledScene>; 4],
+}
+
+/// The slot of hardness `level` in [`Scenes::timbre`] (`None` for the
+/// played scene's level 0).
+fn timbre_slot(level: i8) -> Option<usize> {
+    match level {
+        -2 => Some(0),
+        -1 => Some(1),
+        1 => Some(2),
+        2 => Some(3),
+        _ => None,
+    }
 }
 
 impl Scenes {
     /// The scene a voice is bound to: the damped one when it is released
-    /// onto it, else the played one.
+    /// onto it, else the played one at hardness `level` (the played one
+    /// where that level has no scene).
     #[inline]
-    pub fn bound(&self, on_damped: bool) -> &CompiledScene {
+    pub fn bound(&self, level: i8, on_damped: bool) -> &CompiledScene {
         match (&self.damped, on_damped) {
             (Some(d), true) => d,
-            _ => &self.scene,
+            _ => timbre_slot(level)
+                .and_then(|k| self.timbre[k].as_ref())
+                .unwrap_or(&self.scene),
         }
     }
+
+    /// Whether hardness `level` has a scene of its own (level 0 always:
+    /// the played scene).
+    pub fn has_level(&self, level: i8) -> bool {
+        timbre_slot(level).is_none_or(|k| self.timbre[k].is_some())
+    }
+}
+
+/// Brightness levels on each side of the played hardness: a note's
+/// brightness `b` in 0 .. 1 selects level `round(4 b) - 2`, -2 ..= 2, and
+/// the contact stiffness of its strikes is the Hardness parameter's times
+/// `TIMBRE_STIFFNESS_STEP^level` (docs/plugin.md, "Brightness").
+pub const TIMBRE_LEVEL_MAX: i8 = 2;
+/// Contact stiffness ratio between neighbouring brightness levels (2: the
+/// contact's own frequency `sqrt(k / m)` moves by half an octave a level,
+/// an octave either way in all).
+pub const TIMBRE_STIFFNESS_STEP: f64 = 2.0;
+/// Largest contact-phase dimension for which the brightness levels are
+/// compiled (each level is a compile of its own, four more per parameter
+/// change: every preset has fewer states (tested); a larger user scene plays
+/// every note at the Hardness parameter's level, and the plugin says so
+/// in its log and the editor: [`Prepared::timbre_note`]).
+pub const TIMBRE_MAX_STATES: usize = 128;
+
+/// The hardness level of brightness `b` (0 .. 1; not a number is the
+/// neutral 0.5, MPE's centre).
+pub fn timbre_level(b: f64) -> i8 {
+    let b = if b.is_nan() { 0.5 } else { b.clamp(0.0, 1.0) };
+    ((4.0 * b).round() - 2.0) as i8
 }
 
 /// Cost model of the block that holds a strike, beyond a plain block
@@ -123,6 +173,21 @@ impl Prepared {
                 self.scenes.scene.contact.dim,
                 budget * 1e3,
                 100.0 * chord / budget
+            )
+        })
+    }
+
+    /// A note when the scene is too large for the brightness levels
+    /// ([`TIMBRE_MAX_STATES`]): every note plays at the Hardness
+    /// parameter's level. \[any-thread\]
+    pub fn timbre_note(&self) -> Option<String> {
+        let dim = self.scenes.scene.contact.dim;
+        (dim > TIMBRE_MAX_STATES).then(|| {
+            format!(
+                "scene {:?}: {dim} states in contact, more than {TIMBRE_MAX_STATES}: the \
+                 brightness levels are not compiled, so note brightness (the note \
+                 expression, MPE timbre) plays every note at the Hardness parameter's level",
+                self.scenes.scene.name
             )
         })
     }
@@ -250,6 +315,24 @@ pub fn prepare_scene(
             return Err(PrepareError::DampedLayoutDiffers);
         }
     }
+    let timbre = if scene.contact.dim <= TIMBRE_MAX_STATES {
+        [-2i8, -1, 1, 2].map(|level| {
+            let mut p = *params;
+            p.stiffness_factor *= TIMBRE_STIFFNESS_STEP.powi(i32::from(level));
+            let ip = InstrumentParams {
+                scene: p,
+                play: PlayParams::default(),
+            };
+            // a level that does not compile (a stiffness beyond the
+            // scene's limits) or lays its states out otherwise plays at
+            // the Hardness parameter's level
+            compile_with(&scene_for(base, &ip), rate_hz, Some(switching_used))
+                .ok()
+                .filter(|t| t.free.dim == scene.free.dim && t.contact.dim == scene.contact.dim)
+        })
+    } else {
+        [None, None, None, None]
+    };
     let band_hz = OUTPUT_BAND_FRACTION * 0.5 * rate_hz;
     let states = std::array::from_fn(|_| {
         let mut st = EngineState::new(&scene);
@@ -266,7 +349,11 @@ pub fn prepare_scene(
         bouncing: base.hammer.gravity_m_per_s2 > 0.0,
         switching_used,
         fallback_note,
-        scenes: Scenes { scene, damped },
+        scenes: Scenes {
+            scene,
+            damped,
+            timbre,
+        },
         states,
     }))
 }

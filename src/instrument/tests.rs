@@ -1190,3 +1190,138 @@ fn a_chain_mallet_scales_with_the_hammer_and_keeps_its_ring() {
     assert_ne!(d.object[0], s.object[0], "the damper presses the bar");
     compile_with(&d, RATE, None).expect("compiles");
 }
+
+fn brightness(offset: usize, key: Option<u8>, value: f64) -> TimedEvent {
+    TimedEvent {
+        offset,
+        event: Event::NoteBrightness { key, value },
+    }
+}
+
+/// High-frequency share of a signal: energy of its first difference over
+/// its energy (larger for a harder, shorter contact).
+fn brightness_ratio(x: &[f32]) -> f64 {
+    let d: f64 = x.windows(2).map(|w| f64::from(w[1] - w[0]).powi(2)).sum();
+    d / x.iter().map(|&v| f64::from(v).powi(2)).sum::<f64>()
+}
+
+/// A note's brightness at its onset plays its strike at the hardness of
+/// its level: bit for bit the note of an instrument whose Hardness
+/// parameter is the level's stiffness (at the root pitch; within rounding
+/// at another pitch, where the voice's time scale is re-derived), brighter
+/// levels brighter, 0.5 the parameter's own.
+#[test]
+fn brightness_at_the_onset_strikes_at_its_hardness_level() {
+    let p = params("marimba-bar");
+    let root = instrument(&p).prepared().root_note.round() as u8;
+    let n = 6000;
+    let mut ratios = Vec::new();
+    for (b, level) in [(0.0, -2), (0.25, -1), (0.5, 0), (0.75, 1), (1.0, 2)] {
+        assert_eq!(timbre_level(b), level);
+        for key in [root, root + 7] {
+            let mut inst = instrument(&p);
+            let got = render(
+                &mut inst,
+                &[on(10, key, 0.8), brightness(10, Some(key), b)],
+                n,
+            );
+            let mut q = p;
+            q.scene.stiffness_factor *= TIMBRE_STIFFNESS_STEP.powi(i32::from(level));
+            let want = render(&mut instrument(&q), &[on(10, key, 0.8)], n);
+            if key == root {
+                assert!(got == want, "brightness {b}: not the level's strike");
+            } else {
+                let peak = want[0].iter().fold(0.0f32, |a, v| a.max(v.abs()));
+                let worst = got[0]
+                    .iter()
+                    .zip(&want[0])
+                    .fold(0.0f32, |a, (x, y)| a.max((x - y).abs()));
+                println!(
+                    "brightness {b}, key {key}: worst {:.1e} of the peak",
+                    worst / peak
+                );
+                assert!(worst <= 1e-5 * peak, "brightness {b} key {key}: {worst}");
+            }
+            if key == root {
+                ratios.push(brightness_ratio(&got[0][..2000]));
+            }
+        }
+    }
+    println!("high-frequency share by level: {ratios:?}");
+    assert!(ratios.windows(2).all(|w| w[1] > w[0]), "{ratios:?}");
+}
+
+/// A brightness that comes while the hammer is in contact leaves that
+/// contact alone and takes the voice to its level after it, on the
+/// instrument's own grid (the same samples however the host splits its
+/// blocks); the next note on the key starts at level 0 again; not a
+/// number is the neutral 0.5, out of range is clamped.
+#[test]
+fn brightness_during_a_contact_waits_for_its_end() {
+    let p = params("marimba-bar");
+    let n = 4000;
+    let events = [on(0, 60, 1.0), brightness(3, Some(60), 1.0)];
+    let mut whole = instrument(&p);
+    let a = render(&mut whole, &events, n)[0].clone();
+    assert_eq!(whole.voices[0].level, 2, "at its level after the contact");
+    let b = render_split(&mut instrument(&p), &events, n, &[7, 64, 33, 1, 128]);
+    assert!(a == b, "block splitting changed the samples");
+    let plain = render(&mut instrument(&p), &[on(0, 60, 1.0)], n)[0].clone();
+    // the first contact (a few samples from sample 1) is the plain one's
+    assert_eq!(a[..40], plain[..40]);
+    // a new note on the key starts at level 0
+    let mut inst = instrument(&p);
+    render(&mut inst, &events, n);
+    render(&mut inst, &[on(0, 60, 1.0)], 10);
+    assert_eq!(inst.voices[0].level, 0);
+    assert_eq!(timbre_level(f64::NAN), 0);
+    assert_eq!(timbre_level(7.0), TIMBRE_LEVEL_MAX);
+    assert_eq!(timbre_level(-3.0), -TIMBRE_LEVEL_MAX);
+}
+
+/// Every preset has its four brightness levels; a scene larger than
+/// `TIMBRE_MAX_STATES` has none and plays every brightness at the Hardness
+/// parameter's level (the same samples as without brightness).
+#[test]
+fn presets_have_every_brightness_level_and_large_scenes_none() {
+    for (i, preset) in presets::PRESETS.iter().enumerate() {
+        let name = preset.name;
+        let sp = SceneParams {
+            preset: i,
+            ..SceneParams::default()
+        };
+        let pr = prepare(&sp, RATE, 0).unwrap();
+        assert!(
+            pr.timbre_note().is_none()
+                && (-TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX).all(|l| pr.scenes.has_level(l)),
+            "{name}: {} states",
+            pr.scenes.scene.contact.dim
+        );
+    }
+    let mut sc = modal_base("marimba-bar");
+    let ObjectSpec::Modal(m) = &mut sc.object[0] else {
+        panic!("modal")
+    };
+    let first = m.mode[0].clone();
+    m.mode = (0..70)
+        .map(|k| {
+            let mut md = first.clone();
+            md.freq_hz = first.freq_hz * (1.0 + 0.37 * k as f64);
+            md
+        })
+        .collect();
+    let pr = prepare_scene(&sc, &SceneParams::default(), RATE, 0).unwrap();
+    assert!(pr.scenes.scene.contact.dim > TIMBRE_MAX_STATES);
+    assert!(!pr.scenes.has_level(1) && pr.scenes.has_level(0));
+    let note = pr.timbre_note().expect("a note for the user");
+    assert!(note.contains("142 states in contact"), "{note}");
+    let play = PlayParams::default();
+    let mut bright = Instrument::new(pr.clone(), play);
+    let got = render(
+        &mut bright,
+        &[on(0, 60, 0.8), brightness(0, None, 1.0)],
+        3000,
+    );
+    let want = render(&mut Instrument::new(pr, play), &[on(0, 60, 0.8)], 3000);
+    assert!(got == want);
+}

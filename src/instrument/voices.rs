@@ -32,6 +32,12 @@ pub(super) struct Voice {
     pub(super) onset_pos: u64,
     /// Its note's pressure, 0 .. 1 ([`super::Event::NotePressure`]).
     pub(super) pressure: f64,
+    /// The hardness level of the scene it is bound to (0: the played one;
+    /// [`super::Event::NoteBrightness`]).
+    pub(super) level: i8,
+    /// The level its note's brightness asks for (taken when its hammer is
+    /// out of contact).
+    pub(super) level_wanted: i8,
 }
 
 impl Instrument {
@@ -42,16 +48,18 @@ impl Instrument {
         let idx = if let Some(i) = self.voices.iter().position(|v| v.active && v.key == key) {
             // Same key still ringing: strike the moving object again.
             let v = &mut self.voices[i];
-            if v.on_damped {
-                let ok = match &p.scenes.damped {
-                    Some(d) => p.states[i].rebind(d, &p.scenes.scene),
-                    None => true,
-                };
-                if !ok {
+            if v.on_damped || v.level != 0 {
+                // back to the played scene: a new note starts at level 0
+                let from = p.scenes.bound(v.level, v.on_damped);
+                if !std::ptr::eq(from, &p.scenes.scene)
+                    && !p.states[i].rebind(from, &p.scenes.scene)
+                {
                     p.states[i].reset(&p.scenes.scene);
                 }
                 v.on_damped = false;
+                v.level = 0;
             }
+            v.level_wanted = 0;
             v.released = false;
             v.pressure = 0.0;
             // a new note starts untuned (from where it is, gliding)
@@ -100,6 +108,8 @@ impl Instrument {
                 tuning_now: 0.0,
                 onset_pos: 0,
                 pressure: 0.0,
+                level: 0,
+                level_wanted: 0,
             };
             i
         };
@@ -136,10 +146,46 @@ impl Instrument {
         let v = &mut self.voices[i];
         v.released = true;
         if let Some(d) = &p.scenes.damped {
-            if p.states[i].rebind(&p.scenes.scene, d) {
+            if p.states[i].rebind(p.scenes.bound(v.level, false), d) {
                 v.on_damped = true;
             }
         }
+    }
+
+    /// Move every voice whose note's brightness asks for another hardness
+    /// level to that level's scene ([`EngineState::rebind`]: exact out of
+    /// contact, where every level's scene has the same free motion), unless
+    /// its hammer is in contact (it waits: [`Instrument::render`] calls
+    /// this again on the silence-check grid). A released voice plays on the
+    /// damped scene whatever its level. O(voices N^2) for the voices that
+    /// move, allocation-free. \[audio-thread\]
+    pub(super) fn apply_timbre(&mut self) {
+        let p = &mut *self.cur;
+        let mut pending = false;
+        for i in 0..MAX_VOICES {
+            let v = &mut self.voices[i];
+            if !v.active || v.level == v.level_wanted {
+                continue;
+            }
+            if v.on_damped {
+                v.level = v.level_wanted;
+                continue;
+            }
+            let st = &mut p.states[i];
+            if st.in_contact() {
+                pending = true;
+                continue;
+            }
+            let from = p.scenes.bound(v.level, false);
+            let to = p.scenes.bound(v.level_wanted, false);
+            if std::ptr::eq(from, to) || st.rebind(from, to) {
+                v.level = v.level_wanted;
+            } else {
+                // a level it cannot be carried to: it stays where it is
+                v.level_wanted = v.level;
+            }
+        }
+        self.timbre_pending = pending;
     }
 
     pub(super) fn stop_silent_voices(&mut self) {
@@ -148,7 +194,7 @@ impl Instrument {
             if !v.active {
                 continue;
             }
-            let scene = p.scenes.bound(v.on_damped);
+            let scene = p.scenes.bound(v.level, v.on_damped);
             if let Some(e) = audible_energy(&p.states[i], scene) {
                 if e < SILENCE_ENERGY_RATIO * v.strike_energy {
                     v.active = false;
@@ -185,7 +231,7 @@ fn quietest(p: &Prepared, voices: &[Voice]) -> usize {
     let mut best_e = f64::INFINITY;
     for (i, v) in voices.iter().enumerate() {
         let s = p.states[i].time_scale();
-        let e = p.states[i].energy_proxy(p.scenes.bound(v.on_damped)) * s * s;
+        let e = p.states[i].energy_proxy(p.scenes.bound(v.level, v.on_damped)) * s * s;
         if !(e >= best_e) {
             best = i;
             best_e = e;

@@ -145,6 +145,8 @@ impl Drop for ModalContact {
 const VST3_CC_PLACEHOLDER: f32 = 0.5;
 /// MIDI controller of the mod wheel.
 const MOD_WHEEL_CC: u8 = 1;
+/// MIDI controller of MPE's timbre (an MPE member channel's brightness).
+const TIMBRE_CC: u8 = 74;
 /// MIDI controller of the sustain (damper) pedal.
 const SUSTAIN_CC: u8 = 64;
 /// MIDI controller of the sostenuto pedal.
@@ -199,6 +201,14 @@ fn note_event(event: &NoteEvent<()>) -> Option<Event> {
         NoteEvent::PolyPressure { key, pressure, .. } => Some(Event::NotePressure {
             key: key.number(),
             value: f64::from(pressure),
+        }),
+        // Brightness (docs/plugin.md, "Brightness"): per note (CLAP/VST3
+        // note expression); nice-plug gives 0 .. 1.
+        NoteEvent::PolyBrightness {
+            key, brightness, ..
+        } => Some(Event::NoteBrightness {
+            key: key.number(),
+            value: f64::from(brightness),
         }),
         // A value of exactly 0.5 is not a 7-bit MIDI value (v / 127): it is
         // what nice-plug's VST3 wrapper answers when a host reads one of its
@@ -465,7 +475,13 @@ impl ModalContact {
                     channel, cc, value, ..
                 } = event
                 {
-                    mpe.controller(channel, cc, (value.clamp(0.0, 1.0) * 127.0).round() as u8);
+                    let value = (value.clamp(0.0, 1.0) * 127.0).round() as u8;
+                    if cc == TIMBRE_CC && mpe.timbre(channel, f64::from(value) / 127.0, out) {
+                        // the brightness of the member channel's notes
+                        (next, at) = (0, event.timing() as usize);
+                        continue;
+                    }
+                    mpe.controller(channel, cc, value);
                 }
                 continue;
             };

@@ -12,10 +12,12 @@
 //! member channel a pitch bend retunes the notes sounding from that
 //! channel (an [`Event::NoteTuning`] per key, at the bend's sample), by the
 //! channel's bend range (48 semitones unless RPN 0 on that channel says
-//! otherwise), and its channel pressure presses them
-//! ([`Event::NotePressure`]); a note-on on a member channel whose bend is
-//! off centre or whose pressure is up starts that way (its tuning and
-//! pressure follow the note-on at the same sample). The manager channels
+//! otherwise), its channel pressure presses them
+//! ([`Event::NotePressure`]) and its timbre (CC 74) sets their brightness
+//! ([`Event::NoteBrightness`]); a note-on on a member channel whose bend is
+//! off centre, whose pressure is up or that has had a timbre starts that
+//! way (its tuning, pressure and brightness follow the note-on at the same
+//! sample). The manager channels
 //! (1 and 16) and channels outside both zones stay the wheel and the
 //! channel aftertouch for every voice.
 //!
@@ -91,6 +93,9 @@ pub struct Mpe {
     bend: [f64; 16],
     /// Per channel: the pressure now, 0 .. 1.
     pressure: [f64; 16],
+    /// Per channel: the timbre (CC 74) now, 0 .. 1, or not a number
+    /// before the channel's first.
+    timbre: [f64; 16],
     /// Per key: the member channel its last note-on came from.
     key_channel: [u8; 128],
 }
@@ -104,6 +109,7 @@ impl Default for Mpe {
             range: [MEMBER_BEND_RANGE_SEMITONES; 16],
             bend: [0.0; 16],
             pressure: [0.0; 16],
+            timbre: [f64::NAN; 16],
             key_channel: [NONE; 128],
         }
     }
@@ -148,6 +154,7 @@ impl Mpe {
                 self.range[i] = MEMBER_BEND_RANGE_SEMITONES;
                 self.bend[i] = 0.0;
                 self.pressure[i] = 0.0;
+                self.timbre[i] = f64::NAN;
                 self.key_channel
                     .iter_mut()
                     .filter(|k| **k == c)
@@ -175,6 +182,12 @@ impl Mpe {
                     out.push(Event::NotePressure {
                         key: Some(key),
                         value: self.pressure[c],
+                    });
+                }
+                if !self.timbre[c].is_nan() {
+                    out.push(Event::NoteBrightness {
+                        key: Some(key),
+                        value: self.timbre[c],
                     });
                 }
             }
@@ -225,6 +238,23 @@ impl Mpe {
         }
         self.pressure[channel as usize] = value;
         self.for_keys_of(channel, out, |key| Event::NotePressure {
+            key: Some(key),
+            value,
+        });
+        true
+    }
+
+    /// MPE's timbre, CC 74 (`value` 0 .. 1) on `channel`: `false` (and
+    /// `out` untouched) off the member channels (MPE off, the manager
+    /// channel, a channel outside the zone), else `true` with the
+    /// brightness of the keys sounding from that member channel in `out`;
+    /// a later note-on on the channel starts with it.
+    pub fn timbre(&mut self, channel: u8, value: f64, out: &mut Out) -> bool {
+        if !self.is_member(channel) {
+            return false;
+        }
+        self.timbre[channel as usize] = value;
+        self.for_keys_of(channel, out, |key| Event::NoteBrightness {
             key: Some(key),
             value,
         });
@@ -364,6 +394,43 @@ mod tests {
         configure(&mut m, 3);
         assert_eq!(
             note_on(&mut m, 2, on(69)),
+            [on(69)],
+            "the zone message resets"
+        );
+    }
+
+    fn brighten(m: &mut Mpe, channel: u8, value: f64) -> Option<Vec<Event>> {
+        let mut out = Out::new();
+        m.timbre(channel, value, &mut out)
+            .then(|| out.as_slice().to_vec())
+    }
+
+    fn bright(key: u8, value: f64) -> Event {
+        Event::NoteBrightness {
+            key: Some(key),
+            value,
+        }
+    }
+
+    /// A member channel's timbre (CC 74) sets its notes' brightness, and a
+    /// note-on on a channel that has had one starts with it (MPE sends the
+    /// timbre before the note); off, on the manager channel or outside the
+    /// zone it is no one's.
+    #[test]
+    fn member_channel_timbre_sets_its_notes_brightness() {
+        let mut m = Mpe::default();
+        assert!(brighten(&mut m, 2, 0.8).is_none(), "off");
+        configure(&mut m, 3);
+        assert_eq!(note_on(&mut m, 2, on(60)), [on(60)], "no timbre yet");
+        note_on(&mut m, 3, on(64));
+        assert_eq!(brighten(&mut m, 2, 0.8).unwrap(), [bright(60, 0.8)]);
+        assert!(brighten(&mut m, 0, 0.8).is_none(), "manager channel");
+        assert!(brighten(&mut m, 9, 0.8).is_none(), "outside the zone");
+        assert_eq!(brighten(&mut m, 3, 0.1).unwrap(), [bright(64, 0.1)]);
+        assert_eq!(note_on(&mut m, 3, on(67)), [on(67), bright(67, 0.1)]);
+        configure(&mut m, 3);
+        assert_eq!(
+            note_on(&mut m, 3, on(69)),
             [on(69)],
             "the zone message resets"
         );

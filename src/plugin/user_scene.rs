@@ -84,7 +84,8 @@ pub struct CompileReport {
     /// Sample rate compiled for \[Hz\].
     pub rate_hz: f64,
     /// What the user should know (exact switching refused, a stiff
-    /// contact, strikes that may overrun the host's block).
+    /// contact, strikes that may overrun the host's block, a scene too
+    /// large for the brightness levels).
     pub warnings: Vec<String>,
 }
 
@@ -177,7 +178,8 @@ impl SceneLibrary {
     /// validates and compiles; on failure the previous scene plays on and a
     /// user scene that fails is not made current. Writes the report, with
     /// the warnings (also returned, for the log): a switching fallback, a
-    /// stiff contact, a strike that may overrun the host's block.
+    /// stiff contact, a strike that may overrun the host's block, a scene
+    /// too large for the brightness levels.
     /// \[worker\] \[main-thread\]
     pub fn prepare(
         &self,
@@ -235,6 +237,7 @@ impl SceneLibrary {
                     p.fallback_note.clone(),
                     p.realtime_warning(),
                     p.strike_warning(host.max_block, host.polyphony),
+                    p.timbre_note(),
                 ]
                 .into_iter()
                 .flatten()
