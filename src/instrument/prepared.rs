@@ -53,6 +53,11 @@ pub struct Scenes {
     /// brightness (docs/plugin.md, "Brightness"); `None` where the scene is
     /// too large ([`TIMBRE_MAX_STATES`]) or the level did not compile.
     pub timbre: [Option<CompiledScene>; 4],
+    /// Whether each level's scene has the played scene's free phase (the
+    /// same `V`, `V^-1`, blocks and step, compared exactly when it is
+    /// prepared): a voice out of contact then moves between levels in O(N)
+    /// ([`EngineState::rebind_same_free`]).
+    pub timbre_same_free: [bool; 4],
 }
 
 /// The slot of hardness `level` in [`Scenes::timbre`] (`None` for the
@@ -79,6 +84,15 @@ impl Scenes {
                 .and_then(|k| self.timbre[k].as_ref())
                 .unwrap_or(&self.scene),
         }
+    }
+
+    /// Whether the scenes of levels `a` and `b` step the free phase in the
+    /// same coordinates (see [`Scenes::timbre_same_free`]).
+    pub fn same_free(&self, a: i8, b: i8) -> bool {
+        let same = |l: i8| {
+            timbre_slot(l).is_none_or(|k| self.timbre[k].is_none() || self.timbre_same_free[k])
+        };
+        same(a) && same(b)
     }
 
     /// Whether hardness `level` has a scene of its own (level 0 always:
@@ -333,6 +347,15 @@ pub fn prepare_scene(
     } else {
         [None, None, None, None]
     };
+    let timbre_same_free = std::array::from_fn(|k| {
+        timbre[k].as_ref().is_some_and(|t| {
+            t.free.v == scene.free.v
+                && t.free.vinv == scene.free.vinv
+                && t.free.gens == scene.free.gens
+                && t.free.dense == scene.free.dense
+                && t.h == scene.h
+        })
+    });
     let band_hz = OUTPUT_BAND_FRACTION * 0.5 * rate_hz;
     let states = std::array::from_fn(|_| {
         let mut st = EngineState::new(&scene);
@@ -353,6 +376,7 @@ pub fn prepare_scene(
             scene,
             damped,
             timbre,
+            timbre_same_free,
         },
         states,
     }))

@@ -1293,7 +1293,8 @@ fn presets_have_every_brightness_level_and_large_scenes_none() {
         let pr = prepare(&sp, RATE, 0).unwrap();
         assert!(
             pr.timbre_note().is_none()
-                && (-TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX).all(|l| pr.scenes.has_level(l)),
+                && (-TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX).all(|l| pr.scenes.has_level(l))
+                && pr.scenes.timbre_same_free.iter().all(|&s| s),
             "{name}: {} states",
             pr.scenes.scene.contact.dim
         );

@@ -153,12 +153,14 @@ impl Instrument {
     }
 
     /// Move every voice whose note's brightness asks for another hardness
-    /// level to that level's scene ([`EngineState::rebind`]: exact out of
-    /// contact, where every level's scene has the same free motion), unless
+    /// level to that level's scene ([`EngineState::rebind_same_free`] where
+    /// the levels step the free phase in the same coordinates, as every
+    /// preset's do: the state kept bit for bit, O(N); else
+    /// [`EngineState::rebind`]), unless
     /// its hammer is in contact (it waits: [`Instrument::render`] calls
     /// this again on the silence-check grid). A released voice plays on the
-    /// damped scene whatever its level. O(voices N^2) for the voices that
-    /// move, allocation-free. \[audio-thread\]
+    /// damped scene whatever its level. O(N) (O(N^2) through `rebind`) per
+    /// voice that moves, allocation-free. \[audio-thread\]
     pub(super) fn apply_timbre(&mut self) {
         let p = &mut *self.cur;
         let mut pending = false;
@@ -178,7 +180,13 @@ impl Instrument {
             }
             let from = p.scenes.bound(v.level, false);
             let to = p.scenes.bound(v.level_wanted, false);
-            if std::ptr::eq(from, to) || st.rebind(from, to) {
+            let moved = std::ptr::eq(from, to)
+                || if p.scenes.same_free(v.level, v.level_wanted) {
+                    st.rebind_same_free(from, to)
+                } else {
+                    st.rebind(from, to)
+                };
+            if moved {
                 v.level = v.level_wanted;
             } else {
                 // a level it cannot be carried to: it stays where it is
