@@ -47,10 +47,11 @@
 //!   the hardness of its strikes, the contact stiffness times
 //!   `2^level` for `level = round(4 b) - 2` ([`timbre_level`]), from scenes
 //!   compiled with the played one ([`Scenes::timbre`]). The voice moves to
-//!   its level's scene ([`EngineState::rebind`]) at once when its hammer is
-//!   out of contact (the object's free motion is the same in every level's
-//!   scene, so nothing changes but the next contact), else on the
-//!   silence-check grid after the contact; a new note starts at level 0.
+//!   its level's scene ([`EngineState::rebind_same_free`]: the object's
+//!   free motion is the same in every level's scene, so its state is kept
+//!   and nothing changes but the next contact) at once when its hammer is
+//!   out of contact, else on the silence-check grid after the contact; a
+//!   new note starts at level 0.
 //! - **Voices**: one voice per note, up to the polyphony
 //!   ([`PlayParams::polyphony`], at most [`MAX_VOICES`], all allocated once). A repeated note
 //!   strikes its own voice again while it rings: the hammer hits the moving

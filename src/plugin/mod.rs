@@ -475,8 +475,14 @@ impl ModalContact {
                     channel, cc, value, ..
                 } = event
                 {
+                    let placeholder = value == VST3_CC_PLACEHOLDER;
                     let value = (value.clamp(0.0, 1.0) * 127.0).round() as u8;
-                    if cc == TIMBRE_CC && mpe.timbre(channel, f64::from(value) / 127.0, out) {
+                    // (exactly 0.5 is the VST3 wrapper's placeholder, see
+                    // `note_event`: a restored session's, not a timbre)
+                    if cc == TIMBRE_CC
+                        && !placeholder
+                        && mpe.timbre(channel, f64::from(value) / 127.0, out)
+                    {
                         // the brightness of the member channel's notes
                         (next, at) = (0, event.timing() as usize);
                         continue;
