@@ -412,12 +412,67 @@ fn pitch_bend(_: &mut Criterion) {
     }
 }
 
+/// A 16-note chord struck in one 64-sample block at 48 kHz on presets,
+/// without and with a brightness on every note at its onset (each voice
+/// moved to another hardness level's scene before its first contact,
+/// docs/plugin.md "Brightness"): the chord's block in microseconds, median
+/// of 41.
+fn brightness_chord(_: &mut Criterion) {
+    use modal_contact::instrument::{prepare, SceneParams};
+    println!("\n16-note chord in one 64-sample block at 48 kHz (budget 1333 us), median of 41:");
+    println!("| preset | chord us | chord with a brightness on every note us |");
+    println!("|---|---|---|");
+    for name in ["marimba-bar", "steel-plate", "frame-drum", "paper-string"] {
+        let sp = SceneParams {
+            preset: modal_contact::presets::index_of(name).expect("preset"),
+            ..SceneParams::default()
+        };
+        let prepared = prepare(&sp, RATE, 0).expect("compile");
+        let mut cells = Vec::new();
+        for bright in [false, true] {
+            let mut times = Vec::new();
+            for _ in 0..41 {
+                let mut inst = Instrument::new(prepared.clone(), InstrumentParams::default().play);
+                let mut evs = Vec::new();
+                for k in 0..16u8 {
+                    let key = 48 + 2 * k;
+                    evs.push(TimedEvent {
+                        offset: 0,
+                        event: Event::NoteOn {
+                            key,
+                            velocity_norm: 0.8,
+                        },
+                    });
+                    if bright {
+                        evs.push(TimedEvent {
+                            offset: 0,
+                            event: Event::NoteBrightness {
+                                key: Some(key),
+                                value: 0.9,
+                            },
+                        });
+                    }
+                }
+                let (mut l, mut r) = (vec![0.0f32; 64], vec![0.0f32; 64]);
+                let t0 = Instant::now();
+                inst.process(&evs, &mut l, &mut r);
+                times.push(t0.elapsed().as_secs_f64());
+                assert!(l.iter().chain(&r).all(|x| x.is_finite()));
+            }
+            times.sort_by(f64::total_cmp);
+            cells.push(format!("{:.0}", times[20] * 1e6));
+        }
+        println!("| {name} | {} | {} |", cells[0], cells[1]);
+    }
+}
+
 criterion_group!(
     benches,
     strike_cost,
     polyphony_64,
     bad_input,
     pitch_bend,
+    brightness_chord,
     worst_block
 );
 criterion_main!(benches);
