@@ -7,6 +7,9 @@
 //! and the 99.9th percentile block, as a fraction of the block's real-time
 //! budget (`block / 48000` s). Above 100 % a block is late: a dropout.
 //!
+//! Beside it: the strike cost per voice, 64 voices, bad input, a pitch
+//! bend, and a 16-note chord with a brightness on every note.
+//!
 //! `cargo bench --bench worst_block` (a criterion target; the table is
 //! printed, nothing is asserted: timings are never test conditions).
 
