@@ -1395,6 +1395,18 @@ impl EngineState {
         }
     }
 
+    /// Whether this state can be carried from `old` to `new`: the same
+    /// layout (dimensions of both phases, and of this state), and no dense
+    /// phase away from `s = 1` (a dense propagator cannot scale time).
+    fn can_rebind(&self, old: &CompiledScene, new: &CompiledScene) -> bool {
+        old.free.dim == new.free.dim
+            && old.contact.dim == new.contact.dim
+            && self.phases[FREE].s.len() == new.free.dim
+            && self.phases[CONTACT].s.len() == new.contact.dim
+            && !((new.free.dense.is_some() || new.contact.dense.is_some())
+                && self.time_scale != 1.0)
+    }
+
     /// Carry the running state over to a recompiled scene `new` (same object,
     /// other parameters), so a parameter change neither resets nor clicks.
     ///
@@ -1409,14 +1421,7 @@ impl EngineState {
     /// object or another mode count): the caller then resets the voice.
     /// O(N^2), allocation-free. \[audio-thread\]
     pub fn rebind(&mut self, old: &CompiledScene, new: &CompiledScene) -> bool {
-        if old.free.dim != new.free.dim
-            || old.contact.dim != new.contact.dim
-            || self.phases[FREE].s.len() != new.free.dim
-            || self.phases[CONTACT].s.len() != new.contact.dim
-        {
-            return false;
-        }
-        if (new.free.dense.is_some() || new.contact.dense.is_some()) && self.time_scale != 1.0 {
+        if !self.can_rebind(old, new) {
             return false;
         }
         let (ph_old, ph_new, s, star_old, star_new) = if self.in_contact() {
@@ -1477,15 +1482,7 @@ impl EngineState {
     /// layouts differ, or for a dense phase away from `s = 1`.
     /// \[audio-thread\]
     pub fn rebind_same_free(&mut self, old: &CompiledScene, new: &CompiledScene) -> bool {
-        if self.in_contact()
-            || old.free.dim != new.free.dim
-            || old.contact.dim != new.contact.dim
-            || self.phases[FREE].s.len() != new.free.dim
-            || self.phases[CONTACT].s.len() != new.contact.dim
-        {
-            return false;
-        }
-        if (new.free.dense.is_some() || new.contact.dense.is_some()) && self.time_scale != 1.0 {
+        if self.in_contact() || !self.can_rebind(old, new) {
             return false;
         }
         debug_assert!(
