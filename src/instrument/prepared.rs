@@ -122,7 +122,8 @@ pub const TIMBRE_MAX_STATES: usize = 128;
 /// neutral 0.5, MPE's centre).
 pub fn timbre_level(b: f64) -> i8 {
     let b = if b.is_nan() { 0.5 } else { b.clamp(0.0, 1.0) };
-    ((4.0 * b).round() - 2.0) as i8
+    let max = f64::from(TIMBRE_LEVEL_MAX);
+    ((2.0 * max * b).round() - max) as i8
 }
 
 /// Cost model of the block that holds a strike, beyond a plain block
