@@ -17,7 +17,8 @@ use clack_extensions::preset_discovery::prelude::{HostPresetLoad, Location, Plug
 use clack_extensions::preset_discovery::HostPresetLoadImpl;
 use clack_extensions::state::PluginState;
 use clack_host::events::event_types::{
-    MidiEvent, NoteExpressionEvent, NoteExpressionType, NoteOffEvent, NoteOnEvent, ParamValueEvent,
+    MidiEvent, NoteEndEvent, NoteExpressionEvent, NoteExpressionType, NoteOffEvent, NoteOnEvent,
+    ParamModEvent, ParamValueEvent,
 };
 use clack_host::events::Match;
 use clack_host::prelude::*;
@@ -284,6 +285,27 @@ pub enum HostEvent {
         /// Brightness.
         value: f64,
     },
+    /// Note on with the host's note id (CLAP `note_id`), channel 1.
+    NoteOnId {
+        /// Sample position.
+        at: usize,
+        /// MIDI key.
+        key: u8,
+        /// Velocity 0..1.
+        velocity: f64,
+        /// The note id.
+        id: u32,
+    },
+    /// A CLAP polyphonic modulation (`param_mod` on one note id) of the
+    /// Hardness parameter by `amount` (normalized offset).
+    HardnessMod {
+        /// Sample position.
+        at: usize,
+        /// The note id it modulates.
+        id: u32,
+        /// Normalized offset.
+        amount: f64,
+    },
     /// Parameter value (CLAP value: normalised for continuous parameters,
     /// step index for enums and bools).
     Param {
@@ -306,6 +328,8 @@ impl HostEvent {
             | HostEvent::Tuning { at, .. }
             | HostEvent::Pressure { at, .. }
             | HostEvent::Brightness { at, .. }
+            | HostEvent::NoteOnId { at, .. }
+            | HostEvent::HardnessMod { at, .. }
             | HostEvent::Param { at, .. } => at,
         }
     }
@@ -358,6 +382,27 @@ pub fn param(at: usize, id: &str, value: f64) -> HostEvent {
         at,
         id: param_id(id),
         value,
+    }
+}
+
+/// A Hardness modulation's factor: the Hardness parameter's value at its
+/// knob position plus `offset` (clamped to the knob's range) over
+/// `played`, through the parameter's mapping written out here (0.01 ..
+/// 100, skewed: `0.01 + 99.99 n^4`), not through the plugin's code.
+pub fn hardness_factor(played: f64, offset: f64) -> f64 {
+    let (min, max) = (0.01, 100.0);
+    let n = ((played - min) / (max - min)).powf(0.25);
+    let m = (n + offset).clamp(0.0, 1.0);
+    (min + (max - min) * m.powi(4)) / played
+}
+
+/// A note-on with a note id.
+pub fn on_id(at: usize, key: u8, velocity: f64, id: u32) -> HostEvent {
+    HostEvent::NoteOnId {
+        at,
+        key,
+        velocity,
+        id,
     }
 }
 
@@ -566,6 +611,7 @@ impl LoadedPlugin {
             in_events: EventBuffer::with_capacity(1024),
             out_events: EventBuffer::with_capacity(256),
             steady: 0,
+            note_ends: Vec::new(),
         }
     }
 
@@ -609,6 +655,20 @@ pub struct Session<'a> {
     in_events: EventBuffer,
     out_events: EventBuffer,
     steady: u64,
+    /// The plugin's note-end events so far (CLAP `NOTE_END`: a voice
+    /// ended), in order.
+    pub note_ends: Vec<NoteEnd>,
+}
+
+/// A note-end event the plugin sent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NoteEnd {
+    /// Absolute sample position.
+    pub at: usize,
+    /// Its note id (`None`: the wildcard).
+    pub id: Option<u32>,
+    /// Its key.
+    pub key: Option<u8>,
 }
 
 impl Session<'_> {
@@ -667,6 +727,21 @@ impl Session<'_> {
                         value,
                     ))
                 }
+                HostEvent::NoteOnId {
+                    key, velocity, id, ..
+                } => self.in_events.push(&NoteOnEvent::new(
+                    t,
+                    Pckn::new(0u16, 0u16, key as u16, id),
+                    velocity,
+                )),
+                HostEvent::HardnessMod { id, amount, .. } => {
+                    self.in_events.push(&ParamModEvent::new(
+                        t,
+                        ClapId::new(param_id("hardness")),
+                        Pckn::new(Match::All, Match::All, Match::All, id),
+                        amount,
+                    ))
+                }
                 HostEvent::Param { id, value, .. } => self.in_events.push(&ParamValueEvent::new(
                     t,
                     ClapId::new(id),
@@ -695,6 +770,23 @@ impl Session<'_> {
                 None,
             )
             .expect("process");
+        for e in self.out_events.iter() {
+            if let Some(end) = e.as_event::<NoteEndEvent>() {
+                let id = match end.note_id() {
+                    Match::Specific(id) => Some(id),
+                    Match::All => None,
+                };
+                let key = match end.key() {
+                    Match::Specific(k) => Some(k as u8),
+                    Match::All => None,
+                };
+                self.note_ends.push(NoteEnd {
+                    at: block_start + e.header().time() as usize,
+                    id,
+                    key,
+                });
+            }
+        }
         self.steady += frames as u64;
         [&self.left[..frames], &self.right[..frames]]
     }
@@ -827,6 +919,31 @@ pub fn library_render_prepared(
                     value: f64::from(value as f32),
                 },
             }),
+            HostEvent::NoteOnId {
+                at, key, velocity, ..
+            } => Some(LibEvent {
+                offset: at,
+                event: Event::NoteOn {
+                    key,
+                    velocity_norm: velocity as f32 as f64,
+                },
+            }),
+            HostEvent::HardnessMod { at, id, amount } => {
+                // the key of the note id (the last note-on with it before)
+                let key = events.iter().rev().find_map(|e| match *e {
+                    HostEvent::NoteOnId {
+                        at: a, key, id: i, ..
+                    } if i == id && a <= at => Some(key),
+                    _ => None,
+                })?;
+                Some(LibEvent {
+                    offset: at,
+                    event: Event::NoteHardness {
+                        key: Some(key),
+                        factor: hardness_factor(params.scene.stiffness_factor, amount),
+                    },
+                })
+            }
             HostEvent::Midi { .. } | HostEvent::Param { .. } => None,
         })
         .collect();

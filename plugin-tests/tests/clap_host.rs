@@ -529,6 +529,98 @@ fn brightness_and_mpe_timbre_through_the_host_match_the_library() {
     plugin_equals_library("MPE timbre", rate, total, mpe, &meant);
 }
 
+/// CLAP polyphonic modulation of Hardness through a real host: notes with
+/// note ids, a `param_mod` on two of them (one up, one down, one note
+/// unmodulated, one modulation of an id that never played): the plugin's
+/// render equals the library's with the hardness factors the offsets mean
+/// (the parameter's mapping written out in the test), and the plugin
+/// tells the host when each voice ends (CLAP note-end with its note id and
+/// key): a new note on a key ends the old id at once, a released note ends
+/// when it has died away, and a voice that was never given an id ends
+/// without one reported.
+#[test]
+fn hardness_poly_modulation_and_note_ends_through_the_host() {
+    let rate = 48_000.0;
+    let total = 12_000;
+    let up = HostEvent::HardnessMod {
+        at: 100,
+        id: 1,
+        amount: 0.05,
+    };
+    let down = HostEvent::HardnessMod {
+        at: 100,
+        id: 2,
+        amount: -0.1,
+    };
+    let stray = HostEvent::HardnessMod {
+        at: 150,
+        id: 99,
+        amount: 0.3,
+    };
+    let events = vec![
+        on_id(100, 60, 0.8, 1),
+        up,
+        on_id(100, 64, 0.7, 2),
+        down,
+        on_id(200, 67, 0.8, 3),
+        stray,
+    ];
+    // the factors' levels (log2, rounded): 1 and -2, far from a rounding edge
+    let (f_up, f_down) = (hardness_factor(1.0, 0.05), hardness_factor(1.0, -0.1));
+    println!("hardness factors: up {f_up:.4}, down {f_down:.4}");
+    assert!((f_up.log2() - 1.0).abs() < 0.3 && (f_down.log2() + 2.0).abs() < 0.3);
+    let plugin = plugin_equals_library("hardness modulation", rate, total, events.clone(), &events);
+    let plain_events = vec![on(100, 60, 0.8), on(100, 64, 0.7), on(200, 67, 0.8)];
+    let plain = library_render(&InstrumentParams::default(), rate, total, &plain_events);
+    let moved = max_abs_diff(&plugin[0][..3_000], &plain[0][..3_000]);
+    println!("modulated against unmodulated: max difference {moved:.3e}");
+    assert!(moved > 1e-3 * peak(&plain[0]), "{moved}");
+
+    // note ends: key 60 struck again with id 4 at 3000 ends id 1 there;
+    // key 64 released at 1000 ends id 2 when it has died away; key 67 (id
+    // 3) rings on; a note without an id ends nothing the host knows
+    let mut p = LoadedPlugin::load(&clap_bundle(Variant::Release));
+    let mut session = p.activate(rate, 1, 256);
+    let script = [
+        on_id(100, 60, 0.8, 1),
+        on_id(100, 64, 0.7, 2),
+        on_id(200, 67, 0.8, 3),
+        on(300, 72, 0.8),
+        off(1_000, 64),
+        off(1_000, 72),
+        on_id(3_000, 60, 0.8, 4),
+    ];
+    // 0.33 s: the unreleased notes ring on (the bar alone falls silent
+    // after about a second)
+    let (block, blocks) = (256, 62);
+    for b in 0..blocks {
+        let start = b * block;
+        let here: Vec<HostEvent> = script
+            .iter()
+            .copied()
+            .filter(|e| e.at() >= start && e.at() < start + block)
+            .collect();
+        session.process(block, start, &here);
+    }
+    let ends = session.note_ends.clone();
+    session.deactivate();
+    println!("note ends: {ends:?}");
+    let end_of = |id: u32| ends.iter().find(|e| e.id == Some(id)).copied();
+    let e1 = end_of(1).expect("id 1 ends when its key is struck again");
+    assert_eq!(e1.key, Some(60));
+    assert!((3_000..3_256).contains(&e1.at), "{e1:?}");
+    let e2 = end_of(2).expect("id 2 ends after its release");
+    assert_eq!(e2.key, Some(64));
+    assert!(e2.at > 1_000 && e2.at < blocks * block, "{e2:?}");
+    assert!(end_of(3).is_none(), "id 3 still rings");
+    assert!(end_of(4).is_none(), "id 4 still rings");
+    assert!(
+        ends.iter().all(|e| e.id.is_some() && e.key != Some(72)),
+        "a note without an id: {ends:?}"
+    );
+    assert_eq!(ends.len(), 2, "each id ends once: {ends:?}");
+}
+
 /// Pressure through a real host: a CLAP "pressure" note expression on one
 /// note, channel aftertouch and the mod wheel (MIDI 1.0), and, after the
 /// MPE configuration message, a member channel's pressure on that

@@ -82,6 +82,21 @@ pub enum Event {
         /// Brightness, 0 .. 1.
         value: f64,
     },
+    /// Hardness of a note, as a factor of the Hardness parameter's contact
+    /// stiffness (what a host's polyphonic modulation of Hardness asks of
+    /// that note's voice): rounded to the brightness levels (stiffness
+    /// steps of [`TIMBRE_STIFFNESS_STEP`](super::TIMBRE_STIFFNESS_STEP),
+    /// [`hardness_level`](super::hardness_level)) and added to the note's
+    /// brightness level, within the compiled levels; it applies as a
+    /// brightness does (the next contact; at the note's onset, its first).
+    /// `key: None`: every voice. Not a finite positive number is 1; a new note on
+    /// the key starts at 1 (docs/plugin.md, "Polyphonic modulation").
+    NoteHardness {
+        /// MIDI key, or `None` for every voice.
+        key: Option<u8>,
+        /// Contact stiffness over the Hardness parameter's.
+        factor: f64,
+    },
     /// Channel aftertouch, 0 .. 1: the same damper on every voice (a voice
     /// takes the largest of its note's pressure, this and the mod wheel).
     ChannelPressure {

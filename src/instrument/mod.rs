@@ -51,7 +51,9 @@
 //!   free motion is the same in every level's scene, so its state is kept
 //!   and nothing changes but the next contact) at once when its hammer is
 //!   out of contact, else on the silence-check grid after the contact; a
-//!   new note starts at level 0.
+//!   new note starts at level 0. A note's hardness ([`Event::NoteHardness`],
+//!   a host's polyphonic modulation of Hardness) is rounded to the same
+//!   levels ([`hardness_level`]) and added to its brightness's.
 //! - **Voices**: one voice per note, up to the polyphony
 //!   ([`PlayParams::polyphony`], at most [`MAX_VOICES`], all allocated once). A repeated note
 //!   strikes its own voice again while it rings: the hammer hits the moving
@@ -86,9 +88,9 @@ pub use mapping::{
     InstrumentParams, PlayParams, SceneParams,
 };
 pub use prepared::{
-    prepare, prepare_scene, timbre_level, PrepareError, Prepared, Scenes, STRIKE_BUDGET_FRACTION,
-    STRIKE_NS_FIXED, STRIKE_NS_PER_STATE, STRIKE_NS_PER_SWITCH_FLOP, TIMBRE_LEVEL_MAX,
-    TIMBRE_MAX_STATES, TIMBRE_STIFFNESS_STEP,
+    hardness_level, prepare, prepare_scene, timbre_level, PrepareError, Prepared, Scenes,
+    STRIKE_BUDGET_FRACTION, STRIKE_NS_FIXED, STRIKE_NS_PER_STATE, STRIKE_NS_PER_SWITCH_FLOP,
+    TIMBRE_LEVEL_MAX, TIMBRE_MAX_STATES, TIMBRE_STIFFNESS_STEP,
 };
 pub use probe::{VoiceChunk, VoiceProbe};
 
@@ -600,15 +602,11 @@ impl Instrument {
             }
             Event::NoteBrightness { key, value } => {
                 let level = timbre_level(value);
-                for v in &mut self.voices {
-                    if v.active && key.is_none_or(|k| k == v.key) {
-                        v.level_wanted = level;
-                        self.timbre_pending |= v.level != level;
-                    }
-                }
-                if self.timbre_pending {
-                    self.apply_timbre();
-                }
+                self.want_levels(key, |v| v.bright_level = level);
+            }
+            Event::NoteHardness { key, factor } => {
+                let level = hardness_level(factor);
+                self.want_levels(key, |v| v.hard_level = level);
             }
             Event::ChannelPressure { value } => self.channel_pressure = unit(value),
             Event::ModWheel { value } => self.mod_wheel = unit(value),
@@ -624,6 +622,29 @@ impl Instrument {
             }
         }
     }
+}
+
+impl Instrument {
+    /// Update the voices of `key` (every voice for `None`) with `set` and
+    /// move them to the hardness level their note now asks for.
+    fn want_levels(&mut self, key: Option<u8>, set: impl Fn(&mut Voice)) {
+        for v in &mut self.voices {
+            if v.active && key.is_none_or(|k| k == v.key) {
+                set(v);
+                v.level_wanted = wanted_level(v.bright_level, v.hard_level);
+                self.timbre_pending |= v.level != v.level_wanted;
+            }
+        }
+        if self.timbre_pending {
+            self.apply_timbre();
+        }
+    }
+}
+
+/// The hardness level of a note: its brightness's level plus its hardness
+/// modulation's, within the compiled levels (±[`TIMBRE_LEVEL_MAX`]).
+fn wanted_level(bright: i8, hard: i8) -> i8 {
+    (bright + hard).clamp(-TIMBRE_LEVEL_MAX, TIMBRE_LEVEL_MAX)
 }
 
 /// A controller's value in 0 .. 1: clamped, not a number is 0.

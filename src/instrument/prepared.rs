@@ -126,6 +126,22 @@ pub fn timbre_level(b: f64) -> i8 {
     ((2.0 * max * b).round() - max) as i8
 }
 
+/// The hardness level of a note's hardness `factor` (its contact
+/// stiffness over the Hardness parameter's, e.g. from a host's polyphonic
+/// modulation of Hardness): the nearest level, `round(log2 factor /
+/// log2 TIMBRE_STIFFNESS_STEP)`, within ±[`TIMBRE_LEVEL_MAX`]; a factor
+/// that is not a finite positive number is level 0 (docs/plugin.md, "Polyphonic
+/// modulation").
+pub fn hardness_level(factor: f64) -> i8 {
+    if !(factor > 0.0 && factor.is_finite()) {
+        return 0;
+    }
+    let max = f64::from(TIMBRE_LEVEL_MAX);
+    (factor.ln() / TIMBRE_STIFFNESS_STEP.ln())
+        .round()
+        .clamp(-max, max) as i8
+}
+
 /// Cost model of the block that holds a strike, beyond a plain block
 /// (`benches/worst_block.rs` prints it next to the measurement): per
 /// multiply-add of the two changes of basis

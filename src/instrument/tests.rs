@@ -1279,6 +1279,96 @@ fn brightness_during_a_contact_waits_for_its_end() {
     assert_eq!(timbre_level(-3.0), -TIMBRE_LEVEL_MAX);
 }
 
+fn hardness(offset: usize, key: Option<u8>, factor: f64) -> TimedEvent {
+    TimedEvent {
+        offset,
+        event: Event::NoteHardness { key, factor },
+    }
+}
+
+/// A note's hardness (a host's polyphonic modulation of Hardness) is
+/// rounded to the nearest level and added to its brightness's: at the
+/// onset, the strike is bit for bit that of an instrument whose Hardness is
+/// the sum's level; beyond the compiled levels it stays at the outermost;
+/// factors that are not positive numbers are 1; other voices keep their
+/// level; a new note on the key starts without it.
+#[test]
+fn hardness_modulation_adds_its_level_to_the_brightness() {
+    let p = params("marimba-bar");
+    let n = 4000;
+    let step = TIMBRE_STIFFNESS_STEP;
+    let cases = [
+        // (brightness, factor, level)
+        (0.5, step, 1),
+        (0.5, 1.0 / step, -1),
+        (0.5, step.sqrt() * 0.99, 0),
+        (0.5, step.sqrt() * 1.01, 1),
+        (0.75, step, 2),
+        (0.25, step * step, 1),
+        (1.0, step, 2),
+        (0.0, 1e9, 0),
+        (0.5, 1e-12, -2),
+        (0.75, f64::NAN, 1),
+        (0.5, -2.0, 0),
+        (0.5, 0.0, 0),
+        (0.5, f64::INFINITY, 0),
+    ];
+    for (b, factor, level) in cases {
+        let mut inst = instrument(&p);
+        let got = render(
+            &mut inst,
+            &[
+                on(10, 60, 0.8),
+                on(10, 67, 0.8),
+                brightness(10, Some(60), b),
+                hardness(10, Some(60), factor),
+            ],
+            n,
+        );
+        assert_eq!(inst.voices[0].level, level, "b {b} factor {factor}");
+        assert_eq!(inst.voices[1].level, 0, "the other voice keeps its level");
+        let mut q = p;
+        q.scene.stiffness_factor *= step.powi(i32::from(level));
+        let mut want_inst = instrument(&q);
+        let want = render(&mut want_inst, &[on(10, 60, 0.8)], n);
+        let other = render(&mut instrument(&p), &[on(10, 67, 0.8)], n);
+        let sum: Vec<f32> = want[0].iter().zip(&other[0]).map(|(a, b)| a + b).collect();
+        // the two voices mix in order: compare the modulated voice alone
+        let mut alone = instrument(&p);
+        let got_alone = render(
+            &mut alone,
+            &[
+                on(10, 60, 0.8),
+                brightness(10, Some(60), b),
+                hardness(10, Some(60), factor),
+            ],
+            n,
+        );
+        assert!(
+            got_alone == want,
+            "b {b} factor {factor}: not the level-{level} strike"
+        );
+        let worst = got[0]
+            .iter()
+            .zip(&sum)
+            .fold(0.0f32, |a, (x, y)| a.max((x - y).abs()));
+        assert!(worst <= 1e-6, "b {b} factor {factor}: mix {worst}");
+    }
+    assert_eq!(hardness_level(step.powi(5)), TIMBRE_LEVEL_MAX);
+    assert_eq!(hardness_level(f64::NAN), 0);
+    // a new note on the key starts without the modulation
+    let mut inst = instrument(&p);
+    render(
+        &mut inst,
+        &[on(0, 60, 0.8), hardness(0, Some(60), 4.0)],
+        2000,
+    );
+    assert_eq!(inst.voices[0].level, 2);
+    render(&mut inst, &[on(0, 60, 0.8)], 10);
+    assert_eq!(inst.voices[0].level, 0);
+    assert_eq!(inst.voices[0].hard_level, 0);
+}
+
 /// Every preset has its four brightness levels; a scene larger than
 /// `TIMBRE_MAX_STATES` has none and plays every brightness at the Hardness
 /// parameter's level (the same samples as without brightness).

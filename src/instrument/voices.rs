@@ -35,9 +35,14 @@ pub(super) struct Voice {
     /// The hardness level of the scene it is bound to (0: the played one;
     /// [`super::Event::NoteBrightness`]).
     pub(super) level: i8,
-    /// The level its note's brightness asks for (taken when its hammer is
-    /// out of contact).
+    /// The level its note asks for (taken when its hammer is out of
+    /// contact): its brightness's level plus its hardness modulation's,
+    /// within the compiled levels ([`super::wanted_level`]).
     pub(super) level_wanted: i8,
+    /// Its note's brightness level ([`super::Event::NoteBrightness`]).
+    pub(super) bright_level: i8,
+    /// Its note's hardness modulation level ([`super::Event::NoteHardness`]).
+    pub(super) hard_level: i8,
 }
 
 impl Instrument {
@@ -60,6 +65,8 @@ impl Instrument {
                 v.level = 0;
             }
             v.level_wanted = 0;
+            v.bright_level = 0;
+            v.hard_level = 0;
             v.released = false;
             v.pressure = 0.0;
             // a new note starts untuned (from where it is, gliding)
@@ -110,6 +117,8 @@ impl Instrument {
                 pressure: 0.0,
                 level: 0,
                 level_wanted: 0,
+                bright_level: 0,
+                hard_level: 0,
             };
             i
         };

@@ -16,11 +16,13 @@ pub mod live;
 pub mod mpe;
 pub mod params;
 pub mod user_scene;
+pub mod voice_ids;
 pub mod worker;
 
-use crate::instrument::{Event, Instrument, InstrumentParams, SceneParams, TimedEvent};
+use crate::instrument::{Event, Instrument, InstrumentParams, SceneParams, TimedEvent, MAX_VOICES};
 use crossbeam::queue::ArrayQueue;
 use live::{LiveProbe, LiveRing, RING_FRAMES};
+use nice_plug::midi::{Channel, Key, VoiceID};
 use nice_plug::prelude::*;
 use nice_plug::util::permit_alloc;
 use params::ModalContactParams;
@@ -55,6 +57,8 @@ pub struct ModalContact {
     mpe: mpe::Mpe,
     /// Audio thread: what the last host event became (MPE may make many).
     translated: mpe::Out,
+    /// Audio thread: the host's voice ids and their polyphonic modulation.
+    voice_ids: voice_ids::VoiceIds,
     #[cfg(feature = "alloc-bug")]
     leak: Vec<f32>,
 }
@@ -78,6 +82,7 @@ impl Default for ModalContact {
             pads: Arc::new(ArrayQueue::new(editor::PAD_QUEUE)),
             mpe: mpe::Mpe::default(),
             translated: mpe::Out::new(),
+            voice_ids: voice_ids::VoiceIds::default(),
             #[cfg(feature = "alloc-bug")]
             leak: Vec::new(),
         }
@@ -131,6 +136,7 @@ impl ModalContact {
         self.instrument = None;
         self.pending = None;
         self.handoff.drain();
+        self.voice_ids = voice_ids::VoiceIds::default();
     }
 }
 
@@ -462,6 +468,13 @@ impl ModalContact {
         // One host event may become several (an MPE member channel's bend
         // retunes each of its notes): they wait in `translated`.
         let (mpe, out) = (&mut self.mpe, &mut self.translated);
+        let ids = &mut self.voice_ids;
+        // a voice's Hardness modulation as a factor of the played scene's
+        // (docs/plugin.md, "Polyphonic modulation")
+        let hardness = &self.params.hardness;
+        let played = inst.prepared().params.stiffness_factor;
+        let factor =
+            |base: f32, offset: f32| f64::from(hardness.preview_plain(base + offset)) / played;
         out.clear();
         let (mut next, mut at) = (0usize, 0usize);
         let events = std::iter::from_fn(|| loop {
@@ -471,6 +484,34 @@ impl ModalContact {
             }
             let event = context.next_event()?;
             let Some(e) = note_event(&event) else {
+                match event {
+                    NoteEvent::PolyModulation {
+                        voice_id,
+                        poly_modulation_id: params::POLY_HARDNESS,
+                        normalized_offset,
+                        ..
+                    } => {
+                        let base = hardness.unmodulated_normalized_value();
+                        if let Some(e) =
+                            ids.hardness(voice_id, normalized_offset, |o| factor(base, o))
+                        {
+                            out.set_one(e);
+                            (next, at) = (0, event.timing() as usize);
+                        }
+                        continue;
+                    }
+                    NoteEvent::MonoAutomation {
+                        poly_modulation_id: params::POLY_HARDNESS,
+                        normalized_value,
+                        ..
+                    } => {
+                        out.clear();
+                        ids.hardness_moved(|o| factor(normalized_value, o), |e| out.push(e));
+                        (next, at) = (0, event.timing() as usize);
+                        continue;
+                    }
+                    _ => {}
+                }
                 if let NoteEvent::MidiCC {
                     channel, cc, value, ..
                 } = event
@@ -505,6 +546,16 @@ impl ModalContact {
                 panic!("panic-bug: deliberate panic on note 1");
             }
             match (event, e) {
+                (
+                    NoteEvent::NoteOn {
+                        channel, voice_id, ..
+                    },
+                    Event::NoteOn { key, .. },
+                ) => {
+                    let channel = channel.number().unwrap_or(0);
+                    ids.note_on(key, voice_id.id(), channel);
+                    mpe.note_on(channel, e, out)
+                }
                 (NoteEvent::NoteOn { channel, .. }, _) => {
                     mpe.note_on(channel.number().unwrap_or(0), e, out)
                 }
@@ -519,6 +570,18 @@ impl ModalContact {
             (next, at) = (0, event.timing() as usize);
         });
         inst.process_events(pad_events.chain(events), left, right);
+        // the voices that ended (silence, stealing, a new note on their
+        // key, a fade) end the host's modulation of them
+        self.voice_ids.block_done(&inst.voice_keys());
+        let last = left.len().saturating_sub(1) as u32;
+        for v in self.voice_ids.take_ended() {
+            let _ = context.try_send_event(NoteEvent::VoiceTerminated {
+                timing: last,
+                voice_id: VoiceID::ID(v.id),
+                channel: Channel::Number(v.channel),
+                key: Key::Number(v.key),
+            });
+        }
         ProcessStatus::KeepAlive
     }
 }
@@ -529,6 +592,12 @@ impl ClapPlugin for ModalContact {
         Some("Energy-stable modal contact percussion (exact piecewise-linear contact)");
     const CLAP_MANUAL_URL: Option<&'static str> = None;
     const CLAP_SUPPORT_URL: Option<&'static str> = None;
+    // Hardness per voice (docs/plugin.md, "Polyphonic modulation"); one
+    // voice per key: a second note on a key strikes its ringing voice.
+    const CLAP_POLY_MODULATION_CONFIG: Option<PolyModulationConfig> = Some(PolyModulationConfig {
+        max_voice_capacity: MAX_VOICES as u32,
+        supports_overlapping_voices: false,
+    });
     const CLAP_FEATURES: &'static [ClapFeature] = &[
         ClapFeature::Instrument,
         ClapFeature::Synthesizer,

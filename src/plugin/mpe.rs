@@ -60,7 +60,8 @@ impl Out {
         self.push(e);
     }
 
-    fn push(&mut self, e: Event) {
+    /// Add `e` (beyond the room: dropped).
+    pub fn push(&mut self, e: Event) {
         if self.len < self.events.len() {
             self.events[self.len] = e;
             self.len += 1;

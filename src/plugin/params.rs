@@ -315,10 +315,30 @@ impl FromSpec for FloatParam {
                 factor: FloatRange::skew_factor(exponent),
             },
         };
-        FloatParam::new(s.name, default, range)
+        let p = FloatParam::new(s.name, default, range)
             .with_unit(unit)
-            .with_value_to_string(formatters::v2s_f32_rounded(digits))
+            .with_value_to_string(formatters::v2s_f32_rounded(digits));
+        match poly_modulation_id(s.id) {
+            Some(id) => p.with_poly_modulation_id(id),
+            None => p,
+        }
     }
+}
+
+/// The CLAP polyphonic modulation id of Hardness (docs/plugin.md,
+/// "Polyphonic modulation").
+pub const POLY_HARDNESS: u32 = 0;
+
+/// The parameters a CLAP host may modulate per voice, with their
+/// polyphonic modulation ids.
+pub const POLY_MODULATED: &[(&str, u32)] = &[(ids::HARDNESS, POLY_HARDNESS)];
+
+/// The polyphonic modulation id of parameter `id`, if it has one.
+pub fn poly_modulation_id(id: &str) -> Option<u32> {
+    POLY_MODULATED
+        .iter()
+        .find(|(p, _)| *p == id)
+        .map(|&(_, poly)| poly)
 }
 
 impl FromSpec for IntParam {

@@ -1,0 +1,206 @@
+//! The host's voice ids (CLAP note ids) and polyphonic modulation
+//! (docs/plugin.md, "Polyphonic modulation").
+//!
+//! The instrument has one voice per key, so a voice id names a key: a
+//! note-on records the id of its key, a polyphonic modulation finds its
+//! key by the id, and a voice that stops sounding (silence, stealing, a
+//! new note on its key, a scene swap that fades it) is reported to the host
+//! as terminated so that it can end that voice's modulation. The plugin
+//! does not support overlapping voices on one key (the instrument strikes
+//! the ringing voice again), and says so to the host.
+//!
+//! Plain data, fixed size: the audio thread owns it; no allocation.
+
+use crate::instrument::{Event, MAX_VOICES};
+
+/// Keys of MIDI.
+const KEYS: usize = 128;
+
+/// One key's host voice: its id and the channel of its note.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct HostVoice {
+    /// The host's id of the note (CLAP note id).
+    pub id: i32,
+    /// The note's channel.
+    pub channel: u8,
+    /// The note's key.
+    pub key: u8,
+}
+
+/// Voice ids by key, the hardness modulation of each, and the voices that
+/// ended since the host was last told.
+#[derive(Debug, Clone)]
+pub struct VoiceIds {
+    ids: [Option<HostVoice>; KEYS],
+    /// Normalized offset of each key's Hardness modulation.
+    hardness_offset: [f32; KEYS],
+    /// Voices that ended, to report (at most one per key and block, plus
+    /// one per note-on that replaced an id: bounded by `ENDED_CAP`).
+    ended: [HostVoice; ENDED_CAP],
+    ended_len: usize,
+}
+
+/// Room for ended voices in one block (a note-on on a key whose voice had
+/// another id ends that id: a block of more note-ons than this reports the
+/// rest at the block's end, as stopped voices).
+const ENDED_CAP: usize = 2 * KEYS;
+
+impl Default for VoiceIds {
+    fn default() -> Self {
+        Self {
+            ids: [None; KEYS],
+            hardness_offset: [0.0; KEYS],
+            ended: [HostVoice {
+                id: 0,
+                channel: 0,
+                key: 0,
+            }; ENDED_CAP],
+            ended_len: 0,
+        }
+    }
+}
+
+impl VoiceIds {
+    fn end(&mut self, v: HostVoice) {
+        if self.ended_len < ENDED_CAP {
+            self.ended[self.ended_len] = v;
+            self.ended_len += 1;
+        }
+    }
+
+    /// A note-on of `key` with the host's `id` (if it gave one): the key's
+    /// voice now belongs to that id; an earlier id of the key has ended (the
+    /// voice is struck again as a new note), and the new note starts
+    /// without modulation.
+    pub fn note_on(&mut self, key: u8, id: Option<i32>, channel: u8) {
+        let k = usize::from(key) & (KEYS - 1);
+        if let Some(old) = self.ids[k] {
+            if Some(old.id) != id {
+                self.end(old);
+            }
+        }
+        self.ids[k] = id.map(|id| HostVoice { id, channel, key });
+        self.hardness_offset[k] = 0.0;
+    }
+
+    /// The key whose voice has the host's `id`.
+    pub fn key_of(&self, id: i32) -> Option<u8> {
+        self.ids
+            .iter()
+            .flatten()
+            .find(|v| v.id == id)
+            .map(|v| v.key)
+    }
+
+    /// A polyphonic modulation of Hardness by `offset` (normalized) on the
+    /// voice with `id`: the event for its key, with the factor
+    /// `plain(base + offset) / played` that `factor_of` gives.
+    pub fn hardness(
+        &mut self,
+        id: i32,
+        offset: f32,
+        factor_of: impl Fn(f32) -> f64,
+    ) -> Option<Event> {
+        let key = self.key_of(id)?;
+        self.hardness_offset[usize::from(key)] = offset;
+        Some(Event::NoteHardness {
+            key: Some(key),
+            factor: factor_of(offset),
+        })
+    }
+
+    /// The Hardness parameter moved (the host's monophonic automation):
+    /// every modulated voice's factor again, into `out`.
+    pub fn hardness_moved(&self, factor_of: impl Fn(f32) -> f64, mut out: impl FnMut(Event)) {
+        for v in self.ids.iter().flatten() {
+            let off = self.hardness_offset[usize::from(v.key)];
+            if off != 0.0 {
+                out(Event::NoteHardness {
+                    key: Some(v.key),
+                    factor: factor_of(off),
+                });
+            }
+        }
+    }
+
+    /// After a block: the voices whose keys no longer sound have ended.
+    pub fn block_done(&mut self, sounding: &[Option<u8>; MAX_VOICES]) {
+        for k in 0..KEYS {
+            let Some(v) = self.ids[k] else { continue };
+            if !sounding.contains(&Some(v.key)) {
+                self.end(v);
+                self.ids[k] = None;
+                self.hardness_offset[k] = 0.0;
+            }
+        }
+    }
+
+    /// The voices that ended since the last call (to report to the host).
+    pub fn take_ended(&mut self) -> impl Iterator<Item = HostVoice> + '_ {
+        let n = std::mem::take(&mut self.ended_len);
+        self.ended[..n].iter().copied()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sounding(keys: &[u8]) -> [Option<u8>; MAX_VOICES] {
+        std::array::from_fn(|i| keys.get(i).copied())
+    }
+
+    #[test]
+    fn ids_find_keys_and_end_when_the_voice_stops_or_is_replaced() {
+        let mut ids = VoiceIds::default();
+        ids.note_on(60, Some(7), 0);
+        ids.note_on(64, Some(8), 1);
+        ids.note_on(67, None, 0);
+        assert_eq!(ids.key_of(7), Some(60));
+        assert_eq!(ids.key_of(8), Some(64));
+        assert_eq!(ids.key_of(9), None);
+        // a modulation of an unknown id is nothing
+        assert_eq!(ids.hardness(9, 0.1, |_| 2.0), None);
+        assert_eq!(
+            ids.hardness(8, 0.1, |o| f64::from(o) * 10.0),
+            Some(Event::NoteHardness {
+                key: Some(64),
+                factor: f64::from(0.1f32) * 10.0
+            })
+        );
+        ids.block_done(&sounding(&[60, 64, 67]));
+        assert_eq!(ids.take_ended().count(), 0);
+        // a new note on key 60 with another id ends id 7
+        ids.note_on(60, Some(11), 0);
+        let ended: Vec<_> = ids.take_ended().collect();
+        assert_eq!(
+            ended,
+            [HostVoice {
+                id: 7,
+                channel: 0,
+                key: 60
+            }]
+        );
+        // key 64 falls silent: id 8 ends, and its modulation is forgotten
+        ids.block_done(&sounding(&[60]));
+        let ended: Vec<_> = ids.take_ended().map(|v| v.id).collect();
+        assert_eq!(ended, [8]);
+        assert_eq!(ids.key_of(8), None);
+        let mut again = Vec::new();
+        ids.hardness_moved(f64::from, |e| again.push(e));
+        assert!(again.is_empty(), "{again:?}");
+        // the monophonic automation re-sends each modulated voice's factor
+        ids.hardness(11, -0.25, |_| 0.5);
+        ids.hardness_moved(|o| f64::from(o) * 2.0, |e| again.push(e));
+        assert_eq!(
+            again,
+            [Event::NoteHardness {
+                key: Some(60),
+                factor: -0.5
+            }]
+        );
+        ids.block_done(&sounding(&[]));
+        assert_eq!(ids.take_ended().map(|v| v.id).collect::<Vec<_>>(), [11]);
+        assert_eq!(ids.take_ended().count(), 0);
+    }
+}
