@@ -296,13 +296,15 @@ pub enum HostEvent {
         /// The note id.
         id: u32,
     },
-    /// A CLAP polyphonic modulation (`param_mod` on one note id) of the
-    /// Hardness parameter by `amount` (normalized offset).
-    HardnessMod {
+    /// A CLAP polyphonic modulation (`param_mod` on one note id) of a
+    /// parameter by `amount` (normalized offset).
+    PolyMod {
         /// Sample position.
         at: usize,
         /// The note id it modulates.
         id: u32,
+        /// The parameter.
+        target: PolyTarget,
         /// Normalized offset.
         amount: f64,
     },
@@ -329,7 +331,7 @@ impl HostEvent {
             | HostEvent::Pressure { at, .. }
             | HostEvent::Brightness { at, .. }
             | HostEvent::NoteOnId { at, .. }
-            | HostEvent::HardnessMod { at, .. }
+            | HostEvent::PolyMod { at, .. }
             | HostEvent::Param { at, .. } => at,
         }
     }
@@ -382,6 +384,66 @@ pub fn param(at: usize, id: &str, value: f64) -> HostEvent {
         at,
         id: param_id(id),
         value,
+    }
+}
+
+/// A parameter a CLAP host may modulate per voice.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PolyTarget {
+    /// Hardness.
+    Hardness,
+    /// Strike position.
+    StrikePosition,
+    /// Damper.
+    Damper,
+}
+
+impl PolyTarget {
+    /// The parameter's string id.
+    pub fn param_id(self) -> &'static str {
+        match self {
+            Self::Hardness => "hardness",
+            Self::StrikePosition => "strike_pos",
+            Self::Damper => "damper",
+        }
+    }
+
+    /// The instrument event a modulation by `amount` (normalized) of a
+    /// voice of `key` means, at the parameter values `played`, through the
+    /// parameters' ranges written out here (Strike position and Damper
+    /// are linear 0 .. 1), not through the plugin's code.
+    pub fn event(
+        self,
+        played: &modal_contact::instrument::SceneParams,
+        key: u8,
+        amount: f64,
+    ) -> Event {
+        let key = Some(key);
+        let linear = |x: f64| (x + amount).clamp(0.0, 1.0) - x;
+        match self {
+            Self::Hardness => Event::NoteHardness {
+                key,
+                factor: hardness_factor(played.stiffness_factor, amount),
+            },
+            Self::StrikePosition => Event::NotePosition {
+                key,
+                offset: linear(played.strike_pos_norm.unwrap_or(0.5)),
+            },
+            Self::Damper => Event::NoteDamper {
+                key,
+                offset: linear(played.damper_norm),
+            },
+        }
+    }
+}
+
+/// A polyphonic modulation of `target` on note id `id`.
+pub fn poly_mod(at: usize, id: u32, target: PolyTarget, amount: f64) -> HostEvent {
+    HostEvent::PolyMod {
+        at,
+        id,
+        target,
+        amount,
     }
 }
 
@@ -734,14 +796,14 @@ impl Session<'_> {
                     Pckn::new(0u16, 0u16, key as u16, id),
                     velocity,
                 )),
-                HostEvent::HardnessMod { id, amount, .. } => {
-                    self.in_events.push(&ParamModEvent::new(
-                        t,
-                        ClapId::new(param_id("hardness")),
-                        Pckn::new(Match::All, Match::All, Match::All, id),
-                        amount,
-                    ))
-                }
+                HostEvent::PolyMod {
+                    id, target, amount, ..
+                } => self.in_events.push(&ParamModEvent::new(
+                    t,
+                    ClapId::new(param_id(target.param_id())),
+                    Pckn::new(Match::All, Match::All, Match::All, id),
+                    amount,
+                )),
                 HostEvent::Param { id, value, .. } => self.in_events.push(&ParamValueEvent::new(
                     t,
                     ClapId::new(id),
@@ -928,7 +990,12 @@ pub fn library_render_prepared(
                     velocity_norm: velocity as f32 as f64,
                 },
             }),
-            HostEvent::HardnessMod { at, id, amount } => {
+            HostEvent::PolyMod {
+                at,
+                id,
+                target,
+                amount,
+            } => {
                 // the key of the note id (the last note-on with it before)
                 let key = events.iter().rev().find_map(|e| match *e {
                     HostEvent::NoteOnId {
@@ -938,10 +1005,7 @@ pub fn library_render_prepared(
                 })?;
                 Some(LibEvent {
                     offset: at,
-                    event: Event::NoteHardness {
-                        key: Some(key),
-                        factor: hardness_factor(params.scene.stiffness_factor, amount),
-                    },
+                    event: target.event(&params.scene, key, amount),
                 })
             }
             HostEvent::Midi { .. } | HostEvent::Param { .. } => None,

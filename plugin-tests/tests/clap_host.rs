@@ -3,7 +3,7 @@
 //! instrument library, a parameter swap in the middle of a render, and state.
 //! Renders go to `target/plugin-tests/wav/`.
 
-use modal_contact::instrument::InstrumentParams;
+use modal_contact::instrument::{InstrumentParams, VariantSet};
 use modal_contact::plugin::params::ids;
 use modal_contact::presets;
 use plugin_tests::*;
@@ -542,21 +542,9 @@ fn brightness_and_mpe_timbre_through_the_host_match_the_library() {
 fn hardness_poly_modulation_and_note_ends_through_the_host() {
     let rate = 48_000.0;
     let total = 12_000;
-    let up = HostEvent::HardnessMod {
-        at: 100,
-        id: 1,
-        amount: 0.05,
-    };
-    let down = HostEvent::HardnessMod {
-        at: 100,
-        id: 2,
-        amount: -0.1,
-    };
-    let stray = HostEvent::HardnessMod {
-        at: 150,
-        id: 99,
-        amount: 0.3,
-    };
+    let up = poly_mod(100, 1, PolyTarget::Hardness, 0.05);
+    let down = poly_mod(100, 2, PolyTarget::Hardness, -0.1);
+    let stray = poly_mod(150, 99, PolyTarget::Hardness, 0.3);
     let events = vec![
         on_id(100, 60, 0.8, 1),
         up,
@@ -619,6 +607,78 @@ fn hardness_poly_modulation_and_note_ends_through_the_host() {
         "a note without an id: {ends:?}"
     );
     assert_eq!(ends.len(), 2, "each id ends once: {ends:?}");
+}
+
+/// CLAP polyphonic modulation of Strike position and Damper through a real
+/// host. Their levels are compiled when a host first modulates those
+/// parameters: here a modulation of a note id that is not sounding, at the
+/// start (with Custom strike position switched on), asks for them, and the
+/// render waits for the compile. Then notes with ids and their
+/// modulations (a position up, a position down, a damper, one note
+/// unmodulated): the plugin's render equals the library's with
+/// those levels compiled and the offsets the amounts mean (from the
+/// parameters' ranges, written out in the test), and differs from the same
+/// notes unmodulated.
+#[test]
+fn position_and_damper_poly_modulation_through_the_host_match_the_library() {
+    let rate = 48_000.0;
+    let total = 16_000;
+    let notes = vec![
+        on_id(4_000, 57, 0.8, 1),
+        poly_mod(4_000, 1, PolyTarget::StrikePosition, 0.1),
+        on_id(4_000, 64, 0.7, 2),
+        poly_mod(4_000, 2, PolyTarget::Damper, 0.3),
+        on_id(4_100, 60, 0.8, 3),
+        poly_mod(4_100, 3, PolyTarget::StrikePosition, -0.2),
+        on_id(4_200, 69, 0.8, 4),
+        off(9_000, 64),
+        off(9_000, 69),
+    ];
+    let mut events = vec![
+        param(0, ids::STRIKE_CUSTOM, 1.0),
+        poly_mod(0, 99, PolyTarget::StrikePosition, 0.1),
+        poly_mod(0, 99, PolyTarget::Damper, 0.1),
+    ];
+    events.extend(notes.iter().copied());
+    let mut spec = RenderSpec::new(rate, 256, total, events);
+    spec.settle_after = vec![0, 256, 512];
+    spec.settle_ms = 400;
+    let plugin = LoadedPlugin::load(&clap_bundle(Variant::Release)).render(&spec);
+    let mut params = InstrumentParams::default();
+    params.scene.strike_pos_norm = Some(0.5);
+    params.scene.variants = VariantSet {
+        position: true,
+        damper: true,
+    };
+    let lib = library_render(&params, rate, total, &notes);
+    let d = max_abs_diff(&plugin[0], &lib[0]).max(max_abs_diff(&plugin[1], &lib[1]));
+    println!("position and damper modulation: max |plugin - library| = {d:.3e}");
+    assert!(peak(&lib[0]) > 1e-3, "the library's render is silent");
+    assert!(d <= 1e-6, "plugin and library differ by {d}");
+    let plain_notes: Vec<HostEvent> = notes
+        .iter()
+        .copied()
+        .filter(|e| !matches!(e, HostEvent::PolyMod { .. }))
+        .collect();
+    let plain = library_render(&params, rate, total, &plain_notes);
+    // the strikes differ from the first sample (the positions), the
+    // damped note only after its release (the damper)
+    assert_eq!(plugin[0][..4_000], plain[0][..4_000]);
+    let damped_only: Vec<HostEvent> = plain_notes
+        .iter()
+        .copied()
+        .chain([poly_mod(4_000, 2, PolyTarget::Damper, 0.3)])
+        .collect();
+    let damped = library_render(&params, rate, total, &damped_only);
+    assert_eq!(damped[0][..9_000], plain[0][..9_000]);
+    let released = max_abs_diff(&damped[0][9_000..], &plain[0][9_000..]);
+    println!("damper: released note against unmodulated, max difference {released:.3e}");
+    assert!(released > 1e-4, "{released}");
+    for (what, range) in [("strikes", 4_000..8_000), ("release", 9_200..12_000)] {
+        let moved = max_abs_diff(&plugin[0][range.clone()], &plain[0][range]);
+        println!("{what}: modulated against unmodulated, max difference {moved:.3e}");
+        assert!(moved > 1e-4, "{what}: {moved}");
+    }
 }
 
 /// Pressure through a real host: a CLAP "pressure" note expression on one

@@ -114,6 +114,23 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
         events.push(plugin_tests::note_brightness(20_003 + 100 * k, key, 0.0));
         events.push(plugin_tests::note_brightness(22_800 + 100 * k, key, 0.6));
     }
+    // CLAP polyphonic modulation: notes with ids, every modulated
+    // parameter at the onset, during the contact and after the release,
+    // beyond the ranges, and an id that is not sounding; the first
+    // modulation of position and damper makes the worker compile their
+    // levels, installed by a swap while the checker watches
+    for (k, key) in [40u8, 44, 47].into_iter().enumerate() {
+        let id = 500 + k as u32;
+        let at = 26_000 + 50 * k;
+        events.push(plugin_tests::on_id(at, key, 0.9, id));
+        events.push(poly_mod(at, id, PolyTarget::Hardness, 0.3));
+        events.push(poly_mod(at, id, PolyTarget::StrikePosition, -1.0));
+        events.push(poly_mod(at + 2, id, PolyTarget::Damper, 1.0));
+        events.push(poly_mod(at + 2, id, PolyTarget::Hardness, -1.0));
+        events.push(plugin_tests::off(at + 2_000, key));
+        events.push(poly_mod(at + 2_500, id, PolyTarget::Damper, -1.0));
+    }
+    events.push(poly_mod(26_100, 12_345, PolyTarget::StrikePosition, 0.5));
     // pressure: per note (CLAP note expressions, polyphonic aftertouch),
     // channel aftertouch and the mod wheel, up and back to 0
     for (k, key) in [60u8, 64, 67].into_iter().enumerate() {

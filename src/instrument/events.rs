@@ -97,6 +97,38 @@ pub enum Event {
         /// Contact stiffness over the Hardness parameter's.
         factor: f64,
     },
+    /// Strike position of a note, as an offset from the Strike position
+    /// parameter (what a host's polyphonic modulation of Strike position
+    /// asks of that note's voice, in the parameter's units): rounded to
+    /// levels of [`POSITION_STEP`](super::POSITION_STEP), within two on
+    /// each side ([`position_level`](super::position_level)); it applies as
+    /// a brightness does. Only with Custom strike position on, and once the
+    /// position levels are compiled
+    /// ([`VariantSet::position`](super::VariantSet)); before, the voice
+    /// plays at the parameter's position. Not a number is 0; a new note on
+    /// the key starts at 0 (docs/plugin.md, "Polyphonic modulation").
+    NotePosition {
+        /// MIDI key, or `None` for every voice.
+        key: Option<u8>,
+        /// Offset from the parameter's position (0 .. 1 units).
+        offset: f64,
+    },
+    /// Damper of a note, as an offset from the Damper parameter (a host's
+    /// polyphonic modulation of Damper, in the parameter's units): rounded
+    /// to levels of [`DAMPER_STEP`](super::DAMPER_STEP), within two on
+    /// each side ([`damper_level`](super::damper_level)); it takes effect
+    /// when the note is released (a released note moves to its new level's
+    /// damped scene after any contact under way). Once the damper levels
+    /// are compiled ([`VariantSet::damper`](super::VariantSet)); before,
+    /// the voice is damped as the parameter says. Not a number is 0; a new
+    /// note on the key starts at 0 (docs/plugin.md, "Polyphonic
+    /// modulation").
+    NoteDamper {
+        /// MIDI key, or `None` for every voice.
+        key: Option<u8>,
+        /// Offset from the parameter's damper (0 .. 1 units).
+        offset: f64,
+    },
     /// Channel aftertouch, 0 .. 1: the same damper on every voice (a voice
     /// takes the largest of its note's pressure, this and the mod wheel).
     ChannelPressure {

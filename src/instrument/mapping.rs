@@ -20,6 +20,17 @@ pub fn impact_speed_m_per_s(velocity_norm: f64) -> f64 {
     MIN_IMPACT_SPEED_M_PER_S + IMPACT_SPEED_RANGE_M_PER_S * v * v
 }
 
+/// Which per-voice variants beyond the hardness levels to compile (the
+/// plugin asks for them when a host first modulates that parameter per
+/// voice: docs/plugin.md, "Polyphonic modulation").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct VariantSet {
+    /// The strike-position levels, at every hardness level (20 scenes).
+    pub position: bool,
+    /// The damper levels (4 damped scenes).
+    pub damper: bool,
+}
+
 /// Parameters that change the compiled scene (a change needs a recompile on
 /// the worker).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -46,6 +57,8 @@ pub struct SceneParams {
     /// generation number (the plugin's scene library keeps the text; each
     /// loaded scene gets a new number).
     pub user_scene: u64,
+    /// Which per-voice variants to compile besides the hardness levels.
+    pub variants: VariantSet,
 }
 
 impl Default for SceneParams {
@@ -61,6 +74,7 @@ impl Default for SceneParams {
             gravity_m_per_s2: 9.81,
             switching: Switching::Exact,
             user_scene: 0,
+            variants: VariantSet::default(),
         }
     }
 }

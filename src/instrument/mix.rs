@@ -87,7 +87,7 @@ impl Instrument {
             if !v.active {
                 continue;
             }
-            let scene = p.scenes.bound(v.level, v.on_damped);
+            let scene = p.scenes.bound(v.at, v.on_damped);
             let st = &mut p.states[i];
             let observe = if self.probe_on {
                 Some(&mut self.motion[..len])
@@ -133,13 +133,13 @@ impl Instrument {
         }
         if let Some(f) = self.fading.as_deref_mut() {
             for i in 0..MAX_VOICES {
-                let Some((level, on_damped)) = self.fade_voices[i] else {
+                let Some((at, on_damped)) = self.fade_voices[i] else {
                     continue;
                 };
                 if self.fade_left == 0 {
                     break;
                 }
-                let scene = f.scenes.bound(level, on_damped);
+                let scene = f.scenes.bound(at, on_damped);
                 let g0 = self.fade_left as f64 / self.fade_len as f64;
                 let dg = 1.0 / self.fade_len as f64;
                 if tick_into(&mut f.states[i], scene, &mut self.vbuf, len, g0, dg, None) {

@@ -46,14 +46,17 @@
 //! - **Brightness** ([`Event::NoteBrightness`]): a note's brightness picks
 //!   the hardness of its strikes, the contact stiffness times
 //!   `2^level` for `level = round(4 b) - 2` ([`timbre_level`]), from scenes
-//!   compiled with the played one ([`Scenes::timbre`]). The voice moves to
+//!   compiled with the played one ([`Scenes`]). The voice moves to
 //!   its level's scene ([`EngineState::rebind_same_free`]: the object's
 //!   free motion is the same in every level's scene, so its state is kept
 //!   and nothing changes but the next contact) at once when its hammer is
 //!   out of contact, else on the silence-check grid after the contact; a
 //!   new note starts at level 0. A note's hardness ([`Event::NoteHardness`],
 //!   a host's polyphonic modulation of Hardness) is rounded to the same
-//!   levels ([`hardness_level`]) and added to its brightness's.
+//!   levels ([`hardness_level`]) and added to its brightness's; its strike
+//!   position and damper ([`Event::NotePosition`], [`Event::NoteDamper`])
+//!   to five levels of their own, compiled once a host modulates them
+//!   ([`VariantSet`]; docs/plugin.md, "Polyphonic modulation").
 //! - **Voices**: one voice per note, up to the polyphony
 //!   ([`PlayParams::polyphony`], at most [`MAX_VOICES`], all allocated once). A repeated note
 //!   strikes its own voice again while it rings: the hammer hits the moving
@@ -85,12 +88,13 @@ mod voices;
 pub use events::{Event, TimedEvent};
 pub use mapping::{
     damped_scene, impact_speed_m_per_s, lowest_frequency_hz, root_note, scene_for,
-    InstrumentParams, PlayParams, SceneParams,
+    InstrumentParams, PlayParams, SceneParams, VariantSet,
 };
 pub use prepared::{
-    hardness_level, prepare, prepare_scene, timbre_level, PrepareError, Prepared, Scenes,
-    STRIKE_BUDGET_FRACTION, STRIKE_NS_FIXED, STRIKE_NS_PER_STATE, STRIKE_NS_PER_SWITCH_FLOP,
-    TIMBRE_LEVEL_MAX, TIMBRE_MAX_STATES, TIMBRE_STIFFNESS_STEP,
+    damper_level, hardness_level, position_level, prepare, prepare_scene, timbre_level,
+    PrepareError, Prepared, Scenes, Variant, DAMPER_STEP, POSITION_STEP, STRIKE_BUDGET_FRACTION,
+    STRIKE_NS_FIXED, STRIKE_NS_PER_STATE, STRIKE_NS_PER_SWITCH_FLOP, TIMBRE_LEVEL_MAX,
+    TIMBRE_MAX_STATES, TIMBRE_STIFFNESS_STEP,
 };
 pub use probe::{VoiceChunk, VoiceProbe};
 
@@ -200,9 +204,9 @@ pub struct Instrument {
     voices: [Voice; MAX_VOICES],
     /// Previous scene while voices that could not be carried fade out.
     fading: Option<Box<Prepared>>,
-    /// Which voices of `fading` sound: each one's brightness level and
-    /// whether it is on its damped scene.
-    fade_voices: [Option<(i8, bool)>; MAX_VOICES],
+    /// Which voices of `fading` sound: each one's variant and whether it
+    /// is on its damped scene.
+    fade_voices: [Option<(Variant, bool)>; MAX_VOICES],
     fade_left: usize,
     fade_len: usize,
     retired: [Option<Box<Prepared>>; RETIRED_SLOTS],
@@ -414,7 +418,7 @@ impl Instrument {
                 continue;
             }
             // Err: a voice that cannot scale time (dense fallback) stays put
-            if let Ok(false) = st.bend_time_scale(p.scenes.bound(v.level, v.on_damped), s) {
+            if let Ok(false) = st.bend_time_scale(p.scenes.bound(v.at, v.on_damped), s) {
                 pending = true;
             }
         }
@@ -446,7 +450,7 @@ impl Instrument {
                 // the silence test's reference follows the units)
                 let s = v.base_scale * 2f64.powf((self.bend_now + t) / 12.0);
                 let s_old = st.time_scale();
-                if let Ok(true) = st.bend_time_scale(p.scenes.bound(v.level, v.on_damped), s) {
+                if let Ok(true) = st.bend_time_scale(p.scenes.bound(v.at, v.on_damped), s) {
                     v.tuning_now = t;
                     v.strike_energy *= (s_old / s) * (s_old / s);
                     continue;
@@ -501,17 +505,13 @@ impl Instrument {
             if !v.active {
                 continue;
             }
-            let to_damped = v.released && new.scenes.damped.is_some();
-            // a brightness level the new scene set lacks plays at level 0
-            let to_level = if new.scenes.has_level(v.level) {
-                v.level
-            } else {
-                0
-            };
+            // a variant the new scene set lacks plays the nearest it has
+            // (`Scenes::bound`)
+            let to_damped = v.released && new.scenes.damped_for(v.at.damper).is_some();
             let carried = same_object && {
                 let Prepared { states, scenes, .. } = &mut *self.cur;
-                let from = scenes.bound(v.level, v.on_damped);
-                let ok = states[i].rebind(from, new.scenes.bound(to_level, to_damped));
+                let from = scenes.bound(v.at, v.on_damped);
+                let ok = states[i].rebind(from, new.scenes.bound(v.at, to_damped));
                 if ok {
                     // The running state moves into the new box; the new box's
                     // fresh state goes back with the old one.
@@ -522,11 +522,10 @@ impl Instrument {
             let v = &mut self.voices[i];
             if carried {
                 v.on_damped = to_damped;
-                v.level = to_level;
                 self.stats.voices_carried += 1;
-                self.timbre_pending |= v.level != v.level_wanted;
+                self.timbre_pending |= v.at != v.want;
             } else {
-                self.fade_voices[i] = Some((v.level, v.on_damped));
+                self.fade_voices[i] = Some((v.at, v.on_damped));
                 v.active = false;
                 any_fade = true;
                 self.stats.voices_faded += 1;
@@ -608,6 +607,14 @@ impl Instrument {
                 let level = hardness_level(factor);
                 self.want_levels(key, |v| v.hard_level = level);
             }
+            Event::NotePosition { key, offset } => {
+                let level = position_level(offset);
+                self.want_levels(key, |v| v.want.pos = level);
+            }
+            Event::NoteDamper { key, offset } => {
+                let level = damper_level(offset);
+                self.want_levels(key, |v| v.want.damper = level);
+            }
             Event::ChannelPressure { value } => self.channel_pressure = unit(value),
             Event::ModWheel { value } => self.mod_wheel = unit(value),
             Event::Sostenuto { down } => {
@@ -631,8 +638,8 @@ impl Instrument {
         for v in &mut self.voices {
             if v.active && key.is_none_or(|k| k == v.key) {
                 set(v);
-                v.level_wanted = wanted_level(v.bright_level, v.hard_level);
-                self.timbre_pending |= v.level != v.level_wanted;
+                v.want.hard = wanted_level(v.bright_level, v.hard_level);
+                self.timbre_pending |= v.at != v.want;
             }
         }
         if self.timbre_pending {

@@ -10,6 +10,7 @@ use crate::compile::{compile_with, CompileError, CompiledScene};
 use crate::engine::EngineState;
 use crate::presets;
 use crate::scene::{Scene, Switching};
+use rayon::prelude::*;
 
 /// Everything the audio thread needs for one parameter set, built off the
 /// audio thread: the compiled scene, its damped variant, and a fresh engine
@@ -39,67 +40,144 @@ pub struct Prepared {
 }
 
 /// The scene as played, the one released voices continue on, and the
-/// scene at the other hardness levels a note's brightness selects. Kept
-/// apart from the voice states so a voice's scene can be read while its
-/// state is being stepped.
+/// variants a voice may play on instead (docs/plugin.md, "Brightness" and
+/// "Polyphonic modulation"): the played scene at other hardness levels
+/// (always, for scenes of at most [`TIMBRE_MAX_STATES`] states in contact)
+/// and strike-position levels, and the damped scene at other damper levels
+/// (when asked for: [`SceneParams::variants`]). Kept apart from the voice
+/// states so a voice's scene can be read while its state is being stepped.
 #[derive(Clone)]
 pub struct Scenes {
     /// The scene as played.
     pub scene: CompiledScene,
     /// Released voices continue on this (`None` when the damper is 0).
     pub damped: Option<CompiledScene>,
-    /// The played scene at the hardness levels -2, -1, +1, +2 (contact
-    /// stiffness times `TIMBRE_STIFFNESS_STEP^level`), for a note's
-    /// brightness (docs/plugin.md, "Brightness"); `None` where the scene is
-    /// too large ([`TIMBRE_MAX_STATES`]) or the level did not compile.
-    pub timbre: [Option<CompiledScene>; 4],
-    /// Whether each level's scene has the played scene's free phase (the
-    /// same `V`, `V^-1`, blocks and step, compared exactly when it is
-    /// prepared): a voice out of contact then moves between levels in O(N)
-    /// ([`EngineState::rebind_same_free`]).
-    pub timbre_same_free: [bool; 4],
+    /// The played scene at (hardness level, position level), `(0, 0)`
+    /// excluded (that is `scene`), at `[hard + 2][pos + 2]`.
+    played: [[Option<VariantScene>; LEVELS]; LEVELS],
+    /// The damped scene at damper level `d` at `[d + 2]` (level 0 excluded:
+    /// that is `damped`): `None` where not compiled (the voice uses
+    /// `damped`), `Some(None)` where that level's damper is 0 (a released
+    /// voice rings on its played scene).
+    damped_at: [Option<Option<CompiledScene>>; LEVELS],
 }
 
-/// The slot of hardness `level` in [`Scenes::timbre`] (`None` for the
-/// played scene's level 0).
-fn timbre_slot(level: i8) -> Option<usize> {
-    match level {
-        -2 => Some(0),
-        -1 => Some(1),
-        1 => Some(2),
-        2 => Some(3),
-        _ => None,
-    }
+/// A variant of the played scene and whether it steps the free phase in
+/// the played scene's coordinates (the same `V`, `V^-1`, blocks and step,
+/// compared exactly when it is prepared): a voice out of contact then moves
+/// between such variants in O(N) ([`EngineState::rebind_same_free`]).
+#[derive(Clone)]
+struct VariantScene {
+    scene: CompiledScene,
+    same_free: bool,
+}
+
+/// Levels of each variant axis: `-TIMBRE_LEVEL_MAX ..= TIMBRE_LEVEL_MAX`.
+const LEVELS: usize = 2 * TIMBRE_LEVEL_MAX as usize + 1;
+
+/// The index of `level` on a variant axis (clamped to the levels).
+fn slot(level: i8) -> usize {
+    (level.clamp(-TIMBRE_LEVEL_MAX, TIMBRE_LEVEL_MAX) + TIMBRE_LEVEL_MAX) as usize
+}
+
+/// Which of the compiled scenes a voice plays on: its levels on each
+/// variant axis (0: the parameter's own value).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Variant {
+    /// Hardness level: contact stiffness times `TIMBRE_STIFFNESS_STEP^hard`.
+    pub hard: i8,
+    /// Strike-position level: the position plus `pos * POSITION_STEP`.
+    pub pos: i8,
+    /// Damper level (once released): the damper plus `damper * DAMPER_STEP`.
+    pub damper: i8,
 }
 
 impl Scenes {
-    /// The scene a voice is bound to: the damped one when it is released
-    /// onto it, else the played one at hardness `level` (the played one
-    /// where that level has no scene).
-    #[inline]
-    pub fn bound(&self, level: i8, on_damped: bool) -> &CompiledScene {
-        match (&self.damped, on_damped) {
-            (Some(d), true) => d,
-            _ => timbre_slot(level)
-                .and_then(|k| self.timbre[k].as_ref())
-                .unwrap_or(&self.scene),
+    /// The played scene at hardness level `hard` and position level `pos`,
+    /// and whether it steps the free phase as `scene` does. A variant that
+    /// was not compiled resolves to the same hardness at the parameter's
+    /// position, then to `scene`.
+    fn played_at(&self, hard: i8, pos: i8) -> (&CompiledScene, bool) {
+        let at = |h: i8, p: i8| self.played[slot(h)][slot(p)].as_ref();
+        match at(hard, pos).or_else(|| at(hard, 0)) {
+            Some(v) => (&v.scene, v.same_free),
+            None => (&self.scene, true),
         }
     }
 
-    /// Whether the scenes of levels `a` and `b` step the free phase in the
-    /// same coordinates (see [`Scenes::timbre_same_free`]).
-    pub fn same_free(&self, a: i8, b: i8) -> bool {
-        let same = |l: i8| {
-            timbre_slot(l).is_none_or(|k| self.timbre[k].is_none() || self.timbre_same_free[k])
-        };
-        same(a) && same(b)
+    /// The scene a voice released at damper level `level` continues on
+    /// (`None`: it rings on its played scene, the damper being 0).
+    pub fn damped_for(&self, level: i8) -> Option<&CompiledScene> {
+        match (level, &self.damped_at[slot(level)]) {
+            (0, _) | (_, None) => self.damped.as_ref(),
+            (_, Some(d)) => d.as_ref(),
+        }
     }
 
-    /// Whether hardness `level` has a scene of its own (level 0 always:
-    /// the played scene).
-    pub fn has_level(&self, level: i8) -> bool {
-        timbre_slot(level).is_none_or(|k| self.timbre[k].is_some())
+    /// The scene a voice at `v` is bound to: the damped one of its damper
+    /// level when it is released onto it, else the played one at its
+    /// hardness and position levels.
+    #[inline]
+    pub fn bound(&self, v: Variant, on_damped: bool) -> &CompiledScene {
+        if on_damped {
+            if let Some(d) = self.damped_for(v.damper) {
+                return d;
+            }
+        }
+        self.played_at(v.hard, v.pos).0
     }
+
+    /// Whether the played scenes of `a` and `b` step the free phase in the
+    /// same coordinates (so a voice moves between them in O(N)).
+    pub fn same_free(&self, a: Variant, b: Variant) -> bool {
+        self.played_at(a.hard, a.pos).1 && self.played_at(b.hard, b.pos).1
+    }
+
+    /// Whether `v`'s hardness and position levels have a played scene of
+    /// their own (`(0, 0)` always: the played scene).
+    pub fn has_played(&self, v: Variant) -> bool {
+        (v.hard == 0 && v.pos == 0) || self.played[slot(v.hard)][slot(v.pos)].is_some()
+    }
+
+    /// Whether every played variant steps the free phase as the played
+    /// scene does.
+    pub fn variants_same_free(&self) -> bool {
+        self.played.iter().flatten().flatten().all(|v| v.same_free)
+    }
+
+    /// How many variants (played and damped) are compiled.
+    pub fn variant_count(&self) -> usize {
+        self.played.iter().flatten().flatten().count()
+            + self.damped_at.iter().flatten().flatten().count()
+    }
+}
+
+/// Strike position between neighbouring position levels (of the striking
+/// line, 0 .. 1).
+pub const POSITION_STEP: f64 = 0.1;
+/// Damper between neighbouring damper levels (of its 0 .. 1).
+pub const DAMPER_STEP: f64 = 0.25;
+
+/// The level of an offset `x` on an axis of step `step`: the nearest,
+/// within ±[`TIMBRE_LEVEL_MAX`]; not a number is 0.
+fn level_of(x: f64, step: f64) -> i8 {
+    if x.is_nan() {
+        return 0;
+    }
+    let max = f64::from(TIMBRE_LEVEL_MAX);
+    (x / step).round().clamp(-max, max) as i8
+}
+
+/// The strike-position level of a note's position offset (a host's
+/// polyphonic modulation of Strike position, in its units).
+pub fn position_level(offset: f64) -> i8 {
+    level_of(offset, POSITION_STEP)
+}
+
+/// The damper level of a note's damper offset (a host's polyphonic
+/// modulation of Damper, in its units).
+pub fn damper_level(offset: f64) -> i8 {
+    level_of(offset, DAMPER_STEP)
 }
 
 /// Brightness levels on each side of the played hardness: a note's
@@ -136,10 +214,7 @@ pub fn hardness_level(factor: f64) -> i8 {
     if !(factor > 0.0 && factor.is_finite()) {
         return 0;
     }
-    let max = f64::from(TIMBRE_LEVEL_MAX);
-    (factor.ln() / TIMBRE_STIFFNESS_STEP.ln())
-        .round()
-        .clamp(-max, max) as i8
+    level_of(factor.ln(), TIMBRE_STIFFNESS_STEP.ln())
 }
 
 /// Cost model of the block that holds a strike, beyond a plain block
@@ -208,16 +283,17 @@ impl Prepared {
         })
     }
 
-    /// A note when the scene is too large for the brightness levels
-    /// ([`TIMBRE_MAX_STATES`]): every note plays at the Hardness
-    /// parameter's level. \[any-thread\]
+    /// A note when the scene is too large for the brightness and
+    /// modulation levels ([`TIMBRE_MAX_STATES`]): every note plays at the
+    /// parameters' values. \[any-thread\]
     pub fn timbre_note(&self) -> Option<String> {
         let dim = self.scenes.scene.contact.dim;
         (dim > TIMBRE_MAX_STATES).then(|| {
             format!(
                 "scene {:?}: {dim} states in contact, more than {TIMBRE_MAX_STATES}: the \
-                 brightness levels are not compiled, so note brightness (the note \
-                 expression, MPE timbre) plays every note at the Hardness parameter's level",
+                 brightness and modulation levels are not compiled, so note brightness (the \
+                 note expression, MPE timbre) and polyphonic modulation of Hardness, Strike \
+                 position and Damper play every note at the parameters' values",
                 self.scenes.scene.name
             )
         })
@@ -332,11 +408,11 @@ pub fn prepare_scene(
         scene: *params,
         play: PlayParams::default(),
     };
-    let played = scene_for(base, &ip);
+    let played_scene = scene_for(base, &ip);
     let (scene, switching_used, fallback_note) =
-        compile_with_fallback(&played, rate_hz, params.switching)?;
+        compile_with_fallback(&played_scene, rate_hz, params.switching)?;
     let damped = if params.damper_norm > 0.0 {
-        let d = damped_scene(&played, params.damper_norm);
+        let d = damped_scene(&played_scene, params.damper_norm);
         Some(compile_with(&d, rate_hz, Some(switching_used))?)
     } else {
         None
@@ -346,33 +422,78 @@ pub fn prepare_scene(
             return Err(PrepareError::DampedLayoutDiffers);
         }
     }
-    let timbre = if scene.contact.dim <= TIMBRE_MAX_STATES {
-        [-2i8, -1, 1, 2].map(|level| {
+    let small = scene.contact.dim <= TIMBRE_MAX_STATES;
+    // the played variants: every hardness level, and with the position
+    // levels every (hardness, position) pair; a variant that does not
+    // compile (a stiffness beyond the scene's limits) or lays its states
+    // out otherwise is left out (its voices play the nearest that exists)
+    let positions = params.variants.position && params.strike_pos_norm.is_some();
+    let same_layout =
+        |t: &CompiledScene| t.free.dim == scene.free.dim && t.contact.dim == scene.contact.dim;
+    let levels = -TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX;
+    let pairs: Vec<(i8, i8)> = levels
+        .clone()
+        .flat_map(|h| levels.clone().map(move |pl| (h, pl)))
+        .filter(|&(h, pl)| small && (h, pl) != (0, 0) && (pl == 0 || positions))
+        .collect();
+    // compiled side by side (each is a compile of its own)
+    let compiled: Vec<Option<VariantScene>> = pairs
+        .par_iter()
+        .map(|&(h, pl)| {
             let mut p = *params;
-            p.stiffness_factor *= TIMBRE_STIFFNESS_STEP.powi(i32::from(level));
+            p.stiffness_factor *= TIMBRE_STIFFNESS_STEP.powi(i32::from(h));
+            p.strike_pos_norm = p
+                .strike_pos_norm
+                .map(|x| (x + f64::from(pl) * POSITION_STEP).clamp(0.0, 1.0));
             let ip = InstrumentParams {
                 scene: p,
                 play: PlayParams::default(),
             };
-            // a level that does not compile (a stiffness beyond the
-            // scene's limits) or lays its states out otherwise plays at
-            // the Hardness parameter's level
             compile_with(&scene_for(base, &ip), rate_hz, Some(switching_used))
                 .ok()
-                .filter(|t| t.free.dim == scene.free.dim && t.contact.dim == scene.contact.dim)
+                .filter(same_layout)
+                .map(|t| VariantScene {
+                    same_free: t.free.v == scene.free.v
+                        && t.free.vinv == scene.free.vinv
+                        && t.free.gens == scene.free.gens
+                        && t.free.dense == scene.free.dense
+                        && t.h == scene.h,
+                    scene: t,
+                })
         })
+        .collect();
+    let mut played: [[Option<VariantScene>; LEVELS]; LEVELS] = Default::default();
+    for (&(h, pl), v) in pairs.iter().zip(compiled) {
+        played[slot(h)][slot(pl)] = v;
+    }
+    // the damper levels: `Some(None)` where the level's damper is 0
+    let dampers: Vec<i8> = if small && params.variants.damper {
+        levels.filter(|&d| d != 0).collect()
     } else {
-        [None, None, None, None]
+        Vec::new()
     };
-    let timbre_same_free = std::array::from_fn(|k| {
-        timbre[k].as_ref().is_some_and(|t| {
-            t.free.v == scene.free.v
-                && t.free.vinv == scene.free.vinv
-                && t.free.gens == scene.free.gens
-                && t.free.dense == scene.free.dense
-                && t.h == scene.h
+    let compiled: Vec<Option<Option<CompiledScene>>> = dampers
+        .par_iter()
+        .map(|&d| {
+            let value = (params.damper_norm + f64::from(d) * DAMPER_STEP).clamp(0.0, 1.0);
+            if value > 0.0 {
+                compile_with(
+                    &damped_scene(&played_scene, value),
+                    rate_hz,
+                    Some(switching_used),
+                )
+                .ok()
+                .filter(same_layout)
+                .map(Some)
+            } else {
+                Some(None)
+            }
         })
-    });
+        .collect();
+    let mut damped_at: [Option<Option<CompiledScene>>; LEVELS] = Default::default();
+    for (&d, v) in dampers.iter().zip(compiled) {
+        damped_at[slot(d)] = v;
+    }
     let band_hz = OUTPUT_BAND_FRACTION * 0.5 * rate_hz;
     let states = std::array::from_fn(|_| {
         let mut st = EngineState::new(&scene);
@@ -392,8 +513,8 @@ pub fn prepare_scene(
         scenes: Scenes {
             scene,
             damped,
-            timbre,
-            timbre_same_free,
+            played,
+            damped_at,
         },
         states,
     }))

@@ -1263,7 +1263,7 @@ fn brightness_during_a_contact_waits_for_its_end() {
     let events = [on(0, 60, 1.0), brightness(3, Some(60), 1.0)];
     let mut whole = instrument(&p);
     let a = render(&mut whole, &events, n)[0].clone();
-    assert_eq!(whole.voices[0].level, 2, "at its level after the contact");
+    assert_eq!(whole.voices[0].at.hard, 2, "at its level after the contact");
     let b = render_split(&mut instrument(&p), &events, n, &[7, 64, 33, 1, 128]);
     assert!(a == b, "block splitting changed the samples");
     let plain = render(&mut instrument(&p), &[on(0, 60, 1.0)], n)[0].clone();
@@ -1273,10 +1273,18 @@ fn brightness_during_a_contact_waits_for_its_end() {
     let mut inst = instrument(&p);
     render(&mut inst, &events, n);
     render(&mut inst, &[on(0, 60, 1.0)], 10);
-    assert_eq!(inst.voices[0].level, 0);
+    assert_eq!(inst.voices[0].at.hard, 0);
     assert_eq!(timbre_level(f64::NAN), 0);
     assert_eq!(timbre_level(7.0), TIMBRE_LEVEL_MAX);
     assert_eq!(timbre_level(-3.0), -TIMBRE_LEVEL_MAX);
+}
+
+/// The variant at hardness level `level` (parameter position and damper).
+fn hard(level: i8) -> Variant {
+    Variant {
+        hard: level,
+        ..Variant::default()
+    }
 }
 
 fn hardness(offset: usize, key: Option<u8>, factor: f64) -> TimedEvent {
@@ -1325,8 +1333,8 @@ fn hardness_modulation_adds_its_level_to_the_brightness() {
             ],
             n,
         );
-        assert_eq!(inst.voices[0].level, level, "b {b} factor {factor}");
-        assert_eq!(inst.voices[1].level, 0, "the other voice keeps its level");
+        assert_eq!(inst.voices[0].at.hard, level, "b {b} factor {factor}");
+        assert_eq!(inst.voices[1].at.hard, 0, "the other voice keeps its level");
         let mut q = p;
         q.scene.stiffness_factor *= step.powi(i32::from(level));
         let mut want_inst = instrument(&q);
@@ -1363,10 +1371,186 @@ fn hardness_modulation_adds_its_level_to_the_brightness() {
         &[on(0, 60, 0.8), hardness(0, Some(60), 4.0)],
         2000,
     );
-    assert_eq!(inst.voices[0].level, 2);
+    assert_eq!(inst.voices[0].at.hard, 2);
     render(&mut inst, &[on(0, 60, 0.8)], 10);
-    assert_eq!(inst.voices[0].level, 0);
+    assert_eq!(inst.voices[0].at.hard, 0);
     assert_eq!(inst.voices[0].hard_level, 0);
+}
+
+fn position(offset: usize, key: Option<u8>, by: f64) -> TimedEvent {
+    TimedEvent {
+        offset,
+        event: Event::NotePosition { key, offset: by },
+    }
+}
+
+fn damper(offset: usize, key: Option<u8>, by: f64) -> TimedEvent {
+    TimedEvent {
+        offset,
+        event: Event::NoteDamper { key, offset: by },
+    }
+}
+
+/// A note's strike position (a host's polyphonic modulation of Strike
+/// position), once the position levels are compiled, plays bit for bit
+/// the strike of an instrument whose Strike position is the level's it
+/// rounds to, and with a hardness the (hardness, position) pair's; every
+/// variant of a preset steps the same free phase. Without the levels (not
+/// asked for, or Custom strike position off) the note plays at the
+/// parameter's position.
+#[test]
+fn position_modulation_strikes_at_its_level() {
+    let mut p = params("marimba-bar");
+    p.scene.strike_pos_norm = Some(0.4);
+    p.scene.variants.position = true;
+    let pr = prepare(&p.scene, RATE, 0).unwrap();
+    assert_eq!(
+        pr.scenes.variant_count(),
+        24,
+        "every (hardness, position) pair"
+    );
+    assert!(pr.scenes.variants_same_free());
+    let root = pr.root_note.round() as u8;
+    let n = 4000;
+    let mut sounds: Vec<Vec<f32>> = Vec::new();
+    for (by, pos, factor, hl) in [
+        (0.1, 1, 1.0, 0),
+        (-0.2, -2, 1.0, 0),
+        (0.04, 0, 1.0, 0),
+        (0.16, 2, 1.0, 0),
+        (-0.07, -1, 1.0, 0),
+        (0.1, 1, 2.0, 1),
+        (-0.1, -1, 0.25, -2),
+        (f64::NAN, 0, 1.0, 0),
+        (9.0, 2, 1.0, 0),
+    ] {
+        let mut inst = instrument(&p);
+        let got = render(
+            &mut inst,
+            &[
+                on(10, root, 0.8),
+                position(10, Some(root), by),
+                hardness(10, Some(root), factor),
+            ],
+            n,
+        );
+        let at = inst.voices[0].at;
+        assert_eq!((at.hard, at.pos), (hl, pos), "offset {by}");
+        let mut q = p;
+        q.scene.variants = VariantSet::default();
+        q.scene.strike_pos_norm = Some((0.4 + f64::from(pos) * POSITION_STEP).clamp(0.0, 1.0));
+        q.scene.stiffness_factor *= TIMBRE_STIFFNESS_STEP.powi(i32::from(hl));
+        let want = render(&mut instrument(&q), &[on(10, root, 0.8)], n);
+        assert!(
+            got == want,
+            "offset {by} factor {factor}: not the level's strike"
+        );
+        if hl == 0 {
+            sounds.push(got[0].clone());
+        }
+    }
+    // the levels sound different from each other
+    for (a, b) in [(0, 1), (0, 2), (1, 3), (2, 4)] {
+        assert!(sounds[a] != sounds[b], "levels {a} and {b} sound the same");
+    }
+    // not compiled (not asked for; or Custom strike position off): the
+    // parameter's position
+    for q in [
+        {
+            let mut q = p;
+            q.scene.variants.position = false;
+            q
+        },
+        {
+            let mut q = p;
+            q.scene.strike_pos_norm = None;
+            q
+        },
+    ] {
+        let pr = prepare(&q.scene, RATE, 0).unwrap();
+        assert_eq!(pr.scenes.variant_count(), 4, "the hardness levels only");
+        let got = render(
+            &mut instrument(&q),
+            &[on(10, root, 0.8), position(10, Some(root), 0.2)],
+            n,
+        );
+        let want = render(&mut instrument(&q), &[on(10, root, 0.8)], n);
+        assert!(got == want);
+    }
+}
+
+/// A note's damper (a host's polyphonic modulation of Damper), once the
+/// damper levels are compiled, damps its release bit for bit as an
+/// instrument whose Damper is the level's it rounds to (a level at damper 0
+/// rings on); a change after the release moves the released voice to the
+/// new level's damped scene; the strike itself is never changed.
+#[test]
+fn damper_modulation_damps_the_release_at_its_level() {
+    let mut p = params("marimba-bar");
+    p.scene.damper_norm = 0.5;
+    p.scene.variants.damper = true;
+    let pr = prepare(&p.scene, RATE, 0).unwrap();
+    assert_eq!(
+        pr.scenes.variant_count(),
+        4 + 3,
+        "hardness levels, three damped"
+    );
+    let root = pr.root_note.round() as u8;
+    let n = 16_000;
+    let mut tails = Vec::new();
+    for (by, level) in [
+        (-0.5, -2),
+        (-0.3, -1),
+        (0.1, 0),
+        (0.25, 1),
+        (0.5, 2),
+        (f64::NAN, 0),
+    ] {
+        let mut inst = instrument(&p);
+        let got = render(
+            &mut inst,
+            &[
+                on(10, root, 0.8),
+                damper(10, Some(root), by),
+                off(3000, root),
+            ],
+            n,
+        );
+        assert_eq!(inst.voices[0].at.damper, level);
+        let mut q = p;
+        q.scene.variants = VariantSet::default();
+        q.scene.damper_norm = (0.5 + f64::from(level) * DAMPER_STEP).clamp(0.0, 1.0);
+        let want = render(
+            &mut instrument(&q),
+            &[on(10, root, 0.8), off(3000, root)],
+            n,
+        );
+        assert!(got == want, "offset {by}: not the level's release");
+        if !by.is_nan() {
+            tails.push(rms(&got[0][3200..3700]));
+        }
+    }
+    println!("release tails by damper level: {tails:?}");
+    assert!(tails.windows(2).all(|w| w[1] < w[0]), "{tails:?}");
+    // after the release: the released voice moves to the new level
+    let plain = render(
+        &mut instrument(&p),
+        &[on(10, root, 0.8), off(3000, root)],
+        n,
+    );
+    let later = render(
+        &mut instrument(&p),
+        &[
+            on(10, root, 0.8),
+            off(3000, root),
+            damper(3100, Some(root), 0.5),
+        ],
+        n,
+    );
+    assert_eq!(plain[0][..3100], later[0][..3100]);
+    let (a, b) = (rms(&plain[0][3300..3800]), rms(&later[0][3300..3800]));
+    println!("damper raised after the release: tail {a:.3e} -> {b:.3e}");
+    assert!(b < 0.5 * a, "{a} {b}");
 }
 
 /// Every preset has its four brightness levels; a scene larger than
@@ -1383,8 +1567,9 @@ fn presets_have_every_brightness_level_and_large_scenes_none() {
         let pr = prepare(&sp, RATE, 0).unwrap();
         assert!(
             pr.timbre_note().is_none()
-                && (-TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX).all(|l| pr.scenes.has_level(l))
-                && pr.scenes.timbre_same_free.iter().all(|&s| s),
+                && (-TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX).all(|l| pr.scenes.has_played(hard(l)))
+                && pr.scenes.variants_same_free()
+                && pr.scenes.variant_count() == 4,
             "{name}: {} states",
             pr.scenes.scene.contact.dim
         );
@@ -1401,18 +1586,39 @@ fn presets_have_every_brightness_level_and_large_scenes_none() {
             md
         })
         .collect();
-    let pr = prepare_scene(&sc, &SceneParams::default(), RATE, 0).unwrap();
+    // (every variant asked for: none is compiled)
+    let sp = SceneParams {
+        strike_pos_norm: Some(0.5),
+        variants: VariantSet {
+            position: true,
+            damper: true,
+        },
+        ..SceneParams::default()
+    };
+    let pr = prepare_scene(&sc, &sp, RATE, 0).unwrap();
     assert!(pr.scenes.scene.contact.dim > TIMBRE_MAX_STATES);
-    assert!(!pr.scenes.has_level(1) && pr.scenes.has_level(0));
+    assert!(!pr.scenes.has_played(hard(1)) && pr.scenes.has_played(hard(0)));
+    assert_eq!(pr.scenes.variant_count(), 0);
     let note = pr.timbre_note().expect("a note for the user");
     assert!(note.contains("142 states in contact"), "{note}");
     let play = PlayParams::default();
     let mut bright = Instrument::new(pr.clone(), play);
     let got = render(
         &mut bright,
-        &[on(0, 60, 0.8), brightness(0, None, 1.0)],
+        &[
+            on(0, 60, 0.8),
+            brightness(0, None, 1.0),
+            hardness(0, None, 4.0),
+            position(0, None, 0.2),
+            damper(0, None, 0.5),
+            off(1500, 60),
+        ],
         3000,
     );
-    let want = render(&mut Instrument::new(pr, play), &[on(0, 60, 0.8)], 3000);
+    let want = render(
+        &mut Instrument::new(pr, play),
+        &[on(0, 60, 0.8), off(1500, 60)],
+        3000,
+    );
     assert!(got == want);
 }

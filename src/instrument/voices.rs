@@ -2,7 +2,7 @@
 //! own voice, a new note takes a free voice or steals the quietest), the
 //! damper at note-off, and silence detection.
 
-use super::prepared::Prepared;
+use super::prepared::{Prepared, Variant};
 use super::{impact_speed_m_per_s, Instrument, MAX_VOICES, SILENCE_ENERGY_RATIO};
 use crate::compile::CompiledScene;
 use crate::engine::EngineState;
@@ -32,13 +32,15 @@ pub(super) struct Voice {
     pub(super) onset_pos: u64,
     /// Its note's pressure, 0 .. 1 ([`super::Event::NotePressure`]).
     pub(super) pressure: f64,
-    /// The hardness level of the scene it is bound to (0: the played one;
-    /// [`super::Event::NoteBrightness`]).
-    pub(super) level: i8,
-    /// The level its note asks for (taken when its hammer is out of
-    /// contact): its brightness's level plus its hardness modulation's,
-    /// within the compiled levels ([`super::wanted_level`]).
-    pub(super) level_wanted: i8,
+    /// The variant of the scene it is bound to (hardness and position
+    /// levels; the damper level once released; all 0: the played one;
+    /// [`super::Event::NoteBrightness`], docs/plugin.md "Polyphonic
+    /// modulation").
+    pub(super) at: Variant,
+    /// The variant its note asks for (taken when its hammer is out of
+    /// contact): the hardness level is its brightness's plus its hardness
+    /// modulation's, within the compiled levels ([`super::wanted_level`]).
+    pub(super) want: Variant,
     /// Its note's brightness level ([`super::Event::NoteBrightness`]).
     pub(super) bright_level: i8,
     /// Its note's hardness modulation level ([`super::Event::NoteHardness`]).
@@ -53,18 +55,18 @@ impl Instrument {
         let idx = if let Some(i) = self.voices.iter().position(|v| v.active && v.key == key) {
             // Same key still ringing: strike the moving object again.
             let v = &mut self.voices[i];
-            if v.on_damped || v.level != 0 {
+            if v.on_damped || v.at != Variant::default() {
                 // back to the played scene: a new note starts at level 0
-                let from = p.scenes.bound(v.level, v.on_damped);
+                let from = p.scenes.bound(v.at, v.on_damped);
                 if !std::ptr::eq(from, &p.scenes.scene)
                     && !p.states[i].rebind(from, &p.scenes.scene)
                 {
                     p.states[i].reset(&p.scenes.scene);
                 }
                 v.on_damped = false;
-                v.level = 0;
+                v.at = Variant::default();
             }
-            v.level_wanted = 0;
+            v.want = Variant::default();
             v.bright_level = 0;
             v.hard_level = 0;
             v.released = false;
@@ -115,8 +117,8 @@ impl Instrument {
                 tuning_now: 0.0,
                 onset_pos: 0,
                 pressure: 0.0,
-                level: 0,
-                level_wanted: 0,
+                at: Variant::default(),
+                want: Variant::default(),
                 bright_level: 0,
                 hard_level: 0,
             };
@@ -149,37 +151,43 @@ impl Instrument {
     }
 
     /// Release voice `i`: the damper falls (it continues on the damped
-    /// scene when there is one).
+    /// scene of its damper level when there is one).
     pub(super) fn release_voice(&mut self, i: usize) {
         let p = &mut *self.cur;
         let v = &mut self.voices[i];
         v.released = true;
-        if let Some(d) = &p.scenes.damped {
-            if p.states[i].rebind(p.scenes.bound(v.level, false), d) {
+        if let Some(d) = p.scenes.damped_for(v.want.damper) {
+            if p.states[i].rebind(p.scenes.bound(v.at, false), d) {
                 v.on_damped = true;
+                v.at.damper = v.want.damper;
             }
         }
     }
 
-    /// Move every voice whose note's brightness asks for another hardness
-    /// level to that level's scene ([`EngineState::rebind_same_free`] where
-    /// the levels step the free phase in the same coordinates, as every
-    /// preset's do: the state kept bit for bit, O(N); else
-    /// [`EngineState::rebind`]), unless
-    /// its hammer is in contact (it waits: [`Instrument::render`] calls
-    /// this again on the silence-check grid). A released voice plays on the
-    /// damped scene whatever its level. O(N) (O(N^2) through `rebind`) per
+    /// Move every voice whose note asks for another variant (a brightness,
+    /// a host's polyphonic modulation) to that variant's scene
+    /// ([`EngineState::rebind_same_free`] between played variants that
+    /// step the free phase in the same coordinates, as every preset's
+    /// hardness levels do: the state kept bit for bit, O(N); else
+    /// [`EngineState::rebind`]), unless its hammer is in contact (it
+    /// waits: [`Instrument::render`] calls this again on the
+    /// silence-check grid). A released voice moves between the damped
+    /// scenes of its damper levels. O(N) (O(N^2) through `rebind`) per
     /// voice that moves, allocation-free. \[audio-thread\]
     pub(super) fn apply_timbre(&mut self) {
         let p = &mut *self.cur;
         let mut pending = false;
         for i in 0..MAX_VOICES {
             let v = &mut self.voices[i];
-            if !v.active || v.level == v.level_wanted {
+            if !v.active || v.at == v.want {
                 continue;
             }
-            if v.on_damped {
-                v.level = v.level_wanted;
+            let to_damped = v.released && p.scenes.damped_for(v.want.damper).is_some();
+            let from = p.scenes.bound(v.at, v.on_damped);
+            let to = p.scenes.bound(v.want, to_damped);
+            if std::ptr::eq(from, to) {
+                v.at = v.want;
+                v.on_damped = to_damped;
                 continue;
             }
             let st = &mut p.states[i];
@@ -187,19 +195,17 @@ impl Instrument {
                 pending = true;
                 continue;
             }
-            let from = p.scenes.bound(v.level, false);
-            let to = p.scenes.bound(v.level_wanted, false);
-            let moved = std::ptr::eq(from, to)
-                || if p.scenes.same_free(v.level, v.level_wanted) {
-                    st.rebind_same_free(from, to)
-                } else {
-                    st.rebind(from, to)
-                };
-            if moved {
-                v.level = v.level_wanted;
+            let moved = if !v.on_damped && !to_damped && p.scenes.same_free(v.at, v.want) {
+                st.rebind_same_free(from, to)
             } else {
-                // a level it cannot be carried to: it stays where it is
-                v.level_wanted = v.level;
+                st.rebind(from, to)
+            };
+            if moved {
+                v.at = v.want;
+                v.on_damped = to_damped;
+            } else {
+                // a variant it cannot be carried to: it stays where it is
+                v.want = v.at;
             }
         }
         self.timbre_pending = pending;
@@ -211,7 +217,7 @@ impl Instrument {
             if !v.active {
                 continue;
             }
-            let scene = p.scenes.bound(v.level, v.on_damped);
+            let scene = p.scenes.bound(v.at, v.on_damped);
             if let Some(e) = audible_energy(&p.states[i], scene) {
                 if e < SILENCE_ENERGY_RATIO * v.strike_energy {
                     v.active = false;
@@ -248,7 +254,7 @@ fn quietest(p: &Prepared, voices: &[Voice]) -> usize {
     let mut best_e = f64::INFINITY;
     for (i, v) in voices.iter().enumerate() {
         let s = p.states[i].time_scale();
-        let e = p.states[i].energy_proxy(p.scenes.bound(v.level, v.on_damped)) * s * s;
+        let e = p.states[i].energy_proxy(p.scenes.bound(v.at, v.on_damped)) * s * s;
         if !(e >= best_e) {
             best = i;
             best_e = e;

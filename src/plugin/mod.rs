@@ -237,6 +237,48 @@ fn note_event(event: &NoteEvent<()>) -> Option<Event> {
     }
 }
 
+/// The parameter of polyphonic modulation id `poly`.
+fn poly_param(params: &ModalContactParams, poly: u32) -> &FloatParam {
+    match poly {
+        params::POLY_HARDNESS => &params.hardness,
+        params::POLY_POSITION => &params.strike_pos,
+        _ => &params.damper,
+    }
+}
+
+/// The instrument's event for a voice's modulation of parameter `poly`:
+/// the parameter at knob position `base + offset` against the played
+/// scene's value (docs/plugin.md, "Polyphonic modulation").
+fn modulation(
+    params: &ModalContactParams,
+    played: &SceneParams,
+    poly: u32,
+    key: u8,
+    base: f32,
+    offset: f32,
+) -> Event {
+    let p = poly_param(params, poly);
+    let value = f64::from(p.preview_plain(base + offset));
+    let key = Some(key);
+    match poly {
+        params::POLY_HARDNESS => Event::NoteHardness {
+            key,
+            factor: value / played.stiffness_factor,
+        },
+        params::POLY_POSITION => Event::NotePosition {
+            key,
+            offset: value
+                - played
+                    .strike_pos_norm
+                    .unwrap_or(f64::from(p.preview_plain(base))),
+        },
+        _ => Event::NoteDamper {
+            key,
+            offset: value - played.damper_norm,
+        },
+    }
+}
+
 impl Plugin for ModalContact {
     const NAME: &'static str = "Modal Contact";
     const VENDOR: &'static str = "Modal Contact";
@@ -469,12 +511,8 @@ impl ModalContact {
         // retunes each of its notes): they wait in `translated`.
         let (mpe, out) = (&mut self.mpe, &mut self.translated);
         let ids = &mut self.voice_ids;
-        // a voice's Hardness modulation as a factor of the played scene's
-        // (docs/plugin.md, "Polyphonic modulation")
-        let hardness = &self.params.hardness;
-        let played = inst.prepared().params.stiffness_factor;
-        let factor =
-            |base: f32, offset: f32| f64::from(hardness.preview_plain(base + offset)) / played;
+        let params = &*self.params;
+        let played = inst.prepared().params;
         out.clear();
         let (mut next, mut at) = (0usize, 0usize);
         let events = std::iter::from_fn(|| loop {
@@ -484,29 +522,47 @@ impl ModalContact {
             }
             let event = context.next_event()?;
             let Some(e) = note_event(&event) else {
+                // polyphonic modulation (docs/plugin.md, "Polyphonic
+                // modulation"): a voice's offset, or the parameter moved
+                // under every modulated voice
                 match event {
                     NoteEvent::PolyModulation {
                         voice_id,
-                        poly_modulation_id: params::POLY_HARDNESS,
+                        poly_modulation_id: poly,
                         normalized_offset,
                         ..
                     } => {
-                        let base = hardness.unmodulated_normalized_value();
-                        if let Some(e) =
-                            ids.hardness(voice_id, normalized_offset, |o| factor(base, o))
-                        {
-                            out.set_one(e);
+                        params.variants_wanted.want(poly);
+                        if let Some(key) = ids.modulate(voice_id, poly, normalized_offset) {
+                            let base = poly_param(params, poly).unmodulated_normalized_value();
+                            out.set_one(modulation(
+                                params,
+                                &played,
+                                poly,
+                                key,
+                                base,
+                                normalized_offset,
+                            ));
                             (next, at) = (0, event.timing() as usize);
                         }
                         continue;
                     }
                     NoteEvent::MonoAutomation {
-                        poly_modulation_id: params::POLY_HARDNESS,
+                        poly_modulation_id: poly,
                         normalized_value,
                         ..
                     } => {
                         out.clear();
-                        ids.hardness_moved(|o| factor(normalized_value, o), |e| out.push(e));
+                        for (key, off) in ids.modulated(poly) {
+                            out.push(modulation(
+                                params,
+                                &played,
+                                poly,
+                                key,
+                                normalized_value,
+                                off,
+                            ));
+                        }
                         (next, at) = (0, event.timing() as usize);
                         continue;
                     }
@@ -592,8 +648,9 @@ impl ClapPlugin for ModalContact {
         Some("Energy-stable modal contact percussion (exact piecewise-linear contact)");
     const CLAP_MANUAL_URL: Option<&'static str> = None;
     const CLAP_SUPPORT_URL: Option<&'static str> = None;
-    // Hardness per voice (docs/plugin.md, "Polyphonic modulation"); one
-    // voice per key: a second note on a key strikes its ringing voice.
+    // Hardness, strike position and damper per voice (docs/plugin.md,
+    // "Polyphonic modulation"); one voice per key: a second note on a key
+    // strikes its ringing voice.
     const CLAP_POLY_MODULATION_CONFIG: Option<PolyModulationConfig> = Some(PolyModulationConfig {
         max_voice_capacity: MAX_VOICES as u32,
         supports_overlapping_voices: false,

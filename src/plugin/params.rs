@@ -27,7 +27,7 @@
 
 use super::user_scene::{lock, SceneLibrary, UserScene};
 use crate::instrument::{
-    InstrumentParams, PlayParams, SceneParams, DEFAULT_BEND_RANGE_SEMITONES,
+    InstrumentParams, PlayParams, SceneParams, VariantSet, DEFAULT_BEND_RANGE_SEMITONES,
     MAX_BEND_RANGE_SEMITONES, MAX_VOICES,
 };
 use crate::presets;
@@ -38,6 +38,7 @@ use nice_plug::prelude::*;
 use std::collections::BTreeMap;
 use std::marker::PhantomData;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// One parameter's metadata: an entry of [`PARAMS`].
@@ -325,13 +326,52 @@ impl FromSpec for FloatParam {
     }
 }
 
+/// Which per-voice variants a host's polyphonic modulation has asked for
+/// since the plugin was created: the audio thread sets them when the first
+/// modulation of Strike position or Damper arrives, and the next compile
+/// includes them (docs/plugin.md, "Polyphonic modulation"). Atomics: the
+/// audio thread stores, any thread loads.
+#[derive(Debug, Default)]
+pub struct VariantsWanted {
+    position: AtomicBool,
+    damper: AtomicBool,
+}
+
+impl VariantsWanted {
+    /// The variants asked for. \[any-thread\]
+    pub fn get(&self) -> VariantSet {
+        VariantSet {
+            position: self.position.load(Ordering::Relaxed),
+            damper: self.damper.load(Ordering::Relaxed),
+        }
+    }
+
+    /// Ask for the variants of polyphonic modulation id `poly` (Hardness
+    /// needs none: its levels are always there). \[audio-thread\]
+    pub fn want(&self, poly: u32) {
+        match poly {
+            POLY_POSITION => self.position.store(true, Ordering::Relaxed),
+            POLY_DAMPER => self.damper.store(true, Ordering::Relaxed),
+            _ => {}
+        }
+    }
+}
+
 /// The CLAP polyphonic modulation id of Hardness (docs/plugin.md,
 /// "Polyphonic modulation").
 pub const POLY_HARDNESS: u32 = 0;
+/// The CLAP polyphonic modulation id of Strike position.
+pub const POLY_POSITION: u32 = 1;
+/// The CLAP polyphonic modulation id of Damper.
+pub const POLY_DAMPER: u32 = 2;
 
 /// The parameters a CLAP host may modulate per voice, with their
 /// polyphonic modulation ids.
-pub const POLY_MODULATED: &[(&str, u32)] = &[(ids::HARDNESS, POLY_HARDNESS)];
+pub const POLY_MODULATED: &[(&str, u32)] = &[
+    (ids::HARDNESS, POLY_HARDNESS),
+    (ids::STRIKE_POS, POLY_POSITION),
+    (ids::DAMPER, POLY_DAMPER),
+];
 
 /// The polyphonic modulation id of parameter `id`, if it has one.
 pub fn poly_modulation_id(id: &str) -> Option<u32> {
@@ -430,6 +470,9 @@ macro_rules! parameters {
             /// What is saved besides the parameters (the user's scene, the
             /// editor's size and scene folder).
             pub persisted: Persisted,
+            /// The per-voice variants a host's polyphonic modulation asked
+            /// for (set by the audio thread, read with the parameters).
+            pub variants_wanted: VariantsWanted,
         }
 
         impl Default for ModalContactParams {
@@ -439,6 +482,7 @@ macro_rules! parameters {
                         spec(ids::$ID).expect("declared above"),
                     ),)*
                     persisted: Persisted::default(),
+                    variants_wanted: VariantsWanted::default(),
                 }
             }
         }
@@ -623,6 +667,7 @@ impl ModalContactParams {
             gravity_m_per_s2: self.gravity.value() as f64,
             switching: SWITCHING_METHOD[self.switching.value().index()],
             user_scene: self.persisted.library.active(),
+            variants: self.variants_wanted.get(),
         }
     }
 

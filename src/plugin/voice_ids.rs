@@ -11,7 +11,7 @@
 //!
 //! Plain data, fixed size: the audio thread owns it; no allocation.
 
-use crate::instrument::{Event, MAX_VOICES};
+use crate::instrument::MAX_VOICES;
 
 /// Keys of MIDI.
 const KEYS: usize = 128;
@@ -27,13 +27,17 @@ pub struct HostVoice {
     pub key: u8,
 }
 
-/// Voice ids by key, the hardness modulation of each, and the voices that
-/// ended since the host was last told.
+/// The parameters a host may modulate per voice, by polyphonic
+/// modulation id (`params::POLY_*`): Hardness, Strike position, Damper.
+pub const MODULATED: usize = 3;
+
+/// Voice ids by key, the modulations of each, and the voices that ended
+/// since the host was last told.
 #[derive(Debug, Clone)]
 pub struct VoiceIds {
     ids: [Option<HostVoice>; KEYS],
-    /// Normalized offset of each key's Hardness modulation.
-    hardness_offset: [f32; KEYS],
+    /// Normalized offset of each key's modulation of each parameter.
+    offsets: [[f32; KEYS]; MODULATED],
     /// Voices that ended, to report (at most one per key and block, plus
     /// one per note-on that replaced an id: bounded by `ENDED_CAP`).
     ended: [HostVoice; ENDED_CAP],
@@ -49,7 +53,7 @@ impl Default for VoiceIds {
     fn default() -> Self {
         Self {
             ids: [None; KEYS],
-            hardness_offset: [0.0; KEYS],
+            offsets: [[0.0; KEYS]; MODULATED],
             ended: [HostVoice {
                 id: 0,
                 channel: 0,
@@ -80,7 +84,7 @@ impl VoiceIds {
             }
         }
         self.ids[k] = id.map(|id| HostVoice { id, channel, key });
-        self.hardness_offset[k] = 0.0;
+        self.offsets.iter_mut().for_each(|o| o[k] = 0.0);
     }
 
     /// The key whose voice has the host's `id`.
@@ -92,35 +96,25 @@ impl VoiceIds {
             .map(|v| v.key)
     }
 
-    /// A polyphonic modulation of Hardness by `offset` (normalized) on the
-    /// voice with `id`: the event for its key, with the factor
-    /// `plain(base + offset) / played` that `factor_of` gives.
-    pub fn hardness(
-        &mut self,
-        id: i32,
-        offset: f32,
-        factor_of: impl Fn(f32) -> f64,
-    ) -> Option<Event> {
+    /// A polyphonic modulation by `offset` (normalized) of parameter
+    /// `poly` (a polyphonic modulation id below [`MODULATED`]) on the voice
+    /// with `id`: the key to give `event` (`None`: an id that is not
+    /// sounding, or a parameter not modulated per voice).
+    pub fn modulate(&mut self, id: i32, poly: u32, offset: f32) -> Option<u8> {
+        let m = usize::try_from(poly).ok().filter(|&m| m < MODULATED)?;
         let key = self.key_of(id)?;
-        self.hardness_offset[usize::from(key)] = offset;
-        Some(Event::NoteHardness {
-            key: Some(key),
-            factor: factor_of(offset),
-        })
+        self.offsets[m][usize::from(key)] = offset;
+        Some(key)
     }
 
-    /// The Hardness parameter moved (the host's monophonic automation):
-    /// every modulated voice's factor again, into `out`.
-    pub fn hardness_moved(&self, factor_of: impl Fn(f32) -> f64, mut out: impl FnMut(Event)) {
-        for v in self.ids.iter().flatten() {
-            let off = self.hardness_offset[usize::from(v.key)];
-            if off != 0.0 {
-                out(Event::NoteHardness {
-                    key: Some(v.key),
-                    factor: factor_of(off),
-                });
-            }
-        }
+    /// The modulated voices of parameter `poly` and their offsets (to
+    /// take again when the parameter itself moves).
+    pub fn modulated(&self, poly: u32) -> impl Iterator<Item = (u8, f32)> + '_ {
+        let m = usize::try_from(poly).unwrap_or(MODULATED);
+        self.ids.iter().flatten().filter_map(move |v| {
+            let off = *self.offsets.get(m)?.get(usize::from(v.key))?;
+            (off != 0.0).then_some((v.key, off))
+        })
     }
 
     /// After a block: the voices whose keys no longer sound have ended.
@@ -130,7 +124,7 @@ impl VoiceIds {
             if !sounding.contains(&Some(v.key)) {
                 self.end(v);
                 self.ids[k] = None;
-                self.hardness_offset[k] = 0.0;
+                self.offsets.iter_mut().for_each(|o| o[k] = 0.0);
             }
         }
     }
@@ -159,15 +153,15 @@ mod tests {
         assert_eq!(ids.key_of(7), Some(60));
         assert_eq!(ids.key_of(8), Some(64));
         assert_eq!(ids.key_of(9), None);
-        // a modulation of an unknown id is nothing
-        assert_eq!(ids.hardness(9, 0.1, |_| 2.0), None);
-        assert_eq!(
-            ids.hardness(8, 0.1, |o| f64::from(o) * 10.0),
-            Some(Event::NoteHardness {
-                key: Some(64),
-                factor: f64::from(0.1f32) * 10.0
-            })
-        );
+        // a modulation of an unknown id, or of a parameter not modulated
+        // per voice, is nothing
+        assert_eq!(ids.modulate(9, 0, 0.1), None);
+        assert_eq!(ids.modulate(8, MODULATED as u32, 0.1), None);
+        assert_eq!(ids.modulate(8, 0, 0.1), Some(64));
+        assert_eq!(ids.modulate(8, 2, -0.3), Some(64));
+        assert_eq!(ids.modulated(0).collect::<Vec<_>>(), [(64, 0.1)]);
+        assert_eq!(ids.modulated(2).collect::<Vec<_>>(), [(64, -0.3)]);
+        assert_eq!(ids.modulated(1).count(), 0);
         ids.block_done(&sounding(&[60, 64, 67]));
         assert_eq!(ids.take_ended().count(), 0);
         // a new note on key 60 with another id ends id 7
@@ -181,26 +175,18 @@ mod tests {
                 key: 60
             }]
         );
-        // key 64 falls silent: id 8 ends, and its modulation is forgotten
+        // key 64 falls silent: id 8 ends, and its modulations are forgotten
         ids.block_done(&sounding(&[60]));
         let ended: Vec<_> = ids.take_ended().map(|v| v.id).collect();
         assert_eq!(ended, [8]);
         assert_eq!(ids.key_of(8), None);
-        let mut again = Vec::new();
-        ids.hardness_moved(f64::from, |e| again.push(e));
-        assert!(again.is_empty(), "{again:?}");
-        // the monophonic automation re-sends each modulated voice's factor
-        ids.hardness(11, -0.25, |_| 0.5);
-        ids.hardness_moved(|o| f64::from(o) * 2.0, |e| again.push(e));
-        assert_eq!(
-            again,
-            [Event::NoteHardness {
-                key: Some(60),
-                factor: -0.5
-            }]
-        );
+        assert_eq!(ids.modulated(0).count() + ids.modulated(2).count(), 0);
+        // a new note on a key starts unmodulated
+        assert_eq!(ids.modulate(11, 1, 0.2), Some(60));
+        ids.note_on(60, Some(12), 0);
+        assert_eq!(ids.modulated(1).count(), 0);
         ids.block_done(&sounding(&[]));
-        assert_eq!(ids.take_ended().map(|v| v.id).collect::<Vec<_>>(), [11]);
+        assert_eq!(ids.take_ended().map(|v| v.id).collect::<Vec<_>>(), [11, 12]);
         assert_eq!(ids.take_ended().count(), 0);
     }
 }

@@ -172,6 +172,15 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
                 for w in warnings {
                     nice_plug::nice_log!("modal_contact: {w}");
                 }
+                if req.params.variants != Default::default() {
+                    nice_plug::nice_log!(
+                        "modal_contact: {} per-voice variant scenes (hardness, strike position, \
+                         damper levels for polyphonic modulation) compiled with the scene in \
+                         {:.0} ms",
+                        p.scenes.variant_count(),
+                        t0.elapsed().as_secs_f64() * 1e3
+                    );
+                }
                 h.last_compile_ms
                     .store(t0.elapsed().as_secs_f64() * 1e3, Ordering::Relaxed);
                 h.compiles.fetch_add(1, Ordering::Relaxed);
