@@ -530,7 +530,8 @@ parameters! {
         name: "Hardness",
         kind: factor(0.01, 100.0, 3),
         applies: Applies::Recompile,
-        doc: "Multiplies the contact stiffness. Harder: shorter contact, brighter.",
+        doc: "Multiplies the contact stiffness. Harder: shorter contact, brighter. \
+              Per voice in CLAP hosts (polyphonic modulation, in levels).",
     },
     contact_damping: FloatParam = CONTACT_DAMPING {
         id: "contact_damping",
@@ -552,7 +553,8 @@ parameters! {
         kind: linear(0.0, 1.0, 0.5, "", 3),
         applies: Applies::Recompile,
         doc: "Where along the object the hammer hits, 0 .. 1 (see below; \
-              the scenes table says which scenes it moves).",
+              the scenes table says which scenes it moves). Per voice in CLAP \
+              hosts (polyphonic modulation, in levels).",
     },
     decay: FloatParam = DECAY {
         id: "decay",
@@ -568,7 +570,8 @@ parameters! {
         kind: linear(0.0, 1.0, 0.5, "", 3),
         applies: Applies::Recompile,
         doc: "How strongly a released note is damped: decay times after note-off \
-              are divided by `1 + 50 * damper`. 0 = the object rings on after release.",
+              are divided by `1 + 50 * damper`. 0 = the object rings on after release. \
+              Per voice in CLAP hosts (polyphonic modulation, in levels).",
     },
     pitch_tracking: BoolParam = PITCH_TRACKING {
         id: "pitch_tracking",
