@@ -1182,6 +1182,70 @@ mod tests {
         println!("batched partial propagators vs exp2: worst {worst:.1e} of the block norm");
     }
 
+    /// The fast path's margin bounds how far `phi` strays from the chord
+    /// between a step's end values, checked against `phi` through the state
+    /// (exact partial propagators) at 64 instants of each of 6 later steps,
+    /// in both phases of every preset, for steps of half, one and three
+    /// samples (a note pitched an octave and more up), with the margin
+    /// taken once at the start; and it is never above the curvature bound's.
+    #[test]
+    fn fast_margin_bounds_the_chord_error() {
+        let (mut tightest, mut used) = (f64::INFINITY, 0.0f64);
+        for i in 0..presets::PRESETS.len() {
+            let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
+            for contact in [false, true] {
+                for (seed, mult) in [(7919usize, 0.5), (104_729, 1.0), (1299, 3.0)] {
+                    let mut st = EngineState::new(&sc);
+                    st.phase = if contact { Phase::Contact } else { Phase::Free };
+                    if current_phase(&st, &sc).gens.is_none() {
+                        continue;
+                    }
+                    st.x_h = 1e-4;
+                    st.v_h = -0.3;
+                    let dim = current_phase(&st, &sc).dim;
+                    for j in 0..dim {
+                        let v = 1e-3 * ((j * seed % 101) as f64 / 101.0 - 0.5);
+                        st.phases[st.phase.index()].s[j] = v;
+                    }
+                    let dt = mult * st.step_s;
+                    let margin = st.fast_margin(&sc, dt);
+                    let ph = current_phase(&st, &sc);
+                    let (e, w) =
+                        kernel::block_measures(&st.phases[st.phase.index()].s, &ph.ev_dd_block);
+                    let curv = (ph.ev_dd_norm * ph.ev_dd_norm * e)
+                        .min(ph.ev_dd_block_sum * w)
+                        .sqrt();
+                    let g = if contact { 0.0 } else { st.g };
+                    let old = (g + curv) * dt * dt / 8.0 * (1.0 + 1e-12);
+                    assert!(margin <= old, "preset {i}: {margin:e} > {old:e}");
+                    tightest = tightest.min(margin / old);
+                    for _ in 0..6 {
+                        let f0 = st.eval_event3(&sc, 0.0, false)[0];
+                        let f1 = st.eval_event3(&sc, dt, false)[0];
+                        for j in 1..64 {
+                            let t = dt * j as f64 / 64.0;
+                            st.part_ok = false;
+                            let f = st.eval_event3(&sc, t, false)[0];
+                            let chord = f0 + (f1 - f0) * (j as f64 / 64.0);
+                            let dev = (f - chord).abs();
+                            used = used.max(dev / margin);
+                            assert!(
+                                dev <= margin,
+                                "preset {i} contact {contact} step x{mult}: |phi - chord| = {dev:e} > {margin:e}"
+                            );
+                        }
+                        st.part_ok = false;
+                        st.advance_by(&sc, dt, false);
+                        st.part_ok = false;
+                    }
+                }
+            }
+        }
+        println!(
+            "fast margin: at most {used:.3} of it used; down to {tightest:.3} of the curvature bound's"
+        );
+    }
+
     /// The search's model of `phi` (slow polynomial + fast blocks + other
     /// blocks + polynomial part) against `phi` through the state (a sweep
     /// of exact partial propagators), in both phases of every preset, at

@@ -464,6 +464,23 @@ pub fn block_measures(s: &[f64], c: &[f64]) -> (f64, f64) {
     (lane_sum(e), lane_sum(w))
 }
 
+/// The fast path's interpolation margin of a block state:
+/// `sum_k min(c_k h, 2 e_k) |s_k|` with `s_k` the 2-vector of block `k`
+/// (`c`: curvature weights, `e`: the event row's block norms, `h = dt^2 / 8`).
+/// O(N). \[audio-thread\]
+#[inline]
+pub fn block_margin(s: &[f64], c: &[f64], e: &[f64], h: f64) -> f64 {
+    let nb = c.len();
+    let (sa, sb) = s.split_at(nb);
+    let (sb, e) = (&sb[..nb], &e[..nb]);
+    let mut m = [0.0f64; LANES];
+    for k in 0..nb {
+        let norm = (sa[k] * sa[k] + sb[k] * sb[k]).sqrt();
+        m[k % LANES] += (c[k] * h).min(2.0 * e[k]) * norm;
+    }
+    lane_sum(m)
+}
+
 #[inline(always)]
 fn event_body<const FMA: bool>(p: Option<&BlockProps>, s: &[f64], rows: [&[f64]; 3]) -> [f64; 3] {
     let nb = s.len() / 2;

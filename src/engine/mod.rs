@@ -196,12 +196,16 @@ pub struct EngineState {
     /// curvature bound is refreshed, so the output does not depend on how the
     /// caller splits its blocks.
     clock: u64,
-    /// Curvature bound `B >= |phi''|` (reference time) for fast steps of
-    /// exact switching, valid for the epoch `bound_epoch` of `clock` and the
-    /// current phase (each block is a contraction, so a bound taken from an
-    /// earlier state of the same phase holds for every later one).
+    /// Interpolation margin of fast steps of exact switching: a bound on
+    /// how far `phi` strays from the chord between a step's end values, for
+    /// steps of `bound_dt` (reference time), valid for the epoch
+    /// `bound_epoch` of `clock` and the current phase (each block is a
+    /// contraction, so a bound taken from an earlier state of the same
+    /// phase holds for every later one; see `fast_margin`).
     bound: f64,
     bound_epoch: u64,
+    /// The step `bound` was taken for.
+    bound_dt: f64,
     /// How many samples the fast path tries at once: reset to 1 when a
     /// sample fails its check, doubled after each full success (speed only,
     /// never results).
@@ -309,6 +313,7 @@ impl EngineState {
             clock: 0,
             bound: 0.0,
             bound_epoch: NO_EPOCH,
+            bound_dt: 0.0,
             spec_len: EPOCH,
             out_c_offset: [0.0; 2],
             band_hz: f64::INFINITY,
@@ -992,15 +997,16 @@ impl EngineState {
             self.refresh_cache(scene);
         }
         let epoch = self.clock / EPOCH as u64;
-        if exact && self.bound_epoch != epoch {
-            self.bound = self.curvature_bound_fast(scene);
+        let dt = self.step_s;
+        if exact && (self.bound_epoch != epoch || self.bound_dt != dt) {
+            self.bound = self.fast_margin(scene, dt);
             self.bound_epoch = epoch;
+            self.bound_dt = dt;
         }
         self.run_kernel(scene, k_max);
         // Check the samples in order (hammer in flight: its exact parabola).
-        let dt = self.step_s;
         let g = self.g;
-        let margin = self.bound * dt * dt / 8.0;
+        let margin = self.bound;
         let (off, out_off) = if in_contact {
             (scene.offsets.pi / scene.sk, self.out_c_offset)
         } else {
@@ -1157,18 +1163,28 @@ impl EngineState {
         self.cache_ok = true;
     }
 
-    /// Curvature bound for the fast path from the current state: the
-    /// smaller of the global bound `|ev_dd| |s|` and the weighted one
-    /// `sqrt(sum c_k * sum c_k |s_k|^2)` (see `CompiledPhase::ev_dd_block`),
-    /// plus gravity in flight. Valid for every later state of the phase.
-    fn curvature_bound_fast(&self, scene: &CompiledScene) -> f64 {
+    /// Interpolation margin for fast steps of `dt` from the current state:
+    /// a bound on `|phi(t) - L(t)|` within any later step of the phase,
+    /// `L` the chord between the step's end values, so that both end values
+    /// above the margin certify no crossing inside. Per block the smaller
+    /// of its curvature's share `c_k |s_k| dt^2 / 8` and `2 e_k |s_k|` (the
+    /// block's share of `phi` and of the chord both stay within
+    /// `e_k |s_k|`); no larger than the curvature bounds `|ev_dd| |s|` and
+    /// `sqrt(sum c_k * sum c_k |s_k|^2)` times `dt^2 / 8` (see
+    /// `CompiledPhase::ev_dd_block`, `ev_block`; docs/numerics.md section
+    /// 6.2); plus gravity's exact `g dt^2 / 8` in flight. Valid for every
+    /// later state of the phase. O(N).
+    fn fast_margin(&self, scene: &CompiledScene, dt: f64) -> f64 {
         let (ph, s) = (scene.phase(self.phase), &self.phases[self.phase.index()].s);
+        let h = dt * dt / 8.0;
         let (e, w) = kernel::block_measures(s, &ph.ev_dd_block);
         let global2 = ph.ev_dd_norm * ph.ev_dd_norm * e;
         let weighted2 = ph.ev_dd_block_sum * w;
+        let blocks = kernel::block_margin(s, &ph.ev_dd_block, &ph.ev_block, h);
         let g = if self.in_contact() { 0.0 } else { self.g };
-        // 1 + 1e-12: the blocks are contractions up to rounding of exp2
-        g + global2.min(weighted2).sqrt() * (1.0 + 1e-12)
+        // 1 + 1e-12: the blocks are contractions up to rounding of exp2,
+        // and the sums round
+        (g * h + blocks.min(global2.min(weighted2).sqrt() * h)) * (1.0 + 1e-12)
     }
 
     fn refresh_cache(&mut self, scene: &CompiledScene) {
