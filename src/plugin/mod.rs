@@ -246,36 +246,39 @@ fn poly_param(params: &ModalContactParams, poly: u32) -> &FloatParam {
     }
 }
 
-/// The instrument's event for a voice's modulation of parameter `poly`:
-/// the parameter at knob position `base + offset` against the played
-/// scene's value (docs/plugin.md, "Polyphonic modulation").
-fn modulation(
-    params: &ModalContactParams,
-    played: &SceneParams,
-    poly: u32,
-    key: u8,
-    base: f32,
-    offset: f32,
-) -> Event {
-    let p = poly_param(params, poly);
-    let value = f64::from(p.preview_plain(base + offset));
-    let key = Some(key);
-    match poly {
-        params::POLY_HARDNESS => Event::NoteHardness {
-            key,
-            factor: value / played.stiffness_factor,
-        },
-        params::POLY_POSITION => Event::NotePosition {
-            key,
-            offset: value
-                - played
-                    .strike_pos_norm
-                    .unwrap_or(f64::from(p.preview_plain(base))),
-        },
-        _ => Event::NoteDamper {
-            key,
-            offset: value - played.damper_norm,
-        },
+/// The parameters a host modulates per voice, and the values the played
+/// scene was compiled for.
+struct Modulated<'a> {
+    params: &'a ModalContactParams,
+    played: SceneParams,
+}
+
+impl Modulated<'_> {
+    /// The instrument's event for a voice's modulation of parameter `poly`:
+    /// the parameter at knob position `base + offset` against the played
+    /// scene's value (docs/plugin.md, "Polyphonic modulation").
+    fn event(&self, poly: u32, key: u8, base: f32, offset: f32) -> Event {
+        let p = poly_param(self.params, poly);
+        let value = f64::from(p.preview_plain(base + offset));
+        let key = Some(key);
+        match poly {
+            params::POLY_HARDNESS => Event::NoteHardness {
+                key,
+                factor: value / self.played.stiffness_factor,
+            },
+            params::POLY_POSITION => Event::NotePosition {
+                key,
+                offset: value
+                    - self
+                        .played
+                        .strike_pos_norm
+                        .unwrap_or(f64::from(p.preview_plain(base))),
+            },
+            _ => Event::NoteDamper {
+                key,
+                offset: value - self.played.damper_norm,
+            },
+        }
     }
 }
 
@@ -512,7 +515,10 @@ impl ModalContact {
         let (mpe, out) = (&mut self.mpe, &mut self.translated);
         let ids = &mut self.voice_ids;
         let params = &*self.params;
-        let played = inst.prepared().params;
+        let modulated = Modulated {
+            params,
+            played: inst.prepared().params,
+        };
         out.clear();
         let (mut next, mut at) = (0usize, 0usize);
         let events = std::iter::from_fn(|| loop {
@@ -535,14 +541,7 @@ impl ModalContact {
                         params.variants_wanted.want(poly);
                         if let Some(key) = ids.modulate(voice_id, poly, normalized_offset) {
                             let base = poly_param(params, poly).unmodulated_normalized_value();
-                            out.set_one(modulation(
-                                params,
-                                &played,
-                                poly,
-                                key,
-                                base,
-                                normalized_offset,
-                            ));
+                            out.set_one(modulated.event(poly, key, base, normalized_offset));
                             (next, at) = (0, event.timing() as usize);
                         }
                         continue;
@@ -554,14 +553,7 @@ impl ModalContact {
                     } => {
                         out.clear();
                         for (key, off) in ids.modulated(poly) {
-                            out.push(modulation(
-                                params,
-                                &played,
-                                poly,
-                                key,
-                                normalized_value,
-                                off,
-                            ));
+                            out.push(modulated.event(poly, key, normalized_value, off));
                         }
                         (next, at) = (0, event.timing() as usize);
                         continue;
