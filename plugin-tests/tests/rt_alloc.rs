@@ -131,7 +131,11 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
         events.push(poly_mod(at + 2_500, id, PolyTarget::Damper, -1.0));
     }
     events.push(poly_mod(26_100, 12_345, PolyTarget::StrikePosition, 0.5));
-    for target in [PolyTarget::Hardness, PolyTarget::StrikePosition, PolyTarget::Damper] {
+    for target in [
+        PolyTarget::Hardness,
+        PolyTarget::StrikePosition,
+        PolyTarget::Damper,
+    ] {
         events.push(poly_mod(26_200, 501, target, f64::NAN));
         events.push(poly_mod(26_210, 502, target, f64::INFINITY));
     }
