@@ -10,7 +10,6 @@ use crate::compile::{compile_with, CompileError, CompiledScene};
 use crate::engine::EngineState;
 use crate::presets;
 use crate::scene::{Scene, Switching};
-use rayon::prelude::*;
 
 /// Everything the audio thread needs for one parameter set, built off the
 /// audio thread: the compiled scene, its damped variant, and a fresh engine
@@ -383,6 +382,32 @@ impl From<CompileError> for PrepareError {
     }
 }
 
+/// `f` of every item, in order, computed on up to as many scoped threads as
+/// the machine has cores. The threads are joined before this returns: none
+/// outlives the call (a host may unload the plugin's library right after a
+/// compile, and a thread still running its code would crash the host; a
+/// global thread pool would keep its threads). A panic in `f` is passed on.
+/// \[worker\] \[main-thread\]
+fn side_by_side<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = cores.min(items.len());
+    if threads <= 1 {
+        return items.iter().map(f).collect();
+    }
+    let per = items.len().div_ceil(threads);
+    let f = &f;
+    std::thread::scope(|scope| {
+        let running: Vec<_> = items
+            .chunks(per)
+            .map(|chunk| scope.spawn(move || chunk.iter().map(f).collect::<Vec<R>>()))
+            .collect();
+        running
+            .into_iter()
+            .flat_map(|t| t.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    })
+}
+
 /// Compile everything for `params` at `rate_hz` (eigendecompositions: never
 /// call this on the audio thread). \[worker\] \[main-thread\]
 pub fn prepare(
@@ -437,31 +462,28 @@ pub fn prepare_scene(
         .filter(|&(h, pl)| small && (h, pl) != (0, 0) && (pl == 0 || positions))
         .collect();
     // compiled side by side (each is a compile of its own)
-    let compiled: Vec<Option<VariantScene>> = pairs
-        .par_iter()
-        .map(|&(h, pl)| {
-            let mut p = *params;
-            p.stiffness_factor *= TIMBRE_STIFFNESS_STEP.powi(i32::from(h));
-            p.strike_pos_norm = p
-                .strike_pos_norm
-                .map(|x| (x + f64::from(pl) * POSITION_STEP).clamp(0.0, 1.0));
-            let ip = InstrumentParams {
-                scene: p,
-                play: PlayParams::default(),
-            };
-            compile_with(&scene_for(base, &ip), rate_hz, Some(switching_used))
-                .ok()
-                .filter(same_layout)
-                .map(|t| VariantScene {
-                    same_free: t.free.v == scene.free.v
-                        && t.free.vinv == scene.free.vinv
-                        && t.free.gens == scene.free.gens
-                        && t.free.dense == scene.free.dense
-                        && t.h == scene.h,
-                    scene: t,
-                })
-        })
-        .collect();
+    let compiled: Vec<Option<VariantScene>> = side_by_side(&pairs, |&(h, pl)| {
+        let mut p = *params;
+        p.stiffness_factor *= TIMBRE_STIFFNESS_STEP.powi(i32::from(h));
+        p.strike_pos_norm = p
+            .strike_pos_norm
+            .map(|x| (x + f64::from(pl) * POSITION_STEP).clamp(0.0, 1.0));
+        let ip = InstrumentParams {
+            scene: p,
+            play: PlayParams::default(),
+        };
+        compile_with(&scene_for(base, &ip), rate_hz, Some(switching_used))
+            .ok()
+            .filter(same_layout)
+            .map(|t| VariantScene {
+                same_free: t.free.v == scene.free.v
+                    && t.free.vinv == scene.free.vinv
+                    && t.free.gens == scene.free.gens
+                    && t.free.dense == scene.free.dense
+                    && t.h == scene.h,
+                scene: t,
+            })
+    });
     let mut played: [[Option<VariantScene>; LEVELS]; LEVELS] = Default::default();
     for (&(h, pl), v) in pairs.iter().zip(compiled) {
         played[slot(h)][slot(pl)] = v;
@@ -472,24 +494,21 @@ pub fn prepare_scene(
     } else {
         Vec::new()
     };
-    let compiled: Vec<Option<Option<CompiledScene>>> = dampers
-        .par_iter()
-        .map(|&d| {
-            let value = (params.damper_norm + f64::from(d) * DAMPER_STEP).clamp(0.0, 1.0);
-            if value > 0.0 {
-                compile_with(
-                    &damped_scene(&played_scene, value),
-                    rate_hz,
-                    Some(switching_used),
-                )
-                .ok()
-                .filter(same_layout)
-                .map(Some)
-            } else {
-                Some(None)
-            }
-        })
-        .collect();
+    let compiled: Vec<Option<Option<CompiledScene>>> = side_by_side(&dampers, |&d| {
+        let value = (params.damper_norm + f64::from(d) * DAMPER_STEP).clamp(0.0, 1.0);
+        if value > 0.0 {
+            compile_with(
+                &damped_scene(&played_scene, value),
+                rate_hz,
+                Some(switching_used),
+            )
+            .ok()
+            .filter(same_layout)
+            .map(Some)
+        } else {
+            Some(None)
+        }
+    });
     let mut damped_at: [Option<Option<CompiledScene>>; LEVELS] = Default::default();
     for (&d, v) in dampers.iter().zip(compiled) {
         damped_at[slot(d)] = v;
