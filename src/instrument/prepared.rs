@@ -35,7 +35,9 @@ pub struct Prepared {
     pub fallback_note: Option<String>,
     /// One engine state per voice, sized for `scenes` (the running state of
     /// a carried voice moves in here at a swap).
-    pub(super) states: [EngineState; MAX_VOICES],
+    /// On the heap, as the variants (a `Prepared` is built on whichever
+    /// thread compiles it, a host's thread at activation).
+    pub(super) states: Box<[EngineState; MAX_VOICES]>,
 }
 
 /// The scene as played, the one released voices continue on, and the
@@ -52,13 +54,16 @@ pub struct Scenes {
     /// Released voices continue on this (`None` when the damper is 0).
     pub damped: Option<CompiledScene>,
     /// The played scene at (hardness level, position level), `(0, 0)`
-    /// excluded (that is `scene`), at `[hard + 2][pos + 2]`.
-    played: [[Option<VariantScene>; LEVELS]; LEVELS],
+    /// excluded (that is `scene`), at `cell(hard, pos)`. On the heap:
+    /// a `Prepared` is built on the stack of whichever thread compiles it
+    /// (a host's thread at activation), and 25 scenes inline would be a
+    /// large frame there.
+    played: Vec<Option<VariantScene>>,
     /// The damped scene at damper level `d` at `[d + 2]` (level 0 excluded:
     /// that is `damped`): `None` where not compiled (the voice uses
     /// `damped`), `Some(None)` where that level's damper is 0 (a released
-    /// voice rings on its played scene).
-    damped_at: [Option<Option<CompiledScene>>; LEVELS],
+    /// voice rings on its played scene). On the heap, as `played`.
+    damped_at: Vec<Option<Option<CompiledScene>>>,
 }
 
 /// A variant of the played scene and whether it steps the free phase in
@@ -79,6 +84,12 @@ fn slot(level: i8) -> usize {
     (level.clamp(-TIMBRE_LEVEL_MAX, TIMBRE_LEVEL_MAX) + TIMBRE_LEVEL_MAX) as usize
 }
 
+/// The index of (hardness level, position level) in [`Scenes`]' played
+/// variants.
+fn cell(hard: i8, pos: i8) -> usize {
+    slot(hard) * LEVELS + slot(pos)
+}
+
 /// Which of the compiled scenes a voice plays on: its levels on each
 /// variant axis (0: the parameter's own value).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -97,7 +108,7 @@ impl Scenes {
     /// was not compiled resolves to the same hardness at the parameter's
     /// position, then to `scene`.
     fn played_at(&self, hard: i8, pos: i8) -> (&CompiledScene, bool) {
-        let at = |h: i8, p: i8| self.played[slot(h)][slot(p)].as_ref();
+        let at = |h: i8, p: i8| self.played[cell(h, p)].as_ref();
         match at(hard, pos).or_else(|| at(hard, 0)) {
             Some(v) => (&v.scene, v.same_free),
             None => (&self.scene, true),
@@ -135,19 +146,18 @@ impl Scenes {
     /// Whether `v`'s hardness and position levels have a played scene of
     /// their own (`(0, 0)` always: the played scene).
     pub fn has_played(&self, v: Variant) -> bool {
-        (v.hard == 0 && v.pos == 0) || self.played[slot(v.hard)][slot(v.pos)].is_some()
+        (v.hard == 0 && v.pos == 0) || self.played[cell(v.hard, v.pos)].is_some()
     }
 
     /// Whether every played variant steps the free phase as the played
     /// scene does.
     pub fn variants_same_free(&self) -> bool {
-        self.played.iter().flatten().flatten().all(|v| v.same_free)
+        self.played.iter().flatten().all(|v| v.same_free)
     }
 
     /// How many variants (played and damped) are compiled.
     pub fn variant_count(&self) -> usize {
-        self.played.iter().flatten().flatten().count()
-            + self.damped_at.iter().flatten().flatten().count()
+        self.played.iter().flatten().count() + self.damped_at.iter().flatten().flatten().count()
     }
 }
 
@@ -484,9 +494,9 @@ pub fn prepare_scene(
                 scene: t,
             })
     });
-    let mut played: [[Option<VariantScene>; LEVELS]; LEVELS] = Default::default();
+    let mut played: Vec<Option<VariantScene>> = (0..LEVELS * LEVELS).map(|_| None).collect();
     for (&(h, pl), v) in pairs.iter().zip(compiled) {
-        played[slot(h)][slot(pl)] = v;
+        played[cell(h, pl)] = v;
     }
     // the damper levels: `Some(None)` where the level's damper is 0
     let dampers: Vec<i8> = if small && params.variants.damper {
@@ -509,18 +519,24 @@ pub fn prepare_scene(
             Some(None)
         }
     });
-    let mut damped_at: [Option<Option<CompiledScene>>; LEVELS] = Default::default();
+    let mut damped_at: Vec<Option<Option<CompiledScene>>> = (0..LEVELS).map(|_| None).collect();
     for (&d, v) in dampers.iter().zip(compiled) {
         damped_at[slot(d)] = v;
     }
     let band_hz = OUTPUT_BAND_FRACTION * 0.5 * rate_hz;
-    let states = std::array::from_fn(|_| {
-        let mut st = EngineState::new(&scene);
-        st.set_output_band(&scene, band_hz);
-        // the live view observes voices on the audio thread: no allocation there
-        st.reserve_observation();
-        st
-    });
+    let states: Vec<EngineState> = (0..MAX_VOICES)
+        .map(|_| {
+            let mut st = EngineState::new(&scene);
+            st.set_output_band(&scene, band_hz);
+            // the live view observes voices on the audio thread: no
+            // allocation there
+            st.reserve_observation();
+            st
+        })
+        .collect();
+    let Ok(states) = <Box<[EngineState; MAX_VOICES]>>::try_from(states.into_boxed_slice()) else {
+        unreachable!("MAX_VOICES states were made");
+    };
     Ok(Box::new(Prepared {
         revision,
         rate_hz,

@@ -1622,3 +1622,35 @@ fn presets_have_every_brightness_level_and_large_scenes_none() {
     );
     assert!(got == want);
 }
+
+/// A `Prepared` is built on whichever thread compiles it, a host's thread at
+/// activation (Ardour's crashed on a frame of about 280 KB when the variant
+/// scenes were held inline): its bulk (voice states, variant scenes) lives
+/// on the heap, and every preset prepares, every variant asked for, on a
+/// thread of 256 KB of stack.
+#[test]
+fn prepare_fits_a_small_host_thread_stack() {
+    let size = std::mem::size_of::<Prepared>();
+    println!("size of Prepared: {size} bytes");
+    assert!(size < 16 * 1024, "{size}");
+    std::thread::Builder::new()
+        .stack_size(256 * 1024)
+        .spawn(|| {
+            for i in 0..presets::COUNT {
+                let sp = SceneParams {
+                    preset: i,
+                    strike_pos_norm: Some(0.5),
+                    variants: VariantSet {
+                        position: true,
+                        damper: true,
+                    },
+                    ..SceneParams::default()
+                };
+                let p = prepare(&sp, RATE, 0).unwrap();
+                assert!(p.scenes.variant_count() >= 24, "preset {i}");
+            }
+        })
+        .unwrap()
+        .join()
+        .unwrap();
+}
