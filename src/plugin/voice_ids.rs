@@ -121,9 +121,14 @@ impl VoiceIds {
 
     /// After a block: the voices whose keys no longer sound have ended.
     pub fn block_done(&mut self, sounding: &[Option<u8>; MAX_VOICES]) {
+        // which keys sound, once (not a search of the voices per key)
+        let mut on = [false; KEYS];
+        for &key in sounding.iter().flatten() {
+            on[usize::from(key) & (KEYS - 1)] = true;
+        }
         for k in 0..KEYS {
             let Some(v) = self.ids[k] else { continue };
-            if !sounding.contains(&Some(v.key)) {
+            if !on[usize::from(v.key) & (KEYS - 1)] {
                 self.end(v);
                 self.ids[k] = None;
                 self.offsets.iter_mut().for_each(|o| o[k] = 0.0);
