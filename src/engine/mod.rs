@@ -1003,6 +1003,23 @@ impl EngineState {
             self.bound_epoch = epoch;
             self.bound_dt = dt;
         }
+        if exact {
+            // The first sample's test below needs `phi0 - margin > 0`, and
+            // `phi0` is known now. Where it fails (the samples before a
+            // slow release, the sample a strike starts in) every sample of
+            // the run would be thrown away: the same decision, without the
+            // O(N k) run.
+            let phi0 = self.cache[0]
+                + if in_contact {
+                    scene.offsets.pi / scene.sk
+                } else {
+                    self.x_h
+                };
+            if !(phi0 - self.bound > 0.0) {
+                self.spec_len = 1;
+                return (0, true);
+            }
+        }
         self.run_kernel(scene, k_max);
         // Check the samples in order (hammer in flight: its exact parabola).
         let g = self.g;
