@@ -71,7 +71,8 @@ impl RenderOutput {
 pub fn switching_line(x: &ExactStats) -> String {
     format!(
         "exact switching: {} located switches, {} grazing touches; capped {}, rod fallbacks {}, uncertified {}; \
-         event search: {} nodes, at most {} nodes and {} switches in one sample",
+         event search: {} nodes, at most {} nodes and {} switches in one sample; \
+         {} samples cleared by the Hermite certificate",
         x.located,
         x.grazing,
         x.capped,
@@ -79,7 +80,8 @@ pub fn switching_line(x: &ExactStats) -> String {
         x.uncertified,
         x.search_nodes,
         x.max_nodes_in_sample,
-        x.max_switches_in_sample
+        x.max_switches_in_sample,
+        x.hermite_cleared
     )
 }
 

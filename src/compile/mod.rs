@@ -103,6 +103,15 @@ pub struct CompiledPhase {
     /// which bounds it better than its curvature for blocks that turn by
     /// more than about 2.8 radians a step.
     pub ev_block: Vec<f64>,
+    /// Blocks only: `|(ev G)_k|` and `|(ev G^4)_k|`, the slope and
+    /// fourth-derivative weights of block `k`: with `phi` and `phi'` known
+    /// at both ends of a sample, its cubic Hermite interpolant is within
+    /// `sum_k min(c4_k dt^4 / 384, 2 e_k + 8/27 dt c1_k) |s_k|` of `phi`
+    /// (the certificate a sample that fails the fast path's test tries
+    /// before the search; docs/numerics.md section 6.2).
+    pub ev_d_block: Vec<f64>,
+    /// See `ev_d_block`.
+    pub ev_d4_block: Vec<f64>,
     /// What the exact event search needs beyond the rows ([`event`]).
     pub search: EventSearch,
 }
@@ -241,6 +250,10 @@ impl CompiledPhase {
             self.ev_dd_block = (0..nb).map(|k| dd[k].hypot(dd[nb + k])).collect();
             self.ev_dd_block_sum = self.ev_dd_block.iter().sum();
             self.ev_block = (0..nb).map(|k| ev[k].hypot(ev[nb + k])).collect();
+            let d3 = row_times_generator(&dd, self.gens.as_ref(), dense);
+            let d4 = row_times_generator(&d3, self.gens.as_ref(), dense);
+            self.ev_d_block = (0..nb).map(|k| d[k].hypot(d[nb + k])).collect();
+            self.ev_d4_block = (0..nb).map(|k| d4[k].hypot(d4[nb + k])).collect();
         }
         self.search = match (&self.gens, &self.dense) {
             (Some(gens), _) => EventSearch::of_blocks(gens, &self.osc, &ev),
@@ -435,6 +448,8 @@ fn to_phase(
         ev_dd_block: Vec::new(),
         ev_dd_block_sum: 0.0,
         ev_block: Vec::new(),
+        ev_d_block: Vec::new(),
+        ev_d4_block: Vec::new(),
         search: EventSearch::default(),
     })
 }

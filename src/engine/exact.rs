@@ -129,6 +129,10 @@ pub struct ExactStats {
     /// (another strike, a change of pitch, a grazing release): the dense
     /// change of basis.
     pub rest_misses: u64,
+    /// Samples the fast path could not certify that the Hermite
+    /// certificate cleared before any search (value and slope at both
+    /// ends, fourth-derivative remainder; docs/numerics.md section 6.2).
+    pub hermite_cleared: u64,
 }
 
 /// Which terms of a phase's event function ([`crate::compile::event`])
@@ -964,7 +968,92 @@ impl EngineState {
     /// O(N) plus the slow polynomial without events; per switch one change
     /// of basis, O(N^2), and a number of node evaluations bounded by the
     /// phase's time scales. Allocation-free. \[audio-thread\]
+    /// Try to clear the whole coming sample without a search: `phi` and
+    /// `phi'` at both of its ends (the end state stepped by the one-sample
+    /// propagators, with the same arithmetic as
+    /// [`advance_by`](Self::advance_by)), their cubic Hermite interpolant
+    /// bounded below by its Bernstein coefficients (the convex hull of a
+    /// cubic on an interval), less the interpolation remainder `sum_k
+    /// min(c4_k dt^4 / 384, 2 e_k + 8/27 dt c1_k) |s_k|` (each block is a
+    /// contraction, so `|d^4/dt^4 phi_k| <= c4_k |s_k|`, and a block's own
+    /// interpolant stays within `e_k |s_k| + 8/27 dt c1_k |s_k|` of zero)
+    /// and a rounding allowance. Above zero, `phi` has no root in the
+    /// sample: the state advances by one full step, bit for bit what the
+    /// search's "no root" would have left, and `true` is returned. Else
+    /// nothing changes. O(N), no transcendental function.
+    /// docs/numerics.md section 6.2. \[audio-thread\]
+    fn hermite_clear(&mut self, scene: &CompiledScene) -> bool {
+        let phase = self.phase;
+        let in_contact = phase == Phase::Contact;
+        let ph: &CompiledPhase = current_phase(self, scene);
+        let nb = ph.dim / 2;
+        if ph.dense.is_some() || ph.gens.is_none() || ph.ev_d4_block.len() != nb {
+            return false;
+        }
+        let dt = self.step_s;
+        let dt4 = dt * dt * dt * dt / 384.0;
+        let tail = 8.0 / 27.0 * dt;
+        let ps = &mut self.phases[phase.index()];
+        let (s, next, props) = (&ps.s, &mut ps.next, &ps.props);
+        let (ev, evd) = (&ph.ev, &ph.ev_d);
+        let (c1, c4, e) = (&ph.ev_d_block, &ph.ev_d4_block, &ph.ev_block);
+        let (mut f0, mut d0, mut f1, mut d1) = (0.0, 0.0, 0.0, 0.0);
+        let (mut rem, mut mag) = (0.0, 0.0);
+        for k in 0..nb {
+            let (a, b) = (s[k], s[nb + k]);
+            let p = props.get(k);
+            // exactly `advance_by`'s full step
+            let (a1, b1) = (p[0] * a + p[1] * b, p[2] * a + p[3] * b);
+            next[k] = a1;
+            next[nb + k] = b1;
+            let (r0, r1, q0, q1) = (ev[k], ev[nb + k], evd[k], evd[nb + k]);
+            f0 += r0 * a + r1 * b;
+            d0 += q0 * a + q1 * b;
+            f1 += r0 * a1 + r1 * b1;
+            d1 += q0 * a1 + q1 * b1;
+            let norm = (a * a + b * b).sqrt();
+            rem += hermite_block(c1[k], c4[k], e[k], dt4, tail) * norm;
+            mag += (e[k] + dt * c1[k]) * norm;
+        }
+        let (x_h1, v_h1) = if in_contact {
+            let off = scene.offsets.pi / scene.sk;
+            f0 += off;
+            f1 += off;
+            mag += off.abs();
+            (self.x_h, self.v_h)
+        } else {
+            // exactly `advance_by`'s parabola
+            let x_h1 = self.x_h + (self.v_h * dt - 0.5 * self.g * dt * dt);
+            let v_h1 = self.v_h - self.g * dt;
+            f0 += self.x_h;
+            d0 += self.v_h;
+            f1 += x_h1;
+            d1 += v_h1;
+            mag += self.x_h.abs() + x_h1.abs() + dt * (self.v_h.abs() + v_h1.abs());
+            (x_h1, v_h1)
+        };
+        // each sum of 2 nb + 2 products rounds within (2 nb + 2) u of the
+        // magnitudes summed; the Bernstein coefficients and the comparison
+        // a few u more; the remainder's contraction (1 + 1e-12) as the fast
+        // path's margin
+        let allowance = (2 * nb + 16) as f64 * f64::EPSILON * mag;
+        let low = f0.min(f1).min(f0 + d0 * dt / 3.0).min(f1 - d1 * dt / 3.0);
+        if !(low - rem * (1.0 + 1e-12) - allowance > 0.0) {
+            return false;
+        }
+        std::mem::swap(&mut ps.s, &mut ps.next);
+        if !in_contact {
+            self.x_h = x_h1;
+            self.v_h = v_h1;
+        }
+        self.exact_stats.hermite_cleared += 1;
+        true
+    }
+
     pub(super) fn advance_exact(&mut self, scene: &CompiledScene) {
+        if self.hermite_clear(scene) {
+            return;
+        }
         let step = self.step_s;
         // the least time between two switches is the root resolution
         let max_switches = (1.0 / (ROOT_ULPS * f64::EPSILON)) as u64 + 2;
@@ -1030,6 +1119,14 @@ impl EngineState {
         st.max_nodes_in_sample = st.max_nodes_in_sample.max(nodes);
         st.max_switches_in_sample = st.max_switches_in_sample.max(switches);
     }
+}
+
+/// Block `k`'s share of the Hermite remainder per unit of `|s_k|`: the
+/// smaller of `c4_k dt^4 / 384` (`dt4`) and `2 e_k + 8/27 dt c1_k`
+/// (`tail = 8/27 dt`). [`EngineState::hermite_clear`].
+#[inline(always)]
+fn hermite_block(c1: f64, c4: f64, e: f64, dt4: f64, tail: f64) -> f64 {
+    (c4 * dt4).min(2.0 * e + tail * c1)
 }
 
 /// Rounding allowance being summed while a model is built: computing each
@@ -1244,6 +1341,160 @@ mod tests {
         println!(
             "fast margin: at most {used:.3} of it used; down to {tightest:.3} of the curvature bound's"
         );
+    }
+
+    /// The Hermite certificate's remainder bounds what the cubic Hermite
+    /// interpolant of `phi` (value and slope at both ends, evaluated
+    /// through the state) misses of `phi` at 64 instants of each of 6
+    /// later steps, in both phases of every preset, for steps of half, one
+    /// and three samples, the remainder taken from the state at each
+    /// step's start.
+    #[test]
+    fn hermite_remainder_bounds_the_interpolation_error() {
+        let mut used = 0.0f64;
+        for i in 0..presets::PRESETS.len() {
+            let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
+            for contact in [false, true] {
+                for (seed, mult) in [(7919usize, 0.5), (104_729, 1.0), (1299, 3.0)] {
+                    let mut st = EngineState::new(&sc);
+                    st.phase = if contact { Phase::Contact } else { Phase::Free };
+                    if current_phase(&st, &sc).gens.is_none() {
+                        continue;
+                    }
+                    st.x_h = 1e-4;
+                    st.v_h = -0.3;
+                    let dim = current_phase(&st, &sc).dim;
+                    for j in 0..dim {
+                        let v = 1e-3 * ((j * seed % 101) as f64 / 101.0 - 0.5);
+                        st.phases[st.phase.index()].s[j] = v;
+                    }
+                    let dt = mult * st.step_s;
+                    let (dt4, tail) = (dt.powi(4) / 384.0, 8.0 / 27.0 * dt);
+                    for _ in 0..6 {
+                        let ph = current_phase(&st, &sc);
+                        let s = &st.phases[st.phase.index()].s;
+                        let nb = ph.dim / 2;
+                        let rem: f64 = (0..nb)
+                            .map(|k| {
+                                hermite_block(
+                                    ph.ev_d_block[k],
+                                    ph.ev_d4_block[k],
+                                    ph.ev_block[k],
+                                    dt4,
+                                    tail,
+                                ) * s[k].hypot(s[nb + k])
+                            })
+                            .sum();
+                        st.part_ok = false;
+                        let [f0, d0, _] = st.eval_event3(&sc, 0.0, false);
+                        st.part_ok = false;
+                        let [f1, d1, _] = st.eval_event3(&sc, dt, false);
+                        for j in 1..64 {
+                            let u = j as f64 / 64.0;
+                            st.part_ok = false;
+                            let f = st.eval_event3(&sc, u * dt, false)[0];
+                            let h = f0 * (2.0 * u * u * u - 3.0 * u * u + 1.0)
+                                + dt * d0 * (u * u * u - 2.0 * u * u + u)
+                                + f1 * (-2.0 * u * u * u + 3.0 * u * u)
+                                + dt * d1 * (u * u * u - u * u);
+                            let dev = (f - h).abs();
+                            used = used.max(dev / rem);
+                            assert!(
+                                dev <= rem,
+                                "preset {i} contact {contact} step x{mult}: |phi - H| = {dev:e} > {rem:e}"
+                            );
+                        }
+                        st.part_ok = false;
+                        st.advance_by(&sc, dt, false);
+                        st.part_ok = false;
+                    }
+                }
+            }
+        }
+        println!("Hermite remainder: at most {used:.3} of it used");
+        assert!(used > 1e-3, "the test should come near its bound somewhere");
+    }
+
+    /// Where the Hermite certificate clears a sample, the search finds no
+    /// crossing in it and the state is bit for bit the search's: states of
+    /// every preset in both phases, scaled so that `phi` starts from a
+    /// margin of 1e-3 down to 1e-12 of the motion (clears and refusals
+    /// both happen), at one and 2.7 samples' steps.
+    #[test]
+    fn hermite_clear_agrees_with_the_search() {
+        let (mut cleared, mut refused) = (0usize, 0usize);
+        for i in 0..presets::PRESETS.len() {
+            let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
+            for contact in [false, true] {
+                for (seed, scale) in [(7919usize, 1.0), (1299, 2.7)] {
+                    for gap in [1e-3, 1e-5, 1e-7, 1e-9, 1e-12, -1e-9] {
+                        let mut st = EngineState::new(&sc);
+                        st.set_time_scale(&sc, scale).unwrap();
+                        st.phase = if contact { Phase::Contact } else { Phase::Free };
+                        if current_phase(&st, &sc).gens.is_none() {
+                            continue;
+                        }
+                        st.v_h = -0.3;
+                        let dim = current_phase(&st, &sc).dim;
+                        for j in 0..dim {
+                            let v = 1e-4 * ((j * seed % 101) as f64 / 101.0 - 0.5);
+                            st.phases[st.phase.index()].s[j] = v;
+                        }
+                        // put phi(0) at `gap` (times the motion's size)
+                        st.part_ok = false;
+                        let f = st.eval_event3(&sc, 0.0, false)[0];
+                        let size = 1e-4;
+                        if contact {
+                            // scale the state: phi = ev.s + off
+                            let off = sc.offsets.pi / sc.sk;
+                            let evs = f - off;
+                            if evs.abs() < 1e-300 {
+                                continue;
+                            }
+                            let want = gap * size - off;
+                            let k = want / evs;
+                            for x in st.phases[st.phase.index()].s.iter_mut() {
+                                *x *= k;
+                            }
+                        } else {
+                            st.x_h += gap * size - f;
+                        }
+                        let mut a = st.clone();
+                        let mut b = st.clone();
+                        if a.hermite_clear(&sc) {
+                            cleared += 1;
+                            let step = b.step_s;
+                            b.build_model(&sc, step);
+                            let mut nodes = 0;
+                            let found = b.first_root(&sc, step, false, &mut nodes);
+                            assert!(
+                                matches!(found, Found::None),
+                                "preset {i} contact {contact} gap {gap:e}: cleared, but the search finds a crossing"
+                            );
+                            b.advance_by(&sc, step, true);
+                            let (sa, sb) =
+                                (&a.phases[a.phase.index()].s, &b.phases[b.phase.index()].s);
+                            assert!(
+                                sa.iter().zip(sb).all(|(x, y)| x.to_bits() == y.to_bits())
+                                    && a.x_h.to_bits() == b.x_h.to_bits()
+                                    && a.v_h.to_bits() == b.v_h.to_bits(),
+                                "preset {i} contact {contact} gap {gap:e}: not the search's state"
+                            );
+                        } else {
+                            refused += 1;
+                            let (sa, sb) =
+                                (&a.phases[a.phase.index()].s, &st.phases[st.phase.index()].s);
+                            assert!(
+                                sa.iter().zip(sb).all(|(x, y)| x.to_bits() == y.to_bits()),
+                                "a refusal changed the state"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        println!("Hermite certificate: {cleared} samples cleared, {refused} left to the search");
+        assert!(cleared > 20 && refused > 20);
     }
 
     /// The search's model of `phi` (slow polynomial + fast blocks + other
