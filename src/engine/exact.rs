@@ -1125,7 +1125,7 @@ impl EngineState {
 /// smaller of `c4_k dt^4 / 384` (`dt4`) and `2 e_k + 8/27 dt c1_k`
 /// (`tail = 8/27 dt`). [`EngineState::hermite_clear`].
 #[inline(always)]
-fn hermite_block(c1: f64, c4: f64, e: f64, dt4: f64, tail: f64) -> f64 {
+pub(super) fn hermite_block(c1: f64, c4: f64, e: f64, dt4: f64, tail: f64) -> f64 {
     (c4 * dt4).min(2.0 * e + tail * c1)
 }
 

@@ -197,6 +197,8 @@ struct Group {
     row: [[f64; GROUP]; 6],
     /// Quadratic-form weights `aa, ab, bb` (only read by the `Q` kernels).
     q: [[f64; GROUP]; 3],
+    /// The slope row's two halves (only read by the `D` kernels).
+    d: [[f64; GROUP]; 2],
 }
 
 impl Group {
@@ -208,6 +210,7 @@ impl Group {
             p: [[0.0; GROUP]; 4],
             row: [[0.0; GROUP]; 6],
             q: [[0.0; GROUP]; 3],
+            d: [[0.0; GROUP]; 2],
         };
         let srcs: [&[f64]; 4] = [&p.p00, &p.p01, &p.p10, &p.p11];
         let rsrc: [&[f64]; 3] = [rows.ev, rows.l, rows.r];
@@ -236,20 +239,32 @@ impl Group {
         }
     }
 
-    /// Step the group `k` samples, adding its share of each sample's rows
-    /// into `acc[j]` and, in the `Q` copy, of each sample's quadratic form
-    /// into `qacc[j]`.
+    /// Load the slope row of the group's blocks.
     #[inline(always)]
-    fn run<const FMA: bool, const Q: bool>(
+    fn load_slope(&mut self, row: &[f64], nb: usize, base: usize, width: usize) {
+        for j in 0..width {
+            self.d[0][j] = row[base + j];
+            self.d[1][j] = row[nb + base + j];
+        }
+    }
+
+    /// Step the group `k` samples, adding its share of each sample's rows
+    /// into `acc[j]`, in the `Q` copy of each sample's quadratic form into
+    /// `qacc[j]` and in the `D` copy of each sample's slope row into
+    /// `dacc[j]`.
+    #[inline(always)]
+    fn run<const FMA: bool, const Q: bool, const D: bool>(
         &mut self,
         k: usize,
         acc: &mut [[[f64; LANES]; 3]],
         qacc: &mut [[f64; LANES]],
+        dacc: &mut [[f64; LANES]],
     ) {
         let (mut a, mut b) = (self.a, self.b);
         let [p00, p01, p10, p11] = self.p;
         let row = self.row;
         let [qaa, qab, qbb] = self.q;
+        let [da, db] = self.d;
         for (j_s, acc_j) in acc[..k].iter_mut().enumerate() {
             let mut x0 = [0.0; GROUP];
             let mut x1 = [0.0; GROUP];
@@ -281,6 +296,18 @@ impl Group {
                     v = madd::<FMA>(qab[h] * x0[h], x1[h], v);
                     v = madd::<FMA>(qbb[h] * x1[h], x1[h], v);
                     qa[j] = v;
+                }
+            }
+            if D {
+                let d = &mut dacc[j_s];
+                for j in 0..LANES {
+                    let h = j + LANES;
+                    let mut v = d[j];
+                    v = madd::<FMA>(da[j], x0[j], v);
+                    v = madd::<FMA>(db[j], x1[j], v);
+                    v = madd::<FMA>(da[h], x0[h], v);
+                    v = madd::<FMA>(db[h], x1[h], v);
+                    d[j] = v;
                 }
             }
             a = x0;
@@ -321,8 +348,24 @@ pub struct QuadIo<'a> {
 /// Lane scratch of a [`QuadIo`].
 pub type QuadAcc = [[f64; LANES]; EPOCH];
 
+/// The slope row of [`run_block_slope`]: the row, the caller's lane
+/// scratch and the per-sample values it writes.
+pub struct SlopeIo<'a> {
+    /// The row (`ev G`, over the phase's block coordinates).
+    pub row: &'a [f64],
+    /// Scratch for the per-sample lane sums.
+    pub acc: &'a mut QuadAcc,
+    /// The row on every stepped state (written).
+    pub out: &'a mut [f64; EPOCH],
+}
+
 #[inline(always)]
-fn block_body<const FMA: bool, const Q: bool>(io: BlockIo, quad: Option<QuadIo>, k: usize) {
+fn block_body<const FMA: bool, const Q: bool, const D: bool>(
+    io: BlockIo,
+    quad: Option<QuadIo>,
+    slope: Option<SlopeIo>,
+    k: usize,
+) {
     let BlockIo {
         p,
         s,
@@ -344,6 +387,14 @@ fn block_body<const FMA: bool, const Q: bool>(io: BlockIo, quad: Option<QuadIo>,
     for a in qacc.iter_mut().take(k) {
         *a = [0.0; LANES];
     }
+    let mut no_dacc = [[0.0; LANES]; 0];
+    let (drow, dacc, dout) = match slope {
+        Some(SlopeIo { row, acc, out }) if D => (Some(row), &mut acc[..], Some(out)),
+        _ => (None, &mut no_dacc[..], None),
+    };
+    for a in dacc.iter_mut().take(k) {
+        *a = [0.0; LANES];
+    }
     let mut base = 0;
     while base < nb {
         let width = GROUP.min(nb - base);
@@ -351,7 +402,10 @@ fn block_body<const FMA: bool, const Q: bool>(io: BlockIo, quad: Option<QuadIo>,
         if let Some(qw) = qw {
             g.load_quad(qw, base, width);
         }
-        g.run::<FMA, Q>(k, &mut acc[..k], qacc);
+        if let Some(drow) = drow {
+            g.load_slope(drow, nb, base, width);
+        }
+        g.run::<FMA, Q, D>(k, &mut acc[..k], qacc, dacc);
         next[base..base + width].copy_from_slice(&g.a[..width]);
         next[nb + base..nb + base + width].copy_from_slice(&g.b[..width]);
         base += width;
@@ -366,18 +420,29 @@ fn block_body<const FMA: bool, const Q: bool>(io: BlockIo, quad: Option<QuadIo>,
             qout[j] = lane_sum(qacc[j]);
         }
     }
+    if let Some(dout) = dout {
+        for j in 0..k {
+            dout[j] = lane_sum(dacc[j]);
+        }
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn block_avx2(io: BlockIo, k: usize) {
-    block_body::<true, false>(io, None, k)
+    block_body::<true, false, false>(io, None, None, k)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn block_slope_avx2(io: BlockIo, slope: SlopeIo, k: usize) {
+    block_body::<true, false, true>(io, None, Some(slope), k)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn block_quad_avx2(io: BlockIo, quad: QuadIo, k: usize) {
-    block_body::<true, true>(io, Some(quad), k)
+    block_body::<true, true, false>(io, Some(quad), None, k)
 }
 
 /// [`run_block`] that also evaluates the block-diagonal quadratic form
@@ -397,7 +462,7 @@ pub fn run_block_quad(path: SimdPath, io: BlockIo, quad: QuadIo, k: usize) {
         // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `detect()` makes, after
         // `is_x86_feature_detected!` confirmed AVX2 and FMA on this CPU.
         SimdPath::Avx2Fma(_) => unsafe { block_quad_avx2(io, quad, k) },
-        _ => block_body::<false, true>(io, Some(quad), k),
+        _ => block_body::<false, true, false>(io, Some(quad), None, k),
     }
 }
 
@@ -425,7 +490,27 @@ pub fn run_block(path: SimdPath, io: BlockIo, k: usize) {
         // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `detect()` makes, after
         // `is_x86_feature_detected!` confirmed AVX2 and FMA on this CPU.
         SimdPath::Avx2Fma(_) => unsafe { block_avx2(io, k) },
-        _ => block_body::<false, false>(io, None, k),
+        _ => block_body::<false, false, false>(io, None, None, k),
+    }
+}
+
+/// [`run_block`] that also evaluates the slope row `slope.row` on every
+/// stepped state (the Hermite certificate of the fast path). The state and
+/// rows are bit-identical to [`run_block`]'s. O(N k), allocation-free.
+/// \[audio-thread\]
+#[inline]
+pub fn run_block_slope(path: SimdPath, io: BlockIo, slope: SlopeIo, k: usize) {
+    assert!(
+        slope.row.len() == io.s.len(),
+        "run_block_slope: mismatched lengths"
+    );
+    check_io(&io);
+    match path {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `detect()` makes, after
+        // `is_x86_feature_detected!` confirmed AVX2 and FMA on this CPU.
+        SimdPath::Avx2Fma(_) => unsafe { block_slope_avx2(io, slope, k) },
+        _ => block_body::<false, false, true>(io, None, Some(slope), k),
     }
 }
 
@@ -860,6 +945,68 @@ mod tests {
                 }
                 println!("{nb} blocks, {path:?}: quadratic form worst rel. deviation {worst:.1e}");
                 assert!(worst < 1e-14, "{nb} blocks {path:?}: {worst}");
+            }
+        }
+    }
+
+    /// The slope pass: the same state and rows as `run_block` bit for bit,
+    /// and per sample the slope row on the stepped state of a plain
+    /// reference to rounding, whatever the number of blocks.
+    #[test]
+    fn slope_pass_matches_a_plain_reference_and_leaves_the_rows_alone() {
+        for nb in [1, 3, 8, 37, 100] {
+            let (p, s, rows) = setup(nb);
+            let drow: Vec<f64> = (0..2 * nb)
+                .map(|i| ((i * 37 % 11) as f64 - 5.0) * 0.7)
+                .collect();
+            for path in [SimdPath::detect(), SimdPath::Generic] {
+                let (next_plain, out_plain) = run(path, &p, &s, &rows, EPOCH);
+                let mut next = vec![0.0; s.len()];
+                let mut acc = Box::new([[[0.0; LANES]; 3]; EPOCH]);
+                let mut out = BlockRows::default();
+                let mut dacc = Box::new([[0.0; LANES]; EPOCH]);
+                let mut dout = Box::new([0.0; EPOCH]);
+                run_block_slope(
+                    path,
+                    BlockIo {
+                        p: &p,
+                        s: &s,
+                        next: &mut next,
+                        rows: Rows {
+                            ev: &rows[0],
+                            l: &rows[1],
+                            r: &rows[2],
+                        },
+                        acc: &mut acc,
+                        out: &mut out,
+                    },
+                    SlopeIo {
+                        row: &drow,
+                        acc: &mut dacc,
+                        out: &mut dout,
+                    },
+                    EPOCH,
+                );
+                assert_eq!(next, next_plain);
+                assert_eq!(out.ev, out_plain.ev);
+                assert_eq!(out.l, out_plain.l);
+                assert_eq!(out.r, out_plain.r);
+                let mut st = s.clone();
+                let mut worst = 0.0f64;
+                for j in 0..EPOCH {
+                    let mut x = vec![0.0; 2 * nb];
+                    for b in 0..nb {
+                        let m = p.get(b);
+                        x[b] = m[0] * st[b] + m[1] * st[nb + b];
+                        x[nb + b] = m[2] * st[b] + m[3] * st[nb + b];
+                    }
+                    let want: f64 = drow.iter().zip(&x).map(|(a, b)| a * b).sum();
+                    let scale: f64 = drow.iter().zip(&x).map(|(a, b)| (a * b).abs()).sum();
+                    worst = worst.max((dout[j] - want).abs() / scale);
+                    st = x;
+                }
+                println!("{nb} blocks, {path:?}: slope row worst rel. deviation {worst:.1e}");
+                assert!(worst < 1e-13, "{nb} blocks {path:?}: {worst}");
             }
         }
     }

@@ -40,8 +40,8 @@ pub use exact::{ExactStats, ROOT_ULPS};
 use exact::{SearchScratch, TermSplit};
 use kernel::SimdPath;
 use kernel::{
-    rows_of, run_block, run_block_quad, BlockAcc, BlockIo, BlockProps, BlockRows, QuadAcc, QuadIo,
-    Rows, EPOCH,
+    rows_of, run_block, run_block_quad, run_block_slope, BlockAcc, BlockIo, BlockProps, BlockRows,
+    QuadAcc, QuadIo, Rows, SlopeIo, EPOCH,
 };
 
 use crate::compile::rest::{RestStrike, REST_MATCH};
@@ -217,6 +217,22 @@ pub struct EngineState {
     bound_epoch: u64,
     /// The step `bound` was taken for.
     bound_dt: f64,
+    /// The Hermite certificate's remainder and rounding magnitude
+    /// ([`hermite_margin`](Self::hermite_margin)) for steps of `herm_dt`,
+    /// taken in the epoch `herm_epoch` of the current phase.
+    herm_rem: f64,
+    herm_mag: f64,
+    herm_epoch: u64,
+    herm_dt: f64,
+    /// The last epoch of the clock in which the fast path tries the
+    /// Hermite certificate: the one after the last sample it handed to
+    /// the slow path (`None`: none since the reset).
+    herm_until: Option<u64>,
+    /// Try the Hermite certificate in the fast path (default); off only to
+    /// compare with the slow path's in tests and benchmarks.
+    fast_hermite: bool,
+    /// Scratch of the kernel's slope row (boxed, allocated once).
+    slope: Box<SlopeScratch>,
     /// How many samples the fast path tries at once: reset to
     /// `SPEC_RESTART` when a sample fails its check, doubled after each
     /// full success (speed only, never results).
@@ -281,6 +297,13 @@ pub struct EngineState {
     obs: Option<Box<ObsScratch>>,
 }
 
+/// Scratch of the kernel's slope row ([`EngineState::run_kernel_slope`]).
+#[derive(Debug, Clone)]
+struct SlopeScratch {
+    acc: QuadAcc,
+    out: [f64; EPOCH],
+}
+
 /// Scratch of [`EngineState::process_block_observed`]: a second kernel
 /// pass over the same start state with the contact point's rows.
 #[derive(Debug, Clone)]
@@ -326,6 +349,16 @@ impl EngineState {
             bound_epoch: NO_EPOCH,
             bound_dt: 0.0,
             spec_len: EPOCH,
+            herm_rem: 0.0,
+            herm_mag: 0.0,
+            herm_epoch: NO_EPOCH,
+            herm_dt: 0.0,
+            herm_until: None,
+            fast_hermite: true,
+            slope: Box::new(SlopeScratch {
+                acc: [[0.0; 4]; EPOCH],
+                out: [0.0; EPOCH],
+            }),
             out_c_offset: [0.0; 2],
             band_hz: f64::INFINITY,
             band_muted: 0,
@@ -377,6 +410,7 @@ impl EngineState {
         self.events_dropped = 0;
         self.clock = 0;
         self.rest_entry = None;
+        self.herm_until = None;
         self.discontinuity();
     }
 
@@ -386,6 +420,7 @@ impl EngineState {
     fn discontinuity(&mut self) {
         self.cache_ok = false;
         self.bound_epoch = NO_EPOCH;
+        self.herm_epoch = NO_EPOCH;
         // and the energy an observed run kept for the next run's first sample
         if let Some(o) = self.obs.as_mut() {
             o.e_next = None;
@@ -1014,24 +1049,47 @@ impl EngineState {
             self.bound_epoch = epoch;
             self.bound_dt = dt;
         }
+        // In the epoch of a sample that failed its test and the next one,
+        // the samples are also tried with the Hermite certificate
+        // (docs/numerics.md section 6.2): the kernel then sums the slope
+        // row too. Keyed to the voice's clock (runs never cross an epoch),
+        // so the output does not depend on how blocks are split.
+        let hermite = exact && self.fast_hermite && self.herm_until.is_some_and(|u| epoch <= u);
+        if hermite && (self.herm_epoch != epoch || self.herm_dt != dt) {
+            (self.herm_rem, self.herm_mag) = self.hermite_margin(scene, dt);
+            self.herm_epoch = epoch;
+            self.herm_dt = dt;
+        }
+        let nb = ph.dim / 2;
+        let herm_units = (2 * nb + 16) as f64 * f64::EPSILON;
         if exact {
-            // The first sample's test below needs `phi0 - margin > 0`, and
-            // `phi0` is known now. Where it fails (the samples before a
-            // slow release, the sample a strike starts in) every sample of
-            // the run would be thrown away: the same decision, without the
-            // O(N k) run.
+            // The first sample's test below needs `phi0 - margin > 0` (or
+            // the Hermite certificate, whose lower bound is at most
+            // `phi0`), and `phi0` is known now. Where it fails (the
+            // samples before a slow release, the sample a strike starts
+            // in) every sample of the run would be thrown away: the same
+            // decision, without the O(N k) run.
             let phi0 = self.cache[0]
                 + if in_contact {
                     scene.offsets.pi / scene.sk
                 } else {
                     self.x_h
                 };
-            if !(phi0 - self.bound > 0.0) {
+            let herm_ok = hermite && phi0 - self.herm_rem - herm_units * self.herm_mag > 0.0;
+            if !(phi0 - self.bound > 0.0) && !herm_ok {
                 self.spec_len = SPEC_RESTART;
+                self.herm_until = Some(epoch + 1);
                 return (0, true);
             }
         }
-        self.run_kernel(scene, k_max);
+        let mut d_j = 0.0;
+        if hermite {
+            let ps = &self.phases[phase.index()];
+            d_j = dot(&ph.ev_d, &ps.s) + if in_contact { 0.0 } else { self.v_h };
+            self.run_kernel_slope(scene, k_max);
+        } else {
+            self.run_kernel(scene, k_max);
+        }
         // Check the samples in order (hammer in flight: its exact parabola).
         let g = self.g;
         let margin = self.bound;
@@ -1053,7 +1111,28 @@ impl EngineState {
             let next_rows = [self.brows.ev[j], self.brows.l[j], self.brows.r[j]];
             let ok = if exact {
                 let phi1 = next_rows[0] + if in_contact { off } else { x_h1 };
-                phi1 > 0.0 && phi0.min(phi1) - margin > 0.0
+                let chord = phi1 > 0.0 && phi0.min(phi1) - margin > 0.0;
+                let d1 = if hermite {
+                    self.slope.out[j] + if in_contact { 0.0 } else { v_h1 }
+                } else {
+                    0.0
+                };
+                let ok = chord
+                    || hermite && {
+                        let low = phi0
+                            .min(phi1)
+                            .min(phi0 + d_j * dt / 3.0)
+                            .min(phi1 - d1 * dt / 3.0);
+                        let hammer = if in_contact {
+                            off.abs()
+                        } else {
+                            x_h.abs() + x_h1.abs() + dt * (v_h.abs() + v_h1.abs())
+                        };
+                        let allow = herm_units * (self.herm_mag + hammer);
+                        low - self.herm_rem - allow > 0.0
+                    };
+                d_j = d1;
+                ok
             } else if j == 0 && decided {
                 true
             } else if in_contact {
@@ -1073,6 +1152,7 @@ impl EngineState {
         }
         if k_ok < k_max {
             self.spec_len = SPEC_RESTART;
+            self.herm_until = Some((self.clock + k_ok as u64) / EPOCH as u64 + 1);
             if k_ok == 0 {
                 return (0, true);
             }
@@ -1179,6 +1259,60 @@ impl EngineState {
             },
             k,
         );
+    }
+
+    /// [`run_kernel`](Self::run_kernel) that also sums the slope row `ev G`
+    /// of every stepped state into `slope.out` (same states and rows, bit
+    /// for bit).
+    fn run_kernel_slope(&mut self, scene: &CompiledScene, k: usize) {
+        let ph = scene.phase(self.phase);
+        let ps = &mut self.phases[self.phase.index()];
+        let (s, next, props, out) = (&ps.s, &mut ps.next, &ps.props, &ps.out);
+        let rows = Rows {
+            ev: &ph.ev,
+            l: &out[0],
+            r: &out[1],
+        };
+        let SlopeScratch { acc, out: dout } = &mut *self.slope;
+        run_block_slope(
+            self.simd,
+            BlockIo {
+                p: props,
+                s,
+                next,
+                rows,
+                acc: &mut self.acc,
+                out: &mut self.brows,
+            },
+            SlopeIo {
+                row: &ph.ev_d,
+                acc,
+                out: dout,
+            },
+            k,
+        );
+    }
+
+    /// The Hermite certificate's remainder for steps of `dt` from the
+    /// current state, valid for every later state of the phase (each block
+    /// is a contraction), and the magnitude its rounding allowance scales
+    /// with: `(sum_k min(c4_k dt^4 / 384, 2 e_k + 8/27 dt c1_k) |s_k| (1 +
+    /// 1e-12), sum_k (e_k + dt c1_k) |s_k|)`. docs/numerics.md section 6.2.
+    fn hermite_margin(&self, scene: &CompiledScene, dt: f64) -> (f64, f64) {
+        let (ph, s) = (scene.phase(self.phase), &self.phases[self.phase.index()].s);
+        let nb = ph.dim / 2;
+        if ph.ev_d4_block.len() != nb {
+            return (f64::INFINITY, f64::INFINITY);
+        }
+        let (dt4, tail) = (dt * dt * dt * dt / 384.0, 8.0 / 27.0 * dt);
+        let (mut rem, mut mag) = (0.0, 0.0);
+        for k in 0..nb {
+            let norm = (s[k] * s[k] + s[nb + k] * s[nb + k]).sqrt();
+            let (c1, c4, e) = (ph.ev_d_block[k], ph.ev_d4_block[k], ph.ev_block[k]);
+            rem += exact::hermite_block(c1, c4, e, dt4, tail) * norm;
+            mag += (e + dt * c1) * norm;
+        }
+        (rem * (1.0 + 1e-12), mag)
     }
 
     /// Adopt the state of the last [`run_kernel`](Self::run_kernel) call,
@@ -1370,6 +1504,15 @@ impl EngineState {
     #[doc(hidden)]
     pub fn set_structured_switch(&mut self, on: bool) {
         self.structured = on;
+    }
+
+    /// Let the fast path try the Hermite certificate after a failed sample
+    /// (`true`, the default) or leave every such sample to the slow path
+    /// (`false`): only for tests and benchmarks that compare the two.
+    /// \[any-thread\]
+    #[doc(hidden)]
+    pub fn set_fast_hermite(&mut self, on: bool) {
+        self.fast_hermite = on;
     }
 
     fn log_event(&mut self, entered: bool) {
