@@ -813,17 +813,62 @@ mod tests {
     }
 
     /// Plain per-sample reference: step, then the three rows.
-    fn reference(p: &BlockProps, s: &[f64], rows: &[Vec<f64>; 3], k: usize) -> Vec<[f64; 3]> {
+    /// The operands of a test pass.
+    fn io<'a>(
+        p: &'a BlockProps,
+        s: &'a [f64],
+        next: &'a mut [f64],
+        rows: &'a [Vec<f64>; 3],
+        acc: &'a mut BlockAcc,
+        out: &'a mut BlockRows,
+    ) -> BlockIo<'a> {
+        BlockIo {
+            p,
+            s,
+            next,
+            rows: Rows {
+                ev: &rows[0],
+                l: &rows[1],
+                r: &rows[2],
+            },
+            acc,
+            out,
+        }
+    }
+
+    /// One step of every block, plainly (no FMA, no lanes).
+    fn plain_step(p: &BlockProps, s: &[f64]) -> Vec<f64> {
         let nb = p.len();
+        let mut x = vec![0.0; 2 * nb];
+        for b in 0..nb {
+            let m = p.get(b);
+            x[b] = m[0] * s[b] + m[1] * s[nb + b];
+            x[nb + b] = m[2] * s[b] + m[3] * s[nb + b];
+        }
+        x
+    }
+
+    /// The state and rows of a pass with extra sums are `run_block`'s.
+    fn assert_plain_rows(
+        path: SimdPath,
+        p: &BlockProps,
+        s: &[f64],
+        rows: &[Vec<f64>; 3],
+        next: &[f64],
+        out: &BlockRows,
+    ) {
+        let (next_plain, out_plain) = run(path, p, s, rows, EPOCH);
+        assert_eq!(next, &next_plain[..]);
+        assert_eq!(out.ev, out_plain.ev);
+        assert_eq!(out.l, out_plain.l);
+        assert_eq!(out.r, out_plain.r);
+    }
+
+    fn reference(p: &BlockProps, s: &[f64], rows: &[Vec<f64>; 3], k: usize) -> Vec<[f64; 3]> {
         let mut s = s.to_vec();
         let mut out = Vec::new();
         for _ in 0..k {
-            let mut x = vec![0.0; 2 * nb];
-            for b in 0..nb {
-                let m = p.get(b);
-                x[b] = m[0] * s[b] + m[1] * s[nb + b];
-                x[nb + b] = m[2] * s[b] + m[3] * s[nb + b];
-            }
+            let x = plain_step(p, &s);
             out.push([0, 1, 2].map(|q| rows[q].iter().zip(&x).map(|(a, b)| a * b).sum()));
             s = x;
         }
@@ -892,7 +937,6 @@ mod tests {
                 bb: (0..nb).map(|k| 2.0 - 0.005 * k as f64).collect(),
             };
             for path in [SimdPath::detect(), SimdPath::Generic] {
-                let (next_plain, out_plain) = run(path, &p, &s, &rows, EPOCH);
                 let mut next = vec![0.0; s.len()];
                 let mut acc = Box::new([[[0.0; LANES]; 3]; EPOCH]);
                 let mut out = BlockRows::default();
@@ -900,18 +944,7 @@ mod tests {
                 let mut qout = Box::new([0.0; EPOCH]);
                 run_block_quad(
                     path,
-                    BlockIo {
-                        p: &p,
-                        s: &s,
-                        next: &mut next,
-                        rows: Rows {
-                            ev: &rows[0],
-                            l: &rows[1],
-                            r: &rows[2],
-                        },
-                        acc: &mut acc,
-                        out: &mut out,
-                    },
+                    io(&p, &s, &mut next, &rows, &mut acc, &mut out),
                     QuadIo {
                         quad: &quad,
                         acc: &mut qacc,
@@ -919,19 +952,11 @@ mod tests {
                     },
                     EPOCH,
                 );
-                assert_eq!(next, next_plain);
-                assert_eq!(out.ev, out_plain.ev);
-                assert_eq!(out.l, out_plain.l);
-                assert_eq!(out.r, out_plain.r);
+                assert_plain_rows(path, &p, &s, &rows, &next, &out);
                 let mut st = s.clone();
                 let mut worst = 0.0f64;
                 for j in 0..EPOCH {
-                    let mut x = vec![0.0; 2 * nb];
-                    for b in 0..nb {
-                        let m = p.get(b);
-                        x[b] = m[0] * st[b] + m[1] * st[nb + b];
-                        x[nb + b] = m[2] * st[b] + m[3] * st[nb + b];
-                    }
+                    let x = plain_step(&p, &st);
                     let (mut want, mut scale) = (0.0, 0.0);
                     for b in 0..nb {
                         let (a, c) = (x[b], x[nb + b]);
@@ -960,7 +985,6 @@ mod tests {
                 .map(|i| ((i * 37 % 11) as f64 - 5.0) * 0.7)
                 .collect();
             for path in [SimdPath::detect(), SimdPath::Generic] {
-                let (next_plain, out_plain) = run(path, &p, &s, &rows, EPOCH);
                 let mut next = vec![0.0; s.len()];
                 let mut acc = Box::new([[[0.0; LANES]; 3]; EPOCH]);
                 let mut out = BlockRows::default();
@@ -968,18 +992,7 @@ mod tests {
                 let mut dout = Box::new([0.0; EPOCH]);
                 run_block_slope(
                     path,
-                    BlockIo {
-                        p: &p,
-                        s: &s,
-                        next: &mut next,
-                        rows: Rows {
-                            ev: &rows[0],
-                            l: &rows[1],
-                            r: &rows[2],
-                        },
-                        acc: &mut acc,
-                        out: &mut out,
-                    },
+                    io(&p, &s, &mut next, &rows, &mut acc, &mut out),
                     SlopeIo {
                         row: &drow,
                         acc: &mut dacc,
@@ -987,19 +1000,11 @@ mod tests {
                     },
                     EPOCH,
                 );
-                assert_eq!(next, next_plain);
-                assert_eq!(out.ev, out_plain.ev);
-                assert_eq!(out.l, out_plain.l);
-                assert_eq!(out.r, out_plain.r);
+                assert_plain_rows(path, &p, &s, &rows, &next, &out);
                 let mut st = s.clone();
                 let mut worst = 0.0f64;
                 for j in 0..EPOCH {
-                    let mut x = vec![0.0; 2 * nb];
-                    for b in 0..nb {
-                        let m = p.get(b);
-                        x[b] = m[0] * st[b] + m[1] * st[nb + b];
-                        x[nb + b] = m[2] * st[b] + m[3] * st[nb + b];
-                    }
+                    let x = plain_step(&p, &st);
                     let want: f64 = drow.iter().zip(&x).map(|(a, b)| a * b).sum();
                     let scale: f64 = drow.iter().zip(&x).map(|(a, b)| (a * b).abs()).sum();
                     worst = worst.max((dout[j] - want).abs() / scale);

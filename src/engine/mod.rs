@@ -1239,58 +1239,43 @@ impl EngineState {
     /// state into the spare buffer (the state itself is left untouched) and
     /// leave the rows of every stepped state in `brows`.
     fn run_kernel(&mut self, scene: &CompiledScene, k: usize) {
-        let ph = scene.phase(self.phase);
-        let ps = &mut self.phases[self.phase.index()];
-        let (s, next, props, out) = (&ps.s, &mut ps.next, &ps.props, &ps.out);
-        let rows = Rows {
-            ev: &ph.ev,
-            l: &out[0],
-            r: &out[1],
-        };
-        run_block(
-            self.simd,
-            BlockIo {
-                p: props,
-                s,
-                next,
-                rows,
-                acc: &mut self.acc,
-                out: &mut self.brows,
-            },
-            k,
-        );
+        self.run_kernel_rows(scene, k, false);
     }
 
     /// [`run_kernel`](Self::run_kernel) that also sums the slope row `ev G`
     /// of every stepped state into `slope.out` (same states and rows, bit
     /// for bit).
     fn run_kernel_slope(&mut self, scene: &CompiledScene, k: usize) {
+        self.run_kernel_rows(scene, k, true);
+    }
+
+    fn run_kernel_rows(&mut self, scene: &CompiledScene, k: usize, slope: bool) {
         let ph = scene.phase(self.phase);
         let ps = &mut self.phases[self.phase.index()];
         let (s, next, props, out) = (&ps.s, &mut ps.next, &ps.props, &ps.out);
-        let rows = Rows {
-            ev: &ph.ev,
-            l: &out[0],
-            r: &out[1],
-        };
-        let SlopeScratch { acc, out: dout } = &mut *self.slope;
-        run_block_slope(
-            self.simd,
-            BlockIo {
-                p: props,
-                s,
-                next,
-                rows,
-                acc: &mut self.acc,
-                out: &mut self.brows,
+        let io = BlockIo {
+            p: props,
+            s,
+            next,
+            rows: Rows {
+                ev: &ph.ev,
+                l: &out[0],
+                r: &out[1],
             },
-            SlopeIo {
+            acc: &mut self.acc,
+            out: &mut self.brows,
+        };
+        if slope {
+            let SlopeScratch { acc, out: dout } = &mut *self.slope;
+            let d = SlopeIo {
                 row: &ph.ev_d,
                 acc,
                 out: dout,
-            },
-            k,
-        );
+            };
+            run_block_slope(self.simd, io, d, k);
+        } else {
+            run_block(self.simd, io, k);
+        }
     }
 
     /// The Hermite certificate's remainder for steps of `dt` from the
