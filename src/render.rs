@@ -72,7 +72,7 @@ pub fn switching_line(x: &ExactStats) -> String {
     format!(
         "exact switching: {} located switches, {} grazing touches; capped {}, rod fallbacks {}, uncertified {}; \
          event search: {} nodes, at most {} nodes and {} switches in one sample; \
-         {} samples cleared by the Hermite certificate",
+         {} samples and {} rests after a switch cleared by the Hermite certificate",
         x.located,
         x.grazing,
         x.capped,
@@ -81,7 +81,8 @@ pub fn switching_line(x: &ExactStats) -> String {
         x.search_nodes,
         x.max_nodes_in_sample,
         x.max_switches_in_sample,
-        x.hermite_cleared
+        x.hermite_cleared,
+        x.hermite_after_switch
     )
 }
 

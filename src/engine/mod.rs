@@ -231,6 +231,9 @@ pub struct EngineState {
     /// Try the Hermite certificate in the fast path (default); off only to
     /// compare with the slow path's in tests and benchmarks.
     fast_hermite: bool,
+    /// Clear the rest of a sample after a located switch with the Hermite
+    /// certificate (default); off only to compare with the search.
+    hermite_after_switch: bool,
     /// Scratch of the kernel's slope row (boxed, allocated once).
     slope: Box<SlopeScratch>,
     /// How many samples the fast path tries at once: reset to
@@ -355,6 +358,7 @@ impl EngineState {
             herm_dt: 0.0,
             herm_until: None,
             fast_hermite: true,
+            hermite_after_switch: true,
             slope: Box::new(SlopeScratch {
                 acc: [[0.0; 4]; EPOCH],
                 out: [0.0; EPOCH],
@@ -1498,6 +1502,15 @@ impl EngineState {
     #[doc(hidden)]
     pub fn set_fast_hermite(&mut self, on: bool) {
         self.fast_hermite = on;
+    }
+
+    /// Clear the rest of a sample after a located switch with the Hermite
+    /// certificate (`true`, the default) or always with the search
+    /// (`false`): only for tests and benchmarks that compare the two.
+    /// \[any-thread\]
+    #[doc(hidden)]
+    pub fn set_hermite_after_switch(&mut self, on: bool) {
+        self.hermite_after_switch = on;
     }
 
     fn log_event(&mut self, entered: bool) {
