@@ -66,8 +66,10 @@ fn ringing(n: usize) -> Scene {
         .build()
 }
 
-#[test]
-fn the_fast_paths_hermite_certificate_changes_only_rounding() {
+/// Every preset (0.5 s), every stability case (at most 20000 samples) and
+/// a ringing 200-mode object struck every 1000 samples: (name, scene,
+/// samples, strike period or 0).
+fn cases() -> Vec<(String, Scene, usize, usize)> {
     let mut cases: Vec<(String, Scene, usize, usize)> = (0..presets::COUNT)
         .map(|i| {
             let s = presets::scene(i).unwrap();
@@ -85,6 +87,12 @@ fn the_fast_paths_hermite_certificate_changes_only_rounding() {
         8000,
         1000,
     ));
+    cases
+}
+
+#[test]
+fn the_fast_paths_hermite_certificate_changes_only_rounding() {
+    let cases = cases();
     let mut worst = 0.0f64;
     for (name, scene, n, every) in &cases {
         let sc = compile(scene, RATE).unwrap();
@@ -135,23 +143,7 @@ fn the_fast_paths_hermite_certificate_changes_only_rounding() {
 /// ringing 200-mode object, with and without it.
 #[test]
 fn the_certificate_after_a_switch_changes_nothing() {
-    let mut cases: Vec<(String, Scene, usize, usize)> = (0..presets::COUNT)
-        .map(|i| {
-            let s = presets::scene(i).unwrap();
-            let n = (s.duration_s.min(0.5) * RATE) as usize;
-            (format!("preset {}", presets::NAMES[i]), s, n, 0)
-        })
-        .collect();
-    for c in stability::cases() {
-        let n = c.samples.min(20_000);
-        cases.push((format!("stability {}", c.label), c.scene, n, 0));
-    }
-    cases.push((
-        "ringing 200 modes, struck every 1000 samples".into(),
-        ringing(200),
-        8000,
-        1000,
-    ));
+    let cases = cases();
     let (mut cleared, mut switches) = (0, 0);
     for (name, scene, n, every) in &cases {
         let sc = compile(scene, RATE).unwrap();
