@@ -8,11 +8,15 @@
 //! timings and, at the end, the ratios measured in one run with the
 //! variants interleaved (A B C D A B C D ...), median of the repetitions:
 //! per sample (the slope between two lengths) and the fixed cost of one
-//! render beside it (`-- summary` prints only those).
+//! render beside it (`-- summary` prints only those), and the CSV's text
+//! alone: the same rows through the render's CSV writer with every core
+//! free of the engine, into no file (the floor of the CSV render on this
+//! machine: shortest round-trip digits of six numbers per row).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use modal_contact::compile::{compile, CompiledScene};
-use modal_contact::engine::EngineState;
+use modal_contact::engine::{EngineState, Motion};
+use modal_contact::render::{render_stream, CsvTrace, TraceSink};
 use modal_contact::scene::Scene;
 use modal_testkit::scenes::{Contact, Hammer, Modal, Pickup, SceneBuilder};
 use std::hint::black_box;
@@ -108,6 +112,35 @@ fn run(v: Variant, sc: &CompiledScene, n: usize, dir: &std::path::Path) {
     black_box(render_scene_to(sc, n, &out, &|_| {}).expect("render"));
 }
 
+/// Every sample's motion and energy, kept in memory (the block path's, as
+/// the CSV render takes them).
+#[derive(Default)]
+struct Keep(Vec<(Motion, f64)>);
+
+impl TraceSink for Keep {
+    fn wants_energy(&self, _: usize) -> bool {
+        true
+    }
+    fn needs_ticks(&self) -> bool {
+        false
+    }
+    fn record(&mut self, _: usize, m: &Motion, e: Option<f64>) -> std::io::Result<()> {
+        self.0.push((*m, e.expect("asked for")));
+        Ok(())
+    }
+}
+
+/// The CSV's text alone: the first `n` kept rows through the render's CSV
+/// writer (its formatting threads on every core, no engine beside them)
+/// into `io::sink` (no disk). What the CSV render cannot go below.
+fn text_alone(rows: &[(Motion, f64)], n: usize) {
+    let mut csv = CsvTrace::new(RATE, std::io::sink()).expect("csv");
+    for (i, (m, e)) in rows[..n].iter().enumerate() {
+        csv.record(i, m, Some(*e)).expect("record");
+    }
+    csv.finish().expect("finish");
+}
+
 fn scratch() -> PathBuf {
     let d = std::env::temp_dir().join(format!("render-command-bench-{}", std::process::id()));
     std::fs::create_dir_all(&d).expect("temp dir");
@@ -146,15 +179,24 @@ fn summary(_: &mut Criterion) {
     println!(
         "\nrender command per sample (marginal: lengths L and 3 L), ratio to the engine alone, median of 7 interleaved rounds:"
     );
-    println!("| modes | engine ns/sample | WAV only | WAV + plot | WAV + trace CSV + plot | engine x real time | fixed ms per render (WAV / plot / CSV + plot) |");
-    println!("|---|---|---|---|---|---|---|");
+    println!("| modes | engine ns/sample | WAV only | WAV + plot | WAV + trace CSV + plot | CSV text alone | engine x real time | fixed ms per render (WAV / plot / CSV + plot) |");
+    println!("|---|---|---|---|---|---|---|---|");
     for n_modes in [10, 100, 1000] {
         let sc = compile(&struck(n_modes), RATE).expect("compile");
         let n = samples(n_modes);
         // [variant][round] of (time at L, time at 3 L)
         let mut short = [[0.0f64; 7]; 4];
         let mut slope = [[0.0f64; 7]; 4];
+        let mut kept = Keep::default();
+        render_stream(&sc, 3 * n, |_, _| Ok(()), Some(&mut kept)).expect("rows");
+        let mut text = [0.0f64; 7];
         for round in 0..7 {
+            let t0 = Instant::now();
+            text_alone(&kept.0, n);
+            let t1 = t0.elapsed().as_secs_f64();
+            let t0 = Instant::now();
+            text_alone(&kept.0, 3 * n);
+            text[round] = (t0.elapsed().as_secs_f64() - t1) / (2 * n) as f64;
             for (k, v) in VARIANTS.iter().enumerate() {
                 let t0 = Instant::now();
                 run(*v, &sc, n, &dir);
@@ -185,11 +227,12 @@ fn summary(_: &mut Criterion) {
             .map(|k| (intercept(k) - intercept(0)) * 1e3)
             .collect();
         println!(
-            "| {n_modes} | {:.1} | {:.2}x | {:.2}x | {:.2}x | {:.0}x | {:.1} / {:.1} / {:.1} |",
+            "| {n_modes} | {:.1} | {:.2}x | {:.2}x | {:.2}x | {:.2}x | {:.0}x | {:.1} / {:.1} / {:.1} |",
             per[0] * 1e9,
             per[1] / per[0],
             per[2] / per[0],
             per[3] / per[0],
+            med(&text) / per[0],
             1.0 / (RATE * per[0]),
             fixed[1],
             fixed[2],
