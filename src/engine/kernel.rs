@@ -1,7 +1,7 @@
 //! The per-sample kernels, laid out for the machine.
 //!
 //! Block propagators and state are stored as structure of arrays (block `k`
-//! is `(s[k], s[nb + k])`). The hot kernel, [`run_block`], advances a phase
+//! is `(s[k], s[nb + k])`). The hot kernel, [`run_block_with`], advances a phase
 //! by up to [`EPOCH`] samples in one call, **mode-major**: a group of
 //! [`GROUP`] blocks is loaded into registers (state, 2x2 propagators and the
 //! three rows), stepped through all the samples, and adds its share of every
@@ -26,7 +26,7 @@
 use crate::compile::EnergyQuad;
 use crate::physics::hodlr::Hodlr;
 
-/// Most samples one [`run_block`] call advances (the engine's epoch: the
+/// Most samples one [`run_block_with`] call advances (the engine's epoch: the
 /// curvature bound of exact switching is refreshed at least this often).
 pub const EPOCH: usize = 64;
 /// Blocks (modes) processed together in registers: two 4-lane vectors.
@@ -142,12 +142,12 @@ pub struct Rows<'a> {
     pub r: &'a [f64],
 }
 
-/// Per-sample lane accumulators of [`run_block`] (`[sample][row][lane]`):
+/// Per-sample lane accumulators of [`run_block_with`] (`[sample][row][lane]`):
 /// 6 KiB of scratch kept by the caller so a call neither allocates nor
 /// zeroes more than the samples it runs.
 pub type BlockAcc = [[[f64; LANES]; 3]; EPOCH];
 
-/// What [`run_block`] returns per sample `j`: the rows of the state after
+/// What [`run_block_with`] returns per sample `j`: the rows of the state after
 /// step `j` (the state at the start of sample `j + 1`).
 #[derive(Debug, Clone)]
 pub struct BlockRows {
@@ -199,6 +199,9 @@ struct Group {
     q: [[f64; GROUP]; 3],
     /// The slope row's two halves (only read by the `D` kernels).
     d: [[f64; GROUP]; 2],
+    /// The observation's three rows, halves as `row` (only read by the `O`
+    /// kernels).
+    o: [[f64; GROUP]; 6],
 }
 
 impl Group {
@@ -211,6 +214,7 @@ impl Group {
             row: [[0.0; GROUP]; 6],
             q: [[0.0; GROUP]; 3],
             d: [[0.0; GROUP]; 2],
+            o: [[0.0; GROUP]; 6],
         };
         let srcs: [&[f64]; 4] = [&p.p00, &p.p01, &p.p10, &p.p11];
         let rsrc: [&[f64]; 3] = [rows.ev, rows.l, rows.r];
@@ -239,6 +243,19 @@ impl Group {
         }
     }
 
+    /// Load the observation's rows of the group's blocks.
+    #[inline(always)]
+    fn load_obs(&mut self, rows: &Rows, nb: usize, base: usize, width: usize) {
+        let rsrc: [&[f64]; 3] = [rows.ev, rows.l, rows.r];
+        for j in 0..width {
+            let k = base + j;
+            for (q, src) in rsrc.iter().enumerate() {
+                self.o[2 * q][j] = src[k];
+                self.o[2 * q + 1][j] = src[nb + k];
+            }
+        }
+    }
+
     /// Load the slope row of the group's blocks.
     #[inline(always)]
     fn load_slope(&mut self, row: &[f64], nb: usize, base: usize, width: usize) {
@@ -250,19 +267,22 @@ impl Group {
 
     /// Step the group `k` samples, adding its share of each sample's rows
     /// into `acc[j]`, in the `Q` copy of each sample's quadratic form into
-    /// `qacc[j]` and in the `D` copy of each sample's slope row into
-    /// `dacc[j]`.
+    /// `qacc[j]`, in the `D` copy of each sample's slope row into `dacc[j]`
+    /// and in the `O` copy of each sample's observation rows into
+    /// `oacc[j]` (each sum in the same order as `acc`'s).
     #[inline(always)]
-    fn run<const FMA: bool, const Q: bool, const D: bool>(
+    fn run<const FMA: bool, const Q: bool, const D: bool, const O: bool>(
         &mut self,
         k: usize,
         acc: &mut [[[f64; LANES]; 3]],
         qacc: &mut [[f64; LANES]],
         dacc: &mut [[f64; LANES]],
+        oacc: &mut [[[f64; LANES]; 3]],
     ) {
         let (mut a, mut b) = (self.a, self.b);
         let [p00, p01, p10, p11] = self.p;
         let row = self.row;
+        let orow = self.o;
         let [qaa, qab, qbb] = self.q;
         let [da, db] = self.d;
         for (j_s, acc_j) in acc[..k].iter_mut().enumerate() {
@@ -272,17 +292,9 @@ impl Group {
                 x0[j] = madd::<FMA>(p00[j], a[j], p01[j] * b[j]);
                 x1[j] = madd::<FMA>(p10[j], a[j], p11[j] * b[j]);
             }
-            for (q, acc_q) in acc_j.iter_mut().enumerate() {
-                let (ra, rb) = (&row[2 * q], &row[2 * q + 1]);
-                for j in 0..LANES {
-                    let h = j + LANES;
-                    let mut v = acc_q[j];
-                    v = madd::<FMA>(ra[j], x0[j], v);
-                    v = madd::<FMA>(rb[j], x1[j], v);
-                    v = madd::<FMA>(ra[h], x0[h], v);
-                    v = madd::<FMA>(rb[h], x1[h], v);
-                    acc_q[j] = v;
-                }
+            rows_into::<FMA>(acc_j, &row, &x0, &x1);
+            if O {
+                rows_into::<FMA>(&mut oacc[j_s], &orow, &x0, &x1);
             }
             if Q {
                 let qa = &mut qacc[j_s];
@@ -318,7 +330,30 @@ impl Group {
     }
 }
 
-/// The operands of one [`run_block`] call.
+/// Add three rows' share of one stepped group (`x0`, `x1`) into the lane
+/// accumulators `acc` (the one order every row is summed in).
+#[inline(always)]
+fn rows_into<const FMA: bool>(
+    acc: &mut [[f64; LANES]; 3],
+    row: &[[f64; GROUP]; 6],
+    x0: &[f64; GROUP],
+    x1: &[f64; GROUP],
+) {
+    for (q, acc_q) in acc.iter_mut().enumerate() {
+        let (ra, rb) = (&row[2 * q], &row[2 * q + 1]);
+        for j in 0..LANES {
+            let h = j + LANES;
+            let mut v = acc_q[j];
+            v = madd::<FMA>(ra[j], x0[j], v);
+            v = madd::<FMA>(rb[j], x1[j], v);
+            v = madd::<FMA>(ra[h], x0[h], v);
+            v = madd::<FMA>(rb[h], x1[h], v);
+            acc_q[j] = v;
+        }
+    }
+}
+
+/// The operands of one [`run_block_with`] call.
 pub struct BlockIo<'a> {
     /// Block propagators of the phase.
     pub p: &'a BlockProps,
@@ -334,7 +369,7 @@ pub struct BlockIo<'a> {
     pub out: &'a mut BlockRows,
 }
 
-/// The quadratic form of [`run_block_quad`]: its weights, the caller's lane
+/// The quadratic form of [`run_block_with`]: its weights, the caller's lane
 /// scratch and the per-sample values it writes.
 pub struct QuadIo<'a> {
     /// The weights.
@@ -348,7 +383,7 @@ pub struct QuadIo<'a> {
 /// Lane scratch of a [`QuadIo`].
 pub type QuadAcc = [[f64; LANES]; EPOCH];
 
-/// The slope row of [`run_block_slope`]: the row, the caller's lane
+/// The slope row of [`run_block_with`]: the row, the caller's lane
 /// scratch and the per-sample values it writes.
 pub struct SlopeIo<'a> {
     /// The row (`ev G`, over the phase's block coordinates).
@@ -359,13 +394,37 @@ pub struct SlopeIo<'a> {
     pub out: &'a mut [f64; EPOCH],
 }
 
+/// The observation rows of [`run_block_with`]: the rows (`x_c, v_c, eta`
+/// in the fields `ev, l, r`), the caller's lane scratch and the per-sample
+/// values it writes.
+pub struct ObsIo<'a> {
+    /// The rows.
+    pub rows: Rows<'a>,
+    /// Scratch for the per-sample lane sums.
+    pub acc: &'a mut BlockAcc,
+    /// The rows on every stepped state (written).
+    pub out: &'a mut BlockRows,
+}
+
+/// What a kernel run sums beside the state's rows: each `None` costs
+/// nothing.
+#[derive(Default)]
+pub struct Extras<'a> {
+    /// A block-diagonal quadratic form (the trace's energy).
+    pub quad: Option<QuadIo<'a>>,
+    /// The slope row (the Hermite certificate).
+    pub slope: Option<SlopeIo<'a>>,
+    /// Three more rows (the trace's motion).
+    pub obs: Option<ObsIo<'a>>,
+}
+
 #[inline(always)]
-fn block_body<const FMA: bool, const Q: bool, const D: bool>(
+fn block_body<const FMA: bool, const Q: bool, const D: bool, const O: bool>(
     io: BlockIo,
-    quad: Option<QuadIo>,
-    slope: Option<SlopeIo>,
+    extras: Extras,
     k: usize,
 ) {
+    let Extras { quad, slope, obs } = extras;
     let BlockIo {
         p,
         s,
@@ -395,6 +454,14 @@ fn block_body<const FMA: bool, const Q: bool, const D: bool>(
     for a in dacc.iter_mut().take(k) {
         *a = [0.0; LANES];
     }
+    let mut no_oacc = [[[0.0; LANES]; 3]; 0];
+    let (orows, oacc, oout) = match obs {
+        Some(ObsIo { rows, acc, out }) if O => (Some(rows), &mut acc[..], Some(out)),
+        _ => (None, &mut no_oacc[..], None),
+    };
+    for a in oacc.iter_mut().take(k) {
+        *a = [[0.0; LANES]; 3];
+    }
     let mut base = 0;
     while base < nb {
         let width = GROUP.min(nb - base);
@@ -405,7 +472,10 @@ fn block_body<const FMA: bool, const Q: bool, const D: bool>(
         if let Some(drow) = drow {
             g.load_slope(drow, nb, base, width);
         }
-        g.run::<FMA, Q, D>(k, &mut acc[..k], qacc, dacc);
+        if let Some(orows) = &orows {
+            g.load_obs(orows, nb, base, width);
+        }
+        g.run::<FMA, Q, D, O>(k, &mut acc[..k], qacc, dacc, oacc);
         next[base..base + width].copy_from_slice(&g.a[..width]);
         next[nb + base..nb + base + width].copy_from_slice(&g.b[..width]);
         base += width;
@@ -425,46 +495,43 @@ fn block_body<const FMA: bool, const Q: bool, const D: bool>(
             dout[j] = lane_sum(dacc[j]);
         }
     }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn block_avx2(io: BlockIo, k: usize) {
-    block_body::<true, false, false>(io, None, None, k)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn block_slope_avx2(io: BlockIo, slope: SlopeIo, k: usize) {
-    block_body::<true, false, true>(io, None, Some(slope), k)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn block_quad_avx2(io: BlockIo, quad: QuadIo, k: usize) {
-    block_body::<true, true, false>(io, Some(quad), None, k)
-}
-
-/// [`run_block`] that also evaluates the block-diagonal quadratic form
-/// `quad` on every stepped state (the trace's energy, O(N) per sample).
-/// The state and rows are bit-identical to [`run_block`]'s. O(N k),
-/// allocation-free. \[audio-thread\]
-#[inline]
-pub fn run_block_quad(path: SimdPath, io: BlockIo, quad: QuadIo, k: usize) {
-    let nb = io.p.len();
-    assert!(
-        quad.quad.aa.len() == nb && quad.quad.ab.len() == nb && quad.quad.bb.len() == nb,
-        "run_block_quad: mismatched lengths"
-    );
-    check_io(&io);
-    match path {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `detect()` makes, after
-        // `is_x86_feature_detected!` confirmed AVX2 and FMA on this CPU.
-        SimdPath::Avx2Fma(_) => unsafe { block_quad_avx2(io, quad, k) },
-        _ => block_body::<false, true, false>(io, Some(quad), None, k),
+    if let Some(oout) = oout {
+        for j in 0..k {
+            oout.ev[j] = lane_sum(oacc[j][0]);
+            oout.l[j] = lane_sum(oacc[j][1]);
+            oout.r[j] = lane_sum(oacc[j][2]);
+        }
     }
 }
+
+/// The kernel for each choice of extras, in an AVX2+FMA copy and a
+/// baseline copy: `block_avx2_QDO` and `block_generic_QDO` (a `1` where the
+/// extra is summed).
+macro_rules! kernels {
+    ($(($avx:ident, $gen:ident, $q:literal, $d:literal, $o:literal)),* $(,)?) => {
+        $(
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx2,fma")]
+            fn $avx(io: BlockIo, extras: Extras, k: usize) {
+                block_body::<true, $q, $d, $o>(io, extras, k)
+            }
+            fn $gen(io: BlockIo, extras: Extras, k: usize) {
+                block_body::<false, $q, $d, $o>(io, extras, k)
+            }
+        )*
+    };
+}
+
+kernels!(
+    (block_avx2_000, block_generic_000, false, false, false),
+    (block_avx2_100, block_generic_100, true, false, false),
+    (block_avx2_010, block_generic_010, false, true, false),
+    (block_avx2_110, block_generic_110, true, true, false),
+    (block_avx2_001, block_generic_001, false, false, true),
+    (block_avx2_101, block_generic_101, true, false, true),
+    (block_avx2_011, block_generic_011, false, true, true),
+    (block_avx2_111, block_generic_111, true, true, true),
+);
 
 fn check_io(io: &BlockIo) {
     let n = 2 * io.p.len();
@@ -479,43 +546,98 @@ fn check_io(io: &BlockIo) {
 }
 
 /// Advance the blocks `k <= EPOCH` samples from `io.s` into `io.next`
-/// (`s` is left untouched, so a caller can re-run fewer samples), and write
-/// the rows of every stepped state into `io.out`. O(N k), allocation-free.
-/// \[audio-thread\]
-#[inline]
-pub fn run_block(path: SimdPath, io: BlockIo, k: usize) {
+/// (`s` is left untouched, so a caller can re-run fewer samples), write
+/// the rows of every stepped state into `io.out`, and sum the `extras` on
+/// every stepped state: the block-diagonal quadratic form `quad` (the
+/// trace's energy, O(N) per sample), the slope row (the Hermite
+/// certificate of the fast path), three more rows `obs` (the trace's
+/// motion). The state and rows are bit-identical whatever the extras, and
+/// each extra row is summed in the same order as the rows. O(N k),
+/// allocation-free. \[audio-thread\]
+pub fn run_block_with(path: SimdPath, io: BlockIo, extras: Extras, k: usize) {
     check_io(&io);
-    match path {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `detect()` makes, after
-        // `is_x86_feature_detected!` confirmed AVX2 and FMA on this CPU.
-        SimdPath::Avx2Fma(_) => unsafe { block_avx2(io, k) },
-        _ => block_body::<false, false, false>(io, None, None, k),
+    let n = io.s.len();
+    if let Some(q) = &extras.quad {
+        let nb = io.p.len();
+        assert!(
+            q.quad.aa.len() == nb && q.quad.ab.len() == nb && q.quad.bb.len() == nb,
+            "run_block_with: mismatched quadratic form"
+        );
     }
+    if let Some(d) = &extras.slope {
+        assert!(d.row.len() == n, "run_block_with: mismatched slope row");
+    }
+    if let Some(o) = &extras.obs {
+        assert!(
+            o.rows.ev.len() == n && o.rows.l.len() == n && o.rows.r.len() == n,
+            "run_block_with: mismatched observation rows"
+        );
+    }
+    let which = (
+        extras.quad.is_some(),
+        extras.slope.is_some(),
+        extras.obs.is_some(),
+    );
+    macro_rules! dispatch {
+        ($(($q:literal, $d:literal, $o:literal, $avx:ident, $gen:ident)),* $(,)?) => {
+            match which {
+                $(
+                    ($q, $d, $o) => match path {
+                        #[cfg(target_arch = "x86_64")]
+                        // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only
+                        // `detect()` makes, after `is_x86_feature_detected!` confirmed AVX2 and
+                        // FMA on this CPU.
+                        SimdPath::Avx2Fma(_) => unsafe { $avx(io, extras, k) },
+                        _ => $gen(io, extras, k),
+                    },
+                )*
+            }
+        };
+    }
+    dispatch!(
+        (false, false, false, block_avx2_000, block_generic_000),
+        (true, false, false, block_avx2_100, block_generic_100),
+        (false, true, false, block_avx2_010, block_generic_010),
+        (true, true, false, block_avx2_110, block_generic_110),
+        (false, false, true, block_avx2_001, block_generic_001),
+        (true, false, true, block_avx2_101, block_generic_101),
+        (false, true, true, block_avx2_011, block_generic_011),
+        (true, true, true, block_avx2_111, block_generic_111),
+    );
 }
 
-/// [`run_block`] that also evaluates the slope row `slope.row` on every
-/// stepped state (the Hermite certificate of the fast path). The state and
-/// rows are bit-identical to [`run_block`]'s. O(N k), allocation-free.
+/// [`run_block_with`] without extras: the engine's hot kernel.
 /// \[audio-thread\]
+#[cfg(test)]
+#[inline]
+pub fn run_block(path: SimdPath, io: BlockIo, k: usize) {
+    run_block_with(path, io, Extras::default(), k);
+}
+
+/// [`run_block_with`] with the quadratic form `quad`. \[audio-thread\]
+#[cfg(test)]
+#[inline]
+pub fn run_block_quad(path: SimdPath, io: BlockIo, quad: QuadIo, k: usize) {
+    let extras = Extras {
+        quad: Some(quad),
+        ..Extras::default()
+    };
+    run_block_with(path, io, extras, k);
+}
+
+/// [`run_block_with`] with the slope row `slope`. \[audio-thread\]
+#[cfg(test)]
 #[inline]
 pub fn run_block_slope(path: SimdPath, io: BlockIo, slope: SlopeIo, k: usize) {
-    assert!(
-        slope.row.len() == io.s.len(),
-        "run_block_slope: mismatched lengths"
-    );
-    check_io(&io);
-    match path {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `detect()` makes, after
-        // `is_x86_feature_detected!` confirmed AVX2 and FMA on this CPU.
-        SimdPath::Avx2Fma(_) => unsafe { block_slope_avx2(io, slope, k) },
-        _ => block_body::<false, false, true>(io, None, Some(slope), k),
-    }
+    let extras = Extras {
+        slope: Some(slope),
+        ..Extras::default()
+    };
+    run_block_with(path, io, extras, k);
 }
 
 /// `[ev . s, l . s, r . s]` (no step), summed in the same order as
-/// [`run_block`]'s generic path (bit-identical to it). O(N). \[audio-thread\]
+/// [`run_block_with`]'s generic path (bit-identical to it). O(N). \[audio-thread\]
 #[inline]
 pub fn rows_of(s: &[f64], rows: &Rows) -> [f64; 3] {
     let nb = s.len() / 2;

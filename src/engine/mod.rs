@@ -40,7 +40,7 @@ pub use exact::{ExactStats, ROOT_ULPS};
 use exact::{SearchScratch, TermSplit};
 use kernel::SimdPath;
 use kernel::{
-    rows_of, run_block, run_block_quad, run_block_slope, BlockAcc, BlockIo, BlockProps, BlockRows,
+    rows_of, run_block_with, BlockAcc, BlockIo, BlockProps, BlockRows, Extras, ObsIo,
     QuadAcc, QuadIo, Rows, SlopeIo, EPOCH,
 };
 
@@ -300,7 +300,7 @@ pub struct EngineState {
     obs: Option<Box<ObsScratch>>,
 }
 
-/// Scratch of the kernel's slope row ([`EngineState::run_kernel_slope`]).
+/// Scratch of the kernel's slope row (`EngineState::run_kernel_rows`).
 #[derive(Debug, Clone)]
 struct SlopeScratch {
     acc: QuadAcc,
@@ -311,9 +311,10 @@ struct SlopeScratch {
 /// pass over the same start state with the contact point's rows.
 #[derive(Debug, Clone)]
 struct ObsScratch {
-    next: Vec<f64>,
     zeros: Vec<f64>,
+    /// The observation rows of every stepped state of the last kernel run.
     rows: Box<BlockRows>,
+    oacc: Box<BlockAcc>,
     qacc: Box<QuadAcc>,
     qout: Box<[f64; EPOCH]>,
     /// The energy of the state at this clock, left by the last observed
@@ -329,6 +330,17 @@ struct ObsScratch {
 struct ObsOut<'a> {
     m: &'a mut [Motion],
     e: Option<&'a mut [f64]>,
+}
+
+/// What a fast-path kernel run sums for the trace beside the audio.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Observe {
+    /// Nothing (the instrument).
+    No,
+    /// The rows `x_c, v_c, eta`.
+    Motion,
+    /// Those and the energy's block-diagonal form.
+    MotionEnergy,
 }
 
 impl EngineState {
@@ -818,11 +830,11 @@ impl EngineState {
     /// voices on the audio thread). Idempotent. \[main-thread / worker\]
     pub fn reserve_observation(&mut self) {
         let dim = self.phases[FREE].s.len().max(self.phases[CONTACT].s.len());
-        if self.obs.as_ref().is_none_or(|o| o.next.len() < dim) {
+        if self.obs.as_ref().is_none_or(|o| o.zeros.len() < dim) {
             self.obs = Some(Box::new(ObsScratch {
-                next: vec![0.0; dim],
                 zeros: vec![0.0; dim],
                 rows: Box::default(),
+                oacc: Box::new([[[0.0; 4]; 3]; EPOCH]),
                 qacc: Box::new([[0.0; 4]; EPOCH]),
                 qout: Box::new([0.0; EPOCH]),
                 e_next: None,
@@ -887,8 +899,9 @@ impl EngineState {
 
     /// The motion of the `k` samples the fast path is about to commit
     /// (before [`commit_kernel`](Self::commit_kernel)): state 0 is the
-    /// current one, states `1..k` come from a kernel pass with the rows
-    /// `x_c, v_c, eta`; the hammer in flight follows the same parabola as
+    /// current one, states `1..k` come from the rows `x_c, v_c, eta` (and
+    /// the energy's form) the fast path's kernel pass summed beside its own
+    /// (`Observe`); the hammer in flight follows the same parabola as
     /// the fast path, in contact its height is `x_c - p_eff - rod` with
     /// `p_eff` the event row the engine's own pass computed.
     fn observe_run(&mut self, scene: &CompiledScene, k: usize, out: ObsOut) {
@@ -922,25 +935,8 @@ impl EngineState {
             },
         };
         let r0 = rows_of(&ps.s, &rows);
-        let io = BlockIo {
-            p: &ps.props,
-            s: &ps.s,
-            next: &mut obs.next[..dim],
-            rows,
-            acc: &mut self.acc,
-            out: &mut obs.rows,
-        };
-        if let Some(quad) = quad {
-            // k steps: states 1..k, the last one's energy kept for the next run
-            let qio = QuadIo {
-                quad,
-                acc: &mut obs.qacc,
-                out: &mut obs.qout,
-            };
-            run_block_quad(self.simd, io, qio, k);
-        } else if k > 1 {
-            run_block(self.simd, io, k - 1);
-        }
+        // states 1..k: the rows (and the energy's form) the engine's own
+        // kernel pass summed beside its rows (`run_kernel_rows`)
         let (sc, dt, g) = (self.time_scale, self.step_s, self.g);
         let (mut x_h, mut v_h) = (self.x_h, self.v_h);
         for (j, mj) in m.iter_mut().enumerate().take(k) {
@@ -1090,10 +1086,13 @@ impl EngineState {
         if hermite {
             let ps = &self.phases[phase.index()];
             d_j = dot(&ph.ev_d, &ps.s) + if in_contact { 0.0 } else { self.v_h };
-            self.run_kernel_slope(scene, k_max);
-        } else {
-            self.run_kernel(scene, k_max);
         }
+        let observe = match &obs {
+            None => Observe::No,
+            Some(o) if o.e.is_some() && self.quad_energy_ok(scene) => Observe::MotionEnergy,
+            Some(_) => Observe::Motion,
+        };
+        self.run_kernel_rows(scene, k_max, hermite, observe);
         // Check the samples in order (hammer in flight: its exact parabola).
         let g = self.g;
         let margin = self.bound;
@@ -1243,18 +1242,16 @@ impl EngineState {
     /// state into the spare buffer (the state itself is left untouched) and
     /// leave the rows of every stepped state in `brows`.
     fn run_kernel(&mut self, scene: &CompiledScene, k: usize) {
-        self.run_kernel_rows(scene, k, false);
+        self.run_kernel_rows(scene, k, false, Observe::No);
     }
 
-    /// [`run_kernel`](Self::run_kernel) that also sums the slope row `ev G`
-    /// of every stepped state into `slope.out` (same states and rows, bit
-    /// for bit).
-    fn run_kernel_slope(&mut self, scene: &CompiledScene, k: usize) {
-        self.run_kernel_rows(scene, k, true);
-    }
-
-    fn run_kernel_rows(&mut self, scene: &CompiledScene, k: usize, slope: bool) {
+    /// The kernel run of [`run_kernel`](Self::run_kernel), with the slope
+    /// row when `slope`, and with what `observe` asks summed into the
+    /// observation scratch (the trace's rows `x_c, v_c, eta`, and the
+    /// energy's form): one pass over the state for the audio and the trace.
+    fn run_kernel_rows(&mut self, scene: &CompiledScene, k: usize, slope: bool, observe: Observe) {
         let ph = scene.phase(self.phase);
+        let in_contact = self.in_contact();
         let ps = &mut self.phases[self.phase.index()];
         let (s, next, props, out) = (&ps.s, &mut ps.next, &ps.props, &ps.out);
         let io = BlockIo {
@@ -1269,17 +1266,43 @@ impl EngineState {
             acc: &mut self.acc,
             out: &mut self.brows,
         };
+        let mut extras = Extras::default();
         if slope {
             let SlopeScratch { acc, out: dout } = &mut *self.slope;
-            let d = SlopeIo {
+            extras.slope = Some(SlopeIo {
                 row: &ph.ev_d,
                 acc,
                 out: dout,
-            };
-            run_block_slope(self.simd, io, d, k);
-        } else {
-            run_block(self.simd, io, k);
+            });
         }
+        if observe != Observe::No {
+            let obs = self
+                .obs
+                .as_deref_mut()
+                .expect("allocated by reserve_observation");
+            let dim = ph.dim;
+            extras.obs = Some(ObsIo {
+                rows: Rows {
+                    ev: &ph.rows.x_c,
+                    l: &ph.rows.v_c,
+                    r: if in_contact {
+                        &ph.rows.eta
+                    } else {
+                        &obs.zeros[..dim]
+                    },
+                },
+                acc: &mut obs.oacc,
+                out: &mut obs.rows,
+            });
+            if observe == Observe::MotionEnergy {
+                extras.quad = ph.energy_quad.as_ref().map(|quad| QuadIo {
+                    quad,
+                    acc: &mut obs.qacc,
+                    out: &mut obs.qout,
+                });
+            }
+        }
+        run_block_with(self.simd, io, extras, k);
     }
 
     /// The Hermite certificate's remainder for steps of `dt` from the
