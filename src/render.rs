@@ -193,8 +193,8 @@ pub trait TraceSink {
     fn record(&mut self, i: usize, motion: &Motion, energy: Option<f64>) -> std::io::Result<()>;
     /// Whether the sink wants the energy of (nearly) every sample. When it
     /// does not, the render runs the engine's block path with the motion
-    /// ([`EngineState::process_block_observed`], about twice the plain
-    /// block path) and takes the energy only where asked.
+    /// ([`EngineState::process_block_observed`], one kernel pass summing
+    /// the contact point's rows too) and takes the energy only where asked.
     fn every_energy(&self) -> bool {
         true
     }
@@ -550,6 +550,98 @@ impl<W: Write + Send + 'static> TraceSink for CsvTrace<W> {
     }
 }
 
+/// The trace's columns in the NPY file's structured type: the CSV's
+/// header, every field a little-endian f64 (`in_contact` 0 or 1).
+fn npy_header(rows: usize) -> Vec<u8> {
+    let fields: Vec<String> = TRACE_HEADER
+        .split(',')
+        .map(|name| format!("('{name}', '<f8')"))
+        .collect();
+    let dict = format!(
+        "{{'descr': [{}], 'fortran_order': False, 'shape': ({rows},), }}",
+        fields.join(", ")
+    );
+    // magic, version 1.0, header length; the whole header padded with
+    // spaces to a multiple of 64 bytes and ended by a newline
+    let unpadded = 10 + dict.len() + 1;
+    let pad = unpadded.next_multiple_of(64) - unpadded;
+    let len = u16::try_from(dict.len() + pad + 1).expect("a short header");
+    let mut h = b"\x93NUMPY\x01\x00".to_vec();
+    h.extend_from_slice(&len.to_le_bytes());
+    h.extend_from_slice(dict.as_bytes());
+    h.extend(std::iter::repeat_n(b' ', pad));
+    h.push(b'\n');
+    h
+}
+
+/// Writes the trace as a NumPy `.npy` file (docs/design.md, "The render
+/// command and the trace CSV"): one record per sample with the CSV's
+/// columns as named f64 fields, the numbers' own bits (no text), so
+/// `numpy.load(path)["energy"]` reads a column exactly. The row count is
+/// in the header, so the render's length is given up front;
+/// [`finish`](Self::finish) checks that every row came.
+pub struct NpyTrace<W: Write> {
+    rate_hz: f64,
+    rows: usize,
+    written: usize,
+    out: W,
+    buf: Vec<u8>,
+}
+
+impl<W: Write> NpyTrace<W> {
+    /// Bytes per record (7 f64 fields).
+    pub const RECORD: usize = 56;
+
+    /// Write the header for `rows` records to `out`.
+    pub fn new(rate_hz: f64, rows: usize, mut out: W) -> std::io::Result<Self> {
+        out.write_all(&npy_header(rows))?;
+        Ok(Self {
+            rate_hz,
+            rows,
+            written: 0,
+            out,
+            buf: Vec::with_capacity(CSV_CHUNK_ROWS * Self::RECORD),
+        })
+    }
+
+    /// Write the remaining records, flush and hand back the writer; an
+    /// error if fewer or more records came than the header says.
+    pub fn finish(mut self) -> std::io::Result<W> {
+        self.out.write_all(&self.buf)?;
+        self.out.flush()?;
+        if self.written != self.rows {
+            return Err(std::io::Error::other(format!(
+                "the trace's header says {} rows, {} were recorded",
+                self.rows, self.written
+            )));
+        }
+        Ok(self.out)
+    }
+}
+
+impl<W: Write> TraceSink for NpyTrace<W> {
+    fn wants_energy(&self, _: usize) -> bool {
+        true
+    }
+    fn needs_ticks(&self) -> bool {
+        false
+    }
+    fn record(&mut self, i: usize, m: &Motion, e: Option<f64>) -> std::io::Result<()> {
+        let e = e.expect("every energy was asked for");
+        let c = if m.in_contact { 1.0 } else { 0.0 };
+        let t = i as f64 / self.rate_hz;
+        for x in [t, m.x_hammer, m.v_hammer, m.x_contact, m.v_contact, c, e] {
+            self.buf.extend_from_slice(&x.to_le_bytes());
+        }
+        self.written += 1;
+        if self.buf.len() >= CSV_CHUNK_ROWS * Self::RECORD {
+            self.out.write_all(&self.buf)?;
+            self.buf.clear();
+        }
+        Ok(())
+    }
+}
+
 /// Largest number of buckets of a [`TraceEnvelope`].
 pub const ENVELOPE_BUCKETS: usize = 1024;
 
@@ -717,7 +809,10 @@ pub fn push_e(buf: &mut Vec<u8>, fmt: &mut zmij::Buffer, x: f64) {
         t[..len].copy_from_slice(s);
     }
     let at = buf.len();
-    if t[len.saturating_sub(5)..len].iter().fold(false, |a, &c| a | (c == b'e')) {
+    if t[len.saturating_sub(5)..len]
+        .iter()
+        .fold(false, |a, &c| a | (c == b'e'))
+    {
         // `d.ddde-x` or `de-x` already
         buf.extend_from_slice(&t[..32]);
         buf.truncate(at + len);
@@ -1120,6 +1215,59 @@ mod tests {
                 assert!(csv.finish().unwrap() == want, "{n} rows, {threads} threads");
             }
         }
+    }
+
+    /// The NPY trace holds the CSV trace's numbers bit for bit (the CSV's
+    /// shortest digits read back exactly), under a NumPy v1.0 header that
+    /// names the CSV's columns, with the row count, padded to 64 bytes; a
+    /// trace with fewer rows than its header is an error.
+    #[test]
+    fn npy_trace_is_the_csv_trace_in_binary() {
+        let scene =
+            crate::presets::scene(crate::presets::index_of("paper-bounce").unwrap()).unwrap();
+        let compiled = compile_with(&scene, 44100.0, None).unwrap();
+        let n = 2 * CSV_CHUNK_ROWS + 123;
+        let csv = CsvTrace::new(44100.0, Vec::new()).unwrap();
+        let npy = NpyTrace::new(44100.0, n, Vec::new()).unwrap();
+        let mut both = (csv, npy);
+        stream_left(&compiled, n, &mut both);
+        let (csv, npy) = both;
+        let rows = parse_csv(&csv.finish().unwrap());
+        let bytes = npy.finish().unwrap();
+        assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00");
+        let hlen = usize::from(u16::from_le_bytes([bytes[8], bytes[9]]));
+        assert_eq!((10 + hlen) % 64, 0);
+        let header = std::str::from_utf8(&bytes[10..10 + hlen]).unwrap();
+        assert!(header.ends_with('\n'), "{header:?}");
+        assert_eq!(
+            header.trim_end(),
+            format!(
+                "{{'descr': [('t', '<f8'), ('x_hammer', '<f8'), ('v_hammer', '<f8'), \
+                 ('x_contact', '<f8'), ('v_contact', '<f8'), ('in_contact', '<f8'), \
+                 ('energy', '<f8')], 'fortran_order': False, 'shape': ({n},), }}"
+            )
+        );
+        let body = &bytes[10 + hlen..];
+        assert_eq!(body.len(), n * NpyTrace::<Vec<u8>>::RECORD);
+        assert_eq!(rows.len(), n);
+        let mut contacts = 0;
+        for (rec, r) in body.chunks_exact(56).zip(&rows) {
+            let f = |k: usize| f64::from_le_bytes(rec[8 * k..8 * k + 8].try_into().unwrap());
+            let o = &r.obs;
+            let want = [r.t, o.x_hammer, o.v_hammer, o.x_contact, o.v_contact];
+            for (k, w) in want.into_iter().enumerate() {
+                assert_eq!(f(k).to_bits(), w.to_bits(), "column {k} at t = {}", r.t);
+            }
+            assert_eq!(f(5), if o.in_contact { 1.0 } else { 0.0 });
+            assert_eq!(f(6).to_bits(), o.energy.to_bits());
+            contacts += usize::from(o.in_contact);
+        }
+        assert!(contacts > 0, "the render should hold a contact");
+        // fewer rows than the header says
+        let mut short = NpyTrace::new(44100.0, 3, Vec::new()).unwrap();
+        short.record(0, &Motion::default(), Some(0.0)).unwrap();
+        let e = short.finish().unwrap_err().to_string();
+        assert!(e.contains("3 rows, 1 were recorded"), "{e}");
     }
 
     /// The plot's envelope on the block path with the motion equals the one

@@ -336,7 +336,7 @@ impl Instrument {
 
     /// Switch the probe on or off (e.g. while the editor window is open).
     /// On, each voice runs the engine's observed block path (the same
-    /// samples bit for bit, about twice the plain path's cost) and its
+    /// samples bit for bit, its kernel pass summing the contact point's rows too) and its
     /// energy is taken once per chunk. Allocation-free. \[audio-thread\]
     pub fn set_probe_on(&mut self, on: bool) {
         self.probe_on = on && self.probe.is_some();

@@ -1,12 +1,13 @@
 //! The render command against the engine alone (docs/design.md, "Offline
 //! rendering"): per sample, the command's WAV-only render, its render with
 //! the plot, and with the trace CSV and the plot, at 10, 100 and 1000
-//! modes, against `EngineState::process_block` over the same samples. The
+//! modes, and with the trace as NumPy `.npy` and the plot, against
+//! `EngineState::process_block` over the same samples. The
 //! compile is left out of both (it is printed by the command separately).
 //!
 //! `cargo bench -p xtask --bench render_command` prints criterion's
 //! timings and, at the end, the ratios measured in one run with the
-//! variants interleaved (A B C D A B C D ...), median of the repetitions:
+//! variants interleaved (A B C D E A B C D E ...), median of the repetitions:
 //! per sample (the slope between two lengths) and the fixed cost of one
 //! render beside it (`-- summary` prints only those), and the CSV's text
 //! alone: the same rows through the render's CSV writer with every core
@@ -76,19 +77,22 @@ enum Variant {
     Wav,
     WavPlot,
     WavTracePlot,
+    WavNpyPlot,
 }
 
-const VARIANTS: [Variant; 4] = [
+const VARIANTS: [Variant; 5] = [
     Variant::Engine,
     Variant::Wav,
     Variant::WavPlot,
     Variant::WavTracePlot,
+    Variant::WavNpyPlot,
 ];
 
 fn run(v: Variant, sc: &CompiledScene, n: usize, dir: &std::path::Path) {
     let wav = dir.join("bench.wav");
     let csv = dir.join("bench.csv");
     let svg = dir.join("bench.svg");
+    let npy = dir.join("bench.npy");
     let out = match v {
         Variant::Engine => {
             black_box(engine_only(sc, n));
@@ -106,6 +110,11 @@ fn run(v: Variant, sc: &CompiledScene, n: usize, dir: &std::path::Path) {
         Variant::WavTracePlot => SceneOutputs {
             wav: Some(&wav),
             trace: Some(&csv),
+            plot: Some((&svg, "bench")),
+        },
+        Variant::WavNpyPlot => SceneOutputs {
+            wav: Some(&wav),
+            trace: Some(&npy),
             plot: Some((&svg, "bench")),
         },
     };
@@ -179,14 +188,14 @@ fn summary(_: &mut Criterion) {
     println!(
         "\nrender command per sample (marginal: lengths L and 3 L), ratio to the engine alone, median of 7 interleaved rounds:"
     );
-    println!("| modes | engine ns/sample | WAV only | WAV + plot | WAV + trace CSV + plot | CSV text alone | engine x real time | fixed ms per render (WAV / plot / CSV + plot) |");
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("| modes | engine ns/sample | WAV only | WAV + plot | WAV + trace CSV + plot | CSV text alone | WAV + trace NPY + plot | engine x real time | fixed ms per render (WAV / plot / CSV + plot / NPY + plot) |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for n_modes in [10, 100, 1000] {
         let sc = compile(&struck(n_modes), RATE).expect("compile");
         let n = samples(n_modes);
         // [variant][round] of (time at L, time at 3 L)
-        let mut short = [[0.0f64; 7]; 4];
-        let mut slope = [[0.0f64; 7]; 4];
+        let mut short = [[0.0f64; 7]; 5];
+        let mut slope = [[0.0f64; 7]; 5];
         let mut kept = Keep::default();
         render_stream(&sc, 3 * n, |_, _| Ok(()), Some(&mut kept)).expect("rows");
         let mut text = [0.0f64; 7];
@@ -223,20 +232,22 @@ fn summary(_: &mut Criterion) {
             }
             med(&f)
         };
-        let fixed: Vec<f64> = (0..4)
+        let fixed: Vec<f64> = (0..5)
             .map(|k| (intercept(k) - intercept(0)) * 1e3)
             .collect();
         println!(
-            "| {n_modes} | {:.1} | {:.2}x | {:.2}x | {:.2}x | {:.2}x | {:.0}x | {:.1} / {:.1} / {:.1} |",
+            "| {n_modes} | {:.1} | {:.2}x | {:.2}x | {:.2}x | {:.2}x | {:.2}x | {:.0}x | {:.1} / {:.1} / {:.1} / {:.1} |",
             per[0] * 1e9,
             per[1] / per[0],
             per[2] / per[0],
             per[3] / per[0],
             med(&text) / per[0],
+            per[4] / per[0],
             1.0 / (RATE * per[0]),
             fixed[1],
             fixed[2],
             fixed[3],
+            fixed[4],
         );
     }
     let _ = std::fs::remove_dir_all(&dir);

@@ -132,7 +132,8 @@ fn bundle_to(name: &str, args: &[&str]) -> Result<PathBuf> {
     Ok(std::fs::canonicalize(&out)?)
 }
 
-/// The Python venv for the VST3 test (pedalboard, mido, numpy).
+/// The Python venv for the VST3 test (pedalboard, mido, numpy) and the
+/// NPY trace's test (numpy).
 fn ensure_venv() -> Result<PathBuf> {
     let python = PathBuf::from("target/venv/bin/python");
     let ok = python.exists()
@@ -188,6 +189,12 @@ fn run_tests(extra: &[String]) -> Result<()> {
     for (b, dir) in &dirs {
         cmd.env(b.env_var(), dir.join(format!("{BUNDLE_NAME}.clap")));
     }
+    // NumPy reads the NPY trace (xtask/tests/trace_npy.rs); the path is
+    // absolute but not canonical (the venv is found through its symlink).
+    cmd.env(
+        "MODAL_CONTACT_PYTHON",
+        std::env::current_dir()?.join(&python),
+    );
     cmd.env(
         "MODAL_CONTACT_STANDALONE",
         std::env::current_dir()?

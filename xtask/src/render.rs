@@ -11,7 +11,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use modal_contact::compile::{compile_with, CompiledScene};
 use modal_contact::instrument::{root_note, InstrumentParams};
 use modal_contact::render::{
-    render_length, render_stream, CsvTrace, StreamStats, TraceEnvelope, TraceSink,
+    render_length, render_stream, CsvTrace, NpyTrace, StreamStats, TraceEnvelope, TraceSink,
 };
 use modal_contact::scene::{Scene, Switching};
 use rayon::prelude::*;
@@ -20,6 +20,39 @@ use std::io::{BufWriter, IsTerminal};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
+
+/// The trace file's format (docs/design.md, "The render command and the
+/// trace CSV").
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum TraceFormat {
+    /// Text, one row per sample, shortest round-trip digits.
+    #[default]
+    Csv,
+    /// NumPy `.npy`: the same columns as named f64 fields, the numbers'
+    /// own bits (no text: several times cheaper to write and read).
+    Npy,
+}
+
+impl TraceFormat {
+    /// The format of a trace path: `.npy` is NumPy, anything else CSV.
+    pub fn of(path: &Path) -> Self {
+        if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("npy"))
+        {
+            TraceFormat::Npy
+        } else {
+            TraceFormat::Csv
+        }
+    }
+
+    fn extension(self) -> &'static str {
+        match self {
+            TraceFormat::Csv => "csv",
+            TraceFormat::Npy => "npy",
+        }
+    }
+}
 
 /// The switching method, as the command line spells it.
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -50,10 +83,15 @@ pub struct RenderArgs {
     /// Output WAV (one scene) or directory (batch).
     #[arg(long)]
     pub out: PathBuf,
-    /// Trace CSV, one row per sample. In a batch, give it without a path:
-    /// each scene's trace goes next to its WAV.
+    /// Trace, one row per sample: CSV, or NumPy if the path ends in .npy.
+    /// In a batch, give it without a path: each scene's trace goes next to
+    /// its WAV (in --trace-format).
     #[arg(long, num_args = 0..=1)]
     pub trace: Option<Option<PathBuf>>,
+    /// The format of a trace written next to its WAV (--trace without a
+    /// path).
+    #[arg(long, value_enum, default_value_t = TraceFormat::Csv)]
+    pub trace_format: TraceFormat,
     /// Plot of hammer height, contact-point displacement and energy (SVG).
     /// Without a path: next to the WAV.
     #[arg(long, num_args = 0..=1)]
@@ -182,7 +220,7 @@ pub fn plan(a: &RenderArgs) -> Result<Vec<Job>> {
         return Ok(vec![Job {
             scene_path: files[0].clone(),
             kind: JobKind::Scene,
-            trace: beside(&a.trace, &wav, "csv"),
+            trace: beside(&a.trace, &wav, a.trace_format.extension()),
             plot: beside(&a.plot, &wav, "svg"),
             sidecar: None,
             samples: length(load_scene(&files[0]).ok().as_ref()),
@@ -220,7 +258,7 @@ pub fn plan(a: &RenderArgs) -> Result<Vec<Job>> {
             jobs.push(Job {
                 scene_path: f.clone(),
                 kind: JobKind::Scene,
-                trace: beside(&a.trace, &wav, "csv"),
+                trace: beside(&a.trace, &wav, a.trace_format.extension()),
                 plot: beside(&a.plot, &wav, "svg"),
                 sidecar: Some(wav.with_extension("json")),
                 samples,
@@ -359,7 +397,8 @@ impl FloatWav {
 pub struct SceneOutputs<'a> {
     /// The WAV (32-bit float stereo).
     pub wav: Option<&'a Path>,
-    /// The trace CSV.
+    /// The trace: CSV, or NumPy if the path ends in `.npy`
+    /// ([`TraceFormat::of`]).
     pub trace: Option<&'a Path>,
     /// The plot (SVG) and its title.
     pub plot: Option<(&'a Path, &'a str)>,
@@ -387,19 +426,20 @@ pub fn render_scene_to(
             None => Ok(()),
         }
     };
-    let csv = match out.trace {
+    let trace = match out.trace {
         Some(p) => {
             let f = std::fs::File::create(p)
                 .with_context(|| format!("cannot create {}", p.display()))?;
-            Some(CsvTrace::new(
-                compiled.rate_hz,
-                BufWriter::with_capacity(1 << 20, f),
-            )?)
+            let f = BufWriter::with_capacity(1 << 20, f);
+            Some(match TraceFormat::of(p) {
+                TraceFormat::Csv => TraceFile::Csv(CsvTrace::new(compiled.rate_hz, f)?),
+                TraceFormat::Npy => TraceFile::Npy(NpyTrace::new(compiled.rate_hz, n, f)?),
+            })
         }
         None => None,
     };
     let env = out.plot.map(|_| TraceEnvelope::new(compiled.rate_hz, n));
-    let (stats, env) = match (csv, env) {
+    let (stats, env) = match (trace, env) {
         (None, None) => (render_stream(compiled, n, audio, None)?, None),
         (Some(mut c), None) => {
             let s = render_stream(compiled, n, audio, Some(&mut c as &mut dyn TraceSink))?;
@@ -424,6 +464,55 @@ pub fn render_scene_to(
         plot::plot_envelope(&e, title, path)?;
     }
     Ok(stats)
+}
+
+/// A trace file being written.
+enum TraceFile {
+    Csv(CsvTrace<BufWriter<std::fs::File>>),
+    Npy(NpyTrace<BufWriter<std::fs::File>>),
+}
+
+impl TraceFile {
+    fn finish(self) -> std::io::Result<()> {
+        match self {
+            TraceFile::Csv(c) => c.finish().map(drop),
+            TraceFile::Npy(c) => c.finish().map(drop),
+        }
+    }
+
+    fn sink(&self) -> &dyn TraceSink {
+        match self {
+            TraceFile::Csv(c) => c,
+            TraceFile::Npy(c) => c,
+        }
+    }
+
+    fn sink_mut(&mut self) -> &mut dyn TraceSink {
+        match self {
+            TraceFile::Csv(c) => c,
+            TraceFile::Npy(c) => c,
+        }
+    }
+}
+
+impl TraceSink for TraceFile {
+    fn wants_energy(&self, i: usize) -> bool {
+        self.sink().wants_energy(i)
+    }
+    fn every_energy(&self) -> bool {
+        self.sink().every_energy()
+    }
+    fn needs_ticks(&self) -> bool {
+        self.sink().needs_ticks()
+    }
+    fn record(
+        &mut self,
+        i: usize,
+        m: &modal_contact::engine::Motion,
+        e: Option<f64>,
+    ) -> std::io::Result<()> {
+        self.sink_mut().record(i, m, e)
+    }
 }
 
 fn scene_job(job: &Job, a: &RenderArgs, progress: &dyn Fn(u64)) -> Result<JobReport> {

@@ -12,6 +12,7 @@ fn args(scenes: Vec<PathBuf>, out: &Path) -> RenderArgs {
         scenes,
         out: out.to_path_buf(),
         trace: None,
+        trace_format: Default::default(),
         plot: None,
         seconds: Some(0.25),
         rate: 44100.0,
