@@ -332,6 +332,20 @@ struct ObsOut<'a> {
     e: Option<&'a mut [f64]>,
 }
 
+/// The trace's rows of phase `ph`: `x_c, v_c` and, in contact, `eta`
+/// (zeros in flight, `zeros` at least the phase's dimension).
+fn obs_rows<'a>(ph: &'a CompiledPhase, zeros: &'a [f64], in_contact: bool) -> Rows<'a> {
+    Rows {
+        ev: &ph.rows.x_c,
+        l: &ph.rows.v_c,
+        r: if in_contact {
+            &ph.rows.eta
+        } else {
+            &zeros[..ph.dim]
+        },
+    }
+}
+
 /// What a fast-path kernel run sums for the trace beside the audio.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Observe {
@@ -925,17 +939,7 @@ impl EngineState {
             .as_mut()
             .expect("allocated by process_block_observed");
         let ps = &self.phases[self.phase.index()];
-        let dim = ps.s.len();
-        let rows = Rows {
-            ev: &ph.rows.x_c,
-            l: &ph.rows.v_c,
-            r: if in_contact {
-                &ph.rows.eta
-            } else {
-                &obs.zeros[..dim]
-            },
-        };
-        let r0 = rows_of(&ps.s, &rows);
+        let r0 = rows_of(&ps.s, &obs_rows(ph, &obs.zeros, in_contact));
         // states 1..k: the rows (and the energy's form) the engine's own
         // kernel pass summed beside its rows (`run_kernel_rows`)
         let (sc, dt, g) = (self.time_scale, self.step_s, self.g);
@@ -1281,17 +1285,8 @@ impl EngineState {
                 .obs
                 .as_deref_mut()
                 .expect("allocated by reserve_observation");
-            let dim = ph.dim;
             extras.obs = Some(ObsIo {
-                rows: Rows {
-                    ev: &ph.rows.x_c,
-                    l: &ph.rows.v_c,
-                    r: if in_contact {
-                        &ph.rows.eta
-                    } else {
-                        &obs.zeros[..dim]
-                    },
-                },
+                rows: obs_rows(ph, &obs.zeros, in_contact),
                 acc: &mut obs.oacc,
                 out: &mut obs.rows,
             });
