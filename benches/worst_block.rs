@@ -15,7 +15,8 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use modal_contact::instrument::{
-    prepare_scene, Event, Instrument, InstrumentParams, Prepared, TimedEvent,
+    prepare_scene, Event, Instrument, InstrumentParams, Prepared, TimedEvent, VoiceChunk,
+    VoiceProbe,
 };
 use modal_contact::scene::Scene;
 use modal_testkit::scenes::{Contact, Hammer, Modal, Pickup, SceneBuilder};
@@ -229,7 +230,8 @@ fn strike_cost(_: &mut Criterion) {
 /// 64 overlapping notes of the heaviest preset (the most states in contact) at
 /// the largest polyphony: CPU time per second of audio, as a fraction of
 /// one core (median of 5 renders of 2 s, the notes struck in the first
-/// 64 ms).
+/// 64 ms), without and with the editor's live view (a probe attached and
+/// on: the observed block path and each chunk's energy), alternating.
 fn polyphony_64(_: &mut Criterion) {
     let mut params = InstrumentParams::default();
     params.play.polyphony = modal_contact::instrument::MAX_VOICES;
@@ -253,31 +255,50 @@ fn polyphony_64(_: &mut Criterion) {
             },
         })
         .collect();
-    let mut times = Vec::new();
-    for _ in 0..5 {
-        let mut inst = Instrument::new(prepared.clone(), params.play);
-        let (mut l, mut r) = (vec![0.0f32; 512], vec![0.0f32; 512]);
-        let t0 = Instant::now();
-        let mut start = 0;
-        while start < total {
-            let evs: Vec<TimedEvent> = events
-                .iter()
-                .filter(|e| e.offset >= start && e.offset < start + 512)
-                .map(|e| TimedEvent {
-                    offset: e.offset - start,
-                    event: e.event,
-                })
-                .collect();
-            inst.process(&evs, &mut l, &mut r);
-            start += 512;
+    // with the editor's live view open, the voices run the observed block
+    // path and hand each chunk's motion to the probe (here one that only
+    // reads it: the view's own decimation is left out)
+    struct Reader(f64);
+    impl VoiceProbe for Reader {
+        fn voice_chunk(&mut self, chunk: &VoiceChunk) {
+            self.0 += chunk.energy_j + chunk.motion.last().map_or(0.0, |m| m.x_contact);
         }
-        assert_eq!(inst.stats.steals, 0, "all 64 notes got their own voice");
-        times.push(t0.elapsed().as_secs_f64());
     }
-    times.sort_by(f64::total_cmp);
+    let mut times = [Vec::new(), Vec::new()];
+    for _ in 0..5 {
+        for (probe, times) in times.iter_mut().enumerate() {
+            let mut inst = Instrument::new(prepared.clone(), params.play);
+            if probe == 1 {
+                inst.set_probe(Some(Box::new(Reader(0.0))));
+                inst.set_probe_on(true);
+            }
+            let (mut l, mut r) = (vec![0.0f32; 512], vec![0.0f32; 512]);
+            let t0 = Instant::now();
+            let mut start = 0;
+            while start < total {
+                let evs: Vec<TimedEvent> = events
+                    .iter()
+                    .filter(|e| e.offset >= start && e.offset < start + 512)
+                    .map(|e| TimedEvent {
+                        offset: e.offset - start,
+                        event: e.event,
+                    })
+                    .collect();
+                inst.process(&evs, &mut l, &mut r);
+                start += 512;
+            }
+            assert_eq!(inst.stats.steals, 0, "all 64 notes got their own voice");
+            times.push(t0.elapsed().as_secs_f64());
+        }
+    }
+    let [plain, probed] = times.map(|mut t| {
+        t.sort_by(f64::total_cmp);
+        t[2]
+    });
     println!(
-        "\n64 voices of {name} ({modes} modes, the heaviest preset) at 48 kHz, 512-sample blocks: {:.1} % of one core (median of 5)",
-        100.0 * times[2] / 2.0
+        "\n64 voices of {name} ({modes} modes, the heaviest preset) at 48 kHz, 512-sample blocks: {:.1} % of one core; with the live view's probe on: {:.1} % (median of 5, alternating)",
+        100.0 * plain / 2.0,
+        100.0 * probed / 2.0
     );
 }
 
