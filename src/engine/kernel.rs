@@ -144,7 +144,7 @@ pub struct Rows<'a> {
 
 /// Per-sample lane accumulators of [`run_block_with`] (`[sample][row][lane]`):
 /// 6 KiB of scratch kept by the caller so a call neither allocates nor
-/// zeroes more than the samples it runs.
+/// zeroes it (the first group of blocks writes each sample's sums).
 pub type BlockAcc = [[[f64; LANES]; 3]; EPOCH];
 
 /// What [`run_block_with`] returns per sample `j`: the rows of the state after
@@ -269,10 +269,13 @@ impl Group {
     /// into `acc[j]`, in the `Q` copy of each sample's quadratic form into
     /// `qacc[j]`, in the `D` copy of each sample's slope row into `dacc[j]`
     /// and in the `O` copy of each sample's observation rows into
-    /// `oacc[j]` (each sum in the same order as `acc`'s).
+    /// `oacc[j]` (each sum in the same order as `acc`'s). The `first`
+    /// group starts every sum at 0 instead of reading the accumulators
+    /// (the same values: the callers' sums need no zeroed scratch).
     #[inline(always)]
     fn run<const FMA: bool, const Q: bool, const D: bool, const O: bool>(
         &mut self,
+        first: bool,
         k: usize,
         acc: &mut [[[f64; LANES]; 3]],
         qacc: &mut [[f64; LANES]],
@@ -292,15 +295,15 @@ impl Group {
                 x0[j] = madd::<FMA>(p00[j], a[j], p01[j] * b[j]);
                 x1[j] = madd::<FMA>(p10[j], a[j], p11[j] * b[j]);
             }
-            rows_into::<FMA>(acc_j, &row, &x0, &x1);
+            rows_into::<FMA>(first, acc_j, &row, &x0, &x1);
             if O {
-                rows_into::<FMA>(&mut oacc[j_s], &orow, &x0, &x1);
+                rows_into::<FMA>(first, &mut oacc[j_s], &orow, &x0, &x1);
             }
             if Q {
                 let qa = &mut qacc[j_s];
                 for j in 0..LANES {
                     let h = j + LANES;
-                    let mut v = qa[j];
+                    let mut v = if first { 0.0 } else { qa[j] };
                     v = madd::<FMA>(qaa[j] * x0[j], x0[j], v);
                     v = madd::<FMA>(qab[j] * x0[j], x1[j], v);
                     v = madd::<FMA>(qbb[j] * x1[j], x1[j], v);
@@ -314,7 +317,7 @@ impl Group {
                 let d = &mut dacc[j_s];
                 for j in 0..LANES {
                     let h = j + LANES;
-                    let mut v = d[j];
+                    let mut v = if first { 0.0 } else { d[j] };
                     v = madd::<FMA>(da[j], x0[j], v);
                     v = madd::<FMA>(db[j], x1[j], v);
                     v = madd::<FMA>(da[h], x0[h], v);
@@ -331,9 +334,11 @@ impl Group {
 }
 
 /// Add three rows' share of one stepped group (`x0`, `x1`) into the lane
-/// accumulators `acc` (the one order every row is summed in).
+/// accumulators `acc` (the one order every row is summed in), or into 0
+/// for the `first` group.
 #[inline(always)]
 fn rows_into<const FMA: bool>(
+    first: bool,
     acc: &mut [[f64; LANES]; 3],
     row: &[[f64; GROUP]; 6],
     x0: &[f64; GROUP],
@@ -343,7 +348,7 @@ fn rows_into<const FMA: bool>(
         let (ra, rb) = (&row[2 * q], &row[2 * q + 1]);
         for j in 0..LANES {
             let h = j + LANES;
-            let mut v = acc_q[j];
+            let mut v = if first { 0.0 } else { acc_q[j] };
             v = madd::<FMA>(ra[j], x0[j], v);
             v = madd::<FMA>(rb[j], x1[j], v);
             v = madd::<FMA>(ra[h], x0[h], v);
@@ -435,32 +440,27 @@ fn block_body<const FMA: bool, const Q: bool, const D: bool, const O: bool>(
     } = io;
     let nb = p.len();
     let k = k.min(EPOCH);
-    for a in acc[..k].iter_mut() {
-        *a = [[0.0; LANES]; 3];
-    }
     let mut no_qacc = [[0.0; LANES]; 0];
     let (qw, qacc, qout) = match quad {
         Some(QuadIo { quad, acc, out }) if Q => (Some(quad), &mut acc[..], Some(out)),
         _ => (None, &mut no_qacc[..], None),
     };
-    for a in qacc.iter_mut().take(k) {
-        *a = [0.0; LANES];
-    }
     let mut no_dacc = [[0.0; LANES]; 0];
     let (drow, dacc, dout) = match slope {
         Some(SlopeIo { row, acc, out }) if D => (Some(row), &mut acc[..], Some(out)),
         _ => (None, &mut no_dacc[..], None),
     };
-    for a in dacc.iter_mut().take(k) {
-        *a = [0.0; LANES];
-    }
     let mut no_oacc = [[[0.0; LANES]; 3]; 0];
     let (orows, oacc, oout) = match obs {
         Some(ObsIo { rows, acc, out }) if O => (Some(rows), &mut acc[..], Some(out)),
         _ => (None, &mut no_oacc[..], None),
     };
-    for a in oacc.iter_mut().take(k) {
-        *a = [[0.0; LANES]; 3];
+    if nb == 0 {
+        // no group runs (the first one starts every sum at 0 itself)
+        acc[..k].fill([[0.0; LANES]; 3]);
+        qacc.iter_mut().take(k).for_each(|a| *a = [0.0; LANES]);
+        dacc.iter_mut().take(k).for_each(|a| *a = [0.0; LANES]);
+        oacc.iter_mut().take(k).for_each(|a| *a = [[0.0; LANES]; 3]);
     }
     let mut base = 0;
     while base < nb {
@@ -475,7 +475,7 @@ fn block_body<const FMA: bool, const Q: bool, const D: bool, const O: bool>(
         if let Some(orows) = &orows {
             g.load_obs(orows, nb, base, width);
         }
-        g.run::<FMA, Q, D, O>(k, &mut acc[..k], qacc, dacc, oacc);
+        g.run::<FMA, Q, D, O>(base == 0, k, &mut acc[..k], qacc, dacc, oacc);
         next[base..base + width].copy_from_slice(&g.a[..width]);
         next[nb + base..nb + base + width].copy_from_slice(&g.b[..width]);
         base += width;
