@@ -188,6 +188,23 @@ mod tests {
         .unwrap()
     }
 
+    /// The free phase's event row is `-x_c` entry for entry, on every
+    /// preset (the observed block path takes the contact point's motion in
+    /// flight from the engine's own event sums: src/engine/mod.rs,
+    /// `run_kernel_rows`).
+    #[test]
+    fn free_event_row_is_minus_the_contact_row() {
+        for i in 0..crate::presets::COUNT {
+            let sc = compile(&crate::presets::scene(i).unwrap(), 44100.0).unwrap();
+            let (ev, xc) = (&sc.free.ev, &sc.free.rows.x_c);
+            assert_eq!(ev.len(), xc.len());
+            assert!(xc.iter().any(|&x| x != 0.0));
+            for (e, x) in ev.iter().zip(xc) {
+                assert_eq!(e.to_bits(), (-x).to_bits(), "preset {i}");
+            }
+        }
+    }
+
     /// The pan law keeps the power: gl^2 + gr^2 = 1, centre equal.
     #[test]
     fn pan_law_is_constant_power() {

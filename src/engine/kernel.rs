@@ -243,13 +243,13 @@ impl Group {
         }
     }
 
-    /// Load the observation's rows of the group's blocks.
+    /// Load the observation's first `n` rows of the group's blocks.
     #[inline(always)]
-    fn load_obs(&mut self, rows: &Rows, nb: usize, base: usize, width: usize) {
+    fn load_obs(&mut self, rows: &Rows, n: usize, nb: usize, base: usize, width: usize) {
         let rsrc: [&[f64]; 3] = [rows.ev, rows.l, rows.r];
         for j in 0..width {
             let k = base + j;
-            for (q, src) in rsrc.iter().enumerate() {
+            for (q, src) in rsrc.iter().enumerate().take(n) {
                 self.o[2 * q][j] = src[k];
                 self.o[2 * q + 1][j] = src[nb + k];
             }
@@ -273,7 +273,7 @@ impl Group {
     /// group starts every sum at 0 instead of reading the accumulators
     /// (the same values: the callers' sums need no zeroed scratch).
     #[inline(always)]
-    fn run<const FMA: bool, const Q: bool, const D: bool, const O: bool>(
+    fn run<const FMA: bool, const Q: bool, const D: bool, const O: usize>(
         &mut self,
         first: bool,
         k: usize,
@@ -295,15 +295,16 @@ impl Group {
                 x0[j] = madd::<FMA>(p00[j], a[j], p01[j] * b[j]);
                 x1[j] = madd::<FMA>(p10[j], a[j], p11[j] * b[j]);
             }
-            rows_into::<FMA>(first, acc_j, &row, &x0, &x1);
-            if O {
-                rows_into::<FMA>(first, &mut oacc[j_s], &orow, &x0, &x1);
+            rows_into::<FMA, 3>(first, acc_j, &row, &x0, &x1);
+            if O > 0 {
+                rows_into::<FMA, O>(first, &mut oacc[j_s], &orow, &x0, &x1);
             }
             if Q {
                 let qa = &mut qacc[j_s];
+                let start = if first { [0.0; LANES] } else { *qa };
                 for j in 0..LANES {
                     let h = j + LANES;
-                    let mut v = if first { 0.0 } else { qa[j] };
+                    let mut v = start[j];
                     v = madd::<FMA>(qaa[j] * x0[j], x0[j], v);
                     v = madd::<FMA>(qab[j] * x0[j], x1[j], v);
                     v = madd::<FMA>(qbb[j] * x1[j], x1[j], v);
@@ -315,9 +316,10 @@ impl Group {
             }
             if D {
                 let d = &mut dacc[j_s];
+                let start = if first { [0.0; LANES] } else { *d };
                 for j in 0..LANES {
                     let h = j + LANES;
-                    let mut v = if first { 0.0 } else { d[j] };
+                    let mut v = start[j];
                     v = madd::<FMA>(da[j], x0[j], v);
                     v = madd::<FMA>(db[j], x1[j], v);
                     v = madd::<FMA>(da[h], x0[h], v);
@@ -333,22 +335,23 @@ impl Group {
     }
 }
 
-/// Add three rows' share of one stepped group (`x0`, `x1`) into the lane
-/// accumulators `acc` (the one order every row is summed in), or into 0
-/// for the `first` group.
+/// Add the first `N` rows' share of one stepped group (`x0`, `x1`) into
+/// the lane accumulators `acc` (the one order every row is summed in), or
+/// into 0 for the `first` group.
 #[inline(always)]
-fn rows_into<const FMA: bool>(
+fn rows_into<const FMA: bool, const N: usize>(
     first: bool,
     acc: &mut [[f64; LANES]; 3],
     row: &[[f64; GROUP]; 6],
     x0: &[f64; GROUP],
     x1: &[f64; GROUP],
 ) {
-    for (q, acc_q) in acc.iter_mut().enumerate() {
+    for (q, acc_q) in acc.iter_mut().enumerate().take(N) {
         let (ra, rb) = (&row[2 * q], &row[2 * q + 1]);
+        let start = if first { [0.0; LANES] } else { *acc_q };
         for j in 0..LANES {
             let h = j + LANES;
-            let mut v = if first { 0.0 } else { acc_q[j] };
+            let mut v = start[j];
             v = madd::<FMA>(ra[j], x0[j], v);
             v = madd::<FMA>(rb[j], x1[j], v);
             v = madd::<FMA>(ra[h], x0[h], v);
@@ -400,11 +403,13 @@ pub struct SlopeIo<'a> {
 }
 
 /// The observation rows of [`run_block_with`]: the rows (`x_c, v_c, eta`
-/// in the fields `ev, l, r`), the caller's lane scratch and the per-sample
-/// values it writes.
+/// in the fields `ev, l, r`; only `ev` unless `all`), the caller's lane
+/// scratch and the per-sample values it writes.
 pub struct ObsIo<'a> {
     /// The rows.
     pub rows: Rows<'a>,
+    /// All three rows, or only `rows.ev` (`out.l`, `out.r` not written).
+    pub all: bool,
     /// Scratch for the per-sample lane sums.
     pub acc: &'a mut BlockAcc,
     /// The rows on every stepped state (written).
@@ -419,12 +424,12 @@ pub struct Extras<'a> {
     pub quad: Option<QuadIo<'a>>,
     /// The slope row (the Hermite certificate).
     pub slope: Option<SlopeIo<'a>>,
-    /// Three more rows (the trace's motion).
+    /// One or three more rows (the trace's motion).
     pub obs: Option<ObsIo<'a>>,
 }
 
 #[inline(always)]
-fn block_body<const FMA: bool, const Q: bool, const D: bool, const O: bool>(
+fn block_body<const FMA: bool, const Q: bool, const D: bool, const O: usize>(
     io: BlockIo,
     extras: Extras,
     k: usize,
@@ -452,7 +457,7 @@ fn block_body<const FMA: bool, const Q: bool, const D: bool, const O: bool>(
     };
     let mut no_oacc = [[[0.0; LANES]; 3]; 0];
     let (orows, oacc, oout) = match obs {
-        Some(ObsIo { rows, acc, out }) if O => (Some(rows), &mut acc[..], Some(out)),
+        Some(ObsIo { rows, acc, out, .. }) if O > 0 => (Some(rows), &mut acc[..], Some(out)),
         _ => (None, &mut no_oacc[..], None),
     };
     if nb == 0 {
@@ -473,7 +478,7 @@ fn block_body<const FMA: bool, const Q: bool, const D: bool, const O: bool>(
             g.load_slope(drow, nb, base, width);
         }
         if let Some(orows) = &orows {
-            g.load_obs(orows, nb, base, width);
+            g.load_obs(orows, O, nb, base, width);
         }
         g.run::<FMA, Q, D, O>(base == 0, k, &mut acc[..k], qacc, dacc, oacc);
         next[base..base + width].copy_from_slice(&g.a[..width]);
@@ -498,15 +503,17 @@ fn block_body<const FMA: bool, const Q: bool, const D: bool, const O: bool>(
     if let Some(oout) = oout {
         for j in 0..k {
             oout.ev[j] = lane_sum(oacc[j][0]);
-            oout.l[j] = lane_sum(oacc[j][1]);
-            oout.r[j] = lane_sum(oacc[j][2]);
+            if O == 3 {
+                oout.l[j] = lane_sum(oacc[j][1]);
+                oout.r[j] = lane_sum(oacc[j][2]);
+            }
         }
     }
 }
 
 /// The kernel for each choice of extras, in an AVX2+FMA copy and a
-/// baseline copy: `block_avx2_QDO` and `block_generic_QDO` (a `1` where the
-/// extra is summed).
+/// baseline copy: `block_avx2_QDO` and `block_generic_QDO` (`Q`, `D`: `1`
+/// where the extra is summed; `O`: the number of observation rows).
 macro_rules! kernels {
     ($(($avx:ident, $gen:ident, $q:literal, $d:literal, $o:literal)),* $(,)?) => {
         $(
@@ -523,14 +530,18 @@ macro_rules! kernels {
 }
 
 kernels!(
-    (block_avx2_000, block_generic_000, false, false, false),
-    (block_avx2_100, block_generic_100, true, false, false),
-    (block_avx2_010, block_generic_010, false, true, false),
-    (block_avx2_110, block_generic_110, true, true, false),
-    (block_avx2_001, block_generic_001, false, false, true),
-    (block_avx2_101, block_generic_101, true, false, true),
-    (block_avx2_011, block_generic_011, false, true, true),
-    (block_avx2_111, block_generic_111, true, true, true),
+    (block_avx2_000, block_generic_000, false, false, 0),
+    (block_avx2_100, block_generic_100, true, false, 0),
+    (block_avx2_010, block_generic_010, false, true, 0),
+    (block_avx2_110, block_generic_110, true, true, 0),
+    (block_avx2_001, block_generic_001, false, false, 1),
+    (block_avx2_101, block_generic_101, true, false, 1),
+    (block_avx2_011, block_generic_011, false, true, 1),
+    (block_avx2_111, block_generic_111, true, true, 1),
+    (block_avx2_003, block_generic_003, false, false, 3),
+    (block_avx2_103, block_generic_103, true, false, 3),
+    (block_avx2_013, block_generic_013, false, true, 3),
+    (block_avx2_113, block_generic_113, true, true, 3),
 );
 
 fn check_io(io: &BlockIo) {
@@ -550,7 +561,7 @@ fn check_io(io: &BlockIo) {
 /// the rows of every stepped state into `io.out`, and sum the `extras` on
 /// every stepped state: the block-diagonal quadratic form `quad` (the
 /// trace's energy, O(N) per sample), the slope row (the Hermite
-/// certificate of the fast path), three more rows `obs` (the trace's
+/// certificate of the fast path), one or three more rows `obs` (the trace's
 /// motion). The state and rows are bit-identical whatever the extras, and
 /// each extra row is summed in the same order as the rows. O(N k),
 /// allocation-free. \[audio-thread\]
@@ -569,14 +580,14 @@ pub fn run_block_with(path: SimdPath, io: BlockIo, extras: Extras, k: usize) {
     }
     if let Some(o) = &extras.obs {
         assert!(
-            o.rows.ev.len() == n && o.rows.l.len() == n && o.rows.r.len() == n,
+            o.rows.ev.len() == n && (!o.all || o.rows.l.len() == n && o.rows.r.len() == n),
             "run_block_with: mismatched observation rows"
         );
     }
     let which = (
         extras.quad.is_some(),
         extras.slope.is_some(),
-        extras.obs.is_some(),
+        extras.obs.as_ref().map_or(0, |o| if o.all { 3 } else { 1 }),
     );
     macro_rules! dispatch {
         ($(($q:literal, $d:literal, $o:literal, $avx:ident, $gen:ident)),* $(,)?) => {
@@ -591,18 +602,23 @@ pub fn run_block_with(path: SimdPath, io: BlockIo, extras: Extras, k: usize) {
                         _ => $gen(io, extras, k),
                     },
                 )*
+                _ => unreachable!("0, 1 or 3 observation rows"),
             }
         };
     }
     dispatch!(
-        (false, false, false, block_avx2_000, block_generic_000),
-        (true, false, false, block_avx2_100, block_generic_100),
-        (false, true, false, block_avx2_010, block_generic_010),
-        (true, true, false, block_avx2_110, block_generic_110),
-        (false, false, true, block_avx2_001, block_generic_001),
-        (true, false, true, block_avx2_101, block_generic_101),
-        (false, true, true, block_avx2_011, block_generic_011),
-        (true, true, true, block_avx2_111, block_generic_111),
+        (false, false, 0, block_avx2_000, block_generic_000),
+        (true, false, 0, block_avx2_100, block_generic_100),
+        (false, true, 0, block_avx2_010, block_generic_010),
+        (true, true, 0, block_avx2_110, block_generic_110),
+        (false, false, 1, block_avx2_001, block_generic_001),
+        (true, false, 1, block_avx2_101, block_generic_101),
+        (false, true, 1, block_avx2_011, block_generic_011),
+        (true, true, 1, block_avx2_111, block_generic_111),
+        (false, false, 3, block_avx2_003, block_generic_003),
+        (true, false, 3, block_avx2_103, block_generic_103),
+        (false, true, 3, block_avx2_013, block_generic_013),
+        (true, true, 3, block_avx2_113, block_generic_113),
     );
 }
 

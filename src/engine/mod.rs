@@ -947,8 +947,12 @@ impl EngineState {
         for (j, mj) in m.iter_mut().enumerate().take(k) {
             let [xc, vc, eta] = if j == 0 {
                 r0
-            } else {
+            } else if in_contact {
                 [obs.rows.ev[j - 1], obs.rows.l[j - 1], obs.rows.r[j - 1]]
+            } else {
+                // `x_c = -ev` bit for bit (the same products and sums,
+                // negated), `0 - ev` so that a zero stays +0
+                [0.0 - self.brows.ev[j - 1], obs.rows.ev[j - 1], 0.0]
             };
             *mj = if in_contact {
                 let ev = if j == 0 {
@@ -1285,8 +1289,19 @@ impl EngineState {
                 .obs
                 .as_deref_mut()
                 .expect("allocated by reserve_observation");
+            // in flight the event row is `-x_c` (the compiler's), so the
+            // kernel's own event sums give `x_c` and only `v_c` is added
             extras.obs = Some(ObsIo {
-                rows: obs_rows(ph, &obs.zeros, in_contact),
+                rows: if in_contact {
+                    obs_rows(ph, &obs.zeros, true)
+                } else {
+                    Rows {
+                        ev: &ph.rows.v_c,
+                        l: &ph.rows.v_c,
+                        r: &ph.rows.v_c,
+                    }
+                },
+                all: in_contact,
                 acc: &mut obs.oacc,
                 out: &mut obs.rows,
             });
