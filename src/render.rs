@@ -207,6 +207,23 @@ pub trait TraceSink {
     fn needs_ticks(&self) -> bool {
         true
     }
+    /// Record the consecutive samples `first..first + motion.len()`, each
+    /// with its energy (`energy[k]` for sample `first + k`; the sink keeps
+    /// it where [`wants_energy`](Self::wants_energy) says): what the
+    /// render hands a sink that wants every energy, one call per chunk.
+    fn record_run(
+        &mut self,
+        first: usize,
+        motion: &[Motion],
+        energy: &[f64],
+    ) -> std::io::Result<()> {
+        for (k, (m, &e)) in motion.iter().zip(energy).enumerate() {
+            let i = first + k;
+            let e = self.wants_energy(i).then_some(e);
+            self.record(i, m, e)?;
+        }
+        Ok(())
+    }
 }
 
 /// Stream a render: `audio` receives consecutive chunks of at most
@@ -253,9 +270,7 @@ pub fn render_stream(
             Some(sink) if !sink.needs_ticks() => {
                 let (m, e) = (&mut motion[..len], &mut energy[..len]);
                 st.process_block_traced(compiled, lc, rc, m, e);
-                for (k, (m, e)) in m.iter().zip(e.iter()).enumerate() {
-                    sink.record(done + k, m, Some(*e))?;
-                }
+                sink.record_run(done, m, e)?;
             }
             Some(sink) => {
                 for k in 0..len {
@@ -364,6 +379,15 @@ impl<A: TraceSink, B: TraceSink> TraceSink for (A, B) {
         let e1 = if self.1.wants_energy(i) { e } else { None };
         self.0.record(i, m, e0)?;
         self.1.record(i, m, e1)
+    }
+    fn record_run(
+        &mut self,
+        first: usize,
+        motion: &[Motion],
+        energy: &[f64],
+    ) -> std::io::Result<()> {
+        self.0.record_run(first, motion, energy)?;
+        self.1.record_run(first, motion, energy)
     }
 }
 
@@ -574,52 +598,132 @@ fn npy_header(rows: usize) -> Vec<u8> {
     h
 }
 
+/// Bytes of one NPY trace record (7 f64 fields).
+const NPY_RECORD: usize = 56;
+
 /// Writes the trace as a NumPy `.npy` file (docs/design.md, "The render
 /// command and the trace CSV"): one record per sample with the CSV's
 /// columns as named f64 fields, the numbers' own bits (no text), so
 /// `numpy.load(path)["energy"]` reads a column exactly. The row count is
 /// in the header, so the render's length is given up front;
-/// [`finish`](Self::finish) checks that every row came.
-pub struct NpyTrace<W: Write> {
+/// [`finish`](Self::finish) checks that every row came. The records are
+/// written by a writer thread in chunks of `CSV_CHUNK_ROWS` (the file
+/// system's copy runs beside the engine).
+pub struct NpyTrace<W: Write + Send + 'static> {
     rate_hz: f64,
     rows: usize,
     written: usize,
-    out: W,
     buf: Vec<u8>,
+    to_writer: Option<crossbeam::channel::Sender<Vec<u8>>>,
+    spare: crossbeam::channel::Receiver<Vec<u8>>,
+    writer: Option<std::thread::JoinHandle<std::io::Result<W>>>,
 }
 
-impl<W: Write> NpyTrace<W> {
+impl<W: Write + Send + 'static> NpyTrace<W> {
     /// Bytes per record (7 f64 fields).
-    pub const RECORD: usize = 56;
+    pub const RECORD: usize = NPY_RECORD;
+    const CHUNK: usize = CSV_CHUNK_ROWS * NPY_RECORD;
 
-    /// Write the header for `rows` records to `out`.
+    /// Write the header for `rows` records to `out` and start the writer.
     pub fn new(rate_hz: f64, rows: usize, mut out: W) -> std::io::Result<Self> {
+        use crossbeam::channel::bounded;
         out.write_all(&npy_header(rows))?;
+        let (to_writer, chunks) = bounded::<Vec<u8>>(CSV_CHUNKS_IN_FLIGHT);
+        let (give, spare) = bounded::<Vec<u8>>(CSV_CHUNKS_IN_FLIGHT + 1);
+        let writer = std::thread::Builder::new()
+            .name("trace-npy-write".into())
+            .spawn(move || {
+                for chunk in chunks {
+                    out.write_all(&chunk)?;
+                    let _ = give.try_send(chunk);
+                }
+                out.flush()?;
+                Ok(out)
+            })?;
         Ok(Self {
             rate_hz,
             rows,
             written: 0,
-            out,
-            buf: Vec::with_capacity(CSV_CHUNK_ROWS * Self::RECORD),
+            buf: Vec::with_capacity(Self::CHUNK),
+            to_writer: Some(to_writer),
+            spare,
+            writer: Some(writer),
         })
     }
 
-    /// Write the remaining records, flush and hand back the writer; an
-    /// error if fewer or more records came than the header says.
+    /// Hand the records so far to the writer; an error if it has stopped
+    /// (a failed write: [`finish`](Self::finish) returns it).
+    fn send(&mut self) -> std::io::Result<()> {
+        let mut fresh = self
+            .spare
+            .try_recv()
+            .unwrap_or_else(|_| Vec::with_capacity(Self::CHUNK));
+        fresh.clear();
+        let chunk = std::mem::replace(&mut self.buf, fresh);
+        let stopped = || std::io::Error::other("the trace writer stopped");
+        self.to_writer
+            .as_ref()
+            .ok_or_else(stopped)?
+            .send(chunk)
+            .map_err(|_| stopped())
+    }
+
+    /// Stop the writer and wait for it: its result, or an error if it
+    /// panicked.
+    fn join(&mut self) -> std::io::Result<W> {
+        self.to_writer = None;
+        self.writer
+            .take()
+            .expect("joined once")
+            .join()
+            .map_err(|_| std::io::Error::other("the trace writer panicked"))?
+    }
+
+    /// Write the remaining records, wait for the writer, flush and hand
+    /// back the output; an error if a write failed, or if fewer or more
+    /// records came than the header says.
     pub fn finish(mut self) -> std::io::Result<W> {
-        self.out.write_all(&self.buf)?;
-        self.out.flush()?;
+        let sent = if self.buf.is_empty() {
+            Ok(())
+        } else {
+            self.send()
+        };
+        let out = self.join()?;
+        sent?;
         if self.written != self.rows {
             return Err(std::io::Error::other(format!(
                 "the trace's header says {} rows, {} were recorded",
                 self.rows, self.written
             )));
         }
-        Ok(self.out)
+        Ok(out)
+    }
+
+    fn push(&mut self, i: usize, m: &Motion, e: f64) {
+        let c = if m.in_contact { 1.0 } else { 0.0 };
+        let t = i as f64 / self.rate_hz;
+        let mut rec = [0u8; NPY_RECORD];
+        for (k, x) in [t, m.x_hammer, m.v_hammer, m.x_contact, m.v_contact, c, e]
+            .into_iter()
+            .enumerate()
+        {
+            rec[8 * k..8 * k + 8].copy_from_slice(&x.to_le_bytes());
+        }
+        self.buf.extend_from_slice(&rec);
     }
 }
 
-impl<W: Write> TraceSink for NpyTrace<W> {
+impl<W: Write + Send + 'static> Drop for NpyTrace<W> {
+    fn drop(&mut self) {
+        // dropped without `finish` (an error elsewhere): stop the writer
+        // and wait for it, so it does not outlive the render
+        if self.writer.is_some() {
+            let _ = self.join();
+        }
+    }
+}
+
+impl<W: Write + Send + 'static> TraceSink for NpyTrace<W> {
     fn wants_energy(&self, _: usize) -> bool {
         true
     }
@@ -627,17 +731,26 @@ impl<W: Write> TraceSink for NpyTrace<W> {
         false
     }
     fn record(&mut self, i: usize, m: &Motion, e: Option<f64>) -> std::io::Result<()> {
-        let e = e.expect("every energy was asked for");
-        let c = if m.in_contact { 1.0 } else { 0.0 };
-        let t = i as f64 / self.rate_hz;
-        for x in [t, m.x_hammer, m.v_hammer, m.x_contact, m.v_contact, c, e] {
-            self.buf.extend_from_slice(&x.to_le_bytes());
-        }
+        self.push(i, m, e.expect("every energy was asked for"));
         self.written += 1;
-        if self.buf.len() >= CSV_CHUNK_ROWS * Self::RECORD {
-            self.out.write_all(&self.buf)?;
-            self.buf.clear();
+        if self.buf.len() >= Self::CHUNK {
+            self.send()?;
         }
+        Ok(())
+    }
+    fn record_run(
+        &mut self,
+        first: usize,
+        motion: &[Motion],
+        energy: &[f64],
+    ) -> std::io::Result<()> {
+        for (k, (m, &e)) in motion.iter().zip(energy).enumerate() {
+            self.push(first + k, m, e);
+            if self.buf.len() >= Self::CHUNK {
+                self.send()?;
+            }
+        }
+        self.written += motion.len().min(energy.len());
         Ok(())
     }
 }
@@ -1091,23 +1204,8 @@ mod tests {
         }
     }
 
-    /// A failed write of the trace's writer thread stops the render with
-    /// that error (not a hang, not a silent short file), and a sink dropped
-    /// without `finish` leaves no thread behind.
-    #[test]
-    fn trace_write_errors_reach_the_render() {
-        let scene =
-            crate::presets::scene(crate::presets::index_of("steel-plate").unwrap()).unwrap();
-        let compiled = compile_with(&scene, 44100.0, None).unwrap();
-        let n = 20 * CSV_CHUNK_ROWS;
-        let mut csv = CsvTrace::new(44100.0, FailAfter { left: 200_000 }).unwrap();
-        let streamed = render_stream(
-            &compiled,
-            n,
-            |_, _| Ok(()),
-            Some(&mut csv as &mut dyn TraceSink),
-        );
-        let finished = csv.finish();
+    /// The render stopped and `finish` said why.
+    fn check_failed(streamed: std::io::Result<()>, finished: std::io::Result<()>) {
         let msg = format!(
             "{:?} / {:?}",
             streamed.as_ref().err(),
@@ -1120,12 +1218,48 @@ mod tests {
                 .is_some_and(|e| e.to_string().contains("disk full")),
             "{msg}"
         );
+    }
+
+    /// A failed write of the trace's writer thread (CSV or NumPy) stops the
+    /// render with that error (not a hang, not a silent short file), and a
+    /// sink dropped without `finish` leaves no thread behind.
+    #[test]
+    fn trace_write_errors_reach_the_render() {
+        let scene =
+            crate::presets::scene(crate::presets::index_of("steel-plate").unwrap()).unwrap();
+        let compiled = compile_with(&scene, 44100.0, None).unwrap();
+        let n = 20 * CSV_CHUNK_ROWS;
+        let csv = CsvTrace::new(44100.0, FailAfter { left: 200_000 }).unwrap();
+        let npy = NpyTrace::new(44100.0, n, FailAfter { left: 200_000 }).unwrap();
+        let mut csv = csv;
+        let streamed = render_stream(
+            &compiled,
+            n,
+            |_, _| Ok(()),
+            Some(&mut csv as &mut dyn TraceSink),
+        );
+        let finished = csv.finish().map(drop);
+        check_failed(streamed.map(drop), finished);
+        let mut npy = npy;
+        let streamed = render_stream(
+            &compiled,
+            n,
+            |_, _| Ok(()),
+            Some(&mut npy as &mut dyn TraceSink),
+        );
+        let finished = npy.finish().map(drop);
+        check_failed(streamed.map(drop), finished);
         // dropped mid-way: joins its writer
         let mut csv = CsvTrace::new(44100.0, Vec::new()).unwrap();
         for i in 0..3 * CSV_CHUNK_ROWS {
             csv.record(i, &Motion::default(), Some(0.0)).unwrap();
         }
         drop(csv);
+        let mut npy = NpyTrace::new(44100.0, n, Vec::new()).unwrap();
+        for i in 0..3 * CSV_CHUNK_ROWS {
+            npy.record(i, &Motion::default(), Some(0.0)).unwrap();
+        }
+        drop(npy);
     }
 
     /// Streaming gives the in-memory render's samples and rows, whatever
