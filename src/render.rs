@@ -851,6 +851,48 @@ impl TraceSink for TraceEnvelope {
         }
         Ok(())
     }
+    /// [`record`](Self::record) for a run of samples, a bucket's share at
+    /// a time (the same min/max in the same order).
+    fn record_run(
+        &mut self,
+        first: usize,
+        motion: &[Motion],
+        energy: &[f64],
+    ) -> std::io::Result<()> {
+        let n = motion.len().min(energy.len());
+        let mut k = 0;
+        while k < n {
+            let i = first + k;
+            if i.is_multiple_of(self.bucket_len) {
+                // a bucket starts (and may end, or be the render's first)
+                let e = self.wants_energy(i).then_some(energy[k]);
+                self.record(i, &motion[k], e)?;
+                k += 1;
+                continue;
+            }
+            // the rest of this bucket within the run
+            let span = (self.bucket_len - i % self.bucket_len).min(n - k);
+            let end = self.is_bucket_end(i + span - 1);
+            let b = self
+                .buckets
+                .last_mut()
+                .expect("a bucket starts at sample 0");
+            for m in &motion[k..k + span] {
+                b.x_hammer = [b.x_hammer[0].min(m.x_hammer), b.x_hammer[1].max(m.x_hammer)];
+                b.x_contact = [
+                    b.x_contact[0].min(m.x_contact),
+                    b.x_contact[1].max(m.x_contact),
+                ];
+                b.in_contact |= m.in_contact;
+            }
+            b.len += span;
+            if end {
+                b.energy_end = energy[k + span - 1];
+            }
+            k += span;
+        }
+        Ok(())
+    }
 }
 
 /// The trace CSV header (docs/design.md, "The render command and the trace CSV").
@@ -1348,6 +1390,42 @@ mod tests {
                 }
                 assert!(csv.finish().unwrap() == want, "{n} rows, {threads} threads");
             }
+        }
+    }
+
+    /// The envelope built from runs of samples (`record_run`, what the
+    /// traced render hands it) is the one built sample by sample, for
+    /// renders shorter and longer than its 1024 buckets and runs that
+    /// start and end anywhere in a bucket.
+    #[test]
+    fn envelope_from_runs_is_the_envelope_from_samples() {
+        let mut rng = TestRng(5);
+        for samples in [1, 7, 1000, 1024, 1025, 5000, 70_001] {
+            let motion: Vec<Motion> = (0..samples)
+                .map(|_| Motion {
+                    x_hammer: rng.uniform(-1.0, 1.0),
+                    v_hammer: 0.0,
+                    x_contact: rng.uniform(-1.0, 1.0),
+                    v_contact: 0.0,
+                    in_contact: rng.uniform(0.0, 1.0) < 0.01,
+                })
+                .collect();
+            let energy: Vec<f64> = (0..samples).map(|_| rng.uniform(0.0, 1.0)).collect();
+            let mut want = TraceEnvelope::new(44100.0, samples);
+            for (i, m) in motion.iter().enumerate() {
+                let e = want.wants_energy(i).then_some(energy[i]);
+                want.record(i, m, e).unwrap();
+            }
+            let mut got = TraceEnvelope::new(44100.0, samples);
+            let mut at = 0;
+            while at < samples {
+                let len = (1 + (rng.uniform(0.0, 1.0) * 3000.0) as usize).min(samples - at);
+                got.record_run(at, &motion[at..at + len], &energy[at..at + len])
+                    .unwrap();
+                at += len;
+            }
+            assert_eq!(got.energy_start, want.energy_start, "{samples}");
+            assert_eq!(got.buckets, want.buckets, "{samples}");
         }
     }
 
