@@ -400,6 +400,45 @@ const CSV_CHUNKS_IN_FLIGHT: usize = 4;
 /// Most formatting threads of one [`CsvTrace`].
 const CSV_MAX_FORMATTERS: usize = 4;
 
+/// A thread that writes numbered chunks of bytes to `out` in their order
+/// (they may arrive in any order), handing each written buffer back on
+/// `give` for reuse; it returns `out` after a flush, or the first write
+/// error, when `chunks` closes.
+fn spawn_ordered_writer<W: Write + Send + 'static>(
+    name: &str,
+    mut out: W,
+    chunks: crossbeam::channel::Receiver<(u64, Vec<u8>)>,
+    give: crossbeam::channel::Sender<Vec<u8>>,
+) -> std::io::Result<std::thread::JoinHandle<std::io::Result<W>>> {
+    std::thread::Builder::new()
+        .name(name.into())
+        .spawn(move || {
+            let mut waiting = std::collections::BTreeMap::new();
+            let mut next = 0u64;
+            for (seq, bytes) in chunks {
+                waiting.insert(seq, bytes);
+                while let Some(bytes) = waiting.remove(&next) {
+                    out.write_all(&bytes)?;
+                    let _ = give.try_send(bytes);
+                    next += 1;
+                }
+            }
+            out.flush()?;
+            Ok(out)
+        })
+}
+
+/// Wait for a writer thread (once): its result, or an error if it panicked.
+fn join_writer<W>(
+    writer: &mut Option<std::thread::JoinHandle<std::io::Result<W>>>,
+) -> std::io::Result<W> {
+    writer
+        .take()
+        .expect("joined once")
+        .join()
+        .map_err(|_| std::io::Error::other("the trace writer panicked"))?
+}
+
 /// A chunk of rows and its place in the file.
 type Chunk = (u64, Vec<TraceRow>);
 
@@ -465,23 +504,8 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
             );
         }
         drop((to_writer, chunks, give_rows, spare_text));
-        let writer = std::thread::Builder::new()
-            .name("trace-csv-write".into())
-            .spawn(move || {
-                // texts arrive in any order: write each at its turn
-                let mut waiting = std::collections::BTreeMap::new();
-                let mut next = 0u64;
-                for (seq, text) in texts {
-                    waiting.insert(seq, text);
-                    while let Some(text) = waiting.remove(&next) {
-                        out.write_all(&text)?;
-                        let _ = give_text.try_send(text);
-                        next += 1;
-                    }
-                }
-                out.flush()?;
-                Ok(out)
-            })?;
+        // texts arrive in any order: the writer takes each at its turn
+        let writer = spawn_ordered_writer("trace-csv-write", out, texts, give_text)?;
         Ok(Self {
             rate_hz,
             rows: Vec::with_capacity(CSV_CHUNK_ROWS),
@@ -520,12 +544,7 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
         for t in self.formatters.drain(..) {
             panicked |= t.join().is_err();
         }
-        let written = self
-            .writer
-            .take()
-            .expect("joined once")
-            .join()
-            .map_err(|_| std::io::Error::other("the trace writer panicked"))?;
+        let written = join_writer(&mut self.writer);
         if panicked {
             return Err(std::io::Error::other("a trace formatting thread panicked"));
         }
@@ -613,8 +632,9 @@ pub struct NpyTrace<W: Write + Send + 'static> {
     rate_hz: f64,
     rows: usize,
     written: usize,
+    seq: u64,
     buf: Vec<u8>,
-    to_writer: Option<crossbeam::channel::Sender<Vec<u8>>>,
+    to_writer: Option<crossbeam::channel::Sender<(u64, Vec<u8>)>>,
     spare: crossbeam::channel::Receiver<Vec<u8>>,
     writer: Option<std::thread::JoinHandle<std::io::Result<W>>>,
 }
@@ -628,22 +648,14 @@ impl<W: Write + Send + 'static> NpyTrace<W> {
     pub fn new(rate_hz: f64, rows: usize, mut out: W) -> std::io::Result<Self> {
         use crossbeam::channel::bounded;
         out.write_all(&npy_header(rows))?;
-        let (to_writer, chunks) = bounded::<Vec<u8>>(CSV_CHUNKS_IN_FLIGHT);
-        let (give, spare) = bounded::<Vec<u8>>(CSV_CHUNKS_IN_FLIGHT + 1);
-        let writer = std::thread::Builder::new()
-            .name("trace-npy-write".into())
-            .spawn(move || {
-                for chunk in chunks {
-                    out.write_all(&chunk)?;
-                    let _ = give.try_send(chunk);
-                }
-                out.flush()?;
-                Ok(out)
-            })?;
+        let (to_writer, chunks) = bounded(CSV_CHUNKS_IN_FLIGHT);
+        let (give, spare) = bounded(CSV_CHUNKS_IN_FLIGHT + 1);
+        let writer = spawn_ordered_writer("trace-npy-write", out, chunks, give)?;
         Ok(Self {
             rate_hz,
             rows,
             written: 0,
+            seq: 0,
             buf: Vec::with_capacity(Self::CHUNK),
             to_writer: Some(to_writer),
             spare,
@@ -664,19 +676,17 @@ impl<W: Write + Send + 'static> NpyTrace<W> {
         self.to_writer
             .as_ref()
             .ok_or_else(stopped)?
-            .send(chunk)
-            .map_err(|_| stopped())
+            .send((self.seq, chunk))
+            .map_err(|_| stopped())?;
+        self.seq += 1;
+        Ok(())
     }
 
     /// Stop the writer and wait for it: its result, or an error if it
     /// panicked.
     fn join(&mut self) -> std::io::Result<W> {
         self.to_writer = None;
-        self.writer
-            .take()
-            .expect("joined once")
-            .join()
-            .map_err(|_| std::io::Error::other("the trace writer panicked"))?
+        join_writer(&mut self.writer)
     }
 
     /// Write the remaining records, wait for the writer, flush and hand
