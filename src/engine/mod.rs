@@ -307,8 +307,9 @@ struct SlopeScratch {
     out: [f64; EPOCH],
 }
 
-/// Scratch of [`EngineState::process_block_observed`]: a second kernel
-/// pass over the same start state with the contact point's rows.
+/// Scratch of [`EngineState::process_block_observed`] and
+/// [`EngineState::process_block_traced`]: the contact point's rows and the
+/// energy's form, summed in the fast path's own kernel pass.
 #[derive(Debug, Clone)]
 struct ObsScratch {
     zeros: Vec<f64>,
@@ -351,7 +352,8 @@ fn obs_rows<'a>(ph: &'a CompiledPhase, zeros: &'a [f64], in_contact: bool) -> Ro
 enum Observe {
     /// Nothing (the instrument).
     No,
-    /// The rows `x_c, v_c, eta`.
+    /// The rows `x_c, v_c, eta` (in flight `v_c` alone: `x_c` is the
+    /// negated event row).
     Motion,
     /// Those and the energy's block-diagonal form.
     MotionEnergy,
