@@ -630,28 +630,6 @@ pub fn run_block(path: SimdPath, io: BlockIo, k: usize) {
     run_block_with(path, io, Extras::default(), k);
 }
 
-/// [`run_block_with`] with the quadratic form `quad`. \[audio-thread\]
-#[cfg(test)]
-#[inline]
-pub fn run_block_quad(path: SimdPath, io: BlockIo, quad: QuadIo, k: usize) {
-    let extras = Extras {
-        quad: Some(quad),
-        ..Extras::default()
-    };
-    run_block_with(path, io, extras, k);
-}
-
-/// [`run_block_with`] with the slope row `slope`. \[audio-thread\]
-#[cfg(test)]
-#[inline]
-pub fn run_block_slope(path: SimdPath, io: BlockIo, slope: SlopeIo, k: usize) {
-    let extras = Extras {
-        slope: Some(slope),
-        ..Extras::default()
-    };
-    run_block_with(path, io, extras, k);
-}
-
 /// `[ev . s, l . s, r . s]` (no step), summed in the same order as
 /// [`run_block_with`]'s generic path (bit-identical to it). O(N). \[audio-thread\]
 #[inline]
@@ -1062,11 +1040,15 @@ mod tests {
         }
     }
 
-    /// The quadratic-form pass: the same state and rows as `run_block` bit
-    /// for bit, and per sample the form of a plain reference to rounding,
-    /// whatever the number of blocks (partial groups included).
+    /// Every choice of extras (quadratic form, slope row, 0, 1 or 3
+    /// observation rows; each of the 12 kernels on both paths): the same
+    /// state and rows as `run_block` bit for bit, each observation row
+    /// bit for bit what the same row gives as a row of `run_block` (the
+    /// one summation order), the rows not asked for left alone, and per
+    /// sample the quadratic form and the slope row of a plain reference to
+    /// rounding, whatever the number of blocks (partial groups included).
     #[test]
-    fn quad_pass_matches_a_plain_reference_and_leaves_the_rows_alone() {
+    fn extras_match_a_plain_reference_and_leave_the_rows_alone() {
         for nb in [1, 3, 8, 37, 100] {
             let (p, s, rows) = setup(nb);
             let quad = EnergyQuad {
@@ -1074,82 +1056,103 @@ mod tests {
                 ab: (0..nb).map(|k| 0.3 - 0.01 * k as f64).collect(),
                 bb: (0..nb).map(|k| 2.0 - 0.005 * k as f64).collect(),
             };
-            for path in [SimdPath::detect(), SimdPath::Generic] {
-                let mut next = vec![0.0; s.len()];
-                let mut acc = Box::new([[[0.0; LANES]; 3]; EPOCH]);
-                let mut out = BlockRows::default();
-                let mut qacc = Box::new([[0.0; LANES]; EPOCH]);
-                let mut qout = Box::new([0.0; EPOCH]);
-                run_block_quad(
-                    path,
-                    io(&p, &s, &mut next, &rows, &mut acc, &mut out),
-                    QuadIo {
-                        quad: &quad,
-                        acc: &mut qacc,
-                        out: &mut qout,
-                    },
-                    EPOCH,
-                );
-                assert_plain_rows(path, &p, &s, &rows, &next, &out);
-                let mut st = s.clone();
-                let mut worst = 0.0f64;
-                for j in 0..EPOCH {
-                    let x = plain_step(&p, &st);
-                    let (mut want, mut scale) = (0.0, 0.0);
-                    for b in 0..nb {
-                        let (a, c) = (x[b], x[nb + b]);
-                        want += quad.aa[b] * a * a + quad.ab[b] * a * c + quad.bb[b] * c * c;
-                        scale += quad.aa[b] * a * a
-                            + quad.ab[b].abs() * (a * c).abs()
-                            + quad.bb[b] * c * c;
-                    }
-                    worst = worst.max((qout[j] - want).abs() / scale);
-                    st = x;
-                }
-                println!("{nb} blocks, {path:?}: quadratic form worst rel. deviation {worst:.1e}");
-                assert!(worst < 1e-14, "{nb} blocks {path:?}: {worst}");
-            }
-        }
-    }
-
-    /// The slope pass: the same state and rows as `run_block` bit for bit,
-    /// and per sample the slope row on the stepped state of a plain
-    /// reference to rounding, whatever the number of blocks.
-    #[test]
-    fn slope_pass_matches_a_plain_reference_and_leaves_the_rows_alone() {
-        for nb in [1, 3, 8, 37, 100] {
-            let (p, s, rows) = setup(nb);
             let drow: Vec<f64> = (0..2 * nb)
                 .map(|i| ((i * 37 % 11) as f64 - 5.0) * 0.7)
                 .collect();
+            let orows = [0, 1, 2].map(|i| {
+                (0..2 * nb)
+                    .map(|k| ((k * (i + 3)) % 7) as f64 * 0.21 - 0.5)
+                    .collect::<Vec<f64>>()
+            });
             for path in [SimdPath::detect(), SimdPath::Generic] {
-                let mut next = vec![0.0; s.len()];
-                let mut acc = Box::new([[[0.0; LANES]; 3]; EPOCH]);
-                let mut out = BlockRows::default();
-                let mut dacc = Box::new([[0.0; LANES]; EPOCH]);
-                let mut dout = Box::new([0.0; EPOCH]);
-                run_block_slope(
-                    path,
-                    io(&p, &s, &mut next, &rows, &mut acc, &mut out),
-                    SlopeIo {
-                        row: &drow,
-                        acc: &mut dacc,
-                        out: &mut dout,
-                    },
-                    EPOCH,
-                );
-                assert_plain_rows(path, &p, &s, &rows, &next, &out);
-                let mut st = s.clone();
-                let mut worst = 0.0f64;
-                for j in 0..EPOCH {
-                    let x = plain_step(&p, &st);
-                    let want: f64 = drow.iter().zip(&x).map(|(a, b)| a * b).sum();
-                    let scale: f64 = drow.iter().zip(&x).map(|(a, b)| (a * b).abs()).sum();
-                    worst = worst.max((dout[j] - want).abs() / scale);
-                    st = x;
+                let (_, as_rows) = run(path, &p, &s, &orows, EPOCH);
+                let (mut worst_q, mut worst_d) = (0.0f64, 0.0f64);
+                for (with_q, with_d, n_obs) in
+                    (0..12).map(|c| (c % 2 == 1, c / 2 % 2 == 1, [0, 1, 3][c / 4]))
+                {
+                    let mut next = vec![0.0; s.len()];
+                    let mut acc = Box::new([[[0.0; LANES]; 3]; EPOCH]);
+                    let mut out = BlockRows::default();
+                    let mut qacc = Box::new([[0.0; LANES]; EPOCH]);
+                    let mut qout = Box::new([f64::NAN; EPOCH]);
+                    let mut dacc = Box::new([[0.0; LANES]; EPOCH]);
+                    let mut dout = Box::new([f64::NAN; EPOCH]);
+                    let mut oacc = Box::new([[[0.0; LANES]; 3]; EPOCH]);
+                    let mut oout = BlockRows {
+                        ev: [f64::NAN; EPOCH],
+                        l: [f64::NAN; EPOCH],
+                        r: [f64::NAN; EPOCH],
+                    };
+                    let extras = Extras {
+                        quad: with_q.then_some(QuadIo {
+                            quad: &quad,
+                            acc: &mut qacc,
+                            out: &mut qout,
+                        }),
+                        slope: with_d.then_some(SlopeIo {
+                            row: &drow,
+                            acc: &mut dacc,
+                            out: &mut dout,
+                        }),
+                        obs: (n_obs > 0).then_some(ObsIo {
+                            rows: Rows {
+                                ev: &orows[0],
+                                l: &orows[1],
+                                r: &orows[2],
+                            },
+                            all: n_obs == 3,
+                            acc: &mut oacc,
+                            out: &mut oout,
+                        }),
+                    };
+                    let io = io(&p, &s, &mut next, &rows, &mut acc, &mut out);
+                    run_block_with(path, io, extras, EPOCH);
+                    assert_plain_rows(path, &p, &s, &rows, &next, &out);
+                    let case =
+                        format!("{nb} blocks {path:?} quad {with_q} slope {with_d} obs {n_obs}");
+                    let bits = |x: &[f64; EPOCH]| x.map(f64::to_bits);
+                    match n_obs {
+                        0 => assert!(oout.ev.iter().all(|x| x.is_nan()), "{case}"),
+                        1 => {
+                            assert_eq!(bits(&oout.ev), bits(&as_rows.ev), "{case}");
+                            assert!(oout.l.iter().chain(&oout.r).all(|x| x.is_nan()), "{case}");
+                        }
+                        _ => {
+                            assert_eq!(bits(&oout.ev), bits(&as_rows.ev), "{case}");
+                            assert_eq!(bits(&oout.l), bits(&as_rows.l), "{case}");
+                            assert_eq!(bits(&oout.r), bits(&as_rows.r), "{case}");
+                        }
+                    }
+                    assert_eq!(qout.iter().all(|x| x.is_nan()), !with_q, "{case}");
+                    assert_eq!(dout.iter().all(|x| x.is_nan()), !with_d, "{case}");
+                    let mut st = s.clone();
+                    for j in 0..EPOCH {
+                        let x = plain_step(&p, &st);
+                        if with_q {
+                            let (mut want, mut scale) = (0.0, 0.0);
+                            for b in 0..nb {
+                                let (a, c) = (x[b], x[nb + b]);
+                                want +=
+                                    quad.aa[b] * a * a + quad.ab[b] * a * c + quad.bb[b] * c * c;
+                                scale += quad.aa[b] * a * a
+                                    + quad.ab[b].abs() * (a * c).abs()
+                                    + quad.bb[b] * c * c;
+                            }
+                            worst_q = worst_q.max((qout[j] - want).abs() / scale);
+                        }
+                        if with_d {
+                            let want: f64 = drow.iter().zip(&x).map(|(a, b)| a * b).sum();
+                            let scale: f64 = drow.iter().zip(&x).map(|(a, b)| (a * b).abs()).sum();
+                            worst_d = worst_d.max((dout[j] - want).abs() / scale);
+                        }
+                        st = x;
+                    }
                 }
-                println!("{nb} blocks, {path:?}: slope row worst rel. deviation {worst:.1e}");
-                assert!(worst < 1e-13, "{nb} blocks {path:?}: {worst}");
+                println!(
+                    "{nb} blocks, {path:?}: quadratic form worst rel. deviation {worst_q:.1e}, slope row {worst_d:.1e}"
+                );
+                assert!(worst_q < 1e-14, "{nb} blocks {path:?}: {worst_q}");
+                assert!(worst_d < 1e-13, "{nb} blocks {path:?}: {worst_d}");
             }
         }
     }
