@@ -1,48 +1,196 @@
-//! Rendering: voices ticked in chunks of the silence-check grid, the fade of
-//! voices that could not be carried across a swap, the gain and the output
-//! ceiling.
+//! Rendering. The instrument keeps two kinds of clock: its own (the
+//! events, the bend, the fade of a swap: `Instrument::sample_pos`) and one
+//! per voice, which may stay behind it by up to the lookahead
+//! ([`Instrument::set_lookahead`]; docs/plugin.md, "Lookahead"). Each
+//! voice renders into its own lane (a ring of samples) in the chunks the
+//! instrument's clock made (the silence-check grid, the events, the host's
+//! blocks), and each output sample is its lanes summed in voice order,
+//! times the gain at that sample, `lookahead` samples after the
+//! instrument's clock. A voice does on its own clock what concerns only
+//! itself (its samples, its pressure, its silence check, a brightness it
+//! waits for); whatever concerns several voices or reads their state (a
+//! note-on, a pressure or mod wheel that moves, a bend's update, a swap)
+//! first brings them up to the instrument's clock. So every voice computes
+//! the same samples, bit for bit, however far behind it runs, and the
+//! output is the plain instrument's delayed by the lookahead (docs/plugin.md
+//! says where it can differ in the last bit: the fade of a swap). With the
+//! lookahead at 0 every voice keeps up with the clock: the plain
+//! instrument.
 
 use super::events::TimedEvent;
 use super::probe::VoiceChunk;
 use super::{
-    Instrument, BEND_TICK_SAMPLES, CHECK_INTERVAL_SAMPLES, MAX_PRESSURE_DECAY_PER_S, MAX_VOICES,
-    OUTPUT_CEILING,
+    Event, Instrument, BEND_TICK_SAMPLES, CHECK_INTERVAL_SAMPLES, MAX_PRESSURE_DECAY_PER_S,
+    MAX_VOICES, OUTPUT_CEILING,
 };
 use crate::compile::CompiledScene;
 use crate::engine::denormal::FlushDenormals;
 use crate::engine::{EngineState, Motion};
 
-impl Instrument {
-    /// Render consecutive samples into `left`/`right` (overwritten).
-    /// Allocation-free. \[audio-thread\]
-    pub fn render(&mut self, left: &mut [f32], right: &mut [f32]) {
-        let n = left.len().min(right.len());
-        let mut i = 0;
-        while i < n {
-            // a moving bend updates the voices on a finer grid
-            let grid = if self.bend_moving() {
-                BEND_TICK_SAMPLES
-            } else {
-                CHECK_INTERVAL_SAMPLES
-            };
-            let phase = (self.sample_pos % grid as u64) as usize;
-            let len = (grid - phase).min(n - i);
-            self.render_chunk(&mut left[i..i + len], &mut right[i..i + len]);
-            i += len;
-            self.sample_pos += len as u64;
-            if self.sample_pos.is_multiple_of(BEND_TICK_SAMPLES as u64) && self.bend_moving() {
-                self.bend_tick();
-            }
-            if self
-                .sample_pos
-                .is_multiple_of(CHECK_INTERVAL_SAMPLES as u64)
-            {
-                self.stop_silent_voices();
-                if self.timbre_pending {
-                    self.apply_timbre();
-                }
-            }
+/// Longest lookahead \[samples\] (43 ms at 48 kHz, 10.7 ms at 192 kHz).
+pub const MAX_LOOKAHEAD_SAMPLES: usize = 2048;
+/// While voices may run behind, they work ahead of the output only while
+/// the block's estimated work ([`Prepared::step_cost_ns`](super::Prepared::step_cost_ns),
+/// [`Prepared::contact_cost_ns`](super::Prepared::contact_cost_ns)) is
+/// below this fraction of the block's real-time budget; what is left waits
+/// for later blocks, up to the lookahead.
+pub const LOOKAHEAD_WORK_FRACTION: f64 = 0.4;
+/// The instrument's clock runs at most this many samples past the output
+/// before the output is read (a host block longer than this is read in
+/// pieces), so a lane holds the lookahead plus this.
+const OUT_EVERY: usize = 256;
+/// Samples a lane's ring can hold: the longest lookahead plus a piece.
+const RING_CAP: usize = (MAX_LOOKAHEAD_SAMPLES + OUT_EVERY).next_power_of_two();
+/// The lane of the voices that fade out after a swap (after the voices' own).
+pub(super) const FADE_LANE: usize = MAX_VOICES;
+const LANES: usize = MAX_VOICES + 1;
+
+/// Each voice's clock and samples, the chunks and gains of the
+/// instrument's clock, and where the output is. Allocated once.
+pub(super) struct Lanes {
+    /// Samples the output runs behind the instrument's clock.
+    lookahead: usize,
+    /// Ring length - 1 (a power of two: the lookahead plus a piece).
+    mask: usize,
+    /// Time of the next output sample (negative: the silence before the
+    /// first sample, one lookahead long).
+    out_pos: i64,
+    /// Output before this time is silence (a host reset, a new lookahead).
+    out_floor: i64,
+    /// A lane holds samples for the times `start .. end`; a voice's `end`
+    /// is its clock (the next sample it renders), the fade lane's the
+    /// fade's.
+    start: [u64; LANES],
+    end: [u64; LANES],
+    /// The voice has done its grid actions at its clock (or needs none
+    /// there: it was just struck, or brought up to an event).
+    settled: [bool; MAX_VOICES],
+    /// `LANES` rings of `RING_CAP` stereo samples (each used up to `mask`).
+    ring: Box<[[f64; 2]]>,
+    /// The instrument's gain at each time.
+    gain: Box<[f64]>,
+    /// The length of the instrument's chunk that starts at each time (a
+    /// voice renders in the same chunks).
+    chunk: Box<[u8]>,
+    /// Estimated work of the voices' chunks in this block \[ns\].
+    work_ns: f64,
+    /// Work ahead while `work_ns` is below this fraction of the block's
+    /// budget ([`LOOKAHEAD_WORK_FRACTION`] unless set).
+    work_fraction: f64,
+}
+
+impl Lanes {
+    pub(super) fn new() -> Self {
+        Self {
+            lookahead: 0,
+            mask: OUT_EVERY.next_power_of_two() - 1,
+            out_pos: 0,
+            out_floor: 0,
+            start: [0; LANES],
+            end: [0; LANES],
+            settled: [true; MAX_VOICES],
+            ring: vec![[0.0; 2]; LANES * RING_CAP].into_boxed_slice(),
+            gain: vec![0.0; RING_CAP].into_boxed_slice(),
+            chunk: vec![0; RING_CAP].into_boxed_slice(),
+            work_ns: 0.0,
+            work_fraction: LOOKAHEAD_WORK_FRACTION,
         }
+    }
+
+    fn at(&self, lane: usize, t: u64) -> usize {
+        lane * RING_CAP + (t as usize & self.mask)
+    }
+
+    /// Lane `lane` sounds again from time `t`: its run goes on (silence
+    /// in between) while some of it is still to be read, else a new run
+    /// starts at `t`.
+    pub(super) fn begin(&mut self, lane: usize, t: u64) {
+        if self.end[lane] as i64 > self.out_pos {
+            for u in self.end[lane]..t {
+                let k = self.at(lane, u);
+                self.ring[k] = [0.0; 2];
+            }
+        } else {
+            self.start[lane] = t;
+        }
+        self.end[lane] = t;
+        if lane < MAX_VOICES {
+            self.settled[lane] = true;
+        }
+    }
+
+    /// Every lane empty at time `now`, the output silent before it, the
+    /// output `lookahead` samples behind it.
+    fn restart(&mut self, now: u64, lookahead: usize) {
+        self.lookahead = lookahead;
+        self.mask = (lookahead + OUT_EVERY).next_power_of_two() - 1;
+        self.out_pos = now as i64 - lookahead as i64;
+        self.out_floor = now as i64;
+        self.start = [now; LANES];
+        self.end = [now; LANES];
+        self.settled = [true; MAX_VOICES];
+    }
+
+    /// Write `len` samples of `buf` into lane `lane` from its end on.
+    fn push(&mut self, lane: usize, buf: &[[f64; CHECK_INTERVAL_SAMPLES]; 2], len: usize) {
+        let t0 = self.end[lane];
+        for k in 0..len {
+            let j = self.at(lane, t0 + k as u64);
+            self.ring[j] = [buf[0][k], buf[1][k]];
+        }
+        self.end[lane] = t0 + len as u64;
+    }
+}
+
+impl Instrument {
+    /// Samples the output runs behind the instrument's clock (the latency
+    /// the plugin reports to its host).
+    pub fn lookahead(&self) -> usize {
+        self.lanes.lookahead
+    }
+
+    /// How far the voice furthest behind is behind the instrument's clock
+    /// \[samples\] (0 without a lookahead, at most the lookahead plus a
+    /// chunk between blocks). \[audio-thread\]
+    pub fn lag(&self) -> usize {
+        (0..MAX_VOICES)
+            .filter(|&i| self.voices[i].active)
+            .map(|i| (self.sample_pos - self.lanes.end[i]) as usize)
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Let the voices run up to `samples` (at most
+    /// [`MAX_LOOKAHEAD_SAMPLES`]) behind the instrument's clock and delay
+    /// the output by as much, so that the work of a chord's strikes spreads
+    /// over the blocks of the lookahead (docs/plugin.md, "Lookahead"). The
+    /// output is the same as without, that many samples later. A change
+    /// brings every voice up to the clock and drops the output still to be
+    /// read (a host restarts its audio when a plugin's latency changes).
+    /// Allocation-free. \[audio-thread\]
+    pub fn set_lookahead(&mut self, samples: usize) {
+        let l = samples.min(MAX_LOOKAHEAD_SAMPLES);
+        if l == self.lanes.lookahead {
+            return;
+        }
+        self.sync_all(true);
+        self.lanes.restart(self.sample_pos, l);
+    }
+
+    /// How much of each block's real-time budget the voices may fill by
+    /// working ahead with a lookahead (estimated; [`LOOKAHEAD_WORK_FRACTION`]
+    /// unless set; 0: only what the output needs now, every voice the
+    /// whole lookahead behind; not a number: 0). It decides when the work
+    /// is done, never what is computed. \[audio-thread\]
+    pub fn set_lookahead_work(&mut self, fraction: f64) {
+        self.lanes.work_fraction = if fraction > 0.0 { fraction } else { 0.0 };
+    }
+
+    /// The voices and the output start over at the instrument's clock
+    /// (every voice stopped: [`Instrument::silence`]).
+    pub(super) fn restart_lanes(&mut self) {
+        let l = self.lanes.lookahead;
+        self.lanes.restart(self.sample_pos, l);
     }
 
     /// Render `left.len()` samples, applying `events` (sorted by offset, offsets
@@ -66,72 +214,85 @@ impl Instrument {
         // it too; once here, the voices find it on and leave it).
         let _flush = FlushDenormals::new(true);
         let n = left.len().min(right.len());
+        let (left, right) = (&mut left[..n], &mut right[..n]);
+        let out0 = self.lanes.out_pos;
+        self.lanes.work_ns = 0.0;
         let mut pos = 0;
         for ev in events {
             let at = ev.offset.clamp(pos, n);
-            self.render(&mut left[pos..at], &mut right[pos..at]);
+            self.run_clock(at - pos, out0, left, right);
             pos = at;
             self.handle(ev.event);
         }
-        self.render(&mut left[pos..n], &mut right[pos..n]);
+        self.run_clock(n - pos, out0, left, right);
+        self.emit(out0 + n as i64, out0, left, right);
+        self.work_ahead(n);
     }
 
-    fn render_chunk(&mut self, left: &mut [f32], right: &mut [f32]) {
-        let len = left.len();
-        for ch in &mut self.acc {
-            ch[..len].iter_mut().for_each(|x| *x = 0.0);
+    /// Apply one event now (between two samples), first bringing the
+    /// voices it concerns up to the instrument's clock. \[audio-thread\]
+    pub fn handle(&mut self, event: Event) {
+        match event {
+            // a key that comes up concerns its own voices only
+            Event::NoteOff { key } | Event::NoteOn { key, .. } if !matches!(event, Event::NoteOn { velocity_norm, .. } if velocity_norm > 0.0) => {
+                for i in 0..MAX_VOICES {
+                    if self.voices[i].key == key {
+                        self.advance_voice(i, self.sample_pos, true);
+                    }
+                }
+            }
+            // the wheel moves the voices on the bend's grid, which brings
+            // them up first; a pedal going down touches no voice
+            Event::PitchBend { .. }
+            | Event::Sustain { down: true }
+            | Event::Sostenuto { down: true } => {}
+            _ => self.sync_all(true),
         }
-        let p = &mut *self.cur;
-        for i in 0..MAX_VOICES {
-            let v = &mut self.voices[i];
-            if !v.active {
-                continue;
-            }
-            let scene = p.scenes.bound(v.at, v.on_damped);
-            let st = &mut p.states[i];
-            let observe = if self.probe_on {
-                Some(&mut self.motion[..len])
+        self.apply(event);
+    }
+
+    /// Run the instrument's clock `len` samples on: its chunks (on the
+    /// silence-check grid, the bend's while it moves), their gain, the fade
+    /// of a swap, the bend's updates; the output is read whenever the clock
+    /// would run a piece past it.
+    fn run_clock(&mut self, len: usize, out0: i64, left: &mut [f32], right: &mut [f32]) {
+        let mut rest = len;
+        while rest > 0 {
+            // a moving bend updates the voices on a finer grid
+            let grid = if self.bend_moving() {
+                BEND_TICK_SAMPLES
             } else {
-                None
+                CHECK_INTERVAL_SAMPLES
             };
-            let start = self.sample_pos;
-            // damper pressure (docs/plugin.md, "Pressure and the mod
-            // wheel"): applied exactly where the hammer has left for good
-            // (no gravity, above the object's rest position and rising) and
-            // the chunk held no contact
-            let press = v.pressure.max(self.channel_pressure).max(self.mod_wheel);
-            let leaving = press > 0.0
-                && !p.bouncing
-                && st
-                    .hammer_in_flight()
-                    .is_some_and(|(x, up)| x > 0.0 && up >= 0.0);
-            let contacts = st.contacts_started;
-            let observing = observe.is_some();
-            if tick_into(st, scene, &mut self.vbuf, len, 1.0, 0.0, observe) {
-                if leaving && !st.in_contact() && st.contacts_started == contacts {
-                    let q = (-MAX_PRESSURE_DECAY_PER_S * press / p.rate_hz).exp();
-                    let motion = observing.then_some(&mut self.motion[..len]);
-                    let g = decay_into(&mut self.vbuf, len, q, motion);
-                    st.scale_free_state(g);
-                }
-                add_into(&mut self.acc, &self.vbuf, len);
-                if let Some(probe) = self.probe.as_deref_mut().filter(|_| self.probe_on) {
-                    probe.voice_chunk(&VoiceChunk {
-                        voice: i,
-                        key: v.key,
-                        released: v.released,
-                        start,
-                        motion: &self.motion[..len],
-                        energy_j: st.energy_rt(scene),
-                    });
-                }
-            } else {
-                st.reset(&p.scenes.scene);
-                v.active = false;
-                self.stats.nonfinite_resets += 1;
+            let phase = (self.sample_pos % grid as u64) as usize;
+            let step = (grid - phase).min(rest);
+            let l = &self.lanes;
+            if self.sample_pos as i64 + step as i64 - l.out_pos > (l.lookahead + OUT_EVERY) as i64 {
+                let upto = self.sample_pos as i64 - l.lookahead as i64;
+                self.emit(upto, out0, left, right);
             }
+            self.clock_chunk(step);
+            rest -= step;
+            if self.sample_pos.is_multiple_of(BEND_TICK_SAMPLES as u64) && self.bend_moving() {
+                self.sync_all(false);
+                self.bend_tick();
+            }
+        }
+    }
+
+    /// One chunk of the instrument's clock (`len` at most
+    /// [`CHECK_INTERVAL_SAMPLES`]).
+    fn clock_chunk(&mut self, len: usize) {
+        let t0 = self.sample_pos;
+        let l = &mut self.lanes;
+        l.chunk[t0 as usize & l.mask] = len as u8;
+        for k in 0..len as u64 {
+            l.gain[(t0 + k) as usize & l.mask] = self.gain;
         }
         if let Some(f) = self.fading.as_deref_mut() {
+            for ch in &mut self.acc {
+                ch[..len].iter_mut().for_each(|x| *x = 0.0);
+            }
             for i in 0..MAX_VOICES {
                 let Some((at, on_damped)) = self.fade_voices[i] else {
                     continue;
@@ -149,6 +310,7 @@ impl Instrument {
                     self.stats.nonfinite_resets += 1;
                 }
             }
+            self.lanes.push(FADE_LANE, &self.acc, len);
             self.fade_left = self.fade_left.saturating_sub(len);
             if self.fade_left == 0 {
                 self.fade_voices = [None; MAX_VOICES];
@@ -157,13 +319,178 @@ impl Instrument {
                 }
             }
         }
-        let g = self.gain;
-        let mut hits = 0u64;
-        for k in 0..len {
-            left[k] = guarded(self.acc[0][k] * g, &mut hits);
-            right[k] = guarded(self.acc[1][k] * g, &mut hits);
+        self.sample_pos += len as u64;
+    }
+
+    /// Bring every sounding voice up to the instrument's clock (with its
+    /// grid actions there when `settle`; not before a bend's update, which
+    /// comes first).
+    pub(super) fn sync_all(&mut self, settle: bool) {
+        for i in 0..MAX_VOICES {
+            self.advance_voice(i, self.sample_pos, settle);
         }
+    }
+
+    /// Run voice `i` on its own clock in the instrument's chunks until it
+    /// reaches `to` (at most the instrument's clock; it stops at the first
+    /// chunk boundary at or after `to`), with its grid actions on the way,
+    /// and at its arrival when `settle`.
+    fn advance_voice(&mut self, i: usize, to: u64, settle: bool) {
+        loop {
+            if !self.voices[i].active {
+                return;
+            }
+            let t = self.lanes.end[i];
+            if !self.lanes.settled[i]
+                && t.is_multiple_of(CHECK_INTERVAL_SAMPLES as u64)
+                && (t < to || settle)
+            {
+                // the silence check, and a brightness that waited for its
+                // contact to end (on the instrument's silence-check grid)
+                self.lanes.settled[i] = true;
+                self.stop_if_silent(i);
+                self.move_timbre(i);
+                continue;
+            }
+            if t >= to {
+                return;
+            }
+            self.voice_chunk(i);
+        }
+    }
+
+    /// Render voice `i`'s next chunk into its lane (a voice that produced a
+    /// sample that is not a number is reset and stops: nothing of that
+    /// chunk sounds).
+    fn voice_chunk(&mut self, i: usize) {
+        let t0 = self.lanes.end[i];
+        let len = usize::from(self.lanes.chunk[t0 as usize & self.lanes.mask]);
+        debug_assert!(len > 0 && t0 + len as u64 <= self.sample_pos);
+        let p = &mut *self.cur;
+        let v = &mut self.voices[i];
+        let scene = p.scenes.bound(v.at, v.on_damped);
+        let st = &mut p.states[i];
+        let observe = if self.probe_on {
+            Some(&mut self.motion[..len])
+        } else {
+            None
+        };
+        // damper pressure (docs/plugin.md, "Pressure and the mod
+        // wheel"): applied exactly where the hammer has left for good
+        // (no gravity, above the object's rest position and rising) and
+        // the chunk held no contact
+        let press = v.pressure.max(self.channel_pressure).max(self.mod_wheel);
+        let leaving = press > 0.0
+            && !p.bouncing
+            && st
+                .hammer_in_flight()
+                .is_some_and(|(x, up)| x > 0.0 && up >= 0.0);
+        let contacts = st.contacts_started;
+        let observing = observe.is_some();
+        if tick_into(st, scene, &mut self.vbuf, len, 1.0, 0.0, observe) {
+            if leaving && !st.in_contact() && st.contacts_started == contacts {
+                let q = (-MAX_PRESSURE_DECAY_PER_S * press / p.rate_hz).exp();
+                let motion = observing.then_some(&mut self.motion[..len]);
+                let g = decay_into(&mut self.vbuf, len, q, motion);
+                st.scale_free_state(g);
+            }
+            let new_contacts = st.contacts_started - contacts;
+            if let Some(probe) = self.probe.as_deref_mut().filter(|_| self.probe_on) {
+                probe.voice_chunk(&VoiceChunk {
+                    voice: i,
+                    key: v.key,
+                    released: v.released,
+                    start: t0,
+                    motion: &self.motion[..len],
+                    energy_j: st.energy_rt(scene),
+                });
+            }
+            self.lanes.work_ns +=
+                len as f64 * p.step_cost_ns() + new_contacts as f64 * p.contact_cost_ns();
+            self.lanes.push(i, &self.vbuf, len);
+            self.lanes.settled[i] = false;
+        } else {
+            st.reset(&p.scenes.scene);
+            v.active = false;
+            self.stats.nonfinite_resets += 1;
+        }
+    }
+
+    /// Write the output up to time `upto` (the block's first sample is
+    /// time `out0`): every voice brought up to it first, then each sample
+    /// its lanes summed in voice order (the fade last), times its gain,
+    /// through the output guard.
+    fn emit(&mut self, upto: i64, out0: i64, left: &mut [f32], right: &mut [f32]) {
+        if upto <= self.lanes.out_pos {
+            return;
+        }
+        if upto > 0 {
+            for i in 0..MAX_VOICES {
+                self.advance_voice(i, upto as u64, true);
+            }
+        }
+        let mut hits = 0u64;
+        let mut t = self.lanes.out_pos;
+        while t < upto {
+            let m = ((upto - t) as usize).min(CHECK_INTERVAL_SAMPLES);
+            let l = &self.lanes;
+            for ch in &mut self.acc {
+                ch[..m].iter_mut().for_each(|x| *x = 0.0);
+            }
+            for lane in 0..LANES {
+                let a = (l.start[lane] as i64).max(t);
+                let b = (l.end[lane] as i64).min(t + m as i64);
+                for u in a..b {
+                    let s = l.ring[l.at(lane, u as u64)];
+                    let k = (u - t) as usize;
+                    self.acc[0][k] += s[0];
+                    self.acc[1][k] += s[1];
+                }
+            }
+            for k in 0..m {
+                let u = t + k as i64;
+                let j = (u - out0) as usize;
+                if u < l.out_floor || u < 0 {
+                    left[j] = 0.0;
+                    right[j] = 0.0;
+                } else {
+                    let g = l.gain[u as usize & l.mask];
+                    left[j] = guarded(self.acc[0][k] * g, &mut hits);
+                    right[j] = guarded(self.acc[1][k] * g, &mut hits);
+                }
+            }
+            t += m as i64;
+        }
+        self.lanes.out_pos = upto;
         self.stats.ceiling_hits += hits;
+    }
+
+    /// With a lookahead: the voices furthest behind the instrument's clock
+    /// render on, a chunk at a time, while the block's estimated work is
+    /// below its share of the block's budget (`n` samples;
+    /// [`Instrument::set_lookahead_work`]).
+    fn work_ahead(&mut self, n: usize) {
+        if self.lanes.lookahead == 0 {
+            return;
+        }
+        let budget_ns = self.lanes.work_fraction * n as f64 / self.cur.rate_hz * 1e9;
+        while self.lanes.work_ns < budget_ns {
+            let l = &self.lanes;
+            let mut behind: Option<usize> = None;
+            for i in 0..MAX_VOICES {
+                if self.voices[i].active
+                    && l.end[i] < self.sample_pos
+                    && behind.is_none_or(|b| l.end[i] < l.end[b])
+                {
+                    behind = Some(i);
+                }
+            }
+            let Some(i) = behind else {
+                break;
+            };
+            let to = self.lanes.end[i] + 1;
+            self.advance_voice(i, to, true);
+        }
     }
 }
 

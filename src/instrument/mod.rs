@@ -90,6 +90,7 @@ pub use mapping::{
     damped_scene, impact_speed_m_per_s, lowest_frequency_hz, root_note, scene_for,
     InstrumentParams, PlayParams, SceneParams, VariantSet,
 };
+pub use mix::{LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_SAMPLES};
 pub use prepared::{
     damper_level, hardness_level, position_level, prepare, prepare_scene, timbre_level,
     PrepareError, Prepared, Scenes, Variant, DAMPER_STEP, POSITION_STEP, STRIKE_BUDGET_FRACTION,
@@ -236,6 +237,8 @@ pub struct Instrument {
     probe: Option<Box<dyn VoiceProbe>>,
     probe_on: bool,
     motion: [Motion; CHECK_INTERVAL_SAMPLES],
+    /// Each voice's clock and samples, and the output (`mix`).
+    lanes: mix::Lanes,
     /// Counters.
     pub stats: Stats,
 }
@@ -321,6 +324,7 @@ impl Instrument {
             probe: None,
             probe_on: false,
             motion: [Motion::default(); CHECK_INTERVAL_SAMPLES],
+            lanes: mix::Lanes::new(),
             stats: Stats::default(),
         };
         inst.set_play(play);
@@ -358,6 +362,7 @@ impl Instrument {
             DEFAULT_BEND_RANGE_SEMITONES
         };
         if play.polyphony < self.play.polyphony {
+            self.sync_all(true);
             // voices above a lowered limit are released (damped), as the
             // player would lift the keys
             for i in play.polyphony..MAX_VOICES {
@@ -460,9 +465,18 @@ impl Instrument {
         }
     }
 
-    /// The engine state of voice `voice_idx` (for tests and tools, e.g. to
-    /// inspect or disturb a voice). \[audio-thread\]
+    /// The engine state of voice `voice_idx` at the voice's own clock (with
+    /// a lookahead it may be behind the instrument's; for tests and tools).
+    /// \[audio-thread\]
+    pub fn voice_state(&self, voice_idx: usize) -> &EngineState {
+        &self.cur.states[voice_idx]
+    }
+
+    /// The engine state of voice `voice_idx`, every voice brought up to the
+    /// instrument's clock first (for tests and tools, e.g. to inspect or
+    /// disturb a voice). \[audio-thread\]
     pub fn voice_state_mut(&mut self, voice_idx: usize) -> &mut EngineState {
+        self.sync_all(true);
         &mut self.cur.states[voice_idx]
     }
 
@@ -496,6 +510,7 @@ impl Instrument {
         if !self.can_install() {
             return Err(new);
         }
+        self.sync_all(true);
         let same_object = new.params.preset == self.cur.params.preset
             && new.params.user_scene == self.cur.params.user_scene
             && new.rate_hz == self.cur.rate_hz;
@@ -536,6 +551,7 @@ impl Instrument {
         if any_fade {
             self.fading = Some(old);
             self.fade_left = self.fade_len;
+            self.lanes.begin(mix::FADE_LANE, self.sample_pos);
         } else {
             self.retire(old);
         }
@@ -560,10 +576,12 @@ impl Instrument {
         self.voices = [Voice::default(); MAX_VOICES];
         self.fade_voices = [None; MAX_VOICES];
         self.fade_left = 0;
+        self.restart_lanes();
     }
 
-    /// Apply one event now (between two samples). \[audio-thread\]
-    pub fn handle(&mut self, event: Event) {
+    /// Apply one event now, the voices it concerns at the instrument's
+    /// clock ([`Instrument::handle`]). \[audio-thread\]
+    fn apply(&mut self, event: Event) {
         match event {
             // MIDI's convention: a note-on at velocity 0 is a note-off (and
             // a velocity that is not a number strikes nothing).

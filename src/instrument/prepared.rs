@@ -249,7 +249,30 @@ pub const STRIKE_NS_FIXED: f64 = 4_000.0;
 /// and a slower CPU).
 pub const STRIKE_BUDGET_FRACTION: f64 = 0.5;
 
+/// Cost model of a voice's plain stepping, free or in contact, per sample:
+/// nanoseconds per state of the contact phase, and a fixed part (fitted on
+/// the same machine as [`STRIKE_NS_PER_SWITCH_FLOP`]: 14, 67 and 600 ns
+/// per sample at 10, 100 and 1000 modes). Only the lookahead's scheduling
+/// reads it (docs/plugin.md, "Lookahead"): it decides when work is done,
+/// never what is computed.
+pub const STEP_NS_PER_STATE: f64 = 0.3;
+/// See [`STEP_NS_PER_STATE`].
+pub const STEP_NS_FIXED: f64 = 8.0;
+
 impl Prepared {
+    /// Estimated CPU time of one voice's sample, free or in contact \[ns\]
+    /// ([`STEP_NS_PER_STATE`]). \[any-thread\]
+    pub fn step_cost_ns(&self) -> f64 {
+        STEP_NS_FIXED + STEP_NS_PER_STATE * self.scenes.scene.contact.dim as f64
+    }
+
+    /// Estimated CPU time of one contact beyond its samples' stepping \[ns\]:
+    /// half of [`Prepared::strike_cost_estimate_s`] (a strike makes two or
+    /// three contacts). \[any-thread\]
+    pub fn contact_cost_ns(&self) -> f64 {
+        0.5e9 * self.strike_cost_estimate_s()
+    }
+
     /// Estimated CPU time of the block that holds one strike, beyond a plain
     /// block (seconds; see [`STRIKE_NS_PER_SWITCH_FLOP`]). \[any-thread\]
     pub fn strike_cost_estimate_s(&self) -> f64 {

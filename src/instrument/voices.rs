@@ -80,7 +80,11 @@ impl Instrument {
         } else {
             let poly = self.play.polyphony.clamp(1, MAX_VOICES);
             let i = match self.voices[..poly].iter().position(|v| !v.active) {
-                Some(i) => i,
+                Some(i) => {
+                    // its lane sounds again from now
+                    self.lanes.begin(i, self.sample_pos);
+                    i
+                }
                 None => {
                     self.stats.steals += 1;
                     quietest(p, &self.voices[..poly])
@@ -166,63 +170,71 @@ impl Instrument {
 
     /// Move every voice whose note asks for another variant (a brightness,
     /// a host's polyphonic modulation) to that variant's scene
-    /// ([`EngineState::rebind_same_free`] between played variants that
-    /// step the free phase in the same coordinates, as every preset's
-    /// hardness levels do: the state kept bit for bit, O(N); else
-    /// [`EngineState::rebind`]), unless its hammer is in contact (it
-    /// waits: [`Instrument::render`] calls this again on the
-    /// silence-check grid). A released voice moves between the damped
-    /// scenes of its damper levels. O(N) (O(N^2) through `rebind`) per
-    /// voice that moves, allocation-free. \[audio-thread\]
+    /// ([`Instrument::move_timbre`]); a voice whose hammer is in contact
+    /// waits for its grid actions ([`Instrument::grid_actions`]).
+    /// Allocation-free. \[audio-thread\]
     pub(super) fn apply_timbre(&mut self) {
-        let p = &mut *self.cur;
         let mut pending = false;
         for i in 0..MAX_VOICES {
-            let v = &mut self.voices[i];
-            if !v.active || v.at == v.want {
-                continue;
-            }
-            let to_damped = v.released && p.scenes.damped_for(v.want.damper).is_some();
-            let from = p.scenes.bound(v.at, v.on_damped);
-            let to = p.scenes.bound(v.want, to_damped);
-            if std::ptr::eq(from, to) {
-                v.at = v.want;
-                v.on_damped = to_damped;
-                continue;
-            }
-            let st = &mut p.states[i];
-            if st.in_contact() {
-                pending = true;
-                continue;
-            }
-            let moved = if !v.on_damped && !to_damped && p.scenes.same_free(v.at, v.want) {
-                st.rebind_same_free(from, to)
-            } else {
-                st.rebind(from, to)
-            };
-            if moved {
-                v.at = v.want;
-                v.on_damped = to_damped;
-            } else {
-                // a variant it cannot be carried to: it stays where it is
-                v.want = v.at;
-            }
+            pending |= self.move_timbre(i);
         }
         self.timbre_pending = pending;
     }
 
-    pub(super) fn stop_silent_voices(&mut self) {
+    /// Move voice `i` to the variant its note asks for, if it asks for
+    /// another one ([`EngineState::rebind_same_free`] between played
+    /// variants that step the free phase in the same coordinates, as every
+    /// preset's hardness levels do: the state kept bit for bit, O(N); else
+    /// [`EngineState::rebind`], O(N^2)), unless its hammer is in contact:
+    /// then it returns true (it waits; its voice's grid actions try again
+    /// on the silence-check grid). A released voice moves between the
+    /// damped scenes of its damper levels. Allocation-free. \[audio-thread\]
+    pub(super) fn move_timbre(&mut self, i: usize) -> bool {
+        let p = &mut *self.cur;
+        let v = &mut self.voices[i];
+        if !v.active || v.at == v.want {
+            return false;
+        }
+        let to_damped = v.released && p.scenes.damped_for(v.want.damper).is_some();
+        let from = p.scenes.bound(v.at, v.on_damped);
+        let to = p.scenes.bound(v.want, to_damped);
+        if std::ptr::eq(from, to) {
+            v.at = v.want;
+            v.on_damped = to_damped;
+            return false;
+        }
+        let st = &mut p.states[i];
+        if st.in_contact() {
+            return true;
+        }
+        let moved = if !v.on_damped && !to_damped && p.scenes.same_free(v.at, v.want) {
+            st.rebind_same_free(from, to)
+        } else {
+            st.rebind(from, to)
+        };
+        if moved {
+            v.at = v.want;
+            v.on_damped = to_damped;
+        } else {
+            // a variant it cannot be carried to: it stays where it is
+            v.want = v.at;
+        }
+        false
+    }
+
+    /// Stop voice `i` if it fell silent (its energy below
+    /// [`SILENCE_ENERGY_RATIO`] of its strike's). \[audio-thread\]
+    pub(super) fn stop_if_silent(&mut self, i: usize) {
         let p = &*self.cur;
-        for (i, v) in self.voices.iter_mut().enumerate() {
-            if !v.active {
-                continue;
-            }
-            let scene = p.scenes.bound(v.at, v.on_damped);
-            if let Some(e) = audible_energy(&p.states[i], scene) {
-                if e < SILENCE_ENERGY_RATIO * v.strike_energy {
-                    v.active = false;
-                    self.stats.silent_stops += 1;
-                }
+        let v = &mut self.voices[i];
+        if !v.active {
+            return;
+        }
+        let scene = p.scenes.bound(v.at, v.on_damped);
+        if let Some(e) = audible_energy(&p.states[i], scene) {
+            if e < SILENCE_ENERGY_RATIO * v.strike_energy {
+                v.active = false;
+                self.stats.silent_stops += 1;
             }
         }
     }
