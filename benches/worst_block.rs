@@ -73,9 +73,20 @@ fn events(chord: usize, total: usize) -> Vec<TimedEvent> {
 
 /// Per-block seconds of one render.
 fn block_times(prepared: &Prepared, chord: usize, block: usize) -> Vec<f64> {
+    block_times_ahead(prepared, chord, block, 0)
+}
+
+/// Per-block seconds of one render with a lookahead of `lookahead` samples.
+fn block_times_ahead(
+    prepared: &Prepared,
+    chord: usize,
+    block: usize,
+    lookahead: usize,
+) -> Vec<f64> {
     let total = (SECONDS * RATE) as usize;
     let evs = events(chord, total);
     let mut inst = Instrument::new(Box::new(prepared.clone()), InstrumentParams::default().play);
+    inst.set_lookahead(lookahead);
     let (mut l, mut r) = (vec![0.0f32; block], vec![0.0f32; block]);
     let mut times = Vec::with_capacity(total / block + 1);
     let mut e = 0;
@@ -143,6 +154,42 @@ fn worst_block(_: &mut Criterion) {
                     ));
                 }
                 println!("| {label} | {chord} | {} |", cells.join(" | "));
+            }
+        }
+    }
+}
+
+/// The same renders with a lookahead (docs/plugin.md, "Lookahead"): the
+/// voices run up to that many samples behind the instrument's clock and
+/// work ahead only while a block's estimated work fits in 40 % of its
+/// budget, so a chord's strikes spread over the blocks after it; the
+/// output is the same, the lookahead later. Max / 99.9th percentile, % of
+/// the budget, as the table above.
+fn lookahead(_: &mut Criterion) {
+    println!("\nwith a lookahead, 48 kHz, % of the block's real-time budget (max / 99.9th percentile), {SECONDS} s per cell, chords every {CHORD_EVERY_S} s:");
+    println!("| modes | chord | lookahead | 32 samples | 64 samples | 128 samples | 512 samples |");
+    println!("|---|---|---|---|---|---|---|");
+    for (n, chords) in [(50, &[16][..]), (200, &[4, 16][..]), (1000, &[1, 4][..])] {
+        let params = InstrumentParams::default();
+        let prepared = prepare_scene(&object(n), &params.scene, RATE, 0).expect("compile");
+        for &chord in chords {
+            for l in [0, 256, 512, 1024, 2048] {
+                let mut cells = Vec::new();
+                for block in [32, 64, 128, 512] {
+                    let mut t = block_times_ahead(&prepared, chord, block, l);
+                    t.sort_by(f64::total_cmp);
+                    let budget = block as f64 / RATE;
+                    cells.push(format!(
+                        "{:.0} / {:.0}",
+                        100.0 * t[t.len() - 1] / budget,
+                        100.0 * percentile(&t, 0.999) / budget
+                    ));
+                }
+                let ms = l as f64 / RATE * 1e3;
+                println!(
+                    "| {n} | {chord} | {l} ({ms:.1} ms) | {} |",
+                    cells.join(" | ")
+                );
             }
         }
     }
@@ -497,6 +544,7 @@ criterion_group!(
     bad_input,
     pitch_bend,
     brightness_chord,
-    worst_block
+    worst_block,
+    lookahead
 );
 criterion_main!(benches);

@@ -10,7 +10,7 @@
 //! strikes of a chord really leave the block that holds it.
 
 use modal_contact::instrument::{
-    prepare, prepare_scene, Event, Instrument, InstrumentParams, Prepared, TimedEvent,
+    prepare, prepare_scene, Event, Instrument, InstrumentParams, Prepared, TimedEvent, WorkMeter,
     LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_SAMPLES,
 };
 use modal_contact::presets;
@@ -298,6 +298,8 @@ fn a_chords_strikes_spread_over_the_blocks_of_the_lookahead() {
     let contacts_per_block = |l: usize| {
         let mut inst = Instrument::new(modal(100), InstrumentParams::default().play);
         inst.set_lookahead(l);
+        // the cost model's schedule: the same on every machine
+        inst.set_work_meter(WorkMeter::Estimate);
         let (mut left, mut right) = (vec![0.0f32; block], vec![0.0f32; block]);
         let mut per_block = Vec::new();
         let mut before = 0;

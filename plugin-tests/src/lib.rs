@@ -12,6 +12,7 @@
 //!    `target/plugin-tests/<variant>/`. `MODAL_CONTACT_SKIP_BUNDLE=1` reuses
 //!    what is there.
 
+use clack_extensions::latency::{HostLatency, HostLatencyImpl, PluginLatency};
 use clack_extensions::params::{ParamInfoBuffer, PluginParams};
 use clack_extensions::preset_discovery::prelude::{HostPresetLoad, Location, PluginPresetLoad};
 use clack_extensions::preset_discovery::HostPresetLoadImpl;
@@ -174,6 +175,7 @@ impl HostHandlers for TestHost {
 
     fn declare_extensions(builder: &mut HostExtensions<Self>, _shared: &Self::Shared<'_>) {
         builder.register::<HostPresetLoad>();
+        builder.register::<HostLatency>();
     }
 }
 
@@ -183,9 +185,17 @@ impl HostHandlers for TestHost {
 pub struct TestMainThread {
     /// The callbacks received, in order.
     pub preset_events: std::cell::RefCell<Vec<String>>,
+    /// Times the plugin said its latency changed (CLAP latency extension).
+    pub latency_changes: std::cell::Cell<u32>,
 }
 
 impl MainThreadHandler<'_> for TestMainThread {}
+
+impl HostLatencyImpl for TestMainThread {
+    fn changed(&self) {
+        self.latency_changes.set(self.latency_changes.get() + 1);
+    }
+}
 
 fn location_text(location: Location, load_key: Option<&std::ffi::CStr>) -> String {
     let key = load_key.map(|k| k.to_string_lossy().into_owned());
@@ -605,6 +615,18 @@ impl LoadedPlugin {
             }
         }
         out
+    }
+
+    /// Times the plugin told the host its latency changed.
+    pub fn latency_changes(&mut self) -> u32 {
+        self.instance.access_handler(|h| h.latency_changes.get())
+    }
+
+    /// The latency the plugin reports \[samples\] (CLAP latency extension).
+    pub fn latency(&mut self) -> u32 {
+        let handle = self.instance.plugin_handle();
+        let ext: PluginLatency = handle.get_extension().expect("latency extension");
+        ext.get(&handle)
     }
 
     /// A parameter's CLAP value.

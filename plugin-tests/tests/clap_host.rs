@@ -172,6 +172,61 @@ fn rt_checks_build_equals_the_library() {
     check_equals_library(Variant::RtChecks, 44_100.0, 128);
 }
 
+/// The Lookahead parameter (docs/plugin.md, "Lookahead") through a real
+/// host: 10 ms at 48 kHz is a latency of 480 samples the plugin reports,
+/// and the phrase sounds as the library plays it, 480 samples later,
+/// after 480 samples of silence. Set in one render (a host's parameter
+/// event), then the next activation starts with it.
+fn check_lookahead(variant: Variant) {
+    let rate = 48_000.0;
+    let mut p = LoadedPlugin::load(&clap_bundle(variant));
+    assert_eq!(p.latency(), 0, "no latency by default");
+    p.render(&RenderSpec::new(
+        rate,
+        256,
+        4096,
+        vec![param(0, ids::LOOKAHEAD, 10.0)],
+    ));
+    assert_eq!(p.latency(), 480, "the new lookahead is the latency");
+    // (the plugin was active: it asked for a restart and tells the host at
+    // the next activation, as CLAP requires)
+    let told = p.latency_changes();
+    let events = phrase(rate);
+    let total = (rate * 2.0) as usize;
+    let late = p.render(&RenderSpec::new(rate, 64, total + 480, events.clone()));
+    assert_eq!(p.latency(), 480);
+    assert!(
+        p.latency_changes() > told,
+        "the host was told at the activation"
+    );
+    let lib = library_render(&InstrumentParams::default(), rate, total, &events);
+    assert!(late[0][..480]
+        .iter()
+        .chain(&late[1][..480])
+        .all(|x| *x == 0.0));
+    let d = max_abs_diff(&late[0][480..], &lib[0]).max(max_abs_diff(&late[1][480..], &lib[1]));
+    println!(
+        "{}: lookahead 10 ms = latency {} samples; peak {:.3}; max |plugin(t + 480) - library(t)| = {d:.3e}",
+        variant.name(),
+        p.latency(),
+        peak(&lib[0])
+    );
+    assert!(peak(&lib[0]) > 0.05);
+    assert!(d <= 1e-6, "plugin and library differ by {d}");
+}
+
+#[test]
+fn lookahead_is_a_reported_latency_and_changes_nothing_else() {
+    check_lookahead(Variant::Release);
+}
+
+/// The same through the rt-checks build: the lookahead's lanes, clocks and
+/// latency report allocate nothing on the audio thread.
+#[test]
+fn lookahead_under_rt_checks() {
+    check_lookahead(Variant::RtChecks);
+}
+
 pub fn check_param_swap(variant: Variant) {
     let rate = 44_100.0;
     let total = (rate * 2.5) as usize;

@@ -92,6 +92,10 @@ pub struct PlayParams {
     pub polyphony: usize,
     /// Pitch bend at full wheel \[semitones\], 0..=[`MAX_BEND_RANGE_SEMITONES`](super::MAX_BEND_RANGE_SEMITONES).
     pub bend_range_semitones: f64,
+    /// How far the voices may run behind the output \[s\]: the output's
+    /// latency (docs/plugin.md, "Lookahead"; at most
+    /// [`MAX_LOOKAHEAD_SAMPLES`](super::MAX_LOOKAHEAD_SAMPLES)).
+    pub lookahead_s: f64,
 }
 
 impl Default for PlayParams {
@@ -102,6 +106,7 @@ impl Default for PlayParams {
             gain_db: -6.0,
             polyphony: DEFAULT_POLYPHONY,
             bend_range_semitones: DEFAULT_BEND_RANGE_SEMITONES,
+            lookahead_s: 0.0,
         }
     }
 }

@@ -27,14 +27,31 @@ use crate::compile::CompiledScene;
 use crate::engine::denormal::FlushDenormals;
 use crate::engine::{EngineState, Motion};
 
-/// Longest lookahead \[samples\] (43 ms at 48 kHz, 10.7 ms at 192 kHz).
-pub const MAX_LOOKAHEAD_SAMPLES: usize = 2048;
+/// Longest lookahead \[samples\] (85 ms at 48 kHz, 21 ms at 192 kHz).
+pub const MAX_LOOKAHEAD_SAMPLES: usize = 4096;
 /// While voices may run behind, they work ahead of the output only while
-/// the block's estimated work ([`Prepared::step_cost_ns`](super::Prepared::step_cost_ns),
-/// [`Prepared::contact_cost_ns`](super::Prepared::contact_cost_ns)) is
-/// below this fraction of the block's real-time budget; what is left waits
-/// for later blocks, up to the lookahead.
-pub const LOOKAHEAD_WORK_FRACTION: f64 = 0.4;
+/// the block has taken less than this fraction of its real-time budget
+/// ([`WorkMeter`]); what is left waits for later blocks, up to the
+/// lookahead.
+pub const LOOKAHEAD_WORK_FRACTION: f64 = 0.35;
+
+/// How the lookahead measures a block's work when it decides whether the
+/// voices may work ahead (docs/plugin.md, "Lookahead"). Either way it
+/// decides only when work is done, never what is computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WorkMeter {
+    /// The monotonic clock since the block began (`std::time::Instant`:
+    /// a read of the CPU's counter through the vDSO on Linux,
+    /// `QueryPerformanceCounter` on Windows, `mach_absolute_time` on macOS;
+    /// no system call, no lock): what the host's deadline is about. The
+    /// default.
+    Clock,
+    /// A cost model of what the voices computed
+    /// ([`Prepared::step_cost_ns`](super::Prepared::step_cost_ns) per
+    /// sample, [`Prepared::contact_cost_ns`](super::Prepared::contact_cost_ns)
+    /// per contact): the same schedule on every machine (tests).
+    Estimate,
+}
 /// The instrument's clock runs at most this many samples past the output
 /// before the output is read (a host block longer than this is read in
 /// pieces), so a lane holds the lookahead plus this.
@@ -74,7 +91,11 @@ pub(super) struct Lanes {
     chunk: Box<[u8]>,
     /// Estimated work of the voices' chunks in this block \[ns\].
     work_ns: f64,
-    /// Work ahead while `work_ns` is below this fraction of the block's
+    /// When the block began ([`WorkMeter::Clock`]).
+    block_start: Option<std::time::Instant>,
+    /// How a block's work is measured.
+    meter: WorkMeter,
+    /// Work ahead while the block's work is below this fraction of its
     /// budget ([`LOOKAHEAD_WORK_FRACTION`] unless set).
     work_fraction: f64,
 }
@@ -93,6 +114,8 @@ impl Lanes {
             gain: vec![0.0; RING_CAP].into_boxed_slice(),
             chunk: vec![0; RING_CAP].into_boxed_slice(),
             work_ns: 0.0,
+            block_start: None,
+            meter: WorkMeter::Clock,
             work_fraction: LOOKAHEAD_WORK_FRACTION,
         }
     }
@@ -186,6 +209,12 @@ impl Instrument {
         self.lanes.work_fraction = if fraction > 0.0 { fraction } else { 0.0 };
     }
 
+    /// How a block's work is measured for the lookahead ([`WorkMeter`];
+    /// the clock unless set). \[audio-thread\]
+    pub fn set_work_meter(&mut self, meter: WorkMeter) {
+        self.lanes.meter = meter;
+    }
+
     /// The voices and the output start over at the instrument's clock
     /// (every voice stopped: [`Instrument::silence`]).
     pub(super) fn restart_lanes(&mut self) {
@@ -217,6 +246,8 @@ impl Instrument {
         let (left, right) = (&mut left[..n], &mut right[..n]);
         let out0 = self.lanes.out_pos;
         self.lanes.work_ns = 0.0;
+        self.lanes.block_start = (self.lanes.lookahead > 0 && self.lanes.meter == WorkMeter::Clock)
+            .then(std::time::Instant::now);
         let mut pos = 0;
         for ev in events {
             let at = ev.offset.clamp(pos, n);
@@ -417,7 +448,8 @@ impl Instrument {
     }
 
     /// Write the output up to time `upto` (the block's first sample is
-    /// time `out0`): every voice brought up to it first, then each sample
+    /// time `out0`): every voice brought up to it first (a voice not struck
+    /// within the last two lookaheads up to the clock), then each sample
     /// its lanes summed in voice order (the fade last), times its gain,
     /// through the output guard.
     fn emit(&mut self, upto: i64, out0: i64, left: &mut [f32], right: &mut [f32]) {
@@ -426,7 +458,18 @@ impl Instrument {
         }
         if upto > 0 {
             for i in 0..MAX_VOICES {
-                self.advance_voice(i, upto as u64, true);
+                // only a voice struck within the last two lookaheads may
+                // stay behind: the others keep up with the clock, so an
+                // event that needs every voice (a note-on) never has a
+                // lookahead's worth of every voice to catch up
+                let v = &self.voices[i];
+                let striking = self.sample_pos < v.onset_pos + 2 * self.lanes.lookahead as u64;
+                let to = if striking {
+                    upto as u64
+                } else {
+                    self.sample_pos
+                };
+                self.advance_voice(i, to, true);
             }
         }
         let mut hits = 0u64;
@@ -466,15 +509,23 @@ impl Instrument {
     }
 
     /// With a lookahead: the voices furthest behind the instrument's clock
-    /// render on, a chunk at a time, while the block's estimated work is
+    /// render on, a chunk at a time (one whose hammer is in contact or not
+    /// yet gone only when a contact's estimated cost still fits), while the block's work is
     /// below its share of the block's budget (`n` samples;
-    /// [`Instrument::set_lookahead_work`]).
+    /// [`Instrument::set_lookahead_work`], [`WorkMeter`]).
     fn work_ahead(&mut self, n: usize) {
         if self.lanes.lookahead == 0 {
             return;
         }
         let budget_ns = self.lanes.work_fraction * n as f64 / self.cur.rate_hz * 1e9;
-        while self.lanes.work_ns < budget_ns {
+        loop {
+            let spent_ns = match self.lanes.block_start {
+                Some(t0) => t0.elapsed().as_nanos() as f64,
+                None => self.lanes.work_ns,
+            };
+            if spent_ns >= budget_ns {
+                break;
+            }
             let l = &self.lanes;
             let mut behind: Option<usize> = None;
             for i in 0..MAX_VOICES {
@@ -488,6 +539,16 @@ impl Instrument {
             let Some(i) = behind else {
                 break;
             };
+            // a chunk that may hold a contact's switches is started only
+            // when the estimate of a contact still fits (it waits for a
+            // later block, at the latest for the output)
+            let st = &self.cur.states[i];
+            let leaving = st
+                .hammer_in_flight()
+                .is_some_and(|(x, up)| x > 0.0 && up >= 0.0);
+            if (st.in_contact() || !leaving) && spent_ns + self.cur.contact_cost_ns() > budget_ns {
+                break;
+            }
             let to = self.lanes.end[i] + 1;
             self.advance_voice(i, to, true);
         }

@@ -90,7 +90,7 @@ pub use mapping::{
     damped_scene, impact_speed_m_per_s, lowest_frequency_hz, root_note, scene_for,
     InstrumentParams, PlayParams, SceneParams, VariantSet,
 };
-pub use mix::{LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_SAMPLES};
+pub use mix::{WorkMeter, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_SAMPLES};
 pub use prepared::{
     damper_level, hardness_level, position_level, prepare, prepare_scene, timbre_level,
     PrepareError, Prepared, Scenes, Variant, DAMPER_STEP, POSITION_STEP, STRIKE_BUDGET_FRACTION,
@@ -163,6 +163,17 @@ pub const MAX_NOTE_TUNING_SEMITONES: f64 = 48.0;
 pub const DEFAULT_ROOT_NOTE: f64 = 60.0;
 /// Fixed slots for retired compiled scenes waiting to be handed back.
 pub const RETIRED_SLOTS: usize = 4;
+
+/// The lookahead of `seconds` at `rate_hz` \[samples\]: rounded, within
+/// 0..=[`MAX_LOOKAHEAD_SAMPLES`] (not a number: 0).
+pub fn lookahead_samples(seconds: f64, rate_hz: f64) -> usize {
+    let n = (seconds * rate_hz).round();
+    if n >= 1.0 {
+        (n as usize).min(MAX_LOOKAHEAD_SAMPLES)
+    } else {
+        0
+    }
+}
 
 /// `now` moved towards `target` by at most `step`.
 fn slew(now: f64, target: f64, step: f64) -> f64 {
@@ -351,8 +362,8 @@ impl Instrument {
         &self.cur
     }
 
-    /// Update the parameters that need no compile (gain now; pitch tracking
-    /// and drop height at the next note). \[audio-thread\]
+    /// Update the parameters that need no compile (gain and the lookahead
+    /// now; pitch tracking and drop height at the next note). \[audio-thread\]
     pub fn set_play(&mut self, mut play: PlayParams) {
         play.polyphony = play.polyphony.clamp(1, MAX_VOICES);
         play.bend_range_semitones = if play.bend_range_semitones.is_finite() {
@@ -375,6 +386,7 @@ impl Instrument {
         self.play = play;
         let g = 10f64.powf(play.gain_db / 20.0);
         self.gain = if g.is_finite() { g } else { 0.0 };
+        self.set_lookahead(lookahead_samples(play.lookahead_s, self.cur.rate_hz));
     }
 
     /// The bend the voices are at now \[semitones\] (it glides towards the

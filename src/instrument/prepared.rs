@@ -5,7 +5,7 @@
 use super::mapping::{
     damped_scene, root_note, scene_for, InstrumentParams, PlayParams, SceneParams,
 };
-use super::{MAX_VOICES, OUTPUT_BAND_FRACTION};
+use super::{LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_SAMPLES, MAX_VOICES, OUTPUT_BAND_FRACTION};
 use crate::compile::{compile_with, CompileError, CompiledScene};
 use crate::engine::EngineState;
 use crate::presets;
@@ -289,11 +289,34 @@ impl Prepared {
     /// [`STRIKE_BUDGET_FRACTION`] of the block's real-time budget: how many
     /// simultaneous strikes fit, and what helps. `None` when it fits.
     /// \[worker\] \[main-thread\]
-    pub fn strike_warning(&self, block_len: usize, polyphony: usize) -> Option<String> {
+    pub fn strike_warning(
+        &self,
+        block_len: usize,
+        polyphony: usize,
+        lookahead: usize,
+    ) -> Option<String> {
         let budget = block_len as f64 / self.rate_hz;
         let strike = self.strike_cost_estimate_s();
         let chord = polyphony.clamp(1, MAX_VOICES) as f64 * strike;
-        (chord > STRIKE_BUDGET_FRACTION * budget).then(|| {
+        // with a lookahead, the voices work through a chord's strikes in
+        // the blocks after it, a share of each
+        let ahead = LOOKAHEAD_WORK_FRACTION * lookahead as f64 / self.rate_hz;
+        (chord > STRIKE_BUDGET_FRACTION * budget + ahead).then(|| {
+            let need_s = (chord - STRIKE_BUDGET_FRACTION * budget) / LOOKAHEAD_WORK_FRACTION;
+            let need = (need_s * self.rate_hz).ceil() as usize;
+            let spread = if need <= MAX_LOOKAHEAD_SAMPLES {
+                format!(
+                    "a Lookahead of {:.0} ms or more (now {:.1} ms) spreads such a chord over \
+                     the blocks after it (docs/plugin.md, \"Lookahead\")",
+                    (need_s * 1e3).ceil(),
+                    lookahead as f64 / self.rate_hz * 1e3
+                )
+            } else {
+                format!(
+                    "even the largest Lookahead ({:.0} ms) is too short to spread it",
+                    MAX_LOOKAHEAD_SAMPLES as f64 / self.rate_hz * 1e3
+                )
+            };
             let fit = (STRIKE_BUDGET_FRACTION * budget / strike).floor() as usize;
             let fits = match fit {
                 0 => "even one strike takes more than half the block".to_string(),
@@ -305,7 +328,7 @@ impl Prepared {
                  (estimate; {} states in contact); at {block_len} samples per block \
                  ({:.2} ms) {fits}, and a {polyphony}-note chord needs about {:.0} % of \
                  the block: expect dropouts on chords unless the host's buffer is larger \
-                 (or the object has fewer modes)",
+                 ({spread}; or the object has fewer modes)",
                 self.scenes.scene.name,
                 strike * 1e6,
                 self.scenes.scene.contact.dim,

@@ -611,11 +611,11 @@ fn strike_warning_names_what_fits_at_the_hosts_block_size() {
         };
         let pr = prepare(&p, RATE, 1).unwrap();
         assert!(
-            pr.strike_warning(64, DEFAULT_POLYPHONY).is_none(),
+            pr.strike_warning(64, DEFAULT_POLYPHONY, 0).is_none(),
             "{:?}",
-            pr.strike_warning(64, DEFAULT_POLYPHONY)
+            pr.strike_warning(64, DEFAULT_POLYPHONY, 0)
         );
-        if pr.strike_warning(32, DEFAULT_POLYPHONY).is_some() {
+        if pr.strike_warning(32, DEFAULT_POLYPHONY, 0).is_some() {
             warned_at_32.push(pr.scenes.scene.name.clone());
         }
         assert!(
@@ -640,7 +640,7 @@ fn strike_warning_names_what_fits_at_the_hosts_block_size() {
     let pr = prepare_scene(&big, &SceneParams::default(), 48_000.0, 1).unwrap();
     let est = pr.strike_cost_estimate_s();
     let w = pr
-        .strike_warning(64, DEFAULT_POLYPHONY)
+        .strike_warning(64, DEFAULT_POLYPHONY, 0)
         .expect("400 modes at 64 samples");
     println!("{w}");
     assert!(
@@ -648,9 +648,9 @@ fn strike_warning_names_what_fits_at_the_hosts_block_size() {
         "{w}"
     );
     assert!(est > 200e-6 && est < 5e-3, "{est}");
-    assert!(pr.strike_warning(8192, DEFAULT_POLYPHONY).is_none());
+    assert!(pr.strike_warning(8192, DEFAULT_POLYPHONY, 0).is_none());
     let mid = pr
-        .strike_warning(1024, DEFAULT_POLYPHONY)
+        .strike_warning(1024, DEFAULT_POLYPHONY, 0)
         .expect("a chord still overruns 1024 samples");
     assert!(mid.contains("simultaneous strikes fit"), "{mid}");
 }

@@ -118,6 +118,7 @@ impl ModalContact {
                 rate_hz: self.rate_hz,
                 max_block: self.max_block,
                 polyphony: self.params.play_params().polyphony,
+                lookahead: inst.lookahead(),
                 params: wanted,
             };
             if self.handoff.request(req) {
@@ -346,7 +347,7 @@ impl Plugin for ModalContact {
         &mut self,
         _audio_io_layout: &AudioIOLayout,
         buffer_config: &BufferConfig,
-        _context: &mut impl ActivateContext<Self>,
+        context: &mut impl ActivateContext<Self>,
     ) -> bool {
         self.shut_down();
         let rate_hz = buffer_config.sample_rate as f64;
@@ -370,6 +371,7 @@ impl Plugin for ModalContact {
         let host = user_scene::HostBlocks {
             max_block,
             polyphony: ip.play.polyphony,
+            lookahead: crate::instrument::lookahead_samples(ip.play.lookahead_s, rate_hz),
         };
         for c in candidates {
             match library.prepare(&c, rate_hz, 0, host) {
@@ -392,6 +394,8 @@ impl Plugin for ModalContact {
         self.revision = 0;
         self.rate_hz = rate_hz;
         let mut inst = Instrument::new(prepared, ip.play);
+        // the lookahead is the plugin's latency (docs/plugin.md, "Lookahead")
+        context.set_latency_samples(inst.lookahead() as u32);
         // the previous instrument (and its probe) was dropped in shut_down
         self.ring.set_rate_hz(rate_hz);
         inst.set_probe(
@@ -502,6 +506,9 @@ impl ModalContact {
         let (left, right) = (&mut *left[0], &mut *right[0]);
         // the probe records while the editor holds the ring's reading end
         inst.set_probe_on(self.ring.has_consumer());
+        // a new Lookahead is a new latency (the wrapper tells the host only
+        // when it changed)
+        context.set_latency_samples(inst.lookahead() as u32);
         // audition pads first, at the block's start, then the host's events
         let pads = &self.pads;
         let pad_events =

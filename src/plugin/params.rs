@@ -619,6 +619,25 @@ parameters! {
               displacement scales by the inverse of the pitch ratio \
               (docs/plugin.md, \"Pitch bend\"). Bouncing scenes are not bent.",
     },
+    lookahead: IntParam = LOOKAHEAD {
+        id: "lookahead",
+        name: "Lookahead",
+        kind: Kind::Int {
+            min: 0,
+            max: 40,
+            default: 0,
+            unit: " ms",
+        },
+        applies: Applies::NextBlock,
+        doc: "Latency the plugin reports so that a chord's strikes need not all be \
+              computed in the block that holds them: the voices may run up to this \
+              far behind and work through the strikes in the blocks after it, a \
+              share of each (docs/plugin.md, \"Lookahead\"). The sound is the same, \
+              this much later (hosts compensate it on playback). 0: no latency, every \
+              strike computed in its own block. At most 4096 samples (21 ms at \
+              192 kHz). A change restarts the output (the host restarts its audio \
+              for the new latency).",
+    },
 }
 
 impl ModalContactParams {
@@ -651,6 +670,7 @@ impl ModalContactParams {
             gain_db: self.gain_db.value() as f64,
             polyphony: self.polyphony.value().clamp(1, MAX_VOICES as i32) as usize,
             bend_range_semitones: self.bend_range.value() as f64,
+            lookahead_s: self.lookahead.value() as f64 / 1000.0,
         }
     }
 
@@ -861,7 +881,7 @@ mod tests {
             "switching",
         ];
         // later ids are appended, never inserted or renamed
-        let added = ["polyphony", "bend_range"];
+        let added = ["polyphony", "bend_range", "lookahead"];
         let all: Vec<&str> = shipped.iter().chain(&added).copied().collect();
         assert_eq!(ids::ALL.as_slice(), all.as_slice());
         let listed: Vec<&str> = PARAMS.iter().map(|s| s.id).collect();

@@ -236,7 +236,7 @@ impl SceneLibrary {
                 report.warnings = [
                     p.fallback_note.clone(),
                     p.realtime_warning(),
-                    p.strike_warning(host.max_block, host.polyphony),
+                    p.strike_warning(host.max_block, host.polyphony, host.lookahead),
                     p.timbre_note(),
                 ]
                 .into_iter()
@@ -269,13 +269,16 @@ impl SceneLibrary {
     }
 }
 
-/// The host's largest block and the polyphony, for the strike-cost warning.
+/// The host's largest block, the polyphony and the lookahead, for the
+/// strike-cost warning.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct HostBlocks {
     /// Largest block \[samples\].
     pub max_block: usize,
     /// Voices.
     pub polyphony: usize,
+    /// The lookahead \[samples\].
+    pub lookahead: usize,
 }
 
 /// The compile summary's facts for the window: modes kept, route, the
@@ -392,6 +395,7 @@ gain = 0.5
     const HOST: HostBlocks = HostBlocks {
         max_block: 512,
         polyphony: 16,
+        lookahead: 0,
     };
 
     fn wanted(lib: &SceneLibrary) -> SceneParams {

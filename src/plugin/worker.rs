@@ -47,6 +47,8 @@ pub struct CompileRequest {
     pub max_block: usize,
     /// See `max_block`.
     pub polyphony: usize,
+    /// The lookahead \[samples\] (for the same warning).
+    pub lookahead: usize,
     /// What to compile.
     pub params: SceneParams,
 }
@@ -166,6 +168,7 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
         let host = HostBlocks {
             max_block: req.max_block,
             polyphony: req.polyphony,
+            lookahead: req.lookahead,
         };
         match lib.prepare(&req.params, req.rate_hz, req.revision, host) {
             Ok((p, warnings)) => {
