@@ -19,7 +19,7 @@ use modal_contact::instrument::{
     VoiceProbe,
 };
 use modal_contact::scene::Scene;
-use modal_testkit::scenes::{Contact, Hammer, Modal, Pickup, SceneBuilder};
+use modal_testkit::scenes::struck_bar;
 use std::time::Instant;
 
 const RATE: f64 = 48000.0;
@@ -31,20 +31,7 @@ const CHORD_EVERY_S: f64 = 0.125;
 /// A struck modal object of `n` modes (a bar-like spectrum up to 18 kHz,
 /// weights that fall slowly with frequency), hammer as the presets'.
 fn object(n: usize) -> Scene {
-    let mut object = Modal::new("bar", &["c", "p"]);
-    for i in 0..n {
-        let f = 220.0 * (18000.0f64 / 220.0).powf(i as f64 / (n.max(2) - 1) as f64);
-        let w = 1.0 / (1.0 + 0.02 * i as f64).sqrt();
-        let wp = if i % 2 == 0 { 0.8 * w } else { -0.6 * w };
-        object = object.mode(f, 2.5 / (1.0 + f / 1500.0), &[w, wp]);
-    }
-    SceneBuilder::new("worst-block")
-        .duration(SECONDS)
-        .object(object)
-        .hammer(Hammer::new(0.03).height(1e-3).velocity(-1.0))
-        .contact(Contact::new("bar", 2e6).point("c").damping(20.0))
-        .pickup(Pickup::new("bar", "p"))
-        .build()
+    struck_bar(n, SECONDS)
 }
 
 /// Chords of `chord` notes (a spread of keys around the root) at velocity
@@ -111,6 +98,18 @@ fn block_times_ahead(
     times
 }
 
+/// A table cell: the largest and the 99.9th percentile of the block
+/// times `t`, % of the budget of `block` samples.
+fn cell(mut t: Vec<f64>, block: usize) -> String {
+    t.sort_by(f64::total_cmp);
+    let budget = block as f64 / RATE;
+    format!(
+        "{:.0} / {:.0}",
+        100.0 * t[t.len() - 1] / budget,
+        100.0 * percentile(&t, 0.999) / budget
+    )
+}
+
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
     sorted[i.min(sorted.len() - 1)]
@@ -144,14 +143,7 @@ fn worst_block(_: &mut Criterion) {
             for (prepared, label) in &variants {
                 let mut cells = Vec::new();
                 for block in [32, 64, 128, 512] {
-                    let mut t = block_times(prepared, chord, block);
-                    t.sort_by(f64::total_cmp);
-                    let budget = block as f64 / RATE;
-                    cells.push(format!(
-                        "{:.0} / {:.0}",
-                        100.0 * t[t.len() - 1] / budget,
-                        100.0 * percentile(&t, 0.999) / budget
-                    ));
+                    cells.push(cell(block_times(prepared, chord, block), block));
                 }
                 println!("| {label} | {chord} | {} |", cells.join(" | "));
             }
@@ -176,14 +168,7 @@ fn lookahead(_: &mut Criterion) {
             for l in [0, 256, 512, 1024, 2048] {
                 let mut cells = Vec::new();
                 for block in [32, 64, 128, 512] {
-                    let mut t = block_times_ahead(&prepared, chord, block, l);
-                    t.sort_by(f64::total_cmp);
-                    let budget = block as f64 / RATE;
-                    cells.push(format!(
-                        "{:.0} / {:.0}",
-                        100.0 * t[t.len() - 1] / budget,
-                        100.0 * percentile(&t, 0.999) / budget
-                    ));
+                    cells.push(cell(block_times_ahead(&prepared, chord, block, l), block));
                 }
                 let ms = l as f64 / RATE * 1e3;
                 println!(

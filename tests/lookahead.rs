@@ -14,30 +14,10 @@ use modal_contact::instrument::{
     LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_SAMPLES,
 };
 use modal_contact::presets;
-use modal_contact::scene::Scene;
 use modal_testkit::rng::TestRng;
-use modal_testkit::scenes::{Contact, Hammer, Modal, Pickup, SceneBuilder};
+use modal_testkit::scenes::struck_bar;
 
 const RATE: f64 = 48_000.0;
-
-/// A struck modal object of `n` modes (a bar-like spectrum), as the worst
-/// block bench's.
-fn object(n: usize) -> Scene {
-    let mut object = Modal::new("bar", &["c", "p"]);
-    for i in 0..n {
-        let f = 220.0 * (18000.0f64 / 220.0).powf(i as f64 / (n.max(2) - 1) as f64);
-        let w = 1.0 / (1.0 + 0.02 * i as f64).sqrt();
-        let wp = if i % 2 == 0 { 0.8 * w } else { -0.6 * w };
-        object = object.mode(f, 2.5 / (1.0 + f / 1500.0), &[w, wp]);
-    }
-    SceneBuilder::new("lookahead")
-        .duration(1.0)
-        .object(object)
-        .hammer(Hammer::new(0.03).height(1e-3).velocity(-1.0))
-        .contact(Contact::new("bar", 2e6).point("c").damping(20.0))
-        .pickup(Pickup::new("bar", "p"))
-        .build()
-}
 
 fn preset(name: &str) -> Box<Prepared> {
     let mut p = InstrumentParams::default();
@@ -47,7 +27,7 @@ fn preset(name: &str) -> Box<Prepared> {
 
 fn modal(n: usize) -> Box<Prepared> {
     let p = InstrumentParams::default();
-    prepare_scene(&object(n), &p.scene, RATE, 0).unwrap()
+    prepare_scene(&struck_bar(n, 1.0), &p.scene, RATE, 0).unwrap()
 }
 
 fn at(offset: usize, event: Event) -> TimedEvent {
