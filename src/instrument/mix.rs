@@ -27,8 +27,12 @@ use crate::compile::CompiledScene;
 use crate::engine::denormal::FlushDenormals;
 use crate::engine::{EngineState, Motion};
 
-/// Longest lookahead \[samples\] (85 ms at 48 kHz, 21 ms at 192 kHz).
+/// Longest lookahead \[samples\] (85 ms at 48 kHz, 21 ms at 192 kHz; the
+/// plugin's parameter stops at [`MAX_LOOKAHEAD_S`] before).
 pub const MAX_LOOKAHEAD_SAMPLES: usize = 4096;
+/// Longest lookahead the plugin offers \[s\] (its Lookahead parameter's
+/// top; at most [`MAX_LOOKAHEAD_SAMPLES`] at any rate).
+pub const MAX_LOOKAHEAD_S: f64 = 0.040;
 /// While voices may run behind, they work ahead of the output only while
 /// the block has taken less than this fraction of its real-time budget
 /// ([`WorkMeter`]); what is left waits for later blocks, up to the

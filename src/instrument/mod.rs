@@ -90,7 +90,7 @@ pub use mapping::{
     damped_scene, impact_speed_m_per_s, lowest_frequency_hz, root_note, scene_for,
     InstrumentParams, PlayParams, SceneParams, VariantSet,
 };
-pub use mix::{WorkMeter, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_SAMPLES};
+pub use mix::{WorkMeter, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_LOOKAHEAD_SAMPLES};
 pub use prepared::{
     damper_level, hardness_level, position_level, prepare, prepare_scene, timbre_level,
     PrepareError, Prepared, Scenes, Variant, DAMPER_STEP, POSITION_STEP, STEP_NS_FIXED,

@@ -5,7 +5,9 @@
 use super::mapping::{
     damped_scene, root_note, scene_for, InstrumentParams, PlayParams, SceneParams,
 };
-use super::{LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_SAMPLES, MAX_VOICES, OUTPUT_BAND_FRACTION};
+use super::{
+    lookahead_samples, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_VOICES, OUTPUT_BAND_FRACTION,
+};
 use crate::compile::{compile_with, CompileError, CompiledScene};
 use crate::engine::EngineState;
 use crate::presets;
@@ -303,18 +305,17 @@ impl Prepared {
         let ahead = LOOKAHEAD_WORK_FRACTION * lookahead as f64 / self.rate_hz;
         (chord > STRIKE_BUDGET_FRACTION * budget + ahead).then(|| {
             let need_s = (chord - STRIKE_BUDGET_FRACTION * budget) / LOOKAHEAD_WORK_FRACTION;
-            let need = (need_s * self.rate_hz).ceil() as usize;
-            let spread = if need <= MAX_LOOKAHEAD_SAMPLES {
+            let longest = lookahead_samples(MAX_LOOKAHEAD_S, self.rate_hz);
+            let spread = if need_s * self.rate_hz <= longest as f64 {
                 format!(
-                    "a Lookahead of {:.0} ms or more (now {:.1} ms) spreads such a chord over \
-                     the blocks after it (docs/plugin.md, \"Lookahead\")",
-                    (need_s * 1e3).ceil(),
-                    lookahead as f64 / self.rate_hz * 1e3
+                    "a Lookahead of {:.0} ms or more spreads such a chord over the blocks \
+                     after it (docs/plugin.md, \"Lookahead\")",
+                    (need_s * 1e3).ceil()
                 )
             } else {
                 format!(
                     "even the largest Lookahead ({:.0} ms) is too short to spread it",
-                    MAX_LOOKAHEAD_SAMPLES as f64 / self.rate_hz * 1e3
+                    longest as f64 / self.rate_hz * 1e3
                 )
             };
             let fit = (STRIKE_BUDGET_FRACTION * budget / strike).floor() as usize;

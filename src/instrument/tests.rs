@@ -653,6 +653,30 @@ fn strike_warning_names_what_fits_at_the_hosts_block_size() {
         .strike_warning(1024, DEFAULT_POLYPHONY, 0)
         .expect("a chord still overruns 1024 samples");
     assert!(mid.contains("simultaneous strikes fit"), "{mid}");
+    // the lookahead it names spreads the chord: with it, no warning; with
+    // a millisecond less, the same warning
+    let ms: f64 = w
+        .split("a Lookahead of ")
+        .nth(1)
+        .and_then(|r| r.split(" ms").next())
+        .and_then(|x| x.parse().ok())
+        .unwrap_or_else(|| panic!("no lookahead named: {w}"));
+    let samples = |ms: f64| lookahead_samples(ms * 1e-3, 48_000.0);
+    println!(
+        "64-sample blocks: a lookahead of {ms} ms ({} samples)",
+        samples(ms)
+    );
+    assert!(pr
+        .strike_warning(64, DEFAULT_POLYPHONY, samples(ms))
+        .is_none());
+    assert!(pr
+        .strike_warning(64, DEFAULT_POLYPHONY, samples(ms - 1.0))
+        .is_some());
+    // 64 voices at once need more than the longest lookahead
+    let all = pr
+        .strike_warning(64, MAX_VOICES, lookahead_samples(MAX_LOOKAHEAD_S, 48_000.0))
+        .expect("64 strikes");
+    assert!(all.contains("even the largest Lookahead"), "{all}");
 }
 
 /// Polyphony: at most that many voices sound, the next note steals the

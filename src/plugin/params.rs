@@ -29,7 +29,7 @@ use super::user_scene::{lock, SceneLibrary, UserScene};
 pub use super::voice_ids::VariantsWanted;
 use crate::instrument::{
     InstrumentParams, PlayParams, SceneParams, DEFAULT_BEND_RANGE_SEMITONES,
-    MAX_BEND_RANGE_SEMITONES, MAX_VOICES,
+    MAX_BEND_RANGE_SEMITONES, MAX_LOOKAHEAD_S, MAX_VOICES,
 };
 use crate::presets;
 use crate::scene::Switching;
@@ -624,7 +624,7 @@ parameters! {
         name: "Lookahead",
         kind: Kind::Int {
             min: 0,
-            max: 40,
+            max: (MAX_LOOKAHEAD_S * 1000.0) as i32,
             default: 0,
             unit: " ms",
         },
