@@ -167,6 +167,29 @@ def test_gain_parameter():
     assert err <= 1e-6, err
 
 
+def test_lookahead_is_a_reported_latency():
+    """Lookahead 10 ms at 48 kHz: the VST3 reports 480 samples of latency
+    (pedalboard reads it through IAudioProcessor::getLatencySamples) and its
+    output is the plain render 480 samples later, bit for bit (pedalboard
+    does not compensate an instrument's latency)."""
+    p = load()
+    sr = 48000
+    plain = render(p, phrase(sr), duration=2.0, sr=sr)
+    assert p.reported_latency_samples == 0, p.reported_latency_samples
+    p.lookahead_ms = 10
+    try:
+        late = render(p, phrase(sr), duration=2.0, sr=sr)
+        latency = p.reported_latency_samples
+    finally:
+        p.lookahead_ms = 0
+    n = plain.shape[1] - 480
+    err = float(np.max(np.abs(late[:, 480:] - plain[:, :n])))
+    print(f"  lookahead 10 ms: reported latency {latency} samples; max |late(t + 480) - plain(t)| = {err:.3e}")
+    assert latency == 480, latency
+    assert np.all(late[:, :480] == 0.0)
+    assert err == 0.0, err
+
+
 def test_scene_parameter():
     p = load()
     names = p.parameters["scene"].valid_values
