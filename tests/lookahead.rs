@@ -10,8 +10,8 @@
 //! strikes of a chord really leave the block that holds it.
 
 use modal_contact::instrument::{
-    prepare, prepare_scene, Event, Instrument, InstrumentParams, Prepared, TimedEvent, WorkMeter,
-    LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_SAMPLES,
+    prepare, prepare_scene, Event, Instrument, InstrumentParams, Prepared, TimedEvent, VoiceChunk,
+    VoiceProbe, WorkMeter, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_SAMPLES,
 };
 use modal_contact::presets;
 use modal_testkit::rng::TestRng;
@@ -408,4 +408,66 @@ fn a_new_lookahead_restarts_the_output_and_keeps_the_voices() {
         "the new lookahead's silence"
     );
     assert!((2748..n).all(|t| l[t].to_bits() == p[t - 700].to_bits()));
+}
+
+/// What the probe kept: (voice, first sample, length) of every chunk.
+type Chunks = std::sync::Arc<std::sync::Mutex<Vec<(usize, u64, usize)>>>;
+
+struct Recorder(Chunks);
+
+impl VoiceProbe for Recorder {
+    fn voice_chunk(&mut self, c: &VoiceChunk) {
+        self.0
+            .lock()
+            .unwrap()
+            .push((c.voice, c.start, c.motion.len()));
+    }
+}
+
+/// The editor's live view under a lookahead: the probe sees the same
+/// chunks of the same voices as without one (the voices render in the
+/// same chunks, only at other times: ahead of the output), each voice's in
+/// order, and the output is still the plain one later, bit for bit.
+#[test]
+fn the_live_view_sees_the_same_chunks_under_a_lookahead() {
+    let n = 48_000;
+    let l = 700;
+    let events = script(3, n);
+    let blocks = random_blocks(3);
+    let probed = |lookahead: usize| {
+        let seen: Chunks = Default::default();
+        let mut inst = Instrument::new(preset("steel-plate"), InstrumentParams::default().play);
+        inst.set_probe(Some(Box::new(Recorder(seen.clone()))));
+        inst.set_probe_on(true);
+        inst.set_lookahead(lookahead);
+        inst.set_lookahead_work(0.02);
+        let ([out, _], lag) = render_lag(&mut inst, &events, n + lookahead, &blocks);
+        let chunks = std::mem::take(&mut *seen.lock().unwrap());
+        (out, lag, chunks)
+    };
+    let (p, _, mut plain) = probed(0);
+    let (q, lag, mut late) = probed(l);
+    assert!(lag > 64, "the voices ran behind ({lag})");
+    assert!((0..n).all(|t| q[t + l].to_bits() == p[t].to_bits()));
+    // each voice's chunks in order
+    let mut next = [0u64; 64];
+    for &(v, start, len) in &late {
+        assert!(
+            start >= next[v],
+            "voice {v}: chunk at {start} before {}",
+            next[v]
+        );
+        next[v] = start + len as u64;
+    }
+    // the same chunks (those of the first n samples: the late render ran
+    // its voices on)
+    late.retain(|c| c.1 < n as u64);
+    plain.retain(|c| c.1 < n as u64);
+    plain.sort();
+    late.sort();
+    println!(
+        "{} chunks seen with and without a lookahead of {l}, voices up to {lag} samples behind",
+        plain.len()
+    );
+    assert_eq!(plain, late);
 }
