@@ -261,44 +261,25 @@ pub const STEP_NS_PER_STATE: f64 = 0.3;
 /// See [`STEP_NS_PER_STATE`].
 pub const STEP_NS_FIXED: f64 = 8.0;
 
-impl Prepared {
-    /// Estimated CPU time of one voice's sample, free or in contact \[ns\]
-    /// ([`STEP_NS_PER_STATE`]). \[any-thread\]
-    pub fn step_cost_ns(&self) -> f64 {
-        STEP_NS_FIXED + STEP_NS_PER_STATE * self.scenes.scene.contact.dim as f64
-    }
+/// A compiled scene's estimated strike cost, and the warning it gives at a
+/// host's block size, polyphony and lookahead.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct StrikeCost {
+    /// The scene's name.
+    pub scene: String,
+    /// [`Prepared::strike_cost_estimate_s`] \[s\].
+    pub strike_s: f64,
+    /// States of the contact phase.
+    pub contact_states: usize,
+    /// Sample rate \[Hz\].
+    pub rate_hz: f64,
+}
 
-    /// Estimated CPU time of one contact beyond its samples' stepping \[ns\]:
-    /// half of [`Prepared::strike_cost_estimate_s`] (a strike makes two or
-    /// three contacts). \[any-thread\]
-    pub fn contact_cost_ns(&self) -> f64 {
-        0.5e9 * self.strike_cost_estimate_s()
-    }
-
-    /// Estimated CPU time of the block that holds one strike, beyond a plain
-    /// block (seconds; see [`STRIKE_NS_PER_SWITCH_FLOP`]). \[any-thread\]
-    pub fn strike_cost_estimate_s(&self) -> f64 {
-        let sc = &self.scenes.scene;
-        let flops = sc.switch_multiply_adds() as f64;
-        (flops * STRIKE_NS_PER_SWITCH_FLOP
-            + sc.contact.dim as f64 * STRIKE_NS_PER_STATE
-            + STRIKE_NS_FIXED)
-            * 1e-9
-    }
-
-    /// A warning when a chord of `polyphony` notes struck in one block of
-    /// `block_len` samples is estimated to take more than
-    /// [`STRIKE_BUDGET_FRACTION`] of the block's real-time budget: how many
-    /// simultaneous strikes fit, and what helps. `None` when it fits.
-    /// \[worker\] \[main-thread\]
-    pub fn strike_warning(
-        &self,
-        block_len: usize,
-        polyphony: usize,
-        lookahead: usize,
-    ) -> Option<String> {
+impl StrikeCost {
+    /// See [`Prepared::strike_warning`]. \[any-thread\]
+    pub fn warning(&self, block_len: usize, polyphony: usize, lookahead: usize) -> Option<String> {
         let budget = block_len as f64 / self.rate_hz;
-        let strike = self.strike_cost_estimate_s();
+        let strike = self.strike_s;
         let chord = polyphony.clamp(1, MAX_VOICES) as f64 * strike;
         // with a lookahead, the voices work through a chord's strikes in
         // the blocks after it, a share of each
@@ -330,13 +311,66 @@ impl Prepared {
                  ({:.2} ms) {fits}, and a {polyphony}-note chord needs about {:.0} % of \
                  the block: expect dropouts on chords unless the host's buffer is larger \
                  ({spread}; or the object has fewer modes)",
-                self.scenes.scene.name,
+                self.scene,
                 strike * 1e6,
-                self.scenes.scene.contact.dim,
+                self.contact_states,
                 budget * 1e3,
                 100.0 * chord / budget
             )
         })
+    }
+}
+
+impl Prepared {
+    /// Estimated CPU time of one voice's sample, free or in contact \[ns\]
+    /// ([`STEP_NS_PER_STATE`]). \[any-thread\]
+    pub fn step_cost_ns(&self) -> f64 {
+        STEP_NS_FIXED + STEP_NS_PER_STATE * self.scenes.scene.contact.dim as f64
+    }
+
+    /// Estimated CPU time of one contact beyond its samples' stepping \[ns\]:
+    /// half of [`Prepared::strike_cost_estimate_s`] (a strike makes two or
+    /// three contacts). \[any-thread\]
+    pub fn contact_cost_ns(&self) -> f64 {
+        0.5e9 * self.strike_cost_estimate_s()
+    }
+
+    /// Estimated CPU time of the block that holds one strike, beyond a plain
+    /// block (seconds; see [`STRIKE_NS_PER_SWITCH_FLOP`]). \[any-thread\]
+    pub fn strike_cost_estimate_s(&self) -> f64 {
+        let sc = &self.scenes.scene;
+        let flops = sc.switch_multiply_adds() as f64;
+        (flops * STRIKE_NS_PER_SWITCH_FLOP
+            + sc.contact.dim as f64 * STRIKE_NS_PER_STATE
+            + STRIKE_NS_FIXED)
+            * 1e-9
+    }
+
+    /// A warning when a chord of `polyphony` notes struck in one block of
+    /// `block_len` samples is estimated to take more than
+    /// [`STRIKE_BUDGET_FRACTION`] of the block's real-time budget, beyond
+    /// what a lookahead of `lookahead` samples spreads: how many
+    /// simultaneous strikes fit, and what helps. `None` when it fits
+    /// ([`StrikeCost::warning`]). \[worker\] \[main-thread\]
+    pub fn strike_warning(
+        &self,
+        block_len: usize,
+        polyphony: usize,
+        lookahead: usize,
+    ) -> Option<String> {
+        self.strike_cost().warning(block_len, polyphony, lookahead)
+    }
+
+    /// What the strike warning is computed from (kept by the plugin's
+    /// compile report, so the editor can say it again for the parameters
+    /// of the moment). \[any-thread\]
+    pub fn strike_cost(&self) -> StrikeCost {
+        StrikeCost {
+            scene: self.scenes.scene.name.clone(),
+            strike_s: self.strike_cost_estimate_s(),
+            contact_states: self.scenes.scene.contact.dim,
+            rate_hz: self.rate_hz,
+        }
     }
 
     /// A note when the scene is too large for the brightness and

@@ -12,7 +12,8 @@
 
 use crate::compile::{prune::mode_fates, CompileOptions};
 use crate::instrument::{
-    prepare, prepare_scene, scene_for, InstrumentParams, Prepared, SceneParams,
+    lookahead_samples, prepare, prepare_scene, scene_for, InstrumentParams, Prepared, SceneParams,
+    StrikeCost,
 };
 use crate::presets;
 use crate::scene::Scene;
@@ -84,9 +85,26 @@ pub struct CompileReport {
     /// Sample rate compiled for \[Hz\].
     pub rate_hz: f64,
     /// What the user should know (exact switching refused, a stiff
-    /// contact, strikes that may overrun the host's block, a scene too
-    /// large for the brightness levels).
+    /// contact, a scene too large for the brightness levels).
     pub warnings: Vec<String>,
+    /// The scene's strike cost and the host's largest block: the editor
+    /// says the strike warning for the Polyphony and Lookahead of the
+    /// moment ([`CompileReport::strike_warning`]).
+    pub strike: Option<(StrikeCost, usize)>,
+}
+
+impl CompileReport {
+    /// The strike warning at `polyphony` voices and a lookahead of
+    /// `lookahead_s` seconds (`None`: it fits, or no scene compiled).
+    /// \[main-thread\]
+    pub fn strike_warning(&self, polyphony: usize, lookahead_s: f64) -> Option<String> {
+        let (cost, max_block) = self.strike.as_ref()?;
+        cost.warning(
+            *max_block,
+            polyphony,
+            lookahead_samples(lookahead_s, cost.rate_hz),
+        )
+    }
 }
 
 /// The user scene state of one plugin instance (see the module doc).
@@ -236,13 +254,17 @@ impl SceneLibrary {
                 report.warnings = [
                     p.fallback_note.clone(),
                     p.realtime_warning(),
-                    p.strike_warning(host.max_block, host.polyphony, host.lookahead),
                     p.timbre_note(),
                 ]
                 .into_iter()
                 .flatten()
                 .collect();
-                Ok((p, report.warnings.clone()))
+                report.strike = Some((p.strike_cost(), host.max_block));
+                // the log says the strike warning for the compile's
+                // parameters; the editor says it for the current ones
+                let mut log = report.warnings.clone();
+                log.extend(p.strike_warning(host.max_block, host.polyphony, host.lookahead));
+                Ok((p, log))
             }
             Err(e) => {
                 if user.is_some() {
@@ -426,6 +448,64 @@ gain = 0.5
         assert_eq!(r.spectrum[0].level, 1.0);
         assert!(r.summary.contains("compiled in"), "{}", r.summary);
         assert_eq!(lib.playing().unwrap().name, "mine");
+    }
+
+    /// The strike warning follows the Polyphony and Lookahead of the
+    /// moment (the editor asks the report again at every frame), not those
+    /// of the compile; the log gets it for the compile's.
+    #[test]
+    fn the_strike_warning_follows_polyphony_and_lookahead() {
+        // THREE_MODES with 300 modes: a 16-note chord overruns 64 samples
+        let head = THREE_MODES.split("[[object.mode]]").next().unwrap();
+        let tail = &THREE_MODES[THREE_MODES.find("[hammer]").unwrap()..];
+        let modes: String = (0..300)
+            .map(|k| {
+                format!(
+                    "[[object.mode]]\nfreq_hz = {}\nt60_s = 1.0\nweights = [1.0, {}]\n\n",
+                    220.0 * 1.013f64.powi(k),
+                    if k % 2 == 0 { 0.7 } else { -0.5 }
+                )
+            })
+            .collect();
+        let lib = SceneLibrary::default();
+        lib.load(user(&format!("{head}{modes}{tail}")));
+        let host = HostBlocks {
+            max_block: 64,
+            polyphony: 16,
+            lookahead: 0,
+        };
+        let (_, log) = lib.prepare(&wanted(&lib), 48_000.0, 1, host).unwrap();
+        let r = lib.report();
+        let w = r
+            .strike_warning(16, 0.0)
+            .expect("16 strikes overrun 64 samples");
+        assert!(
+            log.contains(&w),
+            "the log says it for the compile's parameters"
+        );
+        assert!(
+            !r.warnings.contains(&w),
+            "the report keeps the cost, not the text"
+        );
+        let ms: f64 = w
+            .split("a Lookahead of ")
+            .nth(1)
+            .and_then(|x| x.split(" ms").next())
+            .and_then(|x| x.parse().ok())
+            .unwrap_or_else(|| panic!("{w}"));
+        println!("300 modes at 64 samples: {w}");
+        assert!(
+            r.strike_warning(16, ms * 1e-3).is_none(),
+            "that lookahead spreads it"
+        );
+        // one strike alone takes more than half the block; a millisecond of
+        // lookahead spreads it
+        assert!(r.strike_warning(1, 0.0).is_some());
+        assert!(r.strike_warning(1, 1e-3).is_none());
+        assert!(
+            r.strike_warning(64, ms * 1e-3).is_some(),
+            "64 voices need more"
+        );
     }
 
     #[test]

@@ -189,7 +189,10 @@ impl App {
                 ui.label(RichText::new(&report.summary).small());
             }
         }
-        for w in &report.warnings {
+        // the strike warning for the Polyphony and Lookahead of the moment
+        let play = self.link.params.play_params();
+        let strike = report.strike_warning(play.polyphony, play.lookahead_s);
+        for w in report.warnings.iter().chain(&strike) {
             ui.colored_label(Color32::from_rgb(240, 180, 60), RichText::new(w).small());
         }
     }
