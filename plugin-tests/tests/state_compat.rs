@@ -41,7 +41,7 @@ fn saved_back(saved: &str) -> String {
     saved
         .replace(
             r#""pitch_tracking":{"bool":false},"#,
-            r#""pitch_tracking":{"bool":false},"polyphony":{"i32":16},"#,
+            r#""lookahead":{"i32":0},"pitch_tracking":{"bool":false},"polyphony":{"i32":16},"#,
         )
         .replace(
             r#""params":{"contact_damping""#,
@@ -74,6 +74,10 @@ fn a_state_saved_before_the_single_list_loads_unchanged() {
     // new since: its default, 16 voices (CLAP value: the step from 1)
     let poly = p.param_value(param_id(ids::POLYPHONY));
     assert!((poly - 15.0).abs() < 1e-6, "polyphony step {poly}");
+    // and no lookahead (no latency)
+    let lookahead = p.param_value(param_id(ids::LOOKAHEAD));
+    assert_eq!(lookahead, 0.0, "lookahead step {lookahead}");
+    assert_eq!(p.latency(), 0);
     // Saving again gives the same bytes: every value was taken as saved (a
     // refused one would have been replaced by its default) and the format
     // is the same; the parameters added since come at their defaults.
