@@ -440,8 +440,10 @@ impl Instrument {
                     energy_j: st.energy_rt(scene),
                 });
             }
-            self.lanes.work_ns +=
-                len as f64 * p.step_cost_ns() + new_contacts as f64 * p.contact_cost_ns();
+            if self.lanes.meter == WorkMeter::Estimate {
+                self.lanes.work_ns +=
+                    len as f64 * p.step_cost_ns() + new_contacts as f64 * p.contact_cost_ns();
+            }
             self.lanes.push(i, &self.vbuf, len);
             self.lanes.settled[i] = false;
         } else {

@@ -171,7 +171,8 @@ impl Instrument {
     /// Move every voice whose note asks for another variant (a brightness,
     /// a host's polyphonic modulation) to that variant's scene
     /// ([`Instrument::move_timbre`]); a voice whose hammer is in contact
-    /// waits for its grid actions ([`Instrument::grid_actions`]).
+    /// waits for its next grid actions (on its own clock, in
+    /// `Instrument::advance_voice`).
     /// Allocation-free. \[audio-thread\]
     pub(super) fn apply_timbre(&mut self) {
         let mut pending = false;
