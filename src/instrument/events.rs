@@ -1,8 +1,8 @@
 //! What a host sends the instrument: notes and pedals at sample offsets.
 
 /// What a host sends: notes. Times are sample offsets within the block
-/// passed to \[`Instrument::process`\] (or the caller renders up to the event
-/// with \[`Instrument::render`\] and then calls \[`Instrument::handle`\]).
+/// passed to \[`Instrument::process`\] (or \[`Instrument::process_events`\],
+/// which takes them one at a time).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Event {
     /// Strike `key` with `velocity_norm` in 0..1.
