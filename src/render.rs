@@ -442,6 +442,43 @@ fn join_writer<W>(
 /// A chunk of rows and its place in the file.
 type Chunk = (u64, Vec<TraceRow>);
 
+/// The sending end of a trace's threads: hands numbered chunks on (the
+/// next thread puts them back in order) and takes spent buffers back for
+/// reuse.
+struct ChunkQueue<T> {
+    seq: u64,
+    to: Option<crossbeam::channel::Sender<(u64, Vec<T>)>>,
+    spare: crossbeam::channel::Receiver<Vec<T>>,
+}
+
+impl<T> ChunkQueue<T> {
+    /// Hand `buf` on as the next chunk, leaving an empty buffer of
+    /// `capacity` (a spare one if any) in its place; an error if the
+    /// threads have stopped (a failed write: the sink's `finish` returns
+    /// it).
+    fn send(&mut self, buf: &mut Vec<T>, capacity: usize) -> std::io::Result<()> {
+        let mut fresh = self
+            .spare
+            .try_recv()
+            .unwrap_or_else(|_| Vec::with_capacity(capacity));
+        fresh.clear();
+        let chunk = std::mem::replace(buf, fresh);
+        let stopped = || std::io::Error::other("the trace writer stopped");
+        self.to
+            .as_ref()
+            .ok_or_else(stopped)?
+            .send((self.seq, chunk))
+            .map_err(|_| stopped())?;
+        self.seq += 1;
+        Ok(())
+    }
+
+    /// No more chunks: the threads finish what they have and end.
+    fn close(&mut self) {
+        self.to = None;
+    }
+}
+
 /// Writes the trace CSV as it goes (docs/design.md, "The render command and
 /// the trace CSV"): the render hands rows in chunks of `CSV_CHUNK_ROWS`
 /// (4096) to formatting threads (one per core, at most
@@ -453,9 +490,7 @@ type Chunk = (u64, Vec<TraceRow>);
 pub struct CsvTrace<W: Write + Send + 'static> {
     rate_hz: f64,
     rows: Vec<TraceRow>,
-    seq: u64,
-    to_format: Option<crossbeam::channel::Sender<Chunk>>,
-    spare: crossbeam::channel::Receiver<Vec<TraceRow>>,
+    queue: ChunkQueue<TraceRow>,
     formatters: Vec<std::thread::JoinHandle<()>>,
     writer: Option<std::thread::JoinHandle<std::io::Result<W>>>,
 }
@@ -509,9 +544,11 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
         Ok(Self {
             rate_hz,
             rows: Vec::with_capacity(CSV_CHUNK_ROWS),
-            seq: 0,
-            to_format: Some(to_format),
-            spare,
+            queue: ChunkQueue {
+                seq: 0,
+                to: Some(to_format),
+                spare,
+            },
             formatters: threads,
             writer: Some(writer),
         })
@@ -521,25 +558,13 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
     /// writer has stopped (a failed write: [`finish`](Self::finish) returns
     /// it).
     fn send(&mut self) -> std::io::Result<()> {
-        let fresh = self
-            .spare
-            .try_recv()
-            .unwrap_or_else(|_| Vec::with_capacity(CSV_CHUNK_ROWS));
-        let rows = std::mem::replace(&mut self.rows, fresh);
-        let stopped = || std::io::Error::other("the trace writer stopped");
-        self.to_format
-            .as_ref()
-            .ok_or_else(stopped)?
-            .send((self.seq, rows))
-            .map_err(|_| stopped())?;
-        self.seq += 1;
-        Ok(())
+        self.queue.send(&mut self.rows, CSV_CHUNK_ROWS)
     }
 
     /// Stop the threads and wait for them: the writer's result, or an error
     /// if a thread panicked.
     fn join(&mut self) -> std::io::Result<W> {
-        self.to_format = None;
+        self.queue.close();
         let mut panicked = false;
         for t in self.formatters.drain(..) {
             panicked |= t.join().is_err();
@@ -632,10 +657,8 @@ pub struct NpyTrace<W: Write + Send + 'static> {
     rate_hz: f64,
     rows: usize,
     written: usize,
-    seq: u64,
     buf: Vec<u8>,
-    to_writer: Option<crossbeam::channel::Sender<(u64, Vec<u8>)>>,
-    spare: crossbeam::channel::Receiver<Vec<u8>>,
+    queue: ChunkQueue<u8>,
     writer: Option<std::thread::JoinHandle<std::io::Result<W>>>,
 }
 
@@ -655,10 +678,12 @@ impl<W: Write + Send + 'static> NpyTrace<W> {
             rate_hz,
             rows,
             written: 0,
-            seq: 0,
             buf: Vec::with_capacity(Self::CHUNK),
-            to_writer: Some(to_writer),
-            spare,
+            queue: ChunkQueue {
+                seq: 0,
+                to: Some(to_writer),
+                spare,
+            },
             writer: Some(writer),
         })
     }
@@ -666,26 +691,13 @@ impl<W: Write + Send + 'static> NpyTrace<W> {
     /// Hand the records so far to the writer; an error if it has stopped
     /// (a failed write: [`finish`](Self::finish) returns it).
     fn send(&mut self) -> std::io::Result<()> {
-        let mut fresh = self
-            .spare
-            .try_recv()
-            .unwrap_or_else(|_| Vec::with_capacity(Self::CHUNK));
-        fresh.clear();
-        let chunk = std::mem::replace(&mut self.buf, fresh);
-        let stopped = || std::io::Error::other("the trace writer stopped");
-        self.to_writer
-            .as_ref()
-            .ok_or_else(stopped)?
-            .send((self.seq, chunk))
-            .map_err(|_| stopped())?;
-        self.seq += 1;
-        Ok(())
+        self.queue.send(&mut self.buf, Self::CHUNK)
     }
 
     /// Stop the writer and wait for it: its result, or an error if it
     /// panicked.
     fn join(&mut self) -> std::io::Result<W> {
-        self.to_writer = None;
+        self.queue.close();
         join_writer(&mut self.writer)
     }
 
