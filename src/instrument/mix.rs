@@ -106,9 +106,9 @@ pub(super) struct Lanes {
 
 impl Lanes {
     pub(super) fn new() -> Self {
-        Self {
+        let mut lanes = Self {
             lookahead: 0,
-            mask: OUT_EVERY.next_power_of_two() - 1,
+            mask: 0,
             out_pos: 0,
             out_floor: 0,
             start: [0; LANES],
@@ -121,7 +121,9 @@ impl Lanes {
             block_start: None,
             meter: WorkMeter::Clock,
             work_fraction: LOOKAHEAD_WORK_FRACTION,
-        }
+        };
+        lanes.restart(0, 0);
+        lanes
     }
 
     fn at(&self, lane: usize, t: u64) -> usize {
