@@ -6,8 +6,10 @@
 //! presets and on a 100-mode object, with scripts that play everything a
 //! host can send (chords on one sample and notes a sample apart, note-offs,
 //! pedals, the bend wheel, pressures, the mod wheel, brightness, per-note
-//! tuning and modulation) in host blocks of random lengths; and that the
-//! strikes of a chord really leave the block that holds it.
+//! tuning and modulation) in host blocks of random lengths; that the
+//! strikes of a chord really leave the block that holds it; and, the base
+//! of all of it, that without a lookahead the same scripts give the same
+//! samples in any host blocks.
 
 use modal_contact::instrument::{
     prepare, prepare_scene, Event, Instrument, InstrumentParams, Prepared, TimedEvent, VoiceChunk,
@@ -470,4 +472,66 @@ fn the_live_view_sees_the_same_chunks_under_a_lookahead() {
         plain.len()
     );
     assert_eq!(plain, late);
+}
+
+/// Without a lookahead too, the output does not depend on how the host
+/// splits its blocks, pressure included (docs/plugin.md, "Pressure and the
+/// mod wheel": pressing is decided on the instrument's 64-sample grid and
+/// at the events that change a voice, never where a host block ends): the
+/// same random scripts in blocks of one sample, of 512 and of random
+/// lengths give the same samples bit for bit.
+#[test]
+fn the_output_does_not_depend_on_the_hosts_blocks() {
+    let n = 48_000;
+    for (name, make) in [
+        (
+            "marimba-bar",
+            Box::new(|| preset("marimba-bar")) as Box<dyn Fn() -> Box<Prepared>>,
+        ),
+        ("paper-string", Box::new(|| preset("paper-string"))),
+        ("frame-drum", Box::new(|| preset("frame-drum"))),
+        ("100 modes", Box::new(|| modal(100))),
+    ] {
+        for seed in [3u64, 5, 8, 13] {
+            let events = script(seed, n);
+            let pressed = events.iter().any(|e| {
+                matches!(
+                    e.event,
+                    Event::NotePressure { .. }
+                        | Event::ChannelPressure { .. }
+                        | Event::ModWheel { .. }
+                )
+            });
+            let mut outs = Vec::new();
+            for blocks in [vec![512], vec![1], random_blocks(seed)] {
+                let mut inst = Instrument::new(make(), InstrumentParams::default().play);
+                outs.push((render(&mut inst, &events, n, &blocks), inst.stats));
+            }
+            let ([l0, r0], a) = &outs[0];
+            let peak = l0.iter().fold(0.0f32, |m, x| m.max(x.abs()));
+            assert!(peak > 1e-3, "the script sounds (peak {peak})");
+            for ([l1, r1], b) in &outs[1..] {
+                let differ = (0..n)
+                    .filter(|&t| {
+                        l1[t].to_bits() != l0[t].to_bits() || r1[t].to_bits() != r0[t].to_bits()
+                    })
+                    .count();
+                let worst = (0..n).fold(0.0f32, |m, t| m.max((l1[t] - l0[t]).abs()));
+                assert_eq!(
+                    differ, 0,
+                    "{name}, seed {seed}: {differ} of {n} samples differ, by up to {:.2e} of the peak",
+                    worst / peak
+                );
+                assert_eq!(a, b);
+            }
+            assert!(
+                !pressed || a.pressed_samples > 0,
+                "{name}, seed {seed}: nothing pressed"
+            );
+            println!(
+                "{name}, seed {seed}: {n} samples equal in blocks of 512, 1 and random lengths, peak {peak:.3}, {} voice samples pressed",
+                a.pressed_samples
+            );
+        }
+    }
 }

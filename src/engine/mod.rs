@@ -522,6 +522,48 @@ impl EngineState {
         (!self.in_contact()).then_some((self.x_h, self.v_h * self.time_scale))
     }
 
+    /// Whether the hammer is clear of the object for as long as both fly
+    /// free: in flight, not falling back (no gravity, not moving down) and
+    /// higher than the object's contact point can reach from its present
+    /// state. Every block of the free phase is a contraction, so block
+    /// `k`'s share of the contact point's displacement stays within `e_k
+    /// |s_k|` (`CompiledPhase::ev_block`) and the point below their sum,
+    /// while the hammer only rises. Also when that motion is damped more (a
+    /// pressed voice: the object's state times a factor below 1), so a
+    /// voice that is clear is pressed exactly by scaling its samples
+    /// (docs/plugin.md, "Pressure and the mod wheel"). False for a dense
+    /// free phase (no blocks to bound). The margin `1e-9` covers the sum's
+    /// rounding and each step's `1 + 1e-12` of the blocks' contraction over
+    /// far more steps than the 64 a decision stands for. O(N). \[audio-thread\]
+    pub fn hammer_clear(&self, scene: &CompiledScene) -> bool {
+        let ph = &scene.free;
+        let nb = ph.dim / 2;
+        if self.in_contact() || self.g != 0.0 || !(self.v_h >= 0.0) || ph.ev_block.len() != nb {
+            return false;
+        }
+        let s = &self.phases[FREE].s;
+        let reach: f64 = (0..nb)
+            .map(|k| ph.ev_block[k] * s[k].hypot(s[nb + k]))
+            .sum();
+        self.x_h > reach * (1.0 + 1e-9)
+    }
+
+    /// [`energy_rt`](Self::energy_rt) of this state with the object's
+    /// free state times `factor` (a pressed voice between two updates of
+    /// its state, [`scale_free_state`](Self::scale_free_state)): the
+    /// object's energy times `factor^2`, the hammer's as it is. In contact
+    /// (never pressed) `energy_rt`. \[audio-thread after `reserve_observation`\]
+    pub fn energy_rt_scaled(&mut self, scene: &CompiledScene, factor: f64) -> f64 {
+        let e = self.energy_rt(scene);
+        if factor == 1.0 || self.in_contact() {
+            return e;
+        }
+        let s = self.time_scale;
+        let hammer =
+            s * s * (0.5 * scene.m_h * self.v_h * self.v_h + scene.m_h * scene.g * self.x_h);
+        (e - hammer) * factor * factor + hammer
+    }
+
     /// Multiply the free phase's state by `factor` (in `(0, 1]`): added
     /// mass-proportional damping over the samples it stands for (the
     /// instrument's pressure, docs/plugin.md, "Pressure and the mod

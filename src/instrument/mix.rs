@@ -20,8 +20,7 @@
 use super::events::TimedEvent;
 use super::probe::VoiceChunk;
 use super::{
-    Event, Instrument, BEND_TICK_SAMPLES, CHECK_INTERVAL_SAMPLES, MAX_PRESSURE_DECAY_PER_S,
-    MAX_VOICES, OUTPUT_CEILING,
+    Event, Instrument, BEND_TICK_SAMPLES, CHECK_INTERVAL_SAMPLES, MAX_VOICES, OUTPUT_CEILING,
 };
 use crate::compile::CompiledScene;
 use crate::engine::denormal::FlushDenormals;
@@ -384,9 +383,12 @@ impl Instrument {
             {
                 // the silence check, and a brightness that waited for its
                 // contact to end (on the instrument's silence-check grid)
+                // (with the damper's decision, taken on the same grid)
                 self.lanes.settled[i] = true;
+                self.press_flush(i);
                 self.stop_if_silent(i);
                 self.move_timbre(i);
+                self.press_decide(i);
                 continue;
             }
             if t >= to {
@@ -412,24 +414,18 @@ impl Instrument {
         } else {
             None
         };
-        // damper pressure (docs/plugin.md, "Pressure and the mod
-        // wheel"): applied exactly where the hammer has left for good
-        // (no gravity, above the object's rest position and rising) and
-        // the chunk held no contact
-        let press = v.pressure.max(self.channel_pressure).max(self.mod_wheel);
-        let leaving = press > 0.0
-            && !p.bouncing
-            && st
-                .hammer_in_flight()
-                .is_some_and(|(x, up)| x > 0.0 && up >= 0.0);
         let contacts = st.contacts_started;
         let observing = observe.is_some();
         if tick_into(st, scene, &mut self.vbuf, len, 1.0, 0.0, observe) {
-            if leaving && !st.in_contact() && st.contacts_started == contacts {
-                let q = (-MAX_PRESSURE_DECAY_PER_S * press / p.rate_hz).exp();
+            // damper pressure (docs/plugin.md, "Pressure and the mod
+            // wheel"): the voice was found clear of its hammer when it was
+            // last decided, so its pressed motion is the free motion times
+            // the damper's decay, sample by sample
+            if let Some(pr) = v.pressing.as_mut() {
+                debug_assert!(!st.in_contact() && st.contacts_started == contacts);
                 let motion = observing.then_some(&mut self.motion[..len]);
-                let g = decay_into(&mut self.vbuf, len, q, motion);
-                st.scale_free_state(g);
+                pr.g = decay_into(&mut self.vbuf, len, pr.g, pr.q, motion);
+                self.stats.pressed_samples += len as u64;
             }
             let new_contacts = st.contacts_started - contacts;
             if let Some(probe) = self.probe.as_deref_mut().filter(|_| self.probe_on) {
@@ -439,7 +435,7 @@ impl Instrument {
                     released: v.released,
                     start: t0,
                     motion: &self.motion[..len],
-                    energy_j: st.energy_rt(scene),
+                    energy_j: st.energy_rt_scaled(scene, v.pressing.map_or(1.0, |pr| pr.g)),
                 });
             }
             if self.lanes.meter == WorkMeter::Estimate {
@@ -451,6 +447,7 @@ impl Instrument {
         } else {
             st.reset(&p.scenes.scene);
             v.active = false;
+            v.pressing = None;
             self.stats.nonfinite_resets += 1;
         }
     }
@@ -615,17 +612,16 @@ fn tick_into(
     finite
 }
 
-/// The samples of a chunk rendered without the pressure, as with it: sample
-/// `k` (the state at the chunk's start `k` samples on) times `q^k`, and
-/// the contact point's motion likewise; returns `q^len`, the factor the
-/// state after the chunk takes.
+/// Multiply the `len` samples of `buf` (and the probe's contact point) by
+/// `g, g q, g q^2, ...` (a pressed voice's damper, continuing from `g`);
+/// returns `g q^len`.
 fn decay_into(
     buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
     len: usize,
+    mut g: f64,
     q: f64,
     mut motion: Option<&mut [Motion]>,
 ) -> f64 {
-    let mut g = 1.0;
     for k in 0..len {
         buf[0][k] *= g;
         buf[1][k] *= g;

@@ -204,6 +204,9 @@ pub struct Stats {
     pub silent_stops: u64,
     /// Note-ons.
     pub notes: u64,
+    /// Voice samples rendered under a pressed damper (docs/plugin.md,
+    /// "Pressure and the mod wheel").
+    pub pressed_samples: u64,
     /// Output samples that reached [`OUTPUT_CEILING`] (or were not finite
     /// after mixing, written as 0).
     pub ceiling_hits: u64,
@@ -416,7 +419,6 @@ impl Instrument {
         let target = self.bend_target();
         let step = BEND_SLEW_SEMITONES_PER_S * BEND_TICK_SAMPLES as f64 / self.cur.rate_hz;
         self.bend_now = slew(self.bend_now, target, step);
-        let p = &mut *self.cur;
         let mut pending = false;
         let mut tuning_moving = false;
         for i in 0..MAX_VOICES {
@@ -425,19 +427,23 @@ impl Instrument {
                 continue;
             }
             v.tuning_now = slew(v.tuning_now, v.tuning_target, step);
-            if p.bouncing {
+            if self.cur.bouncing {
                 continue;
             }
             tuning_moving |= v.tuning_now != v.tuning_target;
             let s = v.base_scale * 2f64.powf((self.bend_now + v.tuning_now) / 12.0);
-            let st = &mut p.states[i];
-            if st.time_scale() == s {
+            if self.cur.states[i].time_scale() == s {
                 continue;
             }
+            // a pressed voice takes its damper's decay first, and is
+            // decided again at its new pitch
+            self.press_flush(i);
+            let (p, v) = (&mut *self.cur, &self.voices[i]);
             // Err: a voice that cannot scale time (dense fallback) stays put
-            if let Ok(false) = st.bend_time_scale(p.scenes.bound(v.at, v.on_damped), s) {
+            if let Ok(false) = p.states[i].bend_time_scale(p.scenes.bound(v.at, v.on_damped), s) {
                 pending = true;
             }
+            self.press_decide(i);
         }
         self.bend_pending = pending;
         self.tuning_moving = tuning_moving;
@@ -450,26 +456,31 @@ impl Instrument {
         } else {
             semitones.clamp(-MAX_NOTE_TUNING_SEMITONES, MAX_NOTE_TUNING_SEMITONES)
         };
-        let p = &mut *self.cur;
         for i in 0..MAX_VOICES {
             let v = &mut self.voices[i];
             if !v.active || key.is_some_and(|k| k != v.key) {
                 continue;
             }
             v.tuning_target = t;
-            if p.bouncing || v.tuning_now == t {
+            if self.cur.bouncing || v.tuning_now == t {
                 continue;
             }
-            let st = &mut p.states[i];
-            if v.onset_pos == self.sample_pos && !st.in_contact() {
+            if v.onset_pos == self.sample_pos && !self.cur.states[i].in_contact() {
                 // at the onset: the note starts at its tuned pitch (the
                 // hammer keeps its physical speed, the object its energy;
                 // the silence test's reference follows the units)
+                self.press_flush(i);
+                let (p, v) = (&mut *self.cur, &mut self.voices[i]);
+                let st = &mut p.states[i];
                 let s = v.base_scale * 2f64.powf((self.bend_now + t) / 12.0);
                 let s_old = st.time_scale();
-                if let Ok(true) = st.bend_time_scale(p.scenes.bound(v.at, v.on_damped), s) {
+                let tuned = st.bend_time_scale(p.scenes.bound(v.at, v.on_damped), s);
+                if let Ok(true) = tuned {
                     v.tuning_now = t;
                     v.strike_energy *= (s_old / s) * (s_old / s);
+                }
+                self.press_decide(i);
+                if let Ok(true) = tuned {
                     continue;
                 }
             }
@@ -528,10 +539,12 @@ impl Instrument {
             && new.rate_hz == self.cur.rate_hz;
         let mut any_fade = false;
         for i in 0..MAX_VOICES {
-            let v = &mut self.voices[i];
-            if !v.active {
+            if !self.voices[i].active {
                 continue;
             }
+            // a pressed voice's state takes its damper's decay so far
+            self.press_flush(i);
+            let v = &mut self.voices[i];
             // a variant the new scene set lacks plays the nearest it has
             // (`Scenes::bound`)
             let to_damped = v.released && new.scenes.damped_for(v.at.damper).is_some();
@@ -559,6 +572,7 @@ impl Instrument {
             }
         }
         let old = std::mem::replace(&mut self.cur, new);
+        (0..MAX_VOICES).for_each(|i| self.press_decide(i));
         self.stats.swaps += 1;
         if any_fade {
             self.fading = Some(old);
@@ -623,9 +637,11 @@ impl Instrument {
             Event::NoteTuning { key, semitones } => self.note_tuning(key, semitones),
             Event::NotePressure { key, value } => {
                 let value = unit(value);
-                for v in &mut self.voices {
+                for i in 0..MAX_VOICES {
+                    let v = &mut self.voices[i];
                     if v.active && key.is_none_or(|k| k == v.key) {
                         v.pressure = value;
+                        self.repress(i);
                     }
                 }
             }
@@ -645,8 +661,14 @@ impl Instrument {
                 let level = damper_level(offset);
                 self.want_levels(key, |v| v.want.damper = level);
             }
-            Event::ChannelPressure { value } => self.channel_pressure = unit(value),
-            Event::ModWheel { value } => self.mod_wheel = unit(value),
+            Event::ChannelPressure { value } => {
+                self.channel_pressure = unit(value);
+                (0..MAX_VOICES).for_each(|i| self.repress(i));
+            }
+            Event::ModWheel { value } => {
+                self.mod_wheel = unit(value);
+                (0..MAX_VOICES).for_each(|i| self.repress(i));
+            }
             Event::Sostenuto { down } => {
                 if down && !self.pedals.sostenuto {
                     self.pedals.sostenuto_keys = self.pedals.keys_down;

@@ -1174,6 +1174,37 @@ fn pressure_only_takes_energy_and_spares_strikes_and_bouncing_scenes() {
     assert!(b.voice_state_mut(0).contacts_started >= 1);
     println!("pressed from the onset: the first sample that differs is {first}");
     assert!((10..4000).contains(&first), "{first}");
+    // on every preset that does not bounce: the damper waits until the
+    // hammer is clear (on the 64-sample grid), so a note pressed from its
+    // onset has the same contacts as an unpressed one and the same samples
+    // until the first pressed one
+    for preset in presets::PRESETS {
+        let p = params(preset.name);
+        let (mut a, mut b) = (instrument(&p), instrument(&p));
+        if a.cur.bouncing {
+            continue;
+        }
+        let n = 6000;
+        let ya = render(&mut a, &[on(0, 60, 0.9), pressure(0, Some(60), 1.0)], n)[0].clone();
+        let yb = render(&mut b, &[on(0, 60, 0.9)], n)[0].clone();
+        let first = ya.iter().zip(&yb).position(|(x, y)| x != y);
+        assert!(a.voices[0].active, "{}", preset.name);
+        let (ca, cb) = (
+            a.voice_state_mut(0).contacts_started,
+            b.voice_state_mut(0).contacts_started,
+        );
+        println!(
+            "{}: pressed from the onset, {ca} contacts (unpressed {cb}), the first pressed sample {:?} ({:.1} ms), {} pressed",
+            preset.name,
+            first,
+            first.map_or(f64::NAN, |f| f as f64 / RATE * 1e3),
+            a.stats.pressed_samples
+        );
+        let first = first.expect("pressed");
+        assert!(first % 64 == 0 || first % 64 == 1, "{first}: on the grid");
+        assert!(a.stats.pressed_samples > 0);
+        assert_eq!(ca, cb, "{}: the strike is never changed", preset.name);
+    }
     // a new note on the key starts unpressed
     let _ = render(&mut a, &[on(0, 60, 0.8)], 1);
     assert_eq!(a.voices[0].pressure, 0.0);

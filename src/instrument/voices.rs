@@ -3,7 +3,9 @@
 //! damper at note-off, and silence detection.
 
 use super::prepared::{Prepared, Variant};
-use super::{impact_speed_m_per_s, Instrument, MAX_VOICES, SILENCE_ENERGY_RATIO};
+use super::{
+    impact_speed_m_per_s, Instrument, MAX_PRESSURE_DECAY_PER_S, MAX_VOICES, SILENCE_ENERGY_RATIO,
+};
 use crate::compile::CompiledScene;
 use crate::engine::EngineState;
 
@@ -45,15 +47,32 @@ pub(super) struct Voice {
     pub(super) bright_level: i8,
     /// Its note's hardness modulation level ([`super::Event::NoteHardness`]).
     pub(super) hard_level: i8,
+    /// The damper pressing it since its last decision (`None`: not
+    /// pressed), see [`Instrument::press_decide`].
+    pub(super) pressing: Option<Pressing>,
+}
+
+/// A pressed voice between two updates of its state (docs/plugin.md,
+/// "Pressure and the mod wheel"): its engine runs the free motion, each
+/// sample leaves multiplied by `g` (then `g *= q`), and the state takes the
+/// product at the next decision ([`Instrument::press_flush`]).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Pressing {
+    /// `e^(-a dt)`: the decay the damper adds per sample.
+    pub(super) q: f64,
+    /// What the damper took since the decision: `q^k` after `k` samples.
+    pub(super) g: f64,
 }
 
 impl Instrument {
     pub(super) fn note_on(&mut self, key: u8, velocity_norm: f64) {
         self.stats.notes += 1;
         let speed = impact_speed_m_per_s(velocity_norm);
-        let p = &mut *self.cur;
         let idx = if let Some(i) = self.voices.iter().position(|v| v.active && v.key == key) {
-            // Same key still ringing: strike the moving object again.
+            // Same key still ringing: strike the moving object again (what
+            // its damper took so far goes into its state first).
+            self.press_flush(i);
+            let p = &mut *self.cur;
             let v = &mut self.voices[i];
             if v.on_damped || v.at != Variant::default() {
                 // back to the played scene: a new note starts at level 0
@@ -78,6 +97,7 @@ impl Instrument {
             }
             i
         } else {
+            let p = &mut *self.cur;
             let poly = self.play.polyphony.clamp(1, MAX_VOICES);
             let i = match self.voices[..poly].iter().position(|v| !v.active) {
                 Some(i) => {
@@ -125,9 +145,11 @@ impl Instrument {
                 want: Variant::default(),
                 bright_level: 0,
                 hard_level: 0,
+                pressing: None,
             };
             i
         };
+        let p = &mut *self.cur;
         let st = &mut p.states[idx];
         let s = st.time_scale();
         let v_ref = speed / s;
@@ -157,6 +179,7 @@ impl Instrument {
     /// Release voice `i`: the damper falls (it continues on the damped
     /// scene of its damper level when there is one).
     pub(super) fn release_voice(&mut self, i: usize) {
+        self.press_flush(i);
         let p = &mut *self.cur;
         let v = &mut self.voices[i];
         v.released = true;
@@ -166,6 +189,7 @@ impl Instrument {
                 v.at.damper = v.want.damper;
             }
         }
+        self.press_decide(i);
     }
 
     /// Move every voice whose note asks for another variant (a brightness,
@@ -191,23 +215,29 @@ impl Instrument {
     /// on the silence-check grid). A released voice moves between the
     /// damped scenes of its damper levels. Allocation-free. \[audio-thread\]
     pub(super) fn move_timbre(&mut self, i: usize) -> bool {
-        let p = &mut *self.cur;
+        let p = &*self.cur;
         let v = &mut self.voices[i];
         if !v.active || v.at == v.want {
             return false;
         }
         let to_damped = v.released && p.scenes.damped_for(v.want.damper).is_some();
-        let from = p.scenes.bound(v.at, v.on_damped);
-        let to = p.scenes.bound(v.want, to_damped);
-        if std::ptr::eq(from, to) {
+        if std::ptr::eq(
+            p.scenes.bound(v.at, v.on_damped),
+            p.scenes.bound(v.want, to_damped),
+        ) {
             v.at = v.want;
             v.on_damped = to_damped;
             return false;
         }
-        let st = &mut p.states[i];
-        if st.in_contact() {
+        if p.states[i].in_contact() {
             return true;
         }
+        self.press_flush(i);
+        let p = &mut *self.cur;
+        let v = &mut self.voices[i];
+        let from = p.scenes.bound(v.at, v.on_damped);
+        let to = p.scenes.bound(v.want, to_damped);
+        let st = &mut p.states[i];
         let moved = if !v.on_damped && !to_damped && p.scenes.same_free(v.at, v.want) {
             st.rebind_same_free(from, to)
         } else {
@@ -220,7 +250,52 @@ impl Instrument {
             // a variant it cannot be carried to: it stays where it is
             v.want = v.at;
         }
+        self.press_decide(i);
         false
+    }
+
+    /// Put what voice `i`'s damper took since its last decision into its
+    /// state ([`EngineState::scale_free_state`]) and stop pressing it; the
+    /// first thing anything that changes the voice does, so the damper
+    /// acts between decisions taken on the instrument's grid and at events,
+    /// never where a host block ends. O(N). \[audio-thread\]
+    pub(super) fn press_flush(&mut self, i: usize) {
+        if let Some(pr) = self.voices[i].pressing.take() {
+            if pr.g != 1.0 {
+                let taken = self.cur.states[i].scale_free_state(pr.g);
+                debug_assert!(taken, "a pressed voice is out of contact");
+            }
+        }
+    }
+
+    /// Decide whether voice `i` is pressed from now to its next decision:
+    /// when its pressure (the largest of its note's, the channel's and the
+    /// mod wheel's) is above 0, the scene does not bounce, and its hammer is
+    /// clear of the object ([`EngineState::hammer_clear`]: no contact can
+    /// start before the next decision, pressed or not, so scaling the free
+    /// motion's samples is the pressed motion exactly). Taken on the
+    /// voice's 64-sample grid and after every event that changes it (a
+    /// pressure, a release, a bend's update, a move to another variant).
+    /// O(N). \[audio-thread\]
+    pub(super) fn press_decide(&mut self, i: usize) {
+        let p = &*self.cur;
+        let v = &self.voices[i];
+        if !v.active || v.pressing.is_some() || p.bouncing {
+            return;
+        }
+        let press = v.pressure.max(self.channel_pressure).max(self.mod_wheel);
+        if press > 0.0 && p.states[i].hammer_clear(p.scenes.bound(v.at, v.on_damped)) {
+            let q = (-MAX_PRESSURE_DECAY_PER_S * press / p.rate_hz).exp();
+            self.voices[i].pressing = Some(Pressing { q, g: 1.0 });
+        }
+    }
+
+    /// [`press_flush`](Self::press_flush) then
+    /// [`press_decide`](Self::press_decide): a voice whose pressure
+    /// changed. \[audio-thread\]
+    pub(super) fn repress(&mut self, i: usize) {
+        self.press_flush(i);
+        self.press_decide(i);
     }
 
     /// Stop voice `i` if it fell silent (its energy below
