@@ -10,6 +10,7 @@ pub mod bodies;
 pub mod compile;
 pub mod engine;
 pub mod instrument;
+pub mod multi;
 pub mod physics;
 pub mod plugin;
 pub mod presets;

@@ -1,0 +1,964 @@
+//! Several contacts at once: one modal object struck by up to
+//! [`MAX_CONTACTS`] point-mass hammers, each through a linear spring-damper
+//! of its own at a point of its own (two mallets of a roll, one note
+//! striking twice). Every subset of contacts in contact is a phase (up to
+//! 16), compiled up front; each contact has its own event function, the
+//! first switch of any contact in a sample is located and taken, and every
+//! contact that switches at that instant changes side together. The first
+//! stage of several contacts (docs/numerics.md section 14): the compiler
+//! and the engine, checked against the independent reference solver
+//! (`tests/multi_contact.rs`); the scene file, the instrument and the
+//! plugin use the one-contact engine ([`crate::engine`]) until they learn
+//! to name several contacts.
+//!
+//! Coordinates (energy coordinates, the one-contact engine's): mode `i`
+//! (unit modal mass, `q_i'' + 2 sigma_i q_i' + omega_i^2 q_i = f_i`) is
+//! `a_i = omega_i q_i`, `b_i = q_i'`; a hammer in contact adds `eta_j =
+//! sqrt(m_j) v_j` and `pi_j = sqrt(k_j) p_j` (`p_j = x_c,j - x_j` its
+//! penetration). The energy of a phase's state `y` is `|y|^2 / 2` plus each
+//! hammer's weight `m_j g x_j`; a hammer out of contact flies on its own
+//! (`x_j + v_j t - g t^2 / 2`, exactly). Each phase's generator is passive
+//! (skew-symmetric plus `-c_j u_j u_j^T`, `p_j' = u_j . y`) and is
+//! decomposed into real 2x2 blocks (`y = V s + y*`, `y*` gravity's
+//! equilibrium); a sample is one closed-form block exponential per block.
+//!
+//! Switching, the reference solver's semantics: flight becomes contact when
+//! `p_j` crosses from `<= 0` to `> 0`, contact becomes flight when it
+//! returns to `<= 0`. Entering, the spring starts unstretched (`pi_j = 0`:
+//! nothing added); leaving at `p_j <= 0`, the hammer keeps its position and
+//! velocity and the spring's `pi_j^2 / 2 <= ` rounding is dropped. So no
+//! switch adds energy, and the phases are passive.
+//!
+//! The search for the first crossing of a contact's event function `psi`
+//! (its penetration, signed to be positive on the current side) within a
+//! step is certified: over the step `|psi''| <= M = sum_k |r_k G_k^2|
+//! e^(gamma_k h) |s_k| (+ g)` (`r` the function's row, `gamma_k` the
+//! block's growth rate, 0 for a contraction), so a piece `[a, b]` whose ends
+//! are both above `M (b - a)^2 / 8` holds no crossing (the chord bound);
+//! other pieces are halved, left first, down to a width of about one ulp
+//! of the sample, whose right end is the switch. A contact that just
+//! switched starts at 0 on its new side: its Taylor bound `psi >= psi'(0)
+//! t - M t^2 / 2` clears `(0, 2 psi'(0) / M)` first (without it, the
+//! rounding of the change of basis could switch it straight back).
+
+use crate::physics::block::{exp2, mul2, sym_growth, Mat2};
+use crate::physics::decomp::{decompose_via, Form};
+use nalgebra::DMatrix;
+
+/// Most contacts of one scene.
+pub const MAX_CONTACTS: usize = 4;
+
+/// Most switches taken within one sample; beyond, the rest of the sample
+/// runs in its phase without a search ([`MultiStats::capped`]).
+pub const MAX_SWITCHES_PER_SAMPLE: usize = 64;
+
+/// Halving stops at pieces narrower than this fraction of the sample.
+const LEAF: f64 = 1e-15;
+
+/// A hammer with a contact of its own.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MultiHammer {
+    /// Mass \[kg\].
+    pub mass_kg: f64,
+    /// Initial height of its face \[m\] (the object starts at rest).
+    pub height_m: f64,
+    /// Initial velocity \[m/s\], positive up.
+    pub velocity_m_per_s: f64,
+    /// Each mode's mass-normalised weight at its contact point
+    /// \[1/sqrt(kg)\].
+    pub weights: Vec<f64>,
+    /// Contact stiffness `k` \[N/m\].
+    pub stiffness_n_per_m: f64,
+    /// Contact damping `c` \[N s/m\].
+    pub damping_n_s_per_m: f64,
+}
+
+/// A modal object and the hammers that strike it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MultiModel {
+    /// Each mode's frequency \[Hz\].
+    pub freq_hz: Vec<f64>,
+    /// Each mode's decay rate `sigma = ln(1000) / T60` \[1/s\] (0: undamped).
+    pub sigma: Vec<f64>,
+    /// The hammers (contact `j` is hammer `j`'s), 1 to [`MAX_CONTACTS`].
+    pub hammers: Vec<MultiHammer>,
+    /// Gravity pulling the hammers \[m/s^2\] (0: none).
+    pub gravity_m_per_s2: f64,
+    /// Output channels: each mode's weight on its displacement and on its
+    /// velocity (left, right).
+    pub pickups: [(Vec<f64>, Vec<f64>); 2],
+}
+
+/// Why a model cannot be compiled; each names its field.
+#[derive(Debug, Clone, PartialEq)]
+pub enum MultiError {
+    /// No hammer, or more than [`MAX_CONTACTS`].
+    ContactCount(usize),
+    /// A list whose length is not the number of modes.
+    Length {
+        /// The field.
+        field: String,
+        /// Its length.
+        got: usize,
+        /// The number of modes.
+        want: usize,
+    },
+    /// A number out of its range (not finite, a mass or stiffness not
+    /// positive, a negative damping or frequency...).
+    Value {
+        /// The field.
+        field: String,
+        /// Its value.
+        value: f64,
+    },
+    /// Two hammers at the same contact point (the same weights).
+    SamePoint(usize, usize),
+    /// A phase whose generator has no block form (the dense fallback,
+    /// which the several-contact engine does not take).
+    Phase {
+        /// The contacts in contact (bit `j` for contact `j`).
+        mask: u32,
+        /// Why.
+        why: String,
+    },
+}
+
+impl std::fmt::Display for MultiError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::ContactCount(n) => write!(
+                f,
+                "hammers: {n} contacts, a scene of several contacts has 1 to {MAX_CONTACTS}"
+            ),
+            Self::Length { field, got, want } => {
+                write!(f, "{field}: {got} entries for {want} modes")
+            }
+            Self::Value { field, value } => write!(f, "{field}: {value} is out of range"),
+            Self::SamePoint(a, b) => write!(
+                f,
+                "hammers[{a}] and hammers[{b}]: two contacts on one point pair"
+            ),
+            Self::Phase { mask, why } => {
+                write!(f, "the phase with contacts {mask:#b} in contact: {why}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for MultiError {}
+
+/// One phase: the contacts of `mask` in contact.
+#[derive(Debug, Clone)]
+pub struct MultiPhase {
+    /// The contacts in contact, increasing (contact `members[n]`'s `eta,
+    /// pi` are `y[2N + 2n]`, `y[2N + 2n + 1]`).
+    pub members: Vec<usize>,
+    /// State dimension `2 N + 2 |members|`.
+    pub dim: usize,
+    /// Block generators (block `k` acts on `s[k], s[nb + k]`).
+    pub gens: Vec<Mat2>,
+    /// Each block's propagator over one sample.
+    props: Vec<Mat2>,
+    /// `y = V s + y_star`.
+    pub v: DMatrix<f64>,
+    vinv: DMatrix<f64>,
+    y_star: Vec<f64>,
+    /// Per contact (all of them): the row and constant of its event
+    /// quantity (in contact its penetration `p_j`, out of contact its
+    /// contact point's displacement `x_c,j`), its slope row `r G`, and the
+    /// curvature weights `|r_k G_k^2| e^(gamma_k h)` per block.
+    ev: Vec<Vec<f64>>,
+    ev0: Vec<f64>,
+    ev_d: Vec<Vec<f64>>,
+    ev_c2: Vec<Vec<f64>>,
+    /// Per contact: `|r_k| e^(gamma_k h)` per block (block `k`'s share of
+    /// the function stays within it times `|s_k|`).
+    ev_e: Vec<Vec<f64>>,
+    /// Per contact: its contact point's velocity row and constant.
+    vel: Vec<Vec<f64>>,
+    vel0: Vec<f64>,
+    /// Output rows and constants (left, right).
+    out: [Vec<f64>; 2],
+    out0: [f64; 2],
+    /// Condition number of `V` (largest over smallest singular value).
+    pub kappa: f64,
+}
+
+/// A compiled model: every phase, by its contact bit set.
+#[derive(Debug, Clone)]
+pub struct CompiledMulti {
+    /// The model it was compiled from.
+    pub model: MultiModel,
+    /// Sample period \[s\].
+    pub h: f64,
+    /// Sample rate \[Hz\].
+    pub rate_hz: f64,
+    /// `phases[mask]`.
+    pub phases: Vec<MultiPhase>,
+}
+
+/// What the engine did (diagnostics, tests).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MultiStats {
+    /// Switches taken (each a change of basis; simultaneous ones count
+    /// once).
+    pub switches: u64,
+    /// Contacts started, per contact.
+    pub contacts_started: [u64; MAX_CONTACTS],
+    /// Samples that reached [`MAX_SWITCHES_PER_SAMPLE`].
+    pub capped: u64,
+    /// Pieces down to the leaf width whose crossing could not be decided
+    /// (a graze at rounding level: no switch).
+    pub uncertified: u64,
+    /// Evaluations of an event function inside a step.
+    pub evaluations: u64,
+}
+
+/// A located switch: contact `contact` entered (`entered`) or left
+/// contact at `time_s` (since the state's start).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MultiSwitch {
+    /// Which contact.
+    pub contact: usize,
+    /// Entered (true) or left.
+    pub entered: bool,
+    /// When \[s\].
+    pub time_s: f64,
+}
+
+/// What one sample shows of each contact.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MultiObservation {
+    /// Hammer heights \[m\].
+    pub x_hammer: [f64; MAX_CONTACTS],
+    /// Hammer velocities \[m/s\].
+    pub v_hammer: [f64; MAX_CONTACTS],
+    /// Each contact point's displacement \[m\].
+    pub x_contact: [f64; MAX_CONTACTS],
+    /// Each contact point's velocity \[m/s\].
+    pub v_contact: [f64; MAX_CONTACTS],
+    /// The contacts in contact (bit `j`).
+    pub active: u32,
+    /// Total energy \[J\] (object, hammers, springs in contact, gravity).
+    pub energy: f64,
+}
+
+fn check_value(field: &str, value: f64, ok: bool) -> Result<(), MultiError> {
+    if value.is_finite() && ok {
+        Ok(())
+    } else {
+        Err(MultiError::Value {
+            field: field.into(),
+            value,
+        })
+    }
+}
+
+impl MultiModel {
+    fn n(&self) -> usize {
+        self.freq_hz.len()
+    }
+
+    /// Check every field (a clear error naming it, never a panic).
+    pub fn validate(&self) -> Result<(), MultiError> {
+        let n = self.n();
+        let k = self.hammers.len();
+        if k == 0 || k > MAX_CONTACTS {
+            return Err(MultiError::ContactCount(k));
+        }
+        let len = |field: &str, got: usize| {
+            if got == n {
+                Ok(())
+            } else {
+                Err(MultiError::Length {
+                    field: field.into(),
+                    got,
+                    want: n,
+                })
+            }
+        };
+        len("sigma", self.sigma.len())?;
+        for (c, (d, v)) in self.pickups.iter().enumerate() {
+            len(&format!("pickups[{c}].displacement"), d.len())?;
+            len(&format!("pickups[{c}].velocity"), v.len())?;
+            for (i, x) in d.iter().chain(v).enumerate() {
+                check_value(&format!("pickups[{c}][{i}]"), *x, true)?;
+            }
+        }
+        for i in 0..n {
+            check_value(
+                &format!("freq_hz[{i}]"),
+                self.freq_hz[i],
+                self.freq_hz[i] > 0.0,
+            )?;
+            check_value(&format!("sigma[{i}]"), self.sigma[i], self.sigma[i] >= 0.0)?;
+        }
+        check_value(
+            "gravity_m_per_s2",
+            self.gravity_m_per_s2,
+            self.gravity_m_per_s2 >= 0.0,
+        )?;
+        for (j, hm) in self.hammers.iter().enumerate() {
+            let f = |name: &str| format!("hammers[{j}].{name}");
+            check_value(&f("mass_kg"), hm.mass_kg, hm.mass_kg > 0.0)?;
+            check_value(&f("height_m"), hm.height_m, true)?;
+            check_value(&f("velocity_m_per_s"), hm.velocity_m_per_s, true)?;
+            check_value(
+                &f("stiffness_n_per_m"),
+                hm.stiffness_n_per_m,
+                hm.stiffness_n_per_m > 0.0,
+            )?;
+            check_value(
+                &f("damping_n_s_per_m"),
+                hm.damping_n_s_per_m,
+                hm.damping_n_s_per_m >= 0.0,
+            )?;
+            len(&f("weights"), hm.weights.len())?;
+            for (i, w) in hm.weights.iter().enumerate() {
+                check_value(&f(&format!("weights[{i}]")), *w, true)?;
+            }
+            for (l, other) in self.hammers[..j].iter().enumerate() {
+                if other.weights == hm.weights {
+                    return Err(MultiError::SamePoint(l, j));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The generator of phase `mask` in its energy coordinates, and gravity's
+/// constant force on them.
+fn generator(m: &MultiModel, members: &[usize]) -> (DMatrix<f64>, Vec<f64>) {
+    let n = m.n();
+    let dim = 2 * n + 2 * members.len();
+    let mut a = DMatrix::zeros(dim, dim);
+    let mut f = vec![0.0; dim];
+    for i in 0..n {
+        let w = 2.0 * std::f64::consts::PI * m.freq_hz[i];
+        a[(i, n + i)] = w;
+        a[(n + i, i)] = -w;
+        a[(n + i, n + i)] = -2.0 * m.sigma[i];
+    }
+    for (pos, &j) in members.iter().enumerate() {
+        let hm = &m.hammers[j];
+        let (e, p) = (2 * n + 2 * pos, 2 * n + 2 * pos + 1);
+        let (sk, sm, c) = (
+            hm.stiffness_n_per_m.sqrt(),
+            hm.mass_kg.sqrt(),
+            hm.damping_n_s_per_m,
+        );
+        // p' = u . y
+        let mut u = vec![0.0; dim];
+        u[n..2 * n].copy_from_slice(&hm.weights);
+        u[e] = -1.0 / sm;
+        for col in 0..dim {
+            a[(p, col)] += sk * u[col];
+            a[(e, col)] += c / sm * u[col];
+            for i in 0..n {
+                a[(n + i, col)] -= c * hm.weights[i] * u[col];
+            }
+        }
+        for i in 0..n {
+            a[(n + i, p)] -= hm.weights[i] * sk;
+        }
+        a[(e, p)] += sk / sm;
+        f[e] = -sm * m.gravity_m_per_s2;
+    }
+    (a, f)
+}
+
+/// `row . G` per block (`row` in block layout).
+fn row_times_gens(row: &[f64], gens: &[Mat2]) -> Vec<f64> {
+    let nb = gens.len();
+    let mut out = vec![0.0; 2 * nb];
+    for (k, g) in gens.iter().enumerate() {
+        let (r0, r1) = (row[k], row[nb + k]);
+        out[k] = r0 * g[0] + r1 * g[2];
+        out[nb + k] = r0 * g[1] + r1 * g[3];
+    }
+    out
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// A row over `y` as a row over `s` and a constant (`y = V s + y*`).
+fn in_phase(row_y: &[f64], v: &DMatrix<f64>, y_star: &[f64]) -> (Vec<f64>, f64) {
+    let dim = row_y.len();
+    let row = (0..dim)
+        .map(|col| (0..dim).map(|r| row_y[r] * v[(r, col)]).sum())
+        .collect();
+    (row, dot(row_y, y_star))
+}
+
+impl MultiPhase {
+    fn new(m: &MultiModel, mask: u32, h: f64) -> Result<Self, MultiError> {
+        let n = m.n();
+        let members: Vec<usize> = (0..m.hammers.len())
+            .filter(|j| mask & (1 << j) != 0)
+            .collect();
+        let (a, f) = generator(m, &members);
+        let dim = a.nrows();
+        let bad = |why: String| MultiError::Phase { mask, why };
+        let d = decompose_via(&a, h, None, true).map_err(|e| bad(e.to_string()))?;
+        let Form::Blocks { gens } = d.form else {
+            return Err(bad(format!(
+                "no block form ({})",
+                d.diag.fallback_reason.unwrap_or_default()
+            )));
+        };
+        let y_star = if f.iter().any(|x| *x != 0.0) {
+            let lu = a.clone().lu();
+            let rhs = nalgebra::DVector::from_iterator(dim, f.iter().map(|x| -x));
+            let y = lu
+                .solve(&rhs)
+                .ok_or_else(|| bad("no equilibrium under gravity".into()))?;
+            y.iter().copied().collect()
+        } else {
+            vec![0.0; dim]
+        };
+        let props = gens.iter().map(|g| exp2(g, h)).collect();
+        let growth: Vec<f64> = gens.iter().map(|g| (sym_growth(g) * h).exp()).collect();
+        let nb = gens.len();
+        let (mut ev, mut ev0, mut ev_d, mut ev_c2, mut ev_e, mut vel, mut vel0) =
+            (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
+        for (j, hm) in m.hammers.iter().enumerate() {
+            let mut row_y = vec![0.0; dim];
+            if let Some(pos) = members.iter().position(|&x| x == j) {
+                row_y[2 * n + 2 * pos + 1] = 1.0 / hm.stiffness_n_per_m.sqrt();
+            } else {
+                for i in 0..n {
+                    row_y[i] = hm.weights[i] / (2.0 * std::f64::consts::PI * m.freq_hz[i]);
+                }
+            }
+            let (r, r0) = in_phase(&row_y, &d.v, &y_star);
+            let rd = row_times_gens(&r, &gens);
+            let rdd = row_times_gens(&rd, &gens);
+            ev_c2.push(
+                (0..nb)
+                    .map(|k| rdd[k].hypot(rdd[nb + k]) * growth[k])
+                    .collect(),
+            );
+            ev_e.push((0..nb).map(|k| r[k].hypot(r[nb + k]) * growth[k]).collect());
+            ev.push(r);
+            ev0.push(r0);
+            ev_d.push(rd);
+            let mut vrow = vec![0.0; dim];
+            vrow[n..2 * n].copy_from_slice(&hm.weights);
+            let (vr, v0) = in_phase(&vrow, &d.v, &y_star);
+            vel.push(vr);
+            vel0.push(v0);
+        }
+        let mut out: [Vec<f64>; 2] = Default::default();
+        let mut out0 = [0.0; 2];
+        for c in 0..2 {
+            let (disp, velo) = &m.pickups[c];
+            let mut row_y = vec![0.0; dim];
+            for i in 0..n {
+                row_y[i] = disp[i] / (2.0 * std::f64::consts::PI * m.freq_hz[i]);
+                row_y[n + i] = velo[i];
+            }
+            let (r, r0) = in_phase(&row_y, &d.v, &y_star);
+            out[c] = r;
+            out0[c] = r0;
+        }
+        Ok(Self {
+            members,
+            dim,
+            gens,
+            props,
+            v: d.v,
+            vinv: d.vinv,
+            y_star,
+            ev,
+            ev0,
+            ev_d,
+            ev_c2,
+            ev_e,
+            vel,
+            vel0,
+            out,
+            out0,
+            kappa: d.diag.kappa,
+        })
+    }
+}
+
+impl CompiledMulti {
+    /// Compile every phase (`2^K` of them) at `rate_hz`.
+    pub fn new(model: &MultiModel, rate_hz: f64) -> Result<Self, MultiError> {
+        model.validate()?;
+        check_value("rate_hz", rate_hz, rate_hz > 0.0)?;
+        let h = 1.0 / rate_hz;
+        let phases = (0..1u32 << model.hammers.len())
+            .map(|mask| MultiPhase::new(model, mask, h))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self {
+            model: model.clone(),
+            h,
+            rate_hz,
+            phases,
+        })
+    }
+
+    /// Number of contacts.
+    pub fn contacts(&self) -> usize {
+        self.model.hammers.len()
+    }
+
+    /// The largest condition number of the phases' `V`.
+    pub fn kappa(&self) -> f64 {
+        self.phases.iter().map(|p| p.kappa).fold(1.0, f64::max)
+    }
+
+    /// The largest phase dimension.
+    pub fn max_dim(&self) -> usize {
+        self.phases.iter().map(|p| p.dim).max().unwrap_or(0)
+    }
+}
+
+/// The running state of a [`CompiledMulti`].
+#[derive(Debug, Clone)]
+pub struct MultiState {
+    mask: u32,
+    s: Vec<f64>,
+    end: Vec<f64>,
+    y: Vec<f64>,
+    y2: Vec<f64>,
+    /// Per block of the current phase, `|s_k|` at points of the search:
+    /// slot 0 the step's start, the others the left ends of its pieces
+    /// (a stack, one slot per level).
+    norms: Vec<Vec<f64>>,
+    /// Out of contact: each hammer's height and velocity (at the state's
+    /// time).
+    x_h: [f64; MAX_CONTACTS],
+    v_h: [f64; MAX_CONTACTS],
+    /// Samples run.
+    clock: u64,
+    /// What the engine did.
+    pub stats: MultiStats,
+    /// Every switch, when [`record`](Self::record) is on.
+    pub switches: Vec<MultiSwitch>,
+    record: bool,
+}
+
+/// Where a contact's search starts: its event function's value, or 0 on
+/// the side it just switched to.
+#[derive(Clone, Copy)]
+enum Start {
+    Value,
+    Boundary,
+}
+
+impl MultiState {
+    /// The model's initial state: the object at rest, the hammers in
+    /// flight where the model puts them.
+    pub fn new(sc: &CompiledMulti) -> Self {
+        let dim = sc.max_dim();
+        let mut x_h = [0.0; MAX_CONTACTS];
+        let mut v_h = [0.0; MAX_CONTACTS];
+        for (j, hm) in sc.model.hammers.iter().enumerate() {
+            x_h[j] = hm.height_m;
+            v_h[j] = hm.velocity_m_per_s;
+        }
+        Self {
+            mask: 0,
+            s: vec![0.0; sc.phases[0].dim],
+            end: vec![0.0; dim],
+            y: vec![0.0; dim],
+            y2: vec![0.0; dim],
+            norms: vec![vec![0.0; dim / 2]; 2],
+            x_h,
+            v_h,
+            clock: 0,
+            stats: MultiStats::default(),
+            switches: Vec::new(),
+            record: false,
+        }
+    }
+
+    /// Keep every switch in [`switches`](Self::switches) (tests).
+    pub fn record(&mut self, on: bool) {
+        self.record = on;
+    }
+
+    /// The contacts in contact (bit `j`).
+    pub fn active(&self) -> u32 {
+        self.mask
+    }
+
+    /// Advance one sample; the output (left, right).
+    pub fn tick(&mut self, sc: &CompiledMulti) -> [f64; 2] {
+        let h = sc.h;
+        let mut t = 0.0;
+        let mut starts = [Start::Value; MAX_CONTACTS];
+        let mut taken = 0;
+        while t < h {
+            let ph = &sc.phases[self.mask as usize];
+            let rem = h - t;
+            let nb = ph.gens.len();
+            if t == 0.0 {
+                step_blocks(&ph.props, &self.s, &mut self.end[..ph.dim], nb);
+            } else {
+                step_to(&ph.gens, rem, &self.s, &mut self.end[..ph.dim]);
+            }
+            if taken >= MAX_SWITCHES_PER_SAMPLE {
+                self.stats.capped += 1;
+                self.s.copy_from_slice(&self.end[..ph.dim]);
+                self.fly(sc, rem);
+                break;
+            }
+            // the first crossing of any contact, and every contact that
+            // crosses then
+            let mut first: Option<f64> = None;
+            let mut who = 0u32;
+            for j in 0..sc.contacts() {
+                let Some(tj) = self.first_crossing(sc, j, rem, starts[j]) else {
+                    continue;
+                };
+                let tol = LEAF * h * 4.0;
+                match first {
+                    Some(f) if tj > f + tol => {}
+                    Some(f) if tj >= f - tol => who |= 1 << j,
+                    _ => {
+                        first = Some(tj);
+                        who = 1 << j;
+                    }
+                }
+            }
+            let Some(tau) = first else {
+                self.s.copy_from_slice(&self.end[..ph.dim]);
+                self.fly(sc, rem);
+                break;
+            };
+            let tau = tau.min(rem);
+            if tau < rem {
+                step_to(&ph.gens, tau, &self.s, &mut self.end[..ph.dim]);
+            }
+            self.s.copy_from_slice(&self.end[..ph.dim]);
+            self.fly(sc, tau);
+            t = if tau < rem { t + tau } else { h };
+            starts = self.switch(sc, who, self.clock as f64 * h + t);
+            taken += 1;
+        }
+        self.clock += 1;
+        let ph = &sc.phases[self.mask as usize];
+        [
+            dot(&ph.out[0], &self.s) + ph.out0[0],
+            dot(&ph.out[1], &self.s) + ph.out0[1],
+        ]
+    }
+
+    /// The hammers out of contact fly `dt` on.
+    fn fly(&mut self, sc: &CompiledMulti, dt: f64) {
+        let g = sc.model.gravity_m_per_s2;
+        for j in 0..sc.contacts() {
+            if self.mask & (1 << j) == 0 {
+                self.x_h[j] += self.v_h[j] * dt - 0.5 * g * dt * dt;
+                self.v_h[j] -= g * dt;
+            }
+        }
+    }
+
+    /// Contact `j`'s event function over `[0, rem]` of the current phase
+    /// from the state `s` (its end state in `end`): its first crossing, if
+    /// any (docs: the module's).
+    fn first_crossing(
+        &mut self,
+        sc: &CompiledMulti,
+        j: usize,
+        rem: f64,
+        start: Start,
+    ) -> Option<f64> {
+        let ph = &sc.phases[self.mask as usize];
+        let nb = ph.gens.len();
+        let inside = self.mask & (1 << j) != 0;
+        let g = sc.model.gravity_m_per_s2;
+        let (x0, v0) = (self.x_h[j], self.v_h[j]);
+        // psi(t): positive on the current side
+        let psi_of = |q: f64, t: f64| {
+            if inside {
+                q
+            } else {
+                x0 + v0 * t - 0.5 * g * t * t - q
+            }
+        };
+        let crossed = |psi: f64| if inside { psi <= 0.0 } else { psi < 0.0 };
+        let row = &ph.ev[j];
+        let q0 = dot(row, &self.s) + ph.ev0[j];
+        let q_end = dot(row, &self.end[..ph.dim]) + ph.ev0[j];
+        let slope = dot(&ph.ev_d[j], &self.s);
+        let d0 = if inside { slope } else { v0 - slope };
+        let mut m = 0.0;
+        for k in 0..nb {
+            self.norms[0][k] = self.s[k].hypot(self.s[nb + k]);
+            m += ph.ev_c2[j][k] * self.norms[0][k];
+        }
+        let g_curv = if inside { 0.0 } else { g };
+        m = (m + g_curv) * (1.0 + 1e-12);
+        let psi_end = psi_of(q_end, rem);
+        let (a, psi_a) = match start {
+            Start::Value => (0.0, psi_of(q0, 0.0)),
+            Start::Boundary => {
+                // psi >= d0 t - m t^2 / 2 > 0 on (0, 2 d0 / m)
+                if !(d0 > 0.0) {
+                    // leaving at once again: no time on this side
+                    return Some(0.0);
+                }
+                let clear = if m > 0.0 { 2.0 * d0 / m } else { f64::INFINITY };
+                if clear >= rem {
+                    return if crossed(psi_end) {
+                        self.stats.uncertified += 1;
+                        None
+                    } else {
+                        None
+                    };
+                }
+                let a = clear * (1.0 - 1e-9);
+                let q = self.eval(ph, j, a, 1);
+                (a, psi_of(q, a))
+            }
+        };
+        if crossed(psi_a) {
+            return Some(a);
+        }
+        let slot = if a > 0.0 { 1 } else { 0 };
+        self.search(
+            sc,
+            j,
+            (a, psi_a),
+            (rem, psi_end),
+            (g_curv, slot, slot + 1),
+            &psi_of,
+            &crossed,
+        )
+    }
+
+    /// How far contact `j`'s event function may stray from the chord over
+    /// a piece of width `w` of the current step: per block the smaller of
+    /// its curvature's share `c_k |s_k| w^2 / 8` and `2 e_k |s_k|` (its
+    /// share of the function and of the chord both stay within `e_k
+    /// |s_k|`), plus the falling hammer's exact `g w^2 / 8`; the one-contact
+    /// engine's margin (docs/numerics.md section 6.2), with `|s_k|` taken at
+    /// the piece's left end (in slot `slot`): every block is a contraction
+    /// (up to its growth factor), so it bounds the piece.
+    fn margin(&self, ph: &MultiPhase, j: usize, w: f64, g_curv: f64, slot: usize) -> f64 {
+        let h = w * w / 8.0;
+        let mut acc = g_curv * h;
+        let norms = &self.norms[slot];
+        for k in 0..ph.gens.len() {
+            acc += (ph.ev_c2[j][k] * h).min(2.0 * ph.ev_e[j][k]) * norms[k];
+        }
+        acc * (1.0 + 1e-12)
+    }
+
+    /// The event quantity of contact `j` at `t` into the current step, and
+    /// each block's `|s_k(t)|` into slot `slot`.
+    fn eval(&mut self, ph: &MultiPhase, j: usize, t: f64, slot: usize) -> f64 {
+        self.stats.evaluations += 1;
+        let nb = ph.gens.len();
+        while self.norms.len() <= slot {
+            self.norms.push(Vec::new());
+        }
+        let norms = &mut self.norms[slot];
+        norms.resize(nb, 0.0);
+        let row = &ph.ev[j];
+        let mut q = ph.ev0[j];
+        for (k, g) in ph.gens.iter().enumerate() {
+            let p = exp2(g, t);
+            let (x0, x1) = mul2(&p, self.s[k], self.s[nb + k]);
+            norms[k] = x0.hypot(x1);
+            q += row[k] * x0 + row[nb + k] * x1;
+        }
+        q
+    }
+
+    /// The first crossing in `(a, b]` (none before `a`), halving left
+    /// first.
+    #[allow(clippy::too_many_arguments)]
+    fn search(
+        &mut self,
+        sc: &CompiledMulti,
+        j: usize,
+        (a, pa): (f64, f64),
+        (b, pb): (f64, f64),
+        (g_curv, left, free): (f64, usize, usize),
+        psi_of: &dyn Fn(f64, f64) -> f64,
+        crossed: &dyn Fn(f64) -> bool,
+    ) -> Option<f64> {
+        let w = b - a;
+        let ph = &sc.phases[self.mask as usize];
+        if !crossed(pb) && pa.min(pb) > self.margin(ph, j, w, g_curv, left) {
+            return None;
+        }
+        let mid = a + 0.5 * w;
+        if w <= LEAF * sc.h || mid <= a || mid >= b {
+            if crossed(pb) {
+                return Some(b);
+            }
+            self.stats.uncertified += 1;
+            return None;
+        }
+        // the midpoint's norms in `free`: the left half keeps `left` and
+        // stacks above `free`, the right half starts from `free`
+        let q = self.eval(ph, j, mid, free);
+        let pm = psi_of(q, mid);
+        let left_half = (g_curv, left, free + 1);
+        if let Some(t) = self.search(sc, j, (a, pa), (mid, pm), left_half, psi_of, crossed) {
+            return Some(t);
+        }
+        self.search(
+            sc,
+            j,
+            (mid, pm),
+            (b, pb),
+            (g_curv, free, free + 1),
+            psi_of,
+            crossed,
+        )
+    }
+
+    /// Switch the contacts of `who` at the state's time `time_s`: each
+    /// enters (spring unstretched) or leaves (hammer where the face is);
+    /// a change of basis through the energy coordinates, O(dim^2). Returns
+    /// where each contact's next search starts.
+    fn switch(&mut self, sc: &CompiledMulti, who: u32, time_s: f64) -> [Start; MAX_CONTACTS] {
+        let n = sc.model.n();
+        let old = &sc.phases[self.mask as usize];
+        // y = V s + y*
+        for r in 0..old.dim {
+            let mut acc = old.y_star[r];
+            for c in 0..old.dim {
+                acc += old.v[(r, c)] * self.s[c];
+            }
+            self.y[r] = acc;
+        }
+        // the hammers' physical states before the switch
+        let mut x = self.x_h;
+        let mut v = self.v_h;
+        for (pos, &j) in old.members.iter().enumerate() {
+            let hm = &sc.model.hammers[j];
+            let x_c: f64 = (0..n)
+                .map(|i| {
+                    hm.weights[i] * self.y[i] / (2.0 * std::f64::consts::PI * sc.model.freq_hz[i])
+                })
+                .sum();
+            let p = self.y[2 * n + 2 * pos + 1] / hm.stiffness_n_per_m.sqrt();
+            x[j] = x_c - p;
+            v[j] = self.y[2 * n + 2 * pos] / hm.mass_kg.sqrt();
+        }
+        let new_mask = self.mask ^ who;
+        let new = &sc.phases[new_mask as usize];
+        // the new phase's energy coordinates
+        self.y2[..2 * n].copy_from_slice(&self.y[..2 * n]);
+        for (pos, &j) in new.members.iter().enumerate() {
+            let hm = &sc.model.hammers[j];
+            let was = old.members.iter().position(|&x| x == j);
+            let (eta, pi) = match was {
+                Some(p) => (self.y[2 * n + 2 * p], self.y[2 * n + 2 * p + 1]),
+                // entering: the spring starts unstretched
+                None => (hm.mass_kg.sqrt() * v[j], 0.0),
+            };
+            self.y2[2 * n + 2 * pos] = eta;
+            self.y2[2 * n + 2 * pos + 1] = pi;
+        }
+        for j in 0..sc.contacts() {
+            if who & (1 << j) != 0 {
+                let entered = new_mask & (1 << j) != 0;
+                if entered {
+                    self.stats.contacts_started[j] += 1;
+                }
+                if self.record {
+                    self.switches.push(MultiSwitch {
+                        contact: j,
+                        entered,
+                        time_s,
+                    });
+                }
+            }
+        }
+        self.s.resize(new.dim, 0.0);
+        for r in 0..new.dim {
+            let mut acc = 0.0;
+            for c in 0..new.dim {
+                acc += new.vinv[(r, c)] * (self.y2[c] - new.y_star[c]);
+            }
+            self.s[r] = acc;
+        }
+        self.x_h = x;
+        self.v_h = v;
+        self.mask = new_mask;
+        self.stats.switches += 1;
+        std::array::from_fn(|j| {
+            if who & (1 << j) != 0 {
+                Start::Boundary
+            } else {
+                Start::Value
+            }
+        })
+    }
+
+    /// The state now: each hammer, each contact point, the energy.
+    pub fn observe(&self, sc: &CompiledMulti) -> MultiObservation {
+        let ph = &sc.phases[self.mask as usize];
+        let n = sc.model.n();
+        let mut o = MultiObservation {
+            active: self.mask,
+            ..Default::default()
+        };
+        let mut y = vec![0.0; ph.dim];
+        for (r, yr) in y.iter_mut().enumerate() {
+            *yr = ph.y_star[r] + (0..ph.dim).map(|c| ph.v[(r, c)] * self.s[c]).sum::<f64>();
+        }
+        let g = sc.model.gravity_m_per_s2;
+        let mut e = 0.5 * dot(&y, &y);
+        for (j, hm) in sc.model.hammers.iter().enumerate() {
+            // in contact its penetration, in flight its point's displacement
+            let q = dot(&ph.ev[j], &self.s) + ph.ev0[j];
+            let (x, v, xc) = match ph.members.iter().position(|&m| m == j) {
+                Some(pos) => {
+                    let xc: f64 = (0..n)
+                        .map(|i| {
+                            hm.weights[i] * y[i]
+                                / (2.0 * std::f64::consts::PI * sc.model.freq_hz[i])
+                        })
+                        .sum();
+                    (xc - q, y[2 * n + 2 * pos] / hm.mass_kg.sqrt(), xc)
+                }
+                None => {
+                    e += 0.5 * hm.mass_kg * self.v_h[j] * self.v_h[j];
+                    (self.x_h[j], self.v_h[j], q)
+                }
+            };
+            e += hm.mass_kg * g * x;
+            o.x_hammer[j] = x;
+            o.v_hammer[j] = v;
+            o.x_contact[j] = xc;
+            o.v_contact[j] = dot(&ph.vel[j], &self.s) + ph.vel0[j];
+        }
+        o.energy = e;
+        o
+    }
+}
+
+/// `out = P s` with one-sample block propagators.
+fn step_blocks(props: &[Mat2], s: &[f64], out: &mut [f64], nb: usize) {
+    for (k, p) in props.iter().enumerate() {
+        let (x0, x1) = mul2(p, s[k], s[nb + k]);
+        out[k] = x0;
+        out[nb + k] = x1;
+    }
+}
+
+/// `out = exp(G t) s`.
+fn step_to(gens: &[Mat2], t: f64, s: &[f64], out: &mut [f64]) {
+    let nb = gens.len();
+    for (k, g) in gens.iter().enumerate() {
+        let p = exp2(g, t);
+        let (x0, x1) = mul2(&p, s[k], s[nb + k]);
+        out[k] = x0;
+        out[nb + k] = x1;
+    }
+}

@@ -1,0 +1,710 @@
+//! Several contacts at once (`modal_contact::multi`): the engine against
+//! the independent reference solver (`pwl_reference`, its several-contact
+//! model: physical coordinates, double-double exponentials, bisection),
+//! which shares the model's numbers and nothing else; against the
+//! one-contact engine where two contacts cannot interact (each hammer's
+//! point on modes of its own: the sum of two one-contact runs); against
+//! the closed form of two strikes that never meet; energy that never rises;
+//! and bad models refused with the field named.
+//!
+//! Cases: an object of four modes (220, 950 and 3500 Hz and one at 28.9
+//! kHz, 1.31x Nyquist) with a different weight vector at each hammer's
+//! point, two to four hammers, contacts at 3.17x to 317x Nyquist (the
+//! two-mass contact frequency of each hammer with the object's effective
+//! mass at its point), mass ratios 1e-3 to 1e3, damping ratios 0 to 5,
+//! strikes at different instants, at the same instant, and dropped under
+//! gravity. 44.1 kHz, 50 ms.
+//!
+//! Tolerances (as the one-contact suite's, `tests/stiff_switching.rs`):
+//! both solvers solve the same piecewise-linear equations exactly up to
+//! rounding, so every hammer's height, velocity and contact point agree to
+//! 1e-6 relative L2 and every contact's start and end to 1e-6 samples, and
+//! the energy never rises from one sample to the next by more than `64 dim
+//! kappa u` of its scale.
+//!
+//! Run with `--nocapture` for the table.
+
+use modal_contact::compile::compile_with;
+use modal_contact::engine::EngineState;
+use modal_contact::multi::{
+    CompiledMulti, MultiError, MultiHammer, MultiModel, MultiState, MultiSwitch, MAX_CONTACTS,
+};
+use modal_contact::scene::{Scene, Switching};
+use modal_testkit::scenes::{Contact, Hammer, Modal, Pickup, SceneBuilder};
+use pwl_reference as reference;
+use std::f64::consts::PI;
+
+const RATE: f64 = 44_100.0;
+const NYQUIST: f64 = RATE / 2.0;
+const SAMPLES: usize = 2205;
+const TOL_TRACE: f64 = 1e-6;
+const TOL_INSTANT: f64 = 1e-6;
+const U: f64 = f64::EPSILON / 2.0;
+/// Relative disturbance of the reference's twin run.
+const DISTURBANCE: f64 = 1e-9;
+/// Agreement of the reference and its twin that defines the window.
+const HORIZON_TOL: f64 = 1e-7;
+/// Shortest acceptable window [samples].
+const MIN_WINDOW: usize = 20;
+
+const FREQS: [f64; 4] = [220.0, 950.0, 3500.0, 28_900.0];
+const WEIGHTS: [[f64; 4]; 4] = [
+    [0.45, 0.40, 0.35, 0.15],
+    [0.40, -0.30, 0.42, 0.12],
+    [0.25, 0.50, -0.30, 0.18],
+    [0.35, -0.45, -0.25, 0.10],
+];
+
+/// One hammer of a case: mass ratio to the object's effective mass at its
+/// point, launch, contact frequency / Nyquist, damping ratio.
+#[derive(Clone, Copy)]
+struct Striker {
+    mass_ratio: f64,
+    /// Initial height \[m\] and velocity \[m/s\].
+    height: f64,
+    velocity: f64,
+    fc_ratio: f64,
+    zeta: f64,
+}
+
+struct Case {
+    name: String,
+    t60: Option<f64>,
+    gravity: f64,
+    strikers: Vec<Striker>,
+}
+
+fn m_eff(j: usize) -> f64 {
+    1.0 / WEIGHTS[j].iter().map(|w| w * w).sum::<f64>()
+}
+
+fn hammer(j: usize, s: &Striker) -> MultiHammer {
+    let me = m_eff(j);
+    let m = s.mass_ratio * me;
+    let mr = 1.0 / (1.0 / m + 1.0 / me);
+    let k = (2.0 * PI * s.fc_ratio * NYQUIST).powi(2) * mr;
+    let c = 2.0 * s.zeta * (k * mr).sqrt();
+    MultiHammer {
+        mass_kg: m,
+        height_m: s.height,
+        velocity_m_per_s: s.velocity,
+        weights: WEIGHTS[j].to_vec(),
+        stiffness_n_per_m: k,
+        damping_n_s_per_m: c,
+    }
+}
+
+fn model(case: &Case) -> MultiModel {
+    let sigma = case.t60.map_or(0.0, |t| 1000f64.ln() / t);
+    let n = FREQS.len();
+    MultiModel {
+        freq_hz: FREQS.to_vec(),
+        sigma: vec![sigma; n],
+        hammers: case
+            .strikers
+            .iter()
+            .enumerate()
+            .map(|(j, s)| hammer(j, s))
+            .collect(),
+        gravity_m_per_s2: case.gravity,
+        pickups: [
+            (vec![1.0, 0.5, 0.25, 0.1], vec![0.0; n]),
+            (vec![0.0; n], vec![1e-3; n]),
+        ],
+    }
+}
+
+/// The same numbers as the reference solver's model.
+fn reference_model(m: &MultiModel, t60: Option<f64>) -> reference::Model {
+    let rh = |h: &MultiHammer| reference::Hammer {
+        mass_kg: h.mass_kg,
+        height_m: h.height_m,
+        velocity_m_per_s: h.velocity_m_per_s,
+        gravity_m_per_s2: m.gravity_m_per_s2,
+    };
+    let rc = |h: &MultiHammer| reference::Contact {
+        stiffness_n_per_m: h.stiffness_n_per_m,
+        damping_n_s_per_m: h.damping_n_s_per_m,
+    };
+    let h0 = &m.hammers[0];
+    reference::Model {
+        modes: m
+            .freq_hz
+            .iter()
+            .zip(&h0.weights)
+            .map(|(&f, &w)| reference::Mode {
+                freq_hz: f,
+                t60_s: t60,
+                weight: w,
+            })
+            .collect(),
+        hammer: rh(h0),
+        contact: rc(h0),
+        back: None,
+        extra: m.hammers[1..]
+            .iter()
+            .map(|h| reference::ExtraHammer {
+                hammer: rh(h),
+                weights: h.weights.clone(),
+                contact: rc(h),
+            })
+            .collect(),
+    }
+}
+
+/// Per contact: its intervals `[start, end]` in samples.
+type Intervals = Vec<Vec<(f64, Option<f64>)>>;
+
+fn intervals_of(switches: &[MultiSwitch], k: usize) -> Intervals {
+    let mut out = vec![Vec::new(); k];
+    for s in switches {
+        let t = s.time_s * RATE;
+        if s.entered {
+            out[s.contact].push((t, None));
+        } else if let Some(last) = out[s.contact].last_mut() {
+            last.1 = Some(t);
+        }
+    }
+    out
+}
+
+/// Contact `j`'s height, velocity and contact point (`q` = 0, 1, 2) in a
+/// reference sample.
+fn pick(s: &reference::Sample, j: usize, q: usize) -> f64 {
+    if j == 0 {
+        [s.x_hammer, s.v_hammer, s.x_contact][q]
+    } else {
+        s.extra[j - 1][q]
+    }
+}
+
+/// The last sample up to which two reference runs agree to
+/// [`HORIZON_TOL`] (running relative L2) on every hammer's traces.
+fn trace_horizon(a: &[reference::Sample], b: &[reference::Sample], k: usize) -> usize {
+    let mut num = vec![0.0; 3 * k];
+    let mut den = vec![0.0; 3 * k];
+    let mut last = 0;
+    for i in 0..a.len().min(b.len()) {
+        let mut agree = true;
+        for j in 0..k {
+            for q in 0..3 {
+                let (x, y) = (pick(&a[i], j, q), pick(&b[i], j, q));
+                num[3 * j + q] += (x - y) * (x - y);
+                den[3 * j + q] += y * y;
+                agree &= num[3 * j + q] <= HORIZON_TOL * HORIZON_TOL * den[3 * j + q];
+            }
+        }
+        if agree {
+            last = i;
+        }
+    }
+    last
+}
+
+fn reference_intervals(sol: &reference::Solution, k: usize) -> Intervals {
+    let mut out = vec![Vec::new(); k];
+    for c in &sol.contacts {
+        out[c.contact].push((c.start_s * RATE, c.end_s.map(|e| e * RATE)));
+    }
+    out
+}
+
+/// The sample before the first contact whose start or end two runs place
+/// more than [`TOL_INSTANT`] apart (`n` if none).
+fn instant_horizon(a: &[(f64, Option<f64>)], b: &[(f64, Option<f64>)], n: usize) -> usize {
+    let before = |s: f64| (s.ceil() as usize).saturating_sub(1);
+    for (i, x) in a.iter().enumerate() {
+        let Some(y) = b.get(i) else {
+            return before(x.0);
+        };
+        let ends_differ = match (x.1, y.1) {
+            (Some(e), Some(f)) => (e - f).abs() > TOL_INSTANT,
+            (None, None) => false,
+            _ => true,
+        };
+        if (x.0 - y.0).abs() > TOL_INSTANT || ends_differ {
+            return before(x.0.min(y.0));
+        }
+    }
+    b.get(a.len()).map_or(n, |y| before(y.0))
+}
+
+fn rel_l2(a: &[f64], b: &[f64]) -> f64 {
+    let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
+    let den: f64 = b.iter().map(|y| y * y).sum();
+    if num == 0.0 {
+        0.0
+    } else {
+        (num / den).sqrt()
+    }
+}
+
+struct Outcome {
+    /// Samples compared: where the reference and its twin (inputs moved
+    /// by 1e-9) still agree.
+    window: usize,
+    count_mismatch: Option<String>,
+    contacts: Vec<usize>,
+    err_x: f64,
+    err_v: f64,
+    err_c: f64,
+    dt: f64,
+    de: f64,
+    bound: f64,
+    evaluations_per_switch: f64,
+}
+
+fn run_case(case: &Case) -> Outcome {
+    let m = model(case);
+    let k = m.hammers.len();
+    let sc = CompiledMulti::new(&m, RATE).unwrap();
+    let mut st = MultiState::new(&sc);
+    st.record(true);
+    let mut obs = vec![st.observe(&sc)];
+    for _ in 0..SAMPLES {
+        let y = st.tick(&sc);
+        assert!(y.iter().all(|v| v.is_finite()), "{}", case.name);
+        obs.push(st.observe(&sc));
+    }
+    let rm = reference_model(&m, case.t60);
+    let sol = reference::solve(&rm, RATE, SAMPLES + 1);
+    let twin = reference::solve(&rm.perturbed(DISTURBANCE), RATE, SAMPLES + 1);
+    let n = sol.samples.len().min(obs.len()).min(twin.samples.len());
+    // the window the inputs determine: the reference and its twin agree
+    let hz_trace = trace_horizon(&sol.samples[..n], &twin.samples[..n], k);
+    let ref_iv = reference_intervals(&sol, k);
+    let hz_instants = (0..k)
+        .map(|j| instant_horizon(&ref_iv[j], &reference_intervals(&twin, k)[j], n))
+        .min()
+        .unwrap();
+    let window = hz_trace.min(hz_instants);
+    // traces of every hammer on the window
+    let (mut ex, mut ev, mut ec) = (0.0f64, 0.0f64, 0.0f64);
+    for j in 0..k {
+        let x: Vec<f64> = obs[..window].iter().map(|o| o.x_hammer[j]).collect();
+        let v: Vec<f64> = obs[..window].iter().map(|o| o.v_hammer[j]).collect();
+        let c: Vec<f64> = obs[..window].iter().map(|o| o.x_contact[j]).collect();
+        let r = &sol.samples[..window];
+        ex = ex.max(rel_l2(
+            &x,
+            &r.iter().map(|s| pick(s, j, 0)).collect::<Vec<_>>(),
+        ));
+        ev = ev.max(rel_l2(
+            &v,
+            &r.iter().map(|s| pick(s, j, 1)).collect::<Vec<_>>(),
+        ));
+        ec = ec.max(rel_l2(
+            &c,
+            &r.iter().map(|s| pick(s, j, 2)).collect::<Vec<_>>(),
+        ));
+    }
+    // contact instants on the window, per contact
+    let mine = intervals_of(&st.switches, k);
+    let mut dt = 0.0f64;
+    let mut counts = Vec::new();
+    let mut count_mismatch = None;
+    for j in 0..k {
+        let within = |iv: &&(f64, Option<f64>)| iv.0 <= window as f64;
+        let got: Vec<_> = mine[j].iter().filter(within).collect();
+        let want: Vec<_> = ref_iv[j].iter().filter(within).collect();
+        if got.len() != want.len() {
+            count_mismatch = Some(format!(
+                "contact {j}: {} contacts in the window against the reference's {} (first: {:?} / {:?})",
+                got.len(),
+                want.len(),
+                got.first(),
+                want.first()
+            ));
+        }
+        counts.push(mine[j].len());
+        for (a, b) in got.iter().zip(&want) {
+            dt = dt.max((a.0 - b.0).abs());
+            if let (Some(x), Some(y)) = (a.1, b.1) {
+                if x.max(y) <= window as f64 {
+                    dt = dt.max((x - y).abs());
+                }
+            }
+        }
+    }
+    // energy never rises
+    let g = m.gravity_m_per_s2;
+    let scale = |o: &modal_contact::multi::MultiObservation| {
+        o.energy.abs()
+            + (0..k)
+                .map(|j| 2.0 * m.hammers[j].mass_kg * g * o.x_hammer[j].abs())
+                .sum::<f64>()
+    };
+    let mut de = 0.0f64;
+    for w in obs.windows(2) {
+        let s = scale(&w[0]).max(scale(&w[1]));
+        de = de.max((w[1].energy - w[0].energy) / s);
+    }
+    let bound = 64.0 * sc.max_dim() as f64 * sc.kappa() * U;
+    Outcome {
+        window,
+        count_mismatch,
+        contacts: counts,
+        err_x: ex,
+        err_v: ev,
+        err_c: ec,
+        dt,
+        de,
+        bound,
+        evaluations_per_switch: st.stats.evaluations as f64 / st.stats.switches.max(1) as f64,
+    }
+}
+
+fn strike(mass_ratio: f64, height: f64, velocity: f64, fc_ratio: f64, zeta: f64) -> Striker {
+    Striker {
+        mass_ratio,
+        height,
+        velocity,
+        fc_ratio,
+        zeta,
+    }
+}
+
+fn cases() -> Vec<Case> {
+    let mut v = Vec::new();
+    let mut add = |name: &str, t60: Option<f64>, gravity: f64, strikers: Vec<Striker>| {
+        v.push(Case {
+            name: name.into(),
+            t60,
+            gravity,
+            strikers,
+        })
+    };
+    // two hammers a few samples apart, light, elastic and damped
+    for (fc, zeta) in [(3.17, 0.0), (31.3, 0.05), (101.7, 1.0), (317.3, 5.0)] {
+        add(
+            &format!("2 apart f_c {fc}x zeta {zeta}"),
+            Some(0.4),
+            0.0,
+            vec![
+                strike(1e-3, 0.0, -1.0, fc, zeta),
+                strike(1e-2, 3e-4, -0.8, fc * 1.13, zeta),
+            ],
+        );
+    }
+    // both at the same instant, same launch, different points
+    add(
+        "2 together f_c 31.3x",
+        None,
+        0.0,
+        vec![
+            strike(1e-3, 0.0, -1.0, 31.3, 0.0),
+            strike(1e-3, 0.0, -1.0, 31.3, 0.0),
+        ],
+    );
+    // heavy and light
+    add(
+        "2 heavy + light f_c 101.7x",
+        Some(0.25),
+        0.0,
+        vec![
+            strike(1e3, 0.0, -0.1, 101.7, 0.0),
+            strike(1e-3, 1e-4, -1.0, 101.7, 0.05),
+        ],
+    );
+    add(
+        "2 mass 1 f_c 3.17x zeta 0.05",
+        Some(0.1),
+        0.0,
+        vec![
+            strike(1.0, 0.0, -0.5, 3.17, 0.05),
+            strike(1.0, 2e-4, -0.5, 3.17, 0.05),
+        ],
+    );
+    // dropped under gravity
+    add(
+        "2 dropped, 10 g, zeta 1, 101.7x",
+        Some(0.4),
+        9.81,
+        vec![
+            strike(0.03, 1e-3, 0.0, 101.7, 1.0),
+            strike(0.03, 1.3e-3, 0.0, 101.7, 1.0),
+        ],
+    );
+    // three and four
+    add(
+        "3 apart f_c 31.3x",
+        Some(0.4),
+        0.0,
+        vec![
+            strike(1e-3, 0.0, -1.0, 31.3, 0.05),
+            strike(1e-2, 2e-4, -0.8, 35.0, 0.05),
+            strike(1e-1, 5e-4, -0.6, 28.0, 0.05),
+        ],
+    );
+    add(
+        "4 apart f_c 3.17..317x",
+        Some(0.4),
+        0.0,
+        vec![
+            strike(1e-3, 0.0, -1.0, 3.17, 0.0),
+            strike(1e-2, 1e-4, -0.9, 31.3, 0.05),
+            strike(1e-1, 3e-4, -0.7, 101.7, 1.0),
+            strike(1.0, 6e-4, -0.5, 317.3, 5.0),
+        ],
+    );
+    v
+}
+
+#[test]
+fn several_contacts_match_the_reference_solver() {
+    let mut failures = Vec::new();
+    println!("| case | contacts | window | x_h | v_h | x_c | instants [samples] | energy rise / bound | evaluations per switch |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for case in cases() {
+        let o = run_case(&case);
+        println!(
+            "| {} | {:?} | {} | {:.1e} | {:.1e} | {:.1e} | {:.1e} | {:.1e} / {:.1e} | {:.0} |",
+            case.name,
+            o.contacts,
+            o.window,
+            o.err_x,
+            o.err_v,
+            o.err_c,
+            o.dt,
+            o.de,
+            o.bound,
+            o.evaluations_per_switch
+        );
+        if o.window < MIN_WINDOW {
+            failures.push(format!("{}: window {} samples", case.name, o.window));
+        }
+        if let Some(m) = &o.count_mismatch {
+            failures.push(format!("{}: {m}", case.name));
+        }
+        if o.contacts.contains(&0) {
+            failures.push(format!("{}: a hammer never touched", case.name));
+        }
+        if !(o.err_x <= TOL_TRACE && o.err_v <= TOL_TRACE && o.err_c <= TOL_TRACE) {
+            failures.push(format!("{}: traces", case.name));
+        }
+        if !(o.dt <= TOL_INSTANT) {
+            failures.push(format!("{}: instants {:.1e} samples", case.name, o.dt));
+        }
+        if !(o.de <= o.bound) {
+            failures.push(format!("{}: energy rose by {:.1e}", case.name, o.de));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// Bad models: a clear error naming the field.
+#[test]
+fn bad_models_are_refused_with_the_field_named() {
+    let base = model(&Case {
+        name: String::new(),
+        t60: None,
+        gravity: 0.0,
+        strikers: vec![
+            strike(1e-3, 0.0, -1.0, 3.17, 0.0),
+            strike(1e-3, 1e-4, -1.0, 3.17, 0.0),
+        ],
+    });
+    let err = |f: &dyn Fn(&mut MultiModel)| {
+        let mut m = base.clone();
+        f(&mut m);
+        CompiledMulti::new(&m, RATE).unwrap_err()
+    };
+    assert_eq!(err(&|m| m.hammers.clear()), MultiError::ContactCount(0));
+    let e = err(&|m| {
+        let h = m.hammers[0].clone();
+        for j in 0..MAX_CONTACTS {
+            let mut h = h.clone();
+            h.weights[0] += j as f64;
+            m.hammers.push(h);
+        }
+    });
+    assert_eq!(e, MultiError::ContactCount(MAX_CONTACTS + 2));
+    let e = err(&|m| m.hammers[1].weights = m.hammers[0].weights.clone());
+    assert_eq!(e, MultiError::SamePoint(0, 1));
+    let e = err(&|m| m.hammers[1].mass_kg = -1.0);
+    assert!(e.to_string().contains("hammers[1].mass_kg"), "{e}");
+    let e = err(&|m| m.hammers[0].stiffness_n_per_m = f64::NAN);
+    assert!(
+        e.to_string().contains("hammers[0].stiffness_n_per_m"),
+        "{e}"
+    );
+    let e = err(&|m| m.hammers[0].weights.pop().map_or((), |_| ()));
+    assert!(e.to_string().contains("hammers[0].weights"), "{e}");
+    let e = err(&|m| m.sigma[2] = -1.0);
+    assert!(e.to_string().contains("sigma[2]"), "{e}");
+    println!("refused: {e}");
+}
+
+/// One hammer on modes of its own: a one-contact scene for the project's
+/// one-contact engine (a separate implementation: secular route,
+/// hierarchical bases, Hermite certificate, strike from rest).
+fn one_contact_scene(h: &MultiHammer, modes: &[(f64, f64)], gravity: f64) -> Scene {
+    let mut bar = Modal::new("bar", &["a"]);
+    for &(f, w) in modes {
+        bar = bar.mode(f, Some(0.4), &[w]);
+    }
+    SceneBuilder::new("one")
+        .object(bar)
+        .hammer(
+            Hammer::new(h.mass_kg)
+                .height(h.height_m)
+                .velocity(h.velocity_m_per_s)
+                .gravity(gravity),
+        )
+        .contact(
+            Contact::new("bar", h.stiffness_n_per_m)
+                .point("a")
+                .damping(h.damping_n_s_per_m)
+                .switching(Switching::Exact),
+        )
+        .pickup(Pickup::new("bar", "a"))
+        .build()
+}
+
+/// Two contacts that cannot interact (each hammer's point moves modes of
+/// its own, so the phases split into two independent systems) are two
+/// runs of the one-contact engine: each hammer's height and its contact
+/// point, sample by sample.
+#[test]
+fn contacts_that_cannot_interact_are_two_one_contact_runs() {
+    for (fc, zeta, gravity, heights) in [
+        (31.3, 0.0, 0.0, [0.0, 2e-4]),
+        (101.7, 0.05, 0.0, [0.0, 0.0]),
+        (3.17, 1.0, 9.81, [1e-3, 1.5e-3]),
+    ] {
+        let sigma = 1000f64.ln() / 0.4;
+        let weights = [[0.45, 0.40, 0.0, 0.0], [0.0, 0.0, 0.42, 0.12]];
+        let mk = |j: usize| {
+            let w = weights[j];
+            let me = 1.0 / w.iter().map(|x| x * x).sum::<f64>();
+            let m = 0.01 * me;
+            let mr = 1.0 / (1.0 / m + 1.0 / me);
+            let k = (2.0 * PI * fc * NYQUIST).powi(2) * mr;
+            MultiHammer {
+                mass_kg: m,
+                height_m: heights[j],
+                velocity_m_per_s: if gravity > 0.0 { 0.0 } else { -0.8 },
+                weights: w.to_vec(),
+                stiffness_n_per_m: k,
+                damping_n_s_per_m: 2.0 * zeta * (k * mr).sqrt(),
+            }
+        };
+        let m = MultiModel {
+            freq_hz: FREQS.to_vec(),
+            sigma: vec![sigma; 4],
+            hammers: vec![mk(0), mk(1)],
+            gravity_m_per_s2: gravity,
+            pickups: [(vec![1.0; 4], vec![0.0; 4]), (vec![0.0; 4], vec![1.0; 4])],
+        };
+        let sc = CompiledMulti::new(&m, RATE).unwrap();
+        let mut st = MultiState::new(&sc);
+        let singles: Vec<_> = (0..2)
+            .map(|j| {
+                let modes: Vec<(f64, f64)> = (0..4)
+                    .filter(|&i| weights[j][i] != 0.0)
+                    .map(|i| (FREQS[i], weights[j][i]))
+                    .collect();
+                let scene = one_contact_scene(&m.hammers[j], &modes, gravity);
+                compile_with(&scene, RATE, Some(Switching::Exact)).unwrap()
+            })
+            .collect();
+        let mut one: Vec<EngineState> = singles.iter().map(EngineState::new).collect();
+        let mut series = vec![[Vec::new(), Vec::new(), Vec::new(), Vec::new()]; 2];
+        for _ in 0..SAMPLES {
+            st.tick(&sc);
+            let o = st.observe(&sc);
+            for j in 0..2 {
+                one[j].tick(&singles[j]);
+                let p = one[j].observe(&singles[j]);
+                series[j][0].push(o.x_hammer[j]);
+                series[j][1].push(p.x_hammer);
+                series[j][2].push(o.x_contact[j]);
+                series[j][3].push(p.x_contact);
+            }
+        }
+        for (j, s) in series.iter().enumerate() {
+            let (ex, ec) = (rel_l2(&s[0], &s[1]), rel_l2(&s[2], &s[3]));
+            println!(
+                "f_c {fc}x zeta {zeta} g {gravity}: hammer {j}: {} contacts; against the one-contact engine: height {ex:.1e}, contact point {ec:.1e}",
+                st.stats.contacts_started[j]
+            );
+            assert!(st.stats.contacts_started[j] >= 1);
+            assert!(ex < 1e-9 && ec < 1e-9, "{ex:e} {ec:e}");
+        }
+    }
+}
+
+/// Random models of 2 to 4 hammers (masses, stiffness, damping, heights,
+/// points, gravity): the energy never rises beyond rounding, nothing is
+/// not a number, and no sample needs more switches than the cap.
+#[test]
+fn fuzzed_models_never_gain_energy() {
+    let mut rng = modal_testkit::rng::TestRng(0x5eed);
+    let mut worst = 0.0f64;
+    let mut switches = 0;
+    for case in 0..40 {
+        let k = 2 + rng.below(3);
+        let n = 2 + rng.below(6);
+        let freq: Vec<f64> = (0..n).map(|_| 50.0 * 400f64.powf(rng.unit())).collect();
+        let gravity = if rng.below(2) == 0 { 0.0 } else { 9.81 };
+        let hammers: Vec<MultiHammer> = (0..k)
+            .map(|_| {
+                let weights: Vec<f64> = (0..n).map(|_| rng.uniform(-0.8, 0.8)).collect();
+                let me = 1.0 / weights.iter().map(|x| x * x).sum::<f64>();
+                let m = me * 10f64.powf(rng.uniform(-4.0, 2.0));
+                let mr = 1.0 / (1.0 / m + 1.0 / me);
+                let fc = NYQUIST * 10f64.powf(rng.uniform(-1.0, 2.5));
+                let kk = (2.0 * PI * fc).powi(2) * mr;
+                let zeta = [0.0, 0.05, 1.0, 5.0][rng.below(4)];
+                MultiHammer {
+                    mass_kg: m,
+                    height_m: rng.uniform(0.0, 1e-3),
+                    velocity_m_per_s: if gravity > 0.0 {
+                        0.0
+                    } else {
+                        -rng.uniform(0.1, 2.0)
+                    },
+                    weights,
+                    stiffness_n_per_m: kk,
+                    damping_n_s_per_m: 2.0 * zeta * (kk * mr).sqrt(),
+                }
+            })
+            .collect();
+        let m = MultiModel {
+            freq_hz: freq,
+            sigma: (0..n).map(|_| rng.uniform(0.0, 30.0)).collect(),
+            hammers,
+            gravity_m_per_s2: gravity,
+            pickups: [(vec![1.0; n], vec![0.0; n]), (vec![0.0; n], vec![1.0; n])],
+        };
+        let sc = match CompiledMulti::new(&m, RATE) {
+            Ok(sc) => sc,
+            Err(e) => panic!("case {case}: {e}"),
+        };
+        let mut st = MultiState::new(&sc);
+        let bound = 64.0 * sc.max_dim() as f64 * sc.kappa() * U;
+        let scale = |o: &modal_contact::multi::MultiObservation| {
+            o.energy.abs()
+                + (0..k)
+                    .map(|j| 2.0 * m.hammers[j].mass_kg * gravity * o.x_hammer[j].abs())
+                    .sum::<f64>()
+        };
+        let mut prev = st.observe(&sc);
+        for _ in 0..1000 {
+            let y = st.tick(&sc);
+            assert!(y.iter().all(|v| v.is_finite()), "case {case}");
+            let o = st.observe(&sc);
+            let rise = (o.energy - prev.energy) / scale(&o).max(scale(&prev));
+            worst = worst.max(rise / bound);
+            assert!(
+                rise <= bound,
+                "case {case}: energy rose {rise:e} > {bound:e}"
+            );
+            prev = o;
+        }
+        assert_eq!(st.stats.capped, 0, "case {case}");
+        switches += st.stats.switches;
+    }
+    println!("40 random models, {switches} switches: largest energy rise {worst:.2} of its rounding bound");
+    assert!(switches > 40);
+}
