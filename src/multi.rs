@@ -41,8 +41,11 @@
 //! t - M t^2 / 2` clears `(0, 2 psi'(0) / M)` first (without it, the
 //! rounding of the change of basis could switch it straight back).
 
+use crate::compile::pan_gains;
 use crate::physics::block::{exp2, mul2, sym_growth, Mat2};
 use crate::physics::decomp::{decompose_via, Form};
+use crate::physics::model::LN_1000;
+use crate::scene::{ObjectSpec, Quantity, Scene, SceneError};
 use nalgebra::DMatrix;
 
 /// Most contacts of one scene.
@@ -182,6 +185,11 @@ pub struct MultiPhase {
     out0: [f64; 2],
     /// Condition number of `V` (largest over smallest singular value).
     pub kappa: f64,
+    /// The largest block growth over one sample, `max_k e^(gamma_k h)` (1
+    /// for contractions; rounding can make an undamped block's a few ulps
+    /// more): a bound taken from a state holds `n` samples later times its
+    /// `n`-th power.
+    pub growth: f64,
 }
 
 /// A compiled model: every phase, by its contact bit set.
@@ -207,8 +215,14 @@ pub struct MultiStats {
     pub contacts_started: [u64; MAX_CONTACTS],
     /// Samples that reached [`MAX_SWITCHES_PER_SAMPLE`].
     pub capped: u64,
-    /// Pieces down to the leaf width whose crossing could not be decided
-    /// (a graze at rounding level: no switch).
+    /// Pieces of the leaf width (about an ulp of the sample) at zero or
+    /// within rounding of it without crossing: a touch at zero relative
+    /// speed, or the instant a crossing begins (the next piece takes it);
+    /// no switch.
+    pub grazing: u64,
+    /// A contact's Taylor bound cleared the rest of the step while the
+    /// step's end was on its other side (a contradiction only rounding can
+    /// make; no switch). Stays 0 on every test.
     pub uncertified: u64,
     /// Evaluations of an event function inside a step.
     pub evaluations: u64,
@@ -327,6 +341,99 @@ impl MultiModel {
     }
 }
 
+impl MultiModel {
+    /// The model of a scene with strikers (docs/design.md, "Several
+    /// contacts"): the struck object's modes (objects from geometry and
+    /// material become their modes at `rate_hz`), `[hammer]` and
+    /// `[contact]` as contact 0, each `[[striker]]` as the next, the
+    /// pickups on the struck object (those elsewhere hear nothing). A
+    /// clear error naming the field where the scene asks for what several
+    /// contacts do not take yet.
+    pub fn from_scene(scene: &Scene, rate_hz: f64) -> Result<Self, SceneError> {
+        scene.validate()?;
+        let expanded = scene.expanded(rate_hz)?;
+        let scene = &expanded;
+        if scene.approximate.is_some() {
+            return Err(SceneError::new(
+                "approximate",
+                "not with several contacts yet: remove it",
+            ));
+        }
+        let c = &scene.contact;
+        let obj = scene
+            .object_index(&c.object)
+            .map(|i| &scene.object[i])
+            .ok_or_else(|| {
+                SceneError::new("contact.object", format!("no object named {:?}", c.object))
+            })?;
+        let ObjectSpec::Modal(m) = obj else {
+            return Err(SceneError::new(
+                "contact.object",
+                "several contacts strike an object with modes (kind \"modes\" or one from \
+                 geometry and material), not a lumped string or a wall",
+            ));
+        };
+        let weights_at = |field: &str, point: &str| -> Result<Vec<f64>, SceneError> {
+            let k = m.points.iter().position(|p| p == point).ok_or_else(|| {
+                SceneError::new(
+                    field,
+                    format!("object {:?} has no point {point:?}", c.object),
+                )
+            })?;
+            Ok(m.mode.iter().map(|md| md.weights[k]).collect())
+        };
+        let point0 = c.point.as_deref().unwrap_or_default();
+        let mut hammers = vec![MultiHammer {
+            mass_kg: scene.hammer.mass_kg,
+            height_m: scene.hammer.height_m,
+            velocity_m_per_s: scene.hammer.velocity_m_per_s,
+            weights: weights_at("contact.point", point0)?,
+            stiffness_n_per_m: c.stiffness_n_per_m,
+            damping_n_s_per_m: c.damping_n_s_per_m,
+        }];
+        for (i, st) in scene.striker.iter().enumerate() {
+            hammers.push(MultiHammer {
+                mass_kg: st.mass_kg,
+                height_m: st.height_m,
+                velocity_m_per_s: st.velocity_m_per_s,
+                weights: weights_at(&format!("striker[{i}].point"), &st.point)?,
+                stiffness_n_per_m: st.stiffness_n_per_m,
+                damping_n_s_per_m: st.damping_n_s_per_m,
+            });
+        }
+        let n = m.mode.len();
+        let mut pickups: [(Vec<f64>, Vec<f64>); 2] =
+            std::array::from_fn(|_| (vec![0.0; n], vec![0.0; n]));
+        for (i, p) in scene.pickup.iter().enumerate() {
+            if p.object != c.object {
+                continue;
+            }
+            let w = weights_at(&format!("pickup[{i}].point"), &p.point)?;
+            let (gl, gr) = pan_gains(p.pan);
+            for (ch, g) in [(0, gl), (1, gr)] {
+                let row = match p.quantity {
+                    Quantity::Displacement => &mut pickups[ch].0,
+                    Quantity::Velocity => &mut pickups[ch].1,
+                };
+                for (r, wi) in row.iter_mut().zip(&w) {
+                    *r += wi * p.gain * g;
+                }
+            }
+        }
+        Ok(MultiModel {
+            freq_hz: m.mode.iter().map(|md| md.freq_hz).collect(),
+            sigma: m
+                .mode
+                .iter()
+                .map(|md| md.t60_s.map_or(0.0, |t| LN_1000 / t))
+                .collect(),
+            hammers,
+            gravity_m_per_s2: scene.hammer.gravity_m_per_s2,
+            pickups,
+        })
+    }
+}
+
 /// The generator of phase `mask` in its energy coordinates, and gravity's
 /// constant force on them.
 fn generator(m: &MultiModel, members: &[usize]) -> (DMatrix<f64>, Vec<f64>) {
@@ -421,6 +528,7 @@ impl MultiPhase {
         };
         let props = gens.iter().map(|g| exp2(g, h)).collect();
         let growth: Vec<f64> = gens.iter().map(|g| (sym_growth(g) * h).exp()).collect();
+        let growth_max = growth.iter().copied().fold(1.0, f64::max);
         let nb = gens.len();
         let (mut ev, mut ev0, mut ev_d, mut ev_c2, mut ev_e, mut vel, mut vel0) =
             (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
@@ -482,6 +590,7 @@ impl MultiPhase {
             out,
             out0,
             kappa: d.diag.kappa,
+            growth: growth_max,
         })
     }
 }
@@ -513,6 +622,12 @@ impl CompiledMulti {
         self.phases.iter().map(|p| p.kappa).fold(1.0, f64::max)
     }
 
+    /// The largest block growth over one sample of any phase
+    /// ([`MultiPhase::growth`]).
+    pub fn growth(&self) -> f64 {
+        self.phases.iter().map(|p| p.growth).fold(1.0, f64::max)
+    }
+
     /// The largest phase dimension.
     pub fn max_dim(&self) -> usize {
         self.phases.iter().map(|p| p.dim).max().unwrap_or(0)
@@ -535,6 +650,11 @@ pub struct MultiState {
     /// time).
     x_h: [f64; MAX_CONTACTS],
     v_h: [f64; MAX_CONTACTS],
+    /// Per contact: a whole-sample margin (`w = h`) and the epoch of the
+    /// clock (64 samples) it was taken in, in the current phase (times the
+    /// phase's growth over 64 samples, it holds for every later state of
+    /// the epoch).
+    cached: [(u64, f64); MAX_CONTACTS],
     /// Samples run.
     clock: u64,
     /// What the engine did.
@@ -572,6 +692,7 @@ impl MultiState {
             norms: vec![vec![0.0; dim / 2]; 2],
             x_h,
             v_h,
+            cached: [(u64::MAX, 0.0); MAX_CONTACTS],
             clock: 0,
             stats: MultiStats::default(),
             switches: Vec::new(),
@@ -589,8 +710,26 @@ impl MultiState {
         self.mask
     }
 
-    /// Advance one sample; the output (left, right).
+    /// One sample: the output `[left, right]` of the current state (the
+    /// one-contact engine's convention: sample `n` is time `n / fs`), then
+    /// advance one step.
     pub fn tick(&mut self, sc: &CompiledMulti) -> [f64; 2] {
+        let out = self.output(sc);
+        self.step(sc);
+        out
+    }
+
+    /// The output `[left, right]` of the current state.
+    pub fn output(&self, sc: &CompiledMulti) -> [f64; 2] {
+        let ph = &sc.phases[self.mask as usize];
+        [
+            dot(&ph.out[0], &self.s) + ph.out0[0],
+            dot(&ph.out[1], &self.s) + ph.out0[1],
+        ]
+    }
+
+    /// Advance one sample, switching wherever a contact crosses.
+    pub fn step(&mut self, sc: &CompiledMulti) {
         let h = sc.h;
         let mut t = 0.0;
         let mut starts = [Start::Value; MAX_CONTACTS];
@@ -644,11 +783,6 @@ impl MultiState {
             taken += 1;
         }
         self.clock += 1;
-        let ph = &sc.phases[self.mask as usize];
-        [
-            dot(&ph.out[0], &self.s) + ph.out0[0],
-            dot(&ph.out[1], &self.s) + ph.out0[1],
-        ]
     }
 
     /// The hammers out of contact fly `dt` on.
@@ -689,6 +823,15 @@ impl MultiState {
         let row = &ph.ev[j];
         let q0 = dot(row, &self.s) + ph.ev0[j];
         let q_end = dot(row, &self.end[..ph.dim]) + ph.ev0[j];
+        // a whole sample that clears the epoch's margin holds no crossing
+        let epoch = self.clock / 64;
+        let whole = matches!(start, Start::Value) && rem == sc.h;
+        if whole && self.cached[j].0 == epoch {
+            let (p0, p1) = (psi_of(q0, 0.0), psi_of(q_end, rem));
+            if !crossed(p1) && p0.min(p1) > self.cached[j].1 {
+                return None;
+            }
+        }
         let slope = dot(&ph.ev_d[j], &self.s);
         let d0 = if inside { slope } else { v0 - slope };
         let mut m = 0.0;
@@ -698,6 +841,11 @@ impl MultiState {
         }
         let g_curv = if inside { 0.0 } else { g };
         m = (m + g_curv) * (1.0 + 1e-12);
+        if whole && self.cached[j].0 != epoch {
+            // for the rest of the epoch: at most 64 samples of growth
+            let later = ph.growth.powi(64);
+            self.cached[j] = (epoch, self.margin(ph, j, rem, g_curv, 0) * later);
+        }
         let psi_end = psi_of(q_end, rem);
         let (a, psi_a) = match start {
             Start::Value => (0.0, psi_of(q0, 0.0)),
@@ -798,7 +946,7 @@ impl MultiState {
             if crossed(pb) {
                 return Some(b);
             }
-            self.stats.uncertified += 1;
+            self.stats.grazing += 1;
             return None;
         }
         // the midpoint's norms in `free`: the left half keeps `left` and
@@ -890,6 +1038,7 @@ impl MultiState {
         self.x_h = x;
         self.v_h = v;
         self.mask = new_mask;
+        self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
         self.stats.switches += 1;
         std::array::from_fn(|j| {
             if who & (1 << j) != 0 {
@@ -960,5 +1109,146 @@ fn step_to(gens: &[Mat2], t: f64, s: &[f64], out: &mut [f64]) {
         let (x0, x1) = mul2(&p, s[k], s[nb + k]);
         out[k] = x0;
         out[nb + k] = x1;
+    }
+}
+
+/// What a several-contact render did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MultiRenderStats {
+    /// The engine's counters.
+    pub stats: MultiStats,
+    /// Largest absolute output sample.
+    pub peak: f64,
+    /// Output samples that were not finite (written as they are).
+    pub nonfinite: u64,
+}
+
+/// What [`render_multi`] hands each sample's observation to.
+pub type ObserveFn<'a> = dyn FnMut(usize, &MultiObservation) -> std::io::Result<()> + 'a;
+
+/// Render `n` samples of `sc` from its initial state: the audio in chunks
+/// of [`crate::render::STREAM_CHUNK`] to `audio`, and, when `observe` is
+/// given, every sample's observation (sample `i` at time `i / fs`, 0 the
+/// initial state, `n` of them). O(N) per sample and O(N^2) per switch;
+/// observing adds O(N^2) per sample (the energy through the change of
+/// basis).
+pub fn render_multi(
+    sc: &CompiledMulti,
+    n: usize,
+    mut audio: impl FnMut(&[f64], &[f64]) -> std::io::Result<()>,
+    mut observe: Option<&mut ObserveFn<'_>>,
+) -> std::io::Result<MultiRenderStats> {
+    let mut st = MultiState::new(sc);
+    let chunk = crate::render::STREAM_CHUNK;
+    let (mut l, mut r) = (Vec::with_capacity(chunk), Vec::with_capacity(chunk));
+    let mut out = MultiRenderStats::default();
+    let mut i = 0;
+    while i < n {
+        l.clear();
+        r.clear();
+        for _ in 0..chunk.min(n - i) {
+            if let Some(f) = observe.as_mut() {
+                f(i, &st.observe(sc))?;
+            }
+            let [a, b] = st.tick(sc);
+            for x in [a, b] {
+                if x.is_finite() {
+                    out.peak = out.peak.max(x.abs());
+                } else {
+                    out.nonfinite += 1;
+                }
+            }
+            l.push(a);
+            r.push(b);
+            i += 1;
+        }
+        audio(&l, &r)?;
+    }
+    out.stats = st.stats;
+    Ok(out)
+}
+
+/// The several-contact trace's header (docs/design.md, "Several
+/// contacts"): the one-contact columns for contact 0 (`energy` the total),
+/// then `x_hammer_j, v_hammer_j, x_contact_j, v_contact_j, in_contact_j`
+/// for each further contact `j`.
+pub fn trace_header(contacts: usize) -> String {
+    let mut h = String::from("t,x_hammer,v_hammer,x_contact,v_contact,in_contact,energy");
+    for j in 1..contacts {
+        h.push_str(&format!(
+            ",x_hammer_{j},v_hammer_{j},x_contact_{j},v_contact_{j},in_contact_{j}"
+        ));
+    }
+    h
+}
+
+/// One trace row (without its line end) in the one-contact trace's
+/// number format (shortest round-trip).
+fn push_trace_row(
+    buf: &mut Vec<u8>,
+    fmt: &mut zmij::Buffer,
+    t: f64,
+    o: &MultiObservation,
+    contacts: usize,
+) {
+    use crate::render::push_e;
+    let flag = |j: usize| if o.active & (1 << j) != 0 { b'1' } else { b'0' };
+    push_e(buf, fmt, t);
+    for x in [o.x_hammer[0], o.v_hammer[0], o.x_contact[0], o.v_contact[0]] {
+        buf.push(b',');
+        push_e(buf, fmt, x);
+    }
+    buf.push(b',');
+    buf.push(flag(0));
+    buf.push(b',');
+    push_e(buf, fmt, o.energy);
+    for j in 1..contacts {
+        for x in [o.x_hammer[j], o.v_hammer[j], o.x_contact[j], o.v_contact[j]] {
+            buf.push(b',');
+            push_e(buf, fmt, x);
+        }
+        buf.push(b',');
+        buf.push(flag(j));
+    }
+}
+
+/// The several-contact trace CSV, written as the render goes.
+pub struct MultiTraceCsv<W: std::io::Write> {
+    out: W,
+    buf: Vec<u8>,
+    fmt: zmij::Buffer,
+    rate_hz: f64,
+    contacts: usize,
+}
+
+impl<W: std::io::Write> MultiTraceCsv<W> {
+    /// Write the header ([`trace_header`]).
+    pub fn new(mut out: W, rate_hz: f64, contacts: usize) -> std::io::Result<Self> {
+        writeln!(out, "{}", trace_header(contacts))?;
+        Ok(Self {
+            out,
+            buf: Vec::with_capacity(1 << 16),
+            fmt: zmij::Buffer::new(),
+            rate_hz,
+            contacts,
+        })
+    }
+
+    /// Write sample `i`'s row.
+    pub fn row(&mut self, i: usize, o: &MultiObservation) -> std::io::Result<()> {
+        let t = i as f64 / self.rate_hz;
+        push_trace_row(&mut self.buf, &mut self.fmt, t, o, self.contacts);
+        self.buf.push(b'\n');
+        if self.buf.len() >= 1 << 16 {
+            self.out.write_all(&self.buf)?;
+            self.buf.clear();
+        }
+        Ok(())
+    }
+
+    /// Write what is left and flush.
+    pub fn finish(mut self) -> std::io::Result<()> {
+        self.out.write_all(&self.buf)?;
+        self.out.flush()
     }
 }

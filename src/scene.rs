@@ -91,7 +91,7 @@ pub struct SceneError {
 }
 
 impl SceneError {
-    fn new(path: impl Into<String>, reason: impl Into<String>) -> Self {
+    pub(crate) fn new(path: impl Into<String>, reason: impl Into<String>) -> Self {
         Self {
             path: path.into(),
             reason: reason.into(),
@@ -164,6 +164,11 @@ pub struct Scene {
     pub hammer: HammerSpec,
     /// Which object and point the hammer hits, and the contact spring-damper.
     pub contact: ContactSpec,
+    /// More hammers, each with a contact of its own on the struck object
+    /// (docs/design.md, "Several contacts"); empty: the one contact of
+    /// `[hammer]` and `[contact]`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub striker: Vec<StrikerSpec>,
     /// What is heard.
     #[serde(default)]
     pub pickup: Vec<PickupSpec>,
@@ -384,6 +389,32 @@ pub struct HammerSpec {
     pub point: Option<String>,
 }
 
+/// Another point-mass hammer with a contact of its own on the struck
+/// object (`[contact].object`), at a point of its own, under the scene's
+/// gravity (`[hammer].gravity_m_per_s2`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StrikerSpec {
+    /// Mass \[kg\].
+    pub mass_kg: f64,
+    /// Initial height of its contact face \[m\] (>= 0).
+    pub height_m: f64,
+    /// Initial velocity \[m/s\], positive up.
+    #[serde(default)]
+    pub velocity_m_per_s: f64,
+    /// The struck object's point it hits.
+    pub point: String,
+    /// Contact stiffness \[N/m\].
+    pub stiffness_n_per_m: f64,
+    /// Contact damping \[N s/m\].
+    #[serde(default)]
+    pub damping_n_s_per_m: f64,
+}
+
+/// Most contacts of one scene: `[contact]` and up to `MAX_CONTACTS - 1`
+/// strikers.
+pub const MAX_CONTACTS: usize = 4;
+
 /// The contact spring-damper (paper eq. 9).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -578,7 +609,104 @@ impl Scene {
         self.hammer.validate()?;
         self.validate_contact()?;
         self.validate_mallet()?;
+        self.validate_strikers()?;
         self.validate_pickups()
+    }
+
+    /// Strikers: at most `MAX_CONTACTS - 1`; each hits a point of the
+    /// struck object that no other contact hits, with the values of a
+    /// hammer and a contact; several contacts need exact switching, a
+    /// point-mass hammer and an object with points (not a wall).
+    fn validate_strikers(&self) -> Result<(), SceneError> {
+        if self.striker.is_empty() {
+            return Ok(());
+        }
+        if self.striker.len() >= MAX_CONTACTS {
+            return Err(SceneError::new(
+                "striker",
+                format!(
+                    "{} strikers and [contact] make {} contacts, at most {MAX_CONTACTS}",
+                    self.striker.len(),
+                    self.striker.len() + 1
+                ),
+            ));
+        }
+        if self.hammer.object.is_some() {
+            return Err(SceneError::new(
+                "striker",
+                "several contacts take point-mass hammers: remove hammer.object or the strikers",
+            ));
+        }
+        if self.contact.switching == Some(Switching::OffsetRod) {
+            return Err(SceneError::new(
+                "striker",
+                "several contacts switch exactly: remove contact.switching = \"offset-rod\"",
+            ));
+        }
+        let obj = self
+            .object_index(&self.contact.object)
+            .map(|i| &self.object[i])
+            .expect("validate_contact ran first");
+        if matches!(obj, ObjectSpec::Wall(_)) {
+            return Err(SceneError::new(
+                "striker",
+                "several contacts strike an object with points, not a wall",
+            ));
+        }
+        let names = obj.point_names();
+        for (i, st) in self.striker.iter().enumerate() {
+            let base = format!("striker[{i}]");
+            let f = |k: &str| format!("{base}.{k}");
+            if !names.contains(&st.point) {
+                return Err(SceneError::new(
+                    f("point"),
+                    format!(
+                        "object {:?} has no point {:?}",
+                        self.contact.object, st.point
+                    ),
+                ));
+            }
+            let taken = self.contact.point.as_ref() == Some(&st.point)
+                || self.striker[..i].iter().any(|o| o.point == st.point);
+            if taken {
+                return Err(SceneError::new(
+                    f("point"),
+                    format!(
+                        "another contact already hits {:?}: two contacts on one point pair",
+                        st.point
+                    ),
+                ));
+            }
+            check_positive(&f("mass_kg"), st.mass_kg)?;
+            check_min(&f("mass_kg"), st.mass_kg, MIN_MASS_KG)?;
+            check_max(&f("mass_kg"), st.mass_kg, MAX_MASS_KG)?;
+            check_non_negative(&f("height_m"), st.height_m)?;
+            check_max(&f("height_m"), st.height_m, MAX_HEIGHT_M)?;
+            check_finite(&f("velocity_m_per_s"), st.velocity_m_per_s)?;
+            check_abs_max(
+                &f("velocity_m_per_s"),
+                st.velocity_m_per_s,
+                MAX_SPEED_M_PER_S,
+            )?;
+            check_positive(&f("stiffness_n_per_m"), st.stiffness_n_per_m)?;
+            check_min(
+                &f("stiffness_n_per_m"),
+                st.stiffness_n_per_m,
+                MIN_STIFFNESS_N_PER_M,
+            )?;
+            check_max(
+                &f("stiffness_n_per_m"),
+                st.stiffness_n_per_m,
+                MAX_STIFFNESS_N_PER_M,
+            )?;
+            check_non_negative(&f("damping_n_s_per_m"), st.damping_n_s_per_m)?;
+            check_max(
+                &f("damping_n_s_per_m"),
+                st.damping_n_s_per_m,
+                MAX_DAMPING_N_S_PER_M,
+            )?;
+        }
+        Ok(())
     }
 
     /// Names unique and non-empty, each object's own values.

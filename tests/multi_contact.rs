@@ -258,6 +258,12 @@ fn run_case(case: &Case) -> Outcome {
     let m = model(case);
     let k = m.hammers.len();
     let sc = CompiledMulti::new(&m, RATE).unwrap();
+    assert!(
+        sc.growth() - 1.0 < 1e-12,
+        "{}: a growing block {:e}",
+        case.name,
+        sc.growth() - 1.0
+    );
     let mut st = MultiState::new(&sc);
     st.record(true);
     let mut obs = vec![st.observe(&sc)];
@@ -681,6 +687,7 @@ fn fuzzed_models_never_gain_energy() {
             Ok(sc) => sc,
             Err(e) => panic!("case {case}: {e}"),
         };
+        assert!(sc.growth() - 1.0 < 1e-12, "case {case}: a growing block");
         let mut st = MultiState::new(&sc);
         let bound = 64.0 * sc.max_dim() as f64 * sc.kappa() * U;
         let scale = |o: &modal_contact::multi::MultiObservation| {
@@ -707,4 +714,67 @@ fn fuzzed_models_never_gain_energy() {
     }
     println!("40 random models, {switches} switches: largest energy rise {worst:.2} of its rounding bound");
     assert!(switches > 40);
+}
+
+/// The scene file's `[[striker]]`: the example scene makes a two-contact
+/// model; the one-contact compiler refuses it with the field named; bad
+/// strikers are refused with theirs.
+#[test]
+fn strikers_in_a_scene_file() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/docs/examples/marimba-two-mallets.toml"
+    );
+    let text = std::fs::read_to_string(path).unwrap();
+    let scene: Scene = Scene::from_toml_str(&text).unwrap();
+    let m = MultiModel::from_scene(&scene, RATE).unwrap();
+    assert_eq!(m.hammers.len(), 2);
+    assert_ne!(m.hammers[0].weights, m.hammers[1].weights);
+    let e = compile_with(&scene, RATE, None).unwrap_err().to_string();
+    assert!(e.contains("striker"), "{e}");
+    let bad = |from: &str, to: &str| {
+        let t = text.replacen(from, to, 1);
+        match Scene::from_toml_str(&t) {
+            Err(e) => e.to_string(),
+            Ok(s) => s
+                .validate()
+                .map_or_else(|e| e.to_string(), |_| "valid".into()),
+        }
+    };
+    let e = bad("point = \"left\"", "point = \"nowhere\"");
+    assert!(
+        e.contains("striker[0].point") && e.contains("nowhere"),
+        "{e}"
+    );
+    let e = bad("point = \"left\"", "point = \"contact\"");
+    assert!(
+        e.contains("striker[0].point") && e.contains("one point pair"),
+        "{e}"
+    );
+    let e = bad(
+        "mass_kg = 0.03\nheight_m = 0.121",
+        "mass_kg = -1.0\nheight_m = 0.121",
+    );
+    assert!(e.contains("striker[0].mass_kg"), "{e}");
+    let e = bad(
+        "damping_n_s_per_m = 43.4722\n\n[[pickup]]",
+        "damping_n_s_per_m = 43.4722\nswitching = \"exact\"\n\n[[pickup]]",
+    );
+    assert!(e.contains("switching"), "{e}");
+    let e = bad(
+        "point = \"contact\"\nstiffness",
+        "point = \"contact\"\nswitching = \"offset-rod\"\nstiffness",
+    );
+    assert!(e.contains("striker") && e.contains("exactly"), "{e}");
+    let one = &text[text.find("[[striker]]").unwrap()..text.find("[[pickup]]").unwrap()];
+    let more = one.replace("\"left\"", "\"pickup\"").repeat(3);
+    let four = text.replace("[[pickup]]", &format!("{more}[[pickup]]"));
+    let e = match Scene::from_toml_str(&four) {
+        Err(e) => e.to_string(),
+        Ok(s) => s
+            .validate()
+            .map_or_else(|e| e.to_string(), |_| "valid".into()),
+    };
+    assert!(e.contains("striker"), "{e}");
+    println!("refused: {e}");
 }

@@ -38,7 +38,7 @@ pub use rows::{pan_gains, PhaseRows, RowOffsets};
 use crate::physics::block::OscBlocks;
 use crate::physics::decomp::{self, DecompDiagnostics, Form, PhaseDecomp};
 use crate::physics::hodlr::Hodlr;
-use crate::scene::{ObjectSpec, Scene, Switching};
+use crate::scene::{ObjectSpec, Scene, SceneError, Switching};
 use nalgebra::DMatrix;
 
 /// Largest contact-system dimension the compiler attempts whatever the
@@ -465,6 +465,14 @@ pub fn compile_opts(
     scene.validate()?;
     if !(rate_hz.is_finite() && (RATE_RANGE_HZ.0..=RATE_RANGE_HZ.1).contains(&rate_hz)) {
         return Err(CompileError::SampleRate(rate_hz));
+    }
+    if !scene.striker.is_empty() {
+        return Err(CompileError::Scene(SceneError::new(
+            "striker",
+            "a scene of several contacts renders through the several-contact engine \
+             (`cargo xtask render`, docs/design.md \"Several contacts\"); the instrument, \
+             the report and this compiler take one contact",
+        )));
     }
     // 0. objects described by geometry and material become their modes at
     // this rate (docs/design.md, "Objects from geometry and material")

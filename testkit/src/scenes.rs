@@ -17,7 +17,7 @@
 
 use modal_contact::scene::{
     ApproxSpec, ContactSpec, DashpotSpec, HammerSpec, ModalSpec, ModeSpec, ObjectSpec, PickupSpec,
-    Quantity, Scene, SceneError, StringSpec, Switching, WallSpec, SCENE_VERSION,
+    Quantity, Scene, SceneError, StrikerSpec, StringSpec, Switching, WallSpec, SCENE_VERSION,
 };
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
@@ -39,6 +39,7 @@ pub struct SceneBuilder {
     objects: Vec<ObjectSpec>,
     hammer: Option<HammerSpec>,
     contact: Option<ContactSpec>,
+    strikers: Vec<StrikerSpec>,
     pickups: Vec<PickupSpec>,
     approximate: Option<ApproxSpec>,
 }
@@ -53,6 +54,7 @@ impl SceneBuilder {
             objects: Vec::new(),
             hammer: None,
             contact: None,
+            strikers: Vec::new(),
             pickups: Vec::new(),
             approximate: None,
         }
@@ -67,6 +69,12 @@ impl SceneBuilder {
     /// Default render length \[s\].
     pub fn duration(mut self, seconds: f64) -> Self {
         self.duration_s = seconds;
+        self
+    }
+
+    /// Add a striker: another hammer with a contact of its own.
+    pub fn striker(mut self, striker: StrikerSpec) -> Self {
+        self.strikers.push(striker);
         self
     }
 
@@ -111,6 +119,7 @@ impl SceneBuilder {
             object: self.objects,
             hammer: self.hammer.expect("SceneBuilder: no hammer"),
             contact: self.contact.expect("SceneBuilder: no contact"),
+            striker: self.strikers,
             pickup: self.pickups,
             approximate: self.approximate,
         }

@@ -517,6 +517,9 @@ impl TraceSink for TraceFile {
 
 fn scene_job(job: &Job, a: &RenderArgs, progress: &dyn Fn(u64)) -> Result<JobReport> {
     let scene = load_scene(&job.scene_path)?;
+    if !scene.striker.is_empty() {
+        return multi_scene_job(job, a, &scene, progress);
+    }
     let n = render_length(a.seconds.unwrap_or(scene.duration_s), a.rate)?;
     let t0 = Instant::now();
     let compiled = compile_with(&scene, a.rate, a.switching.map(Switching::from))?;
@@ -570,6 +573,140 @@ fn scene_job(job: &Job, a: &RenderArgs, progress: &dyn Fn(u64)) -> Result<JobRep
         line,
         switching_line,
         summary: compiled.summary.clone(),
+    })
+}
+
+/// A scene of several contacts (`[[striker]]`, docs/design.md "Several
+/// contacts"): compiled and run by the several-contact engine; the WAV, the
+/// trace CSV with a group of columns per further contact, the plot of
+/// contact 0's hammer and point with the total energy (shaded where any
+/// contact is closed), and the sidecar with each contact's count.
+fn multi_scene_job(
+    job: &Job,
+    a: &RenderArgs,
+    scene: &Scene,
+    progress: &dyn Fn(u64),
+) -> Result<JobReport> {
+    use modal_contact::multi::{render_multi, CompiledMulti, MultiModel, MultiTraceCsv};
+    if a.switching.map(Switching::from) == Some(Switching::OffsetRod) {
+        bail!("--switching offset-rod: a scene of several contacts switches exactly");
+    }
+    let n = render_length(a.seconds.unwrap_or(scene.duration_s), a.rate)?;
+    let t0 = Instant::now();
+    let model = MultiModel::from_scene(scene, a.rate)?;
+    let compiled = CompiledMulti::new(&model, a.rate)?;
+    let compile_s = t0.elapsed().as_secs_f64();
+    let k = compiled.contacts();
+    let mut wav = FloatWav::create(&job.wav, a.rate, n)?;
+    let mut csv = match job.trace.as_deref() {
+        Some(p) if TraceFormat::of(p) == TraceFormat::Npy => {
+            bail!(
+                "{}: a scene of several contacts writes its trace as CSV only",
+                p.display()
+            )
+        }
+        Some(p) => {
+            let f = std::fs::File::create(p)
+                .with_context(|| format!("cannot create {}", p.display()))?;
+            Some(MultiTraceCsv::new(
+                BufWriter::with_capacity(1 << 20, f),
+                a.rate,
+                k,
+            )?)
+        }
+        None => None,
+    };
+    let mut env = job.plot.as_ref().map(|_| TraceEnvelope::new(a.rate, n));
+    let t1 = Instant::now();
+    let watching = csv.is_some() || env.is_some();
+    let audio = |l: &[f64], r: &[f64]| {
+        progress(l.len() as u64);
+        wav.write(l, r)
+    };
+    let mut observe =
+        |i: usize, o: &modal_contact::multi::MultiObservation| -> std::io::Result<()> {
+            if let Some(c) = csv.as_mut() {
+                c.row(i, o)?;
+            }
+            if let Some(e) = env.as_mut() {
+                let m = modal_contact::engine::Motion {
+                    x_hammer: o.x_hammer[0],
+                    v_hammer: o.v_hammer[0],
+                    x_contact: o.x_contact[0],
+                    v_contact: o.v_contact[0],
+                    in_contact: o.active != 0,
+                };
+                e.record(i, &m, Some(o.energy))?;
+            }
+            Ok(())
+        };
+    let stats = render_multi(
+        &compiled,
+        n,
+        audio,
+        watching.then_some(&mut observe as &mut dyn FnMut(usize, &_) -> std::io::Result<()>),
+    )?;
+    let render_s = t1.elapsed().as_secs_f64();
+    wav.finish()?;
+    if let Some(c) = csv {
+        c.finish()?;
+    }
+    if let (Some(e), Some(path)) = (env, job.plot.as_deref()) {
+        plot::plot_envelope(&e, &scene.name, path)?;
+    }
+    if stats.nonfinite > 0 {
+        bail!("{} samples were not finite", stats.nonfinite);
+    }
+    let x = &stats.stats;
+    let seconds = n as f64 / a.rate;
+    let starts = &x.contacts_started[..k];
+    let json = json!({
+        "scene": job.scene_path.display().to_string(),
+        "scene_name": scene.name,
+        "kind": "scene",
+        "rate_hz": a.rate,
+        "seconds": seconds,
+        "samples": n,
+        "switching": "Exact",
+        "compile": {
+            "seconds": compile_s,
+            "contacts": k,
+            "phases": compiled.phases.len(),
+            "largest_dim": compiled.max_dim(),
+            "kappa": compiled.kappa(),
+        },
+        "contacts": starts.iter().sum::<u64>(),
+        "contacts_per_contact": starts,
+        "exact_switching": {
+            "switches": x.switches, "grazing": x.grazing, "capped": x.capped, "uncertified": x.uncertified,
+            "evaluations": x.evaluations,
+        },
+        "peak": stats.peak,
+        "render_s": render_s,
+        "realtime_factor": seconds / render_s.max(1e-12),
+        "files": files_json(job),
+    });
+    let line = format!(
+        "rendered {n} samples ({seconds:.3} s) in {render_s:.3} s ({:.0}x real time), compiled in {compile_s:.3} s; contacts {starts:?} (per contact); peak {:.3e}",
+        seconds / render_s.max(1e-12),
+        stats.peak
+    );
+    let summary = format!(
+        "several contacts: {k} contacts on {:?}, {} phases compiled up front (every subset in contact), \
+         largest {} coordinates, condition of the bases at most {:.1}\n",
+        scene.contact.object,
+        compiled.phases.len(),
+        compiled.max_dim(),
+        compiled.kappa()
+    );
+    Ok(JobReport {
+        json,
+        line,
+        switching_line: Some(format!(
+            "several-contact switching: {} switches, {} grazing touches, {} event evaluations; capped {}, uncertified {}",
+            x.switches, x.grazing, x.evaluations, x.capped, x.uncertified
+        )),
+        summary,
     })
 }
 

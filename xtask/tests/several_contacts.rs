@@ -1,0 +1,152 @@
+//! `cargo xtask render` on a scene of several contacts
+//! (`docs/examples/marimba-two-mallets.toml`, docs/design.md "Several
+//! contacts"), through the library the command runs: the WAV, the trace
+//! with a group of columns per further contact, the plot and the sidecar;
+//! until the second mallet arrives the sound is the one-contact engine's
+//! render of the same scene without it (two separate implementations);
+//! the same job twice gives the same bytes; the instrument's path refuses
+//! the scene with the field named.
+
+use std::path::{Path, PathBuf};
+use xtask::render::{run, RenderArgs};
+
+fn example() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/examples/marimba-two-mallets.toml")
+}
+
+fn args(scenes: Vec<PathBuf>, out: &Path) -> RenderArgs {
+    RenderArgs {
+        scenes,
+        out: out.to_path_buf(),
+        trace: None,
+        trace_format: Default::default(),
+        plot: None,
+        seconds: Some(0.15),
+        rate: 48000.0,
+        switching: None,
+        notes: None,
+        velocities: None,
+        jobs: Some(2),
+    }
+}
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("xtask-multi-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn wav(path: &Path) -> Vec<f32> {
+    hound::WavReader::open(path)
+        .unwrap()
+        .samples::<f32>()
+        .map(|s| s.unwrap())
+        .step_by(2)
+        .collect()
+}
+
+#[test]
+fn two_mallets_render_trace_plot_and_agree_with_one_contact_until_the_second() {
+    let dir = temp("two");
+    let mut a = args(vec![example()], &dir.join("two.wav"));
+    a.trace = Some(Some(dir.join("two.csv")));
+    a.plot = Some(Some(dir.join("two.svg")));
+    run(&a).unwrap();
+    let two = wav(&dir.join("two.wav"));
+    assert_eq!(two.len(), 7200);
+    // the trace: the one-contact columns, then contact 1's
+    let csv = std::fs::read_to_string(dir.join("two.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "t,x_hammer,v_hammer,x_contact,v_contact,in_contact,energy,\
+         x_hammer_1,v_hammer_1,x_contact_1,v_contact_1,in_contact_1"
+    );
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 7200);
+    let first = |col: usize| rows.iter().position(|r| r[col] == 1.0).map(|i| rows[i][0]);
+    let (t0, t1) = (first(5).unwrap(), first(11).unwrap());
+    println!(
+        "first contact of mallet 0 at {:.3} ms, of mallet 1 at {:.3} ms",
+        t0 * 1e3,
+        t1 * 1e3
+    );
+    assert!(t0 < 1e-3);
+    // 121 mm at 2 m/s: 60.5 ms, less what the ringing bar comes up
+    assert!((0.059..0.0606).contains(&t1), "{t1}");
+    // the energy never rises
+    let rise = rows
+        .windows(2)
+        .map(|w| w[1][6] - w[0][6])
+        .fold(f64::MIN, f64::max);
+    assert!(rise <= 1e-15 * rows[0][6], "energy rose by {rise:e}");
+    let svg = std::fs::read_to_string(dir.join("two.svg")).unwrap();
+    assert!(svg.contains("<svg") && svg.len() > 10_000);
+    // without the second mallet, through the one-contact engine
+    let text = std::fs::read_to_string(example()).unwrap();
+    let one_scene = text[..text.find("[[striker]]").unwrap()].to_string()
+        + &text[text.find("[[pickup]]").unwrap()..];
+    std::fs::write(dir.join("one.toml"), one_scene).unwrap();
+    run(&args(vec![dir.join("one.toml")], &dir.join("one.wav"))).unwrap();
+    let one = wav(&dir.join("one.wav"));
+    let peak = one.iter().fold(0.0f32, |m, x| m.max(x.abs()));
+    let arrive = (t1 * 48000.0) as usize;
+    let before = (0..arrive)
+        .map(|i| (two[i] - one[i]).abs())
+        .fold(0.0f32, f32::max);
+    let after = (arrive + 1..two.len())
+        .map(|i| (two[i] - one[i]).abs())
+        .fold(0.0f32, f32::max);
+    println!(
+        "before the second mallet: largest difference {:.1e} of the peak; after it {:.1e}",
+        before / peak,
+        after / peak
+    );
+    assert!(before <= 1e-6 * peak, "{before:e}");
+    assert!(after > 0.05 * peak, "{after:e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_batch_with_several_contacts_writes_sidecars_and_repeats_bytes() {
+    let dir = temp("batch");
+    let mut outs = Vec::new();
+    for k in 0..2 {
+        let d = dir.join(format!("run{k}"));
+        let mut a = args(vec![example()], &d);
+        a.scenes
+            .push(modal_testkit::scenes::preset_path("wood-block"));
+        a.trace = Some(None);
+        run(&a).unwrap();
+        outs.push(d);
+    }
+    let side: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(outs[0].join("marimba-two-mallets.json")).unwrap())
+            .unwrap();
+    assert_eq!(side["compile"]["contacts"], 2);
+    assert_eq!(side["compile"]["phases"], 4);
+    let per = side["contacts_per_contact"].as_array().unwrap();
+    assert!(per.iter().all(|c| c.as_u64().unwrap() >= 1), "{side}");
+    assert_eq!(side["exact_switching"]["capped"], 0);
+    assert_eq!(side["exact_switching"]["uncertified"], 0);
+    for name in [
+        "marimba-two-mallets.wav",
+        "marimba-two-mallets.csv",
+        "wood-block.wav",
+    ] {
+        assert_eq!(
+            std::fs::read(outs[0].join(name)).unwrap(),
+            std::fs::read(outs[1].join(name)).unwrap(),
+            "{name}"
+        );
+    }
+    // notes are the instrument's, which plays one contact
+    let mut a = args(vec![example()], &dir.join("notes"));
+    a.notes = Some("60".into());
+    let e = run(&a).expect_err("the instrument takes one contact");
+    println!("{e:#}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
