@@ -41,7 +41,7 @@
 //! t - M t^2 / 2` clears `(0, 2 psi'(0) / M)` first (without it, the
 //! rounding of the change of basis could switch it straight back).
 
-use crate::compile::pan_gains;
+use crate::compile::{pan_gains, CompileBudget};
 use crate::physics::block::{exp2, mul2, sym_growth, Mat2};
 use crate::physics::decomp::{decompose_via, Form};
 use crate::physics::model::LN_1000;
@@ -57,6 +57,10 @@ pub const MAX_SWITCHES_PER_SAMPLE: usize = 64;
 
 /// Halving stops at pieces narrower than this fraction of the sample.
 const LEAF: f64 = 1e-15;
+
+/// Most halvings of one contact's search in one step; the pieces left
+/// are counted as `uncertified` (docs/numerics.md section 14).
+const SEARCH_BUDGET: u32 = 1 << 14;
 
 /// A hammer with a contact of its own.
 #[derive(Debug, Clone, PartialEq)]
@@ -116,6 +120,18 @@ pub enum MultiError {
     },
     /// Two hammers at the same contact point (the same weights).
     SamePoint(usize, usize),
+    /// Compiling every phase would exceed the compile budget
+    /// ([`crate::compile::CompileBudget::DEFAULT`]).
+    OverBudget {
+        /// Phases.
+        phases: usize,
+        /// The largest phase's coordinates.
+        dim: usize,
+        /// Estimated work \[flop\].
+        flops: f64,
+        /// Estimated memory \[bytes\].
+        bytes: f64,
+    },
     /// A phase whose generator has no block form (the dense fallback,
     /// which the several-contact engine does not take).
     Phase {
@@ -137,6 +153,23 @@ impl std::fmt::Display for MultiError {
                 write!(f, "{field}: {got} entries for {want} modes")
             }
             Self::Value { field, value } => write!(f, "{field}: {value} is out of range"),
+            Self::OverBudget {
+                phases,
+                dim,
+                flops,
+                bytes,
+            } => {
+                let b = CompileBudget::DEFAULT;
+                write!(
+                    f,
+                    "object.mode: {phases} phases of up to {dim} coordinates would take about \
+                     {flops:.1e} flop and {:.0} MB to compile, over the compile budget ({:.1e} \
+                     flop, {:.0} MB): fewer modes (max_freq_hz, max_modes) or fewer contacts",
+                    bytes / 1e6,
+                    b.max_flops,
+                    b.max_bytes / 1e6
+                )
+            }
             Self::SamePoint(a, b) => write!(
                 f,
                 "hammers[{a}] and hammers[{b}]: two contacts on one point pair"
@@ -220,9 +253,11 @@ pub struct MultiStats {
     /// speed, or the instant a crossing begins (the next piece takes it);
     /// no switch.
     pub grazing: u64,
-    /// A contact's Taylor bound cleared the rest of the step while the
-    /// step's end was on its other side (a contradiction only rounding can
-    /// make; no switch). Stays 0 on every test.
+    /// Pieces left undecided: a contact's search ran out of its
+    /// [`SEARCH_BUDGET`] halvings in a step (a penetration that dwells
+    /// within rounding of 0 while the object rings), or its Taylor bound
+    /// cleared the rest of the step while the step's end was across (a
+    /// contradiction only rounding can make). No switch is taken there.
     pub uncertified: u64,
     /// Evaluations of an event function inside a step.
     pub evaluations: u64,
@@ -600,6 +635,24 @@ impl CompiledMulti {
     pub fn new(model: &MultiModel, rate_hz: f64) -> Result<Self, MultiError> {
         model.validate()?;
         check_value("rate_hz", rate_hz, rate_hz > 0.0)?;
+        // every phase's eigendecomposition and checks (about 40 d^3 flop
+        // for d coordinates) and its two bases (2 d^2 numbers), refused
+        // before any of it
+        let k = model.hammers.len();
+        let phases = 1usize << k;
+        let dim = 2 * model.n() + 2 * k;
+        let d = dim as f64;
+        let flops = phases as f64 * 40.0 * d * d * d;
+        let bytes = phases as f64 * 3.0 * d * d * 8.0;
+        let budget = CompileBudget::DEFAULT;
+        if flops > budget.max_flops || bytes > budget.max_bytes {
+            return Err(MultiError::OverBudget {
+                phases,
+                dim,
+                flops,
+                bytes,
+            });
+        }
         let h = 1.0 / rate_hz;
         let phases = (0..1u32 << model.hammers.len())
             .map(|mask| MultiPhase::new(model, mask, h))
@@ -655,6 +708,8 @@ pub struct MultiState {
     /// phase's growth over 64 samples, it holds for every later state of
     /// the epoch).
     cached: [(u64, f64); MAX_CONTACTS],
+    /// Halvings left to the current search.
+    budget: u32,
     /// Samples run.
     clock: u64,
     /// What the engine did.
@@ -670,6 +725,63 @@ pub struct MultiState {
 enum Start {
     Value,
     Boundary,
+}
+
+/// Contact `j`'s event function in the current phase: its penetration in
+/// contact, `x_j + v_j t - g t^2 / 2 - x_c,j(t)` in flight; positive on
+/// the current side.
+struct EventFn {
+    inside: bool,
+    x0: f64,
+    v0: f64,
+    g: f64,
+    /// The rounding allowance of a hammer that just left (0 for the
+    /// others): `4 u` times the magnitudes summed into `psi` (each block's
+    /// `|r_k| |s_k|`, the constant, the hammer's height and travel). A
+    /// value within it of 0 is neutral: not across.
+    allow: f64,
+    /// The rounding of `psi` itself (`4 u` times the same magnitudes, for
+    /// every contact): a piece whose chord bound keeps `psi` above
+    /// `-neutral` holds no crossing beyond rounding (docs/numerics.md
+    /// section 14; the one-contact engine's neutral rule, section 6.6).
+    neutral: f64,
+}
+
+impl EventFn {
+    /// `psi` at `t` from the event quantity `q` (penetration or the
+    /// point's displacement).
+    fn psi(&self, q: f64, t: f64) -> f64 {
+        if self.inside {
+            q
+        } else {
+            self.x0 + self.v0 * t - 0.5 * self.g * t * t - q
+        }
+    }
+
+    /// `psi'` at `t` from the quantity's slope `dq`.
+    fn dpsi(&self, dq: f64, t: f64) -> f64 {
+        if self.inside {
+            dq
+        } else {
+            self.v0 - self.g * t - dq
+        }
+    }
+
+    /// Across (contact ends at `p <= 0`, starts at `p > 0`), beyond the
+    /// rounding allowance: a `psi` within it of 0 is the rounding of a
+    /// touch, not a crossing (docs/numerics.md section 14).
+    fn crossed(&self, psi: f64) -> bool {
+        psi < -self.allow
+    }
+}
+
+/// A piece of the search: gravity's curvature, the norm slot of its left
+/// end and the first free slot.
+#[derive(Clone, Copy)]
+struct Piece {
+    g_curv: f64,
+    left: usize,
+    free: usize,
 }
 
 impl MultiState {
@@ -693,6 +805,7 @@ impl MultiState {
             x_h,
             v_h,
             cached: [(u64::MAX, 0.0); MAX_CONTACTS],
+            budget: SEARCH_BUDGET,
             clock: 0,
             stats: MultiStats::default(),
             switches: Vec::new(),
@@ -810,78 +923,80 @@ impl MultiState {
         let nb = ph.gens.len();
         let inside = self.mask & (1 << j) != 0;
         let g = sc.model.gravity_m_per_s2;
-        let (x0, v0) = (self.x_h[j], self.v_h[j]);
-        // psi(t): positive on the current side
-        let psi_of = |q: f64, t: f64| {
-            if inside {
-                q
-            } else {
-                x0 + v0 * t - 0.5 * g * t * t - q
-            }
+        let mut f = EventFn {
+            inside,
+            x0: self.x_h[j],
+            v0: self.v_h[j],
+            g,
+            allow: 0.0,
+            neutral: 0.0,
         };
-        let crossed = |psi: f64| if inside { psi <= 0.0 } else { psi < 0.0 };
         let row = &ph.ev[j];
         let q0 = dot(row, &self.s) + ph.ev0[j];
         let q_end = dot(row, &self.end[..ph.dim]) + ph.ev0[j];
+        let psi_end = f.psi(q_end, rem);
         // a whole sample that clears the epoch's margin holds no crossing
         let epoch = self.clock / 64;
         let whole = matches!(start, Start::Value) && rem == sc.h;
         if whole && self.cached[j].0 == epoch {
-            let (p0, p1) = (psi_of(q0, 0.0), psi_of(q_end, rem));
-            if !crossed(p1) && p0.min(p1) > self.cached[j].1 {
+            let p0 = f.psi(q0, 0.0);
+            if psi_end.min(p0) > self.cached[j].1 {
                 return None;
             }
         }
-        let slope = dot(&ph.ev_d[j], &self.s);
-        let d0 = if inside { slope } else { v0 - slope };
-        let mut m = 0.0;
+        let d0 = f.dpsi(dot(&ph.ev_d[j], &self.s), 0.0);
+        let mut mag = ph.ev0[j].abs();
         for k in 0..nb {
             self.norms[0][k] = self.s[k].hypot(self.s[nb + k]);
-            m += ph.ev_c2[j][k] * self.norms[0][k];
+            mag += ph.ev_e[j][k] * self.norms[0][k];
         }
+        if !inside {
+            mag += f.x0.abs() + f.v0.abs() * rem + g * rem * rem;
+        }
+        f.neutral = 4.0 * f64::EPSILON / 2.0 * mag;
+        // only for a hammer that just left: its flight starts at 0 and a
+        // rounding-level value of the wrong sign is no new contact
+        if matches!(start, Start::Boundary) && !inside {
+            f.allow = f.neutral;
+        }
+        self.budget = SEARCH_BUDGET;
         let g_curv = if inside { 0.0 } else { g };
-        m = (m + g_curv) * (1.0 + 1e-12);
+        let m = self.curvature(ph, j, g_curv, 0);
         if whole && self.cached[j].0 != epoch {
             // for the rest of the epoch: at most 64 samples of growth
             let later = ph.growth.powi(64);
             self.cached[j] = (epoch, self.margin(ph, j, rem, g_curv, 0) * later);
         }
-        let psi_end = psi_of(q_end, rem);
-        let (a, psi_a) = match start {
-            Start::Value => (0.0, psi_of(q0, 0.0)),
+        let (a, psi_a, da) = match start {
+            Start::Value => (0.0, f.psi(q0, 0.0), d0),
+            // a contact that just switched, moving back towards the side it
+            // left (a touch at rounding level): from 0, searched as any
+            // piece, crossing back only where psi is across beyond rounding
+            Start::Boundary if !(d0 > 0.0) => (0.0, 0.0, d0),
             Start::Boundary => {
                 // psi >= d0 t - m t^2 / 2 > 0 on (0, 2 d0 / m)
-                if !(d0 > 0.0) {
-                    // leaving at once again: no time on this side
-                    return Some(0.0);
-                }
                 let clear = if m > 0.0 { 2.0 * d0 / m } else { f64::INFINITY };
                 if clear >= rem {
-                    return if crossed(psi_end) {
+                    if f.crossed(psi_end) {
                         self.stats.uncertified += 1;
-                        None
-                    } else {
-                        None
-                    };
+                    }
+                    return None;
                 }
                 let a = clear * (1.0 - 1e-9);
-                let q = self.eval(ph, j, a, 1);
-                (a, psi_of(q, a))
+                let (q, dq) = self.eval(ph, j, a, Some(1));
+                (a, f.psi(q, a), f.dpsi(dq, a))
             }
         };
-        if crossed(psi_a) {
+        if f.crossed(psi_a) {
             return Some(a);
         }
         let slot = if a > 0.0 { 1 } else { 0 };
-        self.search(
-            sc,
-            j,
-            (a, psi_a),
-            (rem, psi_end),
-            (g_curv, slot, slot + 1),
-            &psi_of,
-            &crossed,
-        )
+        let piece = Piece {
+            g_curv,
+            left: slot,
+            free: slot + 1,
+        };
+        self.search(sc, j, &f, (a, psi_a, da), (rem, psi_end), piece)
     }
 
     /// How far contact `j`'s event function may stray from the chord over
@@ -902,70 +1017,155 @@ impl MultiState {
         acc * (1.0 + 1e-12)
     }
 
-    /// The event quantity of contact `j` at `t` into the current step, and
-    /// each block's `|s_k(t)|` into slot `slot`.
-    fn eval(&mut self, ph: &MultiPhase, j: usize, t: f64, slot: usize) -> f64 {
+    /// A bound on `|psi''|` over a piece from the norms at its left end (in
+    /// slot `slot`): `sum_k c_k |s_k| + g`.
+    fn curvature(&self, ph: &MultiPhase, j: usize, g_curv: f64, slot: usize) -> f64 {
+        let norms = &self.norms[slot];
+        let mut m = g_curv;
+        for k in 0..ph.gens.len() {
+            m += ph.ev_c2[j][k] * norms[k];
+        }
+        m * (1.0 + 1e-12)
+    }
+
+    /// The event quantity of contact `j` and its slope at `t` into the
+    /// current step, and each block's `|s_k(t)|` into slot `slot`.
+    fn eval(&mut self, ph: &MultiPhase, j: usize, t: f64, slot: Option<usize>) -> (f64, f64) {
         self.stats.evaluations += 1;
         let nb = ph.gens.len();
-        while self.norms.len() <= slot {
-            self.norms.push(Vec::new());
+        if let Some(slot) = slot {
+            while self.norms.len() <= slot {
+                self.norms.push(Vec::new());
+            }
+            self.norms[slot].resize(nb, 0.0);
         }
-        let norms = &mut self.norms[slot];
-        norms.resize(nb, 0.0);
-        let row = &ph.ev[j];
-        let mut q = ph.ev0[j];
+        let (row, row_d) = (&ph.ev[j], &ph.ev_d[j]);
+        let (mut q, mut dq) = (ph.ev0[j], 0.0);
         for (k, g) in ph.gens.iter().enumerate() {
             let p = exp2(g, t);
             let (x0, x1) = mul2(&p, self.s[k], self.s[nb + k]);
-            norms[k] = x0.hypot(x1);
+            if let Some(slot) = slot {
+                self.norms[slot][k] = x0.hypot(x1);
+            }
             q += row[k] * x0 + row[nb + k] * x1;
+            dq += row_d[k] * x0 + row_d[nb + k] * x1;
         }
-        q
+        (q, dq)
     }
 
-    /// The first crossing in `(a, b]` (none before `a`), halving left
-    /// first.
-    #[allow(clippy::too_many_arguments)]
+    /// The first crossing in `(a, b]` (none before `a`; `da` the slope at
+    /// `a`), halving left first; a piece that crosses and on which `psi`
+    /// certainly falls all the way (`psi'(a) + M (b - a) < 0`) holds one
+    /// crossing, found by [`refine`](Self::refine).
     fn search(
         &mut self,
         sc: &CompiledMulti,
         j: usize,
-        (a, pa): (f64, f64),
+        f: &EventFn,
+        (a, pa, da): (f64, f64, f64),
         (b, pb): (f64, f64),
-        (g_curv, left, free): (f64, usize, usize),
-        psi_of: &dyn Fn(f64, f64) -> f64,
-        crossed: &dyn Fn(f64) -> bool,
+        piece: Piece,
     ) -> Option<f64> {
         let w = b - a;
         let ph = &sc.phases[self.mask as usize];
-        if !crossed(pb) && pa.min(pb) > self.margin(ph, j, w, g_curv, left) {
+        if !f.crossed(pb)
+            && pa.min(pb) - self.margin(ph, j, w, piece.g_curv, piece.left) > -f.neutral
+        {
             return None;
+        }
+        if f.crossed(pb) && da + self.curvature(ph, j, piece.g_curv, piece.left) * w < 0.0 {
+            return Some(self.refine(sc, j, f, (a, pa), (b, pb)));
         }
         let mid = a + 0.5 * w;
         if w <= LEAF * sc.h || mid <= a || mid >= b {
-            if crossed(pb) {
+            if f.crossed(pb) {
                 return Some(b);
             }
             self.stats.grazing += 1;
             return None;
         }
+        if self.budget == 0 {
+            // a piece left undecided (counted; never on the tests' cases
+            // but the dwelling ones, docs/numerics.md section 14)
+            if f.crossed(pb) {
+                return Some(b);
+            }
+            self.stats.uncertified += 1;
+            return None;
+        }
+        self.budget -= 1;
         // the midpoint's norms in `free`: the left half keeps `left` and
         // stacks above `free`, the right half starts from `free`
-        let q = self.eval(ph, j, mid, free);
-        let pm = psi_of(q, mid);
-        let left_half = (g_curv, left, free + 1);
-        if let Some(t) = self.search(sc, j, (a, pa), (mid, pm), left_half, psi_of, crossed) {
+        let (q, dq) = self.eval(ph, j, mid, Some(piece.free));
+        let (pm, dm) = (f.psi(q, mid), f.dpsi(dq, mid));
+        let left_half = Piece {
+            free: piece.free + 1,
+            ..piece
+        };
+        if let Some(t) = self.search(sc, j, f, (a, pa, da), (mid, pm), left_half) {
             return Some(t);
         }
-        self.search(
-            sc,
-            j,
-            (mid, pm),
-            (b, pb),
-            (g_curv, free, free + 1),
-            psi_of,
-            crossed,
-        )
+        let right_half = Piece {
+            left: piece.free,
+            free: piece.free + 1,
+            ..piece
+        };
+        self.search(sc, j, f, (mid, pm, dm), (b, pb), right_half)
+    }
+
+    /// The one crossing of a piece on which `psi` falls all the way,
+    /// `psi(a)` on this side and `psi(b)` across: regula falsi with the
+    /// Illinois halving, a halving step whenever the bracket shrinks by
+    /// less than half, until it is a leaf wide; its right end.
+    fn refine(
+        &mut self,
+        sc: &CompiledMulti,
+        j: usize,
+        f: &EventFn,
+        (mut a, mut pa): (f64, f64),
+        (mut b, mut pb): (f64, f64),
+    ) -> f64 {
+        let ph = &sc.phases[self.mask as usize];
+        let mut side = 0i8;
+        let mut bisect = false;
+        // no point nearer an end than half a leaf: a secant that lands on
+        // the root from this side is followed by one just across it
+        let tol = 0.5 * LEAF * sc.h;
+        while b - a > LEAF * sc.h {
+            let w = b - a;
+            let t = if bisect {
+                a + 0.5 * w
+            } else {
+                let t = a + pa / (pa - pb) * w;
+                if t.is_finite() {
+                    t.clamp(a + tol, b - tol)
+                } else {
+                    a + 0.5 * w
+                }
+            };
+            if t <= a || t >= b {
+                break;
+            }
+            let (q, _) = self.eval(ph, j, t, None);
+            let pt = f.psi(q, t);
+            if f.crossed(pt) {
+                b = t;
+                pb = pt;
+                if side == 1 {
+                    pa *= 0.5;
+                }
+                side = 1;
+            } else {
+                a = t;
+                pa = pt;
+                if side == -1 {
+                    pb *= 0.5;
+                }
+                side = -1;
+            }
+            bisect = b - a > 0.5 * w;
+        }
+        b
     }
 
     /// Switch the contacts of `who` at the state's time `time_s`: each
@@ -976,16 +1176,11 @@ impl MultiState {
         let n = sc.model.n();
         let old = &sc.phases[self.mask as usize];
         // y = V s + y*
-        for r in 0..old.dim {
-            let mut acc = old.y_star[r];
-            for c in 0..old.dim {
-                acc += old.v[(r, c)] * self.s[c];
-            }
-            self.y[r] = acc;
-        }
+        mat_vec(&old.v, &self.s, &old.y_star, &mut self.y[..old.dim]);
         // the hammers' physical states before the switch
         let mut x = self.x_h;
         let mut v = self.v_h;
+        let mut p_left = [0.0; MAX_CONTACTS];
         for (pos, &j) in old.members.iter().enumerate() {
             let hm = &sc.model.hammers[j];
             let x_c: f64 = (0..n)
@@ -994,6 +1189,7 @@ impl MultiState {
                 })
                 .sum();
             let p = self.y[2 * n + 2 * pos + 1] / hm.stiffness_n_per_m.sqrt();
+            p_left[j] = p;
             x[j] = x_c - p;
             v[j] = self.y[2 * n + 2 * pos] / hm.mass_kg.sqrt();
         }
@@ -1027,13 +1223,20 @@ impl MultiState {
                 }
             }
         }
+        // s = V^-1 (y - y*)
+        for (y, ys) in self.y2[..new.dim].iter_mut().zip(&new.y_star) {
+            *y -= ys;
+        }
         self.s.resize(new.dim, 0.0);
-        for r in 0..new.dim {
-            let mut acc = 0.0;
-            for c in 0..new.dim {
-                acc += new.vinv[(r, c)] * (self.y2[c] - new.y_star[c]);
+        mat_vec(&new.vinv, &self.y2[..new.dim], &[], &mut self.s);
+        // a hammer that left is placed from its point as the new phase
+        // computes it (its event row), so its flight starts exactly at the
+        // penetration it left with, without the change of basis's rounding
+        // between the two bases' views of the point
+        for j in 0..sc.contacts() {
+            if who & (1 << j) != 0 && new_mask & (1 << j) == 0 {
+                x[j] = dot(&new.ev[j], &self.s) + new.ev0[j] - p_left[j];
             }
-            self.s[r] = acc;
         }
         self.x_h = x;
         self.v_h = v;
@@ -1089,6 +1292,26 @@ impl MultiState {
         }
         o.energy = e;
         o
+    }
+}
+
+/// `out = M x + c` (`c` empty: 0) for a square column-major `M`, by
+/// columns (contiguous reads).
+fn mat_vec(m: &DMatrix<f64>, x: &[f64], c: &[f64], out: &mut [f64]) {
+    let n = x.len();
+    if c.is_empty() {
+        out.iter_mut().for_each(|o| *o = 0.0);
+    } else {
+        out.copy_from_slice(c);
+    }
+    let data = m.as_slice();
+    for (col, &xc) in x.iter().enumerate() {
+        if xc == 0.0 {
+            continue;
+        }
+        for (o, a) in out.iter_mut().zip(&data[col * n..(col + 1) * n]) {
+            *o += a * xc;
+        }
     }
 }
 

@@ -323,6 +323,7 @@ fn run_case(case: &Case) -> Outcome {
             ));
         }
         counts.push(mine[j].len());
+
         for (a, b) in got.iter().zip(&want) {
             dt = dt.max((a.0 - b.0).abs());
             if let (Some(x), Some(y)) = (a.1, b.1) {
@@ -400,6 +401,34 @@ fn cases() -> Vec<Case> {
         vec![
             strike(1e-3, 0.0, -1.0, 31.3, 0.0),
             strike(1e-3, 0.0, -1.0, 31.3, 0.0),
+        ],
+    );
+    // the extremes of the one-contact family, two at once
+    add(
+        "2 together f_c 1013.7x mass 1e-6",
+        Some(0.4),
+        0.0,
+        vec![
+            strike(1e-6, 0.0, -1.0, 1013.7, 0.0),
+            strike(1e-6, 0.0, -1.0, 1013.7, 0.0),
+        ],
+    );
+    add(
+        "2 together critical 101.7x mass 1",
+        Some(0.4),
+        0.0,
+        vec![
+            strike(1.0, 0.0, -0.5, 101.7, 1.0),
+            strike(1.0, 0.0, -0.5, 101.7, 1.0),
+        ],
+    );
+    add(
+        "2 apart 1013.7x zeta 5 mass 1e3",
+        Some(0.25),
+        0.0,
+        vec![
+            strike(1e3, 0.0, -0.1, 1013.7, 5.0),
+            strike(1e-3, 2e-4, -1.0, 1013.7, 0.05),
         ],
     );
     // heavy and light
@@ -538,6 +567,28 @@ fn bad_models_are_refused_with_the_field_named() {
     assert!(e.to_string().contains("hammers[0].weights"), "{e}");
     let e = err(&|m| m.sigma[2] = -1.0);
     assert!(e.to_string().contains("sigma[2]"), "{e}");
+    println!("refused: {e}");
+    // over the compile budget: refused at once, with its numbers
+    let n = 1000;
+    let big = MultiModel {
+        freq_hz: (0..n).map(|i| 50.0 + 10.0 * i as f64).collect(),
+        sigma: vec![1.0; n],
+        hammers: (0..4)
+            .map(|j| MultiHammer {
+                weights: (0..n).map(|i| ((i * (j + 1)) as f64).sin()).collect(),
+                ..base.hammers[0].clone()
+            })
+            .collect(),
+        gravity_m_per_s2: 0.0,
+        pickups: [(vec![1.0; n], vec![0.0; n]), (vec![0.0; n], vec![1.0; n])],
+    };
+    let t0 = std::time::Instant::now();
+    let e = CompiledMulti::new(&big, RATE).unwrap_err();
+    assert!(
+        matches!(e, MultiError::OverBudget { phases: 16, .. }),
+        "{e}"
+    );
+    assert!(t0.elapsed().as_secs_f64() < 1.0);
     println!("refused: {e}");
 }
 
