@@ -60,7 +60,7 @@ const LEAF: f64 = 1e-15;
 
 /// Most halvings of one contact's search in one step; the pieces left
 /// are counted as `uncertified` (docs/numerics.md section 14).
-const SEARCH_BUDGET: u32 = 1 << 14;
+pub const SEARCH_BUDGET: u32 = 1 << 14;
 
 /// A hammer with a contact of its own.
 #[derive(Debug, Clone, PartialEq)]
