@@ -30,6 +30,7 @@ use modal_contact::multi::{
     CompiledMulti, MultiError, MultiHammer, MultiModel, MultiState, MultiSwitch, MAX_CONTACTS,
 };
 use modal_contact::scene::{Scene, Switching};
+use modal_testkit::metrics::{instant_horizon, rel_l2, Interval};
 use modal_testkit::scenes::{Contact, Hammer, Modal, Pickup, SceneBuilder};
 use pwl_reference as reference;
 use std::f64::consts::PI;
@@ -153,7 +154,7 @@ fn reference_model(m: &MultiModel, t60: Option<f64>) -> reference::Model {
 }
 
 /// Per contact: its intervals `[start, end]` in samples.
-type Intervals = Vec<Vec<(f64, Option<f64>)>>;
+type Intervals = Vec<Vec<Interval>>;
 
 fn intervals_of(switches: &[MultiSwitch], k: usize) -> Intervals {
     let mut out = vec![Vec::new(); k];
@@ -209,36 +210,6 @@ fn reference_intervals(sol: &reference::Solution, k: usize) -> Intervals {
     out
 }
 
-/// The sample before the first contact whose start or end two runs place
-/// more than [`TOL_INSTANT`] apart (`n` if none).
-fn instant_horizon(a: &[(f64, Option<f64>)], b: &[(f64, Option<f64>)], n: usize) -> usize {
-    let before = |s: f64| (s.ceil() as usize).saturating_sub(1);
-    for (i, x) in a.iter().enumerate() {
-        let Some(y) = b.get(i) else {
-            return before(x.0);
-        };
-        let ends_differ = match (x.1, y.1) {
-            (Some(e), Some(f)) => (e - f).abs() > TOL_INSTANT,
-            (None, None) => false,
-            _ => true,
-        };
-        if (x.0 - y.0).abs() > TOL_INSTANT || ends_differ {
-            return before(x.0.min(y.0));
-        }
-    }
-    b.get(a.len()).map_or(n, |y| before(y.0))
-}
-
-fn rel_l2(a: &[f64], b: &[f64]) -> f64 {
-    let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
-    let den: f64 = b.iter().map(|y| y * y).sum();
-    if num == 0.0 {
-        0.0
-    } else {
-        (num / den).sqrt()
-    }
-}
-
 struct Outcome {
     /// Samples compared: where the reference and its twin (inputs moved
     /// by 1e-9) still agree.
@@ -280,7 +251,14 @@ fn run_case(case: &Case) -> Outcome {
     let hz_trace = trace_horizon(&sol.samples[..n], &twin.samples[..n], k);
     let ref_iv = reference_intervals(&sol, k);
     let hz_instants = (0..k)
-        .map(|j| instant_horizon(&ref_iv[j], &reference_intervals(&twin, k)[j], n))
+        .map(|j| {
+            instant_horizon(
+                &ref_iv[j],
+                &reference_intervals(&twin, k)[j],
+                TOL_INSTANT,
+                n,
+            )
+        })
         .min()
         .unwrap();
     let window = hz_trace.min(hz_instants);
@@ -310,7 +288,7 @@ fn run_case(case: &Case) -> Outcome {
     let mut counts = Vec::new();
     let mut count_mismatch = None;
     for j in 0..k {
-        let within = |iv: &&(f64, Option<f64>)| iv.0 <= window as f64;
+        let within = |iv: &&Interval| iv.0 <= window as f64;
         let got: Vec<_> = mine[j].iter().filter(within).collect();
         let want: Vec<_> = ref_iv[j].iter().filter(within).collect();
         if got.len() != want.len() {
