@@ -58,6 +58,10 @@ pub const MAX_SWITCHES_PER_SAMPLE: usize = 64;
 /// Halving stops at pieces narrower than this fraction of the sample.
 const LEAF: f64 = 1e-15;
 
+/// Norm slots made up front: the search's stack is one slot per level of
+/// halving (a leaf is about 50 levels below a sample) plus two.
+const NORM_SLOTS: usize = 72;
+
 /// Most halvings of one contact's search in one step; the pieces left
 /// are counted as `uncertified` (docs/numerics.md section 14).
 pub const SEARCH_BUDGET: u32 = 1 << 14;
@@ -797,11 +801,15 @@ impl MultiState {
         }
         Self {
             mask: 0,
-            s: vec![0.0; sc.phases[0].dim],
+            s: {
+                let mut s = Vec::with_capacity(dim);
+                s.resize(sc.phases[0].dim, 0.0);
+                s
+            },
             end: vec![0.0; dim],
             y: vec![0.0; dim],
             y2: vec![0.0; dim],
-            norms: vec![vec![0.0; dim / 2]; 2],
+            norms: vec![vec![0.0; dim / 2]; NORM_SLOTS],
             x_h,
             v_h,
             cached: [(u64::MAX, 0.0); MAX_CONTACTS],
