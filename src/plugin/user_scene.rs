@@ -529,6 +529,21 @@ gain = 0.5
         assert!(lib.prepare(&wanted(&lib), 48_000.0, 3, HOST).is_ok());
     }
 
+    /// A scene of several contacts (docs/design.md, "Several contacts")
+    /// renders offline only: loaded into the plugin it is refused with the
+    /// field named and the last good scene plays on.
+    #[test]
+    fn a_scene_of_several_contacts_is_refused_and_the_last_good_one_plays() {
+        let lib = SceneLibrary::default();
+        lib.load(user(THREE_MODES));
+        lib.prepare(&wanted(&lib), 48_000.0, 1, HOST).unwrap();
+        let two = include_str!("../../docs/examples/marimba-two-mallets.toml");
+        lib.load(user(two));
+        let e = lib.prepare(&wanted(&lib), 48_000.0, 2, HOST).unwrap_err();
+        assert!(e.contains("striker: a scene of several contacts"), "{e}");
+        assert_eq!(lib.playing().unwrap().text, THREE_MODES);
+    }
+
     #[test]
     fn a_saved_scene_that_no_longer_validates_plays_the_preset_and_keeps_its_text() {
         let lib = SceneLibrary::default();
