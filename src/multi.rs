@@ -1483,3 +1483,86 @@ impl<W: std::io::Write> MultiTraceCsv<W> {
         self.out.flush()
     }
 }
+
+/// The several-contact trace as a NumPy `.npy` file: the CSV's columns
+/// ([`trace_header`]) as named little-endian f64 fields, one record per
+/// sample (`in_contact` fields 0 or 1), the numbers' own bits; the row
+/// count is in the header, so [`finish`](Self::finish) checks that every
+/// row came.
+pub struct MultiTraceNpy<W: std::io::Write> {
+    out: W,
+    buf: Vec<u8>,
+    rate_hz: f64,
+    contacts: usize,
+    rows: usize,
+    written: usize,
+}
+
+impl<W: std::io::Write> MultiTraceNpy<W> {
+    /// Write the header for `rows` records.
+    pub fn new(mut out: W, rate_hz: f64, contacts: usize, rows: usize) -> std::io::Result<Self> {
+        out.write_all(&crate::render::npy_header_with(
+            &trace_header(contacts),
+            rows,
+        ))?;
+        Ok(Self {
+            out,
+            buf: Vec::with_capacity(1 << 16),
+            rate_hz,
+            contacts,
+            rows,
+            written: 0,
+        })
+    }
+
+    /// Write sample `i`'s record.
+    pub fn row(&mut self, i: usize, o: &MultiObservation) -> std::io::Result<()> {
+        if self.written == self.rows {
+            return Err(std::io::Error::other(
+                "more trace rows than the header says",
+            ));
+        }
+        let flag = |j: usize| if o.active & (1 << j) != 0 { 1.0 } else { 0.0 };
+        let mut put = |x: f64| self.buf.extend_from_slice(&x.to_le_bytes());
+        put(i as f64 / self.rate_hz);
+        for x in [
+            o.x_hammer[0],
+            o.v_hammer[0],
+            o.x_contact[0],
+            o.v_contact[0],
+            flag(0),
+            o.energy,
+        ] {
+            put(x);
+        }
+        for j in 1..self.contacts {
+            for x in [
+                o.x_hammer[j],
+                o.v_hammer[j],
+                o.x_contact[j],
+                o.v_contact[j],
+                flag(j),
+            ] {
+                put(x);
+            }
+        }
+        self.written += 1;
+        if self.buf.len() >= 1 << 16 {
+            self.out.write_all(&self.buf)?;
+            self.buf.clear();
+        }
+        Ok(())
+    }
+
+    /// Write what is left and flush; an error if rows are missing.
+    pub fn finish(mut self) -> std::io::Result<()> {
+        if self.written != self.rows {
+            return Err(std::io::Error::other(format!(
+                "{} of {} trace rows written",
+                self.written, self.rows
+            )));
+        }
+        self.out.write_all(&self.buf)?;
+        self.out.flush()
+    }
+}

@@ -621,7 +621,14 @@ impl<W: Write + Send + 'static> TraceSink for CsvTrace<W> {
 /// The trace's columns in the NPY file's structured type: the CSV's
 /// header, every field a little-endian f64 (`in_contact` 0 or 1).
 fn npy_header(rows: usize) -> Vec<u8> {
-    let fields: Vec<String> = TRACE_HEADER
+    npy_header_with(TRACE_HEADER, rows)
+}
+
+/// The NPY header (format 1.0) of `rows` records whose fields are the
+/// comma-separated `columns`, each a little-endian f64 (also the
+/// several-contact trace's, `crate::multi`).
+pub(crate) fn npy_header_with(columns: &str, rows: usize) -> Vec<u8> {
+    let fields: Vec<String> = columns
         .split(',')
         .map(|name| format!("('{name}', '<f8')"))
         .collect();

@@ -587,7 +587,13 @@ fn multi_scene_job(
     scene: &Scene,
     progress: &dyn Fn(u64),
 ) -> Result<JobReport> {
-    use modal_contact::multi::{render_multi, CompiledMulti, MultiModel, MultiTraceCsv};
+    use modal_contact::multi::{
+        render_multi, CompiledMulti, MultiModel, MultiTraceCsv, MultiTraceNpy,
+    };
+    enum Trace {
+        Csv(MultiTraceCsv<BufWriter<std::fs::File>>),
+        Npy(MultiTraceNpy<BufWriter<std::fs::File>>),
+    }
     if a.switching.map(Switching::from) == Some(Switching::OffsetRod) {
         bail!("--switching offset-rod: a scene of several contacts switches exactly");
     }
@@ -599,20 +605,14 @@ fn multi_scene_job(
     let k = compiled.contacts();
     let mut wav = FloatWav::create(&job.wav, a.rate, n)?;
     let mut csv = match job.trace.as_deref() {
-        Some(p) if TraceFormat::of(p) == TraceFormat::Npy => {
-            bail!(
-                "{}: a scene of several contacts writes its trace as CSV only",
-                p.display()
-            )
-        }
         Some(p) => {
             let f = std::fs::File::create(p)
                 .with_context(|| format!("cannot create {}", p.display()))?;
-            Some(MultiTraceCsv::new(
-                BufWriter::with_capacity(1 << 20, f),
-                a.rate,
-                k,
-            )?)
+            let f = BufWriter::with_capacity(1 << 20, f);
+            Some(match TraceFormat::of(p) {
+                TraceFormat::Csv => Trace::Csv(MultiTraceCsv::new(f, a.rate, k)?),
+                TraceFormat::Npy => Trace::Npy(MultiTraceNpy::new(f, a.rate, k, n)?),
+            })
         }
         None => None,
     };
@@ -625,8 +625,10 @@ fn multi_scene_job(
     };
     let mut observe =
         |i: usize, o: &modal_contact::multi::MultiObservation| -> std::io::Result<()> {
-            if let Some(c) = csv.as_mut() {
-                c.row(i, o)?;
+            match csv.as_mut() {
+                Some(Trace::Csv(c)) => c.row(i, o)?,
+                Some(Trace::Npy(c)) => c.row(i, o)?,
+                None => {}
             }
             if let Some(e) = env.as_mut() {
                 let m = modal_contact::engine::Motion {
@@ -648,8 +650,10 @@ fn multi_scene_job(
     )?;
     let render_s = t1.elapsed().as_secs_f64();
     wav.finish()?;
-    if let Some(c) = csv {
-        c.finish()?;
+    match csv {
+        Some(Trace::Csv(c)) => c.finish()?,
+        Some(Trace::Npy(c)) => c.finish()?,
+        None => {}
     }
     if let (Some(e), Some(path)) = (env, job.plot.as_deref()) {
         plot::plot_envelope(&e, &scene.name, path)?;

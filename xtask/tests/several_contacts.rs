@@ -150,3 +150,43 @@ fn a_batch_with_several_contacts_writes_sidecars_and_repeats_bytes() {
     println!("{e:#}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `--trace T.npy` on a scene of several contacts: the CSV's columns as
+/// named f64 fields, every number the CSV's bit for bit.
+#[test]
+fn the_numpy_trace_holds_the_csvs_numbers() {
+    let dir = temp("npy");
+    let mut a = args(vec![example()], &dir.join("two.wav"));
+    a.seconds = Some(0.07);
+    a.trace = Some(Some(dir.join("two.csv")));
+    run(&a).unwrap();
+    a.trace = Some(Some(dir.join("two.npy")));
+    run(&a).unwrap();
+    let npy = std::fs::read(dir.join("two.npy")).unwrap();
+    assert_eq!(&npy[..8], b"\x93NUMPY\x01\x00");
+    let hlen = u16::from_le_bytes([npy[8], npy[9]]) as usize;
+    let header = std::str::from_utf8(&npy[10..10 + hlen]).unwrap();
+    assert!(header.contains("('in_contact_1', '<f8')"), "{header}");
+    assert!(header.contains("'shape': (3360,)"), "{header}");
+    assert_eq!((10 + hlen) % 64, 0);
+    let data = &npy[10 + hlen..];
+    let csv = std::fs::read_to_string(dir.join("two.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(data.len(), rows.len() * 12 * 8);
+    for (r, row) in rows.iter().enumerate() {
+        for (c, x) in row.iter().enumerate() {
+            let at = (r * 12 + c) * 8;
+            let y = f64::from_le_bytes(data[at..at + 8].try_into().unwrap());
+            assert_eq!(y.to_bits(), x.to_bits(), "row {r} column {c}");
+        }
+    }
+    assert!(
+        rows.iter().any(|r| r[11] == 1.0),
+        "the second mallet's contact is in the window"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
