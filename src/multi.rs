@@ -955,7 +955,7 @@ impl MultiState {
         let d0 = f.dpsi(dot(&ph.ev_d[j], &self.s), 0.0);
         let mut mag = ph.ev0[j].abs();
         for k in 0..nb {
-            self.norms[0][k] = self.s[k].hypot(self.s[nb + k]);
+            self.norms[0][k] = (self.s[k] * self.s[k] + self.s[nb + k] * self.s[nb + k]).sqrt();
             mag += ph.ev_e[j][k] * self.norms[0][k];
         }
         if !inside {
@@ -1053,7 +1053,7 @@ impl MultiState {
             let p = exp2(g, t);
             let (x0, x1) = mul2(&p, self.s[k], self.s[nb + k]);
             if let Some(slot) = slot {
-                self.norms[slot][k] = x0.hypot(x1);
+                self.norms[slot][k] = (x0 * x0 + x1 * x1).sqrt();
             }
             q += row[k] * x0 + row[nb + k] * x1;
             dq += row_d[k] * x0 + row_d[nb + k] * x1;

@@ -543,7 +543,7 @@ impl EngineState {
         }
         let s = &self.phases[FREE].s;
         let reach: f64 = (0..nb)
-            .map(|k| ph.ev_block[k] * s[k].hypot(s[nb + k]))
+            .map(|k| ph.ev_block[k] * (s[k] * s[k] + s[nb + k] * s[nb + k]).sqrt())
             .sum();
         self.x_h > reach * (1.0 + 1e-9)
     }
