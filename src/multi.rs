@@ -5,11 +5,11 @@
 //! 16), compiled up front; each contact has its own event function, the
 //! first switch of any contact in a sample is located and taken, and every
 //! contact that switches at that instant changes side together. The first
-//! stage of several contacts (docs/numerics.md section 14): the compiler
-//! and the engine, checked against the independent reference solver
-//! (`tests/multi_contact.rs`); the scene file, the instrument and the
-//! plugin use the one-contact engine ([`crate::engine`]) until they learn
-//! to name several contacts.
+//! stage of several contacts (docs/numerics.md section 14; the scene key
+//! `[[striker]]` and the render command: docs/design.md "Several
+//! contacts"), checked against the independent reference solver
+//! (`tests/multi_contact.rs`); the instrument and the plugin play one
+//! contact ([`crate::engine`]).
 //!
 //! Coordinates (energy coordinates, the one-contact engine's): mode `i`
 //! (unit modal mass, `q_i'' + 2 sigma_i q_i' + omega_i^2 q_i = f_i`) is
@@ -31,12 +31,15 @@
 //!
 //! The search for the first crossing of a contact's event function `psi`
 //! (its penetration, signed to be positive on the current side) within a
-//! step is certified: over the step `|psi''| <= M = sum_k |r_k G_k^2|
+//! step is certified: over a piece `|psi''| <= M = sum_k |r_k G_k^2|
 //! e^(gamma_k h) |s_k| (+ g)` (`r` the function's row, `gamma_k` the
-//! block's growth rate, 0 for a contraction), so a piece `[a, b]` whose ends
-//! are both above `M (b - a)^2 / 8` holds no crossing (the chord bound);
+//! block's growth rate, 0 for a contraction, `|s_k|` at the piece's left
+//! end), so a piece `[a, b]` whose ends are both above its margin (per
+//! block the smaller of the curvature's `M_k (b - a)^2 / 8` and `2 |r_k|
+//! |s_k|`) less the rounding band holds no crossing; a piece that crosses
+//! and on which `psi` falls all the way holds one, found by regula falsi;
 //! other pieces are halved, left first, down to a width of about one ulp
-//! of the sample, whose right end is the switch. A contact that just
+//! of the sample (docs/numerics.md section 14). A contact that just
 //! switched starts at 0 on its new side: its Taylor bound `psi >= psi'(0)
 //! t - M t^2 / 2` clears `(0, 2 psi'(0) / M)` first (without it, the
 //! rounding of the change of basis could switch it straight back).
