@@ -3,6 +3,13 @@
 //! counting allocator around a render of two hammers that strike, bounce
 //! and strike again (the first stage towards the audio thread,
 //! docs/numerics.md section 14).
+//!
+//! Built without the `rt-checks` feature only: with it, nice-plug installs
+//! its own global allocator (the allocation checker of the plugin's
+//! `process`), and a binary has one. `cargo test --release --test
+//! multi_alloc` runs it; the CI command, built with `rt-checks`, leaves it
+//! out.
+#![cfg(not(feature = "rt-checks"))]
 
 use modal_contact::multi::{CompiledMulti, MultiHammer, MultiModel, MultiState};
 use std::alloc::{GlobalAlloc, Layout, System};
