@@ -36,14 +36,14 @@ fn model(k: usize, height: f64) -> MultiModel {
             stiffness_n_per_m: 1e6,
             damping_n_s_per_m: 20.0,
         })
-        .collect();
-    MultiModel {
-        sigma: freq.iter().map(|f| 0.5 + f * 1e-3).collect(),
-        freq_hz: freq,
-        hammers,
-        gravity_m_per_s2: 0.0,
-        pickups: [(vec![0.0; n], vec![1.0; n]), (vec![0.0; n], vec![0.5; n])],
-    }
+        .collect::<Vec<_>>();
+    MultiModel::struck(
+        freq.clone(),
+        freq.iter().map(|f| 0.5 + f * 1e-3).collect(),
+        &hammers,
+        0.0,
+        [(vec![0.0; n], vec![1.0; n]), (vec![0.0; n], vec![0.5; n])],
+    )
 }
 
 fn bench(c: &mut Criterion) {

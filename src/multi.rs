@@ -1,33 +1,43 @@
-//! Several contacts at once: one modal object struck by up to
-//! [`MAX_CONTACTS`] point-mass hammers, each through a linear spring-damper
-//! of its own at a point of its own (two mallets of a roll, one note
-//! striking twice). Every subset of contacts in contact is a phase (up to
-//! 16), compiled up front; each contact has its own event function, the
-//! first switch of any contact in a sample is located and taken, and every
-//! contact that switches at that instant changes side together. The first
-//! stage of several contacts (docs/numerics.md section 14; the scene key
-//! `[[striker]]` and the render command: docs/design.md "Several
-//! contacts"), checked against the independent reference solver
-//! (`tests/multi_contact.rs`); the instrument and the plugin play one
-//! contact ([`crate::engine`]).
+//! Several contacts at once between modal objects, point masses and walls:
+//! up to [`MAX_CONTACTS`] linear spring-dampers, each between two sides
+//! (a point of a modal object, a point mass, a rigid wall): two mallets of
+//! a roll, a ball between two plates, chimes that touch, a mass on a wall.
+//! Every subset of contacts in contact is a phase (up to 16), compiled up
+//! front; each contact has its own event function, the first switch of any
+//! contact in a sample is located and taken, and every contact that
+//! switches at that instant changes side together (docs/numerics.md
+//! section 14; the scene keys `[[striker]]` and `[[touch]]` and the render
+//! command: docs/design.md "Several contacts"), checked against the
+//! independent reference solver and closed forms (`tests/multi_contact.rs`);
+//! the instrument and the plugin play one contact ([`crate::engine`]).
 //!
-//! Coordinates (energy coordinates, the one-contact engine's): mode `i`
-//! (unit modal mass, `q_i'' + 2 sigma_i q_i' + omega_i^2 q_i = f_i`) is
-//! `a_i = omega_i q_i`, `b_i = q_i'`; a hammer in contact adds `eta_j =
-//! sqrt(m_j) v_j` and `pi_j = sqrt(k_j) p_j` (`p_j = x_c,j - x_j` its
-//! penetration). The energy of a phase's state `y` is `|y|^2 / 2` plus each
-//! hammer's weight `m_j g x_j`; a hammer out of contact flies on its own
-//! (`x_j + v_j t - g t^2 / 2`, exactly). Each phase's generator is passive
-//! (skew-symmetric plus `-c_j u_j u_j^T`, `p_j' = u_j . y`) and is
-//! decomposed into real 2x2 blocks (`y = V s + y*`, `y*` gravity's
-//! equilibrium); a sample is one closed-form block exponential per block.
+//! Coordinates. The positions `z` are every mode's `q_i` (unit modal
+//! mass) and `sqrt(m_j) x_j` of every mass in a closed contact (a mass in
+//! no closed contact flies on its own: `x_j + v_j t - g t^2 / 2`,
+//! exactly). A closed contact `c` adds `k_c (g_c . z + p0_c)^2 / 2` to the
+//! potential (`p_c = g_c . z + p0_c` its penetration, `p0_c` its walls'
+//! heights and gap), so the stiffness is `K = diag(omega^2, 0) + sum_c k_c
+//! g_c g_c^T`. A group of masses joined only to each other (no object, no
+//! wall) moves as a whole freely: its centre of mass flies like a free
+//! mass, and `K` is taken on the complement `P` of those directions. The
+//! phase's energy coordinates are `u = R P^T z` and `w = P^T z'`, with `R`
+//! the triangular factor of the QR factorisation of the stacked rows
+//! `[diag(omega); sqrt(k_c) g_c^T] P` (so `R^T R = P^T K P` without
+//! forming `K`: for one hammer on one object `u` is an orthogonal turn of
+//! the one-contact engine's `(omega q, sqrt(k) p)`); the energy is `|y|^2
+//! / 2` plus linear terms, the generator `[[0, R], [-R^T, -P^T D P]]` is
+//! skew-symmetric plus a damping (`D = diag(2 sigma, 0) + sum_c c_c g_c
+//! g_c^T`), and it is decomposed into real 2x2 blocks (`y = V s + y*`,
+//! `y*` the equilibrium under gravity and the springs' offsets); a sample
+//! is one closed-form block exponential per block.
 //!
 //! Switching, the reference solver's semantics: flight becomes contact when
-//! `p_j` crosses from `<= 0` to `> 0`, contact becomes flight when it
-//! returns to `<= 0`. Entering, the spring starts unstretched (`pi_j = 0`:
-//! nothing added); leaving at `p_j <= 0`, the hammer keeps its position and
-//! velocity and the spring's `pi_j^2 / 2 <= ` rounding is dropped. So no
-//! switch adds energy, and the phases are passive.
+//! `p_c` crosses from `<= 0` to `> 0`, contact becomes flight when it
+//! returns to `<= 0`. A switch goes through the physical state (every
+//! `q, q'`, every mass's `x, v`), which never jumps: entering, the spring
+//! starts at the penetration of the crossing (0 to rounding); leaving at
+//! `p_c <= 0`, its `k p_c^2 / 2 <=` rounding is dropped. So no switch adds
+//! energy beyond rounding, and the phases are passive.
 //!
 //! The search for the first crossing of a contact's event function `psi`
 //! (its penetration, signed to be positive on the current side) within a
@@ -48,7 +58,7 @@ use crate::compile::{pan_gains, CompileBudget};
 use crate::physics::block::{exp2, mul2, sym_growth, Mat2};
 use crate::physics::decomp::{decompose_via, Form};
 use crate::physics::model::LN_1000;
-use crate::scene::{ObjectSpec, Quantity, Scene, SceneError};
+use crate::scene::{End as SceneEnd, ObjectSpec, Quantity, Scene, SceneError};
 use nalgebra::DMatrix;
 
 /// Most contacts of one scene.
@@ -69,7 +79,8 @@ const NORM_SLOTS: usize = 72;
 /// are counted as `uncertified` (docs/numerics.md section 14).
 pub const SEARCH_BUDGET: u32 = 1 << 14;
 
-/// A hammer with a contact of its own.
+/// A point-mass hammer with a contact of its own on the struck object
+/// (the simple case, [`MultiModel::struck`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MultiHammer {
     /// Mass \[kg\].
@@ -87,16 +98,60 @@ pub struct MultiHammer {
     pub damping_n_s_per_m: f64,
 }
 
-/// A modal object and the hammers that strike it.
+/// A point mass: a hammer, a ball.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MultiMass {
+    /// Mass \[kg\].
+    pub mass_kg: f64,
+    /// Initial height of its face \[m\].
+    pub height_m: f64,
+    /// Initial velocity \[m/s\], positive up.
+    pub velocity_m_per_s: f64,
+}
+
+/// One side of a contact.
+#[derive(Debug, Clone, PartialEq)]
+pub enum MultiEnd {
+    /// A point of the modal objects: each mode's mass-normalised weight
+    /// there \[1/sqrt(kg)\] (0 on the modes of other objects).
+    Point(Vec<f64>),
+    /// Point mass `j` of [`MultiModel::masses`].
+    Mass(usize),
+    /// A rigid wall at this height \[m\].
+    Wall(f64),
+}
+
+/// A linear spring-damper between two sides: penetration `p = x_lower -
+/// x_upper - gap`; in contact (`p > 0`) the force `F = k p + c p'` pushes
+/// the upper side up and the lower side down.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MultiContact {
+    /// The side below.
+    pub lower: MultiEnd,
+    /// The side above.
+    pub upper: MultiEnd,
+    /// How far the upper side rests above the lower one \[m\] (a mass's
+    /// height already counts from 0).
+    pub gap_m: f64,
+    /// Stiffness `k` \[N/m\].
+    pub stiffness_n_per_m: f64,
+    /// Damping `c` \[N s/m\].
+    pub damping_n_s_per_m: f64,
+}
+
+/// Modal objects (their modes side by side), point masses, walls and the
+/// contacts between them.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MultiModel {
-    /// Each mode's frequency \[Hz\].
+    /// Each mode's frequency \[Hz\] (every object's modes, one list).
     pub freq_hz: Vec<f64>,
     /// Each mode's decay rate `sigma = ln(1000) / T60` \[1/s\] (0: undamped).
     pub sigma: Vec<f64>,
-    /// The hammers (contact `j` is hammer `j`'s), 1 to [`MAX_CONTACTS`].
-    pub hammers: Vec<MultiHammer>,
-    /// Gravity pulling the hammers \[m/s^2\] (0: none).
+    /// The point masses.
+    pub masses: Vec<MultiMass>,
+    /// The contacts, 1 to [`MAX_CONTACTS`].
+    pub contacts: Vec<MultiContact>,
+    /// Gravity pulling the masses \[m/s^2\] (0: none).
     pub gravity_m_per_s2: f64,
     /// Output channels: each mode's weight on its displacement and on its
     /// velocity (left, right).
@@ -106,7 +161,7 @@ pub struct MultiModel {
 /// Why a model cannot be compiled; each names its field.
 #[derive(Debug, Clone, PartialEq)]
 pub enum MultiError {
-    /// No hammer, or more than [`MAX_CONTACTS`].
+    /// No contact, or more than [`MAX_CONTACTS`].
     ContactCount(usize),
     /// A list whose length is not the number of modes.
     Length {
@@ -125,8 +180,16 @@ pub enum MultiError {
         /// Its value.
         value: f64,
     },
-    /// Two hammers at the same contact point (the same weights).
+    /// Two contacts between the same two sides.
     SamePoint(usize, usize),
+    /// A contact whose sides cannot touch: a side in contact with itself,
+    /// two walls, a mass that does not exist, one that starts pressed in.
+    Sides {
+        /// The contact.
+        contact: usize,
+        /// Why.
+        why: String,
+    },
     /// Compiling every phase would exceed the compile budget
     /// ([`crate::compile::CompileBudget::DEFAULT`]).
     OverBudget {
@@ -154,7 +217,7 @@ impl std::fmt::Display for MultiError {
         match self {
             Self::ContactCount(n) => write!(
                 f,
-                "hammers: {n} contacts, a scene of several contacts has 1 to {MAX_CONTACTS}"
+                "contacts: {n} contacts, a scene of several contacts has 1 to {MAX_CONTACTS}"
             ),
             Self::Length { field, got, want } => {
                 write!(f, "{field}: {got} entries for {want} modes")
@@ -179,8 +242,9 @@ impl std::fmt::Display for MultiError {
             }
             Self::SamePoint(a, b) => write!(
                 f,
-                "hammers[{a}] and hammers[{b}]: two contacts on one point pair"
+                "contacts[{a}] and contacts[{b}]: two contacts on one point pair"
             ),
+            Self::Sides { contact, why } => write!(f, "contacts[{contact}]: {why}"),
             Self::Phase { mask, why } => {
                 write!(f, "the phase with contacts {mask:#b} in contact: {why}")
             }
@@ -193,10 +257,9 @@ impl std::error::Error for MultiError {}
 /// One phase: the contacts of `mask` in contact.
 #[derive(Debug, Clone)]
 pub struct MultiPhase {
-    /// The contacts in contact, increasing (contact `members[n]`'s `eta,
-    /// pi` are `y[2N + 2n]`, `y[2N + 2n + 1]`).
+    /// The contacts in contact, increasing.
     pub members: Vec<usize>,
-    /// State dimension `2 N + 2 |members|`.
+    /// State dimension `2 (N + masses in contact - free groups)`.
     pub dim: usize,
     /// Block generators (block `k` acts on `s[k], s[nb + k]`).
     pub gens: Vec<Mat2>,
@@ -206,10 +269,30 @@ pub struct MultiPhase {
     pub v: DMatrix<f64>,
     vinv: DMatrix<f64>,
     y_star: Vec<f64>,
-    /// Per contact (all of them): the row and constant of its event
-    /// quantity (in contact its penetration `p_j`, out of contact its
-    /// contact point's displacement `x_c,j`), its slope row `r G`, and the
-    /// curvature weights `|r_k G_k^2| e^(gamma_k h)` per block.
+    /// The masses in a closed contact (`z[N + b]` is `sqrt(m) x` of
+    /// `bound[b]`), and per mass its place there.
+    bound: Vec<usize>,
+    place: Vec<Option<usize>>,
+    /// Groups of masses joined only to each other: their masses (the first
+    /// one's flight slot carries the group's centre).
+    groups: Vec<Vec<usize>>,
+    /// Per mass: the slot whose flight it rides (itself when free, its
+    /// group's first mass in a free group, none when held).
+    fly_of: Vec<Option<usize>>,
+    /// The slots that fly in this phase.
+    flyers: Vec<usize>,
+    /// `P` (positions `z` from the reduced ones) and `Z = P R^-1` (`z`
+    /// from `u`), `R` (`u = R P^T z`).
+    p: DMatrix<f64>,
+    z_of_u: DMatrix<f64>,
+    /// The thin `Q` of `[diag(omega); sqrt(k_c) g_c^T] P = Q R`: `Q u` is
+    /// `(omega q, sqrt(k_c) (p_c - p0_c))`, the one-contact engine's energy
+    /// coordinates; and each closed contact's `p0_c`.
+    q: DMatrix<f64>,
+    p0: Vec<f64>,
+    /// Per contact (all of them): the row and constant of its penetration
+    /// (without the flights), its slope row `r G`, and the curvature
+    /// weights `|r_k G_k^2| e^(gamma_k h)` per block.
     ev: Vec<Vec<f64>>,
     ev0: Vec<f64>,
     ev_d: Vec<Vec<f64>>,
@@ -217,9 +300,9 @@ pub struct MultiPhase {
     /// Per contact: `|r_k| e^(gamma_k h)` per block (block `k`'s share of
     /// the function stays within it times `|s_k|`).
     ev_e: Vec<Vec<f64>>,
-    /// Per contact: its contact point's velocity row and constant.
-    vel: Vec<Vec<f64>>,
-    vel0: Vec<f64>,
+    /// Per contact: the flights in its penetration (lower side's adds,
+    /// upper side's subtracts; none when both ride the same one).
+    ev_fly: Vec<(Option<usize>, Option<usize>)>,
     /// Output rows and constants (left, right).
     out: [Vec<f64>; 2],
     out0: [f64; 2],
@@ -282,20 +365,21 @@ pub struct MultiSwitch {
     pub time_s: f64,
 }
 
-/// What one sample shows of each contact.
+/// What one sample shows of each contact: its upper side (the hammer of a
+/// hammer's contact) and its lower side (the struck point).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct MultiObservation {
-    /// Hammer heights \[m\].
+    /// Upper sides' heights \[m\] (a hammer's face).
     pub x_hammer: [f64; MAX_CONTACTS],
-    /// Hammer velocities \[m/s\].
+    /// Upper sides' velocities \[m/s\].
     pub v_hammer: [f64; MAX_CONTACTS],
-    /// Each contact point's displacement \[m\].
+    /// Lower sides' displacements \[m\] (the struck point).
     pub x_contact: [f64; MAX_CONTACTS],
-    /// Each contact point's velocity \[m/s\].
+    /// Lower sides' velocities \[m/s\].
     pub v_contact: [f64; MAX_CONTACTS],
     /// The contacts in contact (bit `j`).
     pub active: u32,
-    /// Total energy \[J\] (object, hammers, springs in contact, gravity).
+    /// Total energy \[J\] (objects, masses, springs in contact, gravity).
     pub energy: f64,
 }
 
@@ -310,15 +394,65 @@ fn check_value(field: &str, value: f64, ok: bool) -> Result<(), MultiError> {
     }
 }
 
+fn two_pi() -> f64 {
+    2.0 * std::f64::consts::PI
+}
+
 impl MultiModel {
     fn n(&self) -> usize {
         self.freq_hz.len()
     }
 
+    /// One modal object struck by point-mass hammers, each through a
+    /// contact of its own at a point of its own (contact `j` is hammer
+    /// `j`'s).
+    pub fn struck(
+        freq_hz: Vec<f64>,
+        sigma: Vec<f64>,
+        hammers: &[MultiHammer],
+        gravity_m_per_s2: f64,
+        pickups: [(Vec<f64>, Vec<f64>); 2],
+    ) -> Self {
+        Self {
+            freq_hz,
+            sigma,
+            masses: hammers
+                .iter()
+                .map(|h| MultiMass {
+                    mass_kg: h.mass_kg,
+                    height_m: h.height_m,
+                    velocity_m_per_s: h.velocity_m_per_s,
+                })
+                .collect(),
+            contacts: hammers
+                .iter()
+                .enumerate()
+                .map(|(j, h)| MultiContact {
+                    lower: MultiEnd::Point(h.weights.clone()),
+                    upper: MultiEnd::Mass(j),
+                    gap_m: 0.0,
+                    stiffness_n_per_m: h.stiffness_n_per_m,
+                    damping_n_s_per_m: h.damping_n_s_per_m,
+                })
+                .collect(),
+            gravity_m_per_s2,
+            pickups,
+        }
+    }
+
+    /// A side's initial height (the objects start at rest).
+    fn rest_height(&self, e: &MultiEnd) -> f64 {
+        match e {
+            MultiEnd::Point(_) => 0.0,
+            MultiEnd::Mass(j) => self.masses[*j].height_m,
+            MultiEnd::Wall(h) => *h,
+        }
+    }
+
     /// Check every field (a clear error naming it, never a panic).
     pub fn validate(&self) -> Result<(), MultiError> {
         let n = self.n();
-        let k = self.hammers.len();
+        let k = self.contacts.len();
         if k == 0 || k > MAX_CONTACTS {
             return Err(MultiError::ContactCount(k));
         }
@@ -354,27 +488,60 @@ impl MultiModel {
             self.gravity_m_per_s2,
             self.gravity_m_per_s2 >= 0.0,
         )?;
-        for (j, hm) in self.hammers.iter().enumerate() {
-            let f = |name: &str| format!("hammers[{j}].{name}");
-            check_value(&f("mass_kg"), hm.mass_kg, hm.mass_kg > 0.0)?;
-            check_value(&f("height_m"), hm.height_m, true)?;
-            check_value(&f("velocity_m_per_s"), hm.velocity_m_per_s, true)?;
+        for (j, m) in self.masses.iter().enumerate() {
+            let f = |name: &str| format!("masses[{j}].{name}");
+            check_value(&f("mass_kg"), m.mass_kg, m.mass_kg > 0.0)?;
+            check_value(&f("height_m"), m.height_m, true)?;
+            check_value(&f("velocity_m_per_s"), m.velocity_m_per_s, true)?;
+        }
+        for (j, c) in self.contacts.iter().enumerate() {
+            let f = |name: &str| format!("contacts[{j}].{name}");
+            let sides = |why: String| MultiError::Sides { contact: j, why };
             check_value(
                 &f("stiffness_n_per_m"),
-                hm.stiffness_n_per_m,
-                hm.stiffness_n_per_m > 0.0,
+                c.stiffness_n_per_m,
+                c.stiffness_n_per_m > 0.0,
             )?;
             check_value(
                 &f("damping_n_s_per_m"),
-                hm.damping_n_s_per_m,
-                hm.damping_n_s_per_m >= 0.0,
+                c.damping_n_s_per_m,
+                c.damping_n_s_per_m >= 0.0,
             )?;
-            len(&f("weights"), hm.weights.len())?;
-            for (i, w) in hm.weights.iter().enumerate() {
-                check_value(&f(&format!("weights[{i}]")), *w, true)?;
+            check_value(&f("gap_m"), c.gap_m, true)?;
+            for (name, e) in [("lower", &c.lower), ("upper", &c.upper)] {
+                match e {
+                    MultiEnd::Point(w) => {
+                        len(&f(&format!("{name}.weights")), w.len())?;
+                        for (i, x) in w.iter().enumerate() {
+                            check_value(&f(&format!("{name}.weights[{i}]")), *x, true)?;
+                        }
+                    }
+                    MultiEnd::Mass(m) if *m >= self.masses.len() => {
+                        return Err(sides(format!(
+                            "{name} is mass {m}, there are {}",
+                            self.masses.len()
+                        )));
+                    }
+                    MultiEnd::Mass(_) => {}
+                    MultiEnd::Wall(h) => check_value(&f(&format!("{name}.wall")), *h, true)?,
+                }
             }
-            for (l, other) in self.hammers[..j].iter().enumerate() {
-                if other.weights == hm.weights {
+            if matches!((&c.lower, &c.upper), (MultiEnd::Wall(_), MultiEnd::Wall(_))) {
+                return Err(sides("two walls cannot touch".into()));
+            }
+            if c.lower == c.upper {
+                return Err(sides("a side in contact with itself".into()));
+            }
+            let p0 = self.rest_height(&c.lower) - self.rest_height(&c.upper) - c.gap_m;
+            if p0 > 0.0 {
+                return Err(sides(format!(
+                    "starts {p0:e} m pressed in: its sides must start apart or touching"
+                )));
+            }
+            for (l, other) in self.contacts[..j].iter().enumerate() {
+                let same = (other.lower == c.lower && other.upper == c.upper)
+                    || (other.lower == c.upper && other.upper == c.lower);
+                if same {
                     return Err(MultiError::SamePoint(l, j));
                 }
             }
@@ -383,14 +550,66 @@ impl MultiModel {
     }
 }
 
+/// The scene's objects a side of a contact names, as the model's sides
+/// (docs/design.md, "Several contacts").
+struct SceneSides<'a> {
+    scene: &'a Scene,
+    /// Per object: its first mode in the model's list (modal objects in a
+    /// contact only).
+    first_mode: Vec<Option<usize>>,
+    n: usize,
+}
+
+impl SceneSides<'_> {
+    fn object(&self, field: &str, name: &str) -> Result<usize, SceneError> {
+        self.scene
+            .object_index(name)
+            .ok_or_else(|| SceneError::new(field, format!("no object named {name:?}")))
+    }
+
+    /// The weights of object `name`'s point `point` over the model's modes.
+    fn point(&self, field: &str, name: &str, point: &str) -> Result<Vec<f64>, SceneError> {
+        let o = self.object(field, name)?;
+        let ObjectSpec::Modal(m) = &self.scene.object[o] else {
+            return Err(SceneError::new(field, format!("{name:?} has no modes")));
+        };
+        let k = m.points.iter().position(|p| p == point).ok_or_else(|| {
+            SceneError::new(field, format!("object {name:?} has no point {point:?}"))
+        })?;
+        let first = self.first_mode[o].expect("every object in a contact has its modes placed");
+        let mut w = vec![0.0; self.n];
+        for (i, md) in m.mode.iter().enumerate() {
+            w[first + i] = md.weights[k];
+        }
+        Ok(w)
+    }
+
+    /// A touch's side: the hammer, a wall, or a point of an object.
+    fn side(&self, field: &str, end: &SceneEnd) -> Result<MultiEnd, SceneError> {
+        if end.object == crate::scene::HAMMER_SIDE {
+            return Ok(MultiEnd::Mass(0));
+        }
+        let o = self.object(field, &end.object)?;
+        match (&self.scene.object[o], &end.point) {
+            (ObjectSpec::Wall(_), _) => Ok(MultiEnd::Wall(0.0)),
+            (_, Some(p)) => Ok(MultiEnd::Point(self.point(field, &end.object, p)?)),
+            (_, None) => Err(SceneError::new(
+                field,
+                format!("{:?} needs a point", end.object),
+            )),
+        }
+    }
+}
+
 impl MultiModel {
-    /// The model of a scene with strikers (docs/design.md, "Several
-    /// contacts"): the struck object's modes (objects from geometry and
-    /// material become their modes at `rate_hz`), `[hammer]` and
-    /// `[contact]` as contact 0, each `[[striker]]` as the next, the
-    /// pickups on the struck object (those elsewhere hear nothing). A
-    /// clear error naming the field where the scene asks for what several
-    /// contacts do not take yet.
+    /// The model of a scene with strikers or touches (docs/design.md,
+    /// "Several contacts"): every modal object in a contact (objects from
+    /// geometry and material become their modes at `rate_hz`), mass 0 the
+    /// `[hammer]` and mass `1 + i` striker `i`; contact 0 is `[contact]`,
+    /// then each `[[striker]]`'s, then each `[[touch]]`; the pickups on
+    /// objects in a contact (those elsewhere hear nothing). A clear error
+    /// naming the field where the scene asks for what several contacts do
+    /// not take yet.
     pub fn from_scene(scene: &Scene, rate_hz: f64) -> Result<Self, SceneError> {
         scene.validate()?;
         let expanded = scene.expanded(rate_hz)?;
@@ -401,56 +620,111 @@ impl MultiModel {
                 "not with several contacts yet: remove it",
             ));
         }
+        // the objects in a contact, by name
+        let mut named: Vec<(String, &str)> = vec![("contact.object".into(), &scene.contact.object)];
+        for (i, t) in scene.touch.iter().enumerate() {
+            for (side, e) in [("lower", &t.lower), ("upper", &t.upper)] {
+                if e.object != crate::scene::HAMMER_SIDE {
+                    named.push((format!("touch[{i}].{side}.object"), &e.object));
+                }
+            }
+        }
+        let mut first_mode = vec![None; scene.object.len()];
+        let (mut freq_hz, mut sigma) = (vec![], vec![]);
+        for (field, name) in named {
+            let field = field.as_str();
+            let o = scene
+                .object_index(name)
+                .ok_or_else(|| SceneError::new(field, format!("no object named {name:?}")))?;
+            match &scene.object[o] {
+                ObjectSpec::Modal(m) => {
+                    if first_mode[o].is_none() {
+                        first_mode[o] = Some(freq_hz.len());
+                        for md in &m.mode {
+                            freq_hz.push(md.freq_hz);
+                            sigma.push(md.t60_s.map_or(0.0, |t| LN_1000 / t));
+                        }
+                    }
+                }
+                ObjectSpec::Wall(_) => {}
+                _ => {
+                    return Err(SceneError::new(
+                        field,
+                        format!(
+                            "several contacts touch objects with modes (kind \"modes\" or one \
+                             from geometry and material) and walls, not {:?} (a lumped string)",
+                            name
+                        ),
+                    ))
+                }
+            }
+        }
+        let n = freq_hz.len();
+        let sides = SceneSides {
+            scene,
+            first_mode,
+            n,
+        };
         let c = &scene.contact;
-        let obj = scene
-            .object_index(&c.object)
-            .map(|i| &scene.object[i])
-            .ok_or_else(|| {
-                SceneError::new("contact.object", format!("no object named {:?}", c.object))
-            })?;
-        let ObjectSpec::Modal(m) = obj else {
-            return Err(SceneError::new(
+        let lower0 = match &c.point {
+            Some(p) => MultiEnd::Point(sides.point("contact.point", &c.object, p)?),
+            None => sides.side(
                 "contact.object",
-                "several contacts strike an object with modes (kind \"modes\" or one from \
-                 geometry and material), not a lumped string or a wall",
-            ));
+                &SceneEnd {
+                    object: c.object.clone(),
+                    point: None,
+                },
+            )?,
         };
-        let weights_at = |field: &str, point: &str| -> Result<Vec<f64>, SceneError> {
-            let k = m.points.iter().position(|p| p == point).ok_or_else(|| {
-                SceneError::new(
-                    field,
-                    format!("object {:?} has no point {point:?}", c.object),
-                )
-            })?;
-            Ok(m.mode.iter().map(|md| md.weights[k]).collect())
-        };
-        let point0 = c.point.as_deref().unwrap_or_default();
-        let mut hammers = vec![MultiHammer {
+        let mut masses = vec![MultiMass {
             mass_kg: scene.hammer.mass_kg,
             height_m: scene.hammer.height_m,
             velocity_m_per_s: scene.hammer.velocity_m_per_s,
-            weights: weights_at("contact.point", point0)?,
+        }];
+        let mut contacts = vec![MultiContact {
+            lower: lower0,
+            upper: MultiEnd::Mass(0),
+            gap_m: 0.0,
             stiffness_n_per_m: c.stiffness_n_per_m,
             damping_n_s_per_m: c.damping_n_s_per_m,
         }];
         for (i, st) in scene.striker.iter().enumerate() {
-            hammers.push(MultiHammer {
+            masses.push(MultiMass {
                 mass_kg: st.mass_kg,
                 height_m: st.height_m,
                 velocity_m_per_s: st.velocity_m_per_s,
-                weights: weights_at(&format!("striker[{i}].point"), &st.point)?,
+            });
+            contacts.push(MultiContact {
+                lower: MultiEnd::Point(sides.point(
+                    &format!("striker[{i}].point"),
+                    &c.object,
+                    &st.point,
+                )?),
+                upper: MultiEnd::Mass(i + 1),
+                gap_m: 0.0,
                 stiffness_n_per_m: st.stiffness_n_per_m,
                 damping_n_s_per_m: st.damping_n_s_per_m,
             });
         }
-        let n = m.mode.len();
+        for (i, t) in scene.touch.iter().enumerate() {
+            contacts.push(MultiContact {
+                lower: sides.side(&format!("touch[{i}].lower"), &t.lower)?,
+                upper: sides.side(&format!("touch[{i}].upper"), &t.upper)?,
+                gap_m: t.gap_m,
+                stiffness_n_per_m: t.stiffness_n_per_m,
+                damping_n_s_per_m: t.damping_n_s_per_m,
+            });
+        }
         let mut pickups: [(Vec<f64>, Vec<f64>); 2] =
             std::array::from_fn(|_| (vec![0.0; n], vec![0.0; n]));
         for (i, p) in scene.pickup.iter().enumerate() {
-            if p.object != c.object {
+            let placed = scene
+                .object_index(&p.object)
+                .is_some_and(|o| sides.first_mode[o].is_some());
+            if !placed {
                 continue;
             }
-            let w = weights_at(&format!("pickup[{i}].point"), &p.point)?;
+            let w = sides.point(&format!("pickup[{i}].point"), &p.object, &p.point)?;
             let (gl, gr) = pan_gains(p.pan);
             for (ch, g) in [(0, gl), (1, gr)] {
                 let row = match p.quantity {
@@ -462,59 +736,23 @@ impl MultiModel {
                 }
             }
         }
-        Ok(MultiModel {
-            freq_hz: m.mode.iter().map(|md| md.freq_hz).collect(),
-            sigma: m
-                .mode
-                .iter()
-                .map(|md| md.t60_s.map_or(0.0, |t| LN_1000 / t))
-                .collect(),
-            hammers,
+        let model = MultiModel {
+            freq_hz,
+            sigma,
+            masses,
+            contacts,
             gravity_m_per_s2: scene.hammer.gravity_m_per_s2,
             pickups,
-        })
+        };
+        model
+            .validate()
+            .map_err(|e| SceneError::new("touch", e.to_string()))?;
+        Ok(model)
     }
 }
 
-/// The generator of phase `mask` in its energy coordinates, and gravity's
-/// constant force on them.
-fn generator(m: &MultiModel, members: &[usize]) -> (DMatrix<f64>, Vec<f64>) {
-    let n = m.n();
-    let dim = 2 * n + 2 * members.len();
-    let mut a = DMatrix::zeros(dim, dim);
-    let mut f = vec![0.0; dim];
-    for i in 0..n {
-        let w = 2.0 * std::f64::consts::PI * m.freq_hz[i];
-        a[(i, n + i)] = w;
-        a[(n + i, i)] = -w;
-        a[(n + i, n + i)] = -2.0 * m.sigma[i];
-    }
-    for (pos, &j) in members.iter().enumerate() {
-        let hm = &m.hammers[j];
-        let (e, p) = (2 * n + 2 * pos, 2 * n + 2 * pos + 1);
-        let (sk, sm, c) = (
-            hm.stiffness_n_per_m.sqrt(),
-            hm.mass_kg.sqrt(),
-            hm.damping_n_s_per_m,
-        );
-        // p' = u . y
-        let mut u = vec![0.0; dim];
-        u[n..2 * n].copy_from_slice(&hm.weights);
-        u[e] = -1.0 / sm;
-        for col in 0..dim {
-            a[(p, col)] += sk * u[col];
-            a[(e, col)] += c / sm * u[col];
-            for i in 0..n {
-                a[(n + i, col)] -= c * hm.weights[i] * u[col];
-            }
-        }
-        for i in 0..n {
-            a[(n + i, p)] -= hm.weights[i] * sk;
-        }
-        a[(e, p)] += sk / sm;
-        f[e] = -sm * m.gravity_m_per_s2;
-    }
-    (a, f)
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 /// `row . G` per block (`row` in block layout).
@@ -529,10 +767,6 @@ fn row_times_gens(row: &[f64], gens: &[Mat2]) -> Vec<f64> {
     out
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
 /// A row over `y` as a row over `s` and a constant (`y = V s + y*`).
 fn in_phase(row_y: &[f64], v: &DMatrix<f64>, y_star: &[f64]) -> (Vec<f64>, f64) {
     let dim = row_y.len();
@@ -542,48 +776,357 @@ fn in_phase(row_y: &[f64], v: &DMatrix<f64>, y_star: &[f64]) -> (Vec<f64>, f64) 
     (row, dot(row_y, y_star))
 }
 
+/// Which masses a phase holds and how: union-find over the closed
+/// contacts between masses; a group is held when one of its masses
+/// touches an object or a wall.
+struct Layout {
+    bound: Vec<usize>,
+    place: Vec<Option<usize>>,
+    groups: Vec<Vec<usize>>,
+    fly_of: Vec<Option<usize>>,
+}
+
+impl Layout {
+    fn new(m: &MultiModel, members: &[usize]) -> Self {
+        let nm = m.masses.len();
+        let mut parent: Vec<usize> = (0..nm).collect();
+        fn root(p: &mut [usize], mut i: usize) -> usize {
+            while p[i] != i {
+                p[i] = p[p[i]];
+                i = p[i];
+            }
+            i
+        }
+        let mut in_contact = vec![false; nm];
+        let mut held = vec![false; nm];
+        for &c in members {
+            let ct = &m.contacts[c];
+            match (&ct.lower, &ct.upper) {
+                (MultiEnd::Mass(a), MultiEnd::Mass(b)) => {
+                    in_contact[*a] = true;
+                    in_contact[*b] = true;
+                    let (ra, rb) = (root(&mut parent, *a), root(&mut parent, *b));
+                    parent[ra] = rb;
+                }
+                (MultiEnd::Mass(a), _) | (_, MultiEnd::Mass(a)) => {
+                    in_contact[*a] = true;
+                    held[*a] = true;
+                }
+                _ => {}
+            }
+        }
+        let mut root_held = vec![false; nm];
+        for j in 0..nm {
+            if held[j] {
+                let r = root(&mut parent, j);
+                root_held[r] = true;
+            }
+        }
+        let mut bound = vec![];
+        let mut place = vec![None; nm];
+        let mut group_of_root: Vec<Option<usize>> = vec![None; nm];
+        let mut groups: Vec<Vec<usize>> = vec![];
+        let mut fly_of = vec![None; nm];
+        for j in 0..nm {
+            if !in_contact[j] {
+                fly_of[j] = Some(j);
+                continue;
+            }
+            place[j] = Some(bound.len());
+            bound.push(j);
+            let r = root(&mut parent, j);
+            if !root_held[r] {
+                let g = *group_of_root[r].get_or_insert_with(|| {
+                    groups.push(vec![]);
+                    groups.len() - 1
+                });
+                groups[g].push(j);
+                fly_of[j] = Some(groups[g][0]);
+            }
+        }
+        Self {
+            bound,
+            place,
+            groups,
+            fly_of,
+        }
+    }
+}
+
 impl MultiPhase {
     fn new(m: &MultiModel, mask: u32, h: f64) -> Result<Self, MultiError> {
         let n = m.n();
-        let members: Vec<usize> = (0..m.hammers.len())
+        let g = m.gravity_m_per_s2;
+        let members: Vec<usize> = (0..m.contacts.len())
             .filter(|j| mask & (1 << j) != 0)
             .collect();
-        let (a, f) = generator(m, &members);
-        let dim = a.nrows();
         let bad = |why: String| MultiError::Phase { mask, why };
-        let d = decompose_via(&a, h, None, true).map_err(|e| bad(e.to_string()))?;
-        let Form::Blocks { gens } = d.form else {
-            return Err(bad(format!(
-                "no block form ({})",
-                d.diag.fallback_reason.unwrap_or_default()
-            )));
+        let lay = Layout::new(m, &members);
+        let nz = n + lay.bound.len();
+        let sqm = |j: usize| m.masses[j].mass_kg.sqrt();
+        // each closed contact's row over z and constant: p = g . z + p0
+        let row_z = |e: &MultiEnd| -> (Vec<f64>, f64) {
+            let mut r = vec![0.0; nz];
+            match e {
+                MultiEnd::Point(w) => {
+                    r[..n].copy_from_slice(w);
+                    (r, 0.0)
+                }
+                MultiEnd::Mass(j) => {
+                    if let Some(b) = lay.place[*j] {
+                        r[n + b] = 1.0 / sqm(*j);
+                    }
+                    (r, 0.0)
+                }
+                MultiEnd::Wall(hw) => (r, *hw),
+            }
         };
-        let y_star = if f.iter().any(|x| *x != 0.0) {
+        let contact_z = |c: usize| {
+            let ct = &m.contacts[c];
+            let (rl, cl) = row_z(&ct.lower);
+            let (ru, cu) = row_z(&ct.upper);
+            let r: Vec<f64> = rl.iter().zip(&ru).map(|(a, b)| a - b).collect();
+            (r, cl - cu - ct.gap_m)
+        };
+        let rows: Vec<(Vec<f64>, f64)> = members.iter().map(|&c| contact_z(c)).collect();
+        let p0: Vec<f64> = rows.iter().map(|r| r.1).collect();
+        // the modes no closed contact touches keep their free 2x2 blocks
+        // (exactly, and degenerate modes need no eigenvectors); the others
+        // and the held masses are the coupled part, `zc`
+        let (cm, fm): (Vec<usize>, Vec<usize>) =
+            (0..n).partition(|&i| rows.iter().any(|r| r.0[i] != 0.0));
+        let zc_of: Vec<usize> = cm
+            .iter()
+            .copied()
+            .chain((0..lay.bound.len()).map(|b| n + b))
+            .collect();
+        let nzc = zc_of.len();
+        // P_c: the identity but on each free group, where it is an
+        // orthonormal basis of the complement of the group's centre
+        // direction e (sqrt(m_j) / sqrt(M)): the columns of the Householder
+        // reflection that takes e to the group's first axis, but the first
+        let nrc = nzc - lay.groups.len();
+        let mut pc = DMatrix::zeros(nzc, nrc);
+        let mut col = 0;
+        let at_zc = |zi: usize| zc_of.iter().position(|&x| x == zi).expect("coupled");
+        let mut in_group = vec![false; nzc];
+        for grp in &lay.groups {
+            for &j in grp {
+                in_group[at_zc(n + lay.place[j].expect("grouped masses are bound"))] = true;
+            }
+        }
+        for r in 0..nzc {
+            if !in_group[r] {
+                pc[(r, col)] = 1.0;
+                col += 1;
+            }
+        }
+        for grp in &lay.groups {
+            let total: f64 = grp.iter().map(|&j| m.masses[j].mass_kg).sum();
+            let idx: Vec<usize> = grp
+                .iter()
+                .map(|&j| at_zc(n + lay.place[j].expect("bound")))
+                .collect();
+            let e: Vec<f64> = grp
+                .iter()
+                .map(|&j| (m.masses[j].mass_kg / total).sqrt())
+                .collect();
+            // v = e + e_0 (e_0 > 0, no cancellation); H = I - 2 v v^T / |v|^2
+            let mut v = e.clone();
+            v[0] += 1.0;
+            let vv = dot(&v, &v);
+            for c in 1..grp.len() {
+                for (a, &ra) in idx.iter().enumerate() {
+                    let delta = if a == c { 1.0 } else { 0.0 };
+                    pc[(ra, col)] = delta - 2.0 * v[a] * v[c] / vv;
+                }
+                col += 1;
+            }
+        }
+        // F_c P_c with F_c = [diag(omega); sqrt(k_c) g_c^T] on zc, its QR;
+        // the damping and the constant forces on zc
+        let ncm = cm.len();
+        let mut fc = DMatrix::zeros(ncm + members.len(), nzc);
+        let mut damping = DMatrix::zeros(nzc, nzc);
+        for (a, &i) in cm.iter().enumerate() {
+            fc[(a, a)] = two_pi() * m.freq_hz[i];
+            damping[(a, a)] = 2.0 * m.sigma[i];
+        }
+        let mut force = vec![0.0; nzc];
+        for (pos, &c) in members.iter().enumerate() {
+            let ct = &m.contacts[c];
+            let gz: Vec<f64> = zc_of.iter().map(|&zi| rows[pos].0[zi]).collect();
+            let sk = ct.stiffness_n_per_m.sqrt();
+            for (colz, x) in gz.iter().enumerate() {
+                fc[(ncm + pos, colz)] = sk * x;
+            }
+            for a in 0..nzc {
+                force[a] -= ct.stiffness_n_per_m * p0[pos] * gz[a];
+                for b in 0..nzc {
+                    damping[(a, b)] += ct.damping_n_s_per_m * gz[a] * gz[b];
+                }
+            }
+        }
+        for (b, &j) in lay.bound.iter().enumerate() {
+            force[ncm + b] -= g * sqm(j);
+        }
+        let (qc, rc) = if nrc == 0 {
+            (DMatrix::zeros(fc.nrows(), 0), DMatrix::zeros(0, 0))
+        } else {
+            let qr = (&fc * &pc).qr();
+            let (q, r) = (qr.q(), qr.r());
+            let rmax = (0..nrc).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
+            if (0..nrc).any(|i| !(r[(i, i)].abs() > rmax * 1e-15)) {
+                return Err(bad("its stiffness is singular".into()));
+            }
+            (q, r)
+        };
+        let rinv = rc
+            .clone()
+            .solve_upper_triangular(&DMatrix::identity(nrc, nrc))
+            .ok_or_else(|| bad("its stiffness is singular".into()))?;
+        let zc = &pc * &rinv;
+        let dt = pc.transpose() * &damping * &pc;
+        let dimc = 2 * nrc;
+        let mut a = DMatrix::zeros(dimc, dimc);
+        for i in 0..nrc {
+            for j in 0..nrc {
+                a[(i, nrc + j)] = rc[(i, j)];
+                a[(nrc + j, i)] = -rc[(i, j)];
+                a[(nrc + i, nrc + j)] = -dt[(i, j)];
+            }
+        }
+        let mut fy = vec![0.0; dimc];
+        for i in 0..nrc {
+            fy[nrc + i] = (0..nzc).map(|a| pc[(a, i)] * force[a]).sum();
+        }
+        let (gens_c, vc, vinvc, kappa) = if dimc == 0 {
+            (vec![], DMatrix::zeros(0, 0), DMatrix::zeros(0, 0), 1.0)
+        } else {
+            let d = decompose_via(&a, h, None, true).map_err(|e| bad(e.to_string()))?;
+            let Form::Blocks { gens } = d.form else {
+                return Err(bad(format!(
+                    "no block form ({})",
+                    d.diag.fallback_reason.unwrap_or_default()
+                )));
+            };
+            (gens, d.v, d.vinv, d.diag.kappa)
+        };
+        let yc_star: Vec<f64> = if fy.iter().any(|x| *x != 0.0) {
             let lu = a.clone().lu();
-            let rhs = nalgebra::DVector::from_iterator(dim, f.iter().map(|x| -x));
+            let rhs = nalgebra::DVector::from_iterator(dimc, fy.iter().map(|x| -x));
             let y = lu
                 .solve(&rhs)
                 .ok_or_else(|| bad("no equilibrium under gravity".into()))?;
             y.iter().copied().collect()
         } else {
-            vec![0.0; dim]
+            vec![0.0; dimc]
         };
+        // the whole phase: y = [u_c, u_free; w_c, w_free], the free modes'
+        // u = omega q and w = q'; s = [first components of the coupled
+        // blocks, of the free blocks; second components of each]
+        let nr = nrc + fm.len();
+        let dim = 2 * nr;
+        let nbc = gens_c.len();
+        let nb = nbc + fm.len();
+        let ymap = |r: usize| if r < nrc { r } else { nr + r - nrc };
+        let smap = |c: usize| if c < nbc { c } else { nb + c - nbc };
+        let mut gens = gens_c;
+        let (mut v, mut vinv) = (DMatrix::zeros(dim, dim), DMatrix::zeros(dim, dim));
+        for r in 0..dimc {
+            for c in 0..dimc {
+                v[(ymap(r), smap(c))] = vc[(r, c)];
+                vinv[(smap(r), ymap(c))] = vinvc[(r, c)];
+            }
+        }
+        let mut y_star = vec![0.0; dim];
+        for (r, y) in yc_star.iter().enumerate() {
+            y_star[ymap(r)] = *y;
+        }
+        let mut p = DMatrix::zeros(nz, nr);
+        let mut z_of_u = DMatrix::zeros(nz, nr);
+        let mut q = DMatrix::zeros(n + members.len(), nr);
+        for (r, &zi) in zc_of.iter().enumerate() {
+            for c in 0..nrc {
+                p[(zi, c)] = pc[(r, c)];
+                z_of_u[(zi, c)] = zc[(r, c)];
+            }
+        }
+        for r in 0..qc.nrows() {
+            let row = if r < ncm { cm[r] } else { n + r - ncm };
+            for c in 0..nrc {
+                q[(row, c)] = qc[(r, c)];
+            }
+        }
+        for (j, &i) in fm.iter().enumerate() {
+            let w = two_pi() * m.freq_hz[i];
+            gens.push([0.0, w, -w, -2.0 * m.sigma[i]]);
+            v[(nrc + j, nbc + j)] = 1.0;
+            v[(nr + nrc + j, nb + nbc + j)] = 1.0;
+            vinv[(nbc + j, nrc + j)] = 1.0;
+            vinv[(nb + nbc + j, nr + nrc + j)] = 1.0;
+            p[(i, nrc + j)] = 1.0;
+            z_of_u[(i, nrc + j)] = 1.0 / w;
+            q[(i, nrc + j)] = 1.0;
+        }
         let props = gens.iter().map(|g| exp2(g, h)).collect();
         let growth: Vec<f64> = gens.iter().map(|g| (sym_growth(g) * h).exp()).collect();
         let growth_max = growth.iter().copied().fold(1.0, f64::max);
         let nb = gens.len();
-        let (mut ev, mut ev0, mut ev_d, mut ev_c2, mut ev_e, mut vel, mut vel0) =
-            (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
-        for (j, hm) in m.hammers.iter().enumerate() {
-            let mut row_y = vec![0.0; dim];
-            if let Some(pos) = members.iter().position(|&x| x == j) {
-                row_y[2 * n + 2 * pos + 1] = 1.0 / hm.stiffness_n_per_m.sqrt();
-            } else {
-                for i in 0..n {
-                    row_y[i] = hm.weights[i] / (2.0 * std::f64::consts::PI * m.freq_hz[i]);
+        // a side's position: a row over y, a constant and a flight; a
+        // point's modes through Q's rows (`q_i = (Q u)_i / omega_i`, an
+        // orthonormal basis), a held mass through `Z`
+        let side_y = |e: &MultiEnd| -> (Vec<f64>, f64, Option<usize>) {
+            let mut pos = vec![0.0; dim];
+            match e {
+                MultiEnd::Point(w) => {
+                    for (c, x) in pos.iter_mut().enumerate().take(nr) {
+                        *x = (0..n)
+                            .map(|i| w[i] * q[(i, c)] / (two_pi() * m.freq_hz[i]))
+                            .sum();
+                    }
+                    (pos, 0.0, None)
                 }
+                MultiEnd::Mass(j) => match lay.place[*j] {
+                    Some(b) => {
+                        for (c, x) in pos.iter_mut().enumerate().take(nr) {
+                            *x = z_of_u[(n + b, c)] / sqm(*j);
+                        }
+                        (pos, 0.0, lay.fly_of[*j])
+                    }
+                    None => (pos, 0.0, Some(*j)),
+                },
+                MultiEnd::Wall(hw) => (pos, *hw, None),
             }
-            let (r, r0) = in_phase(&row_y, &d.v, &y_star);
+        };
+        let (mut ev, mut ev0, mut ev_d, mut ev_c2, mut ev_e, mut ev_fly) =
+            (vec![], vec![], vec![], vec![], vec![], vec![]);
+        for (j, ct) in m.contacts.iter().enumerate() {
+            let (row_y, c0, fly) = match members.iter().position(|&c| c == j) {
+                // closed: its penetration is a coordinate of Q u, exactly
+                // (`sqrt(k) (p - p0)`), not a difference of two sides
+                Some(pos) => {
+                    let mut row = vec![0.0; dim];
+                    let sk = ct.stiffness_n_per_m.sqrt();
+                    for (c, x) in row.iter_mut().enumerate().take(nr) {
+                        *x = q[(n + pos, c)] / sk;
+                    }
+                    (row, p0[pos], (None, None))
+                }
+                None => {
+                    let (lo, lo0, lo_fly) = side_y(&ct.lower);
+                    let (up, up0, up_fly) = side_y(&ct.upper);
+                    let row: Vec<f64> = lo.iter().zip(&up).map(|(a, b)| a - b).collect();
+                    let fly = if lo_fly == up_fly {
+                        (None, None)
+                    } else {
+                        (lo_fly, up_fly)
+                    };
+                    (row, lo0 - up0 - ct.gap_m, fly)
+                }
+            };
+            let (r, r0) = in_phase(&row_y, &v, &y_star);
+            let r0 = r0 + c0;
             let rd = row_times_gens(&r, &gens);
             let rdd = row_times_gens(&rd, &gens);
             ev_c2.push(
@@ -595,43 +1138,53 @@ impl MultiPhase {
             ev.push(r);
             ev0.push(r0);
             ev_d.push(rd);
-            let mut vrow = vec![0.0; dim];
-            vrow[n..2 * n].copy_from_slice(&hm.weights);
-            let (vr, v0) = in_phase(&vrow, &d.v, &y_star);
-            vel.push(vr);
-            vel0.push(v0);
+            ev_fly.push(fly);
         }
         let mut out: [Vec<f64>; 2] = Default::default();
         let mut out0 = [0.0; 2];
         for c in 0..2 {
             let (disp, velo) = &m.pickups[c];
             let mut row_y = vec![0.0; dim];
-            for i in 0..n {
-                row_y[i] = disp[i] / (2.0 * std::f64::consts::PI * m.freq_hz[i]);
-                row_y[n + i] = velo[i];
+            for col in 0..nr {
+                row_y[col] = (0..n)
+                    .map(|i| disp[i] * q[(i, col)] / (two_pi() * m.freq_hz[i]))
+                    .sum();
+                row_y[nr + col] = (0..n).map(|i| velo[i] * p[(i, col)]).sum();
             }
-            let (r, r0) = in_phase(&row_y, &d.v, &y_star);
+            let (r, r0) = in_phase(&row_y, &v, &y_star);
             out[c] = r;
             out0[c] = r0;
         }
+        let mut flyers: Vec<usize> = (0..m.masses.len())
+            .filter(|&j| lay.place[j].is_none())
+            .collect();
+        flyers.extend(lay.groups.iter().map(|grp| grp[0]));
         Ok(Self {
             members,
             dim,
             gens,
             props,
-            v: d.v,
-            vinv: d.vinv,
+            v,
+            vinv,
             y_star,
+            bound: lay.bound,
+            place: lay.place,
+            groups: lay.groups,
+            fly_of: lay.fly_of,
+            flyers,
+            p,
+            z_of_u,
+            q,
+            p0,
             ev,
             ev0,
             ev_d,
             ev_c2,
             ev_e,
-            vel,
-            vel0,
+            ev_fly,
             out,
             out0,
-            kappa: d.diag.kappa,
+            kappa,
             growth: growth_max,
         })
     }
@@ -645,9 +1198,9 @@ impl CompiledMulti {
         // every phase's eigendecomposition and checks (about 40 d^3 flop
         // for d coordinates) and its two bases (2 d^2 numbers), refused
         // before any of it
-        let k = model.hammers.len();
+        let k = model.contacts.len();
         let phases = 1usize << k;
-        let dim = 2 * model.n() + 2 * k;
+        let dim = 2 * (model.n() + model.masses.len());
         let d = dim as f64;
         let flops = phases as f64 * 40.0 * d * d * d;
         let bytes = phases as f64 * 3.0 * d * d * 8.0;
@@ -661,7 +1214,7 @@ impl CompiledMulti {
             });
         }
         let h = 1.0 / rate_hz;
-        let phases = (0..1u32 << model.hammers.len())
+        let phases = (0..1u32 << k)
             .map(|mask| MultiPhase::new(model, mask, h))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Self {
@@ -674,7 +1227,7 @@ impl CompiledMulti {
 
     /// Number of contacts.
     pub fn contacts(&self) -> usize {
-        self.model.hammers.len()
+        self.model.contacts.len()
     }
 
     /// The largest condition number of the phases' `V`.
@@ -706,10 +1259,17 @@ pub struct MultiState {
     /// slot 0 the step's start, the others the left ends of its pieces
     /// (a stack, one slot per level).
     norms: Vec<Vec<f64>>,
-    /// Out of contact: each hammer's height and velocity (at the state's
-    /// time).
-    x_h: [f64; MAX_CONTACTS],
-    v_h: [f64; MAX_CONTACTS],
+    /// Per flight slot (one per mass): the height and velocity of a free
+    /// mass, or of the centre of a free group whose first mass it is (at
+    /// the state's time).
+    x_f: Vec<f64>,
+    v_f: Vec<f64>,
+    /// Scratch of a switch: positions and velocities in `z`, the reduced
+    /// ones, and the physical state (every mode's `q, q'`, every mass's
+    /// `x, v`).
+    zq: Vec<f64>,
+    zv: Vec<f64>,
+    phys: Physical,
     /// Per contact: a whole-sample margin (`w = h`) and the epoch of the
     /// clock (64 samples) it was taken in, in the current phase (times the
     /// phase's growth over 64 samples, it holds for every later state of
@@ -734,11 +1294,13 @@ enum Start {
     Boundary,
 }
 
-/// Contact `j`'s event function in the current phase: its penetration in
-/// contact, `x_j + v_j t - g t^2 / 2 - x_c,j(t)` in flight; positive on
-/// the current side.
+/// Contact `j`'s event function in the current phase: its penetration
+/// `p = q(t) + x0 + v0 t - g t^2 / 2` (`q` from the state's row, the rest
+/// the flights of its free sides, the lower side's less the upper side's),
+/// signed to be positive on the current side (`sign` 1 in contact, -1 in
+/// flight).
 struct EventFn {
-    inside: bool,
+    sign: f64,
     x0: f64,
     v0: f64,
     g: f64,
@@ -755,23 +1317,14 @@ struct EventFn {
 }
 
 impl EventFn {
-    /// `psi` at `t` from the event quantity `q` (penetration or the
-    /// point's displacement).
+    /// `psi` at `t` from the row's part `q` of the penetration.
     fn psi(&self, q: f64, t: f64) -> f64 {
-        if self.inside {
-            q
-        } else {
-            self.x0 + self.v0 * t - 0.5 * self.g * t * t - q
-        }
+        self.sign * (q + self.x0 + self.v0 * t - 0.5 * self.g * t * t)
     }
 
-    /// `psi'` at `t` from the quantity's slope `dq`.
+    /// `psi'` at `t` from the row's slope `dq`.
     fn dpsi(&self, dq: f64, t: f64) -> f64 {
-        if self.inside {
-            dq
-        } else {
-            self.v0 - self.g * t - dq
-        }
+        self.sign * (dq + self.v0 - self.g * t)
     }
 
     /// Across (contact ends at `p <= 0`, starts at `p > 0`), beyond the
@@ -792,16 +1345,13 @@ struct Piece {
 }
 
 impl MultiState {
-    /// The model's initial state: the object at rest, the hammers in
+    /// The model's initial state: the objects at rest, the masses in
     /// flight where the model puts them.
     pub fn new(sc: &CompiledMulti) -> Self {
         let dim = sc.max_dim();
-        let mut x_h = [0.0; MAX_CONTACTS];
-        let mut v_h = [0.0; MAX_CONTACTS];
-        for (j, hm) in sc.model.hammers.iter().enumerate() {
-            x_h[j] = hm.height_m;
-            v_h[j] = hm.velocity_m_per_s;
-        }
+        let nz = sc.model.n() + sc.model.masses.len();
+        let x_f = sc.model.masses.iter().map(|m| m.height_m).collect();
+        let v_f = sc.model.masses.iter().map(|m| m.velocity_m_per_s).collect();
         Self {
             mask: 0,
             s: {
@@ -813,8 +1363,11 @@ impl MultiState {
             y: vec![0.0; dim],
             y2: vec![0.0; dim],
             norms: vec![vec![0.0; dim / 2]; NORM_SLOTS],
-            x_h,
-            v_h,
+            x_f,
+            v_f,
+            zq: vec![0.0; nz + MAX_CONTACTS],
+            zv: vec![0.0; nz],
+            phys: Physical::new(&sc.model),
             cached: [(u64::MAX, 0.0); MAX_CONTACTS],
             budget: SEARCH_BUDGET,
             clock: 0,
@@ -909,14 +1462,12 @@ impl MultiState {
         self.clock += 1;
     }
 
-    /// The hammers out of contact fly `dt` on.
+    /// The flights (free masses, centres of free groups) go `dt` on.
     fn fly(&mut self, sc: &CompiledMulti, dt: f64) {
         let g = sc.model.gravity_m_per_s2;
-        for j in 0..sc.contacts() {
-            if self.mask & (1 << j) == 0 {
-                self.x_h[j] += self.v_h[j] * dt - 0.5 * g * dt * dt;
-                self.v_h[j] -= g * dt;
-            }
+        for &j in &sc.phases[self.mask as usize].flyers {
+            self.x_f[j] += self.v_f[j] * dt - 0.5 * g * dt * dt;
+            self.v_f[j] -= g * dt;
         }
     }
 
@@ -934,11 +1485,16 @@ impl MultiState {
         let nb = ph.gens.len();
         let inside = self.mask & (1 << j) != 0;
         let g = sc.model.gravity_m_per_s2;
+        // the flights in the penetration: the lower side's less the upper's
+        let (lo, up) = ph.ev_fly[j];
+        let flight =
+            |slot: Option<usize>| slot.map_or((0.0, 0.0, 0.0), |k| (self.x_f[k], self.v_f[k], g));
+        let ((xl, vl, gl), (xu, vu, gu)) = (flight(lo), flight(up));
         let mut f = EventFn {
-            inside,
-            x0: self.x_h[j],
-            v0: self.v_h[j],
-            g,
+            sign: if inside { 1.0 } else { -1.0 },
+            x0: xl - xu,
+            v0: vl - vu,
+            g: gl - gu,
             allow: 0.0,
             neutral: 0.0,
         };
@@ -961,9 +1517,7 @@ impl MultiState {
             self.norms[0][k] = (self.s[k] * self.s[k] + self.s[nb + k] * self.s[nb + k]).sqrt();
             mag += ph.ev_e[j][k] * self.norms[0][k];
         }
-        if !inside {
-            mag += f.x0.abs() + f.v0.abs() * rem + g * rem * rem;
-        }
+        mag += xl.abs() + xu.abs() + (vl.abs() + vu.abs()) * rem + (gl + gu) * rem * rem;
         f.neutral = 4.0 * f64::EPSILON / 2.0 * mag;
         // only for a hammer that just left: its flight starts at 0 and a
         // rounding-level value of the wrong sign is no new contact
@@ -971,7 +1525,7 @@ impl MultiState {
             f.allow = f.neutral;
         }
         self.budget = SEARCH_BUDGET;
-        let g_curv = if inside { 0.0 } else { g };
+        let g_curv = f.g.abs();
         let m = self.curvature(ph, j, g_curv, 0);
         if whole && self.cached[j].0 != epoch {
             // for the rest of the epoch: at most 64 samples of growth
@@ -1180,44 +1734,87 @@ impl MultiState {
     }
 
     /// Switch the contacts of `who` at the state's time `time_s`: each
-    /// enters (spring unstretched) or leaves (hammer where the face is);
-    /// a change of basis through the energy coordinates, O(dim^2). Returns
-    /// where each contact's next search starts.
+    /// enters or leaves, through the physical state (which does not jump),
+    /// two changes of basis, O(dim^2). Returns where each contact's next
+    /// search starts.
     fn switch(&mut self, sc: &CompiledMulti, who: u32, time_s: f64) -> [Start; MAX_CONTACTS] {
-        let n = sc.model.n();
+        let m = &sc.model;
         let old = &sc.phases[self.mask as usize];
-        // y = V s + y*
+        // y = V s + y*, then every q, q', x, v
         mat_vec(&old.v, &self.s, &old.y_star, &mut self.y[..old.dim]);
-        // the hammers' physical states before the switch
-        let mut x = self.x_h;
-        let mut v = self.v_h;
-        let mut p_left = [0.0; MAX_CONTACTS];
-        for (pos, &j) in old.members.iter().enumerate() {
-            let hm = &sc.model.hammers[j];
-            let x_c: f64 = (0..n)
-                .map(|i| {
-                    hm.weights[i] * self.y[i] / (2.0 * std::f64::consts::PI * sc.model.freq_hz[i])
-                })
-                .sum();
-            let p = self.y[2 * n + 2 * pos + 1] / hm.stiffness_n_per_m.sqrt();
-            p_left[j] = p;
-            x[j] = x_c - p;
-            v[j] = self.y[2 * n + 2 * pos] / hm.mass_kg.sqrt();
+        old.physical_of(
+            m,
+            &self.y[..old.dim],
+            (&self.x_f, &self.v_f),
+            (&mut self.zq, &mut self.zv),
+            &mut self.phys,
+        );
+        // each closed contact's penetration from its own coordinate
+        // (exact); an entering one starts unstretched (its crossing, 0 to
+        // the search's leaf), so entering adds nothing
+        let mut pen = [0.0; MAX_CONTACTS];
+        for (j, p) in pen.iter_mut().enumerate().take(sc.contacts()) {
+            if self.mask & (1 << j) != 0 {
+                *p = dot(&old.ev[j], &self.s) + old.ev0[j];
+            }
         }
+        let p_left = pen;
         let new_mask = self.mask ^ who;
         let new = &sc.phases[new_mask as usize];
-        // the new phase's energy coordinates
-        self.y2[..2 * n].copy_from_slice(&self.y[..2 * n]);
-        for (pos, &j) in new.members.iter().enumerate() {
-            let hm = &sc.model.hammers[j];
-            let was = old.members.iter().position(|&x| x == j);
-            let (eta, pi) = match was {
-                Some(p) => (self.y[2 * n + 2 * p], self.y[2 * n + 2 * p + 1]),
-                // entering: the spring starts unstretched
-                None => (hm.mass_kg.sqrt() * v[j], 0.0),
+        new.state_of(
+            m,
+            (&self.phys, &pen),
+            (&mut self.x_f, &mut self.v_f),
+            (&mut self.zq, &mut self.zv),
+            &mut self.y2[..new.dim],
+        );
+        // s = V^-1 (y - y*)
+        for (y, ys) in self.y2[..new.dim].iter_mut().zip(&new.y_star) {
+            *y -= ys;
+        }
+        self.s.resize(new.dim, 0.0);
+        mat_vec(&new.vinv, &self.y2[..new.dim], &[], &mut self.s);
+        // a mass a leaving contact sets free starts its flight exactly at the
+        // penetration the contact left with, the rest of it as the new
+        // phase computes it (its row), without the change of basis's
+        // rounding between the two bases' views of the other side
+        let mut placed = 0u64;
+        for j in 0..sc.contacts() {
+            if who & (1 << j) == 0 || new_mask & (1 << j) != 0 {
+                continue;
+            }
+            let ct = &m.contacts[j];
+            let freed = |e: &MultiEnd| match e {
+                MultiEnd::Mass(k)
+                    if new.place[*k].is_none()
+                        && old.place[*k].is_some()
+                        && placed & (1 << k) == 0 =>
+                {
+                    Some(*k)
+                }
+                _ => None,
             };
-            self.y2[2 * n + 2 * pos] = eta;
-            self.y2[2 * n + 2 * pos + 1] = pi;
+            let q = dot(&new.ev[j], &self.s) + new.ev0[j];
+            let (lo, up) = new.ev_fly[j];
+            let at = |slot: Option<usize>, x: &[f64]| slot.map_or(0.0, |k| x[k]);
+            // p = q + x_lower - x_upper (flights only)
+            if let Some(k) = freed(&ct.upper) {
+                let x_lo = if lo == Some(k) {
+                    0.0
+                } else {
+                    at(lo, &self.x_f)
+                };
+                self.x_f[k] = q + x_lo - p_left[j];
+                placed |= 1 << k;
+            } else if let Some(k) = freed(&ct.lower) {
+                let x_up = if up == Some(k) {
+                    0.0
+                } else {
+                    at(up, &self.x_f)
+                };
+                self.x_f[k] = p_left[j] - q + x_up;
+                placed |= 1 << k;
+            }
         }
         for j in 0..sc.contacts() {
             if who & (1 << j) != 0 {
@@ -1234,23 +1831,6 @@ impl MultiState {
                 }
             }
         }
-        // s = V^-1 (y - y*)
-        for (y, ys) in self.y2[..new.dim].iter_mut().zip(&new.y_star) {
-            *y -= ys;
-        }
-        self.s.resize(new.dim, 0.0);
-        mat_vec(&new.vinv, &self.y2[..new.dim], &[], &mut self.s);
-        // a hammer that left is placed from its point as the new phase
-        // computes it (its event row), so its flight starts exactly at the
-        // penetration it left with, without the change of basis's rounding
-        // between the two bases' views of the point
-        for j in 0..sc.contacts() {
-            if who & (1 << j) != 0 && new_mask & (1 << j) == 0 {
-                x[j] = dot(&new.ev[j], &self.s) + new.ev0[j] - p_left[j];
-            }
-        }
-        self.x_h = x;
-        self.v_h = v;
         self.mask = new_mask;
         self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
         self.stats.switches += 1;
@@ -1263,53 +1843,177 @@ impl MultiState {
         })
     }
 
-    /// The state now: each hammer, each contact point, the energy.
+    /// The state now, from its physical state: each contact's sides, the
+    /// energy (every mode, every mass's motion and weight, every closed
+    /// spring). O(dim^2) (the change of basis).
     pub fn observe(&self, sc: &CompiledMulti) -> MultiObservation {
+        let m = &sc.model;
         let ph = &sc.phases[self.mask as usize];
-        let n = sc.model.n();
+        let nz = m.n() + m.masses.len();
+        let mut y = vec![0.0; ph.dim];
+        mat_vec(&ph.v, &self.s, &ph.y_star, &mut y);
+        let (mut zq, mut zv) = (vec![0.0; nz + MAX_CONTACTS], vec![0.0; nz]);
+        let mut phys = Physical::new(m);
+        ph.physical_of(m, &y, (&self.x_f, &self.v_f), (&mut zq, &mut zv), &mut phys);
         let mut o = MultiObservation {
             active: self.mask,
+            energy: phys.energy(m),
             ..Default::default()
         };
-        let mut y = vec![0.0; ph.dim];
-        for (r, yr) in y.iter_mut().enumerate() {
-            *yr = ph.y_star[r] + (0..ph.dim).map(|c| ph.v[(r, c)] * self.s[c]).sum::<f64>();
+        for (j, ct) in m.contacts.iter().enumerate() {
+            let (xl, vl) = phys.side(&ct.lower);
+            let (xu, vu) = phys.side(&ct.upper);
+            if self.mask & (1 << j) != 0 {
+                let p = xl - xu - ct.gap_m;
+                o.energy += 0.5 * ct.stiffness_n_per_m * p * p;
+            }
+            o.x_hammer[j] = xu;
+            o.v_hammer[j] = vu;
+            o.x_contact[j] = xl;
+            o.v_contact[j] = vl;
         }
-        let g = sc.model.gravity_m_per_s2;
-        let mut e = 0.5 * dot(&y, &y);
-        for (j, hm) in sc.model.hammers.iter().enumerate() {
-            // in contact its penetration, in flight its point's displacement
-            let q = dot(&ph.ev[j], &self.s) + ph.ev0[j];
-            let (x, v, xc) = match ph.members.iter().position(|&m| m == j) {
-                Some(pos) => {
-                    let xc: f64 = (0..n)
-                        .map(|i| {
-                            hm.weights[i] * y[i]
-                                / (2.0 * std::f64::consts::PI * sc.model.freq_hz[i])
-                        })
-                        .sum();
-                    (xc - q, y[2 * n + 2 * pos] / hm.mass_kg.sqrt(), xc)
-                }
-                None => {
-                    e += 0.5 * hm.mass_kg * self.v_h[j] * self.v_h[j];
-                    (self.x_h[j], self.v_h[j], q)
-                }
-            };
-            e += hm.mass_kg * g * x;
-            o.x_hammer[j] = x;
-            o.v_hammer[j] = v;
-            o.x_contact[j] = xc;
-            o.v_contact[j] = dot(&ph.vel[j], &self.s) + ph.vel0[j];
-        }
-        o.energy = e;
         o
     }
 }
 
-/// `out = M x + c` (`c` empty: 0) for a square column-major `M`, by
-/// columns (contiguous reads).
+/// A physical state: every mode's `q, q'` and every mass's `x, v`.
+#[derive(Debug, Clone)]
+struct Physical {
+    q: Vec<f64>,
+    qv: Vec<f64>,
+    x: Vec<f64>,
+    v: Vec<f64>,
+}
+
+impl Physical {
+    fn new(m: &MultiModel) -> Self {
+        let (n, nm) = (m.n(), m.masses.len());
+        Self {
+            q: vec![0.0; n],
+            qv: vec![0.0; n],
+            x: vec![0.0; nm],
+            v: vec![0.0; nm],
+        }
+    }
+
+    /// A side's position and velocity.
+    fn side(&self, e: &MultiEnd) -> (f64, f64) {
+        match e {
+            MultiEnd::Point(w) => (dot(w, &self.q), dot(w, &self.qv)),
+            MultiEnd::Mass(k) => (self.x[k.to_owned()], self.v[*k]),
+            MultiEnd::Wall(h) => (*h, 0.0),
+        }
+    }
+
+    /// Every mode's and every mass's energy, gravity's included (the
+    /// closed springs' are the caller's).
+    fn energy(&self, m: &MultiModel) -> f64 {
+        let mut e = 0.0;
+        for i in 0..m.n() {
+            let w = two_pi() * m.freq_hz[i];
+            let a = w * self.q[i];
+            e += 0.5 * (a * a + self.qv[i] * self.qv[i]);
+        }
+        for (j, ms) in m.masses.iter().enumerate() {
+            e += 0.5 * ms.mass_kg * self.v[j] * self.v[j]
+                + ms.mass_kg * m.gravity_m_per_s2 * self.x[j];
+        }
+        e
+    }
+}
+
+impl MultiPhase {
+    /// The physical state of the phase's `y` (the flights from `fly`).
+    fn physical_of(
+        &self,
+        m: &MultiModel,
+        y: &[f64],
+        (x_f, v_f): (&[f64], &[f64]),
+        (zq, zv): (&mut [f64], &mut [f64]),
+        out: &mut Physical,
+    ) {
+        let n = m.n();
+        let nr = self.dim / 2;
+        let nz = n + self.bound.len();
+        // the modes' q from Q u = (omega q, ...), the masses' from Z u (the
+        // part off the free groups' centres), z' = P w
+        mat_vec(&self.q, &y[..nr], &[], &mut zq[..self.q.nrows()]);
+        for (i, qi) in out.q.iter_mut().enumerate() {
+            *qi = zq[i] / (two_pi() * m.freq_hz[i]);
+        }
+        mat_vec(&self.z_of_u, &y[..nr], &[], &mut zq[..nz]);
+        mat_vec(&self.p, &y[nr..self.dim], &[], &mut zv[..nz]);
+        out.qv.copy_from_slice(&zv[..n]);
+        for (j, ms) in m.masses.iter().enumerate() {
+            match self.place[j] {
+                Some(b) => {
+                    let s = ms.mass_kg.sqrt();
+                    let (mut x, mut v) = (zq[n + b] / s, zv[n + b] / s);
+                    if let Some(k) = self.fly_of[j] {
+                        x += x_f[k];
+                        v += v_f[k];
+                    }
+                    out.x[j] = x;
+                    out.v[j] = v;
+                }
+                None => {
+                    out.x[j] = x_f[j];
+                    out.v[j] = v_f[j];
+                }
+            }
+        }
+    }
+
+    /// The phase's `y` (before `y*` is taken off) of a physical state
+    /// whose closed contacts' penetrations are `pen` (by contact), and its
+    /// flights: `u = Q^T (omega q, sqrt(k_c) (p_c - p0_c))`, `w = P^T z'`.
+    /// The penetrations come apart from the positions: as a difference of
+    /// two sides a heavy hammer's would keep `u |x|` of error.
+    fn state_of(
+        &self,
+        m: &MultiModel,
+        (ph, pen): (&Physical, &[f64; MAX_CONTACTS]),
+        (x_f, v_f): (&mut [f64], &mut [f64]),
+        (zq, zv): (&mut [f64], &mut [f64]),
+        y: &mut [f64],
+    ) {
+        let n = m.n();
+        let nr = self.dim / 2;
+        let nz = n + self.bound.len();
+        for i in 0..n {
+            zq[i] = two_pi() * m.freq_hz[i] * ph.q[i];
+        }
+        for (pos, &c) in self.members.iter().enumerate() {
+            zq[n + pos] = m.contacts[c].stiffness_n_per_m.sqrt() * (pen[c] - self.p0[pos]);
+        }
+        zv[..n].copy_from_slice(&ph.qv);
+        for (b, &j) in self.bound.iter().enumerate() {
+            zv[n + b] = m.masses[j].mass_kg.sqrt() * ph.v[j];
+        }
+        for (j, place) in self.place.iter().enumerate() {
+            if place.is_none() {
+                x_f[j] = ph.x[j];
+                v_f[j] = ph.v[j];
+            }
+        }
+        for grp in &self.groups {
+            let total: f64 = grp.iter().map(|&j| m.masses[j].mass_kg).sum();
+            let (mut x, mut v) = (0.0, 0.0);
+            for &j in grp {
+                x += m.masses[j].mass_kg * ph.x[j];
+                v += m.masses[j].mass_kg * ph.v[j];
+            }
+            x_f[grp[0]] = x / total;
+            v_f[grp[0]] = v / total;
+        }
+        mat_t_vec(&self.q, &zq[..self.q.nrows()], &mut y[..nr]);
+        mat_t_vec(&self.p, &zv[..nz], &mut y[nr..self.dim]);
+    }
+}
+/// `out = M x + c` (`c` empty: 0) for a column-major `M`, by columns
+/// (contiguous reads).
 fn mat_vec(m: &DMatrix<f64>, x: &[f64], c: &[f64], out: &mut [f64]) {
-    let n = x.len();
+    let n = out.len();
     if c.is_empty() {
         out.iter_mut().for_each(|o| *o = 0.0);
     } else {
@@ -1323,6 +2027,15 @@ fn mat_vec(m: &DMatrix<f64>, x: &[f64], c: &[f64], out: &mut [f64]) {
         for (o, a) in out.iter_mut().zip(&data[col * n..(col + 1) * n]) {
             *o += a * xc;
         }
+    }
+}
+
+/// `out = M^T x` for a column-major `M` (each entry a column's dot).
+fn mat_t_vec(m: &DMatrix<f64>, x: &[f64], out: &mut [f64]) {
+    let n = x.len();
+    let data = m.as_slice();
+    for (col, o) in out.iter_mut().enumerate() {
+        *o = dot(&data[col * n..(col + 1) * n], x);
     }
 }
 

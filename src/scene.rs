@@ -169,6 +169,10 @@ pub struct Scene {
     /// `[hammer]` and `[contact]`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub striker: Vec<StrikerSpec>,
+    /// Contacts between two objects, an object and the hammer, or either
+    /// and a wall (docs/design.md, "Several contacts"); empty: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub touch: Vec<TouchSpec>,
     /// What is heard.
     #[serde(default)]
     pub pickup: Vec<PickupSpec>,
@@ -412,8 +416,46 @@ pub struct StrikerSpec {
 }
 
 /// Most contacts of one scene: `[contact]` and up to `MAX_CONTACTS - 1`
-/// strikers.
+/// strikers and touches.
 pub const MAX_CONTACTS: usize = 4;
+
+/// The name a touch gives the scene's `[hammer]`.
+pub const HAMMER_SIDE: &str = "hammer";
+
+/// One side of a touch: an object (and its point, but for a wall) or the
+/// hammer ([`HAMMER_SIDE`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct End {
+    /// An object's name, or `"hammer"`.
+    pub object: String,
+    /// The object's point (not for a wall or the hammer).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub point: Option<String>,
+}
+
+/// A contact between two sides (docs/design.md, "Several contacts"):
+/// penetration `p = x_lower - x_upper - gap_m`, in contact while `p > 0`,
+/// the spring-damper `k p + c p'` pushing the upper side up and the lower
+/// one down.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TouchSpec {
+    /// The side below.
+    pub lower: End,
+    /// The side above.
+    pub upper: End,
+    /// How far the upper side rests above the lower one \[m\] (>= 0; the
+    /// hammer's height already counts from the struck object's rest, a
+    /// wall is at 0).
+    #[serde(default)]
+    pub gap_m: f64,
+    /// Contact stiffness \[N/m\].
+    pub stiffness_n_per_m: f64,
+    /// Contact damping \[N s/m\].
+    #[serde(default)]
+    pub damping_n_s_per_m: f64,
+}
 
 /// The contact spring-damper (paper eq. 9).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -584,6 +626,13 @@ impl Scene {
         Ok(out)
     }
 
+    /// Several contacts (`[[striker]]` or `[[touch]]`): the several-contact
+    /// engine runs it, the one-contact compiler and the instrument refuse
+    /// it.
+    pub fn several_contacts(&self) -> bool {
+        !self.striker.is_empty() || !self.touch.is_empty()
+    }
+
     /// Index of the object named `name`.
     pub fn object_index(&self, name: &str) -> Option<usize> {
         self.object.iter().position(|o| o.name() == name)
@@ -610,6 +659,7 @@ impl Scene {
         self.validate_contact()?;
         self.validate_mallet()?;
         self.validate_strikers()?;
+        self.validate_touches()?;
         self.validate_pickups()
     }
 
@@ -705,6 +755,170 @@ impl Scene {
                 st.damping_n_s_per_m,
                 MAX_DAMPING_N_S_PER_M,
             )?;
+        }
+        Ok(())
+    }
+
+    /// Touches: at most `MAX_CONTACTS` contacts in all; each side names
+    /// the hammer, a wall or an object's point, the two sides differ, no
+    /// two contacts join the same pair, values in their ranges; several
+    /// contacts need exact switching and a point-mass hammer.
+    fn validate_touches(&self) -> Result<(), SceneError> {
+        if self.touch.is_empty() {
+            return Ok(());
+        }
+        let total = 1 + self.striker.len() + self.touch.len();
+        if total > MAX_CONTACTS {
+            return Err(SceneError::new(
+                "touch",
+                format!(
+                    "[contact], {} strikers and {} touches make {total} contacts, at most \
+                     {MAX_CONTACTS}",
+                    self.striker.len(),
+                    self.touch.len()
+                ),
+            ));
+        }
+        if self.hammer.object.is_some() {
+            return Err(SceneError::new(
+                "touch",
+                "several contacts take point-mass hammers: remove hammer.object or the touches",
+            ));
+        }
+        if self.contact.switching == Some(Switching::OffsetRod) {
+            return Err(SceneError::new(
+                "touch",
+                "several contacts switch exactly: remove contact.switching = \"offset-rod\"",
+            ));
+        }
+        // every contact's pair of sides, as (object, point) both ways
+        let side_key = |e: &End| (e.object.clone(), e.point.clone());
+        let mut pairs = vec![(
+            (self.contact.object.clone(), self.contact.point.clone()),
+            (HAMMER_SIDE.to_string(), None),
+        )];
+        for st in &self.striker {
+            pairs.push((
+                (self.contact.object.clone(), Some(st.point.clone())),
+                (HAMMER_SIDE.to_string(), None),
+            ));
+        }
+        for (i, t) in self.touch.iter().enumerate() {
+            let f = |k: &str| format!("touch[{i}].{k}");
+            let mut walls = 0;
+            for (name, e) in [("lower", &t.lower), ("upper", &t.upper)] {
+                if e.object == HAMMER_SIDE {
+                    if self.object_index(HAMMER_SIDE).is_some() {
+                        return Err(SceneError::new(
+                            f(&format!("{name}.object")),
+                            "\"hammer\" names both an object and the hammer: rename the object",
+                        ));
+                    }
+                    if e.point.is_some() {
+                        return Err(SceneError::new(
+                            f(&format!("{name}.point")),
+                            "the hammer has no points; omit the key",
+                        ));
+                    }
+                    continue;
+                }
+                let Some(o) = self.object_index(&e.object) else {
+                    return Err(SceneError::new(
+                        f(&format!("{name}.object")),
+                        format!("no object named {:?}", e.object),
+                    ));
+                };
+                let obj = &self.object[o];
+                match (obj, &e.point) {
+                    (ObjectSpec::Wall(_), None) => walls += 1,
+                    (ObjectSpec::Wall(_), Some(_)) => {
+                        return Err(SceneError::new(
+                            f(&format!("{name}.point")),
+                            "a wall has no points; omit the key",
+                        ))
+                    }
+                    (ObjectSpec::String(_) | ObjectSpec::Chain(_), _) => {
+                        return Err(SceneError::new(
+                            f(&format!("{name}.object")),
+                            format!(
+                                "{:?} is a lumped {}: several contacts touch objects with modes \
+                                 (kind \"modal\" or one from geometry and material) and walls",
+                                e.object,
+                                obj.kind()
+                            ),
+                        ))
+                    }
+                    (_, None) => {
+                        return Err(SceneError::new(
+                            f(&format!("{name}.point")),
+                            format!(
+                                "missing: name one of {:?}'s points {:?}",
+                                e.object,
+                                obj.point_names()
+                            ),
+                        ))
+                    }
+                    (_, Some(p)) if !obj.point_names().contains(p) => {
+                        return Err(SceneError::new(
+                            f(&format!("{name}.point")),
+                            format!("object {:?} has no point {p:?}", e.object),
+                        ))
+                    }
+                    _ => {}
+                }
+            }
+            if walls == 2 {
+                return Err(SceneError::new(f("upper"), "two walls cannot touch"));
+            }
+            if t.lower.object == t.upper.object {
+                return Err(SceneError::new(
+                    f("upper.object"),
+                    format!("{:?} in contact with itself", t.lower.object),
+                ));
+            }
+            let (a, b) = (side_key(&t.lower), side_key(&t.upper));
+            if pairs
+                .iter()
+                .any(|(x, y)| (*x == a && *y == b) || (*x == b && *y == a))
+            {
+                return Err(SceneError::new(
+                    f("upper"),
+                    "another contact already joins these two sides: two contacts on one point pair",
+                ));
+            }
+            pairs.push((a, b));
+            check_non_negative(&f("gap_m"), t.gap_m)?;
+            check_max(&f("gap_m"), t.gap_m, MAX_HEIGHT_M)?;
+            check_positive(&f("stiffness_n_per_m"), t.stiffness_n_per_m)?;
+            check_min(
+                &f("stiffness_n_per_m"),
+                t.stiffness_n_per_m,
+                MIN_STIFFNESS_N_PER_M,
+            )?;
+            check_max(
+                &f("stiffness_n_per_m"),
+                t.stiffness_n_per_m,
+                MAX_STIFFNESS_N_PER_M,
+            )?;
+            check_non_negative(&f("damping_n_s_per_m"), t.damping_n_s_per_m)?;
+            check_max(
+                &f("damping_n_s_per_m"),
+                t.damping_n_s_per_m,
+                MAX_DAMPING_N_S_PER_M,
+            )?;
+            // the hammer starts at its height: below an upper side resting
+            // `gap` above the struck object's rest, it must not start inside
+            let hammer_side = |e: &End| e.object == HAMMER_SIDE;
+            if hammer_side(&t.lower) && self.hammer.height_m > t.gap_m {
+                return Err(SceneError::new(
+                    f("gap_m"),
+                    format!(
+                        "the hammer starts at {} m, inside {:?} resting {} m up: raise gap_m or \
+                         lower hammer.height_m",
+                        self.hammer.height_m, t.upper.object, t.gap_m
+                    ),
+                ));
+            }
         }
         Ok(())
     }

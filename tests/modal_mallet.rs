@@ -206,6 +206,8 @@ impl Case {
                 damping_n_s_per_m: c_s,
             }),
             extra: Vec::new(),
+            masses: vec![],
+            links: vec![],
         }
     }
 }

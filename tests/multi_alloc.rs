@@ -52,13 +52,13 @@ fn steps_with_switches_allocate_nothing() {
         stiffness_n_per_m: 4.6e12,
         damping_n_s_per_m: 6e5,
     };
-    let m = MultiModel {
-        sigma: freq.iter().map(|f| 1.0 + f * 1e-3).collect(),
-        freq_hz: freq,
-        hammers: vec![hammer(0, 0.0), hammer(1, 3e-4), hammer(2, 1e-3)],
-        gravity_m_per_s2: 9.81,
-        pickups: [(vec![1.0; n], vec![0.0; n]), (vec![0.0; n], vec![1.0; n])],
-    };
+    let m = MultiModel::struck(
+        freq.clone(),
+        freq.iter().map(|f| 1.0 + f * 1e-3).collect(),
+        &[hammer(0, 0.0), hammer(1, 3e-4), hammer(2, 1e-3)],
+        9.81,
+        [(vec![1.0; n], vec![0.0; n]), (vec![0.0; n], vec![1.0; n])],
+    );
     let sc = CompiledMulti::new(&m, 48_000.0).unwrap();
     let mut st = MultiState::new(&sc);
     let before = ALLOCS.load(Ordering::Relaxed);

@@ -27,7 +27,8 @@
 use modal_contact::compile::compile_with;
 use modal_contact::engine::EngineState;
 use modal_contact::multi::{
-    CompiledMulti, MultiError, MultiHammer, MultiModel, MultiState, MultiSwitch, MAX_CONTACTS,
+    CompiledMulti, MultiEnd, MultiError, MultiHammer, MultiModel, MultiState, MultiSwitch,
+    MAX_CONTACTS,
 };
 use modal_contact::scene::{Scene, Switching};
 use modal_testkit::metrics::{instant_horizon, rel_l2, Interval};
@@ -95,28 +96,31 @@ fn hammer(j: usize, s: &Striker) -> MultiHammer {
     }
 }
 
+fn hammers(case: &Case) -> Vec<MultiHammer> {
+    case.strikers
+        .iter()
+        .enumerate()
+        .map(|(j, s)| hammer(j, s))
+        .collect()
+}
+
 fn model(case: &Case) -> MultiModel {
     let sigma = case.t60.map_or(0.0, |t| 1000f64.ln() / t);
     let n = FREQS.len();
-    MultiModel {
-        freq_hz: FREQS.to_vec(),
-        sigma: vec![sigma; n],
-        hammers: case
-            .strikers
-            .iter()
-            .enumerate()
-            .map(|(j, s)| hammer(j, s))
-            .collect(),
-        gravity_m_per_s2: case.gravity,
-        pickups: [
+    MultiModel::struck(
+        FREQS.to_vec(),
+        vec![sigma; n],
+        &hammers(case),
+        case.gravity,
+        [
             (vec![1.0, 0.5, 0.25, 0.1], vec![0.0; n]),
             (vec![0.0; n], vec![1e-3; n]),
         ],
-    }
+    )
 }
 
 /// The same numbers as the reference solver's model.
-fn reference_model(m: &MultiModel, t60: Option<f64>) -> reference::Model {
+fn reference_model(m: &MultiModel, hammers: &[MultiHammer], t60: Option<f64>) -> reference::Model {
     let rh = |h: &MultiHammer| reference::Hammer {
         mass_kg: h.mass_kg,
         height_m: h.height_m,
@@ -127,7 +131,7 @@ fn reference_model(m: &MultiModel, t60: Option<f64>) -> reference::Model {
         stiffness_n_per_m: h.stiffness_n_per_m,
         damping_n_s_per_m: h.damping_n_s_per_m,
     };
-    let h0 = &m.hammers[0];
+    let h0 = &hammers[0];
     reference::Model {
         modes: m
             .freq_hz
@@ -142,7 +146,7 @@ fn reference_model(m: &MultiModel, t60: Option<f64>) -> reference::Model {
         hammer: rh(h0),
         contact: rc(h0),
         back: None,
-        extra: m.hammers[1..]
+        extra: hammers[1..]
             .iter()
             .map(|h| reference::ExtraHammer {
                 hammer: rh(h),
@@ -150,6 +154,8 @@ fn reference_model(m: &MultiModel, t60: Option<f64>) -> reference::Model {
                 contact: rc(h),
             })
             .collect(),
+        masses: vec![],
+        links: vec![],
     }
 }
 
@@ -227,7 +233,8 @@ struct Outcome {
 
 fn run_case(case: &Case) -> Outcome {
     let m = model(case);
-    let k = m.hammers.len();
+    let hs = hammers(case);
+    let k = hs.len();
     let sc = CompiledMulti::new(&m, RATE).unwrap();
     assert!(
         sc.growth() - 1.0 < 1e-12,
@@ -243,7 +250,7 @@ fn run_case(case: &Case) -> Outcome {
         assert!(y.iter().all(|v| v.is_finite()), "{}", case.name);
         obs.push(st.observe(&sc));
     }
-    let rm = reference_model(&m, case.t60);
+    let rm = reference_model(&m, &hs, case.t60);
     let sol = reference::solve(&rm, RATE, SAMPLES + 1);
     let twin = reference::solve(&rm.perturbed(DISTURBANCE), RATE, SAMPLES + 1);
     let n = sol.samples.len().min(obs.len()).min(twin.samples.len());
@@ -316,7 +323,7 @@ fn run_case(case: &Case) -> Outcome {
     let scale = |o: &modal_contact::multi::MultiObservation| {
         o.energy.abs()
             + (0..k)
-                .map(|j| 2.0 * m.hammers[j].mass_kg * g * o.x_hammer[j].abs())
+                .map(|j| 2.0 * m.masses[j].mass_kg * g * o.x_hammer[j].abs())
                 .sum::<f64>()
     };
     let mut de = 0.0f64;
@@ -522,44 +529,66 @@ fn bad_models_are_refused_with_the_field_named() {
         f(&mut m);
         CompiledMulti::new(&m, RATE).unwrap_err()
     };
-    assert_eq!(err(&|m| m.hammers.clear()), MultiError::ContactCount(0));
+    assert_eq!(err(&|m| m.contacts.clear()), MultiError::ContactCount(0));
     let e = err(&|m| {
-        let h = m.hammers[0].clone();
+        let c = m.contacts[0].clone();
         for j in 0..MAX_CONTACTS {
-            let mut h = h.clone();
-            h.weights[0] += j as f64;
-            m.hammers.push(h);
+            let mut c = c.clone();
+            c.gap_m = j as f64;
+            m.contacts.push(c);
         }
     });
     assert_eq!(e, MultiError::ContactCount(MAX_CONTACTS + 2));
-    let e = err(&|m| m.hammers[1].weights = m.hammers[0].weights.clone());
+    let e = err(&|m| {
+        m.contacts[1].lower = m.contacts[0].lower.clone();
+        m.contacts[1].upper = MultiEnd::Mass(0);
+    });
     assert_eq!(e, MultiError::SamePoint(0, 1));
-    let e = err(&|m| m.hammers[1].mass_kg = -1.0);
-    assert!(e.to_string().contains("hammers[1].mass_kg"), "{e}");
-    let e = err(&|m| m.hammers[0].stiffness_n_per_m = f64::NAN);
+    let e = err(&|m| m.contacts[1].upper = m.contacts[1].lower.clone());
+    assert!(e.to_string().contains("with itself"), "{e}");
+    let e = err(&|m| {
+        m.contacts[1].lower = MultiEnd::Wall(0.0);
+        m.contacts[1].upper = MultiEnd::Wall(1.0);
+    });
+    assert!(e.to_string().contains("two walls"), "{e}");
+    let e = err(&|m| m.contacts[1].upper = MultiEnd::Mass(7));
     assert!(
-        e.to_string().contains("hammers[0].stiffness_n_per_m"),
+        e.to_string().contains("contacts[1]: upper is mass 7"),
         "{e}"
     );
-    let e = err(&|m| m.hammers[0].weights.pop().map_or((), |_| ()));
-    assert!(e.to_string().contains("hammers[0].weights"), "{e}");
+    let e = err(&|m| m.contacts[1].gap_m = -1e-3);
+    assert!(e.to_string().contains("pressed in"), "{e}");
+    let e = err(&|m| m.masses[1].mass_kg = -1.0);
+    assert!(e.to_string().contains("masses[1].mass_kg"), "{e}");
+    let e = err(&|m| m.contacts[0].stiffness_n_per_m = f64::NAN);
+    assert!(
+        e.to_string().contains("contacts[0].stiffness_n_per_m"),
+        "{e}"
+    );
+    let e = err(&|m| {
+        if let MultiEnd::Point(w) = &mut m.contacts[0].lower {
+            w.pop();
+        }
+    });
+    assert!(e.to_string().contains("contacts[0].lower.weights"), "{e}");
     let e = err(&|m| m.sigma[2] = -1.0);
     assert!(e.to_string().contains("sigma[2]"), "{e}");
     println!("refused: {e}");
     // over the compile budget: refused at once, with its numbers
     let n = 1000;
-    let big = MultiModel {
-        freq_hz: (0..n).map(|i| 50.0 + 10.0 * i as f64).collect(),
-        sigma: vec![1.0; n],
-        hammers: (0..4)
+    let h0 = hammer(0, &strike(1e-3, 0.0, -1.0, 3.17, 0.0));
+    let big = MultiModel::struck(
+        (0..n).map(|i| 50.0 + 10.0 * i as f64).collect(),
+        vec![1.0; n],
+        &(0..4)
             .map(|j| MultiHammer {
                 weights: (0..n).map(|i| ((i * (j + 1)) as f64).sin()).collect(),
-                ..base.hammers[0].clone()
+                ..h0.clone()
             })
-            .collect(),
-        gravity_m_per_s2: 0.0,
-        pickups: [(vec![1.0; n], vec![0.0; n]), (vec![0.0; n], vec![1.0; n])],
-    };
+            .collect::<Vec<_>>(),
+        0.0,
+        [(vec![1.0; n], vec![0.0; n]), (vec![0.0; n], vec![1.0; n])],
+    );
     let t0 = std::time::Instant::now();
     let e = CompiledMulti::new(&big, RATE).unwrap_err();
     assert!(
@@ -624,13 +653,14 @@ fn contacts_that_cannot_interact_are_two_one_contact_runs() {
                 damping_n_s_per_m: 2.0 * zeta * (k * mr).sqrt(),
             }
         };
-        let m = MultiModel {
-            freq_hz: FREQS.to_vec(),
-            sigma: vec![sigma; 4],
-            hammers: vec![mk(0), mk(1)],
-            gravity_m_per_s2: gravity,
-            pickups: [(vec![1.0; 4], vec![0.0; 4]), (vec![0.0; 4], vec![1.0; 4])],
-        };
+        let hs = [mk(0), mk(1)];
+        let m = MultiModel::struck(
+            FREQS.to_vec(),
+            vec![sigma; 4],
+            &hs,
+            gravity,
+            [(vec![1.0; 4], vec![0.0; 4]), (vec![0.0; 4], vec![1.0; 4])],
+        );
         let sc = CompiledMulti::new(&m, RATE).unwrap();
         let mut st = MultiState::new(&sc);
         let singles: Vec<_> = (0..2)
@@ -639,7 +669,7 @@ fn contacts_that_cannot_interact_are_two_one_contact_runs() {
                     .filter(|&i| weights[j][i] != 0.0)
                     .map(|i| (FREQS[i], weights[j][i]))
                     .collect();
-                let scene = one_contact_scene(&m.hammers[j], &modes, gravity);
+                let scene = one_contact_scene(&hs[j], &modes, gravity);
                 compile_with(&scene, RATE, Some(Switching::Exact)).unwrap()
             })
             .collect();
@@ -705,13 +735,13 @@ fn fuzzed_models_never_gain_energy() {
                 }
             })
             .collect();
-        let m = MultiModel {
-            freq_hz: freq,
-            sigma: (0..n).map(|_| rng.uniform(0.0, 30.0)).collect(),
-            hammers,
-            gravity_m_per_s2: gravity,
-            pickups: [(vec![1.0; n], vec![0.0; n]), (vec![0.0; n], vec![1.0; n])],
-        };
+        let m = MultiModel::struck(
+            freq,
+            (0..n).map(|_| rng.uniform(0.0, 30.0)).collect(),
+            &hammers,
+            gravity,
+            [(vec![1.0; n], vec![0.0; n]), (vec![0.0; n], vec![1.0; n])],
+        );
         let sc = match CompiledMulti::new(&m, RATE) {
             Ok(sc) => sc,
             Err(e) => panic!("case {case}: {e}"),
@@ -722,7 +752,7 @@ fn fuzzed_models_never_gain_energy() {
         let scale = |o: &modal_contact::multi::MultiObservation| {
             o.energy.abs()
                 + (0..k)
-                    .map(|j| 2.0 * m.hammers[j].mass_kg * gravity * o.x_hammer[j].abs())
+                    .map(|j| 2.0 * m.masses[j].mass_kg * gravity * o.x_hammer[j].abs())
                     .sum::<f64>()
         };
         let mut prev = st.observe(&sc);
@@ -757,8 +787,8 @@ fn strikers_in_a_scene_file() {
     let text = std::fs::read_to_string(path).unwrap();
     let scene: Scene = Scene::from_toml_str(&text).unwrap();
     let m = MultiModel::from_scene(&scene, RATE).unwrap();
-    assert_eq!(m.hammers.len(), 2);
-    assert_ne!(m.hammers[0].weights, m.hammers[1].weights);
+    assert_eq!((m.masses.len(), m.contacts.len()), (2, 2));
+    assert_ne!(m.contacts[0].lower, m.contacts[1].lower);
     let e = compile_with(&scene, RATE, None).unwrap_err().to_string();
     assert!(e.contains("striker"), "{e}");
     let bad = |from: &str, to: &str| {
@@ -806,4 +836,148 @@ fn strikers_in_a_scene_file() {
     };
     assert!(e.contains("striker"), "{e}");
     println!("refused: {e}");
+}
+
+/// The scene file's `[[touch]]`: the examples make models of objects,
+/// masses and walls in contact, the one-contact compiler refuses them
+/// with the field named, and bad touches are refused with theirs.
+#[test]
+fn touches_in_a_scene_file() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/");
+    let load = |name: &str| std::fs::read_to_string(format!("{dir}{name}.toml")).unwrap();
+    for (name, modes_of_objects, masses, contacts) in [
+        ("ball-between-plates", 2, 1, 2),
+        ("wind-chimes", 3, 1, 3),
+        ("snare-pair", 2, 1, 2),
+    ] {
+        let scene = Scene::from_toml_str(&load(name)).unwrap();
+        let m = MultiModel::from_scene(&scene, RATE).unwrap();
+        assert_eq!(
+            (m.masses.len(), m.contacts.len()),
+            (masses, contacts),
+            "{name}"
+        );
+        // every object's modes are in the model, each object's pickups heard
+        assert!(m.freq_hz.len() > modes_of_objects, "{name}");
+        assert!(m.pickups[0].1.iter().any(|x| *x != 0.0), "{name}");
+        let sc = CompiledMulti::new(&m, RATE).unwrap();
+        assert_eq!(sc.phases.len(), 1 << contacts);
+        let e = compile_with(&scene, RATE, None).unwrap_err().to_string();
+        assert!(e.contains("touch: a scene of several contacts"), "{e}");
+    }
+    let text = load("ball-between-plates");
+    let bad = |from: &str, to: &str| {
+        assert!(text.contains(from), "{from}");
+        let t = text.replacen(from, to, 1);
+        match Scene::from_toml_str(&t) {
+            Err(e) => e.to_string(),
+            Ok(s) => s
+                .validate()
+                .map_or_else(|e| e.to_string(), |_| "valid".into()),
+        }
+    };
+    let upper = "upper = { object = \"lid\", point = \"ball\" }";
+    let cases = [
+        (
+            upper,
+            "upper = { object = \"cap\", point = \"ball\" }",
+            "touch[0].upper.object",
+            "no object named \"cap\"",
+        ),
+        (
+            upper,
+            "upper = { object = \"lid\", point = \"rim\" }",
+            "touch[0].upper.point",
+            "no point \"rim\"",
+        ),
+        (
+            upper,
+            "upper = { object = \"lid\" }",
+            "touch[0].upper.point",
+            "missing",
+        ),
+        (
+            "lower = { object = \"hammer\" }",
+            "lower = { object = \"lid\", point = \"pickup\" }",
+            "touch[0].upper.object",
+            "in contact with itself",
+        ),
+        (
+            upper,
+            "upper = { object = \"hammer\" }",
+            "touch[0].upper.object",
+            "in contact with itself",
+        ),
+        (
+            "lower = { object = \"hammer\" }",
+            "lower = { object = \"hammer\", point = \"face\" }",
+            "touch[0].lower.point",
+            "no points",
+        ),
+        (
+            upper,
+            "upper = { object = \"floor\", point = \"ball\" }",
+            "touch[0].upper",
+            "one point pair",
+        ),
+        (
+            "gap_m = 0.005",
+            "gap_m = 0.0005",
+            "touch[0].gap_m",
+            "inside",
+        ),
+        ("gap_m = 0.005", "gap_m = -0.005", "touch[0].gap_m", ""),
+        (
+            "stiffness_n_per_m = 2.0e6\ndamping_n_s_per_m = 8.0\n\n[[pickup]]",
+            "stiffness_n_per_m = -2.0e6\ndamping_n_s_per_m = 8.0\n\n[[pickup]]",
+            "touch[0].stiffness_n_per_m",
+            "",
+        ),
+        (
+            "gap_m = 0.005",
+            "gap_m = 0.005\nsolid = true",
+            "",
+            "unknown field `solid`",
+        ),
+    ];
+    for (from, to, field, why) in cases {
+        let e = bad(from, to);
+        println!("refused: {e}");
+        assert!(e.contains(field) && e.contains(why), "{to}: {e}");
+    }
+    // a wall against a wall, and more than four contacts
+    let walls = text
+        .replacen(
+            "\n[hammer]",
+            "\n[[object]]\nname = \"w1\"\nkind = \"wall\"\n\n[[object]]\nname = \"w2\"\nkind = \"wall\"\n\n[hammer]",
+            1,
+        )
+        .replacen("lower = { object = \"hammer\" }", "lower = { object = \"w1\" }", 1)
+        .replacen(upper, "upper = { object = \"w2\" }", 1);
+    let e = Scene::from_toml_str(&walls).unwrap_err().to_string();
+    assert!(
+        e.contains("touch[0].upper") && e.contains("two walls"),
+        "{e}"
+    );
+    let touch =
+        &text[text.find("\n[[touch]]").unwrap() + 1..text.find("\n[[pickup]]").unwrap() + 1];
+    let mut many = text.clone();
+    for gap in ["0.006", "0.007", "0.008", "0.009"] {
+        let t = touch.replace("gap_m = 0.005", &format!("gap_m = {gap}"));
+        many = many.replacen("[[pickup]]", &format!("{t}[[pickup]]"), 1);
+    }
+    let e = Scene::from_toml_str(&many).unwrap_err().to_string();
+    assert!(e.contains("touch") && e.contains("6 contacts"), "{e}");
+    // a lumped string cannot take part
+    let strung = text.replacen(
+        "\n[hammer]",
+        "\n[[object]]\nname = \"s\"\nkind = \"string\"\nmasses = 4\nmass_kg = 1e-3\nspring_n_per_m = 1e4\npoints = { a = 1 }\n\n[hammer]",
+        1,
+    )
+    .replacen(upper, "upper = { object = \"s\", point = \"a\" }", 1);
+    let e = Scene::from_toml_str(&strung).unwrap_err().to_string();
+    assert!(
+        e.contains("touch[0].upper.object") && e.contains("lumped"),
+        "{e}"
+    );
 }

@@ -338,6 +338,8 @@ impl Numbers {
             },
             back: None,
             extra: Vec::new(),
+            masses: vec![],
+            links: vec![],
         }
     }
 }

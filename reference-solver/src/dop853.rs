@@ -5,15 +5,18 @@
 //! exponential, no balancing), in physical coordinates.
 //!
 //! Steps land on every sample instant. After each accepted step the same
-//! switching semantics as the reference are applied: a crossing of `p` is
-//! bracketed by the step's ends (or by an interior extremum of `p`, found by
-//! bisection on `p'`), then located by bisection where every trial point is
-//! a fresh single DOP853 step of length `tau` from the step's start (a
-//! re-integration: a shorter step of an accepted step is at least as
-//! accurate). It is far slower than the expm solver and only meant for
-//! moderately stiff cases in the unit tests.
+//! switching semantics as the reference are applied, contact by contact: a
+//! crossing of `p` is bracketed by the step's ends (or by an interior
+//! extremum of `p`, found by bisection on `p'`), then located by bisection
+//! where every trial point is a fresh single DOP853 step of length `tau`
+//! from the step's start (a re-integration: a shorter step of an accepted
+//! step is at least as accurate); the earliest switch of any contact is
+//! taken and every contact switched there changes side. Every contact is a
+//! [`crate::Link`] here ([`Model::link`]), whose force the right-hand side
+//! takes from its two sides. It is far slower than the expm solver and only
+//! meant for moderately stiff cases in the unit tests.
 
-use crate::{switched, toward, ContactInterval, Model, Solution, Stats};
+use crate::{switched, toward, ContactInterval, End, Link, Model, Solution, Stats};
 
 /// Stage coefficients `a[s][j]`, `j < s`, stages 2..=12 (Hairer's DOP853).
 const A: [[f64; 12]; 12] = {
@@ -110,34 +113,58 @@ const E5: [f64; 12] = [
     -0.022355307863886294,
 ];
 
-/// The right-hand side `z' = f(z)` of a phase, from the physics.
-fn rhs(model: &Model, contact: bool, z: &[f64], out: &mut [f64]) {
+/// The right-hand side `z' = f(z)` of the phase with the contacts `active`
+/// (bit `c` for contact `c`, `links[c]` its link), from the physics: each
+/// contact's force `F = k p + c p'` from its two sides, `-F` on the lower
+/// one and `+F` on the upper one (through its weights on a point of an
+/// object, divided by the mass on a point mass, nothing on a wall).
+fn rhs(model: &Model, links: &[Link], active: u32, z: &[f64], out: &mut [f64]) {
     let n = model.n_modes();
-    let (x_h, v_h) = (z[2 * n], z[2 * n + 1]);
-    let f = if contact {
-        let (x_c, v_c) = model.contact_point(z);
-        model.contact.stiffness_n_per_m * (x_c - x_h)
-            + model.contact.damping_n_s_per_m * (v_c - v_h)
-    } else {
-        0.0
-    };
     for (i, md) in model.modes.iter().enumerate() {
         let w = md.omega();
         out[i] = z[n + i];
-        out[n + i] = -w * w * z[i] - 2.0 * md.sigma() * z[n + i] - md.weight * f;
+        out[n + i] = -w * w * z[i] - 2.0 * md.sigma() * z[n + i];
     }
     let (g_back, _, v_b) = model.back_force(z);
-    out[2 * n] = v_h;
-    out[2 * n + 1] = -model.hammer.gravity_m_per_s2 + (f + g_back) / model.hammer.mass_kg;
+    out[2 * n] = z[2 * n + 1];
+    out[2 * n + 1] = -model.hammer.gravity_m_per_s2 + g_back / model.hammer.mass_kg;
     if let Some(b) = model.back {
         out[2 * n + 2] = v_b;
         out[2 * n + 3] = -model.hammer.gravity_m_per_s2 - g_back / b.mass_kg;
+    }
+    for i in 1..model.n_masses() {
+        let j = model.mass_index(i);
+        out[j] = z[j + 1];
+        out[j + 1] = -model.mass_of(i).gravity_m_per_s2;
+    }
+    for (c, l) in links.iter().enumerate() {
+        if active & (1 << c) == 0 {
+            continue;
+        }
+        let ((x_l, v_l), (x_u, v_u)) = model.sides(l, z);
+        let f =
+            l.contact.stiffness_n_per_m * (x_l - x_u) + l.contact.damping_n_s_per_m * (v_l - v_u);
+        for (end, s) in [(&l.lower, -1.0), (&l.upper, 1.0)] {
+            match end {
+                End::Point(w) => {
+                    for (i, w) in w.iter().enumerate() {
+                        out[n + i] += s * w * f;
+                    }
+                }
+                End::Mass(i) => {
+                    out[model.mass_index(*i) + 1] += s * f / model.mass_of(*i).mass_kg;
+                }
+                End::Wall(_) => {}
+            }
+        }
     }
 }
 
 /// The integrator's working set for one model.
 struct Dop<'a> {
     model: &'a Model,
+    /// Every contact as a link ([`Model::link`]), built once.
+    links: Vec<Link>,
     /// Absolute tolerance per component.
     atol: Vec<f64>,
     rtol: f64,
@@ -146,11 +173,12 @@ struct Dop<'a> {
 }
 
 impl Dop<'_> {
-    /// One step of length `h` from `z`: the new state and the error norm
-    /// (Hairer's combined 5th/3rd-order estimate; accept when `<= 1`).
-    fn step(&mut self, contact: bool, z: &[f64], h: f64) -> (Vec<f64>, f64) {
+    /// One step of length `h` from `z` with the contacts `active`: the new
+    /// state and the error norm (Hairer's combined 5th/3rd-order estimate;
+    /// accept when `<= 1`).
+    fn step(&mut self, active: u32, z: &[f64], h: f64) -> (Vec<f64>, f64) {
         let dim = z.len();
-        rhs(self.model, contact, z, &mut self.k[0]);
+        rhs(self.model, &self.links, active, z, &mut self.k[0]);
         for s in 1..12 {
             for i in 0..dim {
                 let mut acc = 0.0;
@@ -159,7 +187,7 @@ impl Dop<'_> {
                 }
                 self.tmp[i] = z[i] + h * acc;
             }
-            rhs(self.model, contact, &self.tmp, &mut self.k[s]);
+            rhs(self.model, &self.links, active, &self.tmp, &mut self.k[s]);
         }
         let mut z1 = vec![0.0; dim];
         let (mut e5n, mut e3n) = (0.0, 0.0);
@@ -187,24 +215,34 @@ impl Dop<'_> {
         (z1, err)
     }
 
-    /// Bisection on `[a, b]` (`a` not switched, `b` switched with state
-    /// `zb`), trial points re-integrated from `z0`.
+    /// Contact `c`'s `(p, p')` in `z`.
+    fn event(&self, c: usize, z: &[f64]) -> (f64, f64) {
+        let ((x_l, v_l), (x_u, v_u)) = self.model.sides(&self.links[c], z);
+        (x_l - x_u, v_l - v_u)
+    }
+
+    /// Bisection on `[a, b]` for contact `c` (`a` not switched, `b`
+    /// switched with state `zb`), trial points re-integrated from `z0` with
+    /// the contacts `active`.
+    #[allow(clippy::too_many_arguments)]
     fn bisect(
         &mut self,
-        c: bool,
+        active: u32,
+        c: usize,
         z0: &[f64],
         mut a: f64,
         mut b: f64,
         mut zb: Vec<f64>,
         tol: f64,
     ) -> (f64, Vec<f64>) {
+        let inc = active & (1 << c) != 0;
         loop {
             let mid = 0.5 * (a + b);
             if b - a <= tol || mid <= a || mid >= b {
                 return (b, zb);
             }
-            let zm = self.step(c, z0, mid).0;
-            if switched(c, self.model.penetration(&zm)) {
+            let zm = self.step(active, z0, mid).0;
+            if switched(inc, self.event(c, &zm).0) {
                 b = mid;
                 zb = zm;
             } else {
@@ -213,27 +251,48 @@ impl Dop<'_> {
         }
     }
 
-    /// First switch inside the accepted step `z0 -> z1` of length `hs`.
+    /// First switch of any contact inside the accepted step `z0 -> z1` of
+    /// length `hs` (the earliest of each contact's first, as the expm
+    /// solver takes it).
     fn search(
         &mut self,
-        c: bool,
+        active: u32,
         z0: &[f64],
         z1: &[f64],
         hs: f64,
         tol: f64,
         stats: &mut Stats,
     ) -> Option<(f64, Vec<f64>)> {
-        let ev = |z: &[f64]| {
-            let (x, v) = self.model.contact_point(z);
-            let n = self.model.n_modes();
-            (x - z[2 * n], v - z[2 * n + 1])
-        };
-        let (p1, d1) = ev(z1);
-        if switched(c, p1) {
-            return Some(self.bisect(c, z0, 0.0, hs, z1.to_vec(), tol));
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        for c in 0..self.links.len() {
+            if let Some((tau, z)) = self.search_contact(active, c, z0, z1, hs, tol, stats) {
+                if best.as_ref().is_none_or(|(b, _)| tau < *b) {
+                    best = Some((tau, z));
+                }
+            }
         }
-        let (_, d0) = ev(z0);
-        if !(toward(c, d0) > 0.0 && toward(c, d1) <= 0.0) {
+        best
+    }
+
+    /// [`Dop::search`] for contact `c` alone.
+    #[allow(clippy::too_many_arguments)]
+    fn search_contact(
+        &mut self,
+        active: u32,
+        c: usize,
+        z0: &[f64],
+        z1: &[f64],
+        hs: f64,
+        tol: f64,
+        stats: &mut Stats,
+    ) -> Option<(f64, Vec<f64>)> {
+        let inc = active & (1 << c) != 0;
+        let (p1, d1) = self.event(c, z1);
+        if switched(inc, p1) {
+            return Some(self.bisect(active, c, z0, 0.0, hs, z1.to_vec(), tol));
+        }
+        let (_, d0) = self.event(c, z0);
+        if !(toward(inc, d0) > 0.0 && toward(inc, d1) <= 0.0) {
             return None;
         }
         stats.extremum_searches += 1;
@@ -243,65 +302,101 @@ impl Dop<'_> {
             if hi - lo <= tol || mid <= lo || mid >= hi {
                 break;
             }
-            let zm = self.step(c, z0, mid).0;
-            let n = self.model.n_modes();
-            let (x, v) = self.model.contact_point(&zm);
-            if switched(c, x - zm[2 * n]) {
-                return Some(self.bisect(c, z0, 0.0, mid, zm, tol));
+            let zm = self.step(active, z0, mid).0;
+            let (pm, dm) = self.event(c, &zm);
+            if switched(inc, pm) {
+                return Some(self.bisect(active, c, z0, 0.0, mid, zm, tol));
             }
-            if toward(c, v - zm[2 * n + 1]) > 0.0 {
+            if toward(inc, dm) > 0.0 {
                 lo = mid;
             } else {
                 hi = mid;
             }
         }
-        let zh = self.step(c, z0, hi).0;
-        if switched(c, self.model.penetration(&zh)) {
-            return Some(self.bisect(c, z0, 0.0, hi, zh, tol));
+        let zh = self.step(active, z0, hi).0;
+        if switched(inc, self.event(c, &zh).0) {
+            return Some(self.bisect(active, c, z0, 0.0, hi, zh, tol));
         }
         None
     }
 }
 
+/// Inverse mass `1 / m` a side of a contact brings to it: `sum w_i^2` for
+/// a point of an object (its mass at the point for a contact much shorter
+/// than its modes' periods), `1 / m` for a point mass, 0 for a wall.
+fn inv_mass(model: &Model, e: &End) -> f64 {
+    match e {
+        End::Point(w) => w.iter().map(|w| w * w).sum(),
+        End::Mass(i) => 1.0 / model.mass_of(*i).mass_kg,
+        End::Wall(_) => 0.0,
+    }
+}
+
 /// Solve `model` for `n` samples at `rate_hz` with DOP853 at relative
 /// tolerance `rtol` (absolute tolerances: `rtol` times each component's
-/// scale, from the initial energy; see the body).
+/// scale, from the initial energy; see the body). Any number of contacts:
+/// the first switch of any contact in a step is taken, and every contact
+/// switched at that point changes side together, as in the expm solver.
 pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
-    assert!(
-        model.extra.is_empty(),
-        "the DOP853 check covers one contact"
-    );
+    model.check();
     let h = 1.0 / rate_hz;
     let nm = model.n_modes();
     let dim = model.state_dim();
-    let m_h = model.hammer.mass_kg;
-    let g = model.hammer.gravity_m_per_s2;
-    let v0 = model.hammer.velocity_m_per_s;
-    let x0 = model.hammer.height_m;
-    // energy scale: what the hammer brings (kinetic + fall to the object)
-    let e_s = 0.5 * m_h * v0 * v0 + m_h * g * x0;
-    let inv_m: f64 = 1.0 / m_h + model.modes.iter().map(|m| m.weight * m.weight).sum::<f64>();
-    let w_c = (model.contact.stiffness_n_per_m * inv_m).sqrt();
-    let v_s = (2.0 * e_s / m_h).sqrt();
+    let links: Vec<Link> = (0..model.n_contacts()).map(|c| model.link(c)).collect();
+    // energy scale: what the point masses bring (kinetic + fall to 0)
+    let e_s: f64 = (0..model.n_masses())
+        .map(|i| {
+            let x = model.mass_of(i);
+            0.5 * x.mass_kg * x.velocity_m_per_s * x.velocity_m_per_s
+                + x.mass_kg * x.gravity_m_per_s2 * x.height_m
+        })
+        .sum();
+    assert!(e_s > 0.0, "DOP853: no energy to scale the tolerances with");
+    // the fastest contact's frequency (for one contact of a hammer on an
+    // object: 1/m = 1/m_h + sum w^2)
+    let w_c = links
+        .iter()
+        .map(|l| {
+            (l.contact.stiffness_n_per_m * (inv_mass(model, &l.lower) + inv_mass(model, &l.upper)))
+                .sqrt()
+        })
+        .fold(0.0, f64::max);
     let mut atol = vec![0.0; dim];
     for (i, md) in model.modes.iter().enumerate() {
         // a mode holding all the energy: q' ~ sqrt(2E), q ~ sqrt(2E)/omega
         atol[i] = rtol * (2.0 * e_s).sqrt() / md.omega();
         atol[nm + i] = rtol * (2.0 * e_s).sqrt();
     }
-    atol[2 * nm] = rtol * x0.max(v_s / w_c);
-    atol[2 * nm + 1] = rtol * v_s;
-    if dim > 2 * nm + 2 {
+    for i in 0..model.n_masses() {
+        // a mass holding all the energy, over a contact's compression
+        let x = model.mass_of(i);
+        let v_s = (2.0 * e_s / x.mass_kg).sqrt();
+        let j = model.mass_index(i);
+        atol[j] = rtol * x.height_m.max(v_s / w_c);
+        atol[j + 1] = rtol * v_s;
+    }
+    if model.back.is_some() {
         atol[2 * nm + 2] = atol[2 * nm];
         atol[2 * nm + 3] = atol[2 * nm + 1];
     }
     let w_max = model.modes.iter().map(|m| m.omega()).fold(0.0, f64::max);
-    let mut h_try = [
-        if w_max > 0.0 { (0.1 / w_max).min(h) } else { h },
-        (0.1 / (w_c + w_max)).min(h),
-    ];
+    // a step length per phase, from the flight's and the contacts' scales
+    let mut h_try: Vec<f64> = (0..1u32 << links.len())
+        .map(|active| {
+            if active == 0 {
+                if w_max > 0.0 {
+                    (0.1 / w_max).min(h)
+                } else {
+                    h
+                }
+            } else {
+                (0.1 / (w_c + w_max)).min(h)
+            }
+        })
+        .collect();
     let mut dop = Dop {
         model,
+        links,
         atol,
         rtol,
         k: std::array::from_fn(|_| vec![0.0; dim]),
@@ -310,51 +405,63 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
     let tol = crate::TIME_RESOLUTION * h;
     let mut stats = Stats::default();
     let mut z = model.initial_state();
-    let mut c = false;
+    let mut active = 0u32;
     let mut samples = Vec::with_capacity(n + 1);
-    samples.push(model.observe(&z, c));
+    samples.push(model.observe_of(&z, active));
     let mut contacts: Vec<ContactInterval> = Vec::new();
     for i in 0..n {
         let t_n = i as f64 * h;
         let mut t = 0.0;
         while t < h {
+            let a = active as usize;
             let rest = h - t;
-            let clipped = h_try[c as usize] >= rest;
-            let hs = if clipped { rest } else { h_try[c as usize] };
-            let (z1, err) = dop.step(c, &z, hs);
+            let clipped = h_try[a] >= rest;
+            let hs = if clipped { rest } else { h_try[a] };
+            let (z1, err) = dop.step(active, &z, hs);
             let fac = 0.9 * err.powf(-1.0 / 8.0);
             if !(err <= 1.0) {
                 stats.rejected += 1;
-                h_try[c as usize] = hs * fac.clamp(0.2, 1.0);
+                h_try[a] = hs * fac.clamp(0.2, 1.0);
                 continue;
             }
             stats.steps += 1;
             if !clipped {
-                h_try[c as usize] = hs * fac.clamp(0.2, 10.0);
+                h_try[a] = hs * fac.clamp(0.2, 10.0);
             }
-            match dop.search(c, &z, &z1, hs, tol, &mut stats) {
+            match dop.search(active, &z, &z1, hs, tol, &mut stats) {
                 None => {
                     z = z1;
                     t = if clipped { h } else { t + hs };
                 }
                 Some((tau, zs)) => {
-                    z = zs;
                     t = if clipped && tau >= hs { h } else { t + tau };
-                    c = !c;
                     stats.switches += 1;
-                    if c {
-                        contacts.push(ContactInterval {
-                            contact: 0,
-                            start_s: t_n + t,
-                            end_s: None,
-                        });
-                    } else if let Some(last) = contacts.last_mut() {
-                        last.end_s = Some(t_n + t);
+                    // every contact switched at this point changes side
+                    for c in 0..dop.links.len() {
+                        let inc = active & (1 << c) != 0;
+                        if !switched(inc, dop.event(c, &zs).0) {
+                            continue;
+                        }
+                        active ^= 1 << c;
+                        if !inc {
+                            contacts.push(ContactInterval {
+                                contact: c,
+                                start_s: t_n + t,
+                                end_s: None,
+                            });
+                        } else if let Some(open) = contacts
+                            .iter_mut()
+                            .rev()
+                            .find(|x| x.contact == c && x.end_s.is_none())
+                        {
+                            open.end_s = Some(t_n + t);
+                        }
                     }
+                    z = zs;
                 }
             }
         }
-        samples.push(model.observe(&z, c));
+        samples.push(model.observe_of(&z, active));
     }
     Solution {
         rate_hz,

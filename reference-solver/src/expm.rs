@@ -204,11 +204,7 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize) -> Solution {
 /// rounding (a convergence check of the reference itself).
 pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step: f64) -> Solution {
     let h = 1.0 / rate_hz;
-    assert!(
-        model.extra.len() <= crate::MAX_EXTRA,
-        "at most {} contacts",
-        crate::MAX_EXTRA + 1
-    );
+    model.check();
     // every subset of contacts in contact, by its bit set
     let phases: Vec<Phase> = (0..1u32 << model.n_contacts())
         .map(|active| Phase::new(model, active, h, max_norm_step))

@@ -1,10 +1,12 @@
 //! An independent reference solution of the piecewise-linear contact between a
-//! point-mass hammer and a modal object (or a rigid wall), for testing the
+//! point-mass hammer and a modal object (or a rigid wall), and of several
+//! such contacts between objects, point masses and walls, for testing the
 //! `modal_contact` engine's exact switching at any contact stiffness.
 //!
 //! It shares nothing with the engine but the scene's numbers: its own model
 //! description ([`Model`]), its own phase matrices in *physical* coordinates
-//! `z = [q; q'; x_h; v_h]` (the engine works in energy coordinates), dense
+//! `z = [q; q'; x_h; v_h]` (then the back mass's, the extra hammers' and the
+//! masses' `x, v`; the engine works in energy coordinates), dense
 //! matrix exponentials instead of eigen-decompositions, and bisection
 //! instead of the engine's certified Newton search. The exponentials of the
 //! sub-steps are taken twice, by nalgebra's Pade `exp` (f64, marching the
@@ -27,13 +29,24 @@
 //! Penetration `p = x_c - x_h` (object contact point minus hammer face). While
 //! in contact the force on the hammer is `F = k p + c p'` (up) and the object
 //! feels `-F` at the contact point; out of contact there is no force. Gravity
-//! `g` pulls the hammer only.
+//! pulls the point masses only (each its own `g`), never the objects. A
+//! [`Link`] is the same contact between any two bodies: `p = x_lower -
+//! x_upper - gap`, `+F` on the upper side and `-F` on the lower one, where a
+//! side is a point of an object (displacement `sum w_i q_i` from rest), a
+//! point mass (its height) or a rigid wall (a fixed height, which takes the
+//! force and does not move); the hammer's own contact is the link from its
+//! contact point up to the hammer, gap 0 ([`Model::link`]).
 //!
 //! Physics (unit modal masses): `q_i'' + 2 sigma_i q_i' + omega_i^2 q_i = w_i
 //! F_obj` with `sigma_i = ln(1000) / T60_i`, `omega_i = 2 pi f_i`, contact
 //! displacement `x_c = sum w_i q_i`; hammer `m_h x_h'' = -m_h g + F_h`. Energy
 //! `0.5 sum(q_i'^2 + omega_i^2 q_i^2) + 0.5 m_h v_h^2 + m_h g x_h` plus
-//! `0.5 k p^2` in contact.
+//! `0.5 k p^2` in contact. With several contacts each object mode takes
+//! `w_i F` of every contact at one of its points (the weights of a point on
+//! the modes of other objects are 0), each point mass `m x'' = -m g +` the
+//! forces of its contacts, and the energy adds every point mass's `0.5 m
+//! v^2 + m g x` and every contact's `0.5 k p^2` (gap included) while in
+//! contact.
 //!
 //! Switching (the engine's semantics): flight becomes contact when `p` crosses
 //! from `<= 0` to `> 0`; contact becomes flight when `p` returns to `<= 0`
@@ -43,14 +56,24 @@
 //!
 //! Beyond the paper's scene (for the engine's next steps, issue 17): a
 //! second mass behind the hammer's face ([`BackMass`], a mallet with a ring
-//! of its own), and up to [`MAX_EXTRA`] more hammers with contacts of their
-//! own on the same object ([`ExtraHammer`]). With several contacts each
-//! phase is a subset of contacts in contact (all `2^K` phases are built up
-//! front), each contact has its own event function, the first switch of
-//! any contact in a step is taken, and every contact switched at that
-//! instant changes side together. DOP853 checks one contact only; several
-//! are checked by the separable case (two contacts on two objects are two
-//! runs) and by energy and symmetry (`tests.rs`).
+//! of its own), more hammers with contacts of their own on the same object
+//! ([`ExtraHammer`]), more point masses without a contact of their own
+//! ([`Model::masses`]), and links between any two bodies ([`Link`]: an
+//! object against another object, a mass against a mass, a ball between
+//! two plates, a mass on a wall or under a ceiling), up to four contacts in
+//! all ([`MAX_EXTRA`] beside the hammer's). The modes of several objects
+//! are concatenated in [`Model::modes`]. A gap or a wall's height is a
+//! constant in the penetration: it goes into the phase matrices' affine
+//! column beside gravity, and into the event function's constant term. With
+//! several contacts each phase is a subset of contacts in contact (all
+//! `2^K` phases are built up front), each contact has its own event
+//! function, the first switch of any contact in a step is taken, and every
+//! contact switched at that instant changes side together. DOP853 does the
+//! same from its own right-hand side and checks links of every kind
+//! (object-object, a ball between two plates, walls); several contacts are
+//! also checked by the separable case (two contacts on two objects are two
+//! runs), by energy and momentum and symmetry, and a link restating the
+//! hammer's contact is that contact bit for bit (`tests.rs`).
 
 mod dd;
 pub mod dop853;
@@ -135,15 +158,54 @@ pub struct ExtraHammer {
     pub contact: Contact,
 }
 
-/// Most extra hammers (so at most four contacts).
+/// One side of a link.
+#[derive(Debug, Clone, PartialEq)]
+pub enum End {
+    /// A point of the modal object(s): one weight per mode of `Model::modes` (all modes; zeros on modes of other objects).
+    Point(Vec<f64>),
+    /// A point mass: 0 the hammer, 1..=extra.len() the extra hammers, then `masses[k]` is extra.len() + 1 + k.
+    Mass(usize),
+    /// A rigid wall at this height \[m\].
+    Wall(f64),
+}
+
+/// A contact between two bodies: penetration `p = x(lower) - x(upper) -
+/// gap_m`; in contact (`p > 0` crossing semantics exactly as the existing
+/// contacts) the force `F = k p + c p'` pushes `upper` up (`+F`) and `lower`
+/// down (`-F`); a Point side receives the force through its weights (`q_i''
+/// += w_i` times the force on it); a Wall side receives nothing.
+///
+/// Positions are displacements from rest for a point of an object and
+/// heights for a point mass, so `gap_m` is the clearance at rest: a point
+/// of another object `d` above this one's at rest touches it when `x(lower)
+/// - x(upper) > d`. A hammer's own contact is the link `lower =` its
+/// contact point, `upper =` the hammer, gap 0 ([`Model::link`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Link {
+    /// The side pushed down.
+    pub lower: End,
+    /// The side pushed up.
+    pub upper: End,
+    /// Offset of the penetration \[m\] (clearance at rest; negative for an
+    /// overlap, e.g. the thickness of a mass whose height is its bottom face).
+    pub gap_m: f64,
+    /// The contact law.
+    pub contact: Contact,
+}
+
+/// Most contacts beyond the hammer's (extra hammers and links together: at
+/// most four contacts).
 pub const MAX_EXTRA: usize = 3;
 
 /// A scene: a modal object (no modes = a rigid wall at height 0), a hammer
-/// and the contact between them (and up to [`MAX_EXTRA`] more hammers with
-/// contacts of their own).
+/// and the contact between them, and up to [`MAX_EXTRA`] more contacts:
+/// hammers with contacts of their own, and links between any two bodies
+/// (points of the objects, point masses, walls).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Model {
-    /// The struck object's modes; empty for a rigid wall.
+    /// The modes of the struck object (of several objects, concatenated:
+    /// each contact point weighs 0 on the modes of the other objects);
+    /// empty for a rigid wall.
     pub modes: Vec<Mode>,
     /// The hammer (with a back mass: its face).
     pub hammer: Hammer,
@@ -155,86 +217,197 @@ pub struct Model {
     /// More hammers with contacts of their own (contact `k + 1` is
     /// `extra[k]`'s); empty for the one contact of the paper.
     pub extra: Vec<ExtraHammer>,
+    /// More point masses without a contact of their own (mass
+    /// `extra.len() + 1 + k` of [`End::Mass`]): each with its own initial
+    /// height, velocity and gravity, state `x, v` after the extra hammers'
+    /// in `z`. They touch anything through [`Model::links`] only.
+    pub masses: Vec<Hammer>,
+    /// Contacts between any two bodies (contact `extra.len() + 1 + k` is
+    /// `links[k]`).
+    pub links: Vec<Link>,
 }
 
 impl Model {
     /// Number of modes `N` (the physical state has `2 N + 2` entries, `2 N
-    /// + 4` with a back mass).
+    /// + 4` with a back mass, and two per extra hammer and per mass).
     pub fn n_modes(&self) -> usize {
         self.modes.len()
     }
 
     /// Length of the physical state `z`.
     pub fn state_dim(&self) -> usize {
-        2 * self.n_modes() + 2 + if self.back.is_some() { 2 } else { 0 } + 2 * self.extra.len()
+        2 * self.n_modes()
+            + 2
+            + if self.back.is_some() { 2 } else { 0 }
+            + 2 * self.extra.len()
+            + 2 * self.masses.len()
     }
 
-    /// Number of contacts (1 + extra hammers).
+    /// Number of contacts (1 + extra hammers + links).
     pub fn n_contacts(&self) -> usize {
-        1 + self.extra.len()
+        1 + self.extra.len() + self.links.len()
     }
 
-    /// Index of contact `c`'s hammer height in `z` (its velocity follows).
-    pub fn hammer_index(&self, c: usize) -> usize {
+    /// Number of point masses [`End::Mass`] can name (the hammer, the extra
+    /// hammers, the masses; not the back mass, which touches nothing).
+    pub fn n_masses(&self) -> usize {
+        1 + self.extra.len() + self.masses.len()
+    }
+
+    /// Index of point mass `i`'s height in `z` (its velocity follows): the
+    /// hammer's after the modes, the others' after the back mass's, in
+    /// order.
+    pub fn mass_index(&self, i: usize) -> usize {
         let n = self.n_modes();
-        if c == 0 {
+        if i == 0 {
             2 * n
         } else {
-            2 * n + 2 + if self.back.is_some() { 2 } else { 0 } + 2 * (c - 1)
+            2 * n + 2 + if self.back.is_some() { 2 } else { 0 } + 2 * (i - 1)
         }
     }
 
-    /// Contact `c`'s hammer.
-    pub fn hammer_of(&self, c: usize) -> &Hammer {
-        if c == 0 {
+    /// Point mass `i` (numbered as in [`End::Mass`]).
+    pub fn mass_of(&self, i: usize) -> &Hammer {
+        let e = self.extra.len();
+        if i == 0 {
             &self.hammer
+        } else if i <= e {
+            &self.extra[i - 1].hammer
         } else {
-            &self.extra[c - 1].hammer
+            &self.masses[i - 1 - e]
         }
     }
 
     /// Contact `c`'s law.
     pub fn contact_of(&self, c: usize) -> &Contact {
+        let e = self.extra.len();
         if c == 0 {
             &self.contact
-        } else {
+        } else if c <= e {
             &self.extra[c - 1].contact
-        }
-    }
-
-    /// Mode `i`'s weight at contact `c`'s point.
-    pub fn weight(&self, c: usize, i: usize) -> f64 {
-        if c == 0 {
-            self.modes[i].weight
         } else {
-            self.extra[c - 1].weights[i]
+            &self.links[c - 1 - e].contact
         }
     }
 
-    /// Contact `c`'s point displacement and velocity, and its hammer's.
+    /// Contact `c` as a link: a hammer's contact (`c <= extra.len()`) is
+    /// the link from its contact point (lower) to the hammer (upper) with no
+    /// gap, so that every contact is handled by the same code (phase
+    /// matrices, event rows, right-hand side).
+    pub fn link(&self, c: usize) -> Link {
+        let e = self.extra.len();
+        if c == 0 {
+            Link {
+                lower: End::Point(self.modes.iter().map(|m| m.weight).collect()),
+                upper: End::Mass(0),
+                gap_m: 0.0,
+                contact: self.contact,
+            }
+        } else if c <= e {
+            Link {
+                lower: End::Point(self.extra[c - 1].weights.clone()),
+                upper: End::Mass(c),
+                gap_m: 0.0,
+                contact: self.extra[c - 1].contact,
+            }
+        } else {
+            self.links[c - 1 - e].clone()
+        }
+    }
+
+    /// Position and velocity of one side in `z`: a point's weighted sums of
+    /// the modes, a mass's entries, a wall's height at rest.
+    pub fn side(&self, e: &End, z: &[f64]) -> (f64, f64) {
+        match e {
+            End::Point(w) => {
+                let n = self.n_modes();
+                let (mut x, mut v) = (0.0, 0.0);
+                for (i, w) in w.iter().enumerate() {
+                    x += w * z[i];
+                    v += w * z[n + i];
+                }
+                (x, v)
+            }
+            End::Mass(i) => {
+                let j = self.mass_index(*i);
+                (z[j], z[j + 1])
+            }
+            End::Wall(h) => (*h, 0.0),
+        }
+    }
+
+    /// The two sides of link `l` in `z`: `((x_lower - gap, v_lower),
+    /// (x_upper, v_upper))`, so that `p = first.0 - second.0` and `p' =
+    /// first.1 - second.1` (see [`Model::contact_pair`]).
+    pub fn sides(&self, l: &Link, z: &[f64]) -> ((f64, f64), (f64, f64)) {
+        let (x_l, v_l) = self.side(&l.lower, z);
+        ((x_l - l.gap_m, v_l), self.side(&l.upper, z))
+    }
+
+    /// Contact `c`'s lower side (for a hammer's contact: its contact point's
+    /// displacement and velocity) less the gap, and its upper side (the
+    /// hammer's height and velocity): the penetration is `first.0 -
+    /// second.0`.
     pub fn contact_pair(&self, c: usize, z: &[f64]) -> ((f64, f64), (f64, f64)) {
-        let n = self.n_modes();
-        let (mut x, mut v) = (0.0, 0.0);
-        for i in 0..n {
-            x += self.weight(c, i) * z[i];
-            v += self.weight(c, i) * z[n + i];
-        }
-        let k = self.hammer_index(c);
-        ((x, v), (z[k], z[k + 1]))
+        self.sides(&self.link(c), z)
     }
 
-    /// Energy with the springs of the contacts in the bit set `active`.
+    /// Checks the model's shape (panics with the reason): at most four
+    /// contacts, a weight per mode at every point, masses that exist, and
+    /// links between two different bodies.
+    pub fn check(&self) {
+        assert!(
+            self.n_contacts() <= MAX_EXTRA + 1,
+            "at most {} contacts (extra hammers and links), not {}",
+            MAX_EXTRA + 1,
+            self.n_contacts()
+        );
+        let n = self.n_modes();
+        for (k, x) in self.extra.iter().enumerate() {
+            assert_eq!(x.weights.len(), n, "extra hammer {k}: one weight per mode");
+        }
+        for (k, l) in self.links.iter().enumerate() {
+            for e in [&l.lower, &l.upper] {
+                match e {
+                    End::Point(w) => {
+                        assert_eq!(w.len(), n, "link {k}: one weight per mode at a point")
+                    }
+                    End::Mass(i) => assert!(
+                        *i < self.n_masses(),
+                        "link {k}: mass {i} of {}",
+                        self.n_masses()
+                    ),
+                    End::Wall(_) => {}
+                }
+            }
+            assert!(
+                !matches!((&l.lower, &l.upper), (End::Wall(_), End::Wall(_))),
+                "link {k}: two walls"
+            );
+            assert!(
+                !matches!((&l.lower, &l.upper), (End::Mass(a), End::Mass(b)) if a == b),
+                "link {k}: a mass against itself"
+            );
+        }
+    }
+
+    /// Energy with the springs of the contacts in the bit set `active`: the
+    /// first hammer's part ([`Model::energy`]), every other point mass's
+    /// kinetic and gravitational energy, and each other active contact's
+    /// `0.5 k p^2`.
     pub fn energy_of(&self, z: &[f64], active: u32) -> f64 {
         let mut e = self.energy(z, active & 1 != 0);
-        for (k, x) in self.extra.iter().enumerate() {
-            let c = k + 1;
-            let ((x_c, _), (x_h, v_h)) = self.contact_pair(c, z);
-            let m = x.hammer.mass_kg;
-            e += 0.5 * m * v_h * v_h + m * x.hammer.gravity_m_per_s2 * x_h;
-            if active & (1 << c) != 0 {
-                let p = x_c - x_h;
-                e += 0.5 * x.contact.stiffness_n_per_m * p * p;
-            }
+        for i in 1..self.n_masses() {
+            let j = self.mass_index(i);
+            let (x, v) = (z[j], z[j + 1]);
+            let h = self.mass_of(i);
+            let m = h.mass_kg;
+            e += 0.5 * m * v * v + m * h.gravity_m_per_s2 * x;
+        }
+        for c in (1..self.n_contacts()).filter(|c| active & (1 << c) != 0) {
+            let ((x_l, _), (x_u, _)) = self.contact_pair(c, z);
+            let p = x_l - x_u;
+            e += 0.5 * self.contact_of(c).stiffness_n_per_m * p * p;
         }
         e
     }
@@ -256,7 +429,8 @@ impl Model {
 
     /// Total energy \[J\] of the physical state `z = [q; q'; x_h; v_h]`, with
     /// the contact spring's `0.5 k p^2` when `in_contact` (the first
-    /// hammer's part only: [`Model::energy_of`] adds the extra hammers).
+    /// hammer's part only: [`Model::energy_of`] adds the other point
+    /// masses and contacts).
     pub fn energy(&self, z: &[f64], in_contact: bool) -> f64 {
         let n = self.n_modes();
         let mut e = 0.0;
@@ -298,8 +472,8 @@ impl Model {
         self.contact_point(z).0 - z[2 * self.n_modes()]
     }
 
-    /// Initial physical state: object at rest, hammer at its initial height
-    /// and velocity.
+    /// Initial physical state: objects at rest, every point mass at its
+    /// initial height and velocity.
     pub fn initial_state(&self) -> Vec<f64> {
         let n = self.n_modes();
         let mut z = vec![0.0; self.state_dim()];
@@ -310,10 +484,10 @@ impl Model {
             z[2 * n + 2] = self.hammer.height_m;
             z[2 * n + 3] = self.hammer.velocity_m_per_s;
         }
-        for (k, x) in self.extra.iter().enumerate() {
-            let j = self.hammer_index(k + 1);
-            z[j] = x.hammer.height_m;
-            z[j + 1] = x.hammer.velocity_m_per_s;
+        for i in 1..self.n_masses() {
+            let (j, h) = (self.mass_index(i), self.mass_of(i));
+            z[j] = h.height_m;
+            z[j + 1] = h.velocity_m_per_s;
         }
         z
     }
@@ -331,12 +505,22 @@ impl Model {
     /// motion in time. Neither grows, however chaotic the motion, and the
     /// horizon would measure rounding instead. Gravity breaks both
     /// symmetries; the mass perturbation breaks them everywhere.
+    ///
+    /// The [`Model::masses`] are disturbed the same way, each by its own
+    /// rule: a scene may leave the hammer out of the motion (parked, its
+    /// contact never touched) and play entirely between masses and links,
+    /// where a disturbed hammer alone would change nothing. (A gap or a
+    /// wall off 0 breaks the homogeneity too, but not the autonomy.) The
+    /// extra hammers are left as they were, so that scenes without masses
+    /// are disturbed as before.
     pub fn perturbed(&self, rel: f64) -> Model {
         let mut m = self.clone();
-        if m.hammer.gravity_m_per_s2 > 0.0 && m.hammer.height_m != 0.0 {
-            m.hammer.height_m *= 1.0 + rel;
-        } else {
-            m.hammer.mass_kg *= 1.0 + rel;
+        for h in std::iter::once(&mut m.hammer).chain(m.masses.iter_mut()) {
+            if h.gravity_m_per_s2 > 0.0 && h.height_m != 0.0 {
+                h.height_m *= 1.0 + rel;
+            } else {
+                h.mass_kg *= 1.0 + rel;
+            }
         }
         m
     }
@@ -348,8 +532,10 @@ impl Model {
         s.energy = self.energy_of(z, active);
         s.active = active;
         for c in 1..self.n_contacts() {
-            let ((x_c, _), (x_h, v_h)) = self.contact_pair(c, z);
-            s.extra[c - 1] = [x_h, v_h, x_c];
+            let l = self.link(c);
+            let (x_u, v_u) = self.side(&l.upper, z);
+            let (x_l, v_l) = self.side(&l.lower, z);
+            s.extra[c - 1] = [x_u, v_u, x_l, v_l];
         }
         s
     }
@@ -363,7 +549,7 @@ impl Model {
             x_back,
             v_back,
             active: in_contact as u32,
-            extra: [[0.0; 3]; MAX_EXTRA],
+            extra: [[0.0; 4]; MAX_EXTRA],
             x_hammer: z[2 * n],
             v_hammer: z[2 * n + 1],
             x_contact: x_c,
@@ -394,9 +580,14 @@ pub struct Sample {
     pub v_back: f64,
     /// The contacts in contact (bit `c` for contact `c`).
     pub active: u32,
-    /// Each extra hammer's height and velocity and its contact point's
-    /// displacement (zeros past the model's).
-    pub extra: [[f64; 3]; MAX_EXTRA],
+    /// Contact `c + 1`'s upper side's height and velocity and its lower
+    /// side's (the gap not subtracted): for an extra hammer, the hammer's
+    /// height and velocity and its contact point's displacement and
+    /// velocity, as the first contact's columns above; for a link, its
+    /// [`Link::upper`] in the "hammer" columns and its [`Link::lower`] in
+    /// the "contact point" columns (a wall: its height, velocity 0). Zeros
+    /// past the model's contacts.
+    pub extra: [[f64; 4]; MAX_EXTRA],
 }
 
 /// One contact: from `start_s` to `end_s` \[s\], `end_s = None` if still in
@@ -465,7 +656,10 @@ impl Solution {
 /// sample index `N` such that over the window `[0, N]` the relative L2
 /// difference (`|a - b| / |b|`, a window where both are zero agrees) of each
 /// of hammer height, hammer velocity and contact-point displacement is at
-/// most `tol`.
+/// most `tol`, and so is each of the same three columns of every other
+/// contact ([`Sample::extra`]: upper side's height and velocity, lower
+/// side's height; all zeros, so agreeing, past the model's contacts). A
+/// link's bodies can rattle on their own while the hammer flies free.
 ///
 /// With `b` a run of [`Model::perturbed`] by a tiny relative amount, this is
 /// where the motion stops being predictable: a chaotic rattle amplifies any
@@ -477,15 +671,21 @@ impl Solution {
 /// displacement is tiny and a shifted start is a large relative difference
 /// for a few samples, which longer windows average out.
 pub fn horizon(a: &Solution, b: &Solution, tol: f64) -> usize {
-    let traces: [fn(&Sample) -> f64; 3] = [|s| s.x_hammer, |s| s.v_hammer, |s| s.x_contact];
-    let mut num = [0.0; 3];
-    let mut den = [0.0; 3];
+    const K: usize = 3 * (MAX_EXTRA + 1);
+    let trace = |s: &Sample, k: usize| match k {
+        0 => s.x_hammer,
+        1 => s.v_hammer,
+        2 => s.x_contact,
+        _ => s.extra[k / 3 - 1][k % 3],
+    };
+    let mut num = [0.0; K];
+    let mut den = [0.0; K];
     let mut last = 0;
     let len = a.samples.len().min(b.samples.len());
     for i in 0..len {
         let mut agree = true;
-        for (k, f) in traces.iter().enumerate() {
-            let (x, y) = (f(&a.samples[i]), f(&b.samples[i]));
+        for k in 0..K {
+            let (x, y) = (trace(&a.samples[i], k), trace(&b.samples[i], k));
             num[k] += (x - y) * (x - y);
             den[k] += y * y;
             agree &= num[k] <= tol * tol * den[k];

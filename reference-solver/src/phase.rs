@@ -2,9 +2,12 @@
 //! coordinates, balanced, with the dense exponentials the solver steps with.
 //!
 //! The augmented state is `[z; 1]`, `z = [q; q'; x_h; v_h]` (then `x_b;
-//! v_b` with a back mass), and the phase
-//! matrix `[[A, b], [0, 0]]` carries gravity as the affine term `b`, so that
-//! `exp` of the augmented matrix gives the affine part of the flow exactly.
+//! v_b` with a back mass, then each extra hammer's and each mass's `x, v`),
+//! and the phase matrix `[[A, b], [0, 0]]` carries gravity, and the force
+//! `k (h_lower - h_upper - gap)` of an active link's gap and walls, as the
+//! affine term `b`, so that `exp` of the augmented matrix gives the affine
+//! part of the flow exactly. The event rows take the same constants in the
+//! constant coordinate.
 //!
 //! Physical coordinates are badly scaled (entries from 1 to `k / m_h`, up to
 //! 1e17): a Pade exponential's error is relative to the matrix norm, so the
@@ -28,7 +31,7 @@
 //! between exact anchors, for the event search only.
 
 use crate::dd::{exp_taylor, exp_taylor_apply, Dd, DdMat};
-use crate::Model;
+use crate::{End, Model};
 use nalgebra::DMatrix;
 
 /// Largest `|B|_1 h_sub` of a sub-step: over a sub-step the fastest component
@@ -46,7 +49,8 @@ pub const RESYNC: usize = 256;
 pub struct Phase {
     /// The contacts in contact (bit `c` for contact `c`; flight: 0).
     pub active: u32,
-    /// Augmented dimension `2 N + 3` (`2 N + 5` with a back mass).
+    /// Augmented dimension: [`Model::state_dim`] `+ 1` (`2 N + 3` for the
+    /// paper's scene).
     pub dim: usize,
     /// Balancing scales: `z_i = d_i y_i` (the last entry scales the constant
     /// coordinate: `y_last = 1 / d_last`).
@@ -74,9 +78,17 @@ pub struct Phase {
     /// double-double (see [`augmented_matrix`]; `e1` and the balancing use
     /// its rounding to f64).
     pub b_dd: Vec<Dd>,
-    /// Rows giving each contact's `p` and `p'` from the balanced state `y`.
+    /// Rows giving each contact's `p` and `p'` from the balanced state `y`
+    /// (`row_p`'s last entry: the constant of `p`, gap and walls, rounded to
+    /// f64 and scaled to the constant coordinate).
     pub row_p: Vec<Vec<f64>>,
     pub row_v: Vec<Vec<f64>>,
+    /// Each contact's constant of `p` (`-gap`, plus the lower wall's
+    /// height, less the upper wall's) in double-double, as the phase
+    /// matrices' force rows have it: [`Phase::event_dd`] takes it instead of
+    /// `row_p`'s rounded last entry, so that the exact states switch where
+    /// the exact force vanishes.
+    pub p_const: Vec<Dd>,
 }
 
 impl Phase {
@@ -122,21 +134,40 @@ impl Phase {
             let g = big.last().expect("level 0");
             big.push(g.mul(g));
         }
-        // p = sum w_i q_i - x_h, p' = sum w_i q_i' - v_h, in y = D^-1 z,
-        // per contact
-        let (mut row_p, mut row_v) = (Vec::new(), Vec::new());
+        // p = x_lower - x_upper - gap, p' = v_lower - v_upper, in y = D^-1
+        // z, per contact (for a hammer's: sum w_i q_i - x_h); the constant
+        // (gap, walls' heights) on the constant coordinate, `z_last = d_last
+        // y_last = 1`
+        let one = dim - 1;
+        let (mut row_p, mut row_v, mut p_const) = (Vec::new(), Vec::new(), Vec::new());
         for c in 0..model.n_contacts() {
+            let l = model.link(c);
             let mut rp = vec![0.0; dim];
             let mut rv = vec![0.0; dim];
-            for i in 0..n {
-                rp[i] = model.weight(c, i) * d[i];
-                rv[n + i] = model.weight(c, i) * d[n + i];
+            let mut p0 = Dd::from_f64(-l.gap_m);
+            for (end, s) in [(&l.lower, 1.0), (&l.upper, -1.0)] {
+                match end {
+                    // a mode weighing on both sides (two points of one
+                    // object) gets `w_l - w_u` rounded once: `u |x|` of
+                    // `p`, as rounding `x` itself would
+                    End::Point(w) => {
+                        for i in 0..n {
+                            rp[i] += s * w[i] * d[i];
+                            rv[n + i] += s * w[i] * d[n + i];
+                        }
+                    }
+                    End::Mass(i) => {
+                        let k = model.mass_index(*i);
+                        rp[k] += s * d[k];
+                        rv[k + 1] += s * d[k + 1];
+                    }
+                    End::Wall(h) => p0 = p0 + Dd::from_f64(s * h),
+                }
             }
-            let k = model.hammer_index(c);
-            rp[k] = -d[k];
-            rv[k + 1] = -d[k + 1];
+            rp[one] = p0.to_f64() * d[one];
             row_p.push(rp);
             row_v.push(rv);
+            p_const.push(p0);
         }
         Phase {
             active,
@@ -152,6 +183,7 @@ impl Phase {
             b_dd,
             row_p,
             row_v,
+            p_const,
         }
     }
 
@@ -185,18 +217,26 @@ impl Phase {
         cur
     }
 
-    /// Contact `c`'s `(p, p')` of the exact state `y`.
+    /// Contact `c`'s `(p, p')` of the exact state `y` (the constant of `p`
+    /// in double-double, times the constant coordinate `d_last y_last = 1`).
     pub fn event_dd(&self, c: usize, y: &[Dd]) -> (f64, f64) {
-        let dot = |row: &[f64]| {
-            row.iter()
+        let one = self.dim - 1;
+        let dot = |row: &[f64], c0: Dd| {
+            row[..one]
+                .iter()
                 .zip(y)
                 .fold(
-                    Dd::ZERO,
+                    c0,
                     |acc, (&r, v)| if r == 0.0 { acc } else { acc + v.mul_f64(r) },
                 )
                 .to_f64()
         };
-        (dot(&self.row_p[c]), dot(&self.row_v[c]))
+        let c0 = if self.p_const[c].hi == 0.0 {
+            Dd::ZERO
+        } else {
+            self.p_const[c] * y[one].mul_f64(self.d[one])
+        };
+        (dot(&self.row_p[c], c0), dot(&self.row_v[c], Dd::ZERO))
     }
 
     /// Balanced state of the physical state `z` (exact: the scales are
@@ -234,7 +274,9 @@ impl Phase {
 }
 
 /// The augmented phase matrix `[[A, b], [0, 0]]` in physical coordinates
-/// `[q; q'; x_h; v_h; 1]`, row-major, in double-double.
+/// `[z; 1]`, row-major, in double-double: gravity, and with links the
+/// gaps' and walls' forces `k (h_lower - h_upper - gap)`, are the affine
+/// column `b`.
 ///
 /// Why double-double and not f64 entries: in physical coordinates the contact
 /// force `F = k (sum w_j q_j - x_h) + c (...)` is a difference of terms far
@@ -280,34 +322,59 @@ pub fn augmented_matrix(model: &Model, active: u32) -> Vec<Dd> {
             a[at(vb, col)] = a[at(vb, col)] - g.div_f64(mb);
         }
     }
-    for (k, x) in model.extra.iter().enumerate() {
-        let j = model.hammer_index(k + 1);
+    // the other point masses (extra hammers, masses): free under gravity
+    for i in 1..model.n_masses() {
+        let j = model.mass_index(i);
         a[at(j, j + 1)] = Dd::ONE;
-        a[at(j + 1, one)] = Dd::from_f64(-x.hammer.gravity_m_per_s2);
+        a[at(j + 1, one)] = Dd::from_f64(-model.mass_of(i).gravity_m_per_s2);
     }
     for cc in (0..model.n_contacts()).filter(|c| active & (1 << c) != 0) {
-        let law = model.contact_of(cc);
-        let k = Dd::from_f64(law.stiffness_n_per_m);
-        let c = Dd::from_f64(law.damping_n_s_per_m);
-        let m = model.hammer_of(cc).mass_kg;
-        let (xh, vh) = (model.hammer_index(cc), model.hammer_index(cc) + 1);
-        // F = k p + c p' with p = sum w_j q_j - x_h: row of F in z
+        let l = model.link(cc);
+        let k = Dd::from_f64(l.contact.stiffness_n_per_m);
+        let c = Dd::from_f64(l.contact.damping_n_s_per_m);
+        // F = k p + c p' with p = x_lower - x_upper - gap: row of F in z
+        // (for a hammer's contact: k (sum w_j q_j - x_h) + c (...)); the
+        // gap and the walls' heights on the constant column
         let mut f = vec![Dd::ZERO; dim];
-        for j in 0..n {
-            f[j] = k.mul_f64(model.weight(cc, j));
-            f[n + j] = c.mul_f64(model.weight(cc, j));
-        }
-        f[xh] = -k;
-        f[vh] = -c;
-        // object: q_i'' += -w_i F; hammer: v_h' += F / m
-        for i in 0..n {
-            let w = model.weight(cc, i);
-            for (col, fc) in f.iter().enumerate() {
-                a[at(n + i, col)] = a[at(n + i, col)] - fc.mul_f64(w);
+        f[one] = -k.mul_f64(l.gap_m);
+        for (end, s) in [(&l.lower, 1.0), (&l.upper, -1.0)] {
+            match end {
+                End::Point(w) => {
+                    for j in 0..n {
+                        f[j] = f[j] + k.mul_f64(s * w[j]);
+                        f[n + j] = f[n + j] + c.mul_f64(s * w[j]);
+                    }
+                }
+                End::Mass(i) => {
+                    let j = model.mass_index(*i);
+                    f[j] = f[j] + k.mul_f64(s);
+                    f[j + 1] = f[j + 1] + c.mul_f64(s);
+                }
+                End::Wall(h) => f[one] = f[one] + k.mul_f64(s * h),
             }
         }
-        for (col, fc) in f.iter().enumerate() {
-            a[at(vh, col)] = a[at(vh, col)] + fc.div_f64(m);
+        // lower: -F (an object's q_i'' += -w_i F, a mass's v' += -F / m);
+        // upper: +F; a wall takes nothing
+        for (end, s) in [(&l.lower, -1.0), (&l.upper, 1.0)] {
+            match end {
+                End::Point(w) => {
+                    for i in 0..n {
+                        if w[i] == 0.0 {
+                            continue;
+                        }
+                        for (col, fc) in f.iter().enumerate() {
+                            a[at(n + i, col)] = a[at(n + i, col)] + fc.mul_f64(s * w[i]);
+                        }
+                    }
+                }
+                End::Mass(i) => {
+                    let (v, m) = (model.mass_index(*i) + 1, model.mass_of(*i).mass_kg);
+                    for (col, fc) in f.iter().enumerate() {
+                        a[at(v, col)] = a[at(v, col)] + fc.div_f64(s * m);
+                    }
+                }
+                End::Wall(_) => {}
+            }
         }
     }
     a

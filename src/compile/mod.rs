@@ -466,9 +466,14 @@ pub fn compile_opts(
     if !(rate_hz.is_finite() && (RATE_RANGE_HZ.0..=RATE_RANGE_HZ.1).contains(&rate_hz)) {
         return Err(CompileError::SampleRate(rate_hz));
     }
-    if !scene.striker.is_empty() {
+    if scene.several_contacts() {
+        let key = if scene.striker.is_empty() {
+            "touch"
+        } else {
+            "striker"
+        };
         return Err(CompileError::Scene(SceneError::new(
-            "striker",
+            key,
             "a scene of several contacts renders through the several-contact engine \
              (`cargo xtask render`, docs/design.md \"Several contacts\"); the instrument, \
              the report and this compiler take one contact",

@@ -120,6 +120,7 @@ impl SceneBuilder {
             hammer: self.hammer.expect("SceneBuilder: no hammer"),
             contact: self.contact.expect("SceneBuilder: no contact"),
             striker: self.strikers,
+            touch: Vec::new(),
             pickup: self.pickups,
             approximate: self.approximate,
         }

@@ -517,7 +517,7 @@ impl TraceSink for TraceFile {
 
 fn scene_job(job: &Job, a: &RenderArgs, progress: &dyn Fn(u64)) -> Result<JobReport> {
     let scene = load_scene(&job.scene_path)?;
-    if !scene.striker.is_empty() {
+    if scene.several_contacts() {
         return multi_scene_job(job, a, &scene, progress);
     }
     let n = render_length(a.seconds.unwrap_or(scene.duration_s), a.rate)?;
@@ -696,9 +696,13 @@ fn multi_scene_job(
         stats.peak
     );
     let summary = format!(
-        "several contacts: {k} contacts on {:?}, {} phases compiled up front (every subset in contact), \
-         largest {} coordinates, condition of the bases at most {:.1}\n",
-        scene.contact.object,
+        "several contacts: {k} contacts ({} strikers, {} touches) between {} modes and {} masses, \
+         {} phases compiled up front (every subset in contact), largest {} coordinates, \
+         condition of the bases at most {:.1}\n",
+        scene.striker.len(),
+        scene.touch.len(),
+        model.freq_hz.len(),
+        model.masses.len(),
         compiled.phases.len(),
         compiled.max_dim(),
         compiled.kappa()
