@@ -265,10 +265,6 @@ pub struct MultiPhase {
     pub gens: Vec<Mat2>,
     /// Each block's propagator over one sample.
     props: Vec<Mat2>,
-    /// `y = V s + y_star`.
-    pub v: DMatrix<f64>,
-    vinv: DMatrix<f64>,
-    y_star: Vec<f64>,
     /// The masses in a closed contact (`z[N + b]` is `sqrt(m) x` of
     /// `bound[b]`), and per mass its place there.
     bound: Vec<usize>,
@@ -281,14 +277,24 @@ pub struct MultiPhase {
     fly_of: Vec<Option<usize>>,
     /// The slots that fly in this phase.
     flyers: Vec<usize>,
-    /// `P` (positions `z` from the reduced ones) and `Z = P R^-1` (`z`
-    /// from `u`), `R` (`u = R P^T z`).
-    p: DMatrix<f64>,
-    z_of_u: DMatrix<f64>,
-    /// The thin `Q` of `[diag(omega); sqrt(k_c) g_c^T] P = Q R`: `Q u` is
-    /// `(omega q, sqrt(k_c) (p_c - p0_c))`, the one-contact engine's energy
-    /// coordinates; and each closed contact's `p0_c`.
-    q: DMatrix<f64>,
+    /// A switch's products, straight from and to the block state `s`
+    /// (`y = [u; w] = V s + y*`; `Q` the thin factor of `[diag(omega);
+    /// sqrt(k_c) g_c^T] P = Q R`, so `Q u = (omega q, sqrt(k_c) (p_c -
+    /// p0_c))`, the one-contact engine's energy coordinates; `P` the
+    /// positions `z` of the reduced ones, `Z = P R^-1`): `Q V_u` and `Q
+    /// u*`, `P V_w` and `P w*`, the held masses' rows of `Z V_u` and `Z u*`,
+    /// `V^-1_u Q^T`, `V^-1_w P^T` and `V^-1 y*`. Four products of about
+    /// `dim x dim / 2` a switch, as many as the two through `y`.
+    qv: DMatrix<f64>,
+    qv0: Vec<f64>,
+    pv: DMatrix<f64>,
+    pv0: Vec<f64>,
+    zv: DMatrix<f64>,
+    zv0: Vec<f64>,
+    vq: DMatrix<f64>,
+    vp: DMatrix<f64>,
+    s_star: Vec<f64>,
+    /// Each closed contact's `p0_c`.
     p0: Vec<f64>,
     /// Per contact (all of them): the row and constant of its penetration
     /// (without the flights), its slope row `r G`, and the curvature
@@ -1159,22 +1165,33 @@ impl MultiPhase {
             .filter(|&j| lay.place[j].is_none())
             .collect();
         flyers.extend(lay.groups.iter().map(|grp| grp[0]));
+        let (v_u, v_w) = (v.rows(0, nr), v.rows(nr, nr));
+        let (u_star, w_star) = (
+            DMatrix::from_column_slice(nr, 1, &y_star[..nr]),
+            DMatrix::from_column_slice(nr, 1, &y_star[nr..]),
+        );
+        let z_m = z_of_u.rows(n, lay.bound.len());
+        let col = |x: DMatrix<f64>| x.as_slice().to_vec();
+        let s_star = col(&vinv * DMatrix::from_column_slice(dim, 1, &y_star));
         Ok(Self {
             members,
             dim,
             gens,
             props,
-            v,
-            vinv,
-            y_star,
+            qv: &q * v_u,
+            qv0: col(&q * &u_star),
+            pv: &p * v_w,
+            pv0: col(&p * &w_star),
+            zv: z_m * v_u,
+            zv0: col(z_m * &u_star),
+            vq: vinv.columns(0, nr) * q.transpose(),
+            vp: vinv.columns(nr, nr) * p.transpose(),
+            s_star,
             bound: lay.bound,
             place: lay.place,
             groups: lay.groups,
             fly_of: lay.fly_of,
             flyers,
-            p,
-            z_of_u,
-            q,
             p0,
             ev,
             ev0,
@@ -1253,8 +1270,6 @@ pub struct MultiState {
     mask: u32,
     s: Vec<f64>,
     end: Vec<f64>,
-    y: Vec<f64>,
-    y2: Vec<f64>,
     /// Per block of the current phase, `|s_k|` at points of the search:
     /// slot 0 the step's start, the others the left ends of its pieces
     /// (a stack, one slot per level).
@@ -1360,8 +1375,6 @@ impl MultiState {
                 s
             },
             end: vec![0.0; dim],
-            y: vec![0.0; dim],
-            y2: vec![0.0; dim],
             norms: vec![vec![0.0; dim / 2]; NORM_SLOTS],
             x_f,
             v_f,
@@ -1740,11 +1753,10 @@ impl MultiState {
     fn switch(&mut self, sc: &CompiledMulti, who: u32, time_s: f64) -> [Start; MAX_CONTACTS] {
         let m = &sc.model;
         let old = &sc.phases[self.mask as usize];
-        // y = V s + y*, then every q, q', x, v
-        mat_vec(&old.v, &self.s, &old.y_star, &mut self.y[..old.dim]);
+        // every q, q', x, v
         old.physical_of(
             m,
-            &self.y[..old.dim],
+            &self.s,
             (&self.x_f, &self.v_f),
             (&mut self.zq, &mut self.zv),
             &mut self.phys,
@@ -1761,19 +1773,14 @@ impl MultiState {
         let p_left = pen;
         let new_mask = self.mask ^ who;
         let new = &sc.phases[new_mask as usize];
+        self.s.resize(new.dim, 0.0);
         new.state_of(
             m,
             (&self.phys, &pen),
             (&mut self.x_f, &mut self.v_f),
             (&mut self.zq, &mut self.zv),
-            &mut self.y2[..new.dim],
+            &mut self.s,
         );
-        // s = V^-1 (y - y*)
-        for (y, ys) in self.y2[..new.dim].iter_mut().zip(&new.y_star) {
-            *y -= ys;
-        }
-        self.s.resize(new.dim, 0.0);
-        mat_vec(&new.vinv, &self.y2[..new.dim], &[], &mut self.s);
         // a mass a leaving contact sets free starts its flight exactly at the
         // penetration the contact left with, the rest of it as the new
         // phase computes it (its row), without the change of basis's
@@ -1850,11 +1857,15 @@ impl MultiState {
         let m = &sc.model;
         let ph = &sc.phases[self.mask as usize];
         let nz = m.n() + m.masses.len();
-        let mut y = vec![0.0; ph.dim];
-        mat_vec(&ph.v, &self.s, &ph.y_star, &mut y);
         let (mut zq, mut zv) = (vec![0.0; nz + MAX_CONTACTS], vec![0.0; nz]);
         let mut phys = Physical::new(m);
-        ph.physical_of(m, &y, (&self.x_f, &self.v_f), (&mut zq, &mut zv), &mut phys);
+        ph.physical_of(
+            m,
+            &self.s,
+            (&self.x_f, &self.v_f),
+            (&mut zq, &mut zv),
+            &mut phys,
+        );
         let mut o = MultiObservation {
             active: self.mask,
             energy: phys.energy(m),
@@ -1927,28 +1938,28 @@ impl MultiPhase {
     fn physical_of(
         &self,
         m: &MultiModel,
-        y: &[f64],
+        s: &[f64],
         (x_f, v_f): (&[f64], &[f64]),
         (zq, zv): (&mut [f64], &mut [f64]),
         out: &mut Physical,
     ) {
         let n = m.n();
-        let nr = self.dim / 2;
         let nz = n + self.bound.len();
-        // the modes' q from Q u = (omega q, ...), the masses' from Z u (the
-        // part off the free groups' centres), z' = P w
-        mat_vec(&self.q, &y[..nr], &[], &mut zq[..self.q.nrows()]);
+        // the modes' q from Q u = (omega q, ...), z' = P w, the held masses'
+        // x from Z u (the part off the free groups' centres)
+        mat_vec(&self.qv, s, &self.qv0, &mut zq[..self.qv0.len()]);
         for (i, qi) in out.q.iter_mut().enumerate() {
             *qi = zq[i] / (two_pi() * m.freq_hz[i]);
         }
-        mat_vec(&self.z_of_u, &y[..nr], &[], &mut zq[..nz]);
-        mat_vec(&self.p, &y[nr..self.dim], &[], &mut zv[..nz]);
+        mat_vec(&self.pv, s, &self.pv0, &mut zv[..nz]);
         out.qv.copy_from_slice(&zv[..n]);
+        let nb = self.bound.len();
+        mat_vec(&self.zv, s, &self.zv0, &mut zq[..nb]);
         for (j, ms) in m.masses.iter().enumerate() {
             match self.place[j] {
                 Some(b) => {
                     let s = ms.mass_kg.sqrt();
-                    let (mut x, mut v) = (zq[n + b] / s, zv[n + b] / s);
+                    let (mut x, mut v) = (zq[b] / s, zv[n + b] / s);
                     if let Some(k) = self.fly_of[j] {
                         x += x_f[k];
                         v += v_f[k];
@@ -1964,9 +1975,10 @@ impl MultiPhase {
         }
     }
 
-    /// The phase's `y` (before `y*` is taken off) of a physical state
-    /// whose closed contacts' penetrations are `pen` (by contact), and its
-    /// flights: `u = Q^T (omega q, sqrt(k_c) (p_c - p0_c))`, `w = P^T z'`.
+    /// The phase's block state `s` of a physical state whose closed
+    /// contacts' penetrations are `pen` (by contact), and its flights: `u =
+    /// Q^T (omega q, sqrt(k_c) (p_c - p0_c))`, `w = P^T z'`, `s = V^-1 (y -
+    /// y*)`.
     /// The penetrations come apart from the positions: as a difference of
     /// two sides a heavy hammer's would keep `u |x|` of error.
     fn state_of(
@@ -1975,10 +1987,9 @@ impl MultiPhase {
         (ph, pen): (&Physical, &[f64; MAX_CONTACTS]),
         (x_f, v_f): (&mut [f64], &mut [f64]),
         (zq, zv): (&mut [f64], &mut [f64]),
-        y: &mut [f64],
+        s: &mut [f64],
     ) {
         let n = m.n();
-        let nr = self.dim / 2;
         let nz = n + self.bound.len();
         for i in 0..n {
             zq[i] = two_pi() * m.freq_hz[i] * ph.q[i];
@@ -2006,8 +2017,11 @@ impl MultiPhase {
             x_f[grp[0]] = x / total;
             v_f[grp[0]] = v / total;
         }
-        mat_t_vec(&self.q, &zq[..self.q.nrows()], &mut y[..nr]);
-        mat_t_vec(&self.p, &zv[..nz], &mut y[nr..self.dim]);
+        for (o, x) in s.iter_mut().zip(&self.s_star) {
+            *o = -x;
+        }
+        mat_vec_add(&self.vq, &zq[..n + self.members.len()], s);
+        mat_vec_add(&self.vp, &zv[..nz], s);
     }
 }
 /// `out = M x + c` (`c` empty: 0) for a column-major `M`, by columns
@@ -2030,12 +2044,17 @@ fn mat_vec(m: &DMatrix<f64>, x: &[f64], c: &[f64], out: &mut [f64]) {
     }
 }
 
-/// `out = M^T x` for a column-major `M` (each entry a column's dot).
-fn mat_t_vec(m: &DMatrix<f64>, x: &[f64], out: &mut [f64]) {
-    let n = x.len();
+/// `out += M x` for a column-major `M`, by columns.
+fn mat_vec_add(m: &DMatrix<f64>, x: &[f64], out: &mut [f64]) {
+    let n = out.len();
     let data = m.as_slice();
-    for (col, o) in out.iter_mut().enumerate() {
-        *o = dot(&data[col * n..(col + 1) * n], x);
+    for (col, &xc) in x.iter().enumerate() {
+        if xc == 0.0 {
+            continue;
+        }
+        for (o, a) in out.iter_mut().zip(&data[col * n..(col + 1) * n]) {
+            *o += a * xc;
+        }
     }
 }
 
