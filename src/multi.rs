@@ -618,6 +618,7 @@ impl MultiModel {
     /// not take yet.
     pub fn from_scene(scene: &Scene, rate_hz: f64) -> Result<Self, SceneError> {
         scene.validate()?;
+        let original_mallet = scene.hammer.object.clone().zip(scene.hammer.point.clone());
         let expanded = scene.expanded(rate_hz)?;
         let scene = &expanded;
         if scene.approximate.is_some() {
@@ -657,7 +658,7 @@ impl MultiModel {
                     return Err(SceneError::new(
                         field,
                         format!(
-                            "several contacts touch objects with modes (kind \"modes\" or one \
+                            "several contacts touch objects with modes (kind \"modal\" or one \
                              from geometry and material) and walls, not {:?} (a lumped string)",
                             name
                         ),
@@ -712,11 +713,46 @@ impl MultiModel {
                 damping_n_s_per_m: st.damping_n_s_per_m,
             });
         }
+        // a modal mallet's face is `x_h + psi . a` (its modes joined to the
+        // struck object's, docs/design.md "Modal mallets"): the side it
+        // touches takes `-psi` on them, as `[contact]`'s point does
+        let face = match (&original_mallet, &c.point) {
+            (Some((mallet, tip)), Some(_)) => {
+                Some(sides.point("hammer.point", &c.object, &format!("{mallet}.{tip}"))?)
+            }
+            _ => None,
+        };
+        let less_face = |e: MultiEnd, gap: f64, below: bool| -> (MultiEnd, f64) {
+            let Some(psi) = &face else {
+                return (e, gap);
+            };
+            match e {
+                MultiEnd::Point(w) => (
+                    MultiEnd::Point(w.iter().zip(psi).map(|(a, b)| a - b).collect()),
+                    gap,
+                ),
+                // p = h - x_h - psi a - gap = (-psi a) - x_h - (gap - h), or
+                // p = x_h + psi a - h - gap = x_h - (-psi a) - (gap + h)
+                MultiEnd::Wall(h) => (
+                    MultiEnd::Point(psi.iter().map(|x| -x).collect()),
+                    if below { gap - h } else { gap + h },
+                ),
+                MultiEnd::Mass(j) => (MultiEnd::Mass(j), gap),
+            }
+        };
         for (i, t) in scene.touch.iter().enumerate() {
+            let mut lower = sides.side(&format!("touch[{i}].lower"), &t.lower)?;
+            let mut upper = sides.side(&format!("touch[{i}].upper"), &t.upper)?;
+            let mut gap = t.gap_m;
+            if upper == MultiEnd::Mass(0) {
+                (lower, gap) = less_face(lower, gap, true);
+            } else if lower == MultiEnd::Mass(0) {
+                (upper, gap) = less_face(upper, gap, false);
+            }
             contacts.push(MultiContact {
-                lower: sides.side(&format!("touch[{i}].lower"), &t.lower)?,
-                upper: sides.side(&format!("touch[{i}].upper"), &t.upper)?,
-                gap_m: t.gap_m,
+                lower,
+                upper,
+                gap_m: gap,
                 stiffness_n_per_m: t.stiffness_n_per_m,
                 damping_n_s_per_m: t.damping_n_s_per_m,
             });

@@ -681,12 +681,6 @@ impl Scene {
                 ),
             ));
         }
-        if self.hammer.object.is_some() {
-            return Err(SceneError::new(
-                "striker",
-                "several contacts take point-mass hammers: remove hammer.object or the strikers",
-            ));
-        }
         if self.contact.switching == Some(Switching::OffsetRod) {
             return Err(SceneError::new(
                 "striker",
@@ -779,12 +773,6 @@ impl Scene {
                 ),
             ));
         }
-        if self.hammer.object.is_some() {
-            return Err(SceneError::new(
-                "touch",
-                "several contacts take point-mass hammers: remove hammer.object or the touches",
-            ));
-        }
         if self.contact.switching == Some(Switching::OffsetRod) {
             return Err(SceneError::new(
                 "touch",
@@ -828,6 +816,16 @@ impl Scene {
                         format!("no object named {:?}", e.object),
                     ));
                 };
+                if self.hammer.object.as_ref() == Some(&e.object) {
+                    return Err(SceneError::new(
+                        f(&format!("{name}.object")),
+                        format!(
+                            "{:?} is the modal mallet: its face (hammer.point) is the side \
+                             \"hammer\"",
+                            e.object
+                        ),
+                    ));
+                }
                 let obj = &self.object[o];
                 match (obj, &e.point) {
                     (ObjectSpec::Wall(_), None) => walls += 1,
