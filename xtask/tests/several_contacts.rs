@@ -190,3 +190,55 @@ fn the_numpy_trace_holds_the_csvs_numbers() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The three examples of touches (objects against objects, a ball between
+/// two plates, tubes that touch) through the render command in one batch:
+/// every contact closes, the sidecar says so, each trace has a group of
+/// columns per contact and an energy that never rises beyond rounding.
+#[test]
+fn the_touch_examples_render_and_every_contact_closes() {
+    let dir = temp("touch");
+    let ex = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/examples");
+    let scenes: Vec<PathBuf> = ["ball-between-plates", "wind-chimes", "snare-pair"]
+        .iter()
+        .map(|n| ex.join(format!("{n}.toml")))
+        .collect();
+    // one batch: a WAV, a trace and a sidecar per scene in `dir`
+    let mut a = args(scenes.clone(), &dir);
+    a.seconds = Some(1.0);
+    a.trace = Some(None);
+    run(&a).unwrap();
+    for s in &scenes {
+        let stem = s.file_stem().unwrap().to_str().unwrap();
+        let side: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.join(format!("{stem}.json"))).unwrap(),
+        )
+        .unwrap();
+        let per: Vec<u64> = side["contacts_per_contact"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_u64().unwrap())
+            .collect();
+        let csv = std::fs::read_to_string(dir.join(format!("{stem}.csv"))).unwrap();
+        let mut lines = csv.lines();
+        let header = lines.next().unwrap();
+        assert_eq!(
+            header.split(',').count(),
+            7 + 5 * (per.len() - 1),
+            "{header}"
+        );
+        let energy: Vec<f64> = lines
+            .map(|l| l.split(',').nth(6).unwrap().parse().unwrap())
+            .collect();
+        let top = energy.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+        let rise = energy
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold(f64::MIN, f64::max);
+        println!("{stem}: contacts per contact {per:?}; energy from {:.3e} to {:.3e} J, largest rise {rise:.1e}", energy[0], energy.last().unwrap());
+        assert!(per.iter().all(|&c| c >= 1), "{stem}: {per:?}");
+        assert!(rise <= 1e-12 * top, "{stem}: {rise:e}");
+        assert!(energy.last().unwrap() < &energy[0], "{stem}");
+    }
+}
