@@ -254,6 +254,18 @@ impl std::fmt::Display for MultiError {
 
 impl std::error::Error for MultiError {}
 
+/// Where one side of a contact is in a phase: rows over `s` and
+/// constants for its position and velocity, plus the flight slot it rides
+/// (a free mass, or the centre of a free group).
+#[derive(Debug, Clone)]
+struct SideRows {
+    pos: Vec<f64>,
+    pos0: f64,
+    vel: Vec<f64>,
+    vel0: f64,
+    fly: Option<usize>,
+}
+
 /// One phase: the contacts of `mask` in contact.
 #[derive(Debug, Clone)]
 pub struct MultiPhase {
@@ -309,6 +321,11 @@ pub struct MultiPhase {
     /// Per contact: the flights in its penetration (lower side's adds,
     /// upper side's subtracts; none when both ride the same one).
     ev_fly: Vec<(Option<usize>, Option<usize>)>,
+    /// Per contact: where its lower and upper sides are (the trace).
+    sides: Vec<[SideRows; 2]>,
+    /// The entries of `s` the coupled part moves, and its modes.
+    coupled: Vec<usize>,
+    coupled_modes: Vec<usize>,
     /// Output rows and constants (left, right).
     out: [Vec<f64>; 2],
     out0: [f64; 2],
@@ -1182,6 +1199,50 @@ impl MultiPhase {
             ev_d.push(rd);
             ev_fly.push(fly);
         }
+        // each side's position and velocity straight from s (the trace)
+        let side_v = |e: &MultiEnd| -> (Vec<f64>, Option<usize>) {
+            let mut vel = vec![0.0; dim];
+            match e {
+                MultiEnd::Point(w) => {
+                    for c in 0..nr {
+                        vel[nr + c] = (0..n).map(|i| w[i] * p[(i, c)]).sum();
+                    }
+                    (vel, None)
+                }
+                MultiEnd::Mass(j) => match lay.place[*j] {
+                    Some(b) => {
+                        for c in 0..nr {
+                            vel[nr + c] = p[(n + b, c)] / sqm(*j);
+                        }
+                        (vel, lay.fly_of[*j])
+                    }
+                    None => (vel, Some(*j)),
+                },
+                MultiEnd::Wall(_) => (vel, None),
+            }
+        };
+        let sides: Vec<[SideRows; 2]> = m
+            .contacts
+            .iter()
+            .map(|ct| {
+                [&ct.lower, &ct.upper].map(|e| {
+                    let (pos_y, c0, fly) = side_y(e);
+                    let (vel_y, _) = side_v(e);
+                    let (pos, pos0) = in_phase(&pos_y, &v, &y_star);
+                    let (vel, vel0) = in_phase(&vel_y, &v, &y_star);
+                    SideRows {
+                        pos,
+                        pos0: pos0 + c0,
+                        vel,
+                        vel0,
+                        fly,
+                    }
+                })
+            })
+            .collect();
+        // the entries of s the coupled part moves (the free modes' blocks
+        // are their own (omega q, q'))
+        let coupled: Vec<usize> = (0..dimc).map(smap).collect();
         let mut out: [Vec<f64>; 2] = Default::default();
         let mut out0 = [0.0; 2];
         for c in 0..2 {
@@ -1235,6 +1296,9 @@ impl MultiPhase {
             ev_c2,
             ev_e,
             ev_fly,
+            sides,
+            coupled,
+            coupled_modes: cm,
             out,
             out0,
             kappa,
@@ -1886,10 +1950,80 @@ impl MultiState {
         })
     }
 
-    /// The state now, from its physical state: each contact's sides, the
+    /// The state now: each contact's sides (a row each, O(dim)) and the
     /// energy (every mode, every mass's motion and weight, every closed
-    /// spring). O(dim^2) (the change of basis).
+    /// spring), O(N) for the modes no closed contact touches (all of them
+    /// in flight) and O(d^2) for the `d` coordinates of the coupled part.
     pub fn observe(&self, sc: &CompiledMulti) -> MultiObservation {
+        let m = &sc.model;
+        let ph = &sc.phases[self.mask as usize];
+        let g = m.gravity_m_per_s2;
+        let s = &self.s;
+        let n = m.n();
+        let nb = ph.gens.len();
+        let nbc = ph.coupled.len() / 2;
+        // a row of a switch product on the coupled entries of s
+        let row = |a: &DMatrix<f64>, r: usize| -> f64 {
+            ph.coupled.iter().map(|&c| a[(r, c)] * s[c]).sum()
+        };
+        // the free modes: their blocks are (omega q, q')
+        let mut energy = 0.0;
+        for k in nbc..nb {
+            energy += 0.5 * (s[k] * s[k] + s[nb + k] * s[nb + k]);
+        }
+        // the coupled modes, the held masses, the closed springs, each
+        // from its own value (no expansion about the equilibrium, whose
+        // terms could be far larger than the energy)
+        for &i in &ph.coupled_modes {
+            let (a, b) = (row(&ph.qv, i) + ph.qv0[i], row(&ph.pv, i) + ph.pv0[i]);
+            energy += 0.5 * (a * a + b * b);
+        }
+        for (b, &j) in ph.bound.iter().enumerate() {
+            let mass = m.masses[j].mass_kg;
+            let sq = mass.sqrt();
+            let (mut x, mut v) = (
+                (row(&ph.zv, b) + ph.zv0[b]) / sq,
+                (row(&ph.pv, n + b) + ph.pv0[n + b]) / sq,
+            );
+            if let Some(k) = ph.fly_of[j] {
+                x += self.x_f[k];
+                v += self.v_f[k];
+            }
+            energy += 0.5 * mass * v * v + mass * g * x;
+        }
+        for (j, place) in ph.place.iter().enumerate() {
+            if place.is_none() {
+                let mass = m.masses[j].mass_kg;
+                energy += 0.5 * mass * self.v_f[j] * self.v_f[j] + mass * g * self.x_f[j];
+            }
+        }
+        for &c in &ph.members {
+            let p = dot(&ph.ev[c], s) + ph.ev0[c];
+            energy += 0.5 * m.contacts[c].stiffness_n_per_m * p * p;
+        }
+        let mut o = MultiObservation {
+            active: self.mask,
+            energy,
+            ..Default::default()
+        };
+        for (j, [lo, up]) in ph.sides.iter().enumerate() {
+            let at = |r: &SideRows| {
+                let (fx, fv) = r.fly.map_or((0.0, 0.0), |k| (self.x_f[k], self.v_f[k]));
+                (dot(&r.pos, s) + r.pos0 + fx, dot(&r.vel, s) + r.vel0 + fv)
+            };
+            let ((xl, vl), (xu, vu)) = (at(lo), at(up));
+            o.x_hammer[j] = xu;
+            o.v_hammer[j] = vu;
+            o.x_contact[j] = xl;
+            o.v_contact[j] = vl;
+        }
+        o
+    }
+
+    /// [`observe`](Self::observe) the long way, through the physical state
+    /// (every `q, q'`, every mass's `x, v`) and the energy summed from it:
+    /// O(dim^2) a sample, for checks.
+    pub fn observe_physical(&self, sc: &CompiledMulti) -> MultiObservation {
         let m = &sc.model;
         let ph = &sc.phases[self.mask as usize];
         let nz = m.n() + m.masses.len();

@@ -252,6 +252,7 @@ fn a_mass_on_a_wall_bounces_as_the_closed_form() {
 fn random_networks_never_gain_energy() {
     let mut rng = TestRng(0xb0d1e5);
     let (mut switches, mut compiled, mut worst) = (0u64, 0, 0.0f64);
+    let mut worst_obs = 0.0f64;
     let mut kinds = [0usize; 4];
     for case in 0..150 {
         let objects = 1 + rng.below(3);
@@ -369,6 +370,24 @@ fn random_networks_never_gain_energy() {
             assert!(y.iter().all(|v| v.is_finite()), "case {case}");
             let o = st.observe(&sc);
             assert!(o.energy.is_finite(), "case {case}");
+            // the trace's O(N) observation against the physical state's
+            let q = st.observe_physical(&sc);
+            let de = (o.energy - q.energy).abs() / e0.max(scale(&o));
+            let size = |x: &[f64; 4]| x.iter().map(|v| v.abs()).fold(1e-3, f64::max);
+            let dx = (0..4)
+                .map(|j| {
+                    let a = (o.x_hammer[j] - q.x_hammer[j]).abs() / size(&q.x_hammer);
+                    let b = (o.x_contact[j] - q.x_contact[j]).abs() / size(&q.x_contact);
+                    let c = (o.v_hammer[j] - q.v_hammer[j]).abs() / size(&q.v_hammer);
+                    let d = (o.v_contact[j] - q.v_contact[j]).abs() / size(&q.v_contact);
+                    a.max(b).max(c).max(d)
+                })
+                .fold(0.0, f64::max);
+            worst_obs = worst_obs.max(de).max(dx);
+            assert!(
+                de < 1e-10 && dx < 1e-10,
+                "case {case}: energy {de:e}, sides {dx:e}"
+            );
             let rise = (o.energy - prev.energy) / e0.max(scale(&o));
             worst = worst.max(rise / bound);
             assert!(
@@ -385,6 +404,7 @@ fn random_networks_never_gain_energy() {
          object-mass {}), {switches} switches: largest energy rise {worst:.2} of its rounding bound",
         kinds[0], kinds[1], kinds[2], kinds[3]
     );
+    println!("the trace's observation against the physical state's: within {worst_obs:.1e}");
     assert!(switches > 60);
     assert!(kinds.iter().all(|&k| k > 5), "{kinds:?}");
 }
