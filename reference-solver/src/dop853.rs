@@ -16,7 +16,7 @@
 //! takes from its two sides. It is far slower than the expm solver and only
 //! meant for moderately stiff cases in the unit tests.
 
-use crate::{switched, toward, ContactInterval, End, Link, Model, Solution, Stats};
+use crate::{record_switch, switched, toward, ContactInterval, End, Link, Model, Solution, Stats};
 
 /// Stage coefficients `a[s][j]`, `j < s`, stages 2..=12 (Hairer's DOP853).
 const A: [[f64; 12]; 12] = {
@@ -443,19 +443,7 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
                             continue;
                         }
                         active ^= 1 << c;
-                        if !inc {
-                            contacts.push(ContactInterval {
-                                contact: c,
-                                start_s: t_n + t,
-                                end_s: None,
-                            });
-                        } else if let Some(open) = contacts
-                            .iter_mut()
-                            .rev()
-                            .find(|x| x.contact == c && x.end_s.is_none())
-                        {
-                            open.end_s = Some(t_n + t);
-                        }
+                        record_switch(&mut contacts, c, !inc, t_n + t);
                     }
                     z = zs;
                 }

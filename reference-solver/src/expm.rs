@@ -31,7 +31,7 @@
 
 use crate::dd::Dd;
 use crate::phase::{matvec, Phase, MAX_NORM_STEP, RESYNC};
-use crate::{switched, toward, ContactInterval, Model, Solution, Stats};
+use crate::{record_switch, switched, toward, ContactInterval, Model, Solution, Stats};
 
 /// Switches per sample beyond which the run is declared a loop (a physical
 /// run at these stiffnesses has a handful).
@@ -315,19 +315,7 @@ pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step:
                     continue;
                 }
                 active ^= 1 << c;
-                if active & (1 << c) != 0 {
-                    contacts.push(ContactInterval {
-                        contact: c,
-                        start_s: t_n + t,
-                        end_s: None,
-                    });
-                } else if let Some(open) = contacts
-                    .iter_mut()
-                    .rev()
-                    .find(|x| x.contact == c && x.end_s.is_none())
-                {
-                    open.end_s = Some(t_n + t);
-                }
+                record_switch(&mut contacts, c, active & (1 << c) != 0, t_n + t);
             }
             let ph_new = &phases[active as usize];
             y = ph_new.to_balanced(&z);

@@ -697,6 +697,29 @@ pub fn horizon(a: &Solution, b: &Solution, tol: f64) -> usize {
     last
 }
 
+/// Record that contact `c` switched at `t_s`: a new interval when it
+/// `entered`, else the end of its open one (both solvers' bookkeeping).
+pub(crate) fn record_switch(
+    contacts: &mut Vec<ContactInterval>,
+    c: usize,
+    entered: bool,
+    t_s: f64,
+) {
+    if entered {
+        contacts.push(ContactInterval {
+            contact: c,
+            start_s: t_s,
+            end_s: None,
+        });
+    } else if let Some(open) = contacts
+        .iter_mut()
+        .rev()
+        .find(|x| x.contact == c && x.end_s.is_none())
+    {
+        open.end_s = Some(t_s);
+    }
+}
+
 /// Which side of the switching surface counts as "switched" in each phase:
 /// in flight the state has switched once `p > 0`, in contact once `p <= 0`.
 #[inline]
