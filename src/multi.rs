@@ -511,6 +511,13 @@ impl MultiModel {
             self.gravity_m_per_s2,
             self.gravity_m_per_s2 >= 0.0,
         )?;
+        // every mass can be in a contact: at most two per contact
+        if self.masses.len() > 2 * MAX_CONTACTS {
+            return Err(MultiError::Value {
+                field: "masses (more than two per contact)".into(),
+                value: self.masses.len() as f64,
+            });
+        }
         for (j, m) in self.masses.iter().enumerate() {
             let f = |name: &str| format!("masses[{j}].{name}");
             check_value(&f("mass_kg"), m.mass_kg, m.mass_kg > 0.0)?;
@@ -803,9 +810,14 @@ impl MultiModel {
             gravity_m_per_s2: scene.hammer.gravity_m_per_s2,
             pickups,
         };
+        let key = if scene.touch.is_empty() {
+            "striker"
+        } else {
+            "touch"
+        };
         model
             .validate()
-            .map_err(|e| SceneError::new("touch", e.to_string()))?;
+            .map_err(|e| SceneError::new(key, e.to_string()))?;
         Ok(model)
     }
 }

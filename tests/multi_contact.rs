@@ -564,6 +564,11 @@ fn bad_models_are_refused_with_the_field_named() {
     );
     let e = err(&|m| m.contacts[1].gap_m = -1e-3);
     assert!(e.to_string().contains("pressed in"), "{e}");
+    let e = err(&|m| m.masses = vec![m.masses[0]; 2 * MAX_CONTACTS + 1]);
+    assert!(
+        e.to_string().contains("masses (more than two per contact)"),
+        "{e}"
+    );
     let e = err(&|m| m.masses[1].mass_kg = -1.0);
     assert!(e.to_string().contains("masses[1].mass_kg"), "{e}");
     let e = err(&|m| m.contacts[0].stiffness_n_per_m = f64::NAN);
