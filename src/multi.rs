@@ -1644,7 +1644,7 @@ impl MultiState {
         }
         mag += xl.abs() + xu.abs() + (vl.abs() + vu.abs()) * rem + (gl + gu) * rem * rem;
         f.neutral = 4.0 * f64::EPSILON / 2.0 * mag;
-        // only for a hammer that just left: its flight starts at 0 and a
+        // only for a contact that just left: its flight starts at 0 and a
         // rounding-level value of the wrong sign is no new contact
         if matches!(start, Start::Boundary) && !inside {
             f.allow = f.neutral;
@@ -2033,8 +2033,9 @@ impl MultiState {
     }
 
     /// [`observe`](Self::observe) the long way, through the physical state
-    /// (every `q, q'`, every mass's `x, v`) and the energy summed from it:
-    /// O(dim^2) a sample, for checks.
+    /// (every `q, q'`, every mass's `x, v`) and the energy summed from it
+    /// (a closed spring's from the difference of its sides): O(dim^2) a
+    /// sample, for checks.
     pub fn observe_physical(&self, sc: &CompiledMulti) -> MultiObservation {
         let m = &sc.model;
         let ph = &sc.phases[self.mask as usize];
