@@ -2207,24 +2207,10 @@ impl MultiPhase {
         mat_vec_add(&self.vp, &zv[..nz], s);
     }
 }
-/// `out = M x + c` (`c` empty: 0) for a column-major `M`, by columns
-/// (contiguous reads).
+/// `out = M x + c` for a column-major `M`.
 fn mat_vec(m: &DMatrix<f64>, x: &[f64], c: &[f64], out: &mut [f64]) {
-    let n = out.len();
-    if c.is_empty() {
-        out.iter_mut().for_each(|o| *o = 0.0);
-    } else {
-        out.copy_from_slice(c);
-    }
-    let data = m.as_slice();
-    for (col, &xc) in x.iter().enumerate() {
-        if xc == 0.0 {
-            continue;
-        }
-        for (o, a) in out.iter_mut().zip(&data[col * n..(col + 1) * n]) {
-            *o += a * xc;
-        }
-    }
+    out.copy_from_slice(c);
+    mat_vec_add(m, x, out);
 }
 
 /// `out += M x` for a column-major `M`, by columns.
