@@ -388,6 +388,19 @@ pub struct MultiSwitch {
     pub time_s: f64,
 }
 
+/// Why [`MultiState::strike`] struck nothing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StrikeRefused {
+    /// The contact's upper side is not a mass.
+    NotAMass,
+    /// The height or the velocity is not a finite number (or the height
+    /// is negative).
+    NotFinite,
+    /// The mass cannot be put there with its other contacts open: a side
+    /// above it is lower than the height it would be thrown from.
+    Wedged,
+}
+
 /// What one sample shows of each contact: its upper side (the hammer of a
 /// hammer's contact) and its lower side (the struck point).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -1502,6 +1515,125 @@ impl MultiState {
         }
     }
 
+    /// Back to rest, as an instrument's kit wakes (docs/design.md section
+    /// 20, "Played"): every object still, every mass at its model height
+    /// and still, no contact closed. The clock runs on. Allocation-free.
+    /// \[audio-thread\]
+    pub fn rest(&mut self, sc: &CompiledMulti) {
+        self.mask = 0;
+        self.s.clear();
+        self.s.resize(sc.phases[0].dim, 0.0);
+        for (j, m) in sc.model.masses.iter().enumerate() {
+            self.x_f[j] = m.height_m;
+            self.v_f[j] = 0.0;
+        }
+        self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
+    }
+
+    /// A strike between two samples: the mass on the upper side of
+    /// contact `c` is thrown from `height_m` above that contact's lower
+    /// side (where it is now) at `velocity_m_per_s` (positive up). Its
+    /// closed contacts open first, through the physical state as a switch
+    /// does (their springs' energy leaves, nothing is added); its other
+    /// contacts must stay open where it is put (above every side it rests
+    /// on, below every side above it), else the strike is refused and
+    /// nothing changes: `Err(StrikeRefused::Wedged)` (a ball pressed
+    /// between two plates). O(dim) to place, O(dim^2) when a contact
+    /// opens. Allocation-free. \[audio-thread\]
+    pub fn strike(
+        &mut self,
+        sc: &CompiledMulti,
+        c: usize,
+        height_m: f64,
+        velocity_m_per_s: f64,
+    ) -> Result<(), StrikeRefused> {
+        let m = &sc.model;
+        let Some(MultiEnd::Mass(k)) = m.contacts.get(c).map(|ct| &ct.upper) else {
+            return Err(StrikeRefused::NotAMass);
+        };
+        let k = *k;
+        if !(height_m >= 0.0 && height_m.is_finite() && velocity_m_per_s.is_finite()) {
+            return Err(StrikeRefused::NotFinite);
+        }
+        // the bounds its contacts put on its height, from the other sides
+        // where they are now (a switch does not move them)
+        let ph = &sc.phases[self.mask as usize];
+        let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        let mut who = 0u32;
+        for (j, ct) in m.contacts.iter().enumerate() {
+            let [lower, upper] = &ph.sides[j];
+            if ct.upper == MultiEnd::Mass(k) {
+                let (x, _) = self.side_at(lower);
+                lo = lo.max(if j == c { x + height_m } else { x - ct.gap_m });
+            } else if ct.lower == MultiEnd::Mass(k) {
+                hi = hi.min(self.side_at(upper).0 + ct.gap_m);
+            } else {
+                continue;
+            }
+            who |= 1 << j;
+        }
+        if !(lo <= hi) {
+            return Err(StrikeRefused::Wedged);
+        }
+        let closed = who & self.mask;
+        if closed != 0 {
+            let time_s = self.clock as f64 * sc.h;
+            self.switch(sc, closed, time_s);
+        }
+        // every contact of the mass is open: it flies alone, in its slot
+        debug_assert!(sc.phases[self.mask as usize].place[k].is_none());
+        self.x_f[k] = lo;
+        self.v_f[k] = velocity_m_per_s;
+        self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
+        Ok(())
+    }
+
+    /// The kinetic energy of the masses \[J\] (whether anything still moves
+    /// that the objects' sound does not show: a thrown mass, a falling
+    /// ball). O(masses dim).
+    pub fn masses_kinetic(&self, sc: &CompiledMulti) -> f64 {
+        let m = &sc.model;
+        (0..m.masses.len())
+            .map(|j| {
+                let v = self.mass_at(sc, j).1;
+                0.5 * m.masses[j].mass_kg * v * v
+            })
+            .sum()
+    }
+
+    /// A side's position and velocity in the current phase (its rows and
+    /// its flight).
+    fn side_at(&self, r: &SideRows) -> (f64, f64) {
+        let (fx, fv) = r.fly.map_or((0.0, 0.0), |k| (self.x_f[k], self.v_f[k]));
+        (
+            dot(&r.pos, &self.s) + r.pos0 + fx,
+            dot(&r.vel, &self.s) + r.vel0 + fv,
+        )
+    }
+
+    /// Mass `j`'s height and velocity: its flight when free, else its
+    /// coordinate's rows (plus its group's flight).
+    fn mass_at(&self, sc: &CompiledMulti, j: usize) -> (f64, f64) {
+        let ph = &sc.phases[self.mask as usize];
+        let Some(b) = ph.place[j] else {
+            return (self.x_f[j], self.v_f[j]);
+        };
+        let n = sc.model.n();
+        let sq = sc.model.masses[j].mass_kg.sqrt();
+        let row = |a: &DMatrix<f64>, r: usize| -> f64 {
+            ph.coupled.iter().map(|&c| a[(r, c)] * self.s[c]).sum()
+        };
+        let (mut x, mut v) = (
+            (row(&ph.zv, b) + ph.zv0[b]) / sq,
+            (row(&ph.pv, n + b) + ph.pv0[n + b]) / sq,
+        );
+        if let Some(k) = ph.fly_of[j] {
+            x += self.x_f[k];
+            v += self.v_f[k];
+        }
+        (x, v)
+    }
+
     /// Keep every switch in [`switches`](Self::switches) (tests).
     pub fn record(&mut self, on: bool) {
         self.record = on;
@@ -1971,7 +2103,6 @@ impl MultiState {
         let ph = &sc.phases[self.mask as usize];
         let g = m.gravity_m_per_s2;
         let s = &self.s;
-        let n = m.n();
         let nb = ph.gens.len();
         let nbc = ph.coupled.len() / 2;
         // a row of a switch product on the coupled entries of s
@@ -1990,24 +2121,9 @@ impl MultiState {
             let (a, b) = (row(&ph.qv, i) + ph.qv0[i], row(&ph.pv, i) + ph.pv0[i]);
             energy += 0.5 * (a * a + b * b);
         }
-        for (b, &j) in ph.bound.iter().enumerate() {
-            let mass = m.masses[j].mass_kg;
-            let sq = mass.sqrt();
-            let (mut x, mut v) = (
-                (row(&ph.zv, b) + ph.zv0[b]) / sq,
-                (row(&ph.pv, n + b) + ph.pv0[n + b]) / sq,
-            );
-            if let Some(k) = ph.fly_of[j] {
-                x += self.x_f[k];
-                v += self.v_f[k];
-            }
-            energy += 0.5 * mass * v * v + mass * g * x;
-        }
-        for (j, place) in ph.place.iter().enumerate() {
-            if place.is_none() {
-                let mass = m.masses[j].mass_kg;
-                energy += 0.5 * mass * self.v_f[j] * self.v_f[j] + mass * g * self.x_f[j];
-            }
+        for (j, ms) in m.masses.iter().enumerate() {
+            let (x, v) = self.mass_at(sc, j);
+            energy += 0.5 * ms.mass_kg * v * v + ms.mass_kg * g * x;
         }
         for &c in &ph.members {
             let p = dot(&ph.ev[c], s) + ph.ev0[c];
@@ -2019,11 +2135,7 @@ impl MultiState {
             ..Default::default()
         };
         for (j, [lo, up]) in ph.sides.iter().enumerate() {
-            let at = |r: &SideRows| {
-                let (fx, fv) = r.fly.map_or((0.0, 0.0), |k| (self.x_f[k], self.v_f[k]));
-                (dot(&r.pos, s) + r.pos0 + fx, dot(&r.vel, s) + r.vel0 + fv)
-            };
-            let ((xl, vl), (xu, vu)) = (at(lo), at(up));
+            let ((xl, vl), (xu, vu)) = (self.side_at(lo), self.side_at(up));
             o.x_hammer[j] = xu;
             o.v_hammer[j] = vu;
             o.x_contact[j] = xl;

@@ -1,0 +1,207 @@
+//! Strikes played into a running several-contact state (what the
+//! instrument's kit does at a note-on, docs/design.md section 20): a
+//! strike on a kit at rest is the model started there, a strike that
+//! opens a closed contact removes exactly its spring's and the mass's old
+//! energy and adds exactly the new throw's, and a mass that cannot be put
+//! where asked is refused without a change.
+
+use modal_contact::multi::{
+    CompiledMulti, MultiContact, MultiEnd, MultiHammer, MultiMass, MultiModel, MultiState,
+    StrikeRefused,
+};
+use modal_testkit::rng::TestRng;
+
+const RATE: f64 = 48_000.0;
+
+/// A bar-like object of `n` modes struck by two hammers (contacts 0 and
+/// 1) parked at the given heights, at rest; velocity and displacement
+/// pickups.
+fn two_mallets(n: usize, heights: [f64; 2], g: f64) -> MultiModel {
+    let mut rng = TestRng(7);
+    let freq: Vec<f64> = (0..n).map(|i| 180.0 * (1.0 + i as f64).powf(1.7)).collect();
+    let sigma: Vec<f64> = (0..n).map(|i| 1.0 + 0.3 * i as f64).collect();
+    let w = |rng: &mut TestRng| -> Vec<f64> { (0..n).map(|_| rng.uniform(-2.0, 2.0)).collect() };
+    let hammers: Vec<MultiHammer> = heights
+        .iter()
+        .map(|&h| MultiHammer {
+            mass_kg: 0.03,
+            height_m: h,
+            velocity_m_per_s: 0.0,
+            weights: w(&mut rng),
+            stiffness_n_per_m: 3e5,
+            damping_n_s_per_m: 20.0,
+        })
+        .collect();
+    let pick = w(&mut rng);
+    MultiModel::struck(
+        freq,
+        sigma,
+        &hammers,
+        g,
+        [(pick.clone(), vec![0.0; n]), (vec![0.0; n], pick)],
+    )
+}
+
+/// A strike on a kit at rest gives the samples of the model whose mass
+/// starts there: the strike's placement and the model's start agree.
+#[test]
+fn a_strike_at_rest_is_the_model_started_there() {
+    for g in [0.0, 9.81] {
+        let parked = two_mallets(24, [0.02, 0.03], g);
+        let sc = CompiledMulti::new(&parked, RATE).unwrap();
+        let mut st = MultiState::new(&sc);
+        st.rest(&sc);
+        st.strike(&sc, 1, 0.001, -1.7).unwrap();
+        let mut started = parked.clone();
+        started.masses[1] = MultiMass {
+            mass_kg: 0.03,
+            height_m: 0.001,
+            velocity_m_per_s: -1.7,
+        };
+        let sc2 = CompiledMulti::new(&started, RATE).unwrap();
+        let mut st2 = MultiState::new(&sc2);
+        let (mut peak, mut worst) = (0.0f64, 0.0f64);
+        for _ in 0..6000 {
+            let (a, b) = (st.tick(&sc), st2.tick(&sc2));
+            for ch in 0..2 {
+                peak = peak.max(b[ch].abs());
+                worst = worst.max((a[ch] - b[ch]).abs());
+            }
+        }
+        println!("g {g}: strike vs started model {worst:.3e} of peak {peak:.3e}");
+        assert!(st.stats.contacts_started[1] >= 1, "{:?}", st.stats);
+        assert_eq!(st.stats.contacts_started, st2.stats.contacts_started);
+        assert!(peak > 1e-4);
+        assert!(worst <= 1e-13 * peak, "{worst:e} of {peak:e}");
+    }
+}
+
+/// `rest` puts every mass back at its height, still, and the objects at
+/// rest, from any state.
+#[test]
+fn rest_is_the_model_at_rest() {
+    let m = two_mallets(12, [0.0, 0.01], 0.0);
+    let sc = CompiledMulti::new(&m, RATE).unwrap();
+    let mut st = MultiState::new(&sc);
+    st.strike(&sc, 0, 0.0, -2.0).unwrap();
+    for _ in 0..40 {
+        st.tick(&sc);
+    }
+    assert_ne!(st.active(), 0, "the first mallet is in contact");
+    st.rest(&sc);
+    let o = st.observe_physical(&sc);
+    assert_eq!(st.active(), 0);
+    assert_eq!(o.x_hammer[..2], [0.0, 0.01]);
+    assert_eq!(o.v_hammer[..2], [0.0, 0.0]);
+    assert_eq!(o.x_contact[..2], [0.0, 0.0]);
+    assert_eq!(o.energy, 0.0);
+    assert_eq!(st.tick(&sc), [0.0, 0.0]);
+}
+
+/// A strike on a mallet in contact: the contact opens through the
+/// physical state, so the energy after is the energy before less the
+/// spring's and the mass's old energy, plus the new throw's; from there
+/// the energy never rises and the mallet strikes again.
+#[test]
+fn a_strike_in_contact_opens_it_and_adds_only_the_throw() {
+    for g in [0.0, 9.81] {
+        let m = two_mallets(30, [0.0, 0.02], g);
+        let sc = CompiledMulti::new(&m, RATE).unwrap();
+        let mut st = MultiState::new(&sc);
+        st.rest(&sc);
+        st.strike(&sc, 0, 0.0, -1.0).unwrap();
+        let mut n = 0;
+        while n < 8 {
+            st.tick(&sc);
+            n += (st.active() & 1) as usize;
+        }
+        let before = st.observe_physical(&sc);
+        let ct = &m.contacts[0];
+        let p = before.x_contact[0] - before.x_hammer[0];
+        assert!(p > 0.0, "pressed in: {p:e}");
+        let spring = 0.5 * ct.stiffness_n_per_m * p * p;
+        let (mk, v0, x0) = (0.03, before.v_hammer[0], before.x_hammer[0]);
+        let old = 0.5 * mk * v0 * v0 + mk * g * x0;
+        let v_new = -2.5;
+        let started = st.stats.contacts_started[0];
+        st.strike(&sc, 0, 0.0, v_new).unwrap();
+        let after = st.observe_physical(&sc);
+        let new = 0.5 * mk * v_new * v_new + mk * g * after.x_hammer[0];
+        let expect = before.energy - spring - old + new;
+        let err = (after.energy - expect).abs() / expect;
+        println!(
+            "g {g}: spring {spring:.4e} J left, throw {new:.4e} J; energy after within {err:.2e}"
+        );
+        assert_eq!(st.active() & 1, 0, "the contact opened");
+        // thrown from the surface (the two views of it differ by rounding)
+        let gap = (after.x_hammer[0] - after.x_contact[0]).abs();
+        assert!(gap <= 1e-12 * after.x_contact[0].abs(), "{gap:e}");
+        assert_eq!(after.v_hammer[0], v_new);
+        assert!(err < 1e-12, "{err:e}");
+        // the observation the trace takes agrees with the physical one
+        let fast = st.observe(&sc);
+        assert!((fast.energy - after.energy).abs() <= 1e-12 * after.energy);
+        let mut e_prev = after.energy;
+        let mut rise = 0.0f64;
+        for _ in 0..4000 {
+            st.tick(&sc);
+            let e = st.observe(&sc).energy;
+            rise = rise.max((e - e_prev) / after.energy);
+            e_prev = e;
+        }
+        println!("g {g}: largest energy step after the strike {rise:.2e} of it");
+        assert!(rise < 1e-12, "{rise:e}");
+        assert!(st.stats.contacts_started[0] > started, "it struck again");
+    }
+}
+
+/// A ball held between a floor and a lid 1 mm above cannot be thrown
+/// from 2 mm: refused, nothing changed; from 0.5 mm it is.
+#[test]
+fn a_wedged_mass_is_refused_without_a_change() {
+    let m = MultiModel {
+        freq_hz: vec![],
+        sigma: vec![],
+        masses: vec![MultiMass {
+            mass_kg: 0.01,
+            height_m: 0.0,
+            velocity_m_per_s: 0.0,
+        }],
+        contacts: vec![
+            MultiContact {
+                lower: MultiEnd::Wall(0.0),
+                upper: MultiEnd::Mass(0),
+                gap_m: 0.0,
+                stiffness_n_per_m: 1e6,
+                damping_n_s_per_m: 1.0,
+            },
+            MultiContact {
+                lower: MultiEnd::Mass(0),
+                upper: MultiEnd::Wall(0.001),
+                gap_m: 0.0,
+                stiffness_n_per_m: 1e6,
+                damping_n_s_per_m: 1.0,
+            },
+        ],
+        gravity_m_per_s2: 0.0,
+        pickups: [(vec![], vec![]), (vec![], vec![])],
+    };
+    let sc = CompiledMulti::new(&m, RATE).unwrap();
+    let mut st = MultiState::new(&sc);
+    let before = st.observe_physical(&sc);
+    assert_eq!(st.strike(&sc, 0, 0.002, -1.0), Err(StrikeRefused::Wedged));
+    assert_eq!(st.strike(&sc, 1, 0.0, -1.0), Err(StrikeRefused::NotAMass));
+    assert_eq!(
+        st.strike(&sc, 0, f64::NAN, -1.0),
+        Err(StrikeRefused::NotFinite)
+    );
+    assert_eq!(st.observe_physical(&sc), before);
+    st.strike(&sc, 0, 0.0005, 1.0).unwrap();
+    let o = st.observe_physical(&sc);
+    assert_eq!((o.x_hammer[0], o.v_hammer[0]), (0.0005, 1.0));
+    // it flies up into the lid and back, bouncing between the two
+    for _ in 0..2000 {
+        st.tick(&sc);
+    }
+    assert!(st.stats.contacts_started[0] >= 1 && st.stats.contacts_started[1] >= 1);
+}
