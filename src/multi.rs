@@ -1588,17 +1588,36 @@ impl MultiState {
         Ok(())
     }
 
-    /// The kinetic energy of the masses \[J\] (whether anything still moves
-    /// that the objects' sound does not show: a thrown mass, a falling
-    /// ball). O(masses dim).
-    pub fn masses_kinetic(&self, sc: &CompiledMulti) -> f64 {
+    /// The kinetic energy \[J\] of the masses that may still land: each
+    /// one in a closed contact, falling under gravity, or closing on a
+    /// side of one of its open contacts (its penetration rising). A mass
+    /// that flies away from everything in a scene without gravity does
+    /// not count: it never comes back (the instrument's silence test).
+    /// O(masses dim).
+    pub fn masses_to_land(&self, sc: &CompiledMulti) -> f64 {
         let m = &sc.model;
-        (0..m.masses.len())
-            .map(|j| {
-                let v = self.mass_at(sc, j).1;
-                0.5 * m.masses[j].mass_kg * v * v
-            })
-            .sum()
+        let ph = &sc.phases[self.mask as usize];
+        let mut e = 0.0;
+        for (k, ms) in m.masses.iter().enumerate() {
+            let v = self.mass_at(sc, k).1;
+            let lands = m.gravity_m_per_s2 > 0.0
+                || m.contacts.iter().enumerate().any(|(j, ct)| {
+                    let [lower, upper] = &ph.sides[j];
+                    if self.mask & (1 << j) != 0 {
+                        ct.lower == MultiEnd::Mass(k) || ct.upper == MultiEnd::Mass(k)
+                    } else if ct.upper == MultiEnd::Mass(k) {
+                        self.side_at(lower).1 > v
+                    } else if ct.lower == MultiEnd::Mass(k) {
+                        v > self.side_at(upper).1
+                    } else {
+                        false
+                    }
+                });
+            if lands {
+                e += 0.5 * ms.mass_kg * v * v;
+            }
+        }
+        e
     }
 
     /// A side's position and velocity in the current phase (its rows and

@@ -391,6 +391,11 @@ pub struct HammerSpec {
     /// The mallet's point that touches the struck object (with `object`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub point: Option<String>,
+    /// In a scene of several contacts played by the instrument: the MIDI
+    /// notes that strike this mallet (docs/design.md, "Several contacts",
+    /// "Played"). Empty: see [`StrikerSpec::notes`].
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<u8>,
 }
 
 /// Another point-mass hammer with a contact of its own on the struck
@@ -413,6 +418,13 @@ pub struct StrikerSpec {
     /// Contact damping \[N s/m\].
     #[serde(default)]
     pub damping_n_s_per_m: f64,
+    /// The MIDI notes that strike this mallet when the instrument plays
+    /// the scene. When no mallet (`[hammer]` or a striker) lists notes,
+    /// every note strikes the next mallet in turn (a roll on one key);
+    /// else a note strikes every mallet that lists it, and a note no
+    /// mallet lists strikes nothing.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<u8>,
 }
 
 /// Most contacts of one scene: `[contact]` and up to `MAX_CONTACTS - 1`
@@ -660,7 +672,35 @@ impl Scene {
         self.validate_mallet()?;
         self.validate_strikers()?;
         self.validate_touches()?;
+        self.validate_notes()?;
         self.validate_pickups()
+    }
+
+    /// Notes: MIDI notes (0..=127), and only where there are several
+    /// contacts (they choose among the mallets the instrument strikes).
+    fn validate_notes(&self) -> Result<(), SceneError> {
+        let lists = std::iter::once(("hammer.notes".to_string(), &self.hammer.notes)).chain(
+            self.striker
+                .iter()
+                .enumerate()
+                .map(|(i, st)| (format!("striker[{i}].notes"), &st.notes)),
+        );
+        for (field, notes) in lists {
+            if let Some(&n) = notes.iter().find(|&&n| n > 127) {
+                return Err(SceneError::new(
+                    field,
+                    format!("{n} is not a MIDI note (0 ..= 127)"),
+                ));
+            }
+            if !notes.is_empty() && !self.several_contacts() {
+                return Err(SceneError::new(
+                    field,
+                    "notes choose among the mallets of a scene of several contacts ([[striker]] \
+                     or [[touch]]); with one contact every note strikes the hammer: remove it",
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Strikers: at most `MAX_CONTACTS - 1`; each hits a point of the

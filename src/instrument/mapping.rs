@@ -212,6 +212,12 @@ pub fn scene_for(base: &Scene, p: &InstrumentParams) -> Scene {
         1.0
     };
     s.contact.damping_n_s_per_m *= cf;
+    // a kit's other mallets are mallets too (its touches are not)
+    for st in &mut s.striker {
+        st.mass_kg *= mass_factor;
+        st.stiffness_n_per_m *= positive_or(sp.stiffness_factor, 1.0);
+        st.damping_n_s_per_m *= cf;
+    }
     let ds = positive_or(sp.decay_scale, 1.0);
     scale_damping(&mut s, |t| t.map(|t| t * ds), |r| r / ds);
     if let Some(pos) = sp.strike_pos_norm {
@@ -225,7 +231,11 @@ pub fn scene_for(base: &Scene, p: &InstrumentParams) -> Scene {
     if base.hammer.gravity_m_per_s2 > 0.0 {
         s.hammer.gravity_m_per_s2 = positive_or(sp.gravity_m_per_s2, base.hammer.gravity_m_per_s2);
     }
-    s.contact.switching = Some(sp.switching);
+    // several contacts always switch exactly (the parameter's offset rod
+    // is the one contact's)
+    if !s.several_contacts() {
+        s.contact.switching = Some(sp.switching);
+    }
     s
 }
 

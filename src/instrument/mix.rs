@@ -336,9 +336,18 @@ impl Instrument {
                 if self.fade_left == 0 {
                     break;
                 }
-                let scene = f.scenes.bound(at, on_damped);
                 let g0 = self.fade_left as f64 / self.fade_len as f64;
                 let dg = 1.0 / self.fade_len as f64;
+                if let Some(kit) = f.kit.as_deref_mut() {
+                    if kit.tick_into(&mut self.vbuf, len, (g0, dg), |_, _, _| {}) {
+                        add_into(&mut self.acc, &self.vbuf, len);
+                    } else {
+                        self.fade_voices[i] = None;
+                        self.stats.nonfinite_resets += 1;
+                    }
+                    continue;
+                }
+                let scene = f.scenes.bound(at, on_damped);
                 if tick_into(&mut f.states[i], scene, &mut self.vbuf, len, g0, dg, None) {
                     add_into(&mut self.acc, &self.vbuf, len);
                 } else {
@@ -405,6 +414,18 @@ impl Instrument {
         let t0 = self.lanes.end[i];
         let len = usize::from(self.lanes.chunk[t0 as usize & self.lanes.mask]);
         debug_assert!(len > 0 && t0 + len as u64 <= self.sample_pos);
+        if self.cur.kit.is_some() {
+            // a kit: the whole scene in voice 0's lane
+            if let Some(new_contacts) = self.kit_render(t0, len) {
+                if self.lanes.meter == WorkMeter::Estimate {
+                    self.lanes.work_ns += len as f64 * self.cur.step_cost_ns()
+                        + new_contacts as f64 * self.cur.contact_cost_ns();
+                }
+                self.lanes.push(i, &self.vbuf, len);
+                self.lanes.settled[i] = false;
+            }
+            return;
+        }
         let p = &mut *self.cur;
         let v = &mut self.voices[i];
         let scene = p.scenes.bound(v.at, v.on_damped);
@@ -548,9 +569,11 @@ impl Instrument {
             // when the estimate of a contact still fits (it waits for a
             // later block, at the latest for the output)
             let st = &self.cur.states[i];
-            let leaving = st
-                .hammer_in_flight()
-                .is_some_and(|(x, up)| x > 0.0 && up >= 0.0);
+            // a kit may switch at any sample
+            let leaving = self.cur.kit.is_none()
+                && st
+                    .hammer_in_flight()
+                    .is_some_and(|(x, up)| x > 0.0 && up >= 0.0);
             if (st.in_contact() || !leaving) && spent_ns + self.cur.contact_cost_ns() > budget_ns {
                 break;
             }

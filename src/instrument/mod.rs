@@ -77,6 +77,7 @@
 //!   here.
 
 mod events;
+mod kit;
 mod mapping;
 mod mix;
 mod prepared;
@@ -86,6 +87,7 @@ mod tests;
 mod voices;
 
 pub use events::{Event, TimedEvent};
+pub use kit::{Kit, SILENCE_AMPLITUDE_RATIO};
 pub use mapping::{
     damped_scene, impact_speed_m_per_s, lowest_frequency_hz, root_note, scene_for,
     InstrumentParams, PlayParams, SceneParams, VariantSet,
@@ -251,6 +253,8 @@ pub struct Instrument {
     probe: Option<Box<dyn VoiceProbe>>,
     probe_on: bool,
     motion: [Motion; CHECK_INTERVAL_SAMPLES],
+    /// A kit's motion per contact for the live view.
+    kit_motion: [[Motion; CHECK_INTERVAL_SAMPLES]; crate::multi::MAX_CONTACTS],
     /// Each voice's clock and samples, and the output (`mix`).
     lanes: mix::Lanes,
     /// Counters.
@@ -338,6 +342,7 @@ impl Instrument {
             probe: None,
             probe_on: false,
             motion: [Motion::default(); CHECK_INTERVAL_SAMPLES],
+            kit_motion: [[Motion::default(); CHECK_INTERVAL_SAMPLES]; crate::multi::MAX_CONTACTS],
             lanes: mix::Lanes::new(),
             stats: Stats::default(),
         };
@@ -416,6 +421,10 @@ impl Instrument {
     /// (gravity would change with the time axis). O(voices N),
     /// allocation-free. \[audio-thread\]
     fn bend_tick(&mut self) {
+        if self.cur.kit.is_some() {
+            // a kit plays at its scene's pitch
+            return;
+        }
         let target = self.bend_target();
         let step = BEND_SLEW_SEMITONES_PER_S * BEND_TICK_SAMPLES as f64 / self.cur.rate_hz;
         self.bend_now = slew(self.bend_now, target, step);
@@ -451,6 +460,9 @@ impl Instrument {
 
     /// A per-note tuning ([`Event::NoteTuning`]). \[audio-thread\]
     fn note_tuning(&mut self, key: Option<u8>, semitones: f64) {
+        if self.cur.kit.is_some() {
+            return;
+        }
         let t = if semitones.is_nan() {
             0.0
         } else {
@@ -534,9 +546,12 @@ impl Instrument {
             return Err(new);
         }
         self.sync_all(true);
+        // a kit is not carried: it fades out and the new scene starts at rest
         let same_object = new.params.preset == self.cur.params.preset
             && new.params.user_scene == self.cur.params.user_scene
-            && new.rate_hz == self.cur.rate_hz;
+            && new.rate_hz == self.cur.rate_hz
+            && new.kit.is_none()
+            && self.cur.kit.is_none();
         let mut any_fade = false;
         for i in 0..MAX_VOICES {
             if !self.voices[i].active {
@@ -687,6 +702,9 @@ impl Instrument {
     /// Update the voices of `key` (every voice for `None`) with `set` and
     /// move them to the hardness level their note now asks for.
     fn want_levels(&mut self, key: Option<u8>, set: impl Fn(&mut Voice)) {
+        if self.cur.kit.is_some() {
+            return;
+        }
         for v in &mut self.voices {
             if v.active && key.is_none_or(|k| k == v.key) {
                 set(v);

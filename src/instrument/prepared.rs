@@ -8,10 +8,11 @@ use super::mapping::{
 use super::{
     lookahead_samples, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_VOICES, OUTPUT_BAND_FRACTION,
 };
+use super::kit::Kit;
 use crate::compile::{compile_with, CompileError, CompiledScene};
 use crate::engine::EngineState;
 use crate::presets;
-use crate::scene::{Scene, Switching};
+use crate::scene::{Scene, SceneError, Switching};
 
 /// Everything the audio thread needs for one parameter set, built off the
 /// audio thread: the compiled scene, its damped variant, and a fresh engine
@@ -40,6 +41,11 @@ pub struct Prepared {
     /// On the heap, as the variants (a `Prepared` is built on whichever
     /// thread compiles it, a host's thread at activation).
     pub(super) states: Box<[EngineState; MAX_VOICES]>,
+    /// A scene of several contacts, played as one voice (docs/design.md,
+    /// "Several contacts", "Played"); then `scenes` holds the first
+    /// mallet on its object alone (what the instrument reads of a scene:
+    /// its spectrum, its costs), which no voice plays.
+    pub kit: Option<Box<Kit>>,
 }
 
 /// The scene as played, the one released voices continue on, and the
@@ -325,7 +331,15 @@ impl Prepared {
     /// Estimated CPU time of one voice's sample, free or in contact \[ns\]
     /// ([`STEP_NS_PER_STATE`]). \[any-thread\]
     pub fn step_cost_ns(&self) -> f64 {
-        STEP_NS_FIXED + STEP_NS_PER_STATE * self.scenes.scene.contact.dim as f64
+        STEP_NS_FIXED + STEP_NS_PER_STATE * self.contact_states() as f64
+    }
+
+    /// The states a voice steps in contact: the played scene's, or a
+    /// kit's largest phase. \[any-thread\]
+    fn contact_states(&self) -> usize {
+        self.kit
+            .as_ref()
+            .map_or(self.scenes.scene.contact.dim, |k| k.max_dim())
     }
 
     /// Estimated CPU time of one contact beyond its samples' stepping \[ns\]:
@@ -339,9 +353,14 @@ impl Prepared {
     /// block (seconds; see [`STRIKE_NS_PER_SWITCH_FLOP`]). \[any-thread\]
     pub fn strike_cost_estimate_s(&self) -> f64 {
         let sc = &self.scenes.scene;
-        let flops = sc.switch_multiply_adds() as f64;
+        // a kit's switch: four products of about dim^2 / 2 (docs/numerics.md
+        // section 14), a strike two switches
+        let flops = self.kit.as_ref().map_or(sc.switch_multiply_adds(), |k| {
+            let d = k.max_dim();
+            4 * d * d
+        }) as f64;
         (flops * STRIKE_NS_PER_SWITCH_FLOP
-            + sc.contact.dim as f64 * STRIKE_NS_PER_STATE
+            + self.contact_states() as f64 * STRIKE_NS_PER_STATE
             + STRIKE_NS_FIXED)
             * 1e-9
     }
@@ -368,7 +387,7 @@ impl Prepared {
         StrikeCost {
             scene: self.scenes.scene.name.clone(),
             strike_s: self.strike_cost_estimate_s(),
-            contact_states: self.scenes.scene.contact.dim,
+            contact_states: self.contact_states(),
             rate_hz: self.rate_hz,
         }
     }
@@ -452,6 +471,9 @@ pub enum PrepareError {
     /// The damped scene compiled to other dimensions than the played one
     /// (released voices could not carry their state over).
     DampedLayoutDiffers,
+    /// A scene of several contacts that does not make a kit (the field
+    /// and why).
+    Kit(SceneError),
 }
 
 impl std::fmt::Display for PrepareError {
@@ -461,6 +483,7 @@ impl std::fmt::Display for PrepareError {
             Self::DampedLayoutDiffers => {
                 write!(f, "damped scene has other dimensions than the scene")
             }
+            Self::Kit(e) => write!(f, "{e}"),
         }
     }
 }
@@ -525,6 +548,9 @@ pub fn prepare_scene(
         play: PlayParams::default(),
     };
     let played_scene = scene_for(base, &ip);
+    if played_scene.several_contacts() {
+        return prepare_kit(base, &played_scene, params, rate_hz, revision);
+    }
     let (scene, switching_used, fallback_note) =
         compile_with_fallback(&played_scene, rate_hz, params.switching)?;
     let damped = if params.damper_norm > 0.0 {
@@ -604,20 +630,7 @@ pub fn prepare_scene(
     for (&d, v) in dampers.iter().zip(compiled) {
         damped_at[slot(d)] = v;
     }
-    let band_hz = OUTPUT_BAND_FRACTION * 0.5 * rate_hz;
-    let states: Vec<EngineState> = (0..MAX_VOICES)
-        .map(|_| {
-            let mut st = EngineState::new(&scene);
-            st.set_output_band(&scene, band_hz);
-            // the live view observes voices on the audio thread: no
-            // allocation there
-            st.reserve_observation();
-            st
-        })
-        .collect();
-    let Ok(states) = <Box<[EngineState; MAX_VOICES]>>::try_from(states.into_boxed_slice()) else {
-        unreachable!("MAX_VOICES states were made");
-    };
+    let states = voice_states(&scene, rate_hz);
     Ok(Box::new(Prepared {
         revision,
         rate_hz,
@@ -633,5 +646,63 @@ pub fn prepare_scene(
             damped_at,
         },
         states,
+        kit: None,
+    }))
+}
+
+/// A fresh engine state per voice for `scene`. \[worker\] \[main-thread\]
+fn voice_states(scene: &CompiledScene, rate_hz: f64) -> Box<[EngineState; MAX_VOICES]> {
+    let band_hz = OUTPUT_BAND_FRACTION * 0.5 * rate_hz;
+    let states: Vec<EngineState> = (0..MAX_VOICES)
+        .map(|_| {
+            let mut st = EngineState::new(scene);
+            st.set_output_band(scene, band_hz);
+            // the live view observes voices on the audio thread: no
+            // allocation there
+            st.reserve_observation();
+            st
+        })
+        .collect();
+    let Ok(states) = <Box<[EngineState; MAX_VOICES]>>::try_from(states.into_boxed_slice()) else {
+        unreachable!("MAX_VOICES states were made");
+    };
+    states
+}
+
+/// [`prepare_scene`] for a scene of several contacts (`played`, the
+/// parameters applied): its kit, and the first mallet on its object alone
+/// compiled for what the instrument reads of every scene (no voice plays
+/// it). The kit switches exactly whatever the Switching parameter says
+/// (several contacts have no offset rod yet). \[worker\] \[main-thread\]
+fn prepare_kit(
+    base: &Scene,
+    played: &Scene,
+    params: &SceneParams,
+    rate_hz: f64,
+    revision: u64,
+) -> Result<Box<Prepared>, PrepareError> {
+    let kit = Kit::new(played, rate_hz).map_err(PrepareError::Kit)?;
+    let mut alone = played.clone();
+    alone.striker.clear();
+    alone.touch.clear();
+    alone.hammer.notes.clear();
+    let scene = compile_with(&alone, rate_hz, Some(Switching::Exact))?;
+    let states = voice_states(&scene, rate_hz);
+    Ok(Box::new(Prepared {
+        revision,
+        rate_hz,
+        params: *params,
+        root_note: root_note(base),
+        bouncing: base.hammer.gravity_m_per_s2 > 0.0,
+        switching_used: Switching::Exact,
+        fallback_note: None,
+        scenes: Scenes {
+            scene,
+            damped: None,
+            played: (0..LEVELS * LEVELS).map(|_| None).collect(),
+            damped_at: (0..LEVELS).map(|_| None).collect(),
+        },
+        states,
+        kit: Some(Box::new(kit)),
     }))
 }

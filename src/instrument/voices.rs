@@ -66,6 +66,9 @@ pub(super) struct Pressing {
 
 impl Instrument {
     pub(super) fn note_on(&mut self, key: u8, velocity_norm: f64) {
+        if self.cur.kit.is_some() {
+            return self.kit_note_on(key, velocity_norm);
+        }
         self.stats.notes += 1;
         let speed = impact_speed_m_per_s(velocity_norm);
         let idx = if let Some(i) = self.voices.iter().position(|v| v.active && v.key == key) {
@@ -167,6 +170,10 @@ impl Instrument {
     }
 
     pub(super) fn note_off(&mut self, key: Option<u8>) {
+        if self.cur.kit.is_some() {
+            // mallets have no damper: a kit rings on
+            return;
+        }
         for i in 0..MAX_VOICES {
             let v = self.voices[i];
             if !v.active || v.released || key.is_some_and(|k| k != v.key) {
@@ -280,7 +287,7 @@ impl Instrument {
     pub(super) fn press_decide(&mut self, i: usize) {
         let p = &*self.cur;
         let v = &self.voices[i];
-        if !v.active || v.pressing.is_some() || p.bouncing {
+        if !v.active || v.pressing.is_some() || p.bouncing || p.kit.is_some() {
             return;
         }
         let press = v.pressure.max(self.channel_pressure).max(self.mod_wheel);
@@ -301,6 +308,9 @@ impl Instrument {
     /// Stop voice `i` if it fell silent (its energy below
     /// [`SILENCE_ENERGY_RATIO`] of its strike's). \[audio-thread\]
     pub(super) fn stop_if_silent(&mut self, i: usize) {
+        if self.cur.kit.is_some() {
+            return self.kit_silence();
+        }
         let p = &*self.cur;
         let v = &mut self.voices[i];
         if !v.active {

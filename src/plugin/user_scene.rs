@@ -307,6 +307,22 @@ pub struct HostBlocks {
 /// engine's cost per sample (its dimensions) and per strike (the estimate
 /// the strike warning uses), compile time.
 fn summary_line(p: &Prepared, spectrum: &[SpectrumLine], ms: f64) -> String {
+    if let Some(kit) = &p.kit {
+        let m = &kit.sc.model;
+        return format!(
+            "several contacts, played as one voice: {} modes, {} mallets, {} masses, {} contacts \
+             ({} phases, all compiled), largest phase {} states (per sample O(states)), {}, \
+             exact switching, strike ~{:.0} us, compiled in {ms:.1} ms",
+            m.freq_hz.len(),
+            kit.mallets,
+            m.masses.len(),
+            m.contacts.len(),
+            kit.sc.phases.len(),
+            kit.max_dim(),
+            kit.notes_rule(),
+            p.strike_cost_estimate_s() * 1e6,
+        );
+    }
     let sc = &p.scenes.scene;
     let route = sc
         .summary
@@ -530,18 +546,35 @@ gain = 0.5
     }
 
     /// A scene of several contacts (docs/design.md, "Several contacts")
-    /// renders offline only: loaded into the plugin it is refused with the
-    /// field named and the last good scene plays on.
+    /// plays as a kit, its summary says so; one that names an unknown
+    /// point is refused with the field named and the last good scene plays
+    /// on.
     #[test]
-    fn a_scene_of_several_contacts_is_refused_and_the_last_good_one_plays() {
+    fn a_scene_of_several_contacts_plays_as_a_kit_and_a_bad_one_is_refused() {
         let lib = SceneLibrary::default();
         lib.load(user(THREE_MODES));
         lib.prepare(&wanted(&lib), 48_000.0, 1, HOST).unwrap();
         let two = include_str!("../../docs/examples/marimba-two-mallets.toml");
         lib.load(user(two));
-        let e = lib.prepare(&wanted(&lib), 48_000.0, 2, HOST).unwrap_err();
-        assert!(e.contains("striker: a scene of several contacts"), "{e}");
-        assert_eq!(lib.playing().unwrap().text, THREE_MODES);
+        let p = lib.prepare(&wanted(&lib), 48_000.0, 2, HOST).unwrap().0;
+        let kit = p.kit.as_ref().expect("a kit");
+        assert_eq!((kit.mallets, kit.sc.contacts()), (2, 2));
+        let r = lib.report();
+        assert!(r.error.is_none(), "{r:?}");
+        assert!(
+            r.summary.contains("several contacts, played as one voice")
+                && r.summary.contains("2 mallets")
+                && r.summary.contains("4 phases"),
+            "{}",
+            r.summary
+        );
+        assert_eq!(lib.playing().unwrap().text, two);
+        let bad = two.replace("point = \"left\"", "point = \"nowhere\"");
+        lib.load(user(&bad));
+        let e = lib.prepare(&wanted(&lib), 48_000.0, 3, HOST).unwrap_err();
+        assert!(e.contains("striker[0].point"), "{e}");
+        assert!(e.contains("nowhere"), "{e}");
+        assert_eq!(lib.playing().unwrap().text, two);
     }
 
     #[test]

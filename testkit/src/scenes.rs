@@ -255,6 +255,7 @@ impl Hammer {
             gravity_m_per_s2: 0.0,
             object: None,
             point: None,
+            notes: Vec::new(),
         })
     }
 
