@@ -396,8 +396,8 @@ pub enum StrikeRefused {
     /// The height or the velocity is not a finite number (or the height
     /// is negative).
     NotFinite,
-    /// The mass cannot be put there with its other contacts open: a side
-    /// above it is lower than the height it would be thrown from.
+    /// The mass has no place with its contacts open: a side above it is
+    /// lower than a side below it (less their gaps).
     Wedged,
 }
 
@@ -1532,12 +1532,13 @@ impl MultiState {
 
     /// A strike between two samples: the mass on the upper side of
     /// contact `c` is thrown from `height_m` above that contact's lower
-    /// side (where it is now) at `velocity_m_per_s` (positive up). Its
-    /// closed contacts open first, through the physical state as a switch
-    /// does (their springs' energy leaves, nothing is added); its other
-    /// contacts must stay open where it is put (above every side it rests
-    /// on, below every side above it), else the strike is refused and
-    /// nothing changes: `Err(StrikeRefused::Wedged)` (a ball pressed
+    /// side (where it is now), or from as high as the sides above it let
+    /// it be, at `velocity_m_per_s` (positive up). Its closed contacts
+    /// open first, through the physical state as a switch does (their
+    /// springs' energy leaves, nothing is added); its other contacts stay
+    /// open where it is put (above every side it rests on, below every
+    /// side above it); where no such place exists the strike is refused
+    /// and nothing changes: `Err(StrikeRefused::Wedged)` (a ball pressed
     /// between two plates). O(dim) to place, O(dim^2) when a contact
     /// opens. Allocation-free. \[audio-thread\]
     pub fn strike(
@@ -1558,13 +1559,16 @@ impl MultiState {
         // the bounds its contacts put on its height, from the other sides
         // where they are now (a switch does not move them)
         let ph = &sc.phases[self.mask as usize];
-        let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        let (mut lo, mut hi, mut want) = (f64::NEG_INFINITY, f64::INFINITY, 0.0);
         let mut who = 0u32;
         for (j, ct) in m.contacts.iter().enumerate() {
             let [lower, upper] = &ph.sides[j];
             if ct.upper == MultiEnd::Mass(k) {
                 let (x, _) = self.side_at(lower);
-                lo = lo.max(if j == c { x + height_m } else { x - ct.gap_m });
+                lo = lo.max(x - ct.gap_m);
+                if j == c {
+                    want = x + height_m;
+                }
             } else if ct.lower == MultiEnd::Mass(k) {
                 hi = hi.min(self.side_at(upper).0 + ct.gap_m);
             } else {
@@ -1575,6 +1579,8 @@ impl MultiState {
         if !(lo <= hi) {
             return Err(StrikeRefused::Wedged);
         }
+        // as high as asked, or as the sides above it let it be
+        let x = want.max(lo).min(hi);
         let closed = who & self.mask;
         if closed != 0 {
             let time_s = self.clock as f64 * sc.h;
@@ -1582,7 +1588,7 @@ impl MultiState {
         }
         // every contact of the mass is open: it flies alone, in its slot
         debug_assert!(sc.phases[self.mask as usize].place[k].is_none());
-        self.x_f[k] = lo;
+        self.x_f[k] = x;
         self.v_f[k] = velocity_m_per_s;
         self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
         Ok(())

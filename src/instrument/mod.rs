@@ -78,6 +78,8 @@
 
 mod events;
 mod kit;
+#[cfg(test)]
+mod kit_tests;
 mod mapping;
 mod mix;
 mod prepared;

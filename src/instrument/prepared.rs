@@ -2,13 +2,13 @@
 //! compiled off the audio thread, and the compile fallback that keeps a
 //! scene playing when exact switching is refused.
 
+use super::kit::Kit;
 use super::mapping::{
     damped_scene, root_note, scene_for, InstrumentParams, PlayParams, SceneParams,
 };
 use super::{
     lookahead_samples, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_VOICES, OUTPUT_BAND_FRACTION,
 };
-use super::kit::Kit;
 use crate::compile::{compile_with, CompileError, CompiledScene};
 use crate::engine::EngineState;
 use crate::presets;

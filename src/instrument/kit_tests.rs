@@ -1,0 +1,333 @@
+//! Tests of the kit (a scene of several contacts played as one voice,
+//! docs/design.md section 20, "Played"): a note is the scene struck
+//! offline, notes choose mallets as the scene says, blocks and the
+//! lookahead do not change a sample, the kit stops when silent and wakes
+//! at rest, a swap fades it out.
+
+use super::*;
+use crate::multi::{CompiledMulti, MultiModel, MultiState};
+use crate::scene::Scene;
+
+const RATE: f64 = 48_000.0;
+
+fn two_mallets() -> Scene {
+    Scene::from_toml_str(include_str!("../../docs/examples/marimba-two-mallets.toml")).unwrap()
+}
+
+/// Three quickly decaying modes struck by two mallets (contacts 0 and 1),
+/// the notes of each given.
+fn small_kit(hammer_notes: &str, striker_notes: &str) -> Scene {
+    Scene::from_toml_str(&format!(
+        r#"
+version = 1
+name = "small-kit"
+[[object]]
+name = "bar"
+kind = "modal"
+points = ["a", "b", "pickup"]
+mode = [
+  {{ freq_hz = 300.0, t60_s = 0.15, weights = [1.0, 0.6, 0.9] }},
+  {{ freq_hz = 810.0, t60_s = 0.1, weights = [-0.7, 1.0, 0.5] }},
+  {{ freq_hz = 1650.0, t60_s = 0.08, weights = [0.5, -0.8, 0.7] }},
+]
+[hammer]
+mass_kg = 0.02
+height_m = 0.002
+{hammer_notes}
+[contact]
+object = "bar"
+point = "a"
+stiffness_n_per_m = 2e5
+damping_n_s_per_m = 5.0
+[[striker]]
+mass_kg = 0.03
+height_m = 0.004
+point = "b"
+stiffness_n_per_m = 4e5
+damping_n_s_per_m = 8.0
+{striker_notes}
+[[pickup]]
+object = "bar"
+point = "pickup"
+quantity = "velocity"
+"#
+    ))
+    .unwrap()
+}
+
+fn kit_instrument(scene: &Scene, lookahead_s: f64) -> Instrument {
+    let p = prepare_scene(scene, &SceneParams::default(), RATE, 0).unwrap();
+    assert!(p.kit.is_some());
+    let play = PlayParams {
+        gain_db: 0.0,
+        lookahead_s,
+        ..PlayParams::default()
+    };
+    let mut inst = Instrument::new(p, play);
+    inst.set_lookahead(lookahead_samples(lookahead_s, RATE));
+    inst
+}
+
+fn on(offset: usize, key: u8, vel: f64) -> TimedEvent {
+    TimedEvent {
+        offset,
+        event: Event::NoteOn {
+            key,
+            velocity_norm: vel,
+        },
+    }
+}
+
+fn render(inst: &mut Instrument, events: &[TimedEvent], n: usize) -> [Vec<f32>; 2] {
+    let (mut l, mut r) = (vec![0.0; n], vec![0.0; n]);
+    inst.process(events, &mut l, &mut r);
+    [l, r]
+}
+
+fn kit(inst: &Instrument) -> &Kit {
+    inst.cur.kit.as_deref().unwrap()
+}
+
+/// A note on the two-mallet marimba is the scene rendered offline with
+/// its first mallet thrown from the bar's surface at the note's speed and
+/// the second parked, still, where the scene puts it: the same samples
+/// (to the output's f32 rounding), through the model's own start instead
+/// of the kit's rest and strike.
+#[test]
+fn a_kit_note_is_the_scene_struck_offline() {
+    let scene = two_mallets();
+    let mut inst = kit_instrument(&scene, 0.0);
+    let (at, n) = (100, 9600);
+    let out = render(&mut inst, &[on(at, 60, 0.8)], at + n);
+    let speed = impact_speed_m_per_s(0.8);
+    let mut model = MultiModel::from_scene(&scene, RATE).unwrap();
+    model.masses[0].height_m = 0.0;
+    model.masses[0].velocity_m_per_s = -speed;
+    model.masses[1].velocity_m_per_s = 0.0;
+    let sc = CompiledMulti::new(&model, RATE).unwrap();
+    let mut st = MultiState::new(&sc);
+    let (mut peak, mut worst) = (0.0f64, 0.0f64);
+    for k in 0..n {
+        let y = st.tick(&sc);
+        for ch in 0..2 {
+            peak = peak.max(y[ch].abs());
+            worst = worst.max((f64::from(out[ch][at + k]) - y[ch]).abs());
+        }
+    }
+    println!("kit vs offline: {worst:.3e} of peak {peak:.3e}");
+    assert!(out[0][..at].iter().all(|&x| x == 0.0), "silent before");
+    assert!(peak > 1e-3);
+    assert!(worst <= 1e-6 * peak, "{worst:e} of {peak:e}");
+    assert_eq!(
+        kit(&inst).state().stats.contacts_started,
+        st.stats.contacts_started
+    );
+    assert_eq!(inst.active_voices(), 1);
+}
+
+/// Notes choose the mallets the scene lists; a note no mallet lists
+/// strikes nothing; without lists the mallets take turns.
+#[test]
+fn notes_strike_the_mallets_the_scene_gives_them() {
+    let scene = small_kit("notes = [60]", "notes = [62, 60]");
+    let mut inst = kit_instrument(&scene, 0.0);
+    let started = |inst: &Instrument| kit(inst).state().stats.contacts_started;
+    render(&mut inst, &[on(0, 61, 0.7)], 4800);
+    assert_eq!(started(&inst)[..2], [0, 0], "61 strikes nothing");
+    assert_eq!(inst.active_voices(), 0);
+    render(&mut inst, &[on(0, 62, 0.7)], 4800);
+    assert_eq!(started(&inst)[0], 0, "62: not the hammer");
+    assert!(started(&inst)[1] >= 1, "62: the striker");
+    let before = started(&inst);
+    render(&mut inst, &[on(0, 60, 0.7)], 4800);
+    let after = started(&inst);
+    assert!(after[0] > before[0] && after[1] > before[1], "60: both");
+
+    let mut turn = kit_instrument(&small_kit("", ""), 0.0);
+    let mut seen = Vec::new();
+    for _ in 0..4 {
+        let before = started(&turn);
+        render(&mut turn, &[on(0, 40, 0.7)], 2400);
+        let after = started(&turn);
+        seen.push([after[0] > before[0], after[1] > before[1]]);
+    }
+    assert_eq!(
+        seen,
+        [[true, false], [false, true], [true, false], [false, true]],
+        "in turn"
+    );
+}
+
+/// However the host splits its blocks, and with a lookahead, the kit's
+/// samples are the same (the lookahead's: that many samples later).
+#[test]
+fn a_kit_renders_the_same_in_any_blocks_and_with_a_lookahead() {
+    let scene = two_mallets();
+    let events = [on(10, 60, 0.9), on(700, 62, 0.5), on(3000, 60, 1.0)];
+    let n = 12_000;
+    let whole = render(&mut kit_instrument(&scene, 0.0), &events, n);
+    let mut inst = kit_instrument(&scene, 0.0);
+    let (mut l, mut r) = (vec![0.0f32; n], vec![0.0f32; n]);
+    let (mut pos, mut i) = (0, 0);
+    for len in [1usize, 7, 64, 333, 5].iter().cycle() {
+        if pos >= n {
+            break;
+        }
+        let end = (pos + len).min(n);
+        let evs: Vec<TimedEvent> = events
+            .iter()
+            .filter(|e| (pos..end).contains(&e.offset))
+            .map(|e| TimedEvent {
+                offset: e.offset - pos,
+                ..*e
+            })
+            .collect();
+        inst.process(&evs, &mut l[pos..end], &mut r[pos..end]);
+        pos = end;
+        i += 1;
+    }
+    assert!(i > 100);
+    assert_eq!(l, whole[0], "blocks");
+    assert_eq!(r, whole[1], "blocks");
+    let mut ahead = kit_instrument(&scene, 0.005);
+    let la = ahead.lookahead();
+    assert!(la > 200);
+    let delayed = render(&mut ahead, &events, n + la);
+    assert!(delayed[0][..la].iter().all(|&x| x == 0.0));
+    assert_eq!(delayed[0][la..], whole[0][..], "lookahead");
+}
+
+/// The kit stops when it has gone silent, and the next note wakes it at
+/// rest: the same samples as the first note's. Note-off, the pedals, the
+/// bend, pressure and note expressions change nothing of a kit.
+#[test]
+fn a_kit_stops_when_silent_and_wakes_at_rest() {
+    let scene = small_kit("", "");
+    let mut inst = kit_instrument(&scene, 0.0);
+    let n = 4800;
+    let first = render(&mut inst, &[on(0, 50, 0.6)], n);
+    assert_eq!(inst.active_voices(), 1);
+    // ringing on: every event that is not a note changes nothing
+    let extra = [
+        TimedEvent {
+            offset: 3,
+            event: Event::NoteOff { key: 50 },
+        },
+        TimedEvent {
+            offset: 5,
+            event: Event::PitchBend { value: 1.0 },
+        },
+        TimedEvent {
+            offset: 9,
+            event: Event::ChannelPressure { value: 1.0 },
+        },
+        TimedEvent {
+            offset: 11,
+            event: Event::Sustain { down: true },
+        },
+        TimedEvent {
+            offset: 13,
+            event: Event::NoteBrightness {
+                key: Some(50),
+                value: 1.0,
+            },
+        },
+        TimedEvent {
+            offset: 17,
+            event: Event::Sustain { down: false },
+        },
+        TimedEvent {
+            offset: 19,
+            event: Event::AllNotesOff,
+        },
+    ];
+    let mut quiet = kit_instrument(&scene, 0.0);
+    render(&mut quiet, &[on(0, 50, 0.6)], n);
+    let a = render(&mut inst, &extra, n);
+    let b = render(&mut quiet, &[], n);
+    assert!(a == b, "events that are not notes change nothing");
+    let t = 2 * n + until_silent(&mut inst);
+    println!("silent after {:.3} s", t as f64 / RATE);
+    assert_eq!(inst.active_voices(), 0, "stopped");
+    assert!(inst.stats.silent_stops >= 1);
+    assert!(t < 3 * RATE as usize, "the modes decay in 0.15 s");
+    // the next note in turn is the second mallet; the one after it the
+    // first again, woken at rest: the first note's samples; and the second
+    // again, the second's
+    let again = render(&mut inst, &[on(0, 50, 0.6)], n);
+    assert!(again != first, "the second mallet");
+    until_silent(&mut inst);
+    let third = render(&mut inst, &[on(0, 50, 0.6)], n);
+    assert!(third == first, "woke at rest, the same strike");
+    until_silent(&mut inst);
+    let fourth = render(&mut inst, &[on(0, 50, 0.6)], n);
+    assert!(fourth == again, "woke at rest, the same strike");
+}
+
+/// Render until the kit stops (at most 10 s); the samples it took.
+fn until_silent(inst: &mut Instrument) -> usize {
+    let mut t = 0;
+    while inst.active_voices() > 0 && t < 10 * RATE as usize {
+        render(inst, &[], 480);
+        t += 480;
+    }
+    t
+}
+
+/// A swap (a recompile: the Hardness knob) while the kit rings fades the
+/// old kit out over the fade and starts the new one at rest; nothing is
+/// not a number, and the old box is retired.
+#[test]
+fn a_kit_swap_fades_the_old_kit_out() {
+    let scene = two_mallets();
+    let mut inst = kit_instrument(&scene, 0.0);
+    render(&mut inst, &[on(0, 60, 1.0)], 2000);
+    let sp = SceneParams {
+        stiffness_factor: 2.0,
+        ..SceneParams::default()
+    };
+    let harder = prepare_scene(&scene, &sp, RATE, 1).unwrap();
+    assert!(inst.install(harder).is_ok());
+    assert_eq!(inst.active_voices(), 0, "the old kit fades");
+    let fade = (FADE_S * RATE).round() as usize;
+    let out = render(&mut inst, &[], 2 * fade);
+    assert!(out[0][..fade / 4].iter().any(|&x| x != 0.0), "fading");
+    assert!(out[0][fade + 1..].iter().all(|&x| x == 0.0), "faded");
+    assert_eq!(inst.stats.voices_faded, 1);
+    assert!(inst.retired_slots_mut().iter().any(|s| s.is_some()));
+    let new = render(&mut inst, &[on(0, 60, 1.0)], 2000);
+    assert!(new[0].iter().all(|x| x.is_finite()) && new[0].iter().any(|&x| x != 0.0));
+    assert_eq!(
+        kit(&inst).sc.model.contacts[0].stiffness_n_per_m,
+        2.0 * 282102.0
+    );
+}
+
+/// A kit with gravity (a ball between two plates) drops its ball from the
+/// drop height; velocity 127 on all 128 keys in one block and a note on
+/// every sample stay finite and within the ceiling, and a ball wedged
+/// between the plates is refused rather than pushed into one.
+#[test]
+fn a_bouncing_kit_takes_every_key_at_once() {
+    let scene =
+        Scene::from_toml_str(include_str!("../../docs/examples/ball-between-plates.toml")).unwrap();
+    let mut inst = kit_instrument(&scene, 0.0);
+    let mut events: Vec<TimedEvent> = (0..128u8).map(|k| on(10, k, 1.0)).collect();
+    events.extend((0..256).map(|i| on(1000 + i, (i * 37 % 128) as u8, 1.0)));
+    let out = render(&mut inst, &events, 24_000);
+    let peak = out[0].iter().fold(0.0f32, |a, &x| a.max(x.abs()));
+    println!(
+        "ball: peak {peak:.3}, strikes refused {}, contacts {:?}",
+        kit(&inst).refused,
+        kit(&inst).state().stats.contacts_started
+    );
+    assert!(out.iter().flatten().all(|x| x.is_finite()));
+    assert!(f64::from(peak) <= OUTPUT_CEILING && peak > 0.0);
+    assert!(kit(&inst).state().stats.contacts_started[0] > 0);
+    assert_eq!(inst.stats.notes, 128 + 256);
+    assert_eq!(
+        kit(&inst).refused,
+        0,
+        "the ball always finds room under the lid"
+    );
+}
