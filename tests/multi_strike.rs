@@ -13,9 +13,9 @@ use modal_testkit::rng::TestRng;
 
 const RATE: f64 = 48_000.0;
 
-/// A bar-like object of `n` modes struck by two hammers (contacts 0 and
-/// 1) parked at the given heights, at rest; velocity and displacement
-/// pickups.
+/// A bar-like object of `n` modes struck by two hammers (contact 0 and
+/// contact 1) parked at the given heights, at rest; velocity and
+/// displacement pickups.
 fn two_mallets(n: usize, heights: [f64; 2], g: f64) -> MultiModel {
     let mut rng = TestRng(7);
     let freq: Vec<f64> = (0..n).map(|i| 180.0 * (1.0 + i as f64).powf(1.7)).collect();

@@ -264,6 +264,78 @@ fn large_script(bundle: &Path) -> String {
     )
 }
 
+/// Scenes of several contacts as user scenes, each played as a kit
+/// (docs/design.md section 20, "Played"): a roll on one key, notes on
+/// every sample, every key at velocity 127 in one block, the bend, the
+/// pressure, note-offs and pedals (which a kit ignores), and a Hardness
+/// change whose swap fades the ringing kit out. Returns a summary line.
+fn kit_script(bundle: &Path) -> String {
+    let rate = 48_000.0;
+    let mut lines = Vec::new();
+    for (name, text) in [
+        (
+            "two-mallets",
+            include_str!("../../docs/examples/marimba-two-mallets.toml"),
+        ),
+        (
+            "ball",
+            include_str!("../../docs/examples/ball-between-plates.toml"),
+        ),
+        (
+            "chimes",
+            include_str!("../../docs/examples/wind-chimes.toml"),
+        ),
+        ("snare", include_str!("../../docs/examples/snare-pair.toml")),
+    ] {
+        let path = out_dir().join(format!("rt-checks-kit-{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let mut p = LoadedPlugin::load(bundle);
+        let fresh = p.save_state();
+        p.load_state(&with_user_scene(&fresh, name, text, &path));
+        let mut events = Vec::new();
+        for i in 0..16usize {
+            events.push(on(100 + 1500 * i, 60, 0.4 + 0.03 * i as f64));
+        }
+        for key in 0..128u8 {
+            events.push(on(26_000, key, 1.0));
+        }
+        for i in 0..256usize {
+            events.push(on(28_000 + i, (i * 37 % 128) as u8, 1.0));
+        }
+        let midi = |at: usize, data: [u8; 3]| HostEvent::Midi { at, data };
+        events.extend([
+            plugin_tests::pitch_bend(30_000, 16383),
+            midi(30_100, [0xD0, 100, 0]),
+            midi(30_200, [0xB0, 64, 127]),
+            plugin_tests::off(30_300, 60),
+            midi(30_400, [0xB0, 64, 0]),
+            plugin_tests::note_brightness(30_500, 60, 1.0),
+            param(34_000, ids::HARDNESS, 0.7),
+        ]);
+        events.push(on(40_000, 62, 0.8));
+        let mut spec = RenderSpec::new(rate, 64, 48_000, events);
+        spec.settle_after = vec![34_000];
+        spec.settle_ms = 500;
+        let out = p.render(&spec);
+        let finite = out.iter().flatten().all(|v| v.is_finite());
+        let bounded = out
+            .iter()
+            .flatten()
+            .all(|v| f64::from(v.abs()) <= modal_contact::instrument::OUTPUT_CEILING);
+        write_wav(
+            &out_dir().join(format!("rt-checks-kit-{name}.wav")),
+            rate,
+            &out,
+        );
+        lines.push(format!(
+            "{name}: finite={finite} bounded={bounded} rms_roll={:.3e} rms_after_swap={:.3e}",
+            rms(&out[0][..24_000]),
+            rms(&out[0][40_000..])
+        ));
+    }
+    format!("CHILD_KIT_OK {}", lines.join("; "))
+}
+
 /// Does nothing unless spawned by `run_child`.
 #[test]
 fn child_render() {
@@ -274,6 +346,7 @@ fn child_render() {
     match std::env::var(SCRIPT_ENV).as_deref() {
         Ok("panic") => println!("{}", panic_script(bundle)),
         Ok("large") => println!("{}", large_script(bundle)),
+        Ok("kit") => println!("{}", kit_script(bundle)),
         script => {
             let fault = (script == Ok("alloc")).then_some(2);
             let (with, without, change) = stress(bundle, fault);
@@ -346,6 +419,30 @@ fn rt_checks_build_switches_a_large_scene_without_allocating() {
         .parse()
         .unwrap();
     assert!(peak > 1e-3, "the large scene sounds: {line}");
+}
+
+/// Scenes of several contacts play as kits in the checked build without
+/// allocating: strikes that open contacts, every key at once, a swap.
+#[test]
+fn rt_checks_build_plays_kits_without_allocating() {
+    let out = run_child(&clap_bundle(Variant::RtChecks), "kit");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let line = stdout
+        .lines()
+        .find(|l| l.contains("CHILD_KIT_OK"))
+        .unwrap_or_else(|| panic!("child failed: {:?}\n{stdout}\n{stderr}", out.status));
+    println!("{line}");
+    assert!(out.status.success(), "{:?}\n{stderr}", out.status);
+    assert!(!line.contains("=false"), "{line}");
+    for part in line.trim_start_matches("CHILD_KIT_OK ").split("; ") {
+        let num = |key: &str| -> f64 {
+            let v = part.split(key).nth(1).expect(key);
+            v.split_whitespace().next().unwrap().parse().expect(key)
+        };
+        assert!(num("rms_roll=") > 1e-4, "the roll sounds: {part}");
+        assert!(num("rms_after_swap=") > 1e-5, "the new kit plays: {part}");
+    }
 }
 
 #[test]
