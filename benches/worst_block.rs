@@ -268,7 +268,7 @@ fn polyphony_64(_: &mut Criterion) {
     let mut params = InstrumentParams::default();
     params.play.polyphony = modal_contact::instrument::MAX_VOICES;
     // the heaviest preset: the most coupled states in contact
-    let (prepared, name, modes) = (0..modal_contact::presets::COUNT)
+    let (prepared, name, modes) = modal_contact::presets::one_contact()
         .map(|i| {
             params.scene.preset = i;
             let p = modal_contact::instrument::prepare(&params.scene, RATE, 0).expect("compile");

@@ -1515,8 +1515,8 @@ impl MultiState {
         }
     }
 
-    /// Back to rest, as an instrument's kit wakes (docs/design.md section
-    /// 20, "Played"): every object still, every mass at its model height
+    /// Back to rest, as an instrument's kit wakes (docs/design.md, "Played
+    /// as a kit"): every object still, every mass at its model height
     /// and still, no contact closed. The clock runs on. Allocation-free.
     /// \[audio-thread\]
     pub fn rest(&mut self, sc: &CompiledMulti) {

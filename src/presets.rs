@@ -61,10 +61,27 @@ pub const PRESETS: &[Preset] = &[
     preset!("frame-drum", "Frame drum"),
     preset!("piano-string", "Piano string"),
     preset!("marimba-rubber-mallet", "Marimba, rubber mallet"),
+    preset!("marimba-two-mallets", "Marimba, two mallets (kit)"),
+    preset!("ball-between-plates", "Ball between plates (kit)"),
+    preset!("wind-chimes", "Wind chimes (kit)"),
+    preset!("snare-pair", "Snare pair (kit)"),
 ];
 
 /// How many presets there are.
 pub const COUNT: usize = PRESETS.len();
+
+/// Whether preset `i` is a scene of several contacts, which the instrument
+/// plays as a kit (docs/design.md, "Played as a kit"); false
+/// for an index out of range or a scene that does not parse.
+pub fn is_kit(i: usize) -> bool {
+    scene(i).is_ok_and(|s| s.several_contacts())
+}
+
+/// The indices of the presets of one contact (what the one-contact
+/// compiler and engine take), in list order.
+pub fn one_contact() -> impl Iterator<Item = usize> {
+    (0..COUNT).filter(|&i| !is_kit(i))
+}
 
 /// The presets' names (file stems), in list order: the "Scene" parameter's
 /// stable ids. Built from [`PRESETS`] at compile time, because nice-plug's

@@ -392,8 +392,8 @@ pub struct HammerSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub point: Option<String>,
     /// In a scene of several contacts played by the instrument: the MIDI
-    /// notes that strike this mallet (docs/design.md, "Several contacts",
-    /// "Played"). Empty: see [`StrikerSpec::notes`].
+    /// notes that strike this mallet (docs/design.md, "Played as a kit").
+    /// Empty: see [`StrikerSpec::notes`].
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<u8>,
 }

@@ -70,7 +70,7 @@ fn ringing(n: usize) -> Scene {
 /// a ringing 200-mode object struck every 1000 samples: (name, scene,
 /// samples, strike period or 0).
 fn cases() -> Vec<(String, Scene, usize, usize)> {
-    let mut cases: Vec<(String, Scene, usize, usize)> = (0..presets::COUNT)
+    let mut cases: Vec<(String, Scene, usize, usize)> = presets::one_contact()
         .map(|i| {
             let s = presets::scene(i).unwrap();
             let n = (s.duration_s.min(0.5) * RATE) as usize;

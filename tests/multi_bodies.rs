@@ -417,7 +417,7 @@ fn random_networks_never_gain_energy() {
 #[test]
 fn mutated_scene_files_are_refused_or_run_safely() {
     use modal_contact::scene::Scene;
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/");
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/presets/");
     let mut rng = TestRng(0x5ce7e);
     let extremes = [
         "0.0", "-1.0", "nan", "inf", "-inf", "1e300", "1e-300", "5e-324", "-0.0", "1e12",

@@ -793,7 +793,7 @@ fn fuzzed_models_never_gain_energy() {
 fn strikers_in_a_scene_file() {
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/docs/examples/marimba-two-mallets.toml"
+        "/presets/marimba-two-mallets.toml"
     );
     let text = std::fs::read_to_string(path).unwrap();
     let scene: Scene = Scene::from_toml_str(&text).unwrap();
@@ -854,7 +854,7 @@ fn strikers_in_a_scene_file() {
 /// with the field named, and bad touches are refused with theirs.
 #[test]
 fn touches_in_a_scene_file() {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/");
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/presets/");
     let load = |name: &str| std::fs::read_to_string(format!("{dir}{name}.toml")).unwrap();
     for (name, modes_of_objects, masses, contacts) in [
         ("ball-between-plates", 2, 1, 2),
@@ -1242,6 +1242,10 @@ fn one_contact_presets_match_the_one_contact_engine() {
     for path in names {
         let scene = Scene::from_toml_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
         let name = scene.name.clone();
+        if scene.several_contacts() {
+            // a kit: the one-contact engine does not run it
+            continue;
+        }
         let m = match MultiModel::from_scene(&scene, RATE) {
             Ok(m) => m,
             Err(e) => {

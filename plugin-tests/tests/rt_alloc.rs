@@ -265,7 +265,7 @@ fn large_script(bundle: &Path) -> String {
 }
 
 /// Scenes of several contacts as user scenes, each played as a kit
-/// (docs/design.md section 20, "Played"): a roll on one key, notes on
+/// (docs/design.md, "Played as a kit"): a roll on one key, notes on
 /// every sample, every key at velocity 127 in one block, the bend, the
 /// pressure, note-offs and pedals (which a kit ignores), and a Hardness
 /// change whose swap fades the ringing kit out. Returns a summary line.
@@ -275,17 +275,14 @@ fn kit_script(bundle: &Path) -> String {
     for (name, text) in [
         (
             "two-mallets",
-            include_str!("../../docs/examples/marimba-two-mallets.toml"),
+            include_str!("../../presets/marimba-two-mallets.toml"),
         ),
         (
             "ball",
-            include_str!("../../docs/examples/ball-between-plates.toml"),
+            include_str!("../../presets/ball-between-plates.toml"),
         ),
-        (
-            "chimes",
-            include_str!("../../docs/examples/wind-chimes.toml"),
-        ),
-        ("snare", include_str!("../../docs/examples/snare-pair.toml")),
+        ("chimes", include_str!("../../presets/wind-chimes.toml")),
+        ("snare", include_str!("../../presets/snare-pair.toml")),
     ] {
         let path = out_dir().join(format!("rt-checks-kit-{name}.toml"));
         std::fs::write(&path, text).unwrap();

@@ -194,7 +194,7 @@ mod tests {
     /// `run_kernel_rows`).
     #[test]
     fn free_event_row_is_minus_the_contact_row() {
-        for i in 0..crate::presets::COUNT {
+        for i in crate::presets::one_contact() {
             let sc = compile(&crate::presets::scene(i).unwrap(), 44100.0).unwrap();
             let (ev, xc) = (&sc.free.ev, &sc.free.rows.x_c);
             assert_eq!(ev.len(), xc.len());

@@ -1346,7 +1346,7 @@ mod tests {
     #[test]
     fn batched_partial_propagators_match_exp2() {
         let mut worst: f64 = 0.0;
-        for i in 0..presets::PRESETS.len() {
+        for i in presets::one_contact() {
             let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
             let mut st = EngineState::new(&sc);
             for contact in [false, true] {
@@ -1415,7 +1415,7 @@ mod tests {
     #[test]
     fn fast_margin_bounds_the_chord_error() {
         let (mut tightest, mut used) = (f64::INFINITY, 0.0f64);
-        for i in 0..presets::PRESETS.len() {
+        for i in presets::one_contact() {
             let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
             for contact in [false, true] {
                 for (seed, mult) in [(7919usize, 0.5), (104_729, 1.0), (1299, 3.0)] {
@@ -1470,7 +1470,7 @@ mod tests {
     #[test]
     fn hermite_remainder_bounds_the_interpolation_error() {
         let mut used = 0.0f64;
-        for i in 0..presets::PRESETS.len() {
+        for i in presets::one_contact() {
             let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
             for contact in [false, true] {
                 for (seed, mult) in [(7919usize, 0.5), (104_729, 1.0), (1299, 3.0)] {
@@ -1532,7 +1532,7 @@ mod tests {
     #[test]
     fn hermite_clear_agrees_with_the_search() {
         let (mut cleared, mut refused) = (0usize, 0usize);
-        for i in 0..presets::PRESETS.len() {
+        for i in presets::one_contact() {
             let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
             for contact in [false, true] {
                 for (seed, scale) in [(7919usize, 1.0), (1299, 2.7)] {
@@ -1604,7 +1604,7 @@ mod tests {
     #[test]
     fn model_matches_the_state_evaluation() {
         let mut worst = [0.0f64; 3];
-        for i in 0..presets::PRESETS.len() {
+        for i in presets::one_contact() {
             let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
             let mut st = EngineState::new(&sc);
             // ring the object: one strike's worth of state in every block

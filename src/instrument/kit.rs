@@ -1,5 +1,5 @@
 //! A scene of several contacts played as one instrument (docs/design.md,
-//! "Several contacts", "Played"): its objects are one physical system that
+//! "Played as a kit"): its objects are one physical system that
 //! every note strikes, so the whole scene is one voice, the kit. A note
 //! throws the mallets the scene gives it (`notes` of `[hammer]` and each
 //! `[[striker]]`; without any, the next mallet in turn) at the note's
@@ -118,6 +118,24 @@ impl Kit {
         } else {
             "notes strike the mallets that list them"
         }
+    }
+
+    /// What was compiled, in words (the plugin's compile summary, the
+    /// offline render's).
+    pub fn summary(&self) -> String {
+        let m = &self.sc.model;
+        format!(
+            "several contacts, played as one voice: {} modes, {} mallets, {} masses, {} \
+             contacts ({} phases, all compiled), largest phase {} states (per sample \
+             O(states)), {}, exact switching",
+            m.freq_hz.len(),
+            self.mallets,
+            m.masses.len(),
+            m.contacts.len(),
+            self.sc.phases.len(),
+            self.max_dim(),
+            self.notes_rule(),
+        )
     }
 
     /// The largest state dimension of its phases.

@@ -1,5 +1,5 @@
 //! Tests of the kit (a scene of several contacts played as one voice,
-//! docs/design.md section 20, "Played"): a note is the scene struck
+//! docs/design.md, "Played as a kit"): a note is the scene struck
 //! offline, notes choose mallets as the scene says, blocks and the
 //! lookahead do not change a sample, the kit stops when silent and wakes
 //! at rest, a swap fades it out.
@@ -11,7 +11,7 @@ use crate::scene::Scene;
 const RATE: f64 = 48_000.0;
 
 fn two_mallets() -> Scene {
-    Scene::from_toml_str(include_str!("../../docs/examples/marimba-two-mallets.toml")).unwrap()
+    Scene::from_toml_str(include_str!("../../presets/marimba-two-mallets.toml")).unwrap()
 }
 
 /// Three quickly decaying modes struck by two mallets (contacts 0 and 1),
@@ -310,7 +310,7 @@ fn a_kit_swap_fades_the_old_kit_out() {
 #[test]
 fn a_bouncing_kit_takes_every_key_at_once() {
     let scene =
-        Scene::from_toml_str(include_str!("../../docs/examples/ball-between-plates.toml")).unwrap();
+        Scene::from_toml_str(include_str!("../../presets/ball-between-plates.toml")).unwrap();
     let mut inst = kit_instrument(&scene, 0.0);
     let mut events: Vec<TimedEvent> = (0..128u8).map(|k| on(10, k, 1.0)).collect();
     events.extend((0..256).map(|i| on(1000 + i, (i * 37 % 128) as u8, 1.0)));

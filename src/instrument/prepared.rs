@@ -42,7 +42,7 @@ pub struct Prepared {
     /// thread compiles it, a host's thread at activation).
     pub(super) states: Box<[EngineState; MAX_VOICES]>,
     /// A scene of several contacts, played as one voice (docs/design.md,
-    /// "Several contacts", "Played"); then `scenes` holds the first
+    /// "Played as a kit"); then `scenes` holds the first
     /// mallet on its object alone (what the instrument reads of a scene:
     /// its spectrum, its costs), which no voice plays.
     pub kit: Option<Box<Kit>>,
@@ -279,6 +279,10 @@ pub struct StrikeCost {
     pub contact_states: usize,
     /// Sample rate \[Hz\].
     pub rate_hz: f64,
+    /// Most strikes that can start in one sample: the polyphony's notes,
+    /// or a kit's mallets (its one voice throws each at most once an
+    /// instant).
+    pub most_at_once: usize,
 }
 
 impl StrikeCost {
@@ -286,7 +290,8 @@ impl StrikeCost {
     pub fn warning(&self, block_len: usize, polyphony: usize, lookahead: usize) -> Option<String> {
         let budget = block_len as f64 / self.rate_hz;
         let strike = self.strike_s;
-        let chord = polyphony.clamp(1, MAX_VOICES) as f64 * strike;
+        let polyphony = polyphony.clamp(1, MAX_VOICES).min(self.most_at_once.max(1));
+        let chord = polyphony as f64 * strike;
         // with a lookahead, the voices work through a chord's strikes in
         // the blocks after it, a share of each
         let ahead = LOOKAHEAD_WORK_FRACTION * lookahead as f64 / self.rate_hz;
@@ -388,6 +393,7 @@ impl Prepared {
             scene: self.scenes.scene.name.clone(),
             strike_s: self.strike_cost_estimate_s(),
             contact_states: self.contact_states(),
+            most_at_once: self.kit.as_ref().map_or(MAX_VOICES, |k| k.mallets),
             rate_hz: self.rate_hz,
         }
     }

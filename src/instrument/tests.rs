@@ -102,7 +102,10 @@ fn scene_for_defaults_keep_the_scene() {
         let mut p = InstrumentParams::default();
         p.scene.switching = Switching::OffsetRod;
         let mut expect = b.clone();
-        expect.contact.switching = Some(Switching::OffsetRod);
+        // several contacts switch exactly: the parameter leaves them be
+        if !b.several_contacts() {
+            expect.contact.switching = Some(Switching::OffsetRod);
+        }
         assert_eq!(scene_for(&b, &p), expect, "{}", b.name);
     }
 }
@@ -618,8 +621,12 @@ fn strike_warning_names_what_fits_at_the_hosts_block_size() {
         if pr.strike_warning(32, DEFAULT_POLYPHONY, 0).is_some() {
             warned_at_32.push(pr.scenes.scene.name.clone());
         }
+        // a kit's strike switches its largest phase (the snare's head and
+        // wires: 110 states); its one voice throws each mallet at most once
+        // an instant, so its chords are its mallets
+        let limit = if pr.kit.is_some() { 100e-6 } else { 40e-6 };
         assert!(
-            pr.strike_cost_estimate_s() < 40e-6,
+            pr.strike_cost_estimate_s() < limit,
             "{}",
             pr.scenes.scene.name
         );
@@ -1181,7 +1188,8 @@ fn pressure_only_takes_energy_and_spares_strikes_and_bouncing_scenes() {
     for preset in presets::PRESETS {
         let p = params(preset.name);
         let (mut a, mut b) = (instrument(&p), instrument(&p));
-        if a.cur.bouncing {
+        if a.cur.bouncing || a.cur.kit.is_some() {
+            // a kit: pressure changes nothing (a_kit_stops_when_silent_...)
             continue;
         }
         let n = 6000;
@@ -1620,6 +1628,11 @@ fn presets_have_every_brightness_level_and_large_scenes_none() {
             ..SceneParams::default()
         };
         let pr = prepare(&sp, RATE, 0).unwrap();
+        if pr.kit.is_some() {
+            // a kit plays every note at the parameters' values: no levels
+            assert_eq!(pr.scenes.variant_count(), 0, "{name}");
+            continue;
+        }
         assert!(
             pr.timbre_note().is_none()
                 && (-TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX).all(|l| pr.scenes.has_played(hard(l)))
@@ -1702,7 +1715,10 @@ fn prepare_fits_a_small_host_thread_stack() {
                     ..SceneParams::default()
                 };
                 let p = prepare(&sp, RATE, 0).unwrap();
-                assert!(p.scenes.variant_count() >= 24, "preset {i}");
+                assert!(
+                    p.scenes.variant_count() >= 24 || p.kit.is_some(),
+                    "preset {i}"
+                );
             }
         })
         .unwrap()

@@ -308,18 +308,9 @@ pub struct HostBlocks {
 /// the strike warning uses), compile time.
 fn summary_line(p: &Prepared, spectrum: &[SpectrumLine], ms: f64) -> String {
     if let Some(kit) = &p.kit {
-        let m = &kit.sc.model;
         return format!(
-            "several contacts, played as one voice: {} modes, {} mallets, {} masses, {} contacts \
-             ({} phases, all compiled), largest phase {} states (per sample O(states)), {}, \
-             exact switching, strike ~{:.0} us, compiled in {ms:.1} ms",
-            m.freq_hz.len(),
-            kit.mallets,
-            m.masses.len(),
-            m.contacts.len(),
-            kit.sc.phases.len(),
-            kit.max_dim(),
-            kit.notes_rule(),
+            "{}, strike ~{:.0} us, compiled in {ms:.1} ms",
+            kit.summary(),
             p.strike_cost_estimate_s() * 1e6,
         );
     }
@@ -554,7 +545,7 @@ gain = 0.5
         let lib = SceneLibrary::default();
         lib.load(user(THREE_MODES));
         lib.prepare(&wanted(&lib), 48_000.0, 1, HOST).unwrap();
-        let two = include_str!("../../docs/examples/marimba-two-mallets.toml");
+        let two = include_str!("../../presets/marimba-two-mallets.toml");
         lib.load(user(two));
         let p = lib.prepare(&wanted(&lib), 48_000.0, 2, HOST).unwrap().0;
         let kit = p.kit.as_ref().expect("a kit");

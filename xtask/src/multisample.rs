@@ -163,7 +163,16 @@ fn trim(left: &mut Vec<f32>, right: &mut Vec<f32>) -> f32 {
 }
 
 /// The SFZ text for `regions` (samples named by [`Region::file`]).
-pub fn sfz_text(name: &str, header: &str, regions: &[Region], volume_db: f64) -> String {
+/// `fixed_pitch`: a kit (docs/design.md, "Played as a kit"), whose notes
+/// all sound at the scene's pitch: no region is transposed
+/// (`pitch_keytrack=0`).
+pub fn sfz_text(
+    name: &str,
+    header: &str,
+    regions: &[Region],
+    volume_db: f64,
+    fixed_pitch: bool,
+) -> String {
     let mut s = String::new();
     for line in header.lines() {
         let _ = writeln!(s, "// {line}");
@@ -177,6 +186,12 @@ pub fn sfz_text(name: &str, header: &str, regions: &[Region], volume_db: f64) ->
     );
     if volume_db != 0.0 {
         let _ = writeln!(s, "volume={volume_db:.3}");
+    }
+    if fixed_pitch {
+        let _ = writeln!(
+            s,
+            "// a kit: every note sounds at the scene's pitch\npitch_keytrack=0"
+        );
     }
     for r in regions {
         let _ = writeln!(
@@ -212,6 +227,17 @@ fn plan(a: &MultisampleArgs) -> Result<Plan> {
     let mut keys = parse_midi_list(&a.notes, "note", 0, 127)?;
     keys.sort_unstable();
     let regions = layout(&keys, a.step, a.velocities)?;
+    let lists_notes =
+        !scene.hammer.notes.is_empty() || scene.striker.iter().any(|s| !s.notes.is_empty());
+    if scene.several_contacts() && lists_notes && a.step > 1 {
+        bail!(
+            "--step {}: scene {:?} is a kit whose notes throw different mallets (docs/design.md, \
+             \"Played as a kit\"): a region cannot stand for its neighbours; export it with \
+             --step 1",
+            a.step,
+            scene.name
+        );
+    }
     let name = match &a.name {
         Some(n) => n.clone(),
         None => a
@@ -436,6 +462,7 @@ pub fn run(a: &MultisampleArgs) -> Result<()> {
         &header(a, &plan, volume_db, failed.len()),
         &written,
         volume_db,
+        plan.scene.several_contacts(),
     );
     std::fs::write(&plan.sfz, text)
         .with_context(|| format!("cannot write {}", plan.sfz.display()))?;
@@ -522,7 +549,9 @@ mod tests {
     #[test]
     fn sfz_names_every_region_with_its_opcodes() {
         let regions = layout(&[60, 61, 62], 2, 2).unwrap();
-        let text = sfz_text("bar", "made here\nline two", &regions, 0.0);
+        let text = sfz_text("bar", "made here\nline two", &regions, 0.0, false);
+        assert!(!text.contains("pitch_keytrack"));
+        assert!(sfz_text("bar", "", &regions, 0.0, true).contains("\npitch_keytrack=0\n"));
         assert!(text.starts_with("// made here\n// line two\n"));
         for must in [
             "amp_veltrack=0",
@@ -540,7 +569,7 @@ mod tests {
             "<region> sample=bar_n062_v127.wav pitch_keycenter=62 lokey=62 hikey=62 lovel=64 hivel=127"
         ));
         assert_eq!(text.matches("<region>").count(), 4);
-        assert!(sfz_text("bar", "", &regions, 3.5).contains("volume=3.500"));
+        assert!(sfz_text("bar", "", &regions, 3.5, false).contains("volume=3.500"));
     }
 
     #[test]
@@ -573,6 +602,37 @@ mod tests {
         );
         (a.seconds, a.name) = (Some(1.5), Some("it's".into()));
         assert!(command_line(&a).ends_with(r"--seconds 1.5 --name 'it'\''s'"));
+    }
+
+    /// A kit whose notes throw different mallets is exported a key per
+    /// region: `--step 3` is refused by name before anything renders; a
+    /// kit without note lists (every key the same throw in turn) takes it.
+    #[test]
+    fn a_kit_with_note_lists_is_exported_a_key_per_region() {
+        let dir = std::env::temp_dir().join(format!("kit-sfz-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let text = std::fs::read_to_string(root.join("presets/marimba-two-mallets.toml"))
+            .unwrap()
+            .replace("[contact]", "notes = [60]\n\n[contact]");
+        let listed = dir.join("listed.toml");
+        std::fs::write(&listed, text).unwrap();
+        let args = |scene: PathBuf| MultisampleArgs {
+            scene,
+            notes: "58..62".into(),
+            step: 3,
+            velocities: 1,
+            out: dir.join("out"),
+            rate: 44100.0,
+            seconds: Some(0.05),
+            name: None,
+            force: true,
+            jobs: Some(1),
+        };
+        let e = plan(&args(listed)).err().expect("refused");
+        assert!(format!("{e:#}").contains("--step 3"), "{e:#}");
+        assert!(plan(&args(root.join("presets/wind-chimes.toml"))).is_ok());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -133,7 +133,11 @@ pub fn play_note(
     velocity: u8,
     samples: usize,
 ) -> NoteRender {
-    let summary = prepared.scenes.scene.summary.clone();
+    // a kit (docs/design.md, "Played as a kit"): its own summary
+    let summary = prepared
+        .kit
+        .as_ref()
+        .map_or_else(|| prepared.scenes.scene.summary.clone(), |k| k.summary());
     let routes = [
         prepared.scenes.scene.free.diag.method.clone(),
         prepared.scenes.scene.contact.diag.method.clone(),
@@ -152,9 +156,12 @@ pub fn play_note(
     };
     inst.process(&[on], &mut left, &mut right);
     let render_s = t0.elapsed().as_secs_f64();
-    let contacts = (0..modal_contact::instrument::MAX_VOICES)
-        .map(|v| inst.voice_state_mut(v).contacts_started)
-        .sum();
+    let contacts = match &inst.prepared().kit {
+        Some(k) => k.state().stats.contacts_started.iter().sum(),
+        None => (0..modal_contact::instrument::MAX_VOICES)
+            .map(|v| inst.voice_state_mut(v).contacts_started)
+            .sum(),
+    };
     NoteRender {
         left,
         right,

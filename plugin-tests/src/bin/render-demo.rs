@@ -1,5 +1,6 @@
 //! Render the demo THROUGH THE BUILT CLAP PLUGIN (clack-host, offline):
-//! a few phrases on three scenes, with chords and repeated notes, into
+//! a few phrases on four scenes, with chords and repeated notes, and a
+//! roll on the two-mallet kit (docs/design.md, "Played as a kit"), into
 //! `OUT_DIR/*.wav`. Used by `cargo xtask demo`.
 //!
 //! `render-demo PATH/TO/modal_contact.clap OUT_DIR`
@@ -20,7 +21,7 @@ fn main() {
     // (preset, phrase as (seconds, semitones above the root, velocity 0..1,
     // hold seconds))
     type Phrase = &'static [(f64, i32, f64, f64)];
-    let demos: [(&str, Phrase); 3] = [
+    let demos: [(&str, Phrase); 4] = [
         (
             "marimba-bar",
             &[
@@ -47,6 +48,25 @@ fn main() {
                 (2.30, 0, 0.9, 3.0), // repeated on the ringing bell
                 (3.30, -5, 0.7, 3.0),
                 (3.30, 4, 0.5, 3.0),
+            ],
+        ),
+        (
+            // a kit plays at its scene's pitch: one key, the two mallets in
+            // turn, a crescendo roll then two accents
+            "marimba-two-mallets",
+            &[
+                (0.30, 0, 0.35, 0.1),
+                (0.42, 0, 0.40, 0.1),
+                (0.54, 0, 0.45, 0.1),
+                (0.66, 0, 0.50, 0.1),
+                (0.78, 0, 0.55, 0.1),
+                (0.90, 0, 0.60, 0.1),
+                (1.02, 0, 0.65, 0.1),
+                (1.14, 0, 0.70, 0.1),
+                (1.26, 0, 0.75, 0.1),
+                (1.38, 0, 0.80, 0.1),
+                (2.20, 0, 0.95, 0.1),
+                (2.50, 0, 0.95, 0.1),
             ],
         ),
         (
