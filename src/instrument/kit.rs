@@ -224,14 +224,16 @@ impl Instrument {
     /// Render the kit's chunk of `len` samples starting at time `t0` into
     /// `vbuf` (voice 0's lane takes it); the contacts it started, or `None`
     /// when a sample was not a number (the kit rests and stops: nothing of
-    /// that chunk sounds). With the live view on, each mallet's contact is
-    /// shown as a voice of its own (voice `i` for contact `i`).
+    /// that chunk sounds). With the live view on, every contact is shown as
+    /// a voice of its own (voice `j` for contact `j`: its upper side as the
+    /// hammer, its lower side as the contact point; a mallet's contact
+    /// under the key that last threw it).
     /// \[audio-thread\]
     pub(super) fn kit_render(&mut self, t0: u64, len: usize) -> Option<u64> {
         let kit = self.cur.kit.as_deref_mut()?;
         let started: u64 = kit.st.stats.contacts_started.iter().sum();
         let observe = self.probe_on && self.probe.is_some();
-        let contacts = kit.sc.contacts().min(kit.mallets);
+        let contacts = kit.sc.contacts();
         let motion = &mut self.kit_motion;
         let finite = kit.tick_into(&mut self.vbuf, len, (1.0, 0.0), |k, st, sc| {
             if observe {

@@ -331,3 +331,56 @@ fn a_bouncing_kit_takes_every_key_at_once() {
         "the ball always finds room under the lid"
     );
 }
+
+/// The live view sees every contact of a kit as a voice of its own: the
+/// wind chimes' clapper and both touches between the tubes, each with its
+/// sides' motion and its contact intervals, and the motion the probe gets
+/// is the kit's own (the same samples as without the view).
+#[test]
+fn the_live_view_shows_every_contact_of_a_kit() {
+    use std::sync::{Arc, Mutex};
+    #[derive(Default)]
+    struct Seen {
+        in_contact: [usize; 4],
+        samples: [usize; 4],
+        keys: [u8; 4],
+        finite: bool,
+    }
+    struct Probe(Arc<Mutex<Seen>>);
+    impl VoiceProbe for Probe {
+        fn voice_chunk(&mut self, c: &VoiceChunk) {
+            let mut s = self.0.lock().unwrap();
+            s.samples[c.voice] += c.motion.len();
+            s.in_contact[c.voice] += c.motion.iter().filter(|m| m.in_contact).count();
+            s.keys[c.voice] = c.key;
+            s.finite = c.motion.iter().all(|m| {
+                [m.x_hammer, m.v_hammer, m.x_contact, m.v_contact]
+                    .iter()
+                    .all(|x| x.is_finite())
+            }) && c.energy_j.is_finite();
+        }
+    }
+    let scene = Scene::from_toml_str(include_str!("../../presets/wind-chimes.toml")).unwrap();
+    let seen = Arc::new(Mutex::new(Seen::default()));
+    let mut viewed = kit_instrument(&scene, 0.0);
+    viewed.set_probe(Some(Box::new(Probe(seen.clone()))));
+    viewed.set_probe_on(true);
+    let n = 96_000;
+    let a = render(&mut viewed, &[on(0, 72, 1.0)], n);
+    let b = render(&mut kit_instrument(&scene, 0.0), &[on(0, 72, 1.0)], n);
+    assert!(a == b, "the view changes no sample");
+    let s = seen.lock().unwrap();
+    println!(
+        "chimes in the live view: samples {:?}, in contact {:?}",
+        s.samples, s.in_contact
+    );
+    assert!(s.finite);
+    assert_eq!(s.samples[..3], [n, n, n]);
+    assert_eq!(s.samples[3], 0, "three contacts");
+    assert!(
+        s.in_contact[..3].iter().all(|&c| c > 0),
+        "{:?}",
+        s.in_contact
+    );
+    assert_eq!(s.keys[0], 72, "the clapper's contact under its key");
+}
