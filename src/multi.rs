@@ -1530,6 +1530,46 @@ impl MultiState {
         self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
     }
 
+    /// Carry the state from `from` to `to`, another compile of the same
+    /// bodies (the same modes' frequencies, masses and contacts; other
+    /// stiffnesses, dampings or decays: a parameter change): only while no
+    /// contact is closed, through the physical state, which does not
+    /// change, so neither does the energy (the objects', the masses' and
+    /// gravity's; no spring is stretched). False (nothing changed) when a
+    /// contact is closed or the bodies differ. The state must have been
+    /// made for a compile with phases as large as `to`'s
+    /// ([`MultiState::new`] of either, when both have the same layout).
+    /// O(dim^2), allocation-free. \[audio-thread\]
+    pub fn carry(&mut self, from: &CompiledMulti, to: &CompiledMulti) -> bool {
+        let (a, b) = (&from.model, &to.model);
+        let same = a.freq_hz == b.freq_hz
+            && a.masses.len() == b.masses.len()
+            && a.contacts.len() == b.contacts.len()
+            && self.s.capacity() >= to.max_dim()
+            && self.mask == 0;
+        if !same {
+            return false;
+        }
+        from.phases[0].physical_of(
+            a,
+            &self.s,
+            (&self.x_f, &self.v_f),
+            (&mut self.zq, &mut self.zv),
+            &mut self.phys,
+        );
+        let new = &to.phases[0];
+        self.s.resize(new.dim, 0.0);
+        new.state_of(
+            b,
+            (&self.phys, &[0.0; MAX_CONTACTS]),
+            (&mut self.x_f, &mut self.v_f),
+            (&mut self.zq, &mut self.zv),
+            &mut self.s,
+        );
+        self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
+        true
+    }
+
     /// A strike between two samples: the mass on the upper side of
     /// contact `c` is thrown from `height_m` above that contact's lower
     /// side (where it is now), or from as high as the sides above it let

@@ -169,6 +169,26 @@ impl Kit {
         finite
     }
 
+    /// Take over the running state of `old`, a kit of the same scene
+    /// compiled with other parameters, while none of its contacts is
+    /// closed ([`MultiState::carry`]: the physical state and so the energy
+    /// unchanged), with its turn, its keys and its silence test's
+    /// references; `old` keeps this kit's fresh state (to be retired). False
+    /// (nothing changed) when a contact is closed or the bodies differ.
+    /// Allocation-free. \[audio-thread\]
+    pub(super) fn take_over(&mut self, old: &mut Kit) -> bool {
+        if self.mallets != old.mallets || !old.st.carry(&old.sc, &self.sc) {
+            return false;
+        }
+        std::mem::swap(&mut self.st, &mut old.st);
+        self.next = old.next;
+        self.last_key = old.last_key;
+        self.peak = old.peak;
+        self.interval_peak = old.interval_peak;
+        self.strike_energy = old.strike_energy;
+        true
+    }
+
     /// The running state (tests, tools). \[audio-thread\]
     pub fn state(&self) -> &MultiState {
         &self.st

@@ -548,15 +548,32 @@ impl Instrument {
             return Err(new);
         }
         self.sync_all(true);
-        // a kit is not carried: it fades out and the new scene starts at rest
         let same_object = new.params.preset == self.cur.params.preset
             && new.params.user_scene == self.cur.params.user_scene
-            && new.rate_hz == self.cur.rate_hz
-            && new.kit.is_none()
-            && self.cur.kit.is_none();
+            && new.rate_hz == self.cur.rate_hz;
         let mut any_fade = false;
         for i in 0..MAX_VOICES {
             if !self.voices[i].active {
+                continue;
+            }
+            // a kit: carried to the new kit of the same scene while no
+            // contact is closed (`Kit::take_over`), else it fades out and
+            // the new one starts at rest
+            if self.cur.kit.is_some() || new.kit.is_some() {
+                let carried = same_object
+                    && match (self.cur.kit.as_deref_mut(), new.kit.as_deref_mut()) {
+                        (Some(old), Some(to)) => to.take_over(old),
+                        _ => false,
+                    };
+                if carried {
+                    self.stats.voices_carried += 1;
+                } else {
+                    let v = &mut self.voices[i];
+                    self.fade_voices[i] = Some((v.at, v.on_damped));
+                    v.active = false;
+                    any_fade = true;
+                    self.stats.voices_faded += 1;
+                }
                 continue;
             }
             // a pressed voice's state takes its damper's decay so far
