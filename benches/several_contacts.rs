@@ -4,8 +4,9 @@
 //! which a hammer meets the object (the event search and the change of
 //! basis) and the same sample with that hammer far away (the plain step and
 //! every contact's check), both measured in the same run; and, printed
-//! once, the time to compile every phase. Timing is reported, never
-//! asserted.
+//! once, the time to compile every phase. Beside it, the worst block of
+//! the instrument playing each kit preset (docs/design.md, "Played as a
+//! kit"). Timing is reported, never asserted.
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use modal_contact::multi::{CompiledMulti, MultiHammer, MultiModel, MultiState};
@@ -98,5 +99,81 @@ fn bench(c: &mut Criterion) {
     println!("per switch: sample_with_a_switch minus plain_sample, same run (criterion's estimates above)");
 }
 
-criterion_group!(benches, bench);
+/// The kit presets through the instrument (`Instrument::process`, what the
+/// plugin calls per host block) at 48 kHz for 4 s: notes every 125 ms
+/// (one at a time, or 4 at one instant, throwing the mallets in turn or as
+/// the scene lists them), in blocks of 32, 64, 128 and 512 samples. Printed:
+/// the largest and the 99.9th percentile block, % of the block's real-time
+/// budget, and the kit's whole render against real time.
+fn kits(_: &mut Criterion) {
+    use modal_contact::instrument::{
+        prepare, Event, Instrument, InstrumentParams, SceneParams, TimedEvent,
+    };
+    use modal_contact::presets;
+    let seconds = 4.0;
+    let total = (seconds * RATE) as usize;
+    println!("\nkits: worst block at 48 kHz, % of the block's budget (max / 99.9th percentile), notes every 125 ms:");
+    println!("| kit | notes at once | 32 samples | 64 samples | 128 samples | 512 samples | render vs real time (64) |");
+    println!("|---|---|---|---|---|---|---|");
+    for i in (0..presets::COUNT).filter(|&i| presets::is_kit(i)) {
+        let sp = SceneParams {
+            preset: i,
+            ..SceneParams::default()
+        };
+        let prepared = prepare(&sp, RATE, 0).expect("a kit");
+        for chord in [1usize, 4] {
+            let mut cells = Vec::new();
+            let mut realtime = 0.0;
+            for block in [32usize, 64, 128, 512] {
+                let mut inst = Instrument::new(prepared.clone(), InstrumentParams::default().play);
+                let every = (0.125 * RATE) as usize;
+                let (mut l, mut r) = (vec![0.0f32; block], vec![0.0f32; block]);
+                let mut times = Vec::with_capacity(total / block + 1);
+                let mut start = 0;
+                let mut evs: Vec<TimedEvent> = Vec::with_capacity(8);
+                let mut k = 0;
+                while start < total {
+                    let len = block.min(total - start);
+                    evs.clear();
+                    let next = start.div_ceil(every) * every;
+                    if next < start + len {
+                        for j in 0..chord {
+                            evs.push(TimedEvent {
+                                offset: next - start,
+                                event: Event::NoteOn {
+                                    key: (60 + 2 * j + k % 3) as u8,
+                                    velocity_norm: 0.5 + 0.4 * ((k * 7 + j) % 5) as f64 / 4.0,
+                                },
+                            });
+                        }
+                        k += 1;
+                    }
+                    let t0 = Instant::now();
+                    inst.process(&evs, &mut l[..len], &mut r[..len]);
+                    times.push(t0.elapsed().as_secs_f64());
+                    black_box(&l);
+                    start += len;
+                }
+                if block == 64 {
+                    realtime = seconds / times.iter().sum::<f64>();
+                }
+                times.sort_by(f64::total_cmp);
+                let budget = block as f64 / RATE;
+                let p999 = times[((times.len() - 1) as f64 * 0.999).round() as usize];
+                cells.push(format!(
+                    "{:.0} / {:.0}",
+                    100.0 * times[times.len() - 1] / budget,
+                    100.0 * p999 / budget
+                ));
+            }
+            println!(
+                "| {} | {chord} | {} | {realtime:.0}x |",
+                presets::NAMES[i],
+                cells.join(" | ")
+            );
+        }
+    }
+}
+
+criterion_group!(benches, bench, kits);
 criterion_main!(benches);
