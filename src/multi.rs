@@ -275,8 +275,6 @@ pub struct MultiPhase {
     pub dim: usize,
     /// Block generators (block `k` acts on `s[k], s[nb + k]`).
     pub gens: Vec<Mat2>,
-    /// Each block's propagator over one sample.
-    props: Vec<Mat2>,
     /// The masses in a closed contact (`z[N + b]` is `sqrt(m) x` of
     /// `bound[b]`), and per mass its place there.
     bound: Vec<usize>,
@@ -310,13 +308,14 @@ pub struct MultiPhase {
     p0: Vec<f64>,
     /// Per contact (all of them): the row and constant of its penetration
     /// (without the flights), its slope row `r G`, and the curvature
-    /// weights `|r_k G_k^2| e^(gamma_k h)` per block.
+    /// weights `|r_k G_k^2|` per block (times each block's growth over the
+    /// step, [`PhaseTables::growth`], they bound its share of `psi''`).
     ev: Vec<Vec<f64>>,
     ev0: Vec<f64>,
     ev_d: Vec<Vec<f64>>,
     ev_c2: Vec<Vec<f64>>,
-    /// Per contact: `|r_k| e^(gamma_k h)` per block (block `k`'s share of
-    /// the function stays within it times `|s_k|`).
+    /// Per contact: `|r_k|` per block (block `k`'s share of the function
+    /// stays within it times its growth times `|s_k|`).
     ev_e: Vec<Vec<f64>>,
     /// Per contact: the flights in its penetration (lower side's adds,
     /// upper side's subtracts; none when both ride the same one).
@@ -326,9 +325,13 @@ pub struct MultiPhase {
     /// The entries of `s` the coupled part moves, and its modes.
     coupled: Vec<usize>,
     coupled_modes: Vec<usize>,
-    /// Output rows and constants (left, right).
-    out: [Vec<f64>; 2],
-    out0: [f64; 2],
+    /// Output rows and constants (left, right) of the displacement
+    /// pickups and of the velocity pickups (a time scale `s` takes the
+    /// second times `s`: physical velocities are `s` times the model's).
+    out_d: [Vec<f64>; 2],
+    out_d0: [f64; 2],
+    out_v: [Vec<f64>; 2],
+    out_v0: [f64; 2],
     /// Condition number of `V` (largest over smallest singular value).
     pub kappa: f64,
     /// The largest block growth over one sample, `max_k e^(gamma_k h)` (1
@@ -1153,7 +1156,6 @@ impl MultiPhase {
             z_of_u[(i, nrc + j)] = 1.0 / w;
             q[(i, nrc + j)] = 1.0;
         }
-        let props = gens.iter().map(|g| exp2(g, h)).collect();
         let growth: Vec<f64> = gens.iter().map(|g| (sym_growth(g) * h).exp()).collect();
         let growth_max = growth.iter().copied().fold(1.0, f64::max);
         let nb = gens.len();
@@ -1213,12 +1215,8 @@ impl MultiPhase {
             let r0 = r0 + c0;
             let rd = row_times_gens(&r, &gens);
             let rdd = row_times_gens(&rd, &gens);
-            ev_c2.push(
-                (0..nb)
-                    .map(|k| rdd[k].hypot(rdd[nb + k]) * growth[k])
-                    .collect(),
-            );
-            ev_e.push((0..nb).map(|k| r[k].hypot(r[nb + k]) * growth[k]).collect());
+            ev_c2.push((0..nb).map(|k| rdd[k].hypot(rdd[nb + k])).collect());
+            ev_e.push((0..nb).map(|k| r[k].hypot(r[nb + k])).collect());
             ev.push(r);
             ev0.push(r0);
             ev_d.push(rd);
@@ -1268,20 +1266,19 @@ impl MultiPhase {
         // the entries of s the coupled part moves (the free modes' blocks
         // are their own (omega q, q'))
         let coupled: Vec<usize> = (0..dimc).map(smap).collect();
-        let mut out: [Vec<f64>; 2] = Default::default();
-        let mut out0 = [0.0; 2];
+        let (mut out_d, mut out_v): ([Vec<f64>; 2], [Vec<f64>; 2]) = Default::default();
+        let (mut out_d0, mut out_v0) = ([0.0; 2], [0.0; 2]);
         for c in 0..2 {
             let (disp, velo) = &m.pickups[c];
-            let mut row_y = vec![0.0; dim];
+            let (mut row_d, mut row_v) = (vec![0.0; dim], vec![0.0; dim]);
             for col in 0..nr {
-                row_y[col] = (0..n)
+                row_d[col] = (0..n)
                     .map(|i| disp[i] * q[(i, col)] / (two_pi() * m.freq_hz[i]))
                     .sum();
-                row_y[nr + col] = (0..n).map(|i| velo[i] * p[(i, col)]).sum();
+                row_v[nr + col] = (0..n).map(|i| velo[i] * p[(i, col)]).sum();
             }
-            let (r, r0) = in_phase(&row_y, &v, &y_star);
-            out[c] = r;
-            out0[c] = r0;
+            (out_d[c], out_d0[c]) = in_phase(&row_d, &v, &y_star);
+            (out_v[c], out_v0[c]) = in_phase(&row_v, &v, &y_star);
         }
         let mut flyers: Vec<usize> = (0..m.masses.len())
             .filter(|&j| lay.place[j].is_none())
@@ -1299,7 +1296,6 @@ impl MultiPhase {
             members,
             dim,
             gens,
-            props,
             qv: &q * v_u,
             qv0: col(&q * &u_star),
             pv: &p * v_w,
@@ -1324,8 +1320,10 @@ impl MultiPhase {
             sides,
             coupled,
             coupled_modes: cm,
-            out,
-            out0,
+            out_d,
+            out_d0,
+            out_v,
+            out_v0,
             kappa,
             growth: growth_max,
         })
@@ -1389,10 +1387,72 @@ impl CompiledMulti {
     }
 }
 
+/// What a state steps a phase with at its time scale (made for each phase
+/// up front, brought to the state's scale when the phase is entered).
+#[derive(Debug, Clone)]
+struct PhaseTables {
+    /// Each block's propagator over one step.
+    props: Vec<Mat2>,
+    /// Each block's growth over one step, `e^(gamma_k h_s)`, and the
+    /// largest (at least 1).
+    growth: Vec<f64>,
+    growth_max: f64,
+    /// Output rows and constants: displacement plus `scale` times
+    /// velocity.
+    out: [Vec<f64>; 2],
+    out0: [f64; 2],
+    /// The scale they were made at.
+    at: f64,
+}
+
+impl PhaseTables {
+    fn new(ph: &MultiPhase) -> Self {
+        Self {
+            props: vec![[0.0; 4]; ph.gens.len()],
+            growth: vec![1.0; ph.gens.len()],
+            growth_max: 1.0,
+            out: [vec![0.0; ph.dim], vec![0.0; ph.dim]],
+            out0: [0.0; 2],
+            at: f64::NAN,
+        }
+    }
+
+    /// Bring them to `scale` (step `h` of the model's time). O(dim),
+    /// allocation-free.
+    fn make(&mut self, ph: &MultiPhase, scale: f64, h: f64) {
+        if self.at == scale {
+            return;
+        }
+        self.growth_max = 1.0;
+        for (k, g) in ph.gens.iter().enumerate() {
+            self.props[k] = exp2(g, h);
+            self.growth[k] = (sym_growth(g) * h).exp();
+            self.growth_max = self.growth_max.max(self.growth[k]);
+        }
+        for c in 0..2 {
+            for (o, (d, v)) in self.out[c]
+                .iter_mut()
+                .zip(ph.out_d[c].iter().zip(&ph.out_v[c]))
+            {
+                *o = d + scale * v;
+            }
+            self.out0[c] = ph.out_d0[c] + scale * ph.out_v0[c];
+        }
+        self.at = scale;
+    }
+}
+
 /// The running state of a [`CompiledMulti`].
 #[derive(Debug, Clone)]
 pub struct MultiState {
     mask: u32,
+    /// Time scale: each sample advances the model's time by `scale h`
+    /// (docs/numerics.md section 14, "Time scale").
+    scale: f64,
+    /// `scale h` \[s of the model's time\].
+    step_h: f64,
+    /// Per phase.
+    tables: Vec<PhaseTables>,
     s: Vec<f64>,
     end: Vec<f64>,
     /// Per block of the current phase, `|s_k|` at points of the search:
@@ -1492,8 +1552,13 @@ impl MultiState {
         let nz = sc.model.n() + sc.model.masses.len();
         let x_f = sc.model.masses.iter().map(|m| m.height_m).collect();
         let v_f = sc.model.masses.iter().map(|m| m.velocity_m_per_s).collect();
+        let mut tables: Vec<PhaseTables> = sc.phases.iter().map(PhaseTables::new).collect();
+        tables[0].make(&sc.phases[0], 1.0, sc.h);
         Self {
             mask: 0,
+            scale: 1.0,
+            step_h: sc.h,
+            tables,
             s: {
                 let mut s = Vec::with_capacity(dim);
                 s.resize(sc.phases[0].dim, 0.0);
@@ -1521,6 +1586,7 @@ impl MultiState {
     /// \[audio-thread\]
     pub fn rest(&mut self, sc: &CompiledMulti) {
         self.mask = 0;
+        self.tables[0].make(&sc.phases[0], self.scale, self.step_h);
         self.s.clear();
         self.s.resize(sc.phases[0].dim, 0.0);
         for (j, m) in sc.model.masses.iter().enumerate() {
@@ -1546,6 +1612,12 @@ impl MultiState {
             && a.masses.len() == b.masses.len()
             && a.contacts.len() == b.contacts.len()
             && self.s.capacity() >= to.max_dim()
+            && self.tables.len() == to.phases.len()
+            && self
+                .tables
+                .iter()
+                .zip(&to.phases)
+                .all(|(t, p)| t.props.len() == p.gens.len() && t.out[0].len() == p.dim)
             && self.mask == 0;
         if !same {
             return false;
@@ -1566,6 +1638,11 @@ impl MultiState {
             (&mut self.zq, &mut self.zv),
             &mut self.s,
         );
+        // the tables were the old compile's
+        for t in &mut self.tables {
+            t.at = f64::NAN;
+        }
+        self.tables[0].make(new, self.scale, self.step_h);
         self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
         true
     }
@@ -1623,7 +1700,7 @@ impl MultiState {
         let x = want.max(lo).min(hi);
         let closed = who & self.mask;
         if closed != 0 {
-            let time_s = self.clock as f64 * sc.h;
+            let time_s = self.clock as f64 * self.step_h;
             self.switch(sc, closed, time_s);
         }
         // every contact of the mass is open: it flies alone, in its slot
@@ -1719,17 +1796,44 @@ impl MultiState {
     }
 
     /// The output `[left, right]` of the current state.
-    pub fn output(&self, sc: &CompiledMulti) -> [f64; 2] {
-        let ph = &sc.phases[self.mask as usize];
+    pub fn output(&self, _sc: &CompiledMulti) -> [f64; 2] {
+        let tb = &self.tables[self.mask as usize];
         [
-            dot(&ph.out[0], &self.s) + ph.out0[0],
-            dot(&ph.out[1], &self.s) + ph.out0[1],
+            dot(&tb.out[0], &self.s) + tb.out0[0],
+            dot(&tb.out[1], &self.s) + tb.out0[1],
         ]
+    }
+
+    /// Play the model `scale` times faster (a note's pitch: every
+    /// frequency and decay rate times `scale`, stiffness times `scale^2`,
+    /// damping times `scale`, gravity times `scale^2`, masses kept: each
+    /// sample advances the model's time by `scale h`). The state stays in
+    /// the model's units, so a mass's physical velocity is `scale` times
+    /// its velocity here, and the outputs' velocity pickups take the
+    /// factor. O(N) now for the current phase, O(N) for another phase when
+    /// it is first entered at this scale; allocation-free. Not a number or
+    /// not positive: 1. \[audio-thread\]
+    pub fn set_time_scale(&mut self, sc: &CompiledMulti, scale: f64) {
+        let scale = if scale.is_finite() && scale > 0.0 {
+            scale
+        } else {
+            1.0
+        };
+        self.scale = scale;
+        self.step_h = sc.h * scale;
+        self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
+        let m = self.mask as usize;
+        self.tables[m].make(&sc.phases[m], scale, self.step_h);
+    }
+
+    /// The time scale ([`set_time_scale`](Self::set_time_scale)).
+    pub fn time_scale(&self) -> f64 {
+        self.scale
     }
 
     /// Advance one sample, switching wherever a contact crosses.
     pub fn step(&mut self, sc: &CompiledMulti) {
-        let h = sc.h;
+        let h = self.step_h;
         let mut t = 0.0;
         let mut starts = [Start::Value; MAX_CONTACTS];
         let mut taken = 0;
@@ -1738,7 +1842,8 @@ impl MultiState {
             let rem = h - t;
             let nb = ph.gens.len();
             if t == 0.0 {
-                step_blocks(&ph.props, &self.s, &mut self.end[..ph.dim], nb);
+                let props = &self.tables[self.mask as usize].props;
+                step_blocks(props, &self.s, &mut self.end[..ph.dim], nb);
             } else {
                 step_to(&ph.gens, rem, &self.s, &mut self.end[..ph.dim]);
             }
@@ -1826,7 +1931,7 @@ impl MultiState {
         let psi_end = f.psi(q_end, rem);
         // a whole sample that clears the epoch's margin holds no crossing
         let epoch = self.clock / 64;
-        let whole = matches!(start, Start::Value) && rem == sc.h;
+        let whole = matches!(start, Start::Value) && rem == self.step_h;
         if whole && self.cached[j].0 == epoch {
             let p0 = f.psi(q0, 0.0);
             if psi_end.min(p0) > self.cached[j].1 {
@@ -1835,9 +1940,10 @@ impl MultiState {
         }
         let d0 = f.dpsi(dot(&ph.ev_d[j], &self.s), 0.0);
         let mut mag = ph.ev0[j].abs();
+        let growth = &self.tables[self.mask as usize].growth;
         for k in 0..nb {
             self.norms[0][k] = (self.s[k] * self.s[k] + self.s[nb + k] * self.s[nb + k]).sqrt();
-            mag += ph.ev_e[j][k] * self.norms[0][k];
+            mag += ph.ev_e[j][k] * growth[k] * self.norms[0][k];
         }
         mag += xl.abs() + xu.abs() + (vl.abs() + vu.abs()) * rem + (gl + gu) * rem * rem;
         f.neutral = 4.0 * f64::EPSILON / 2.0 * mag;
@@ -1851,7 +1957,7 @@ impl MultiState {
         let m = self.curvature(ph, j, g_curv, 0);
         if whole && self.cached[j].0 != epoch {
             // for the rest of the epoch: at most 64 samples of growth
-            let later = ph.growth.powi(64);
+            let later = self.tables[self.mask as usize].growth_max.powi(64);
             self.cached[j] = (epoch, self.margin(ph, j, rem, g_curv, 0) * later);
         }
         let (a, psi_a, da) = match start {
@@ -1898,8 +2004,9 @@ impl MultiState {
         let h = w * w / 8.0;
         let mut acc = g_curv * h;
         let norms = &self.norms[slot];
+        let growth = &self.tables[self.mask as usize].growth;
         for k in 0..ph.gens.len() {
-            acc += (ph.ev_c2[j][k] * h).min(2.0 * ph.ev_e[j][k]) * norms[k];
+            acc += (ph.ev_c2[j][k] * h).min(2.0 * ph.ev_e[j][k]) * growth[k] * norms[k];
         }
         acc * (1.0 + 1e-12)
     }
@@ -1908,9 +2015,10 @@ impl MultiState {
     /// slot `slot`): `sum_k c_k |s_k| + g`.
     fn curvature(&self, ph: &MultiPhase, j: usize, g_curv: f64, slot: usize) -> f64 {
         let norms = &self.norms[slot];
+        let growth = &self.tables[self.mask as usize].growth;
         let mut m = g_curv;
         for k in 0..ph.gens.len() {
-            m += ph.ev_c2[j][k] * norms[k];
+            m += ph.ev_c2[j][k] * growth[k] * norms[k];
         }
         m * (1.0 + 1e-12)
     }
@@ -1964,7 +2072,7 @@ impl MultiState {
             return Some(self.refine(sc, j, f, (a, pa), (b, pb)));
         }
         let mid = a + 0.5 * w;
-        if w <= LEAF * sc.h || mid <= a || mid >= b {
+        if w <= LEAF * self.step_h || mid <= a || mid >= b {
             if f.crossed(pb) {
                 return Some(b);
             }
@@ -2017,8 +2125,8 @@ impl MultiState {
         let mut bisect = false;
         // no point nearer an end than half a leaf: a secant that lands on
         // the root from this side is followed by one just across it
-        let tol = 0.5 * LEAF * sc.h;
-        while b - a > LEAF * sc.h {
+        let tol = 0.5 * LEAF * self.step_h;
+        while b - a > LEAF * self.step_h {
             let w = b - a;
             let t = if bisect {
                 a + 0.5 * w
@@ -2082,6 +2190,7 @@ impl MultiState {
         let p_left = pen;
         let new_mask = self.mask ^ who;
         let new = &sc.phases[new_mask as usize];
+        self.tables[new_mask as usize].make(new, self.scale, self.step_h);
         self.s.resize(new.dim, 0.0);
         new.state_of(
             m,
