@@ -1,59 +1,78 @@
-//! A scene of several contacts played as one instrument (docs/design.md,
-//! "Played as a kit"): its objects are one physical system that
-//! every note strikes, so the whole scene is one voice, the kit. A note
-//! throws the mallets the scene gives it (`notes` of `[hammer]` and each
-//! `[[striker]]`; without any, the next mallet in turn) at the note's
-//! impact speed from the surface of the point it strikes (from the drop
-//! height in a scene with gravity); a mallet still in contact leaves it
-//! first ([`MultiState::strike`]). The kit plays at the scene's own pitch
-//! (its contacts are compiled at the scene's time scale), keeps ringing
-//! after note-off (mallets have no damper) and stops when it is silent:
-//! its output below [`SILENCE_AMPLITUDE_RATIO`] of its loudest since the
-//! last strike for a whole check interval while its masses' kinetic energy
-//! is below [`SILENCE_ENERGY_RATIO`] of the strike's (nothing in flight
-//! still to land).
+//! A scene of several contacts played by the instrument (docs/design.md,
+//! "Played as a kit"): its objects are one physical system, so a voice
+//! plays the whole scene, a *kit voice*. A note throws mallets at the
+//! note's impact speed from the surface of the point each strikes (from
+//! the drop height in a scene with gravity); a mallet still in contact
+//! leaves it first ([`MultiState::strike`]).
 //!
-//! The kit renders in voice 0's lane, so the lookahead, the gain, the
-//! output guard and the fade of a swap are the voices' own.
+//! - A scene whose mallets list no notes is *pitched*: one kit voice per
+//!   key at the key's pitch ([`MultiState::set_time_scale`], as a voice of
+//!   one contact), up to [`MAX_KIT_VOICES`]; a note throws the next mallet
+//!   of its key's voice in turn (a repeated key rolls), a new key takes a
+//!   free voice or steals the quietest.
+//! - A scene whose mallets list notes (`notes` of `[hammer]` and each
+//!   `[[striker]]`) is one kit voice at the scene's pitch: a note throws
+//!   every mallet that lists it (a drum kit).
+//!
+//! A kit voice keeps ringing after note-off (mallets have no damper) and
+//! stops when it is silent: its output below [`SILENCE_AMPLITUDE_RATIO`] of
+//! its loudest since its last throw for a whole check interval while the
+//! masses that may still land hardly move ([`MultiState::masses_to_land`]
+//! below [`SILENCE_ENERGY_RATIO`] of the throw's energy).
+//!
+//! Kit voice `i` renders in voice `i`'s lane, so the lookahead, the gain,
+//! the output guard and the fade of a swap are the voices' own.
 
 use super::{impact_speed_m_per_s, Instrument, CHECK_INTERVAL_SAMPLES, SILENCE_ENERGY_RATIO};
 use crate::multi::{CompiledMulti, MultiModel, MultiState, MAX_CONTACTS};
 use crate::scene::{Scene, SceneError};
 
-/// The kit stops when its output stays below this fraction of its loudest
-/// since the last strike for a whole check interval (-90 dB, the voices'
-/// energy ratio [`SILENCE_ENERGY_RATIO`] as an amplitude).
+/// A kit voice stops when its output stays below this fraction of its
+/// loudest since the last throw for a whole check interval (-90 dB, the
+/// voices' energy ratio [`SILENCE_ENERGY_RATIO`] as an amplitude).
 pub const SILENCE_AMPLITUDE_RATIO: f64 = 3.1622776601683795e-5;
 
-/// The compiled scene of several contacts, its running state and which
-/// note strikes which mallet. Built off the audio thread; everything the
+/// Kit voices of a pitched kit (each holds every phase's tables at its
+/// pitch: about 170 KB for four contacts on 100 modes).
+pub const MAX_KIT_VOICES: usize = 16;
+
+/// One kit voice: the scene's running state at its pitch, its turn and its
+/// silence test.
+#[derive(Clone)]
+pub(super) struct KitVoice {
+    pub(super) st: MultiState,
+    /// The mallet its next note throws when in turn.
+    next: usize,
+    /// The last note that threw each mallet (the live view).
+    last_key: [u8; MAX_CONTACTS],
+    /// The loudest output since the last throw, the loudest of the
+    /// current check interval, and the throw's energy (the model's units).
+    peak: f64,
+    interval_peak: f64,
+    strike_energy: f64,
+}
+
+/// The compiled scene of several contacts, its kit voices and which note
+/// throws which mallet. Built off the audio thread; everything the
 /// instrument does with it is allocation-free.
 #[derive(Clone)]
 pub struct Kit {
     /// Every phase of the scene's contacts.
     pub sc: CompiledMulti,
-    /// The running state.
-    pub(super) st: MultiState,
-    /// Per MIDI note: the mallets it strikes (bit `i`: mallet `i`, whose
+    /// The kit voices ([`MAX_KIT_VOICES`] when pitched, else 1).
+    pub(super) voices: Vec<KitVoice>,
+    /// Per MIDI note: the mallets it throws (bit `i`: mallet `i`, whose
     /// contact is contact `i`; `[hammer]` is mallet 0, striker `i` mallet
     /// `i + 1`).
     keys: [u8; 128],
-    /// No mallet lists notes: each note strikes the next mallet in turn.
-    in_turn: bool,
-    /// The mallet a note strikes next when in turn.
-    next: usize,
+    /// No mallet lists notes: a voice per key at its pitch, each note the
+    /// next mallet of its voice in turn.
+    pub pitched: bool,
     /// How many mallets.
     pub mallets: usize,
     /// The masses fall (the scene has gravity).
     pub bouncing: bool,
-    /// The last note that struck each mallet (the live view).
-    pub(super) last_key: [u8; MAX_CONTACTS],
-    /// The loudest output since the last strike, the loudest of the
-    /// current check interval, and the strike's energy \[J\].
-    peak: f64,
-    interval_peak: f64,
-    strike_energy: f64,
-    /// Strikes refused (a mallet wedged, [`MultiState::strike`]).
+    /// Throws refused (a mallet wedged, [`MultiState::strike`]).
     pub refused: u64,
 }
 
@@ -70,8 +89,6 @@ impl Kit {
             };
             SceneError::new(key, e.to_string())
         })?;
-        let mut st = MultiState::new(&sc);
-        st.rest(&sc);
         let lists: Vec<&Vec<u8>> = std::iter::once(&scene.hammer.notes)
             .chain(scene.striker.iter().map(|s| &s.notes))
             .collect();
@@ -81,42 +98,36 @@ impl Kit {
                 keys[usize::from(n.min(127))] |= 1 << i;
             }
         }
-        Ok(Self {
-            mallets: lists.len(),
-            in_turn: lists.iter().all(|l| l.is_empty()),
-            keys,
+        let pitched = lists.iter().all(|l| l.is_empty());
+        let mut st = MultiState::new(&sc);
+        st.rest(&sc);
+        let voice = KitVoice {
+            st,
             next: 0,
-            bouncing: scene.hammer.gravity_m_per_s2 > 0.0,
             last_key: [0; MAX_CONTACTS],
             peak: 0.0,
             interval_peak: 0.0,
             strike_energy: 0.0,
+        };
+        Ok(Self {
+            voices: vec![voice; if pitched { MAX_KIT_VOICES } else { 1 }],
+            mallets: lists.len(),
+            pitched,
+            keys,
+            bouncing: scene.hammer.gravity_m_per_s2 > 0.0,
             refused: 0,
             sc,
-            st,
         })
     }
 
-    /// The mallets note `key` strikes (bit `i`: mallet `i`), taking the
-    /// turn when the scene lists no notes.
-    fn mallets_for(&mut self, key: u8) -> u8 {
-        if self.in_turn {
-            let i = self.next;
-            self.next = (self.next + 1) % self.mallets;
-            1 << i
-        } else {
-            self.keys[usize::from(key.min(127))]
-        }
-    }
-
-    /// Which note strikes which mallet, in words (the summary).
+    /// Which note throws which mallet, in words (the summary).
     pub fn notes_rule(&self) -> &'static str {
-        if self.mallets == 1 {
-            "every note strikes the mallet"
-        } else if self.in_turn {
-            "each note strikes the next mallet in turn"
-        } else {
-            "notes strike the mallets that list them"
+        match (self.pitched, self.mallets) {
+            (true, 1) => "a voice per key at its pitch, each note throwing the mallet",
+            (true, _) => "a voice per key at its pitch, each note throwing its next mallet in turn",
+            (false, _) => {
+                "one voice at the scene's pitch, notes throwing the mallets that list them"
+            }
         }
     }
 
@@ -125,9 +136,9 @@ impl Kit {
     pub fn summary(&self) -> String {
         let m = &self.sc.model;
         format!(
-            "several contacts, played as one voice: {} modes, {} mallets, {} masses, {} \
-             contacts ({} phases, all compiled), largest phase {} states (per sample \
-             O(states)), {}, exact switching",
+            "several contacts, played as a kit: {} modes, {} mallets, {} masses, {} contacts \
+             ({} phases, all compiled), largest phase {} states (per sample O(states)), {}, \
+             exact switching",
             m.freq_hz.len(),
             self.mallets,
             m.masses.len(),
@@ -143,150 +154,235 @@ impl Kit {
         self.sc.max_dim()
     }
 
-    /// Tick `len` samples into `buf` with a linear gain ramp `g0 - k dg`,
-    /// calling `look` on the state before each sample (the live view);
-    /// false if a sample was not a number (the kit then rests).
-    /// \[audio-thread\]
+    /// Most throws that can start at one instant: a voice each when
+    /// pitched, else every mallet.
+    pub fn most_at_once(&self) -> usize {
+        if self.pitched {
+            MAX_KIT_VOICES
+        } else {
+            self.mallets
+        }
+    }
+
+    /// Tick kit voice `i`'s `len` samples into `buf` with a linear gain
+    /// ramp `g0 - k dg`, calling `look` on the state before each sample
+    /// (the live view); false if a sample was not a number (the voice then
+    /// rests). \[audio-thread\]
     pub(super) fn tick_into(
         &mut self,
+        i: usize,
         buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
         len: usize,
         (g0, dg): (f64, f64),
         mut look: impl FnMut(usize, &MultiState, &CompiledMulti),
     ) -> bool {
+        let st = &mut self.voices[i].st;
         let mut finite = true;
         for k in 0..len {
-            look(k, &self.st, &self.sc);
-            let [l, r] = self.st.tick(&self.sc);
+            look(k, st, &self.sc);
+            let [l, r] = st.tick(&self.sc);
             finite &= l.is_finite() && r.is_finite();
             let g = (g0 - k as f64 * dg).max(0.0);
             buf[0][k] = l * g;
             buf[1][k] = r * g;
         }
         if !finite {
-            self.st.rest(&self.sc);
+            st.rest(&self.sc);
         }
         finite
     }
 
-    /// Take over the running state of `old`, a kit of the same scene
-    /// compiled with other parameters, while none of its contacts is
-    /// closed ([`MultiState::carry`]: the physical state and so the energy
-    /// unchanged), with its turn, its keys and its silence test's
-    /// references; `old` keeps this kit's fresh state (to be retired). False
-    /// (nothing changed) when a contact is closed or the bodies differ.
+    /// Take over the running state of kit voice `i` of `old`, a kit of
+    /// the same scene compiled with other parameters, while none of its
+    /// contacts is closed ([`MultiState::carry`]: the physical state and
+    /// so the energy unchanged), with its pitch, its turn, its keys and
+    /// its silence test's references; `old` keeps this kit's fresh state
+    /// (to be retired). False (nothing changed) when a contact is closed,
+    /// the bodies differ or the new kit has no such voice.
     /// Allocation-free. \[audio-thread\]
-    pub(super) fn take_over(&mut self, old: &mut Kit) -> bool {
-        if self.mallets != old.mallets || !old.st.carry(&old.sc, &self.sc) {
+    pub(super) fn take_over(&mut self, old: &mut Kit, i: usize) -> bool {
+        if self.mallets != old.mallets || i >= self.voices.len() || i >= old.voices.len() {
             return false;
         }
-        std::mem::swap(&mut self.st, &mut old.st);
-        self.next = old.next;
-        self.last_key = old.last_key;
-        self.peak = old.peak;
-        self.interval_peak = old.interval_peak;
-        self.strike_energy = old.strike_energy;
+        let (to, from) = (&mut self.voices[i], &mut old.voices[i]);
+        if !from.st.carry(&old.sc, &self.sc) {
+            return false;
+        }
+        std::mem::swap(&mut to.st, &mut from.st);
+        to.next = from.next;
+        to.last_key = from.last_key;
+        to.peak = from.peak;
+        to.interval_peak = from.interval_peak;
+        to.strike_energy = from.strike_energy;
         true
     }
 
-    /// The running state (tests, tools). \[audio-thread\]
+    /// The running state of kit voice 0 (tests, tools). \[audio-thread\]
     pub fn state(&self) -> &MultiState {
-        &self.st
+        &self.voices[0].st
+    }
+
+    /// The running state of kit voice `i` (tests, tools). \[audio-thread\]
+    pub fn voice_state(&self, i: usize) -> Option<&MultiState> {
+        self.voices.get(i).map(|v| &v.st)
+    }
+
+    /// The contacts started by every kit voice, per contact.
+    pub fn contacts_started(&self) -> [u64; MAX_CONTACTS] {
+        let mut out = [0; MAX_CONTACTS];
+        for v in &self.voices {
+            for (o, c) in out.iter_mut().zip(v.st.stats.contacts_started) {
+                *o += c;
+            }
+        }
+        out
     }
 }
 
 impl Instrument {
-    /// A note on a kit: wake it at rest if it was silent, then throw the
-    /// note's mallets. \[audio-thread\]
+    /// A note on a kit: the kit voice it plays (its key's, a free one, or
+    /// the quietest, woken at rest at the key's pitch; the only one of an
+    /// unpitched kit), then its mallets thrown. \[audio-thread\]
     pub(super) fn kit_note_on(&mut self, key: u8, velocity_norm: f64) {
         let speed = impact_speed_m_per_s(velocity_norm);
         let drop = self.play.drop_height_m.max(0.0);
+        let tracking = self.play.pitch_tracking;
+        let poly = self.play.polyphony.clamp(1, super::MAX_VOICES);
+        let root = self.cur.root_note;
         let Some(kit) = self.cur.kit.as_deref_mut() else {
             return;
         };
         self.stats.notes += 1;
-        let which = kit.mallets_for(key);
+        let idx = if !kit.pitched {
+            0
+        } else {
+            let n = kit.voices.len().min(poly);
+            let own = (0..n).find(|&i| self.voices[i].active && self.voices[i].key == key);
+            let free = || (0..n).find(|&i| !self.voices[i].active);
+            match own.or_else(free) {
+                Some(i) => i,
+                None => {
+                    self.stats.steals += 1;
+                    let loud = |i: usize| kit.voices[i].interval_peak.max(kit.voices[i].peak);
+                    (0..n)
+                        .min_by(|&a, &b| loud(a).total_cmp(&loud(b)))
+                        .unwrap_or(0)
+                }
+            }
+        };
+        let which = if kit.pitched {
+            let kv = &mut kit.voices[idx];
+            let same = self.voices[idx].active && self.voices[idx].key == key;
+            if !same {
+                kv.next = 0;
+            }
+            let i = kv.next;
+            kv.next = (kv.next + 1) % kit.mallets;
+            1u8 << i
+        } else {
+            kit.keys[usize::from(key.min(127))]
+        };
         if which == 0 {
             return;
         }
-        let v = &mut self.voices[0];
-        if !v.active {
-            kit.st.rest(&kit.sc);
-            kit.peak = 0.0;
-            kit.interval_peak = 0.0;
-            self.lanes.begin(0, self.sample_pos);
+        let v = &mut self.voices[idx];
+        let kv = &mut kit.voices[idx];
+        if !v.active || v.key != key && kit.pitched {
+            // woken (or stolen) at rest, at the key's pitch
+            let scale = if kit.pitched && tracking {
+                2f64.powf((f64::from(key) - root) / 12.0)
+            } else {
+                1.0
+            };
+            kv.st.set_time_scale(&kit.sc, scale);
+            kv.st.rest(&kit.sc);
+            kv.peak = 0.0;
+            kv.interval_peak = 0.0;
+            if !v.active {
+                self.lanes.begin(idx, self.sample_pos);
+            }
             v.active = true;
         }
         v.key = key;
         v.onset_pos = self.sample_pos;
         let height = if kit.bouncing { drop } else { 0.0 };
         let g = kit.sc.model.gravity_m_per_s2;
+        // the model's units: a physical speed is `scale` times the model's
+        let v_model = speed / kv.st.time_scale();
         let mut energy = 0.0;
         for i in 0..kit.mallets {
             if which & (1 << i) == 0 {
                 continue;
             }
-            if kit.st.strike(&kit.sc, i, height, -speed).is_ok() {
+            if kv.st.strike(&kit.sc, i, height, -v_model).is_ok() {
                 let m = kit.sc.model.masses[i].mass_kg;
-                energy += 0.5 * m * speed * speed + m * g * height;
-                kit.last_key[i] = key;
+                energy += 0.5 * m * v_model * v_model + m * g * height;
+                kv.last_key[i] = key;
             } else {
                 kit.refused += 1;
             }
         }
         if energy > 0.0 {
-            // a new strike: the silence test's references start again
-            kit.strike_energy = energy;
-            kit.peak = 0.0;
+            // a new throw: the silence test's references start again
+            kv.strike_energy = energy;
+            kv.peak = 0.0;
         }
     }
 
-    /// Render the kit's chunk of `len` samples starting at time `t0` into
-    /// `vbuf` (voice 0's lane takes it); the contacts it started, or `None`
-    /// when a sample was not a number (the kit rests and stops: nothing of
-    /// that chunk sounds). With the live view on, every contact is shown as
-    /// a voice of its own (voice `j` for contact `j`: its upper side as the
-    /// hammer, its lower side as the contact point; a mallet's contact
-    /// under the key that last threw it).
+    /// Render kit voice `i`'s chunk of `len` samples starting at time `t0`
+    /// into `vbuf` (voice `i`'s lane takes it); the contacts it started,
+    /// or `None` when a sample was not a number (the voice rests and
+    /// stops: nothing of that chunk sounds). With the live view on, every
+    /// contact is shown as a voice of its own (voice `4 i + j` for contact
+    /// `j`: its upper side as the hammer, its lower side as the contact
+    /// point; a mallet's contact under the key that last threw it).
     /// \[audio-thread\]
-    pub(super) fn kit_render(&mut self, t0: u64, len: usize) -> Option<u64> {
+    pub(super) fn kit_render(&mut self, i: usize, t0: u64, len: usize) -> Option<u64> {
         let kit = self.cur.kit.as_deref_mut()?;
-        let started: u64 = kit.st.stats.contacts_started.iter().sum();
+        if i >= kit.voices.len() {
+            self.voices[i].active = false;
+            return None;
+        }
+        let started: u64 = kit.voices[i].st.stats.contacts_started.iter().sum();
         let observe = self.probe_on && self.probe.is_some();
         let contacts = kit.sc.contacts();
         let motion = &mut self.kit_motion;
-        let finite = kit.tick_into(&mut self.vbuf, len, (1.0, 0.0), |k, st, sc| {
+        let finite = kit.tick_into(i, &mut self.vbuf, len, (1.0, 0.0), |k, st, sc| {
             if observe {
                 let o = st.observe(sc);
+                let s = st.time_scale();
                 for (j, m) in motion.iter_mut().enumerate().take(contacts) {
                     m[k] = crate::engine::Motion {
                         x_hammer: o.x_hammer[j],
-                        v_hammer: o.v_hammer[j],
+                        v_hammer: o.v_hammer[j] * s,
                         x_contact: o.x_contact[j],
-                        v_contact: o.v_contact[j],
+                        v_contact: o.v_contact[j] * s,
                         in_contact: o.active & (1 << j) != 0,
                     };
                 }
             }
         });
         if !finite {
-            self.voices[0].active = false;
+            self.voices[i].active = false;
             self.stats.nonfinite_resets += 1;
             return None;
         }
-        let mut peak = kit.interval_peak;
+        let kv = &mut kit.voices[i];
+        let mut peak = kv.interval_peak;
         for k in 0..len {
             peak = peak.max(self.vbuf[0][k].abs()).max(self.vbuf[1][k].abs());
         }
-        kit.interval_peak = peak;
-        kit.peak = kit.peak.max(peak);
+        kv.interval_peak = peak;
+        kv.peak = kv.peak.max(peak);
         if observe {
-            let energy_j = kit.st.observe(&kit.sc).energy;
+            // physical energy: the model's times the scale squared
+            let s = kv.st.time_scale();
+            let energy_j = kv.st.observe(&kit.sc).energy * s * s;
             if let Some(probe) = self.probe.as_deref_mut() {
                 for j in 0..contacts {
                     probe.voice_chunk(&super::VoiceChunk {
-                        voice: j,
-                        key: kit.last_key[j],
+                        voice: i * MAX_CONTACTS + j,
+                        key: kv.last_key[j],
                         released: false,
                         start: t0,
                         motion: &self.kit_motion[j][..len],
@@ -295,25 +391,26 @@ impl Instrument {
                 }
             }
         }
-        let now: u64 = kit.st.stats.contacts_started.iter().sum();
+        let now: u64 = kv.st.stats.contacts_started.iter().sum();
         Some(now - started)
     }
 
-    /// The kit's silence check (on the silence-check grid): it stops when
-    /// its last interval's output stayed below [`SILENCE_AMPLITUDE_RATIO`]
-    /// of its loudest since the strike and its masses hardly move.
-    /// \[audio-thread\]
-    pub(super) fn kit_silence(&mut self) {
+    /// Kit voice `i`'s silence check (on the silence-check grid): it stops
+    /// when its last interval's output stayed below
+    /// [`SILENCE_AMPLITUDE_RATIO`] of its loudest since the throw and the
+    /// masses that may still land hardly move. \[audio-thread\]
+    pub(super) fn kit_silence(&mut self, i: usize) {
         let Some(kit) = self.cur.kit.as_deref_mut() else {
             return;
         };
-        if !self.voices[0].active {
+        if !self.voices[i].active || i >= kit.voices.len() {
             return;
         }
-        let quiet = kit.interval_peak < SILENCE_AMPLITUDE_RATIO * kit.peak;
-        kit.interval_peak = 0.0;
-        if quiet && kit.st.masses_to_land(&kit.sc) < SILENCE_ENERGY_RATIO * kit.strike_energy {
-            self.voices[0].active = false;
+        let kv = &mut kit.voices[i];
+        let quiet = kv.interval_peak < SILENCE_AMPLITUDE_RATIO * kv.peak;
+        kv.interval_peak = 0.0;
+        if quiet && kv.st.masses_to_land(&kit.sc) < SILENCE_ENERGY_RATIO * kv.strike_energy {
+            self.voices[i].active = false;
             self.stats.silent_stops += 1;
         }
     }

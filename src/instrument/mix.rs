@@ -339,7 +339,7 @@ impl Instrument {
                 let g0 = self.fade_left as f64 / self.fade_len as f64;
                 let dg = 1.0 / self.fade_len as f64;
                 if let Some(kit) = f.kit.as_deref_mut() {
-                    if kit.tick_into(&mut self.vbuf, len, (g0, dg), |_, _, _| {}) {
+                    if kit.tick_into(i, &mut self.vbuf, len, (g0, dg), |_, _, _| {}) {
                         add_into(&mut self.acc, &self.vbuf, len);
                     } else {
                         self.fade_voices[i] = None;
@@ -415,8 +415,8 @@ impl Instrument {
         let len = usize::from(self.lanes.chunk[t0 as usize & self.lanes.mask]);
         debug_assert!(len > 0 && t0 + len as u64 <= self.sample_pos);
         if self.cur.kit.is_some() {
-            // a kit: the whole scene in voice 0's lane
-            if let Some(new_contacts) = self.kit_render(t0, len) {
+            // a kit voice: the whole scene in its voice's lane
+            if let Some(new_contacts) = self.kit_render(i, t0, len) {
                 if self.lanes.meter == WorkMeter::Estimate {
                     self.lanes.work_ns += len as f64 * self.cur.step_cost_ns()
                         + new_contacts as f64 * self.cur.contact_cost_ns();

@@ -89,7 +89,7 @@ mod tests;
 mod voices;
 
 pub use events::{Event, TimedEvent};
-pub use kit::{Kit, SILENCE_AMPLITUDE_RATIO};
+pub use kit::{Kit, MAX_KIT_VOICES, SILENCE_AMPLITUDE_RATIO};
 pub use mapping::{
     damped_scene, impact_speed_m_per_s, lowest_frequency_hz, root_note, scene_for,
     InstrumentParams, PlayParams, SceneParams, VariantSet,
@@ -562,7 +562,7 @@ impl Instrument {
             if self.cur.kit.is_some() || new.kit.is_some() {
                 let carried = same_object
                     && match (self.cur.kit.as_deref_mut(), new.kit.as_deref_mut()) {
-                        (Some(old), Some(to)) => to.take_over(old),
+                        (Some(old), Some(to)) => to.take_over(old, i),
                         _ => false,
                     };
                 if carried {

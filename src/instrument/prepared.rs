@@ -393,7 +393,7 @@ impl Prepared {
             scene: self.scenes.scene.name.clone(),
             strike_s: self.strike_cost_estimate_s(),
             contact_states: self.contact_states(),
-            most_at_once: self.kit.as_ref().map_or(MAX_VOICES, |k| k.mallets),
+            most_at_once: self.kit.as_ref().map_or(MAX_VOICES, |k| k.most_at_once()),
             rate_hz: self.rate_hz,
         }
     }

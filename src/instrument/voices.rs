@@ -309,7 +309,7 @@ impl Instrument {
     /// [`SILENCE_ENERGY_RATIO`] of its strike's). \[audio-thread\]
     pub(super) fn stop_if_silent(&mut self, i: usize) {
         if self.cur.kit.is_some() {
-            return self.kit_silence();
+            return self.kit_silence(i);
         }
         let p = &*self.cur;
         let v = &mut self.voices[i];

@@ -553,7 +553,7 @@ gain = 0.5
         let r = lib.report();
         assert!(r.error.is_none(), "{r:?}");
         assert!(
-            r.summary.contains("several contacts, played as one voice")
+            r.summary.contains("several contacts, played as a kit")
                 && r.summary.contains("2 mallets")
                 && r.summary.contains("4 phases"),
             "{}",

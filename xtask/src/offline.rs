@@ -157,7 +157,7 @@ pub fn play_note(
     inst.process(&[on], &mut left, &mut right);
     let render_s = t0.elapsed().as_secs_f64();
     let contacts = match &inst.prepared().kit {
-        Some(k) => k.state().stats.contacts_started.iter().sum(),
+        Some(k) => k.contacts_started().iter().sum(),
         None => (0..modal_contact::instrument::MAX_VOICES)
             .map(|v| inst.voice_state_mut(v).contacts_started)
             .sum(),
