@@ -41,7 +41,7 @@ pub struct Prepared {
     /// On the heap, as the variants (a `Prepared` is built on whichever
     /// thread compiles it, a host's thread at activation).
     pub(super) states: Box<[EngineState; MAX_VOICES]>,
-    /// A scene of several contacts, played as one voice (docs/design.md,
+    /// A scene of several contacts, played as a kit (docs/design.md,
     /// "Played as a kit"); then `scenes` holds the first
     /// mallet on its object alone (what the instrument reads of a scene:
     /// its spectrum, its costs), which no voice plays.
