@@ -1442,8 +1442,11 @@ impl PhaseTables {
     }
 }
 
-/// The running state of a [`CompiledMulti`].
-#[derive(Debug, Clone)]
+/// The running state of a [`CompiledMulti`]. A clone keeps the room its
+/// vectors have (a `Vec`'s own clone keeps only its length): the clone of
+/// a state made for a compile steps it without allocating, as the state
+/// does.
+#[derive(Debug)]
 pub struct MultiState {
     mask: u32,
     /// Time scale: each sample advances the model's time by `scale h`
@@ -1484,6 +1487,42 @@ pub struct MultiState {
     /// Every switch, when [`record`](Self::record) is on.
     pub switches: Vec<MultiSwitch>,
     record: bool,
+}
+
+/// `v` cloned with the room `v` has.
+fn with_room(v: &[f64], room: usize) -> Vec<f64> {
+    let mut out = Vec::with_capacity(room.max(v.len()));
+    out.extend_from_slice(v);
+    out
+}
+
+impl Clone for MultiState {
+    fn clone(&self) -> Self {
+        Self {
+            mask: self.mask,
+            scale: self.scale,
+            step_h: self.step_h,
+            tables: self.tables.clone(),
+            s: with_room(&self.s, self.s.capacity()),
+            end: self.end.clone(),
+            norms: self
+                .norms
+                .iter()
+                .map(|n| with_room(n, n.capacity()))
+                .collect(),
+            x_f: self.x_f.clone(),
+            v_f: self.v_f.clone(),
+            zq: self.zq.clone(),
+            zv: self.zv.clone(),
+            phys: self.phys.clone(),
+            cached: self.cached,
+            budget: self.budget,
+            clock: self.clock,
+            stats: self.stats,
+            switches: self.switches.clone(),
+            record: self.record,
+        }
+    }
 }
 
 /// Where a contact's search starts: its event function's value, or 0 on

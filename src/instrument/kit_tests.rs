@@ -4,6 +4,7 @@
 //! blocks and the lookahead do not change a sample, a kit voice stops when
 //! silent and wakes at rest, a swap carries or fades it.
 
+use super::tests::{on, render};
 use super::*;
 use crate::multi::{CompiledMulti, MultiModel, MultiState};
 use crate::scene::Scene;
@@ -66,22 +67,6 @@ fn kit_instrument(scene: &Scene, lookahead_s: f64) -> Instrument {
     let mut inst = Instrument::new(p, play);
     inst.set_lookahead(lookahead_samples(lookahead_s, RATE));
     inst
-}
-
-fn on(offset: usize, key: u8, vel: f64) -> TimedEvent {
-    TimedEvent {
-        offset,
-        event: Event::NoteOn {
-            key,
-            velocity_norm: vel,
-        },
-    }
-}
-
-fn render(inst: &mut Instrument, events: &[TimedEvent], n: usize) -> [Vec<f32>; 2] {
-    let (mut l, mut r) = (vec![0.0; n], vec![0.0; n]);
-    inst.process(events, &mut l, &mut r);
-    [l, r]
 }
 
 fn kit(inst: &Instrument) -> &Kit {
@@ -486,4 +471,88 @@ fn the_live_view_shows_every_contact_of_a_kit() {
         s.in_contact
     );
     assert_eq!(s.keys[0], 72, "the clapper's contact under its key");
+}
+
+/// Random abuse of kits (a debug build's assertions armed): swaps between
+/// every kit preset and a preset of one contact with random parameters,
+/// random play parameters (polyphony, lookahead, drop height, pitch
+/// tracking), notes with random keys and velocities (not-a-number
+/// included), every other event; every sample finite and within the
+/// ceiling, no panic.
+#[test]
+fn kits_take_random_abuse() {
+    use crate::test_rng::TestRng;
+    let mut rng = TestRng(0x0b1e);
+    let kits: Vec<usize> = (0..crate::presets::COUNT)
+        .filter(|&i| crate::presets::is_kit(i))
+        .collect();
+    let bar = crate::presets::index_of("marimba-bar").unwrap();
+    let mut sp = SceneParams {
+        preset: kits[0],
+        ..SceneParams::default()
+    };
+    let mut inst = Instrument::new(prepare(&sp, RATE, 0).unwrap(), PlayParams::default());
+    let mut revision = 1;
+    for round in 0..60 {
+        if round % 4 == 1 {
+            sp.preset = if rng.below(5) == 0 {
+                bar
+            } else {
+                kits[rng.below(kits.len())]
+            };
+            sp.stiffness_factor = [0.01, 1.0, 10.0, f64::NAN][rng.below(4)];
+            sp.hammer_mass_factor = [0.1, 1.0, 4.0][rng.below(3)];
+            sp.decay_scale = [0.05, 1.0, 3.0][rng.below(3)];
+            sp.strike_pos_norm = [None, Some(0.0), Some(0.7)][rng.below(3)];
+            if let Ok(p) = prepare(&sp, RATE, revision) {
+                revision += 1;
+                if inst.can_install() {
+                    let _ = inst.install(p);
+                }
+            }
+            for slot in inst.retired_slots_mut() {
+                slot.take();
+            }
+        }
+        if round % 5 == 2 {
+            let play = PlayParams {
+                polyphony: 1 + rng.below(64),
+                pitch_tracking: rng.below(2) == 0,
+                drop_height_m: [0.0, 0.02, 0.3, f64::NAN][rng.below(4)],
+                lookahead_s: [0.0, 0.005, 0.04][rng.below(3)],
+                ..PlayParams::default()
+            };
+            inst.set_play(play);
+            inst.set_lookahead(lookahead_samples(play.lookahead_s, RATE));
+        }
+        let n = 1 + rng.below(2000);
+        let mut events = Vec::new();
+        for _ in 0..rng.below(40) {
+            let offset = rng.below(n);
+            let key = rng.below(128) as u8;
+            let event = match rng.below(6) {
+                0..=2 => Event::NoteOn {
+                    key,
+                    velocity_norm: [rng.unit(), 1.0, f64::NAN, 0.0][rng.below(4)],
+                },
+                3 => Event::NoteOff { key },
+                4 => Event::PitchBend {
+                    value: rng.uniform(-1.0, 1.0),
+                },
+                _ => Event::Sustain {
+                    down: rng.below(2) == 0,
+                },
+            };
+            events.push(TimedEvent { offset, event });
+        }
+        events.sort_by_key(|e| e.offset);
+        let out = render(&mut inst, &events, n);
+        assert!(
+            out.iter()
+                .flatten()
+                .all(|x| x.is_finite() && f64::from(x.abs()) <= OUTPUT_CEILING),
+            "round {round}"
+        );
+    }
+    println!("kits: {:?}", inst.stats);
 }

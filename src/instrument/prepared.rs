@@ -636,8 +636,30 @@ pub fn prepare_scene(
     for (&d, v) in dampers.iter().zip(compiled) {
         damped_at[slot(d)] = v;
     }
-    let states = voice_states(&scene, rate_hz);
-    Ok(Box::new(Prepared {
+    let scenes = Scenes {
+        scene,
+        damped,
+        played,
+        damped_at,
+    };
+    Ok(assemble(
+        (base, params, rate_hz, revision),
+        (switching_used, fallback_note),
+        scenes,
+        None,
+    ))
+}
+
+/// A [`Prepared`] of compiled scenes (and a kit), with a fresh engine
+/// state per voice. \[worker\] \[main-thread\]
+fn assemble(
+    (base, params, rate_hz, revision): (&Scene, &SceneParams, f64, u64),
+    (switching_used, fallback_note): (Switching, Option<String>),
+    scenes: Scenes,
+    kit: Option<Box<Kit>>,
+) -> Box<Prepared> {
+    let states = voice_states(&scenes.scene, rate_hz);
+    Box::new(Prepared {
         revision,
         rate_hz,
         params: *params,
@@ -645,15 +667,10 @@ pub fn prepare_scene(
         bouncing: base.hammer.gravity_m_per_s2 > 0.0,
         switching_used,
         fallback_note,
-        scenes: Scenes {
-            scene,
-            damped,
-            played,
-            damped_at,
-        },
+        scenes,
         states,
-        kit: None,
-    }))
+        kit,
+    })
 }
 
 /// A fresh engine state per voice for `scene`. \[worker\] \[main-thread\]
@@ -693,22 +710,16 @@ fn prepare_kit(
     alone.touch.clear();
     alone.hammer.notes.clear();
     let scene = compile_with(&alone, rate_hz, Some(Switching::Exact))?;
-    let states = voice_states(&scene, rate_hz);
-    Ok(Box::new(Prepared {
-        revision,
-        rate_hz,
-        params: *params,
-        root_note: root_note(base),
-        bouncing: base.hammer.gravity_m_per_s2 > 0.0,
-        switching_used: Switching::Exact,
-        fallback_note: None,
-        scenes: Scenes {
-            scene,
-            damped: None,
-            played: (0..LEVELS * LEVELS).map(|_| None).collect(),
-            damped_at: (0..LEVELS).map(|_| None).collect(),
-        },
-        states,
-        kit: Some(Box::new(kit)),
-    }))
+    let scenes = Scenes {
+        scene,
+        damped: None,
+        played: (0..LEVELS * LEVELS).map(|_| None).collect(),
+        damped_at: (0..LEVELS).map(|_| None).collect(),
+    };
+    Ok(assemble(
+        (base, params, rate_hz, revision),
+        (Switching::Exact, None),
+        scenes,
+        Some(Box::new(kit)),
+    ))
 }

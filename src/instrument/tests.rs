@@ -29,14 +29,14 @@ fn instrument(p: &InstrumentParams) -> Instrument {
     Instrument::new(prepare(&p.scene, RATE, 0).unwrap(), p.play)
 }
 
-fn render(inst: &mut Instrument, events: &[TimedEvent], n: usize) -> [Vec<f32>; 2] {
+pub(super) fn render(inst: &mut Instrument, events: &[TimedEvent], n: usize) -> [Vec<f32>; 2] {
     let mut l = vec![0.0; n];
     let mut r = vec![0.0; n];
     inst.process(events, &mut l, &mut r);
     [l, r]
 }
 
-fn on(offset: usize, key: u8, vel: f64) -> TimedEvent {
+pub(super) fn on(offset: usize, key: u8, vel: f64) -> TimedEvent {
     TimedEvent {
         offset,
         event: Event::NoteOn {

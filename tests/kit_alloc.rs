@@ -1,0 +1,153 @@
+//! The instrument playing kits allocates nothing on the audio thread: a
+//! counting allocator armed around every `Instrument::process` and
+//! `Instrument::install` of a random abuse of the kit presets (swaps
+//! between them and a preset of one contact, random play parameters,
+//! random notes). Built without the `rt-checks` feature (whose allocation
+//! checker is that build's global allocator; the plugin's checked build
+//! plays the kits in `plugin-tests/tests/rt_alloc.rs`).
+#![cfg(not(feature = "rt-checks"))]
+
+use modal_contact::instrument::{
+    lookahead_samples, prepare, Event, Instrument, PlayParams, SceneParams, TimedEvent,
+};
+use modal_contact::presets;
+use modal_testkit::rng::TestRng;
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+struct Counting;
+
+static ARMED: AtomicBool = AtomicBool::new(false);
+static ALLOCS: AtomicUsize = AtomicUsize::new(0);
+static LAST: AtomicUsize = AtomicUsize::new(0);
+/// `KIT_ALLOC_TRACE=1`: print where an armed allocation comes from.
+static TRACE: AtomicBool = AtomicBool::new(false);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if ARMED.load(Ordering::Relaxed) {
+            ALLOCS.fetch_add(1, Ordering::Relaxed);
+            LAST.store(layout.size(), Ordering::Relaxed);
+            if TRACE.load(Ordering::Relaxed) {
+                ARMED.store(false, Ordering::Relaxed);
+                let bt = std::backtrace::Backtrace::force_capture().to_string();
+                use std::io::Write;
+                let _ = std::io::stderr().write_all(bt.as_bytes());
+            }
+        }
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        if ARMED.load(Ordering::Relaxed) {
+            ALLOCS.fetch_add(1, Ordering::Relaxed);
+            LAST.store(new_size, Ordering::Relaxed);
+            if TRACE.load(Ordering::Relaxed) {
+                ARMED.store(false, Ordering::Relaxed);
+                let bt = std::backtrace::Backtrace::force_capture().to_string();
+                use std::io::Write;
+                let _ = std::io::stderr().write_all(bt.as_bytes());
+            }
+        }
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn armed<R>(what: &str, f: impl FnOnce() -> R) -> R {
+    let before = ALLOCS.load(Ordering::Relaxed);
+    ARMED.store(true, Ordering::Relaxed);
+    let r = f();
+    ARMED.store(false, Ordering::Relaxed);
+    let n = ALLOCS.load(Ordering::Relaxed) - before;
+    assert_eq!(
+        n,
+        0,
+        "{what}: {n} allocations (the last {} bytes)",
+        LAST.load(Ordering::Relaxed)
+    );
+    r
+}
+
+#[test]
+fn kits_allocate_nothing_on_the_audio_thread() {
+    const RATE: f64 = 48_000.0;
+    TRACE.store(
+        std::env::var_os("KIT_ALLOC_TRACE").is_some(),
+        Ordering::Relaxed,
+    );
+    let mut rng = TestRng(0xa11c);
+    let kits: Vec<usize> = (0..presets::COUNT)
+        .filter(|&i| presets::is_kit(i))
+        .collect();
+    let bar = presets::index_of("marimba-bar").unwrap();
+    let mut sp = SceneParams {
+        preset: kits[0],
+        ..SceneParams::default()
+    };
+    let mut inst = Instrument::new(prepare(&sp, RATE, 0).unwrap(), PlayParams::default());
+    let (mut l, mut r) = (vec![0.0f32; 4096], vec![0.0f32; 4096]);
+    let mut revision = 1;
+    let mut notes = 0;
+    for round in 0..120 {
+        if round % 3 == 1 {
+            sp.preset = if rng.below(5) == 0 {
+                bar
+            } else {
+                kits[rng.below(kits.len())]
+            };
+            sp.stiffness_factor = [0.3, 1.0, 3.0][rng.below(3)];
+            sp.decay_scale = [0.5, 1.0, 2.0][rng.below(3)];
+            if let Ok(p) = prepare(&sp, RATE, revision) {
+                revision += 1;
+                if inst.can_install() {
+                    armed("install", || inst.install(p).ok());
+                }
+            }
+            for slot in inst.retired_slots_mut() {
+                slot.take();
+            }
+        }
+        if round % 7 == 3 {
+            let play = PlayParams {
+                polyphony: 1 + rng.below(64),
+                pitch_tracking: rng.below(4) != 0,
+                drop_height_m: [0.0, 0.02, 0.3][rng.below(3)],
+                lookahead_s: [0.0, 0.005][rng.below(2)],
+                ..PlayParams::default()
+            };
+            armed("set_play", || {
+                inst.set_play(play);
+                inst.set_lookahead(lookahead_samples(play.lookahead_s, RATE));
+            });
+        }
+        let n = 1 + rng.below(4096);
+        let mut events = Vec::new();
+        for _ in 0..rng.below(24) {
+            let offset = rng.below(n);
+            let key = 36 + rng.below(60) as u8;
+            let event = match rng.below(4) {
+                0 | 1 => Event::NoteOn {
+                    key,
+                    velocity_norm: rng.unit(),
+                },
+                2 => Event::NoteOff { key },
+                _ => Event::PitchBend {
+                    value: rng.uniform(-1.0, 1.0),
+                },
+            };
+            notes += 1;
+            events.push(TimedEvent { offset, event });
+        }
+        events.sort_by_key(|e| e.offset);
+        armed("process", || {
+            inst.process(&events, &mut l[..n], &mut r[..n])
+        });
+    }
+    println!("{notes} events, {} swaps, {:?}", revision - 1, inst.stats);
+    assert!(inst.stats.swaps > 20);
+}
