@@ -9,7 +9,11 @@
 //! section 14; the scene keys `[[striker]]` and `[[touch]]` and the render
 //! command: docs/design.md "Several contacts"), checked against the
 //! independent reference solver and closed forms (`tests/multi_contact.rs`);
-//! the instrument and the plugin play one contact ([`crate::engine`]).
+//! the instrument plays such a scene as a kit (`crate::instrument`,
+//! docs/design.md "Played as a kit"): a throw between samples
+//! ([`MultiState::strike`]), a time scale per kit voice
+//! ([`MultiState::set_time_scale`]), a state carried to a recompile
+//! ([`MultiState::carry`]).
 //!
 //! Coordinates. The positions `z` are every mode's `q_i` (unit modal
 //! mass) and `sqrt(m_j) x_j` of every mass in a closed contact (a mass in
@@ -1397,6 +1401,10 @@ struct PhaseTables {
     /// largest (at least 1).
     growth: Vec<f64>,
     growth_max: f64,
+    /// Per contact, per block: the phase's curvature weights and
+    /// magnitudes times the block's growth (the search's bounds).
+    ev_c2: Vec<Vec<f64>>,
+    ev_e: Vec<Vec<f64>>,
     /// Output rows and constants: displacement plus `scale` times
     /// velocity.
     out: [Vec<f64>; 2],
@@ -1411,6 +1419,8 @@ impl PhaseTables {
             props: vec![[0.0; 4]; ph.gens.len()],
             growth: vec![1.0; ph.gens.len()],
             growth_max: 1.0,
+            ev_c2: ph.ev_c2.clone(),
+            ev_e: ph.ev_e.clone(),
             out: [vec![0.0; ph.dim], vec![0.0; ph.dim]],
             out0: [0.0; 2],
             at: f64::NAN,
@@ -1428,6 +1438,12 @@ impl PhaseTables {
             self.props[k] = exp2(g, h);
             self.growth[k] = (sym_growth(g) * h).exp();
             self.growth_max = self.growth_max.max(self.growth[k]);
+        }
+        for (j, (c2, e)) in self.ev_c2.iter_mut().zip(&mut self.ev_e).enumerate() {
+            for k in 0..ph.gens.len() {
+                c2[k] = ph.ev_c2[j][k] * self.growth[k];
+                e[k] = ph.ev_e[j][k] * self.growth[k];
+            }
         }
         for c in 0..2 {
             for (o, (d, v)) in self.out[c]
@@ -1591,8 +1607,12 @@ impl MultiState {
         let nz = sc.model.n() + sc.model.masses.len();
         let x_f = sc.model.masses.iter().map(|m| m.height_m).collect();
         let v_f = sc.model.masses.iter().map(|m| m.velocity_m_per_s).collect();
+        // every phase's tables at scale 1 up front: a state that keeps its
+        // scale never makes them on the way (a switch pays nothing more)
         let mut tables: Vec<PhaseTables> = sc.phases.iter().map(PhaseTables::new).collect();
-        tables[0].make(&sc.phases[0], 1.0, sc.h);
+        for (t, ph) in tables.iter_mut().zip(&sc.phases) {
+            t.make(ph, 1.0, sc.h);
+        }
         Self {
             mask: 0,
             scale: 1.0,
@@ -1979,10 +1999,10 @@ impl MultiState {
         }
         let d0 = f.dpsi(dot(&ph.ev_d[j], &self.s), 0.0);
         let mut mag = ph.ev0[j].abs();
-        let growth = &self.tables[self.mask as usize].growth;
+        let ev_e = &self.tables[self.mask as usize].ev_e[j];
         for k in 0..nb {
             self.norms[0][k] = (self.s[k] * self.s[k] + self.s[nb + k] * self.s[nb + k]).sqrt();
-            mag += ph.ev_e[j][k] * growth[k] * self.norms[0][k];
+            mag += ev_e[k] * self.norms[0][k];
         }
         mag += xl.abs() + xu.abs() + (vl.abs() + vu.abs()) * rem + (gl + gu) * rem * rem;
         f.neutral = 4.0 * f64::EPSILON / 2.0 * mag;
@@ -2043,9 +2063,10 @@ impl MultiState {
         let h = w * w / 8.0;
         let mut acc = g_curv * h;
         let norms = &self.norms[slot];
-        let growth = &self.tables[self.mask as usize].growth;
+        let tb = &self.tables[self.mask as usize];
+        let (c2, e) = (&tb.ev_c2[j], &tb.ev_e[j]);
         for k in 0..ph.gens.len() {
-            acc += (ph.ev_c2[j][k] * h).min(2.0 * ph.ev_e[j][k]) * growth[k] * norms[k];
+            acc += (c2[k] * h).min(2.0 * e[k]) * norms[k];
         }
         acc * (1.0 + 1e-12)
     }
@@ -2054,10 +2075,10 @@ impl MultiState {
     /// slot `slot`): `sum_k c_k |s_k| + g`.
     fn curvature(&self, ph: &MultiPhase, j: usize, g_curv: f64, slot: usize) -> f64 {
         let norms = &self.norms[slot];
-        let growth = &self.tables[self.mask as usize].growth;
+        let c2 = &self.tables[self.mask as usize].ev_c2[j];
         let mut m = g_curv;
         for k in 0..ph.gens.len() {
-            m += ph.ev_c2[j][k] * growth[k] * norms[k];
+            m += c2[k] * norms[k];
         }
         m * (1.0 + 1e-12)
     }

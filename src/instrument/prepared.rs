@@ -280,8 +280,8 @@ pub struct StrikeCost {
     /// Sample rate \[Hz\].
     pub rate_hz: f64,
     /// Most strikes that can start in one sample: the polyphony's notes,
-    /// or a kit's mallets (its one voice throws each at most once an
-    /// instant).
+    /// a pitched kit's voices, or a listed kit's mallets (its one voice
+    /// throws each at most once an instant).
     pub most_at_once: usize,
 }
 

@@ -622,8 +622,8 @@ fn strike_warning_names_what_fits_at_the_hosts_block_size() {
             warned_at_32.push(pr.scenes.scene.name.clone());
         }
         // a kit's strike switches its largest phase (the snare's head and
-        // wires: 110 states); its one voice throws each mallet at most once
-        // an instant, so its chords are its mallets
+        // wires: 110 states); the snare lists its notes, so its one kit
+        // voice throws its one mallet at most once an instant
         let limit = if pr.kit.is_some() { 100e-6 } else { 40e-6 };
         assert!(
             pr.strike_cost_estimate_s() < limit,
