@@ -163,8 +163,8 @@ fn trim(left: &mut Vec<f32>, right: &mut Vec<f32>) -> f32 {
 }
 
 /// The SFZ text for `regions` (samples named by [`Region::file`]).
-/// `fixed_pitch`: a kit (docs/design.md, "Played as a kit"), whose notes
-/// all sound at the scene's pitch: no region is transposed
+/// `fixed_pitch`: a kit whose mallets list notes (docs/design.md, "Played
+/// as a kit"), every note at the scene's pitch: no region is transposed
 /// (`pitch_keytrack=0`).
 pub fn sfz_text(
     name: &str,
@@ -208,6 +208,14 @@ pub fn sfz_text(
     s
 }
 
+/// A kit whose mallets list notes (docs/design.md, "Played as a kit"):
+/// every key sounds at the scene's pitch, and keys throw different mallets.
+/// (A kit without lists is pitched per key like a scene of one contact.)
+fn fixed_pitch(scene: &Scene) -> bool {
+    scene.several_contacts()
+        && (!scene.hammer.notes.is_empty() || scene.striker.iter().any(|s| !s.notes.is_empty()))
+}
+
 /// What an export writes, decided and checked before anything renders.
 struct Plan {
     scene: Scene,
@@ -227,9 +235,7 @@ fn plan(a: &MultisampleArgs) -> Result<Plan> {
     let mut keys = parse_midi_list(&a.notes, "note", 0, 127)?;
     keys.sort_unstable();
     let regions = layout(&keys, a.step, a.velocities)?;
-    let lists_notes =
-        !scene.hammer.notes.is_empty() || scene.striker.iter().any(|s| !s.notes.is_empty());
-    if scene.several_contacts() && lists_notes && a.step > 1 {
+    if fixed_pitch(&scene) && a.step > 1 {
         bail!(
             "--step {}: scene {:?} is a kit whose notes throw different mallets (docs/design.md, \
              \"Played as a kit\"): a region cannot stand for its neighbours; export it with \
@@ -462,7 +468,7 @@ pub fn run(a: &MultisampleArgs) -> Result<()> {
         &header(a, &plan, volume_db, failed.len()),
         &written,
         volume_db,
-        plan.scene.several_contacts(),
+        fixed_pitch(&plan.scene),
     );
     std::fs::write(&plan.sfz, text)
         .with_context(|| format!("cannot write {}", plan.sfz.display()))?;
@@ -605,8 +611,9 @@ mod tests {
     }
 
     /// A kit whose notes throw different mallets is exported a key per
-    /// region: `--step 3` is refused by name before anything renders; a
-    /// kit without note lists (every key the same throw in turn) takes it.
+    /// region, untransposed: `--step 3` is refused by name before anything
+    /// renders; a kit without note lists (pitched per key, as a scene of
+    /// one contact) takes it and is transposed as one.
     #[test]
     fn a_kit_with_note_lists_is_exported_a_key_per_region() {
         let dir = std::env::temp_dir().join(format!("kit-sfz-{}", std::process::id()));
@@ -631,7 +638,12 @@ mod tests {
         };
         let e = plan(&args(listed)).err().expect("refused");
         assert!(format!("{e:#}").contains("--step 3"), "{e:#}");
-        assert!(plan(&args(root.join("presets/wind-chimes.toml"))).is_ok());
+        assert!(fixed_pitch(
+            &Scene::from_file(&dir.join("listed.toml")).unwrap()
+        ));
+        let chimes = root.join("presets/wind-chimes.toml");
+        assert!(plan(&args(chimes.clone())).is_ok());
+        assert!(!fixed_pitch(&Scene::from_file(&chimes).unwrap()));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
