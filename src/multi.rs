@@ -62,7 +62,7 @@ use crate::compile::{pan_gains, CompileBudget};
 use crate::physics::block::{exp2, mul2, sym_growth, Mat2};
 use crate::physics::decomp::{decompose_via, Form};
 use crate::physics::model::LN_1000;
-use crate::scene::{End as SceneEnd, ObjectSpec, Quantity, Scene, SceneError};
+use crate::scene::{End as SceneEnd, ObjectSpec, Quantity, Scene, SceneError, Switching};
 use nalgebra::DMatrix;
 
 /// Most contacts of one scene.
@@ -310,6 +310,11 @@ pub struct MultiPhase {
     s_star: Vec<f64>,
     /// Each closed contact's `p0_c`.
     p0: Vec<f64>,
+    /// Per closed contact: how the block state's equilibrium moves per
+    /// metre of an offset rod in it, `V^-1 dy*/dd_c` (the rod shortens the
+    /// spring's rest length: `p0_c -> p0_c - d_c`; docs/numerics.md
+    /// section 14, "The offset rod per contact").
+    rod_s: Vec<Vec<f64>>,
     /// Per contact (all of them): the row and constant of its penetration
     /// (without the flights), its slope row `r G`, and the curvature
     /// weights `|r_k G_k^2|` per block (times each block's growth over the
@@ -356,6 +361,10 @@ pub struct CompiledMulti {
     pub rate_hz: f64,
     /// `phases[mask]`.
     pub phases: Vec<MultiPhase>,
+    /// How contacts switch: exactly, where each crosses, or with an
+    /// offset rod per contact at sample instants (the paper's method;
+    /// docs/numerics.md section 14, "The offset rod per contact").
+    pub switching: Switching,
 }
 
 /// What the engine did (diagnostics, tests).
@@ -1044,6 +1053,8 @@ impl MultiPhase {
             damping[(a, a)] = 2.0 * m.sigma[i];
         }
         let mut force = vec![0.0; nzc];
+        // per closed contact: the force per metre of a rod in it (on zc)
+        let mut rod_force = vec![vec![0.0; nzc]; members.len()];
         for (pos, &c) in members.iter().enumerate() {
             let ct = &m.contacts[c];
             let gz: Vec<f64> = zc_of.iter().map(|&zi| rows[pos].0[zi]).collect();
@@ -1053,6 +1064,7 @@ impl MultiPhase {
             }
             for a in 0..nzc {
                 force[a] -= ct.stiffness_n_per_m * p0[pos] * gz[a];
+                rod_force[pos][a] = ct.stiffness_n_per_m * gz[a];
                 for b in 0..nzc {
                     damping[(a, b)] += ct.damping_n_s_per_m * gz[a] * gz[b];
                 }
@@ -1103,16 +1115,29 @@ impl MultiPhase {
             };
             (gens, d.v, d.vinv, d.diag.kappa)
         };
-        let yc_star: Vec<f64> = if fy.iter().any(|x| *x != 0.0) {
-            let lu = a.clone().lu();
-            let rhs = nalgebra::DVector::from_iterator(dimc, fy.iter().map(|x| -x));
+        // the equilibrium `A y* + f = 0`, and per closed contact its move
+        // per metre of a rod
+        let lu = (dimc > 0).then(|| a.clone().lu());
+        let solve = |f: &[f64], why: &str| -> Result<Vec<f64>, MultiError> {
+            if f.iter().all(|x| *x == 0.0) {
+                return Ok(vec![0.0; dimc]);
+            }
+            let rhs = nalgebra::DVector::from_iterator(dimc, f.iter().map(|x| -x));
             let y = lu
-                .solve(&rhs)
-                .ok_or_else(|| bad("no equilibrium under gravity".into()))?;
-            y.iter().copied().collect()
-        } else {
-            vec![0.0; dimc]
+                .as_ref()
+                .and_then(|lu| lu.solve(&rhs))
+                .ok_or_else(|| bad(why.into()))?;
+            Ok(y.iter().copied().collect())
         };
+        let yc_star = solve(&fy, "no equilibrium under gravity")?;
+        let mut rod_yc = Vec::with_capacity(members.len());
+        for rf in &rod_force {
+            let mut f = vec![0.0; dimc];
+            for i in 0..nrc {
+                f[nrc + i] = (0..nzc).map(|a| pc[(a, i)] * rf[a]).sum();
+            }
+            rod_yc.push(solve(&f, "no equilibrium with an offset rod")?);
+        }
         // the whole phase: y = [u_c, u_free; w_c, w_free], the free modes'
         // u = omega q and w = q'; s = [first components of the coupled
         // blocks, of the free blocks; second components of each]
@@ -1134,6 +1159,18 @@ impl MultiPhase {
         for (r, y) in yc_star.iter().enumerate() {
             y_star[ymap(r)] = *y;
         }
+        // V^-1 on the coupled part only (a constant force leaves the free
+        // modes alone)
+        let rod_s: Vec<Vec<f64>> = rod_yc
+            .iter()
+            .map(|yc| {
+                let mut rs = vec![0.0; dim];
+                for r in 0..dimc {
+                    rs[smap(r)] = (0..dimc).map(|c| vinvc[(r, c)] * yc[c]).sum();
+                }
+                rs
+            })
+            .collect();
         let mut p = DMatrix::zeros(nz, nr);
         let mut z_of_u = DMatrix::zeros(nz, nr);
         let mut q = DMatrix::zeros(n + members.len(), nr);
@@ -1315,6 +1352,7 @@ impl MultiPhase {
             fly_of: lay.fly_of,
             flyers,
             p0,
+            rod_s,
             ev,
             ev0,
             ev_d,
@@ -1366,7 +1404,20 @@ impl CompiledMulti {
             h,
             rate_hz,
             phases,
+            switching: Switching::Exact,
         })
+    }
+
+    /// [`new`](Self::new) with the given switching method (the scene's
+    /// `contact.switching`).
+    pub fn with_switching(
+        model: &MultiModel,
+        rate_hz: f64,
+        switching: Switching,
+    ) -> Result<Self, MultiError> {
+        let mut sc = Self::new(model, rate_hz)?;
+        sc.switching = switching;
+        Ok(sc)
     }
 
     /// Number of contacts.
@@ -1496,6 +1547,22 @@ pub struct MultiState {
     cached: [(u64, f64); MAX_CONTACTS],
     /// Halvings left to the current search.
     budget: u32,
+    /// Offset rod: each contact's rod \[m\] (0 when open, and always with
+    /// exact switching), the block state's equilibrium shift they make in
+    /// the current phase (`shift = sum_c d_c rod_s_c`: with rods, `s` is
+    /// held about the shifted equilibrium, so a sample steps it as it
+    /// is, and a row's constant takes `row . shift`), whether any is not
+    /// 0, those constants (per contact its penetration's, its sides'
+    /// positions' and velocities', and the outputs' displacement and
+    /// velocity parts), and the clock of the last decision (one per
+    /// sample instant).
+    rod: [f64; MAX_CONTACTS],
+    shift: Vec<f64>,
+    rods_on: bool,
+    off_ev: [f64; MAX_CONTACTS],
+    off_sides: [[(f64, f64); 2]; MAX_CONTACTS],
+    off_out: [(f64, f64); 2],
+    decided: u64,
     /// Samples run.
     clock: u64,
     /// What the engine did.
@@ -1533,6 +1600,13 @@ impl Clone for MultiState {
             phys: self.phys.clone(),
             cached: self.cached,
             budget: self.budget,
+            rod: self.rod,
+            shift: self.shift.clone(),
+            rods_on: self.rods_on,
+            off_ev: self.off_ev,
+            off_sides: self.off_sides,
+            off_out: self.off_out,
+            decided: self.decided,
             clock: self.clock,
             stats: self.stats,
             switches: self.switches.clone(),
@@ -1632,6 +1706,13 @@ impl MultiState {
             phys: Physical::new(&sc.model),
             cached: [(u64::MAX, 0.0); MAX_CONTACTS],
             budget: SEARCH_BUDGET,
+            rod: [0.0; MAX_CONTACTS],
+            shift: vec![0.0; dim],
+            rods_on: false,
+            off_ev: [0.0; MAX_CONTACTS],
+            off_sides: [[(0.0, 0.0); 2]; MAX_CONTACTS],
+            off_out: [(0.0, 0.0); 2],
+            decided: u64::MAX,
             clock: 0,
             stats: MultiStats::default(),
             switches: Vec::new(),
@@ -1653,6 +1734,9 @@ impl MultiState {
             self.v_f[j] = 0.0;
         }
         self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
+        self.rod = [0.0; MAX_CONTACTS];
+        self.set_shift(sc);
+        self.decided = u64::MAX;
     }
 
     /// Carry the state from `from` to `to`, another compile of the same
@@ -1738,15 +1822,14 @@ impl MultiState {
         let (mut lo, mut hi, mut want) = (f64::NEG_INFINITY, f64::INFINITY, 0.0);
         let mut who = 0u32;
         for (j, ct) in m.contacts.iter().enumerate() {
-            let [lower, upper] = &ph.sides[j];
             if ct.upper == MultiEnd::Mass(k) {
-                let (x, _) = self.side_at(lower);
+                let (x, _) = self.side_at(ph, j, 0);
                 lo = lo.max(x - ct.gap_m);
                 if j == c {
                     want = x + height_m;
                 }
             } else if ct.lower == MultiEnd::Mass(k) {
-                hi = hi.min(self.side_at(upper).0 + ct.gap_m);
+                hi = hi.min(self.side_at(ph, j, 1).0 + ct.gap_m);
             } else {
                 continue;
             }
@@ -1760,7 +1843,7 @@ impl MultiState {
         let closed = who & self.mask;
         if closed != 0 {
             let time_s = self.clock as f64 * self.step_h;
-            self.switch(sc, closed, time_s);
+            self.switch(sc, closed, time_s, &[0.0; MAX_CONTACTS]);
         }
         // every contact of the mass is open: it flies alone, in its slot
         debug_assert!(sc.phases[self.mask as usize].place[k].is_none());
@@ -1784,13 +1867,12 @@ impl MultiState {
             let v = self.mass_at(sc, k).1;
             let lands = m.gravity_m_per_s2 > 0.0
                 || m.contacts.iter().enumerate().any(|(j, ct)| {
-                    let [lower, upper] = &ph.sides[j];
                     if self.mask & (1 << j) != 0 {
                         ct.lower == MultiEnd::Mass(k) || ct.upper == MultiEnd::Mass(k)
                     } else if ct.upper == MultiEnd::Mass(k) {
-                        self.side_at(lower).1 > v
+                        self.side_at(ph, j, 0).1 > v
                     } else if ct.lower == MultiEnd::Mass(k) {
-                        v > self.side_at(upper).1
+                        v > self.side_at(ph, j, 1).1
                     } else {
                         false
                     }
@@ -1802,14 +1884,27 @@ impl MultiState {
         e
     }
 
-    /// A side's position and velocity in the current phase (its rows and
-    /// its flight).
-    fn side_at(&self, r: &SideRows) -> (f64, f64) {
+    /// Contact `j`'s lower (`which` 0) or upper side's position and
+    /// velocity in the current phase `ph` (its rows, the rods' constants
+    /// and its flight).
+    fn side_at(&self, ph: &MultiPhase, j: usize, which: usize) -> (f64, f64) {
+        let r = &ph.sides[j][which];
+        let (ox, ov) = self.off_sides[j][which];
         let (fx, fv) = r.fly.map_or((0.0, 0.0), |k| (self.x_f[k], self.v_f[k]));
         (
-            dot(&r.pos, &self.s) + r.pos0 + fx,
-            dot(&r.vel, &self.s) + r.vel0 + fv,
+            dot(&r.pos, &self.s) + r.pos0 + ox + fx,
+            dot(&r.vel, &self.s) + r.vel0 + ov + fv,
         )
+    }
+
+    /// Entry `c` of the block state about the phase's own equilibrium
+    /// (with rods, `s + shift`).
+    fn s_own(&self, c: usize) -> f64 {
+        if self.rods_on {
+            self.s[c] + self.shift[c]
+        } else {
+            self.s[c]
+        }
     }
 
     /// Mass `j`'s height and velocity: its flight when free, else its
@@ -1822,7 +1917,7 @@ impl MultiState {
         let n = sc.model.n();
         let sq = sc.model.masses[j].mass_kg.sqrt();
         let row = |a: &DMatrix<f64>, r: usize| -> f64 {
-            ph.coupled.iter().map(|&c| a[(r, c)] * self.s[c]).sum()
+            ph.coupled.iter().map(|&c| a[(r, c)] * self.s_own(c)).sum()
         };
         let (mut x, mut v) = (
             (row(&ph.zv, b) + ph.zv0[b]) / sq,
@@ -1849,6 +1944,7 @@ impl MultiState {
     /// one-contact engine's convention: sample `n` is time `n / fs`), then
     /// advance one step.
     pub fn tick(&mut self, sc: &CompiledMulti) -> [f64; 2] {
+        self.decide(sc);
         let out = self.output(sc);
         self.step(sc);
         out
@@ -1857,9 +1953,10 @@ impl MultiState {
     /// The output `[left, right]` of the current state.
     pub fn output(&self, _sc: &CompiledMulti) -> [f64; 2] {
         let tb = &self.tables[self.mask as usize];
+        let off = |c: usize| self.off_out[c].0 + self.scale * self.off_out[c].1;
         [
-            dot(&tb.out[0], &self.s) + tb.out0[0],
-            dot(&tb.out[1], &self.s) + tb.out0[1],
+            dot(&tb.out[0], &self.s) + tb.out0[0] + off(0),
+            dot(&tb.out[1], &self.s) + tb.out0[1] + off(1),
         ]
     }
 
@@ -1890,8 +1987,62 @@ impl MultiState {
         self.scale
     }
 
-    /// Advance one sample, switching wherever a contact crosses.
+    /// With the offset rod ([`CompiledMulti::switching`]), the switching
+    /// decision at this sample instant (once per instant; a no-op with
+    /// exact switching): an open contact whose penetration `p` is above 0
+    /// closes with a rod of length `p` (its spring starts unstretched), a
+    /// closed one whose `p - d` is at or below 0 opens (its spring's `k (p
+    /// - d)^2 / 2` leaves). Contacts that switch here switch together,
+    /// through the physical state. The trace observes after it
+    /// ([`render_multi`]). O(K dim), plus a switch. \[audio-thread\]
+    pub fn decide(&mut self, sc: &CompiledMulti) {
+        if sc.switching != Switching::OffsetRod || self.decided == self.clock {
+            return;
+        }
+        self.decided = self.clock;
+        let mut who = 0u32;
+        let mut enter = [0.0; MAX_CONTACTS];
+        for j in 0..sc.contacts() {
+            let p = self.penetration(sc, j);
+            if self.mask & (1 << j) != 0 {
+                if !(p - self.rod[j] > 0.0) {
+                    who |= 1 << j;
+                }
+            } else if p > 0.0 {
+                who |= 1 << j;
+                enter[j] = p;
+            }
+        }
+        if who != 0 {
+            let time_s = self.clock as f64 * self.step_h;
+            self.switch(sc, who, time_s, &enter);
+        }
+    }
+
+    /// Contact `j`'s penetration now (without its rod) \[m\]: its row,
+    /// and the flights of its free sides.
+    fn penetration(&self, sc: &CompiledMulti, j: usize) -> f64 {
+        let ph = &sc.phases[self.mask as usize];
+        let (lo, up) = ph.ev_fly[j];
+        let at = |slot: Option<usize>| slot.map_or(0.0, |k| self.x_f[k]);
+        dot(&ph.ev[j], &self.s) + ph.ev0[j] + self.off_ev[j] + at(lo) - at(up)
+    }
+
+    /// Contact `j`'s offset rod \[m\] (0 when open, and with exact
+    /// switching).
+    pub fn rod(&self, j: usize) -> f64 {
+        self.rod[j]
+    }
+
+    /// Advance one sample: with exact switching, switching wherever a
+    /// contact crosses; with the offset rod, in the phase its decision at
+    /// the sample's start chose ([`decide`](Self::decide)).
     pub fn step(&mut self, sc: &CompiledMulti) {
+        if sc.switching == Switching::OffsetRod {
+            self.decide(sc);
+            self.step_rod(sc);
+            return;
+        }
         let h = self.step_h;
         let mut t = 0.0;
         let mut starts = [Start::Value; MAX_CONTACTS];
@@ -1942,10 +2093,62 @@ impl MultiState {
             self.s.copy_from_slice(&self.end[..ph.dim]);
             self.fly(sc, tau);
             t = if tau < rem { t + tau } else { h };
-            starts = self.switch(sc, who, self.clock as f64 * h + t);
+            starts = self.switch(sc, who, self.clock as f64 * h + t, &[0.0; MAX_CONTACTS]);
             taken += 1;
         }
         self.clock += 1;
+    }
+
+    /// One whole sample in the current phase with its rods (the state is
+    /// held about the equilibrium they shift). O(dim).
+    fn step_rod(&mut self, sc: &CompiledMulti) {
+        let m = self.mask as usize;
+        let ph = &sc.phases[m];
+        let dim = ph.dim;
+        let props = &self.tables[m].props;
+        step_blocks(props, &self.s, &mut self.end[..dim], ph.gens.len());
+        self.s.copy_from_slice(&self.end[..dim]);
+        self.fly(sc, self.step_h);
+        self.clock += 1;
+    }
+
+    /// The current phase's equilibrium shift of the rods, and the rows'
+    /// constants it makes. O(K dim).
+    fn set_shift(&mut self, sc: &CompiledMulti) {
+        let ph = &sc.phases[self.mask as usize];
+        let shift = &mut self.shift[..ph.dim];
+        shift.fill(0.0);
+        self.rods_on = false;
+        for (pos, &c) in ph.members.iter().enumerate() {
+            let d = self.rod[c];
+            if d != 0.0 {
+                self.rods_on = true;
+                for (x, r) in shift.iter_mut().zip(&ph.rod_s[pos]) {
+                    *x += d * r;
+                }
+            }
+        }
+        let shift = &self.shift[..ph.dim];
+        for j in 0..sc.contacts() {
+            self.off_ev[j] = dot(&ph.ev[j], shift);
+            for (o, r) in self.off_sides[j].iter_mut().zip(&ph.sides[j]) {
+                *o = (dot(&r.pos, shift), dot(&r.vel, shift));
+            }
+        }
+        for (o, (d, v)) in self.off_out.iter_mut().zip(ph.out_d.iter().zip(&ph.out_v)) {
+            *o = (dot(d, shift), dot(v, shift));
+        }
+    }
+
+    /// With rods, `s` from the shifted equilibrium to the phase's own
+    /// (`sign` 1) and back (-1): the form a switch's products take.
+    fn unshift(&mut self, sign: f64) {
+        if self.rods_on {
+            let dim = self.s.len();
+            for (x, d) in self.s.iter_mut().zip(&self.shift[..dim]) {
+                *x += sign * d;
+            }
+        }
     }
 
     /// The flights (free masses, centres of free groups) go `dt` on.
@@ -2227,9 +2430,19 @@ impl MultiState {
     /// enters or leaves, through the physical state (which does not jump),
     /// two changes of basis, O(dim^2). Returns where each contact's next
     /// search starts.
-    fn switch(&mut self, sc: &CompiledMulti, who: u32, time_s: f64) -> [Start; MAX_CONTACTS] {
+    /// Contacts `who` change side at `time_s`; an entering contact `j`
+    /// starts at the penetration `enter[j]` (0 at an exact crossing; with
+    /// the offset rod, its rod), a leaving one's rod goes.
+    fn switch(
+        &mut self,
+        sc: &CompiledMulti,
+        who: u32,
+        time_s: f64,
+        enter: &[f64; MAX_CONTACTS],
+    ) -> [Start; MAX_CONTACTS] {
         let m = &sc.model;
         let old = &sc.phases[self.mask as usize];
+        self.unshift(1.0);
         // every q, q', x, v
         old.physical_of(
             m,
@@ -2241,7 +2454,7 @@ impl MultiState {
         // each closed contact's penetration from its own coordinate
         // (exact); an entering one starts unstretched (its crossing, 0 to
         // the search's leaf), so entering adds nothing
-        let mut pen = [0.0; MAX_CONTACTS];
+        let mut pen = *enter;
         for (j, p) in pen.iter_mut().enumerate().take(sc.contacts()) {
             if self.mask & (1 << j) != 0 {
                 *p = dot(&old.ev[j], &self.s) + old.ev0[j];
@@ -2304,6 +2517,7 @@ impl MultiState {
         for j in 0..sc.contacts() {
             if who & (1 << j) != 0 {
                 let entered = new_mask & (1 << j) != 0;
+                self.rod[j] = if entered { enter[j] } else { 0.0 };
                 if entered {
                     self.stats.contacts_started[j] += 1;
                 }
@@ -2317,6 +2531,8 @@ impl MultiState {
             }
         }
         self.mask = new_mask;
+        self.set_shift(sc);
+        self.unshift(-1.0);
         self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
         self.stats.switches += 1;
         std::array::from_fn(|j| {
@@ -2341,7 +2557,7 @@ impl MultiState {
         let nbc = ph.coupled.len() / 2;
         // a row of a switch product on the coupled entries of s
         let row = |a: &DMatrix<f64>, r: usize| -> f64 {
-            ph.coupled.iter().map(|&c| a[(r, c)] * s[c]).sum()
+            ph.coupled.iter().map(|&c| a[(r, c)] * self.s_own(c)).sum()
         };
         // the free modes: their blocks are (omega q, q')
         let mut energy = 0.0;
@@ -2360,7 +2576,7 @@ impl MultiState {
             energy += 0.5 * ms.mass_kg * v * v + ms.mass_kg * g * x;
         }
         for &c in &ph.members {
-            let p = dot(&ph.ev[c], s) + ph.ev0[c];
+            let p = dot(&ph.ev[c], s) + ph.ev0[c] + self.off_ev[c] - self.rod[c];
             energy += 0.5 * m.contacts[c].stiffness_n_per_m * p * p;
         }
         let mut o = MultiObservation {
@@ -2368,8 +2584,8 @@ impl MultiState {
             energy,
             ..Default::default()
         };
-        for (j, [lo, up]) in ph.sides.iter().enumerate() {
-            let ((xl, vl), (xu, vu)) = (self.side_at(lo), self.side_at(up));
+        for j in 0..ph.sides.len() {
+            let ((xl, vl), (xu, vu)) = (self.side_at(ph, j, 0), self.side_at(ph, j, 1));
             o.x_hammer[j] = xu;
             o.v_hammer[j] = vu;
             o.x_contact[j] = xl;
@@ -2388,9 +2604,10 @@ impl MultiState {
         let nz = m.n() + m.masses.len();
         let (mut zq, mut zv) = (vec![0.0; nz + MAX_CONTACTS], vec![0.0; nz]);
         let mut phys = Physical::new(m);
+        let s_own: Vec<f64> = (0..self.s.len()).map(|c| self.s_own(c)).collect();
         ph.physical_of(
             m,
-            &self.s,
+            &s_own,
             (&self.x_f, &self.v_f),
             (&mut zq, &mut zv),
             &mut phys,
@@ -2404,7 +2621,7 @@ impl MultiState {
             let (xl, vl) = phys.side(&ct.lower);
             let (xu, vu) = phys.side(&ct.upper);
             if self.mask & (1 << j) != 0 {
-                let p = xl - xu - ct.gap_m;
+                let p = xl - xu - ct.gap_m - self.rod[j];
                 o.energy += 0.5 * ct.stiffness_n_per_m * p * p;
             }
             o.x_hammer[j] = xu;
@@ -2629,6 +2846,9 @@ pub fn render_multi(
         r.clear();
         for _ in 0..chunk.min(n - i) {
             if let Some(f) = observe.as_mut() {
+                // after the switching decision at this instant (the trace's
+                // convention)
+                st.decide(sc);
                 f(i, &st.observe(sc))?;
             }
             let [a, b] = st.tick(sc);

@@ -705,8 +705,8 @@ impl Scene {
 
     /// Strikers: at most `MAX_CONTACTS - 1`; each hits a point of the
     /// struck object that no other contact hits, with the values of a
-    /// hammer and a contact; several contacts need exact switching, a
-    /// point-mass hammer and an object with points (not a wall).
+    /// hammer and a contact; several contacts need a point-mass hammer
+    /// and an object with points (not a wall).
     fn validate_strikers(&self) -> Result<(), SceneError> {
         if self.striker.is_empty() {
             return Ok(());
@@ -719,12 +719,6 @@ impl Scene {
                     self.striker.len(),
                     self.striker.len() + 1
                 ),
-            ));
-        }
-        if self.contact.switching == Some(Switching::OffsetRod) {
-            return Err(SceneError::new(
-                "striker",
-                "several contacts switch exactly: remove contact.switching = \"offset-rod\"",
             ));
         }
         let obj = self
@@ -811,12 +805,6 @@ impl Scene {
                     self.striker.len(),
                     self.touch.len()
                 ),
-            ));
-        }
-        if self.contact.switching == Some(Switching::OffsetRod) {
-            return Err(SceneError::new(
-                "touch",
-                "several contacts switch exactly: remove contact.switching = \"offset-rod\"",
             ));
         }
         // every contact's pair of sides, as (object, point) both ways

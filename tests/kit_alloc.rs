@@ -1,8 +1,8 @@
 //! The instrument playing kits allocates nothing on the audio thread: a
 //! counting allocator armed around every `Instrument::process` and
 //! `Instrument::install` of a random abuse of the kit presets (swaps
-//! between them and a preset of one contact, random play parameters,
-//! random notes). Built without the `rt-checks` feature (whose allocation
+//! between them and a preset of one contact, either switching method,
+//! random play parameters, random notes). Built without the `rt-checks` feature (whose allocation
 //! checker is that build's global allocator; the plugin's checked build
 //! plays the kits in `plugin-tests/tests/rt_alloc.rs`).
 #![cfg(not(feature = "rt-checks"))]
@@ -11,6 +11,7 @@ use modal_contact::instrument::{
     lookahead_samples, prepare, Event, Instrument, PlayParams, SceneParams, TimedEvent,
 };
 use modal_contact::presets;
+use modal_contact::scene::Switching;
 use modal_testkit::rng::TestRng;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -102,6 +103,7 @@ fn kits_allocate_nothing_on_the_audio_thread() {
             };
             sp.stiffness_factor = [0.3, 1.0, 3.0][rng.below(3)];
             sp.decay_scale = [0.5, 1.0, 2.0][rng.below(3)];
+            sp.switching = [Switching::Exact, Switching::OffsetRod][rng.below(2)];
             if let Ok(p) = prepare(&sp, RATE, revision) {
                 revision += 1;
                 if inst.can_install() {

@@ -7,6 +7,7 @@
 use modal_contact::multi::{
     CompiledMulti, MultiContact, MultiEnd, MultiMass, MultiModel, MultiState, MultiSwitch,
 };
+use modal_contact::scene::Switching;
 use modal_testkit::rng::TestRng;
 use std::f64::consts::PI;
 
@@ -250,6 +251,16 @@ fn a_mass_on_a_wall_bounces_as_the_closed_form() {
 /// nothing is not a number, no sample runs out of switches.
 #[test]
 fn random_networks_never_gain_energy() {
+    for sw in [Switching::Exact, Switching::OffsetRod] {
+        networks(sw);
+    }
+}
+
+/// With the offset rod, the energy is observed after each sample's
+/// decision too, and its rounding scale takes the rods' shift of the
+/// equilibrium (`sqrt(k) d` in energy coordinates, as
+/// `tests/multi_contact.rs` says).
+fn networks(sw: Switching) {
     let mut rng = TestRng(0xb0d1e5);
     let (mut switches, mut compiled, mut worst) = (0u64, 0, 0.0f64);
     let mut worst_obs = 0.0f64;
@@ -348,7 +359,7 @@ fn random_networks_never_gain_energy() {
             };
             kinds[kind] += 1;
         }
-        let sc = match CompiledMulti::new(&m, RATE) {
+        let sc = match CompiledMulti::with_switching(&m, RATE, sw) {
             Ok(sc) => sc,
             Err(e) => panic!("case {case}: {e}\n{m:?}"),
         };
@@ -365,9 +376,14 @@ fn random_networks_never_gain_energy() {
         let mut prev = st.observe(&sc);
         let e0 = scale(&prev);
         assert!(e0 > 0.0);
-        for _ in 0..2400 {
-            let y = st.tick(&sc);
-            assert!(y.iter().all(|v| v.is_finite()), "case {case}");
+        for i in 0..4800 {
+            // with the rod: every other look after the decision
+            if i % 2 == 1 {
+                st.decide(&sc);
+            } else {
+                let y = st.tick(&sc);
+                assert!(y.iter().all(|v| v.is_finite()), "case {case}");
+            }
             let o = st.observe(&sc);
             assert!(o.energy.is_finite(), "case {case}");
             // the trace's O(N) observation against the physical state's
@@ -383,16 +399,33 @@ fn random_networks_never_gain_energy() {
                     a.max(b).max(c).max(d)
                 })
                 .fold(0.0, f64::max);
-            worst_obs = worst_obs.max(de).max(dx);
+            // with rods, both ways apply rows to the equilibrium the rods
+            // shift (`sqrt(k) d` in energy coordinates against the state's
+            // `sqrt(2 E)`), and round relative to it
+            let shifted = 1.0
+                + (0..m.contacts.len())
+                    .map(|j| {
+                        let k = m.contacts[j].stiffness_n_per_m;
+                        (k / (2.0 * o.energy.abs().max(1e-12))).sqrt() * st.rod(j)
+                    })
+                    .sum::<f64>();
+            worst_obs = worst_obs.max(de / shifted).max(dx / shifted);
             assert!(
-                de < 1e-10 && dx < 1e-10,
-                "case {case}: energy {de:e}, sides {dx:e}"
+                de < 1e-10 * shifted && dx < 1e-10 * shifted,
+                "case {case}: energy {de:e}, sides {dx:e}, rods' shift {shifted:.1}"
             );
-            let rise = (o.energy - prev.energy) / e0.max(scale(&o));
+            let rods: f64 = (0..m.contacts.len())
+                .map(|j| {
+                    let k = m.contacts[j].stiffness_n_per_m;
+                    (2.0 * prev.energy.abs().max(o.energy.abs()) * k).sqrt() * st.rod(j)
+                })
+                .sum();
+            let rise = (o.energy - prev.energy) / (e0.max(scale(&o)) + rods);
             worst = worst.max(rise / bound);
             assert!(
                 rise <= bound,
-                "case {case}: energy rose {rise:e} > {bound:e}\n{m:?}"
+                "{} case {case}: energy rose {rise:e} > {bound:e}\n{m:?}",
+                sw.as_str()
             );
             prev = o;
         }
@@ -400,11 +433,18 @@ fn random_networks_never_gain_energy() {
         switches += st.stats.switches;
     }
     println!(
-        "{compiled} random networks (contacts object-object {}, mass-mass {}, with a wall {}, \
+        "{}: {compiled} random networks (contacts object-object {}, mass-mass {}, with a wall {}, \
          object-mass {}), {switches} switches: largest energy rise {worst:.2} of its rounding bound",
-        kinds[0], kinds[1], kinds[2], kinds[3]
+        sw.as_str(),
+        kinds[0],
+        kinds[1],
+        kinds[2],
+        kinds[3]
     );
-    println!("the trace's observation against the physical state's: within {worst_obs:.1e}");
+    println!(
+        "the trace's observation against the physical state's: within {worst_obs:.1e} (times the \
+         rods' shift of the equilibrium against the state)"
+    );
     assert!(switches > 60);
     assert!(kinds.iter().all(|&k| k > 5), "{kinds:?}");
 }

@@ -81,7 +81,8 @@ impl Kit {
     /// already applied) at `rate_hz`. \[worker\] \[main-thread\]
     pub fn new(scene: &Scene, rate_hz: f64) -> Result<Self, SceneError> {
         let model = MultiModel::from_scene(scene, rate_hz)?;
-        let sc = CompiledMulti::new(&model, rate_hz).map_err(|e| {
+        let switching = scene.contact.switching.unwrap_or_default();
+        let sc = CompiledMulti::with_switching(&model, rate_hz, switching).map_err(|e| {
             let key = if scene.touch.is_empty() {
                 "striker"
             } else {
@@ -138,7 +139,7 @@ impl Kit {
         format!(
             "several contacts, played as a kit: {} modes, {} mallets, {} masses, {} contacts \
              ({} phases, all compiled), largest phase {} states (per sample O(states)), {}, \
-             exact switching",
+             {} switching",
             m.freq_hz.len(),
             self.mallets,
             m.masses.len(),
@@ -146,6 +147,7 @@ impl Kit {
             self.sc.phases.len(),
             self.max_dim(),
             self.notes_rule(),
+            self.sc.switching.as_str(),
         )
     }
 

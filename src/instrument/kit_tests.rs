@@ -7,7 +7,7 @@
 use super::tests::{on, render};
 use super::*;
 use crate::multi::{CompiledMulti, MultiModel, MultiState};
-use crate::scene::Scene;
+use crate::scene::{Scene, Switching};
 
 const RATE: f64 = 48_000.0;
 
@@ -57,7 +57,17 @@ quantity = "velocity"
 }
 
 fn kit_instrument(scene: &Scene, lookahead_s: f64) -> Instrument {
-    let p = prepare_scene(scene, &SceneParams::default(), RATE, 0).unwrap();
+    kit_switching(scene, lookahead_s, Switching::Exact)
+}
+
+/// A kit with the Switching parameter at `switching`.
+fn kit_switching(scene: &Scene, lookahead_s: f64, switching: Switching) -> Instrument {
+    let params = SceneParams {
+        switching,
+        ..SceneParams::default()
+    };
+    let p = prepare_scene(scene, &params, RATE, 0).unwrap();
+    assert_eq!(p.switching_used, switching);
     assert!(p.kit.is_some());
     let play = PlayParams {
         gain_db: 0.0,
@@ -85,10 +95,19 @@ fn started(inst: &Instrument) -> [u64; 4] {
 /// model's own start instead of the kit's rest and throw. A fifth up it is
 /// the same model played 2^(7/12) times faster (its own compile at the
 /// scaled values, `tests/multi_strike.rs` checks the time scale), and two
-/// keys sound together as two kit voices, their sum.
+/// keys sound together as two kit voices, their sum. With exact
+/// switching and with an offset rod per contact (the Switching
+/// parameter).
 #[test]
 fn a_kit_note_is_the_scene_struck_offline() {
+    for sw in [Switching::Exact, Switching::OffsetRod] {
+        kit_note_offline(sw);
+    }
+}
+
+fn kit_note_offline(sw: Switching) {
     let scene = two_mallets();
+    let kit_instrument = |scene: &Scene, lookahead_s: f64| kit_switching(scene, lookahead_s, sw);
     let mut inst = kit_instrument(&scene, 0.0);
     let root = inst.prepared().root_note as u8;
     assert_eq!(root, 57, "A3");
@@ -106,7 +125,7 @@ fn a_kit_note_is_the_scene_struck_offline() {
             ct.stiffness_n_per_m *= s * s;
             ct.damping_n_s_per_m *= s;
         }
-        let sc = CompiledMulti::new(&model, RATE).unwrap();
+        let sc = CompiledMulti::with_switching(&model, RATE, sw).unwrap();
         let mut st = MultiState::new(&sc);
         let y: Vec<[f64; 2]> = (0..n).map(|_| st.tick(&sc)).collect();
         (y, st.stats.contacts_started)
@@ -123,7 +142,10 @@ fn a_kit_note_is_the_scene_struck_offline() {
     };
     let (y, started) = offline(1.0);
     let (worst, peak) = compare(&out, &y);
-    println!("kit at its root vs offline: {worst:.3e} of peak {peak:.3e}");
+    println!(
+        "{}: kit at its root vs offline: {worst:.3e} of peak {peak:.3e}, contacts {started:?}",
+        sw.as_str()
+    );
     assert!(out[0][..at].iter().all(|&x| x == 0.0), "silent before");
     assert!(peak > 1e-3);
     assert!(worst <= 1e-6 * peak, "{worst:e} of {peak:e}");
@@ -135,7 +157,10 @@ fn a_kit_note_is_the_scene_struck_offline() {
     let mut up = kit_instrument(&scene, 0.0);
     let out5 = render(&mut up, &[on(at, root + 7, 0.8)], at + n);
     let (worst5, peak5) = compare(&out5, &y5);
-    println!("a fifth up vs the scaled model offline: {worst5:.3e} of peak {peak5:.3e}");
+    println!(
+        "{}: a fifth up vs the scaled model offline: {worst5:.3e} of peak {peak5:.3e}",
+        sw.as_str()
+    );
     assert!(worst5 <= 1e-6 * peak5, "{worst5:e} of {peak5:e}");
 
     let mut both = kit_instrument(&scene, 0.0);

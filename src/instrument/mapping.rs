@@ -231,11 +231,7 @@ pub fn scene_for(base: &Scene, p: &InstrumentParams) -> Scene {
     if base.hammer.gravity_m_per_s2 > 0.0 {
         s.hammer.gravity_m_per_s2 = positive_or(sp.gravity_m_per_s2, base.hammer.gravity_m_per_s2);
     }
-    // several contacts always switch exactly (the parameter's offset rod
-    // is the one contact's)
-    if !s.several_contacts() {
-        s.contact.switching = Some(sp.switching);
-    }
+    s.contact.switching = Some(sp.switching);
     s
 }
 

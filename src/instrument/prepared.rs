@@ -695,8 +695,8 @@ fn voice_states(scene: &CompiledScene, rate_hz: f64) -> Box<[EngineState; MAX_VO
 /// [`prepare_scene`] for a scene of several contacts (`played`, the
 /// parameters applied): its kit, and the first mallet on its object alone
 /// compiled for what the instrument reads of every scene (no voice plays
-/// it). The kit switches exactly whatever the Switching parameter says
-/// (several contacts have no offset rod yet). \[worker\] \[main-thread\]
+/// it). The kit switches as the Switching parameter says (an offset rod
+/// per contact, or exactly). \[worker\] \[main-thread\]
 fn prepare_kit(
     base: &Scene,
     played: &Scene,
@@ -709,7 +709,8 @@ fn prepare_kit(
     alone.striker.clear();
     alone.touch.clear();
     alone.hammer.notes.clear();
-    let scene = compile_with(&alone, rate_hz, Some(Switching::Exact))?;
+    let used = kit.sc.switching;
+    let scene = compile_with(&alone, rate_hz, Some(used))?;
     let scenes = Scenes {
         scene,
         damped: None,
@@ -718,7 +719,7 @@ fn prepare_kit(
     };
     Ok(assemble(
         (base, params, rate_hz, revision),
-        (Switching::Exact, None),
+        (used, None),
         scenes,
         Some(Box::new(kit)),
     ))

@@ -102,10 +102,7 @@ fn scene_for_defaults_keep_the_scene() {
         let mut p = InstrumentParams::default();
         p.scene.switching = Switching::OffsetRod;
         let mut expect = b.clone();
-        // several contacts switch exactly: the parameter leaves them be
-        if !b.several_contacts() {
-            expect.contact.switching = Some(Switching::OffsetRod);
-        }
+        expect.contact.switching = Some(Switching::OffsetRod);
         assert_eq!(scene_for(&b, &p), expect, "{}", b.name);
     }
 }

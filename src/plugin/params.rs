@@ -589,7 +589,8 @@ parameters! {
               inside the sample, in order, on the exact solution (located to \
               3.6e-15 of a sample; no switching error beyond f64 rounding, \
               docs/numerics.md, \"Exact switching\"); Offset rod is the paper's method (first \
-              order, contacts start up to a sample late). If a scene's compile \
+              order, contacts start up to a sample late). A kit takes it too: each of its \
+              contacts with a rod of its own. If a scene's compile \
               refuses exact switching (a dense-fallback phase larger than 16 states \
               or too stiff for partial dense steps), it is compiled with the offset \
               rod and the worker logs `exact switching refused (...); falling back \

@@ -594,13 +594,15 @@ fn multi_scene_job(
         Csv(MultiTraceCsv<BufWriter<std::fs::File>>),
         Npy(MultiTraceNpy<BufWriter<std::fs::File>>),
     }
-    if a.switching.map(Switching::from) == Some(Switching::OffsetRod) {
-        bail!("--switching offset-rod: a scene of several contacts switches exactly");
-    }
     let n = render_length(a.seconds.unwrap_or(scene.duration_s), a.rate)?;
     let t0 = Instant::now();
     let model = MultiModel::from_scene(scene, a.rate)?;
-    let compiled = CompiledMulti::new(&model, a.rate)?;
+    let switching = a
+        .switching
+        .map(Switching::from)
+        .or(scene.contact.switching)
+        .unwrap_or_default();
+    let compiled = CompiledMulti::with_switching(&model, a.rate, switching)?;
     let compile_s = t0.elapsed().as_secs_f64();
     let k = compiled.contacts();
     let mut wav = FloatWav::create(&job.wav, a.rate, n)?;
@@ -671,7 +673,7 @@ fn multi_scene_job(
         "rate_hz": a.rate,
         "seconds": seconds,
         "samples": n,
-        "switching": "Exact",
+        "switching": format!("{:?}", compiled.switching),
         "compile": {
             "seconds": compile_s,
             "contacts": k,
