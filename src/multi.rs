@@ -59,6 +59,7 @@
 //! rounding of the change of basis could switch it straight back).
 
 use crate::compile::{pan_gains, CompileBudget};
+use crate::engine::TimeScaleError;
 use crate::physics::block::{exp2, mul2, sym_growth, Mat2};
 use crate::physics::decomp::{decompose_via, Form};
 use crate::physics::model::LN_1000;
@@ -1980,6 +1981,49 @@ impl MultiState {
         self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
         let m = self.mask as usize;
         self.tables[m].make(&sc.phases[m], scale, self.step_h);
+    }
+
+    /// Change the time scale to `scale` as a pitch bend does, without
+    /// adding or removing energy (the one-contact engine's rule,
+    /// `EngineState::bend_time_scale`): with no contact closed every
+    /// object is in its free modes and every mass flies, so the modes'
+    /// state and the masses' velocities are scaled by `s_old / s` (the
+    /// physical energy, `s^2` times the model's, is unchanged: a higher
+    /// pitch at the same energy is a smaller displacement; a mass keeps
+    /// its physical velocity and its place). `Ok(false)` and nothing done
+    /// while a contact is closed (the caller tries again later); refused
+    /// with gravity, whose physical value `s^2 g` would change
+    /// ([`TimeScaleError::Gravity`]), and for a scale that is not finite
+    /// and positive. O(N) plus the phase's tables, allocation-free.
+    /// \[audio-thread\]
+    pub fn bend_time_scale(
+        &mut self,
+        sc: &CompiledMulti,
+        scale: f64,
+    ) -> Result<bool, TimeScaleError> {
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(TimeScaleError::Invalid);
+        }
+        if sc.model.gravity_m_per_s2 != 0.0 {
+            return Err(TimeScaleError::Gravity);
+        }
+        if self.mask != 0 {
+            return Ok(false);
+        }
+        if scale == self.scale {
+            return Ok(true);
+        }
+        // phase 0: every block is a free mode's (omega q, q'), no
+        // equilibrium offset (no closed spring, no gravity)
+        let r = self.scale / scale;
+        for x in self.s.iter_mut() {
+            *x *= r;
+        }
+        for v in self.v_f.iter_mut() {
+            *v *= r;
+        }
+        self.set_time_scale(sc, scale);
+        Ok(true)
     }
 
     /// The time scale ([`set_time_scale`](Self::set_time_scale)).

@@ -288,3 +288,87 @@ fn a_time_scale_is_the_model_played_faster() {
         }
     }
 }
+
+/// A bend ([`MultiState::bend_time_scale`]) with no contact closed: the
+/// physical energy (the model's times the scale squared) is unchanged,
+/// and from there the state is the unbent model run faster: at scale `s =
+/// q / p`, sample `p k` of the bent run is sample `q k` of the unbent one,
+/// its displacement times `1 / s` (the same energy at `s` times the
+/// frequency), its velocity the same, and a flying mallet keeps its
+/// physical speed (its height at sample `n` is the unbent run's at `n`).
+/// An octave up and a fifth up (3 / 2). In contact it waits (`Ok(false)`,
+/// nothing changed); with gravity it is refused.
+#[test]
+fn a_bend_keeps_the_energy_and_plays_the_model_faster() {
+    use modal_contact::engine::TimeScaleError;
+    let m = two_mallets(24, [0.02, 0.03], 0.0);
+    let sc = CompiledMulti::new(&m, RATE).unwrap();
+    let mut st = MultiState::new(&sc);
+    st.rest(&sc);
+    st.strike(&sc, 0, 0.0005, -1.7).unwrap();
+    // in contact: it waits, and nothing changes
+    while st.active() == 0 {
+        st.tick(&sc);
+    }
+    let before = st.output(&sc);
+    assert_eq!(st.bend_time_scale(&sc, 2.0), Ok(false));
+    assert_eq!(st.time_scale(), 1.0);
+    assert_eq!(st.output(&sc), before);
+    // the mallet leaves and flies up for good (no gravity)
+    for _ in 0..3000 {
+        st.tick(&sc);
+    }
+    assert_eq!(st.active(), 0);
+    let o = st.observe(&sc);
+    assert!(o.v_hammer[0] > 0.0, "flying away: {}", o.v_hammer[0]);
+    for (p, q) in [(1usize, 2usize), (2, 3)] {
+        let s = q as f64 / p as f64;
+        let (mut a, mut b) = (st.clone(), st.clone());
+        assert_eq!(b.bend_time_scale(&sc, s), Ok(true));
+        assert_eq!(b.time_scale(), s);
+        let (ea, eb) = (a.observe(&sc).energy, b.observe(&sc).energy * s * s);
+        let de = (eb - ea).abs() / ea;
+        let n = 3000;
+        let (mut ya, mut xa) = (Vec::new(), Vec::new());
+        for _ in 0..n * q / p + 1 {
+            xa.push(a.observe(&sc).x_hammer[0]);
+            ya.push(a.tick(&sc));
+        }
+        let (mut peak, mut worst, mut worst_x) = ([0.0f64; 2], [0.0f64; 2], 0.0f64);
+        for k in 0..n {
+            let x = b.observe(&sc).x_hammer[0];
+            worst_x = worst_x.max((x - xa[k]).abs() / xa[k].abs());
+            let y = b.tick(&sc);
+            if k % p != 0 {
+                continue;
+            }
+            let j = k / p * q;
+            // displacement times 1 / s, velocity kept
+            let want = [ya[j][0] / s, ya[j][1]];
+            for ch in 0..2 {
+                peak[ch] = peak[ch].max(want[ch].abs());
+                worst[ch] = worst[ch].max((y[ch] - want[ch]).abs());
+            }
+        }
+        println!(
+            "scale {s}: energy {de:.1e}; displacement {:.1e}, velocity {:.1e} of their peaks; mallet height {worst_x:.1e}",
+            worst[0] / peak[0],
+            worst[1] / peak[1]
+        );
+        assert!(de < 1e-14, "{de:e}");
+        assert!(
+            worst[0] < 1e-12 * peak[0] && worst[1] < 1e-12 * peak[1],
+            "{worst:?} {peak:?}"
+        );
+        assert!(worst_x < 1e-13, "{worst_x:e}");
+    }
+    // gravity's physical value would change with the time axis
+    let g = two_mallets(4, [0.02, 0.03], 9.81);
+    let scg = CompiledMulti::new(&g, RATE).unwrap();
+    let mut sg = MultiState::new(&scg);
+    assert_eq!(sg.bend_time_scale(&scg, 1.5), Err(TimeScaleError::Gravity));
+    assert_eq!(
+        sg.bend_time_scale(&scg, f64::NAN),
+        Err(TimeScaleError::Invalid)
+    );
+}

@@ -24,6 +24,7 @@
 //! the output guard and the fade of a swap are the voices' own.
 
 use super::{impact_speed_m_per_s, Instrument, CHECK_INTERVAL_SAMPLES, SILENCE_ENERGY_RATIO};
+use crate::engine::TimeScaleError;
 use crate::multi::{CompiledMulti, MultiModel, MultiState, MAX_CONTACTS};
 use crate::scene::{Scene, SceneError};
 
@@ -241,6 +242,24 @@ impl Kit {
     }
 }
 
+impl KitVoice {
+    /// Its time scale to `s` as a bend does
+    /// ([`MultiState::bend_time_scale`]); the silence test's throw energy
+    /// follows the model's units. `Ok(false)`: a contact is closed, later.
+    fn retune(&mut self, sc: &CompiledMulti, s: f64) -> Result<bool, TimeScaleError> {
+        let s_old = self.st.time_scale();
+        if s == s_old {
+            return Ok(true);
+        }
+        let done = self.st.bend_time_scale(sc, s)?;
+        if done {
+            let r = s_old / s;
+            self.strike_energy *= r * r;
+        }
+        Ok(done)
+    }
+}
+
 impl Instrument {
     /// A note on a kit: the kit voice it plays (its key's, a free one, or
     /// the quietest, woken at rest at the key's pitch; the only one of an
@@ -290,11 +309,16 @@ impl Instrument {
         let v = &mut self.voices[idx];
         let kv = &mut kit.voices[idx];
         if !v.active || v.key != key && kit.pitched {
-            // woken (or stolen) at rest, at the key's pitch
-            let scale = if kit.pitched && tracking {
+            // woken (or stolen) at rest, at the key's pitch and the bend
+            let base = if kit.pitched && tracking {
                 2f64.powf((f64::from(key) - root) / 12.0)
             } else {
                 1.0
+            };
+            let scale = if kit.bouncing {
+                base
+            } else {
+                base * 2f64.powf(self.bend_now / 12.0)
             };
             kv.st.set_time_scale(&kit.sc, scale);
             kv.st.rest(&kit.sc);
@@ -304,6 +328,13 @@ impl Instrument {
                 self.lanes.begin(idx, self.sample_pos);
             }
             v.active = true;
+            v.base_scale = base;
+            v.tuning_now = 0.0;
+            v.tuning_target = 0.0;
+        } else if v.tuning_target != 0.0 || v.tuning_now != 0.0 {
+            // a new note starts untuned (from where it is, gliding)
+            v.tuning_target = 0.0;
+            self.tuning_moving = true;
         }
         v.key = key;
         v.onset_pos = self.sample_pos;
@@ -328,6 +359,70 @@ impl Instrument {
             // a new throw: the silence test's references start again
             kv.strike_energy = energy;
             kv.peak = 0.0;
+        }
+    }
+
+    /// One update of a moving bend or tuning on a kit (the voices' rule,
+    /// [`Instrument::bend_tick`]): every sounding kit voice steps its
+    /// tuning and takes its new time scale without adding or removing
+    /// energy ([`MultiState::bend_time_scale`]); one with a contact closed
+    /// takes it at a later update. Bouncing kits are not bent (gravity
+    /// would change with the time axis). Whether a voice waits, and
+    /// whether a tuning still moves. O(voices N), allocation-free.
+    /// \[audio-thread\]
+    pub(super) fn kit_bend_tick(&mut self, step: f64) -> (bool, bool) {
+        let (mut pending, mut moving) = (false, false);
+        let Some(kit) = self.cur.kit.as_deref_mut() else {
+            return (false, false);
+        };
+        for (i, kv) in kit.voices.iter_mut().enumerate() {
+            let v = &mut self.voices[i];
+            if !v.active {
+                continue;
+            }
+            v.tuning_now = super::slew(v.tuning_now, v.tuning_target, step);
+            if kit.bouncing {
+                continue;
+            }
+            moving |= v.tuning_now != v.tuning_target;
+            let s = v.base_scale * 2f64.powf((self.bend_now + v.tuning_now) / 12.0);
+            // Err: a bend that cannot be taken (a bouncing kit) stays put
+            if let Ok(false) = kv.retune(&kit.sc, s) {
+                pending = true;
+            }
+        }
+        (pending, moving)
+    }
+
+    /// A per-note tuning on a kit: a pitched kit's voice of that key (or
+    /// every voice) glides to it, or at its note's onset, with no contact
+    /// closed, starts there; a kit whose mallets list notes is one voice
+    /// for every key, so only a tuning of every note (`key` none) moves
+    /// it. \[audio-thread\]
+    pub(super) fn kit_note_tuning(&mut self, key: Option<u8>, t: f64) {
+        let Some(kit) = self.cur.kit.as_deref_mut() else {
+            return;
+        };
+        if kit.bouncing || !kit.pitched && key.is_some() {
+            return;
+        }
+        for (i, kv) in kit.voices.iter_mut().enumerate() {
+            let v = &mut self.voices[i];
+            if !v.active || key.is_some_and(|k| k != v.key) {
+                continue;
+            }
+            v.tuning_target = t;
+            if v.tuning_now == t {
+                continue;
+            }
+            if v.onset_pos == self.sample_pos {
+                let s = v.base_scale * 2f64.powf((self.bend_now + t) / 12.0);
+                if let Ok(true) = kv.retune(&kit.sc, s) {
+                    v.tuning_now = t;
+                    continue;
+                }
+            }
+            self.tuning_moving = true;
         }
     }
 

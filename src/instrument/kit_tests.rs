@@ -271,15 +271,12 @@ fn a_kit_stops_when_silent_and_wakes_at_rest() {
     let n = 4800;
     let first = render(&mut inst, &[on(0, 50, 0.6)], n);
     assert_eq!(inst.active_voices(), 1);
-    // ringing on: every event that is not a note changes nothing
+    // ringing on: every event that is not a note (nor a bend or a
+    // tuning) changes nothing
     let extra = [
         TimedEvent {
             offset: 3,
             event: Event::NoteOff { key: 50 },
-        },
-        TimedEvent {
-            offset: 5,
-            event: Event::PitchBend { value: 1.0 },
         },
         TimedEvent {
             offset: 9,
@@ -414,6 +411,69 @@ fn a_kit_swap_carries_it_out_of_contact_and_fades_it_in_contact() {
     assert!(inst.retired_slots_mut().iter().any(|s| s.is_some()));
     let new = render(&mut inst, &[on(0, 60, 1.0)], 2000);
     assert!(new[0].iter().all(|x| x.is_finite()) && new[0].iter().any(|&x| x != 0.0));
+}
+
+/// A pitch bend and a per-note tuning reach a kit's voices, as they reach
+/// the voices of one contact: a kit voice with no contact closed takes the
+/// bend (its time scale the key's pitch times the bend, the energy kept:
+/// `tests/multi_strike.rs`), one in contact waits for the contact to end;
+/// a key's tuning moves only that key's kit voice; a new key starts at
+/// the bend. A kit whose mallets list notes is one voice for every key: a
+/// tuning of one key leaves it, a tuning of every note moves it.
+#[test]
+fn a_kit_bends_and_takes_per_note_tuning() {
+    let ev = |offset: usize, event: Event| TimedEvent { offset, event };
+    let range = PlayParams::default().bend_range_semitones;
+    // the marimba rings for seconds (the small kit's modes decay in 0.15 s)
+    let mut inst = kit_instrument(&two_mallets(), 0.0);
+    let root = inst.prepared().root_note as u8;
+    let scale = |inst: &Instrument, i: usize| kit(inst).voice_state(i).unwrap().time_scale();
+    // the bend arrives with the note: in contact the voice waits
+    render(&mut inst, &[on(0, root, 0.8)], 1);
+    let mut was_in = false;
+    let mut waited = 0;
+    let mut last = scale(&inst, 0);
+    render(&mut inst, &[ev(0, Event::PitchBend { value: 1.0 })], 1);
+    for _ in 0..2400 {
+        let inside = kit(&inst).voice_state(0).unwrap().active() != 0;
+        let now = scale(&inst, 0);
+        if inside && was_in {
+            assert_eq!(now, last, "bent in contact");
+            waited += 1;
+        }
+        (was_in, last) = (inside, now);
+        render(&mut inst, &[], 1);
+    }
+    assert!(waited > 10, "{waited} samples in contact");
+    render(&mut inst, &[], 4800);
+    let bent = 2f64.powf(range / 12.0);
+    println!("bend: {:.15} (want {bent:.15})", scale(&inst, 0));
+    assert!((scale(&inst, 0) - bent).abs() < 1e-12);
+    // a key's tuning moves that key's voice only
+    render(&mut inst, &[on(0, root + 12, 0.8)], 4800);
+    assert!(
+        (scale(&inst, 1) - 2.0 * bent).abs() < 1e-12,
+        "{}",
+        scale(&inst, 1)
+    );
+    let tune = Event::NoteTuning {
+        key: Some(root),
+        semitones: 1.0,
+    };
+    render(&mut inst, &[ev(0, tune)], 9600);
+    assert!((scale(&inst, 0) - 2f64.powf((range + 1.0) / 12.0)).abs() < 1e-12);
+    assert!((scale(&inst, 1) - 2.0 * bent).abs() < 1e-12);
+    // a kit of listed notes: one voice for every key
+    let mut listed = kit_instrument(&small_kit("notes = [60]", "notes = [62, 60]"), 0.0);
+    render(&mut listed, &[on(0, 60, 0.8)], 4800);
+    let tune = |key| Event::NoteTuning {
+        key,
+        semitones: 2.0,
+    };
+    render(&mut listed, &[ev(0, tune(Some(60)))], 4800);
+    assert_eq!(scale(&listed, 0), 1.0);
+    render(&mut listed, &[ev(0, tune(None))], 9600);
+    assert!((scale(&listed, 0) - 2f64.powf(2.0 / 12.0)).abs() < 1e-12);
 }
 
 /// A kit with gravity (a ball between two plates) drops its ball from the

@@ -423,13 +423,13 @@ impl Instrument {
     /// (gravity would change with the time axis). O(voices N),
     /// allocation-free. \[audio-thread\]
     fn bend_tick(&mut self) {
-        if self.cur.kit.is_some() {
-            // a kit plays at its scene's pitch
-            return;
-        }
         let target = self.bend_target();
         let step = BEND_SLEW_SEMITONES_PER_S * BEND_TICK_SAMPLES as f64 / self.cur.rate_hz;
         self.bend_now = slew(self.bend_now, target, step);
+        if self.cur.kit.is_some() {
+            (self.bend_pending, self.tuning_moving) = self.kit_bend_tick(step);
+            return;
+        }
         let mut pending = false;
         let mut tuning_moving = false;
         for i in 0..MAX_VOICES {
@@ -462,14 +462,15 @@ impl Instrument {
 
     /// A per-note tuning ([`Event::NoteTuning`]). \[audio-thread\]
     fn note_tuning(&mut self, key: Option<u8>, semitones: f64) {
-        if self.cur.kit.is_some() {
-            return;
-        }
         let t = if semitones.is_nan() {
             0.0
         } else {
             semitones.clamp(-MAX_NOTE_TUNING_SEMITONES, MAX_NOTE_TUNING_SEMITONES)
         };
+        if self.cur.kit.is_some() {
+            self.kit_note_tuning(key, t);
+            return;
+        }
         for i in 0..MAX_VOICES {
             let v = &mut self.voices[i];
             if !v.active || key.is_some_and(|k| k != v.key) {
