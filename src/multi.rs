@@ -1458,11 +1458,15 @@ struct PhaseTables {
     ev_c2: Vec<Vec<f64>>,
     ev_e: Vec<Vec<f64>>,
     /// Output rows and constants: displacement plus `scale` times
-    /// velocity.
+    /// velocity, less the modes above the output band.
     out: [Vec<f64>; 2],
     out0: [f64; 2],
-    /// The scale they were made at.
+    /// The scale they were made at, the band's limit then (the model's
+    /// angular frequency above which a mode is left out of the outputs,
+    /// `2 pi band / scale`; infinite: none) and the modes it leaves out.
     at: f64,
+    limit: f64,
+    muted: usize,
 }
 
 impl PhaseTables {
@@ -1476,13 +1480,17 @@ impl PhaseTables {
             out: [vec![0.0; ph.dim], vec![0.0; ph.dim]],
             out0: [0.0; 2],
             at: f64::NAN,
+            limit: f64::INFINITY,
+            muted: 0,
         }
     }
 
-    /// Bring them to `scale` (step `h` of the model's time). O(dim),
-    /// allocation-free.
-    fn make(&mut self, ph: &MultiPhase, scale: f64, h: f64) {
-        if self.at == scale {
+    /// Bring them to `scale` (step `h` of the model's time) and the output
+    /// band `band_hz` (physical; infinite: every mode heard). O(dim), plus
+    /// O(dim) per mode left out, allocation-free.
+    fn make(&mut self, ph: &MultiPhase, m: &MultiModel, scale: f64, h: f64, band_hz: f64) {
+        let limit = two_pi() * band_hz / scale;
+        if self.at == scale && self.limit == limit {
             return;
         }
         self.growth_max = 1.0;
@@ -1506,7 +1514,31 @@ impl PhaseTables {
             }
             self.out0[c] = ph.out_d0[c] + scale * ph.out_v0[c];
         }
+        // a mode above the band leaves the outputs: its share of each row
+        // (`q_i = (Q u)_i / omega_i`, `q'_i = (P w)_i`, the rows a switch
+        // takes the physical state through) is taken out, in every phase
+        // alike, so the output stays a continuous function of the
+        // physical state across switches; its dynamics stay
+        self.muted = 0;
+        for i in 0..m.n() {
+            let w = two_pi() * m.freq_hz[i];
+            if !(w > limit) {
+                continue;
+            }
+            self.muted += 1;
+            for c in 0..2 {
+                let (a, b) = (m.pickups[c].0[i] / w, scale * m.pickups[c].1[i]);
+                if a == 0.0 && b == 0.0 {
+                    continue;
+                }
+                for (col, o) in self.out[c].iter_mut().enumerate() {
+                    *o -= a * ph.qv[(i, col)] + b * ph.pv[(i, col)];
+                }
+                self.out0[c] -= a * ph.qv0[i] + b * ph.pv0[i];
+            }
+        }
         self.at = scale;
+        self.limit = limit;
     }
 }
 
@@ -1562,8 +1594,10 @@ pub struct MultiState {
     rods_on: bool,
     off_ev: [f64; MAX_CONTACTS],
     off_sides: [[(f64, f64); 2]; MAX_CONTACTS],
-    off_out: [(f64, f64); 2],
+    off_out: [f64; 2],
     decided: u64,
+    /// The output band \[Hz\], physical ([`set_output_band`](Self::set_output_band)).
+    band_hz: f64,
     /// Samples run.
     clock: u64,
     /// What the engine did.
@@ -1607,6 +1641,7 @@ impl Clone for MultiState {
             off_ev: self.off_ev,
             off_sides: self.off_sides,
             off_out: self.off_out,
+            band_hz: self.band_hz,
             decided: self.decided,
             clock: self.clock,
             stats: self.stats,
@@ -1686,7 +1721,7 @@ impl MultiState {
         // scale never makes them on the way (a switch pays nothing more)
         let mut tables: Vec<PhaseTables> = sc.phases.iter().map(PhaseTables::new).collect();
         for (t, ph) in tables.iter_mut().zip(&sc.phases) {
-            t.make(ph, 1.0, sc.h);
+            t.make(ph, &sc.model, 1.0, sc.h, f64::INFINITY);
         }
         Self {
             mask: 0,
@@ -1712,7 +1747,8 @@ impl MultiState {
             rods_on: false,
             off_ev: [0.0; MAX_CONTACTS],
             off_sides: [[(0.0, 0.0); 2]; MAX_CONTACTS],
-            off_out: [(0.0, 0.0); 2],
+            off_out: [0.0; 2],
+            band_hz: f64::INFINITY,
             decided: u64::MAX,
             clock: 0,
             stats: MultiStats::default(),
@@ -1727,7 +1763,13 @@ impl MultiState {
     /// \[audio-thread\]
     pub fn rest(&mut self, sc: &CompiledMulti) {
         self.mask = 0;
-        self.tables[0].make(&sc.phases[0], self.scale, self.step_h);
+        self.tables[0].make(
+            &sc.phases[0],
+            &sc.model,
+            self.scale,
+            self.step_h,
+            self.band_hz,
+        );
         self.s.clear();
         self.s.resize(sc.phases[0].dim, 0.0);
         for (j, m) in sc.model.masses.iter().enumerate() {
@@ -1786,7 +1828,7 @@ impl MultiState {
         for t in &mut self.tables {
             t.at = f64::NAN;
         }
-        self.tables[0].make(new, self.scale, self.step_h);
+        self.tables[0].make(new, b, self.scale, self.step_h, self.band_hz);
         self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
         true
     }
@@ -1954,10 +1996,9 @@ impl MultiState {
     /// The output `[left, right]` of the current state.
     pub fn output(&self, _sc: &CompiledMulti) -> [f64; 2] {
         let tb = &self.tables[self.mask as usize];
-        let off = |c: usize| self.off_out[c].0 + self.scale * self.off_out[c].1;
         [
-            dot(&tb.out[0], &self.s) + tb.out0[0] + off(0),
-            dot(&tb.out[1], &self.s) + tb.out0[1] + off(1),
+            dot(&tb.out[0], &self.s) + tb.out0[0] + self.off_out[0],
+            dot(&tb.out[1], &self.s) + tb.out0[1] + self.off_out[1],
         ]
     }
 
@@ -1980,7 +2021,38 @@ impl MultiState {
         self.step_h = sc.h * scale;
         self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
         let m = self.mask as usize;
-        self.tables[m].make(&sc.phases[m], scale, self.step_h);
+        self.tables[m].make(&sc.phases[m], &sc.model, scale, self.step_h, self.band_hz);
+        self.set_shift(sc);
+    }
+
+    /// Leave the objects' modes whose frequency (at the current time
+    /// scale, physical Hz) is above `band_hz` out of the outputs, in every
+    /// phase, as the one-contact engine's output band does, so a kit voice
+    /// pitched up does not alias its top modes into the audio band. The
+    /// dynamics keep every mode. Infinite (the default), not a number or
+    /// not positive: every mode heard. O(dim) per mode left out now for
+    /// the current phase, and when another phase is first entered at a new
+    /// scale; allocation-free. \[audio-thread\]
+    pub fn set_output_band(&mut self, sc: &CompiledMulti, band_hz: f64) {
+        self.band_hz = if band_hz > 0.0 {
+            band_hz
+        } else {
+            f64::INFINITY
+        };
+        let m = self.mask as usize;
+        self.tables[m].make(
+            &sc.phases[m],
+            &sc.model,
+            self.scale,
+            self.step_h,
+            self.band_hz,
+        );
+        self.set_shift(sc);
+    }
+
+    /// The modes the output band leaves out in the current phase.
+    pub fn band_muted_modes(&self) -> usize {
+        self.tables[self.mask as usize].muted
     }
 
     /// Change the time scale to `scale` as a pitch bend does, without
@@ -2172,6 +2244,13 @@ impl MultiState {
                 }
             }
         }
+        if !self.rods_on {
+            // exact switching, or no rod: nothing to add (and no products)
+            self.off_ev = [0.0; MAX_CONTACTS];
+            self.off_sides = [[(0.0, 0.0); 2]; MAX_CONTACTS];
+            self.off_out = [0.0; 2];
+            return;
+        }
         let shift = &self.shift[..ph.dim];
         for j in 0..sc.contacts() {
             self.off_ev[j] = dot(&ph.ev[j], shift);
@@ -2179,8 +2258,9 @@ impl MultiState {
                 *o = (dot(&r.pos, shift), dot(&r.vel, shift));
             }
         }
-        for (o, (d, v)) in self.off_out.iter_mut().zip(ph.out_d.iter().zip(&ph.out_v)) {
-            *o = (dot(d, shift), dot(v, shift));
+        let tb = &self.tables[self.mask as usize];
+        for (o, row) in self.off_out.iter_mut().zip(&tb.out) {
+            *o = dot(&row[..ph.dim], shift);
         }
     }
 
@@ -2507,7 +2587,7 @@ impl MultiState {
         let p_left = pen;
         let new_mask = self.mask ^ who;
         let new = &sc.phases[new_mask as usize];
-        self.tables[new_mask as usize].make(new, self.scale, self.step_h);
+        self.tables[new_mask as usize].make(new, m, self.scale, self.step_h, self.band_hz);
         self.s.resize(new.dim, 0.0);
         new.state_of(
             m,

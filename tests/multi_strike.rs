@@ -372,3 +372,88 @@ fn a_bend_keeps_the_energy_and_plays_the_model_faster() {
         Err(TimeScaleError::Invalid)
     );
 }
+
+/// The output band ([`MultiState::set_output_band`]): the outputs are
+/// those of the same model whose pickups leave out the modes above the
+/// band (at the state's scale): its own compile, whose phases step the
+/// same state, with rows built without those modes. Through strikes,
+/// contacts, a bend that moves the band over more modes, with exact
+/// switching and with the offset rod; an infinite band hears every mode.
+#[test]
+fn the_output_band_hears_the_model_without_its_top_modes() {
+    use modal_contact::scene::Switching;
+    let m = two_mallets(24, [0.02, 0.03], 0.0);
+    let band = 9000.0;
+    let without = |scale: f64| {
+        let mut w = m.clone();
+        let mut muted = 0;
+        for (i, f) in m.freq_hz.iter().enumerate() {
+            if f * scale > band {
+                muted += 1;
+                for c in 0..2 {
+                    w.pickups[c].0[i] = 0.0;
+                    w.pickups[c].1[i] = 0.0;
+                }
+            }
+        }
+        (w, muted)
+    };
+    for sw in [Switching::Exact, Switching::OffsetRod] {
+        let sc = CompiledMulti::with_switching(&m, RATE, sw).unwrap();
+        let (s1, s2) = (1.3, 1.9);
+        let ((w1, muted1), (w2, muted2)) = (without(s1), without(s2));
+        let sc1 = CompiledMulti::with_switching(&w1, RATE, sw).unwrap();
+        let sc2 = CompiledMulti::with_switching(&w2, RATE, sw).unwrap();
+        let mut st = MultiState::new(&sc);
+        st.set_time_scale(&sc, s1);
+        st.set_output_band(&sc, band);
+        let mut all = st.clone();
+        all.set_output_band(&sc, f64::INFINITY);
+        let mut reference = MultiState::new(&sc1);
+        reference.set_time_scale(&sc1, s1);
+        let mut full = MultiState::new(&sc);
+        full.set_time_scale(&sc, s1);
+        assert_eq!(st.band_muted_modes(), muted1);
+        let (mut peak, mut worst, mut worst_all) = (0.0f64, 0.0f64, 0.0f64);
+        for k in 0..12000 {
+            if k == 0 || k == 5000 {
+                let c = usize::from(k > 0);
+                for x in [&mut st, &mut all, &mut full] {
+                    x.strike(&sc, c, 0.0004, -1.2).unwrap();
+                }
+                reference.strike(&sc1, c, 0.0004, -1.2).unwrap();
+            }
+            if k == 9000 {
+                // a bend with no contact closed: the band covers more modes
+                assert_eq!(st.active(), 0);
+                for x in [&mut st, &mut all, &mut full] {
+                    assert_eq!(x.bend_time_scale(&sc, s2), Ok(true));
+                }
+                assert_eq!(reference.bend_time_scale(&sc2, s2), Ok(true));
+                assert_eq!(st.band_muted_modes(), muted2);
+            }
+            let r = if k < 9000 {
+                reference.tick(&sc1)
+            } else {
+                reference.tick(&sc2)
+            };
+            let y = st.tick(&sc);
+            let (ya, yf) = (all.tick(&sc), full.tick(&sc));
+            for ch in 0..2 {
+                peak = peak.max(r[ch].abs());
+                worst = worst.max((y[ch] - r[ch]).abs());
+                worst_all = worst_all.max((ya[ch] - yf[ch]).abs());
+            }
+        }
+        println!(
+            "{}: band {band} Hz at scales {s1} / {s2}: {muted1} / {muted2} modes left out; against the model without their pickups {:.1e} of its peak; an infinite band {worst_all:.1e}",
+            sw.as_str(),
+            worst / peak
+        );
+        assert!(muted1 > 0 && muted2 > muted1);
+        assert!(st.stats.contacts_started[0] >= 1 && st.stats.contacts_started[1] >= 1);
+        assert_eq!(st.stats.contacts_started, reference.stats.contacts_started);
+        assert!(worst < 1e-12 * peak, "{worst:e} of {peak:e}");
+        assert_eq!(worst_all, 0.0);
+    }
+}

@@ -103,6 +103,9 @@ impl Kit {
         let pitched = lists.iter().all(|l| l.is_empty());
         let mut st = MultiState::new(&sc);
         st.rest(&sc);
+        // a voice pitched up leaves its modes above Nyquist out of its
+        // outputs, as a voice of one contact does
+        st.set_output_band(&sc, super::OUTPUT_BAND_FRACTION * 0.5 * rate_hz);
         let voice = KitVoice {
             st,
             next: 0,

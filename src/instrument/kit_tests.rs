@@ -180,6 +180,58 @@ fn kit_note_offline(sw: Switching) {
     assert!(worst2 <= 1e-6 * peak, "two keys: {worst2:e}");
 }
 
+/// Three octaves up, a kit voice leaves the modes pitched above Nyquist
+/// out of its outputs (the output band, as a voice of one contact does)
+/// and keeps them in its dynamics: its samples are those of the scene
+/// compiled at the scaled values with those modes' pickups removed.
+#[test]
+fn a_kit_voice_pitched_up_leaves_its_top_modes_out() {
+    let scene = two_mallets();
+    let mut inst = kit_instrument(&scene, 0.0);
+    let root = inst.prepared().root_note as u8;
+    let (at, n, s) = (100, 9600, 8.0);
+    let out = render(&mut inst, &[on(at, root + 36, 0.8)], at + n);
+    let muted = kit(&inst).voice_state(0).unwrap().band_muted_modes();
+    let mut model = MultiModel::from_scene(&scene, RATE).unwrap();
+    model.masses[0].height_m = 0.0;
+    model.masses[0].velocity_m_per_s = -impact_speed_m_per_s(0.8);
+    model.masses[1].velocity_m_per_s = 0.0;
+    let mut left_out = 0;
+    for i in 0..model.freq_hz.len() {
+        model.freq_hz[i] *= s;
+        model.sigma[i] *= s;
+        if model.freq_hz[i] > 0.5 * RATE {
+            left_out += 1;
+            for c in 0..2 {
+                model.pickups[c].0[i] = 0.0;
+                model.pickups[c].1[i] = 0.0;
+            }
+        }
+    }
+    for ct in &mut model.contacts {
+        ct.stiffness_n_per_m *= s * s;
+        ct.damping_n_s_per_m *= s;
+    }
+    let sc = CompiledMulti::new(&model, RATE).unwrap();
+    let mut st = MultiState::new(&sc);
+    let (mut peak, mut worst) = (0.0f64, 0.0f64);
+    for k in 0..n {
+        let y = st.tick(&sc);
+        for ch in 0..2 {
+            peak = peak.max(y[ch].abs());
+            worst = worst.max((f64::from(out[ch][at + k]) - y[ch]).abs());
+        }
+    }
+    println!(
+        "three octaves up: {muted} of {} modes left out; against the scaled scene without their pickups {worst:.3e} of peak {peak:.3e}",
+        model.freq_hz.len()
+    );
+    assert_eq!(muted, left_out);
+    assert!(muted > 0);
+    assert!(peak > 1e-3);
+    assert!(worst <= 1e-6 * peak, "{worst:e} of {peak:e}");
+}
+
 /// Notes choose the mallets the scene lists; a note no mallet lists
 /// strikes nothing; without lists the mallets take turns.
 #[test]
