@@ -683,6 +683,11 @@ impl MultiModel {
         }
         // the objects in a contact, by name
         let mut named: Vec<(String, &str)> = vec![("contact.object".into(), &scene.contact.object)];
+        for (i, st) in scene.striker.iter().enumerate() {
+            if let Some(m) = &st.mallet {
+                named.push((format!("striker[{i}].mallet.object"), &m.object));
+            }
+        }
         for (i, t) in scene.touch.iter().enumerate() {
             for (side, e) in [("lower", &t.lower), ("upper", &t.upper)] {
                 if e.object != crate::scene::HAMMER_SIDE {
@@ -755,12 +760,20 @@ impl MultiModel {
                 height_m: st.height_m,
                 velocity_m_per_s: st.velocity_m_per_s,
             });
+            let mut w = sides.point(&format!("striker[{i}].point"), &c.object, &st.point)?;
+            // a modal mallet's face is `x_j + psi . a` (its own modes, in
+            // the list beside the struck object's): the struck point takes
+            // `-psi` on them, as `[contact]`'s does for the hammer's mallet
+            if let Some(m) = &st.mallet {
+                let field = format!("striker[{i}].mallet.point");
+                let tip = m.point.as_deref().unwrap_or_default();
+                let psi = sides.point(&field, &m.object, tip)?;
+                for (a, b) in w.iter_mut().zip(&psi) {
+                    *a -= b;
+                }
+            }
             contacts.push(MultiContact {
-                lower: MultiEnd::Point(sides.point(
-                    &format!("striker[{i}].point"),
-                    &c.object,
-                    &st.point,
-                )?),
+                lower: MultiEnd::Point(w),
                 upper: MultiEnd::Mass(i + 1),
                 gap_m: 0.0,
                 stiffness_n_per_m: st.stiffness_n_per_m,

@@ -425,6 +425,13 @@ pub struct StrikerSpec {
     /// mallet lists strikes nothing.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<u8>,
+    /// A mallet with modes of its own, as `hammer.object` and
+    /// `hammer.point` make one of the hammer (docs/design.md, "Modal
+    /// mallets"): the object whose free modes are the mallet's elastic
+    /// vibration and its point that touches. `mass_kg` is then the whole
+    /// mallet's mass (its rigid motion). None: a point mass.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mallet: Option<End>,
 }
 
 /// Most contacts of one scene: `[contact]` and up to `MAX_CONTACTS - 1`
@@ -705,8 +712,8 @@ impl Scene {
 
     /// Strikers: at most `MAX_CONTACTS - 1`; each hits a point of the
     /// struck object that no other contact hits, with the values of a
-    /// hammer and a contact; several contacts need a point-mass hammer
-    /// and an object with points (not a wall).
+    /// hammer and a contact, and a mallet of its own if it names one;
+    /// strikers need an object with points (not a wall).
     fn validate_strikers(&self) -> Result<(), SceneError> {
         if self.striker.is_empty() {
             return Ok(());
@@ -783,14 +790,47 @@ impl Scene {
                 st.damping_n_s_per_m,
                 MAX_DAMPING_N_S_PER_M,
             )?;
+            if let Some(m) = &st.mallet {
+                let used = self.hammer.object.as_ref() == Some(&m.object)
+                    || self.striker[..i]
+                        .iter()
+                        .any(|o| o.mallet.as_ref().is_some_and(|x| x.object == m.object));
+                if used {
+                    return Err(SceneError::new(
+                        f("mallet.object"),
+                        format!(
+                            "{:?} is another mallet already: each mallet is an object of its own",
+                            m.object
+                        ),
+                    ));
+                }
+                let touched = self
+                    .touch
+                    .iter()
+                    .any(|t| t.lower.object == m.object || t.upper.object == m.object);
+                if touched {
+                    return Err(SceneError::new(
+                        f("mallet.object"),
+                        format!(
+                            "a touch names {:?}: a striker's mallet is struck only through its striker",
+                            m.object
+                        ),
+                    ));
+                }
+                self.check_mallet(
+                    [&f("mallet.object"), &f("mallet.point"), &f("mass_kg")],
+                    &m.object,
+                    m.point.as_ref(),
+                    st.mass_kg,
+                )?;
+            }
         }
         Ok(())
     }
 
     /// Touches: at most `MAX_CONTACTS` contacts in all; each side names
     /// the hammer, a wall or an object's point, the two sides differ, no
-    /// two contacts join the same pair, values in their ranges; several
-    /// contacts need exact switching and a point-mass hammer.
+    /// two contacts join the same pair, values in their ranges.
     fn validate_touches(&self) -> Result<(), SceneError> {
         if self.touch.is_empty() {
             return Ok(());

@@ -1612,3 +1612,153 @@ fn offset_rods_follow_the_closed_form() {
         assert_eq!(st.stats.contacts_started[j], rods[j].len() as u64);
     }
 }
+
+/// A striker may be a modal mallet (`[[striker]] mallet = { object, point
+/// }`, as `hammer.object` and `hammer.point` make the hammer one): the
+/// marimba-rubber-mallet preset with its chain mallet moved to a striker
+/// (the `[hammer]` a point mass parked 0.5 m above another point, still,
+/// never arriving) is the one-contact engine's render of the preset (a
+/// separate implementation: the mallet's modes joined to the bar's, the
+/// secular route), sample by sample: the output, the mallet's height and
+/// the contact point (the bar's displacement less the mallet's face
+/// modes), and the same contacts; the instrument's Hammer mass scales the
+/// chain with its striker. Bad mallets are refused with the field named.
+#[test]
+fn a_striker_may_be_a_modal_mallet() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/presets/marimba-rubber-mallet.toml"
+    );
+    let text = std::fs::read_to_string(path).unwrap();
+    let hammer = "[hammer]\nmass_kg = 0.034\nheight_m = 0.001\nvelocity_m_per_s = -2.0\n\
+                  gravity_m_per_s2 = 0.0\nobject = \"mallet\"\npoint = \"cap\"\n";
+    assert!(text.contains(hammer));
+    let striker = "[[striker]]\nmass_kg = 0.034\nheight_m = 0.001\nvelocity_m_per_s = -2.0\n\
+                   point = \"contact\"\nstiffness_n_per_m = 1.5e6\ndamping_n_s_per_m = 37.5\n\
+                   mallet = { object = \"mallet\", point = \"cap\" }\n\n";
+    let moved = text
+        .replace(
+            hammer,
+            "[hammer]\nmass_kg = 0.03\nheight_m = 0.5\nvelocity_m_per_s = 0.0\n",
+        )
+        .replace(
+            "point = \"contact\"\nstiffness",
+            "point = \"pickup\"\nstiffness",
+        )
+        .replacen("\n[[pickup]]", &format!("\n{striker}[[pickup]]"), 1);
+    let scene = Scene::from_toml_str(&moved).unwrap();
+    let m = MultiModel::from_scene(&scene, RATE).unwrap();
+    let sc = CompiledMulti::new(&m, RATE).unwrap();
+    let one = compile_with(
+        &Scene::from_toml_str(&text).unwrap(),
+        RATE,
+        Some(Switching::Exact),
+    )
+    .unwrap();
+    let (mut a, mut b) = (MultiState::new(&sc), EngineState::new(&one));
+    let n = (0.25 * RATE) as usize;
+    let mut s = [(); 6].map(|_| Vec::with_capacity(n));
+    let (mut in_b, mut was_b) = (0u64, false);
+    for _ in 0..n {
+        let (ya, yb) = (a.tick(&sc), b.tick(&one));
+        let (oa, ob) = (a.observe(&sc), b.observe(&one));
+        s[0].push(ya[0] + ya[1]);
+        s[1].push(yb[0] + yb[1]);
+        s[2].push(oa.x_hammer[1]);
+        s[3].push(ob.x_hammer);
+        s[4].push(oa.x_contact[1]);
+        s[5].push(ob.x_contact);
+        in_b += u64::from(ob.in_contact && !was_b);
+        was_b = ob.in_contact;
+    }
+    let (eo, ex, ec) = (
+        rel_l2(&s[0], &s[1]),
+        rel_l2(&s[2], &s[3]),
+        rel_l2(&s[4], &s[5]),
+    );
+    println!(
+        "the rubber mallet as a striker: {} modes, contacts {:?} ({in_b}); against the one-contact engine: output {eo:.1e}, mallet {ex:.1e}, contact point {ec:.1e}",
+        m.freq_hz.len(),
+        &a.stats.contacts_started[..2]
+    );
+    assert_eq!(a.stats.contacts_started[0], 0, "the parked hammer");
+    assert_eq!(a.stats.contacts_started[1], in_b);
+    assert!(in_b >= 3, "the shaft brings the head back: {in_b}");
+    assert!(eo < 1e-9 && ex < 1e-9 && ec < 1e-9, "{eo:e} {ex:e} {ec:e}");
+
+    // the instrument's Hammer mass scales the chain with its striker (the
+    // chain's mass is the striker's rigid mass: a mismatch is refused)
+    let params = modal_contact::instrument::InstrumentParams {
+        scene: modal_contact::instrument::SceneParams {
+            hammer_mass_factor: 1.7,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let heavier = modal_contact::instrument::scene_for(&scene, &params);
+    heavier.validate().unwrap();
+    assert!((heavier.striker[0].mass_kg - 1.7 * 0.034).abs() < 1e-15);
+
+    let bad = |from: &str, to: &str| -> String {
+        let t = moved.replacen(from, to, 1);
+        assert_ne!(t, moved, "{from}");
+        match Scene::from_toml_str(&t) {
+            Err(e) => e.to_string(),
+            Ok(s) => s
+                .validate()
+                .map_or_else(|e| e.to_string(), |_| "valid".into()),
+        }
+    };
+    let m = "mallet = { object = \"mallet\", point = \"cap\" }";
+    for (to, field, says) in [
+        (
+            "mallet = { object = \"nowhere\", point = \"cap\" }",
+            "striker[0].mallet.object",
+            "no object",
+        ),
+        (
+            "mallet = { object = \"bar\", point = \"contact\" }",
+            "striker[0].mallet.object",
+            "struck object",
+        ),
+        (
+            "mallet = { object = \"mallet\", point = \"tip\" }",
+            "striker[0].mallet.point",
+            "no point",
+        ),
+        (
+            "mallet = { object = \"mallet\" }",
+            "striker[0].mallet.point",
+            "missing",
+        ),
+    ] {
+        let e = bad(m, to);
+        assert!(e.contains(field) && e.contains(says), "{to}: {e}");
+    }
+    let e = bad(
+        "mass_kg = 0.034\nheight_m = 0.001\nvelocity_m_per_s = -2.0\npoint",
+        "mass_kg = 0.05\nheight_m = 0.001\nvelocity_m_per_s = -2.0\npoint",
+    );
+    assert!(
+        e.contains("striker[0].mass_kg") && e.contains("chain"),
+        "{e}"
+    );
+    // the hammer's mallet and a striker's are two objects
+    let e = bad(
+        "[hammer]\nmass_kg = 0.03\n",
+        "[hammer]\nmass_kg = 0.034\nobject = \"mallet\"\npoint = \"cap\"\n",
+    );
+    assert!(
+        e.contains("striker[0].mallet.object") && e.contains("another mallet"),
+        "{e}"
+    );
+    // a touch on a striker's mallet
+    let touch = "[[touch]]\nlower = { object = \"mallet\", point = \"grip\" }\n\
+                 upper = { object = \"hammer\" }\nstiffness_n_per_m = 1e5\n\n[[pickup]]";
+    let e = bad("[[pickup]]", touch);
+    assert!(
+        e.contains("striker[0].mallet.object") && e.contains("touch"),
+        "{e}"
+    );
+    println!("refused: {e}");
+}

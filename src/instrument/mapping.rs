@@ -200,9 +200,23 @@ pub fn scene_for(base: &Scene, p: &InstrumentParams) -> Scene {
     let mass_factor = positive_or(sp.hammer_mass_factor, 1.0);
     s.hammer.mass_kg *= mass_factor;
     // a chain mallet's rigid motion is its masses' sum: heavier together
-    if let Some(mi) = s.hammer.object.as_deref().and_then(|m| s.object_index(m)) {
-        if let ObjectSpec::Chain(c) = &mut s.object[mi] {
-            c.masses_kg.iter_mut().for_each(|m| *m *= mass_factor);
+    // (the hammer's mallet and each striker's)
+    let mallets: Vec<String> = s
+        .hammer
+        .object
+        .iter()
+        .cloned()
+        .chain(
+            s.striker
+                .iter()
+                .filter_map(|st| st.mallet.as_ref().map(|m| m.object.clone())),
+        )
+        .collect();
+    for name in &mallets {
+        if let Some(mi) = s.object_index(name) {
+            if let ObjectSpec::Chain(c) = &mut s.object[mi] {
+                c.masses_kg.iter_mut().for_each(|m| *m *= mass_factor);
+            }
         }
     }
     s.contact.stiffness_n_per_m *= positive_or(sp.stiffness_factor, 1.0);

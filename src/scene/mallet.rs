@@ -187,15 +187,35 @@ impl Scene {
             }
             return Ok(());
         };
+        self.check_mallet(
+            ["hammer.object", "hammer.point", "hammer.mass_kg"],
+            name,
+            h.point.as_ref(),
+            h.mass_kg,
+        )
+    }
+
+    /// A mallet object `name` touching at `point`, of rigid mass `mass_kg`
+    /// (the hammer's or a striker's; `fields`: where its object, point
+    /// and mass are written): an object of the scene other than the
+    /// struck one, with modes (a table, a free chain of exactly that mass,
+    /// or one from geometry and material), and one of its points.
+    pub(super) fn check_mallet(
+        &self,
+        [f_object, f_point, f_mass]: [&str; 3],
+        name: &str,
+        point: Option<&String>,
+        mass_kg: f64,
+    ) -> Result<(), SceneError> {
         let Some(mi) = self.object_index(name) else {
             return Err(SceneError::new(
-                "hammer.object",
+                f_object,
                 format!("no object named {name:?}"),
             ));
         };
-        if *name == self.contact.object {
+        if name == self.contact.object {
             return Err(SceneError::new(
-                "hammer.object",
+                f_object,
                 format!(
                     "{name:?} is the struck object (contact.object); a mallet is another object"
                 ),
@@ -207,19 +227,18 @@ impl Scene {
         let mallet = &self.object[mi];
         if let ObjectSpec::Chain(c) = mallet {
             let m = c.mass_kg();
-            if !((h.mass_kg - m).abs() <= 1e-9 * m) {
+            if !((mass_kg - m).abs() <= 1e-9 * m) {
                 return Err(SceneError::new(
-                    "hammer.mass_kg",
+                    f_mass,
                     format!(
-                        "a chain mallet's rigid motion is the whole chain: must be the sum of {name:?}'s masses, {m:e} kg, got {:e}",
-                        h.mass_kg
+                        "a chain mallet's rigid motion is the whole chain: must be the sum of {name:?}'s masses, {m:e} kg, got {mass_kg:e}"
                     ),
                 ));
             }
         }
         if !modal(mallet) {
             return Err(SceneError::new(
-                "hammer.object",
+                f_object,
                 format!(
                     "a mallet is a modal object or one from geometry and material (its free modes); {name:?} is a {}",
                     mallet.kind()
@@ -228,13 +247,13 @@ impl Scene {
         }
         // any struck object but a chain (refused above) may take a mallet
         let points = mallet.point_names();
-        match &h.point {
+        match point {
             None => Err(SceneError::new(
-                "hammer.point",
+                f_point,
                 format!("missing: name the point of {name:?} that touches, one of {points:?}"),
             )),
             Some(p) if !points.contains(p) => Err(SceneError::new(
-                "hammer.point",
+                f_point,
                 format!("object {name:?} has no point {p:?}"),
             )),
             Some(_) => Ok(()),
