@@ -789,8 +789,20 @@ impl MultiModel {
             }
             _ => None,
         };
-        let less_face = |e: MultiEnd, gap: f64, below: bool| -> (MultiEnd, f64) {
-            let Some(psi) = &face else {
+        // a touch's side on the hammer: its face, or a point of its modal
+        // mallet (`x_h + psi_p . a`, the same form with that point's psi)
+        let psi_of = |field: String, e: &SceneEnd| -> Result<Option<Vec<f64>>, SceneError> {
+            match (&original_mallet, &e.point) {
+                (Some((mallet, _)), Some(p)) => Ok(Some(sides.point(
+                    &field,
+                    &c.object,
+                    &format!("{mallet}.{p}"),
+                )?)),
+                _ => Ok(face.clone()),
+            }
+        };
+        let less_face = |e: MultiEnd, gap: f64, below: bool, psi: Option<Vec<f64>>| {
+            let Some(psi) = psi else {
                 return (e, gap);
             };
             match e {
@@ -812,9 +824,11 @@ impl MultiModel {
             let mut upper = sides.side(&format!("touch[{i}].upper"), &t.upper)?;
             let mut gap = t.gap_m;
             if upper == MultiEnd::Mass(0) {
-                (lower, gap) = less_face(lower, gap, true);
+                let psi = psi_of(format!("touch[{i}].upper.point"), &t.upper)?;
+                (lower, gap) = less_face(lower, gap, true, psi);
             } else if lower == MultiEnd::Mass(0) {
-                (upper, gap) = less_face(upper, gap, false);
+                let psi = psi_of(format!("touch[{i}].lower.point"), &t.lower)?;
+                (upper, gap) = less_face(upper, gap, false, psi);
             }
             contacts.push(MultiContact {
                 lower,

@@ -870,11 +870,27 @@ impl Scene {
                             "\"hammer\" names both an object and the hammer: rename the object",
                         ));
                     }
-                    if e.point.is_some() {
-                        return Err(SceneError::new(
-                            f(&format!("{name}.point")),
-                            "the hammer has no points; omit the key",
-                        ));
+                    // a point of the hammer's modal mallet (its face when
+                    // none is named)
+                    if let Some(p) = &e.point {
+                        let Some(m) = &self.hammer.object else {
+                            return Err(SceneError::new(
+                                f(&format!("{name}.point")),
+                                "a point-mass hammer has no points; omit the key",
+                            ));
+                        };
+                        let points = self
+                            .object_index(m)
+                            .map(|o| self.object[o].point_names())
+                            .unwrap_or_default();
+                        if !points.contains(p) {
+                            return Err(SceneError::new(
+                                f(&format!("{name}.point")),
+                                format!(
+                                    "the hammer's mallet {m:?} has no point {p:?}: one of {points:?}"
+                                ),
+                            ));
+                        }
                     }
                     continue;
                 }

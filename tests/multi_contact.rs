@@ -1415,9 +1415,43 @@ fn a_modal_mallet_takes_several_contacts() {
     // the mirror: mallet at 0 thrown up at 2 m/s into a ceiling 3 mm up
     // (a touch: hammer below, wall above), the bar far below and left
     // behind; against the one-contact mallet dropped from 3 mm on a floor
+    // and through a touch at another point of the mallet (its grip), the
+    // one-contact mallet whose face is that point
+    for point in [None, Some("grip")] {
+        mirror(&text, point);
+    }
+    // a point the mallet does not have
+    let bad = text.replacen(
+        "\n[[pickup]]",
+        "\n[[object]]\nname = \"lid\"\nkind = \"wall\"\n\n[[touch]]\n\
+         lower = { object = \"hammer\", point = \"tip\" }\nupper = { object = \"lid\" }\n\
+         gap_m = 0.01\nstiffness_n_per_m = 1e6\n\n[[pickup]]",
+        1,
+    );
+    let e = Scene::from_toml_str(&bad).unwrap_err().to_string();
+    assert!(
+        e.contains("touch[0].lower.point") && e.contains("no point \"tip\""),
+        "{e}"
+    );
+}
+
+/// The mallet at 0 thrown up at 2 m/s into a ceiling 3 mm up (a touch:
+/// the hammer's face, or its mallet's `point`, below; a wall above), the
+/// bar far below and left behind; against the one-contact mallet touching
+/// with that point dropped from 3 mm on a floor, until the mallet, back
+/// from the ceiling, reaches the bar it left.
+fn mirror(text: &str, point: Option<&str>) {
     let gap = 0.003;
+    let side = match point {
+        Some(p) => format!("{{ object = \"hammer\", point = \"{p}\" }}"),
+        None => "{ object = \"hammer\" }".to_string(),
+    };
     let up = text
-        .replacen("height_m = 0.001\nvelocity_m_per_s = -2.0", "height_m = 0.0\nvelocity_m_per_s = 2.0", 1)
+        .replacen(
+            "height_m = 0.001\nvelocity_m_per_s = -2.0",
+            "height_m = 0.0\nvelocity_m_per_s = 2.0",
+            1,
+        )
         .replacen(
             "\n[hammer]",
             "\n[[object]]\nname = \"ceiling\"\nkind = \"wall\"\n\n[hammer]",
@@ -1426,13 +1460,18 @@ fn a_modal_mallet_takes_several_contacts() {
         .replacen(
             "\n[[pickup]]",
             &format!(
-                "\n[[touch]]\nlower = {{ object = \"hammer\" }}\nupper = {{ object = \"ceiling\" }}\n\
+                "\n[[touch]]\nlower = {side}\nupper = {{ object = \"ceiling\" }}\n\
                  gap_m = {gap}\nstiffness_n_per_m = 1.5e6\ndamping_n_s_per_m = 37.5\n\n[[pickup]]"
             ),
             1,
         );
     let down = text
         .replacen("height_m = 0.001", &format!("height_m = {gap}"), 1)
+        .replacen(
+            "point = \"cap\"",
+            &format!("point = \"{}\"", point.unwrap_or("cap")),
+            1,
+        )
         .replacen(
             "\n[hammer]",
             "\n[[object]]\nname = \"floor\"\nkind = \"wall\"\n\n[hammer]",
@@ -1451,7 +1490,6 @@ fn a_modal_mallet_takes_several_contacts() {
     let (mut a, mut b) = (MultiState::new(&scu), EngineState::new(&od));
     let (mut xa, mut xb) = (vec![], vec![]);
     let (mut ca, mut cb) = (0, 0);
-    // until the mallet, back from the ceiling, reaches the bar it left
     loop {
         a.tick(&scu);
         b.tick(&od);
@@ -1467,7 +1505,8 @@ fn a_modal_mallet_takes_several_contacts() {
     }
     let e = rel_l2(&xa, &xb);
     println!(
-        "modal mallet into a ceiling against onto a floor: {} samples, {ca} / {cb} in contact, heights {e:.1e}",
+        "modal mallet's {} into a ceiling against onto a floor: {} samples, {ca} / {cb} in contact, heights {e:.1e}",
+        point.unwrap_or("face"),
         xa.len()
     );
     assert!(ca > 0 && ca == cb, "{ca} {cb}");
