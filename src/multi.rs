@@ -60,7 +60,7 @@
 
 use crate::compile::{pan_gains, CompileBudget};
 use crate::engine::TimeScaleError;
-use crate::physics::block::{exp2, mul2, sym_growth, Mat2};
+use crate::physics::block::{exp2, mul2, sym_growth, Mat2, OscForm};
 use crate::physics::decomp::{decompose_via, Form};
 use crate::physics::model::LN_1000;
 use crate::scene::{End as SceneEnd, ObjectSpec, Quantity, Scene, SceneError, Switching};
@@ -280,6 +280,9 @@ pub struct MultiPhase {
     pub dim: usize,
     /// Block generators (block `k` acts on `s[k], s[nb + k]`).
     pub gens: Vec<Mat2>,
+    /// Each block's oscillatory split, made once (`exp(G t)` at a new `t`
+    /// is then a sine, a cosine and an exponential; none: [`exp2`]).
+    forms: Vec<Option<OscForm>>,
     /// The masses in a closed contact (`z[N + b]` is `sqrt(m) x` of
     /// `bound[b]`), and per mass its place there.
     bound: Vec<usize>,
@@ -292,22 +295,43 @@ pub struct MultiPhase {
     fly_of: Vec<Option<usize>>,
     /// The slots that fly in this phase.
     flyers: Vec<usize>,
-    /// A switch's products, straight from and to the block state `s`
-    /// (`y = [u; w] = V s + y*`; `Q` the thin factor of `[diag(omega);
-    /// sqrt(k_c) g_c^T] P = Q R`, so `Q u = (omega q, sqrt(k_c) (p_c -
-    /// p0_c))`, the one-contact engine's energy coordinates; `P` the
-    /// positions `z` of the reduced ones, `Z = P R^-1`): `Q V_u` and `Q
-    /// u*`, `P V_w` and `P w*`, the held masses' rows of `Z V_u` and `Z u*`,
-    /// `V^-1_u Q^T`, `V^-1_w P^T` and `V^-1 y*`. Four products of about
-    /// `dim x dim / 2` a switch, as many as the two through `y`.
+    /// The phase's rows of the physical state, straight from the block
+    /// state `s` (`y = [u; w] = V s + y*`; `Q` the thin factor of
+    /// `[diag(omega); sqrt(k_c) g_c^T] P = Q R`, so `Q u = (omega q,
+    /// sqrt(k_c) (p_c - p0_c))`, the one-contact engine's energy
+    /// coordinates; `P` the positions `z` of the reduced ones, `Z = P
+    /// R^-1`): `Q V_u` and `Q u*`, `P V_w` and `P w*`, the held masses' rows
+    /// of `Z V_u` and `Z u*` (the trace's coupled energy and masses, the
+    /// output band), and `V^-1 y*`.
     qv: DMatrix<f64>,
     qv0: Vec<f64>,
     pv: DMatrix<f64>,
     pv0: Vec<f64>,
     zv: DMatrix<f64>,
     zv0: Vec<f64>,
-    vq: DMatrix<f64>,
-    vp: DMatrix<f64>,
+    /// A switch's products, on the coupled part alone (a free mode's block
+    /// is its own `(omega q, q')`, so its rows and columns of every product
+    /// are 0 but its own 1): `qv_c`, `pv_c`, `zv_c` (the rows of `Q V_u`,
+    /// `P V_w`, `Z V_u`) on the coupled entries of `s` (columns,
+    /// `coupled`) into the rows `qv_rows` of `Q u` (the coupled modes,
+    /// then the closed contacts), `pv_rows` of `z'` (the coupled modes,
+    /// then the held masses) and `bound_rows` (every held mass); `vq_c` and
+    /// `vp_c` (of `V^-1_u Q^T` and `V^-1_w P^T`) from those same rows into
+    /// the coupled entries. A switch costs four products of about `d x d /
+    /// 2` for the `d` coordinates of the coupled parts it leaves and enters
+    /// and O(N) for the free modes (the sums are the dense products', whose
+    /// other terms are 0).
+    qv_c: DMatrix<f64>,
+    qv_rows: Vec<usize>,
+    pv_c: DMatrix<f64>,
+    pv_rows: Vec<usize>,
+    zv_c: DMatrix<f64>,
+    bound_rows: Vec<usize>,
+    vq_c: DMatrix<f64>,
+    vp_c: DMatrix<f64>,
+    /// The free modes' blocks: the mode and the entries of `s` holding its
+    /// `omega q` and `q'`.
+    free_blocks: Vec<(usize, usize, usize)>,
     s_star: Vec<f64>,
     /// Each closed contact's `p0_c`.
     p0: Vec<f64>,
@@ -330,6 +354,13 @@ pub struct MultiPhase {
     /// Per contact: the flights in its penetration (lower side's adds,
     /// upper side's subtracts; none when both ride the same one).
     ev_fly: Vec<(Option<usize>, Option<usize>)>,
+    /// Per contact: the blocks its row or slope row touches (the others'
+    /// weights in its bounds are 0 too: an evaluation skips them), and the
+    /// entries where its row and its slope row are not 0 (its dot
+    /// products sum those, in order: the dense sums' values).
+    ev_blocks: Vec<Vec<usize>>,
+    ev_nz: Vec<Vec<usize>>,
+    evd_nz: Vec<Vec<usize>>,
     /// Per contact: where its lower and upper sides are (the trace).
     sides: Vec<[SideRows; 2]>,
     /// The entries of `s` the coupled part moves, and its modes.
@@ -883,6 +914,32 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
+/// [`dot`] with four partial sums (the compiler keeps them in vector
+/// registers): the outputs' rows, every sample.
+fn dot4(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a4, b4) = (a[..n].chunks_exact(4), b[..n].chunks_exact(4));
+    let tail: f64 = a4
+        .remainder()
+        .iter()
+        .zip(b4.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    let mut acc = [0.0f64; 4];
+    for (x, y) in a4.zip(b4) {
+        for i in 0..4 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    (acc[0] + acc[2]) + (acc[1] + acc[3]) + tail
+}
+
+/// [`dot`] over the entries `idx` (increasing) where `a` is not 0: the
+/// same sum, without its zero terms.
+fn dot_at(a: &[f64], b: &[f64], idx: &[usize]) -> f64 {
+    idx.iter().map(|&i| a[i] * b[i]).sum()
+}
+
 /// `row . G` per block (`row` in block layout).
 fn row_times_gens(row: &[f64], gens: &[Mat2]) -> Vec<f64> {
     let nb = gens.len();
@@ -1361,18 +1418,69 @@ impl MultiPhase {
         let z_m = z_of_u.rows(n, lay.bound.len());
         let col = |x: DMatrix<f64>| x.as_slice().to_vec();
         let s_star = col(&vinv * DMatrix::from_column_slice(dim, 1, &y_star));
+        let (qv, pv, zv) = (&q * v_u, &p * v_w, z_m * v_u);
+        let vq = vinv.columns(0, nr) * q.transpose();
+        let vp = vinv.columns(nr, nr) * p.transpose();
+        let qv_rows: Vec<usize> = cm.iter().copied().chain(n..n + members.len()).collect();
+        let pv_rows: Vec<usize> = cm.iter().copied().chain(n..n + lay.bound.len()).collect();
+        let nbnd = lay.bound.len();
+        let qv_c = DMatrix::from_fn(qv_rows.len(), coupled.len(), |r, c| {
+            qv[(qv_rows[r], coupled[c])]
+        });
+        let pv_c = DMatrix::from_fn(pv_rows.len(), coupled.len(), |r, c| {
+            pv[(pv_rows[r], coupled[c])]
+        });
+        let zv_c = DMatrix::from_fn(nbnd, coupled.len(), |r, c| zv[(r, coupled[c])]);
+        let vq_c = DMatrix::from_fn(coupled.len(), qv_rows.len(), |r, c| {
+            vq[(coupled[r], qv_rows[c])]
+        });
+        let vp_c = DMatrix::from_fn(coupled.len(), pv_rows.len(), |r, c| {
+            vp[(coupled[r], pv_rows[c])]
+        });
+        let free_blocks: Vec<(usize, usize, usize)> = fm
+            .iter()
+            .enumerate()
+            .map(|(j, &i)| (i, nbc + j, nb + nbc + j))
+            .collect();
+        let forms = gens.iter().map(OscForm::of).collect();
+        let ev_blocks = ev
+            .iter()
+            .zip(&ev_d)
+            .map(|(r, d): (&Vec<f64>, &Vec<f64>)| {
+                (0..nb)
+                    .filter(|&k| r[k] != 0.0 || r[nb + k] != 0.0 || d[k] != 0.0 || d[nb + k] != 0.0)
+                    .collect()
+            })
+            .collect();
+        let nz_of = |rows: &[Vec<f64>]| -> Vec<Vec<usize>> {
+            rows.iter()
+                .map(|r| (0..r.len()).filter(|&i| r[i] != 0.0).collect())
+                .collect()
+        };
+        let (ev_nz, evd_nz) = (nz_of(&ev), nz_of(&ev_d));
         Ok(Self {
             members,
             dim,
+            forms,
+            ev_blocks,
+            ev_nz,
+            evd_nz,
             gens,
-            qv: &q * v_u,
             qv0: col(&q * &u_star),
-            pv: &p * v_w,
             pv0: col(&p * &w_star),
-            zv: z_m * v_u,
             zv0: col(z_m * &u_star),
-            vq: vinv.columns(0, nr) * q.transpose(),
-            vp: vinv.columns(nr, nr) * p.transpose(),
+            qv,
+            pv,
+            zv,
+            qv_c,
+            qv_rows,
+            pv_c,
+            pv_rows,
+            zv_c,
+            bound_rows: (0..nbnd).collect(),
+            vq_c,
+            vp_c,
+            free_blocks,
             s_star,
             bound: lay.bound,
             place: lay.place,
@@ -1397,6 +1505,17 @@ impl MultiPhase {
             kappa,
             growth: growth_max,
         })
+    }
+}
+
+impl MultiPhase {
+    /// Block `k`'s `exp(G_k t)` (what [`exp2`] gives, its split made once).
+    #[inline]
+    fn exp_block(&self, k: usize, t: f64) -> Mat2 {
+        match &self.forms[k] {
+            Some(f) => f.exp(t),
+            None => exp2(&self.gens[k], t),
+        }
     }
 }
 
@@ -2024,8 +2143,8 @@ impl MultiState {
     pub fn output(&self, _sc: &CompiledMulti) -> [f64; 2] {
         let tb = &self.tables[self.mask as usize];
         [
-            dot(&tb.out[0], &self.s) + tb.out0[0] + self.off_out[0],
-            dot(&tb.out[1], &self.s) + tb.out0[1] + self.off_out[1],
+            dot4(&tb.out[0], &self.s) + tb.out0[0] + self.off_out[0],
+            dot4(&tb.out[1], &self.s) + tb.out0[1] + self.off_out[1],
         ]
     }
 
@@ -2198,7 +2317,7 @@ impl MultiState {
                 let props = &self.tables[self.mask as usize].props;
                 step_blocks(props, &self.s, &mut self.end[..ph.dim], nb);
             } else {
-                step_to(&ph.gens, rem, &self.s, &mut self.end[..ph.dim]);
+                step_to(ph, rem, &self.s, &mut self.end[..ph.dim]);
             }
             if taken >= MAX_SWITCHES_PER_SAMPLE {
                 self.stats.capped += 1;
@@ -2231,7 +2350,7 @@ impl MultiState {
             };
             let tau = tau.min(rem);
             if tau < rem {
-                step_to(&ph.gens, tau, &self.s, &mut self.end[..ph.dim]);
+                step_to(ph, tau, &self.s, &mut self.end[..ph.dim]);
             }
             self.s.copy_from_slice(&self.end[..ph.dim]);
             self.fly(sc, tau);
@@ -2338,9 +2457,9 @@ impl MultiState {
             allow: 0.0,
             neutral: 0.0,
         };
-        let row = &ph.ev[j];
-        let q0 = dot(row, &self.s) + ph.ev0[j];
-        let q_end = dot(row, &self.end[..ph.dim]) + ph.ev0[j];
+        let (row, nz) = (&ph.ev[j], &ph.ev_nz[j]);
+        let q0 = dot_at(row, &self.s, nz) + ph.ev0[j];
+        let q_end = dot_at(row, &self.end, nz) + ph.ev0[j];
         let psi_end = f.psi(q_end, rem);
         // a whole sample that clears the epoch's margin holds no crossing
         let epoch = self.clock / 64;
@@ -2351,10 +2470,12 @@ impl MultiState {
                 return None;
             }
         }
-        let d0 = f.dpsi(dot(&ph.ev_d[j], &self.s), 0.0);
+        let d0 = f.dpsi(dot_at(&ph.ev_d[j], &self.s, &ph.evd_nz[j]), 0.0);
         let mut mag = ph.ev0[j].abs();
         let ev_e = &self.tables[self.mask as usize].ev_e[j];
-        for k in 0..nb {
+        // the blocks the rows touch (the others weigh 0 in every bound)
+        self.norms[0][..nb].fill(0.0);
+        for &k in &ph.ev_blocks[j] {
             self.norms[0][k] = (self.s[k] * self.s[k] + self.s[nb + k] * self.s[nb + k]).sqrt();
             mag += ev_e[k] * self.norms[0][k];
         }
@@ -2450,8 +2571,13 @@ impl MultiState {
         }
         let (row, row_d) = (&ph.ev[j], &ph.ev_d[j]);
         let (mut q, mut dq) = (ph.ev0[j], 0.0);
-        for (k, g) in ph.gens.iter().enumerate() {
-            let p = exp2(g, t);
+        // only the blocks the rows touch: the others add 0 here and weigh
+        // 0 in the bounds (their norms set to 0)
+        if let Some(slot) = slot {
+            self.norms[slot].fill(0.0);
+        }
+        for &k in &ph.ev_blocks[j] {
+            let p = ph.exp_block(k, t);
             let (x0, x1) = mul2(&p, self.s[k], self.s[nb + k]);
             if let Some(slot) = slot {
                 self.norms[slot][k] = (x0 * x0 + x1 * x1).sqrt();
@@ -2841,17 +2967,30 @@ impl MultiPhase {
         out: &mut Physical,
     ) {
         let n = m.n();
-        let nz = n + self.bound.len();
-        // the modes' q from Q u = (omega q, ...), z' = P w, the held masses'
-        // x from Z u (the part off the free groups' centres)
-        mat_vec(&self.qv, s, &self.qv0, &mut zq[..self.qv0.len()]);
-        for (i, qi) in out.q.iter_mut().enumerate() {
-            *qi = zq[i] / (two_pi() * m.freq_hz[i]);
+        // a free mode's block is its own (omega q, q')
+        for &(i, k1, k2) in &self.free_blocks {
+            out.q[i] = s[k1] / (two_pi() * m.freq_hz[i]);
+            out.qv[i] = s[k2];
         }
-        mat_vec(&self.pv, s, &self.pv0, &mut zv[..nz]);
-        out.qv.copy_from_slice(&zv[..n]);
+        // the coupled modes' q from Q u = (omega q, ...), z' = P w, the
+        // held masses' x from Z u (the part off the free groups' centres)
+        for &r in &self.qv_rows {
+            zq[r] = self.qv0[r];
+        }
+        mat_vec_idx(&self.qv_c, (&self.coupled, s), &self.qv_rows, zq);
+        for &i in &self.coupled_modes {
+            out.q[i] = zq[i] / (two_pi() * m.freq_hz[i]);
+        }
+        for &r in &self.pv_rows {
+            zv[r] = self.pv0[r];
+        }
+        mat_vec_idx(&self.pv_c, (&self.coupled, s), &self.pv_rows, zv);
+        for &i in &self.coupled_modes {
+            out.qv[i] = zv[i];
+        }
         let nb = self.bound.len();
-        mat_vec(&self.zv, s, &self.zv0, &mut zq[..nb]);
+        zq[..nb].copy_from_slice(&self.zv0);
+        mat_vec_idx(&self.zv_c, (&self.coupled, s), &self.bound_rows, zq);
         for (j, ms) in m.masses.iter().enumerate() {
             match self.place[j] {
                 Some(b) => {
@@ -2887,7 +3026,6 @@ impl MultiPhase {
         s: &mut [f64],
     ) {
         let n = m.n();
-        let nz = n + self.bound.len();
         for i in 0..n {
             zq[i] = two_pi() * m.freq_hz[i] * ph.q[i];
         }
@@ -2917,26 +3055,30 @@ impl MultiPhase {
         for (o, x) in s.iter_mut().zip(&self.s_star) {
             *o = -x;
         }
-        mat_vec_add(&self.vq, &zq[..n + self.members.len()], s);
-        mat_vec_add(&self.vp, &zv[..nz], s);
+        // a free mode's block is its own (omega q, q') (its `s*` is 0);
+        // the coupled entries through the coupled part's products
+        for &(i, k1, k2) in &self.free_blocks {
+            s[k1] += zq[i];
+            s[k2] += zv[i];
+        }
+        mat_vec_idx(&self.vq_c, (&self.qv_rows, zq), &self.coupled, s);
+        mat_vec_idx(&self.vp_c, (&self.pv_rows, zv), &self.coupled, s);
     }
 }
-/// `out = M x + c` for a column-major `M`.
-fn mat_vec(m: &DMatrix<f64>, x: &[f64], c: &[f64], out: &mut [f64]) {
-    out.copy_from_slice(c);
-    mat_vec_add(m, x, out);
-}
-
-/// `out += M x` for a column-major `M`, by columns.
-fn mat_vec_add(m: &DMatrix<f64>, x: &[f64], out: &mut [f64]) {
-    let n = out.len();
+/// `out[rows[r]] += sum_c M[r, c] x[cols[c]]` for a column-major `M`, by
+/// columns in the order of `cols` (increasing, as a dense product's), so
+/// the sums are those of the dense product over the whole vectors whose
+/// other entries of `M` are 0.
+fn mat_vec_idx(m: &DMatrix<f64>, (cols, x): (&[usize], &[f64]), rows: &[usize], out: &mut [f64]) {
+    let nr = rows.len();
     let data = m.as_slice();
-    for (col, &xc) in x.iter().enumerate() {
-        if xc == 0.0 {
+    for (c, &xc) in cols.iter().enumerate() {
+        let v = x[xc];
+        if v == 0.0 {
             continue;
         }
-        for (o, a) in out.iter_mut().zip(&data[col * n..(col + 1) * n]) {
-            *o += a * xc;
+        for (a, &r) in data[c * nr..(c + 1) * nr].iter().zip(rows) {
+            out[r] += a * v;
         }
     }
 }
@@ -2951,10 +3093,10 @@ fn step_blocks(props: &[Mat2], s: &[f64], out: &mut [f64], nb: usize) {
 }
 
 /// `out = exp(G t) s`.
-fn step_to(gens: &[Mat2], t: f64, s: &[f64], out: &mut [f64]) {
-    let nb = gens.len();
-    for (k, g) in gens.iter().enumerate() {
-        let p = exp2(g, t);
+fn step_to(ph: &MultiPhase, t: f64, s: &[f64], out: &mut [f64]) {
+    let nb = ph.gens.len();
+    for k in 0..nb {
+        let p = ph.exp_block(k, t);
         let (x0, x1) = mul2(&p, s[k], s[nb + k]);
         out[k] = x0;
         out[nb + k] = x1;
