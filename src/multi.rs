@@ -2176,23 +2176,19 @@ impl MultiState {
     /// phase, as the one-contact engine's output band does, so a kit voice
     /// pitched up does not alias its top modes into the audio band. The
     /// dynamics keep every mode. Infinite (the default), not a number or
-    /// not positive: every mode heard. O(dim) per mode left out now for
-    /// the current phase, and when another phase is first entered at a new
-    /// scale; allocation-free. \[audio-thread\]
+    /// not positive: every mode heard. Every phase's tables are made at
+    /// the band now (a state that keeps its scale makes none on the way),
+    /// O(phases dim) plus O(dim) per mode left out; allocation-free.
+    /// \[worker\] \[audio-thread\]
     pub fn set_output_band(&mut self, sc: &CompiledMulti, band_hz: f64) {
         self.band_hz = if band_hz > 0.0 {
             band_hz
         } else {
             f64::INFINITY
         };
-        let m = self.mask as usize;
-        self.tables[m].make(
-            &sc.phases[m],
-            &sc.model,
-            self.scale,
-            self.step_h,
-            self.band_hz,
-        );
+        for (t, ph) in self.tables.iter_mut().zip(&sc.phases) {
+            t.make(ph, &sc.model, self.scale, self.step_h, self.band_hz);
+        }
         self.set_shift(sc);
     }
 

@@ -8,6 +8,7 @@ use modal_contact::multi::{
     CompiledMulti, MultiContact, MultiEnd, MultiMass, MultiModel, MultiState, MultiSwitch,
 };
 use modal_contact::scene::Switching;
+use modal_testkit::metrics::rod_energy_scale;
 use modal_testkit::rng::TestRng;
 use std::f64::consts::PI;
 
@@ -258,8 +259,7 @@ fn random_networks_never_gain_energy() {
 
 /// With the offset rod, the energy is observed after each sample's
 /// decision too, and its rounding scale takes the rods' shift of the
-/// equilibrium (`sqrt(k) d` in energy coordinates, as
-/// `tests/multi_contact.rs` says).
+/// equilibrium (`modal_testkit::metrics::rod_energy_scale`).
 fn networks(sw: Switching) {
     let mut rng = TestRng(0xb0d1e5);
     let (mut switches, mut compiled, mut worst) = (0u64, 0, 0.0f64);
@@ -414,12 +414,7 @@ fn networks(sw: Switching) {
                 de < 1e-10 * shifted && dx < 1e-10 * shifted,
                 "case {case}: energy {de:e}, sides {dx:e}, rods' shift {shifted:.1}"
             );
-            let rods: f64 = (0..m.contacts.len())
-                .map(|j| {
-                    let k = m.contacts[j].stiffness_n_per_m;
-                    (2.0 * prev.energy.abs().max(o.energy.abs()) * k).sqrt() * st.rod(j)
-                })
-                .sum();
+            let rods = rod_energy_scale(&m, &st, prev.energy.abs().max(o.energy.abs()));
             let rise = (o.energy - prev.energy) / (e0.max(scale(&o)) + rods);
             worst = worst.max(rise / bound);
             assert!(

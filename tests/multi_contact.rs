@@ -31,7 +31,7 @@ use modal_contact::multi::{
     MAX_CONTACTS,
 };
 use modal_contact::scene::{Scene, Switching};
-use modal_testkit::metrics::{instant_horizon, rel_l2, Interval};
+use modal_testkit::metrics::{instant_horizon, rel_l2, rod_energy_scale, Interval};
 use modal_testkit::scenes::{Contact, Hammer, Modal, Pickup, SceneBuilder};
 use pwl_reference as reference;
 use std::f64::consts::PI;
@@ -737,7 +737,8 @@ fn fuzzed_models_never_gain_energy() {
 
 /// With the offset rod the energy is observed after each sample's
 /// decision too, so the switches' own change is checked; its rounding
-/// scale takes the rods' shift of the equilibrium.
+/// scale takes the rods' shift of the equilibrium
+/// (`modal_testkit::metrics::rod_energy_scale`).
 fn fuzzed(sw: Switching) {
     let mut rng = modal_testkit::rng::TestRng(0x5eed);
     let mut worst = 0.0f64;
@@ -794,23 +795,13 @@ fn fuzzed(sw: Switching) {
         for _ in 0..1000 {
             let y = st.tick(&sc);
             assert!(y.iter().all(|v| v.is_finite()), "case {case}");
-            // the rods shift the equilibrium the state is held about by
-            // `sqrt(k) d` in energy coordinates: its rounding moves the
-            // energy by up to `sqrt(2 E k) d u` per coordinate
-            let rods_of = |st: &MultiState| -> f64 {
-                (0..k)
-                    .map(|j| {
-                        let kj = m.contacts[j].stiffness_n_per_m;
-                        (2.0 * prev.energy.abs() * kj).sqrt() * st.rod(j).abs()
-                    })
-                    .sum()
-            };
             let mut looks = vec![st.observe(&sc)];
-            let mut rods = rods_of(&st);
+            let e = prev.energy.abs().max(looks[0].energy.abs());
+            let mut rods = rod_energy_scale(&m, &st, e);
             if sw == Switching::OffsetRod {
                 st.decide(&sc);
                 looks.push(st.observe(&sc));
-                rods = rods.max(rods_of(&st));
+                rods = rods.max(rod_energy_scale(&m, &st, e));
             }
             for o in looks {
                 let rise = (o.energy - prev.energy) / (scale(&o).max(scale(&prev)) + rods);

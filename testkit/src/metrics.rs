@@ -7,6 +7,7 @@
 
 use modal_contact::compile::CompiledScene;
 use modal_contact::engine::Observation;
+use modal_contact::multi::{MultiModel, MultiState};
 use std::ops::Range;
 
 /// f64 unit roundoff, `2^-53`.
@@ -254,6 +255,19 @@ pub fn energy_rounding_bound(sc: &CompiledScene) -> f64 {
 /// potential energy among them) are large, and rounding follows the parts.
 pub fn energy_scale(obs: &Observation, m_g: f64) -> f64 {
     obs.energy.abs() + 2.0 * m_g * obs.x_hammer.abs()
+}
+
+/// What the offset rods of a several-contact state add to its energy's
+/// rounding scale: a rod `d_j` shifts the equilibrium the state is held
+/// about by `sqrt(k_j) d_j` in energy coordinates, so its rounding moves
+/// an energy `E` by up to `sqrt(2 E k_j) d_j` (docs/numerics.md section
+/// 14, "The offset rod per contact"); 0 with exact switching.
+pub fn rod_energy_scale(m: &MultiModel, st: &MultiState, energy: f64) -> f64 {
+    m.contacts
+        .iter()
+        .enumerate()
+        .map(|(j, c)| (2.0 * energy.abs() * c.stiffness_n_per_m).sqrt() * st.rod(j).abs())
+        .sum()
 }
 
 #[cfg(test)]
