@@ -12,7 +12,9 @@
 //! the instrument plays such a scene as a kit (`crate::instrument`,
 //! docs/design.md "Played as a kit"): a throw between samples
 //! ([`MultiState::strike`]), a time scale per kit voice
-//! ([`MultiState::set_time_scale`]), a state carried to a recompile
+//! ([`MultiState::set_time_scale`]) that a bend moves
+//! ([`MultiState::bend_time_scale`]), an output band
+//! ([`MultiState::set_output_band`]), a state carried to a recompile
 //! ([`MultiState::carry`]).
 //!
 //! Coordinates. The positions `z` are every mode's `q_i` (unit modal
@@ -41,7 +43,9 @@
 //! `q, q'`, every mass's `x, v`), which never jumps: entering, the spring
 //! starts at the penetration of the crossing (0 to rounding); leaving at
 //! `p_c <= 0`, its `k p_c^2 / 2 <=` rounding is dropped. So no switch adds
-//! energy beyond rounding, and the phases are passive.
+//! energy beyond rounding, and the phases are passive. With the offset rod
+//! ([`CompiledMulti::switching`]) each contact switches at sample instants
+//! instead, with a rod of its own ([`MultiState::decide`]).
 //!
 //! The search for the first crossing of a contact's event function `psi`
 //! (its penetration, signed to be positive on the current side) within a

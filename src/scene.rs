@@ -398,9 +398,10 @@ pub struct HammerSpec {
     pub notes: Vec<u8>,
 }
 
-/// Another point-mass hammer with a contact of its own on the struck
-/// object (`[contact].object`), at a point of its own, under the scene's
-/// gravity (`[hammer].gravity_m_per_s2`).
+/// Another hammer (a point mass, or a modal mallet: [`StrikerSpec::mallet`])
+/// with a contact of its own on the struck object (`[contact].object`), at
+/// a point of its own, under the scene's gravity
+/// (`[hammer].gravity_m_per_s2`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StrikerSpec {
