@@ -402,13 +402,8 @@ fn networks(sw: Switching) {
             // with rods, both ways apply rows to the equilibrium the rods
             // shift (`sqrt(k) d` in energy coordinates against the state's
             // `sqrt(2 E)`), and round relative to it
-            let shifted = 1.0
-                + (0..m.contacts.len())
-                    .map(|j| {
-                        let k = m.contacts[j].stiffness_n_per_m;
-                        (k / (2.0 * o.energy.abs().max(1e-12))).sqrt() * st.rod(j)
-                    })
-                    .sum::<f64>();
+            let e = o.energy.abs().max(1e-12);
+            let shifted = 1.0 + rod_energy_scale(&m, &st, e) / (2.0 * e);
             worst_obs = worst_obs.max(de / shifted).max(dx / shifted);
             assert!(
                 de < 1e-10 * shifted && dx < 1e-10 * shifted,
