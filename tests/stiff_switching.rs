@@ -459,6 +459,11 @@ struct Outcome {
     de: f64,
     /// Worst tick [us] (fastest of the timed runs, per sample).
     worst_us: f64,
+    /// Switches of a strike from rest after its first release that the
+    /// engine took from the compiler's store (`compile::rest`), and the
+    /// switches that did not come where it said.
+    rest_later: u64,
+    rest_misses: u64,
     failures: Vec<String>,
     /// Short names of the failed checks, for the table.
     failed: Vec<&'static str>,
@@ -655,6 +660,7 @@ fn run_case(case: &Case) -> Outcome {
     }
 
     let s = &st.exact_stats;
+    (out.rest_later, out.rest_misses) = (s.rest_later, s.rest_misses);
     if s.capped != 0 || s.rod_fallbacks != 0 || s.uncertified != 0 {
         out.failed.push("counters");
         out.failures.push(format!(
@@ -766,6 +772,18 @@ fn stiff_exact_switching_matches_the_reference() {
             println!("--- {} compile summary:\n{}", o.name, o.summary);
         }
     }
+    // the later switches of strikes from rest (the stored states) are
+    // checked here against the reference too
+    let later: u64 = outcomes.iter().map(|o| o.rest_later).sum();
+    let with_later = outcomes.iter().filter(|o| o.rest_later > 0).count();
+    let misses: u64 = outcomes.iter().map(|o| o.rest_misses).sum();
+    println!(
+        "strikes from rest: {later} later switches taken from the store in {with_later} cases, {misses} switches elsewhere"
+    );
+    assert!(
+        with_later >= 5,
+        "only {with_later} cases took a stored later switch"
+    );
     let failed = outcomes.iter().filter(|o| !o.failures.is_empty()).count();
     assert!(
         failed == 0,

@@ -545,9 +545,14 @@ pub fn compile_opts(
     )?;
     // 5b. a strike on the object at rest
     let rest = rest::rest_strike(&rest::RestInputs {
+        free: &free,
         contact: &contact,
         col_eta: &basis.col_eta,
+        w_cf: &basis.w_cf,
         w_fc: &basis.w_fc,
+        s_f_star: &basis.s_f_star,
+        offsets_x_eta: (rows.offsets.x_c, rows.offsets.eta),
+        sm: object.params.m_h.sqrt(),
         s_star: &basis.s_star,
         offset_pi: rows.offsets.pi,
         h,

@@ -170,11 +170,26 @@ pub(super) fn write(f: &Facts) -> (String, f64) {
 /// The summary's line on strikes from rest ([`super::rest`]).
 pub(super) fn rest_line(rest: Option<&super::rest::RestStrike>, h: f64) -> String {
     match rest {
-        Some(r) => format!(
-            "strike from rest: contact {:.4} ms ({:.2} samples), both switches O(N)\n",
-            r.t_r * 1e3,
-            r.t_r / h
-        ),
+        Some(r) => {
+            let later = match r.later.last() {
+                None => format!(
+                    "no later switch stored (none within {:.0} ms, or a flight whose energy \
+                     is not block-diagonal)",
+                    super::rest::REST_SEQ_T_MAX_S * 1e3
+                ),
+                Some(last) => format!(
+                    "then {} more switches stored, O(N) too (the hammer meets the object again; \
+                     up to {:.2} ms after the first entry)",
+                    r.later.len(),
+                    last.t * 1e3
+                ),
+            };
+            format!(
+                "strike from rest: contact {:.4} ms ({:.2} samples), both switches O(N); {later}\n",
+                r.t_r * 1e3,
+                r.t_r / h
+            )
+        }
         None => "strike from rest: not precomputed (affine or dense contact, or a contact \
                  longer than 1 s): switches take the dense products\n"
             .into(),

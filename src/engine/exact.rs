@@ -125,9 +125,14 @@ pub struct ExactStats {
     /// compiler found their release: both switches O(N)
     /// ([`crate::compile::rest`]).
     pub rest_releases: u64,
-    /// Contacts that began on the object at rest but ended elsewhere
-    /// (another strike, a change of pitch, a grazing release): the dense
-    /// change of basis.
+    /// Switches after the first release of a strike from rest (its later
+    /// contacts) that came where the compiler found them: O(N), the state
+    /// stored.
+    pub rest_later: u64,
+    /// Switches of a strike from rest that did not come where the compiler
+    /// found them (the first release ended elsewhere: another strike, a
+    /// change of pitch, a grazing release; or a later switch did): the
+    /// dense change of basis, for it and the rest of the strike.
     pub rest_misses: u64,
     /// Samples the fast path could not certify that the Hermite
     /// certificate cleared before any search (value and slope at both

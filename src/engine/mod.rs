@@ -44,7 +44,7 @@ use kernel::{
     QuadIo, Rows, SlopeIo, EPOCH,
 };
 
-use crate::compile::rest::{RestStrike, REST_MATCH};
+use crate::compile::rest::{REST_ENERGY_MATCH, REST_MATCH};
 use crate::compile::{CompiledPhase, CompiledScene};
 use crate::physics::block::exp2;
 use crate::scene::Switching;
@@ -143,6 +143,33 @@ const FREE: usize = Phase::Free as usize;
 const CONTACT: usize = Phase::Contact as usize;
 
 /// What a voice keeps per phase, sized for that phase's compiled form.
+/// A strike from rest that has so far switched where the compiler found it
+/// would ([`crate::compile::rest`]).
+#[derive(Debug, Clone, Copy)]
+struct RestRun {
+    /// The clock at the strike's first entry.
+    clock0: u64,
+    /// The time into that sample where it began \[s, reference time\].
+    t0: f64,
+    /// The hammer's momentum at the entry (energy coordinates).
+    eta: f64,
+    /// The next stored switch: 0 the first release, `j` the later switch
+    /// `j - 1`.
+    next: usize,
+    /// The state's amplitude relative to the stored trajectory's, as the
+    /// last entry measured it from the energies (1 up to rounding).
+    lambda: f64,
+}
+
+/// A stored switch's state and derivative, per unit momentum, and a later
+/// release's hammer momentum and its derivative.
+#[derive(Clone, Copy)]
+struct StoredSwitch<'a> {
+    s: &'a [f64],
+    s_d: &'a [f64],
+    hammer_eta: Option<(f64, f64)>,
+}
+
 #[derive(Debug, Clone)]
 struct PhaseState {
     /// The state in the phase's block coordinates (structure of arrays).
@@ -283,11 +310,11 @@ pub struct EngineState {
     search: SearchScratch,
     /// Reference time consumed in the current step (for event times).
     t_in_step: f64,
-    /// A contact that began on the object at rest (exact switching, a
-    /// scene with [`CompiledScene::rest`]): the clock and the time in that
-    /// sample where it began, and the hammer's momentum `eta`
-    /// (docs/numerics.md, "A strike on an object at rest").
-    rest_entry: Option<(u64, f64, f64)>,
+    /// A strike that began on the object at rest (exact switching, a
+    /// scene with [`CompiledScene::rest`]) and has so far switched where
+    /// the compiler found it would (docs/numerics.md, "A strike on an
+    /// object at rest").
+    rest_run: Option<RestRun>,
     /// Use the stored release of a strike from rest (default); off only to
     /// compare with the dense product in tests and benchmarks.
     rest_enabled: bool,
@@ -417,7 +444,7 @@ impl EngineState {
             events_dropped: 0,
             search: SearchScratch::new(df.max(dc)),
             t_in_step: 0.0,
-            rest_entry: None,
+            rest_run: None,
             rest_enabled: true,
             structured: true,
             obs: None,
@@ -441,7 +468,7 @@ impl EngineState {
         self.exact_stats = ExactStats::default();
         self.events_dropped = 0;
         self.clock = 0;
-        self.rest_entry = None;
+        self.rest_run = None;
         self.herm_until = None;
         self.discontinuity();
     }
@@ -488,6 +515,7 @@ impl EngineState {
     /// `(s[k], s[nb + k])`; for a modal object block `k` is mode `k`, i.e.
     /// `s[k] = omega_k q_k` and `s[n + k] = q_k'` (reference time).
     pub fn free_state_mut(&mut self) -> &mut [f64] {
+        self.rest_run = None;
         self.discontinuity();
         &mut self.phases[FREE].s
     }
@@ -503,7 +531,7 @@ impl EngineState {
     /// tests of the steady contact phase. \[any-thread\]
     pub fn rest_in_contact(&mut self) -> &mut [f64] {
         self.phases[CONTACT].s.iter_mut().for_each(|x| *x = 0.0);
-        self.rest_entry = None;
+        self.rest_run = None;
         self.rod_m = 0.0;
         self.phase = Phase::Contact;
         self.discontinuity();
@@ -577,6 +605,7 @@ impl EngineState {
             return false;
         }
         self.phases[FREE].s.iter_mut().for_each(|x| *x *= factor);
+        self.rest_run = None;
         self.discontinuity();
         true
     }
@@ -660,7 +689,7 @@ impl EngineState {
         self.time_scale = s;
         self.step_s = scene.h * s;
         // a contact's duration is counted in steps of one length
-        self.rest_entry = None;
+        self.rest_run = None;
         self.v_h = v_phys / s;
         if !free_kept {
             fill_props(&mut self.phases[FREE].props, &scene.free, self.step_s);
@@ -761,6 +790,8 @@ impl EngineState {
         let x_c = dot(&scene.free.rows.x_c, &self.phases[FREE].s);
         self.x_h = x_c + height_m.max(0.0);
         self.v_h = velocity_m_per_s / self.time_scale;
+        // a strike from rest still under way is not followed any further
+        self.rest_run = None;
         self.discontinuity();
     }
 
@@ -1471,51 +1502,139 @@ impl EngineState {
     /// contact adds no energy. O(N^2): one change of basis; O(N) when the
     /// object is at rest (its coordinates are all zero).
     fn enter_contact(&mut self, scene: &CompiledScene, p: f64) {
+        let at_rest = self.phases[FREE].s.iter().all(|&x| x == 0.0);
+        let stored = if at_rest {
+            None
+        } else {
+            self.rest_next(scene, true)
+        };
         self.rod_m = p;
         let eta = scene.sm * self.v_h;
         let dc = scene.contact.dim;
         let [free, contact] = &mut self.phases;
-        for i in 0..dc {
-            contact.s[i] = scene.col_eta[i] * eta - scene.s_star[i];
+        if let Some((sw, d, scale)) = stored {
+            // a later contact of a strike from rest, where the compiler
+            // found it: the state it stored
+            for i in 0..dc {
+                contact.s[i] = scale * (sw.s[i] + d * sw.s_d[i]) - scene.s_star[i];
+            }
+        } else {
+            for i in 0..dc {
+                contact.s[i] = scene.col_eta[i] * eta - scene.s_star[i];
+            }
+            if !at_rest {
+                kernel::change_of_basis_add(
+                    self.simd,
+                    scene.w_cf_h.as_ref().filter(|_| self.structured),
+                    scene.w_cf.as_slice(),
+                    dc,
+                    &free.s,
+                    &mut contact.s,
+                    &mut self.dense_tmp,
+                );
+            }
         }
-        let at_rest = free.s.iter().all(|&x| x == 0.0);
-        if !at_rest {
-            kernel::change_of_basis_add(
-                self.simd,
-                scene.w_cf_h.as_ref().filter(|_| self.structured),
-                scene.w_cf.as_slice(),
-                dc,
-                &free.s,
-                &mut contact.s,
-                &mut self.dense_tmp,
-            );
+        if at_rest {
+            // a strike from rest begins: follow it
+            self.rest_run =
+                (self.rest_enabled && scene.rest.is_some() && scene.switching == Switching::Exact)
+                    .then_some(RestRun {
+                        clock0: self.clock,
+                        t0: self.t_in_step,
+                        eta,
+                        next: 0,
+                        lambda: 1.0,
+                    });
         }
-        self.rest_entry = (at_rest
-            && self.rest_enabled
-            && scene.rest.is_some()
-            && scene.switching == Switching::Exact)
-            .then_some((self.clock, self.t_in_step, eta));
         self.phase = Phase::Contact;
         self.contacts_started += 1;
         self.discontinuity();
         self.log_event(true);
     }
 
-    /// The stored release of a strike from rest, if the contact now ending
-    /// is one and ends where the compiler found its release: the offset
-    /// `T - t_r` of its duration `T` and the momentum it began with.
-    fn rest_release<'a>(&mut self, scene: &'a CompiledScene) -> Option<(&'a RestStrike, f64, f64)> {
-        let (clock0, t0, eta) = self.rest_entry.take()?;
+    /// The stored switch of a strike from rest that is due now, if the
+    /// strike has so far switched where the compiler found it would and
+    /// this switch (an entry when `entering`, else a release) comes where
+    /// the compiler found the next one: the state after it and its
+    /// derivative per unit momentum, the offset `T - t` of this instant
+    /// from the stored one, and the factor to write them with (the
+    /// momentum the strike began with, times the amplitude the last entry
+    /// measured). A switch elsewhere, or an entry whose state in flight is
+    /// off the stored trajectory ([`REST_ENERGY_MATCH`]), ends the run (a
+    /// miss); past the last stored switch the run ends without one.
+    fn rest_next<'a>(
+        &mut self,
+        scene: &'a CompiledScene,
+        entering: bool,
+    ) -> Option<(StoredSwitch<'a>, f64, f64)> {
+        let run = self.rest_run.take()?;
         let r = scene.rest.as_ref()?;
-        let t = (self.clock - clock0) as f64 * self.step_s + (self.t_in_step - t0);
-        let d = t - r.t_r;
-        if (d * r.rho).abs() <= REST_MATCH {
-            self.exact_stats.rest_releases += 1;
-            Some((r, d, eta))
+        let (t_s, sw, rho, is_entry, energy) = if run.next == 0 {
+            let sw = StoredSwitch {
+                s: &r.f,
+                s_d: &r.f_d,
+                hammer_eta: None,
+            };
+            (r.t_r, sw, r.rho, false, None)
         } else {
-            self.exact_stats.rest_misses += 1;
-            None
+            // the later switches follow a downward strike
+            let later = r.later.get(run.next - 1).filter(|_| run.eta < 0.0)?;
+            let sw = StoredSwitch {
+                s: &later.s,
+                s_d: &later.s_d,
+                hammer_eta: later.hammer_eta,
+            };
+            let is_entry = (run.next - 1) % 2 == 0;
+            (later.t, sw, later.rho, is_entry, later.energy)
+        };
+        let t = (self.clock - run.clock0) as f64 * self.step_s + (self.t_in_step - run.t0);
+        let d = t - t_s;
+        let mut lambda = run.lambda;
+        let mut on_time = is_entry == entering && (d * rho).abs() <= REST_MATCH;
+        if let (true, Some((e, e_d))) = (on_time, energy) {
+            // an entry: the amplitude that gives the stored state the energy
+            // the state in flight has (the entry conserves it); off the
+            // stored trajectory by more than rounding, the product
+            let stored = run.eta * run.eta * (e + d * e_d);
+            lambda = (self.flight_energy(scene) / stored).sqrt();
+            on_time = (lambda - run.lambda).abs() <= REST_ENERGY_MATCH;
         }
+        if !on_time {
+            self.exact_stats.rest_misses += 1;
+            return None;
+        }
+        if run.next == 0 {
+            self.exact_stats.rest_releases += 1;
+        } else {
+            self.exact_stats.rest_later += 1;
+        }
+        if run.next < r.later.len() {
+            self.rest_run = Some(RestRun {
+                next: run.next + 1,
+                lambda,
+                ..run
+            });
+        }
+        Some((sw, d, lambda * run.eta))
+    }
+
+    /// The energy in flight in reference units (`0.5 |V_f s_f|^2 + 0.5
+    /// eta^2`; no gravity), in O(N) through the free phase's block-diagonal
+    /// energy form (NaN without one: the compiler stores no later entry
+    /// then).
+    fn flight_energy(&self, scene: &CompiledScene) -> f64 {
+        let Some(q) = scene.free.energy_quad.as_ref() else {
+            return f64::NAN;
+        };
+        let s = &self.phases[FREE].s;
+        let nb = q.aa.len();
+        let mut acc = 0.0;
+        for k in 0..nb {
+            let (a, b) = (s[k], s[nb + k]);
+            acc += q.aa[k] * a * a + q.ab[k] * a * b + q.bb[k] * b * b;
+        }
+        let eta = scene.sm * self.v_h;
+        0.5 * (acc + eta * eta)
     }
 
     /// Cut the spring (can only remove its energy). O(N^2): one change of
@@ -1525,13 +1644,17 @@ impl EngineState {
     fn leave_contact(&mut self, scene: &CompiledScene) {
         let p_eff = self.penetration(scene);
         let x_c = dot(&scene.contact.rows.x_c, &self.phases[CONTACT].s) + scene.offsets.x_c;
-        let eta = dot(&scene.contact.rows.eta, &self.phases[CONTACT].s) + scene.offsets.eta;
+        let mut eta = dot(&scene.contact.rows.eta, &self.phases[CONTACT].s) + scene.offsets.eta;
         let df = scene.free.dim;
-        let rest = self.rest_release(scene);
+        let rest = self.rest_next(scene, false);
         let [free, contact] = &mut self.phases;
-        if let Some((r, d, eta0)) = rest {
+        if let Some((sw, d, scale)) = rest {
             for i in 0..df {
-                free.s[i] = scene.s_f_star[i] + eta0 * (r.f[i] + d * r.f_d[i]);
+                free.s[i] = scene.s_f_star[i] + scale * (sw.s[i] + d * sw.s_d[i]);
+            }
+            if let Some((e, e_d)) = sw.hammer_eta {
+                // the hammer leaves on the stored trajectory too
+                eta = scale * (e + d * e_d);
             }
         } else {
             free.s[..df].copy_from_slice(&scene.s_f_star);
@@ -1560,7 +1683,7 @@ impl EngineState {
     pub fn set_rest_strike(&mut self, on: bool) {
         self.rest_enabled = on;
         if !on {
-            self.rest_entry = None;
+            self.rest_run = None;
         }
     }
 
