@@ -154,110 +154,34 @@ fn eig_modulus(g: &Mat2) -> f64 {
     }
 }
 
-/// The excited blocks: index, generator and `col_eta` part.
-struct Excited {
-    k: usize,
-    g: Mat2,
-    c: (f64, f64),
-    ev: (f64, f64),
-}
-
-/// The event function `p_eff` of a unit strike (`eta = -1`: the hammer
-/// moving down) at `t`, from the closed-form block exponentials.
-fn phi_at(ex: &[Excited], t: f64) -> f64 {
-    ex.iter()
-        .map(|e| {
-            let (y0, y1) = mul2(&exp2(&e.g, t), e.c.0, e.c.1);
-            -(e.ev.0 * y0 + e.ev.1 * y1)
-        })
-        .sum()
-}
-
 /// The strike from rest, or `None` when the scene has none to precompute
 /// (gravity or a rod offset makes the contact affine, a dense contact phase
 /// has no blocks, or the contact lasts longer than `t_max`).
 pub(super) fn rest_strike(inp: &RestInputs) -> Option<RestStrike> {
     let ph = inp.contact;
-    let gens = ph.gens.as_ref()?;
-    let nb = gens.len();
-    if ph.dense.is_some()
-        || ph.dim != 2 * nb
-        || inp.offset_pi != 0.0
-        || inp.s_star.iter().any(|&x| x != 0.0)
-        || inp.col_eta.len() != ph.dim
-    {
+    let contact = Flow::of(ph)?;
+    if inp.offset_pi != 0.0 || inp.s_star.iter().any(|&x| x != 0.0) || inp.col_eta.len() != ph.dim {
         return None;
     }
-    let ex: Vec<Excited> = (0..nb)
-        .filter(|&k| inp.col_eta[k] != 0.0 || inp.col_eta[nb + k] != 0.0)
-        .map(|k| Excited {
-            k,
-            g: gens[k],
-            c: (inp.col_eta[k], inp.col_eta[nb + k]),
-            ev: (ph.ev[k], ph.ev[nb + k]),
-        })
-        .collect();
-    let rho = ex.iter().map(|e| eig_modulus(&e.g)).fold(0.0, f64::max);
+    let rho = contact.rho(inp.col_eta);
     if !(rho > 0.0 && rho.is_finite()) {
         return None;
     }
-    // Bracket the first downward crossing on a grid stepped by the exact
-    // one-step propagators (O(N) per point), then bisect on the closed form.
-    let dt = (1.0 / (GRID_PER_RADIAN * rho)).min(inp.h);
-    let steps: Vec<Mat2> = ex.iter().map(|e| exp2(&e.g, dt)).collect();
-    let mut y: Vec<(f64, f64)> = ex.iter().map(|e| e.c).collect();
-    let (mut t, mut phi_prev) = (0.0, 0.0);
-    let mut grid = 0usize;
-    let (a, b) = loop {
-        grid += 1;
-        if grid > MAX_GRID || t > inp.t_max {
-            return None;
-        }
-        let mut phi = 0.0;
-        for ((e, p), yk) in ex.iter().zip(&steps).zip(y.iter_mut()) {
-            *yk = mul2(p, yk.0, yk.1);
-            phi -= e.ev.0 * yk.0 + e.ev.1 * yk.1;
-        }
-        let t_next = grid as f64 * dt;
-        // a crossing: from positive to <= 0 (phi rises from 0 first)
-        if phi_prev > 0.0 && phi <= 0.0 {
-            break (t, t_next);
-        }
-        if !phi.is_finite() {
-            return None;
-        }
-        phi_prev = phi;
-        t = t_next;
-    };
-    let (mut a, mut b) = (a, b);
-    // the closed form decides; it must agree with the grid on the bracket
-    if !(phi_at(&ex, a) > 0.0 && phi_at(&ex, b) <= 0.0) {
-        return None;
-    }
-    loop {
-        let m = 0.5 * (a + b);
-        if m <= a || m >= b {
-            break;
-        }
-        if phi_at(&ex, m) > 0.0 {
-            a = m;
-        } else {
-            b = m;
-        }
-    }
-    let t_r = b;
-    // F(t_r) and F'(t_r): one dense product each, once per compile
-    let dim = ph.dim;
-    let (mut y_r, mut yd_r) = (vec![0.0; dim], vec![0.0; dim]);
-    for e in &ex {
-        let (y0, y1) = mul2(&exp2(&e.g, t_r), e.c.0, e.c.1);
-        let (d0, d1) = mul2(&e.g, y0, y1);
-        (y_r[e.k], y_r[nb + e.k]) = (y0, y1);
-        (yd_r[e.k], yd_r[nb + e.k]) = (d0, d1);
-    }
-    let f: Vec<f64> = (inp.w_fc * nalgebra::DVector::from_vec(y_r.clone()))
+    // the contact of a downward strike (eta = -1) from its start: its first
+    // downward crossing of p_eff
+    let start: Vec<f64> = inp.col_eta.iter().map(|x| -x).collect();
+    let excited = (0..contact.nb)
+        .filter(|&k| contact.excited(&start, k))
+        .count();
+    let mut work = (MAX_GRID * excited.max(1)) as f64;
+    let (t_r, s_r) = contact.first_crossing(&start, (0.0, 0.0), inp.h, inp.t_max, &mut work)?;
+    // F(t_r) and F'(t_r) per unit momentum: one dense product each, once
+    // per compile
+    let y_r: Vec<f64> = s_r.iter().map(|x| -x).collect();
+    let f: Vec<f64> = (inp.w_fc * nalgebra::DVector::from_column_slice(&y_r))
         .data
         .into();
+    let yd_r = contact.deriv(&y_r);
     let f_d = (inp.w_fc * nalgebra::DVector::from_vec(yd_r)).data.into();
     let later = later_switches(inp, t_r, &y_r, &f);
     Some(RestStrike {
