@@ -126,21 +126,10 @@ fn a_strike_from_rest_plays_as_the_dense_change_of_basis_does() {
             // kernels against the detected ones
             let c = run_with(&sc, n, false, ts, true);
             let peak = b.out.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
-            let diff = |p: &Run, q: &Run| {
-                p.out
-                    .iter()
-                    .flatten()
-                    .zip(q.out.iter().flatten())
-                    .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
-            };
-            let (d_out, d_round) = (diff(&a, &b), diff(&c, &b));
+            let (d_out, d_round) = (out_diff(&a, &b), out_diff(&c, &b));
             let e0 = a.energy.iter().fold(0.0f64, |m, &e| m.max(e));
-            let d_e = a
-                .energy
-                .iter()
-                .zip(&b.energy)
-                .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
-            let gain = a.energy.windows(2).fold(0.0f64, |m, w| m.max(w[1] - w[0]));
+            let d_e = energy_diff(&a, &b);
+            let gain = largest_rise(&a.energy);
             let st = &a.st.exact_stats;
             println!(
                 "{name} x{ts} | {:.4} | {} / {} / {} | {:.1e} ({:.1e}) | {:.1e} | {:.1e}",
@@ -171,7 +160,7 @@ fn a_strike_from_rest_plays_as_the_dense_change_of_basis_does() {
                 d_e <= 1e-11 * e0,
                 "{name} x{ts}: energies differ by {d_e:e} (E0 {e0:e})"
             );
-            let gain_dense = b.energy.windows(2).fold(0.0f64, |m, w| m.max(w[1] - w[0]));
+            let gain_dense = largest_rise(&b.energy);
             assert!(
                 gain <= gain_dense.max(0.0) + 1e-13 * e0,
                 "{name} x{ts}: energy gain {gain:e} vs dense {gain_dense:e} (E0 {e0:e})"
@@ -231,6 +220,19 @@ fn a_ringing_object_or_a_pitch_change_in_contact_takes_the_dense_product() {
     );
 }
 
+/// The largest difference between two runs' energies.
+fn energy_diff(p: &Run, q: &Run) -> f64 {
+    p.energy
+        .iter()
+        .zip(&q.energy)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+}
+
+/// The largest rise of an energy from one sample to the next.
+fn largest_rise(e: &[f64]) -> f64 {
+    e.windows(2).fold(0.0f64, |m, w| m.max(w[1] - w[0]))
+}
+
 /// The largest difference between two runs' outputs.
 fn out_diff(p: &Run, q: &Run) -> f64 {
     p.out
@@ -273,11 +275,7 @@ fn the_later_contacts_of_a_strike_from_rest_take_the_stored_states() {
             let peak = b.out.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
             let (d_out, d_round) = (out_diff(&a, &b), out_diff(&c, &b));
             let e0 = b.energy.iter().fold(0.0f64, |m, &e| m.max(e));
-            let d_e = a
-                .energy
-                .iter()
-                .zip(&b.energy)
-                .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+            let d_e = energy_diff(&a, &b);
             let st = &a.st.exact_stats;
             println!(
                 "{n} | {ts} | {} | {} | {} / {} | {:.1e} ({:.1e}) | {:.1e}",
@@ -304,12 +302,10 @@ fn the_later_contacts_of_a_strike_from_rest_take_the_stored_states() {
                 "{n} x{ts}: outputs differ by {d_out:e} (peak {peak:e}, rounding alone {d_round:e})"
             );
             assert!(d_e <= 1e-11 * e0, "{n} x{ts}: energies differ by {d_e:e}");
-            let gain = |e: &[f64]| e.windows(2).fold(0.0f64, |m, w| m.max(w[1] - w[0]));
+            let (gain, gain_dense) = (largest_rise(&a.energy), largest_rise(&b.energy));
             assert!(
-                gain(&a.energy) <= gain(&b.energy).max(0.0) + 1e-13 * e0,
-                "{n} x{ts}: energy gain {:e} vs dense {:e}",
-                gain(&a.energy),
-                gain(&b.energy)
+                gain <= gain_dense.max(0.0) + 1e-13 * e0,
+                "{n} x{ts}: energy gain {gain:e} vs dense {gain_dense:e}"
             );
         }
     }
