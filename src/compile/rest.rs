@@ -22,9 +22,10 @@
 //! then its release, ...) it stores the instant and the state just after
 //! it in the new phase's coordinates, with its derivative
 //! ([`RestSwitch`]); the engine writes `eta (S + (T - t) S')` there
-//! instead of the change of basis, so a strike from rest costs no product
-//! at all within the stored span (docs/numerics.md, "A strike on an object
-//! at rest").
+//! instead of the change of basis (an entry scaled to the energy the flight
+//! it ends has, a release with the stored hammer momentum, so that neither
+//! adds energy), and a strike from rest costs no product at all within the
+//! stored span (docs/numerics.md, "A strike on an object at rest").
 //!
 //! `t_r` and the later instants are only hints: the instant of a switch is
 //! always the one the engine's certified search locates. An instant that

@@ -142,7 +142,6 @@ const FREE: usize = Phase::Free as usize;
 /// Index of the contact phase's `PhaseState`.
 const CONTACT: usize = Phase::Contact as usize;
 
-/// What a voice keeps per phase, sized for that phase's compiled form.
 /// A strike from rest that has so far switched where the compiler found it
 /// would ([`crate::compile::rest`]).
 #[derive(Debug, Clone, Copy)]
@@ -170,6 +169,7 @@ struct StoredSwitch<'a> {
     hammer_eta: Option<(f64, f64)>,
 }
 
+/// What a voice keeps per phase, sized for that phase's compiled form.
 #[derive(Debug, Clone)]
 struct PhaseState {
     /// The state in the phase's block coordinates (structure of arrays).
