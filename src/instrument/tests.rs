@@ -1722,3 +1722,37 @@ fn prepare_fits_a_small_host_thread_stack() {
         .join()
         .unwrap();
 }
+
+/// A note on a silent voice is a strike from rest: through the instrument
+/// (its velocity and pitch mapping, block splitting), the voice takes the
+/// strike's later contacts from the compiler's store, with no miss, on the
+/// presets whose hammer meets the object again (`compile::rest`,
+/// docs/numerics.md "A strike on an object at rest"), at the root and off
+/// it.
+#[test]
+fn new_notes_take_their_later_contacts_from_the_store() {
+    for preset in ["tubular-chime", "piano-string", "marimba-rubber-mallet"] {
+        let p = params(preset);
+        let mut inst = instrument(&p);
+        let root = root_note(&base(preset)).round() as u8;
+        let keys = [root, root.saturating_add(5), root.saturating_sub(7)];
+        let events: Vec<TimedEvent> = keys
+            .iter()
+            .enumerate()
+            .map(|(j, &k)| on(100 * j, k, 0.8))
+            .collect();
+        render_split(&mut inst, &events, 4410, &[64, 37, 512]);
+        let (mut later, mut misses, mut voices) = (0, 0, 0);
+        for (v, st) in inst.voices.iter().zip(inst.cur.states.iter()) {
+            if v.active {
+                voices += 1;
+                later += st.exact_stats.rest_later;
+                misses += st.exact_stats.rest_misses;
+            }
+        }
+        println!("{preset}: {voices} voices, {later} later switches stored, {misses} misses");
+        assert_eq!(voices, keys.len(), "{preset}");
+        assert!(later >= keys.len() as u64, "{preset}: {later}");
+        assert_eq!(misses, 0, "{preset}");
+    }
+}
