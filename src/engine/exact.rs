@@ -289,27 +289,35 @@ impl SearchScratch {
     /// magnitudes of the third derivative (`j = 3`) and of the Lagrange
     /// remainder (`j = deg + 1`). O(N_slow) per power. \[audio-thread\]
     fn raise_poly(&mut self, simd: SimdPath, upto: usize) {
-        let ns = self.ns;
-        let deg = self.deg;
-        let (zr, zi) = (&mut self.z_r[..ns], &mut self.z_i[..ns]);
-        let (mr, mi, cw) = (&self.mu_r[..ns], &self.mu_i[..ns], &self.cw[..ns]);
-        let mag_now = |zr: &[f64], zi: &[f64]| -> f64 {
-            let mut acc = 0.0;
-            for i in 0..zr.len() {
-                acc += zr[i].abs() + zi[i].abs() * cw[i];
-            }
-            acc
-        };
-        while self.next_j <= upto {
-            let j = self.next_j;
+        if self.next_j > upto {
+            return;
+        }
+        let (ns, deg, j0) = (self.ns, self.deg, self.next_j);
+        let mut sums = [0.0; MAX_DEGREE + 2];
+        let mut mags = [0.0; 2];
+        raise_powers(
+            simd,
+            Powers {
+                zr: &mut self.z_r[..ns],
+                zi: &mut self.z_i[..ns],
+                mr: &self.mu_r[..ns],
+                mi: &self.mu_i[..ns],
+                cw: &self.cw[..ns],
+            },
+            (j0, upto),
+            [3, deg + 1],
+            &mut sums,
+            &mut mags,
+        );
+        for (j, &sum) in sums.iter().enumerate().take(upto + 1).skip(j0) {
             if j == 3 && ns > 0 {
-                self.slow_c3 = mag_now(zr, zi) * self.growth;
+                self.slow_c3 = mags[0] * self.growth;
             }
             if j == deg + 1 && ns > 0 {
                 // Lagrange remainders of the q-th derivative of the
                 // degree-`deg` Taylor polynomial: |f^(deg+1)| rem^(deg+1-q)
                 // / (deg+1-q)!.
-                let rem_mag = mag_now(zr, zi) * self.growth;
+                let rem_mag = mags[1] * self.growth;
                 for (q, eq) in self.slow_err.iter_mut().enumerate() {
                     let mut v = rem_mag;
                     for i in 1..=(deg + 1).saturating_sub(q) {
@@ -318,14 +326,12 @@ impl SearchScratch {
                     *eq = v;
                 }
             }
-            // sum Re(z) (the coefficient) and raise z in one pass
-            let sum = raise_once(simd, zr, zi, mr, mi);
             if j <= deg {
                 self.poly[j] = sum * self.inv_fact;
                 self.inv_fact /= (j + 1) as f64;
             }
-            self.next_j += 1;
         }
+        self.next_j = upto + 1;
     }
 
     /// The fast terms' amplitudes `C = Re + i Im` from the state, gathered
@@ -539,47 +545,128 @@ impl SearchScratch {
     }
 }
 
-/// `sum Re(z)`, then `z *= mu` elementwise (complex, structure of arrays),
-/// in one pass; on the AVX2 path when the CPU has it. The sum runs in four
-/// lanes reduced in a fixed order (deterministic). \[audio-thread\]
-#[inline]
-fn raise_once(simd: SimdPath, zr: &mut [f64], zi: &mut [f64], mr: &[f64], mi: &[f64]) -> f64 {
+/// The slow terms' powers `z = C mu^j` (structure of arrays) and what
+/// their sums need: `cw` weighs `|Im z|` in the magnitudes.
+struct Powers<'a> {
+    zr: &'a mut [f64],
+    zi: &'a mut [f64],
+    mr: &'a [f64],
+    mi: &'a [f64],
+    cw: &'a [f64],
+}
+
+/// For `j` in `js.0..=js.1`: `sums[j] = sum_i Re(z_i)`, then `z *= mu`
+/// elementwise (complex), and at `j = marks[m]` the magnitude `mags[m] =
+/// sum_i |Re z_i| + cw_i |Im z_i|` before the product. The terms are taken
+/// eight at a time through all the powers (held in registers, eight
+/// independent products in flight) rather than one power at a time through
+/// all the terms, so `z` is read and written once, not once per power. The
+/// sums run in four lanes (`i mod 4`, reduced in a fixed order, the last
+/// `n mod 4` terms apart) and the magnitudes in order of `i`: the same
+/// additions in the same order whatever the chunking (deterministic). On the
+/// AVX2 path when the CPU has it. \[audio-thread\]
+fn raise_powers(
+    simd: SimdPath,
+    p: Powers<'_>,
+    js: (usize, usize),
+    marks: [usize; 2],
+    sums: &mut [f64; MAX_DEGREE + 2],
+    mags: &mut [f64; 2],
+) {
+    /// Terms `i0..i0 + W` through the powers `js`.
     #[inline(always)]
-    fn body(zr: &mut [f64], zi: &mut [f64], mr: &[f64], mi: &[f64]) -> f64 {
-        let n = zr.len();
-        let (zi, mr, mi) = (&mut zi[..n], &mr[..n], &mi[..n]);
-        let mut acc = [0.0; 4];
-        let full = n - n % 4;
-        let mut i = 0;
-        while i < full {
-            for l in 0..4 {
-                let (a, b) = (zr[i + l], zi[i + l]);
-                acc[l] += a;
-                zr[i + l] = a * mr[i + l] - b * mi[i + l];
-                zi[i + l] = a * mi[i + l] + b * mr[i + l];
+    fn chunk<const W: usize>(
+        p: &mut Powers<'_>,
+        i0: usize,
+        js: (usize, usize),
+        marks: [usize; 2],
+        acc: &mut [[f64; 4]; MAX_DEGREE + 2],
+        mags: &mut [f64; 2],
+    ) {
+        let mut a = [0.0; W];
+        let mut b = [0.0; W];
+        let mut mr = [0.0; W];
+        let mut mi = [0.0; W];
+        a.copy_from_slice(&p.zr[i0..i0 + W]);
+        b.copy_from_slice(&p.zi[i0..i0 + W]);
+        mr.copy_from_slice(&p.mr[i0..i0 + W]);
+        mi.copy_from_slice(&p.mi[i0..i0 + W]);
+        for j in js.0..=js.1 {
+            for (m, &mark) in marks.iter().enumerate() {
+                if j == mark {
+                    for l in 0..W {
+                        mags[m] += a[l].abs() + b[l].abs() * p.cw[i0 + l];
+                    }
+                }
             }
-            i += 4;
+            let acc_j = &mut acc[j];
+            for l in 0..W {
+                acc_j[l % 4] += a[l];
+                let (x, y) = (a[l], b[l]);
+                a[l] = x * mr[l] - y * mi[l];
+                b[l] = x * mi[l] + y * mr[l];
+            }
         }
-        let mut tail = 0.0;
+        p.zr[i0..i0 + W].copy_from_slice(&a);
+        p.zi[i0..i0 + W].copy_from_slice(&b);
+    }
+    #[inline(always)]
+    fn body(
+        mut p: Powers<'_>,
+        js: (usize, usize),
+        marks: [usize; 2],
+        sums: &mut [f64; MAX_DEGREE + 2],
+        mags: &mut [f64; 2],
+    ) {
+        let n = p.zr.len();
+        let full = n - n % 4;
+        let mut acc = [[0.0; 4]; MAX_DEGREE + 2];
+        let mut i = 0;
+        while i + 8 <= full {
+            chunk::<8>(&mut p, i, js, marks, &mut acc, mags);
+            i += 8;
+        }
+        if i < full {
+            chunk::<4>(&mut p, i, js, marks, &mut acc, mags);
+        }
+        let mut tail = [0.0; MAX_DEGREE + 2];
         for i in full..n {
-            let (a, b) = (zr[i], zi[i]);
-            tail += a;
-            zr[i] = a * mr[i] - b * mi[i];
-            zi[i] = a * mi[i] + b * mr[i];
+            let (mut a, mut b) = (p.zr[i], p.zi[i]);
+            let (mr, mi) = (p.mr[i], p.mi[i]);
+            for j in js.0..=js.1 {
+                for (m, &mark) in marks.iter().enumerate() {
+                    if j == mark {
+                        mags[m] += a.abs() + b.abs() * p.cw[i];
+                    }
+                }
+                tail[j] += a;
+                (a, b) = (a * mr - b * mi, a * mi + b * mr);
+            }
+            p.zr[i] = a;
+            p.zi[i] = b;
         }
-        ((acc[0] + acc[1]) + (acc[2] + acc[3])) + tail
+        for j in js.0..=js.1 {
+            let a = &acc[j];
+            sums[j] = ((a[0] + a[1]) + (a[2] + a[3])) + tail[j];
+        }
     }
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fn body_avx2(zr: &mut [f64], zi: &mut [f64], mr: &[f64], mi: &[f64]) -> f64 {
-        body(zr, zi, mr, mi)
+    fn body_avx2(
+        p: Powers<'_>,
+        js: (usize, usize),
+        marks: [usize; 2],
+        sums: &mut [f64; MAX_DEGREE + 2],
+        mags: &mut [f64; 2],
+    ) {
+        body(p, js, marks, sums, mags)
     }
     match simd {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `detect()` makes, after
         // checking AVX2 and FMA on this CPU.
-        SimdPath::Avx2Fma(_) => unsafe { body_avx2(zr, zi, mr, mi) },
-        _ => body(zr, zi, mr, mi),
+        SimdPath::Avx2Fma(_) => unsafe { body_avx2(p, js, marks, sums, mags) },
+        _ => body(p, js, marks, sums, mags),
     }
 }
 
@@ -1130,7 +1217,10 @@ impl EngineState {
     /// of basis, O(N^2), and a number of node evaluations bounded by the
     /// phase's time scales. Allocation-free. \[audio-thread\]
     pub(super) fn advance_exact(&mut self, scene: &CompiledScene) {
-        if self.hermite_clear(scene) {
+        // A sample that holds a strike from rest's next stored switch holds
+        // a crossing: the certificate would fail (and where it would not,
+        // the search's "no root" leaves the same bits).
+        if self.rest_due_in(scene) != Some(0) && self.hermite_clear(scene) {
             return;
         }
         let step = self.step_s;

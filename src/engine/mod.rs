@@ -1123,6 +1123,22 @@ impl EngineState {
         if k_max == 0 {
             return (0, false);
         }
+        if exact {
+            // A strike from rest knows the sample its next switch falls in
+            // (a hint for where the run stops, never a decision): the run
+            // ends before it, and that sample goes to the slow path as a
+            // failed test would send it, without the run past it that the
+            // failed test would throw away. Same samples bit for bit.
+            match self.rest_due_in(scene) {
+                Some(0) => {
+                    self.spec_len = SPEC_RESTART;
+                    self.herm_until = Some(self.clock / EPOCH as u64 + 1);
+                    return (0, true);
+                }
+                Some(k) => k_max = k_max.min(k),
+                None => {}
+            }
+        }
         if !self.cache_ok {
             self.refresh_cache(scene);
         }
@@ -1616,6 +1632,21 @@ impl EngineState {
             });
         }
         Some((sw, d, lambda * run.eta))
+    }
+
+    /// How many samples from now the one holding a strike from rest's next
+    /// stored switch starts (0: this one), if such a strike is being
+    /// followed. O(1). \[audio-thread\]
+    pub(super) fn rest_due_in(&self, scene: &CompiledScene) -> Option<usize> {
+        let run = self.rest_run.as_ref()?;
+        let rest = scene.rest.as_ref()?;
+        let r = match run.next {
+            0 => rest.t_r,
+            j => rest.later.get(j - 1).filter(|_| run.eta < 0.0)?.t,
+        };
+        let at = run.clock0 as f64 + ((run.t0 + r) / self.step_s).floor();
+        let now = self.clock as f64;
+        (at >= now).then(|| (at - now).min(usize::MAX as f64 / 2.0) as usize)
     }
 
     /// The energy in flight in reference units (`0.5 |V_f s_f|^2 + 0.5
