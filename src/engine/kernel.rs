@@ -205,9 +205,12 @@ struct Group {
 }
 
 impl Group {
+    /// A group with every lane zero, made once per kernel run and reloaded
+    /// for each group (zeroing ~1.5 KB per group of eight blocks cost more
+    /// than a one-sample run's arithmetic).
     #[inline(always)]
-    fn load(p: &BlockProps, s: &[f64], rows: &Rows, nb: usize, base: usize, width: usize) -> Self {
-        let mut g = Group {
+    fn zeroed() -> Self {
+        Group {
             a: [0.0; GROUP],
             b: [0.0; GROUP],
             p: [[0.0; GROUP]; 4],
@@ -215,9 +218,55 @@ impl Group {
             q: [[0.0; GROUP]; 3],
             d: [[0.0; GROUP]; 2],
             o: [[0.0; GROUP]; 6],
-        };
+        }
+    }
+
+    /// Load the group's state, propagators and rows. A group narrower than
+    /// [`GROUP`] (the last one) also zeroes its lanes past the end, in
+    /// every field (earlier groups of the run filled them).
+    #[inline(always)]
+    fn load(
+        &mut self,
+        p: &BlockProps,
+        s: &[f64],
+        rows: &Rows,
+        nb: usize,
+        base: usize,
+        width: usize,
+    ) {
+        let g = self;
+        if width < GROUP {
+            for lanes in [&mut g.a, &mut g.b]
+                .into_iter()
+                .chain(g.p.iter_mut())
+                .chain(g.row.iter_mut())
+                .chain(g.q.iter_mut())
+                .chain(g.d.iter_mut())
+                .chain(g.o.iter_mut())
+            {
+                lanes[width..].fill(0.0);
+            }
+        }
         let srcs: [&[f64]; 4] = [&p.p00, &p.p01, &p.p10, &p.p11];
         let rsrc: [&[f64]; 3] = [rows.ev, rows.l, rows.r];
+        let at = |v: &[f64], i: usize| -> [f64; GROUP] {
+            let mut x = [0.0; GROUP];
+            x.copy_from_slice(&v[i..i + GROUP]);
+            x
+        };
+        if width == GROUP {
+            // constant-size copies (vector moves)
+            g.a = at(s, base);
+            g.b = at(s, nb + base);
+            for (q, src) in srcs.iter().enumerate() {
+                g.p[q] = at(src, base);
+            }
+            for (q, src) in rsrc.iter().enumerate() {
+                g.row[2 * q] = at(src, base);
+                g.row[2 * q + 1] = at(src, nb + base);
+            }
+            return;
+        }
         for j in 0..width {
             let k = base + j;
             g.a[j] = s[k];
@@ -230,7 +279,6 @@ impl Group {
                 g.row[2 * q + 1][j] = src[nb + k];
             }
         }
-        g
     }
 
     /// Load the quadratic-form weights of the group's blocks.
@@ -468,9 +516,10 @@ fn block_body<const FMA: bool, const Q: bool, const D: bool, const O: usize>(
         oacc.iter_mut().take(k).for_each(|a| *a = [[0.0; LANES]; 3]);
     }
     let mut base = 0;
+    let mut g = Group::zeroed();
     while base < nb {
         let width = GROUP.min(nb - base);
-        let mut g = Group::load(p, s, &rows, nb, base, width);
+        g.load(p, s, &rows, nb, base, width);
         if let Some(qw) = qw {
             g.load_quad(qw, base, width);
         }
