@@ -373,3 +373,65 @@ fn a_disturbed_strike_from_rest_takes_the_dense_products_after() {
         assert!(d <= 1e-12 * peak, "{what}: {d:e} of {peak:e}");
     }
 }
+
+/// The stored switch instants schedule the fast path's runs (a run ends
+/// before the sample of the next stored switch, which skips the Hermite
+/// certificate): the same samples bit for bit in 64-sample blocks, the same
+/// switches, and less kernel work thrown away.
+#[test]
+fn stored_switch_instants_schedule_the_runs_without_changing_a_sample() {
+    println!("scene | switches | kernel samples thrown away: scheduled / not");
+    let mut cases: Vec<(String, CompiledScene)> = [100, 400]
+        .into_iter()
+        .map(|n| {
+            let sc = compile(&modal_testkit::scenes::struck_bar(n, 0.1), RATE).unwrap();
+            (format!("bar of {n} modes"), sc)
+        })
+        .collect();
+    for (name, s, _) in scenes() {
+        let sc = compile(&s, RATE).unwrap();
+        if sc.rest.as_ref().is_some_and(|r| !r.later.is_empty()) {
+            cases.push((name, sc));
+        }
+    }
+    assert!(
+        cases.len() >= 6,
+        "{} scenes with stored later switches",
+        cases.len()
+    );
+    let mut fewer = 0;
+    for (name, sc) in &cases {
+        let render = |schedule: bool| {
+            let mut st = EngineState::new(sc);
+            st.set_rest_schedule(schedule);
+            st.reset(sc);
+            let (mut l, mut r) = (vec![0.0; 64], vec![0.0; 64]);
+            let mut out = Vec::new();
+            for _ in 0..(0.04 * RATE) as usize / 64 {
+                st.process_block(sc, &mut l, &mut r);
+                out.extend(l.iter().chain(&r).map(|x| x.to_bits()));
+            }
+            (out, st)
+        };
+        let ((a, sa), (b, sb)) = (render(true), render(false));
+        let (ea, eb) = (&sa.exact_stats, &sb.exact_stats);
+        println!(
+            "{name} | {} | {} / {}",
+            ea.located, ea.kernel_discarded, eb.kernel_discarded
+        );
+        assert!(a == b, "{name}: the schedule changed a sample");
+        assert_eq!(
+            (ea.located, ea.rest_releases, ea.rest_later, ea.rest_misses),
+            (eb.located, eb.rest_releases, eb.rest_later, eb.rest_misses),
+            "{name}"
+        );
+        assert!(ea.rest_later > 0, "{name}: no stored later switch taken");
+        assert!(ea.kernel_discarded <= eb.kernel_discarded, "{name}");
+        fewer += usize::from(ea.kernel_discarded < eb.kernel_discarded);
+    }
+    assert!(
+        fewer * 2 > cases.len(),
+        "less thrown away in {fewer} of {} scenes",
+        cases.len()
+    );
+}

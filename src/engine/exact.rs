@@ -141,6 +141,10 @@ pub struct ExactStats {
     /// Rests of samples after a located switch that the Hermite
     /// certificate cleared without a second model and search.
     pub hermite_after_switch: u64,
+    /// Samples the block kernel stepped past one that failed its test,
+    /// thrown away (the run is stepped again up to that sample): the fast
+    /// path's speculation that did not pay.
+    pub kernel_discarded: u64,
 }
 
 /// Which terms of a phase's event function ([`crate::compile::event`])

@@ -318,6 +318,9 @@ pub struct EngineState {
     /// Use the stored release of a strike from rest (default); off only to
     /// compare with the dense product in tests and benchmarks.
     rest_enabled: bool,
+    /// Let a strike from rest's stored switch instants schedule the fast
+    /// path's runs (default; scheduling only, the same samples bit for bit).
+    rest_schedule: bool,
     /// Switch through the hierarchical changes of basis where the scene has
     /// them (default); off only to compare with the dense product in tests
     /// and benchmarks.
@@ -446,6 +449,7 @@ impl EngineState {
             t_in_step: 0.0,
             rest_run: None,
             rest_enabled: true,
+            rest_schedule: true,
             structured: true,
             obs: None,
         };
@@ -1254,6 +1258,7 @@ impl EngineState {
             v_h = v_h1;
         }
         if k_ok < k_max {
+            self.exact_stats.kernel_discarded += (k_max - k_ok) as u64;
             self.spec_len = SPEC_RESTART;
             self.herm_until = Some((self.clock + k_ok as u64) / EPOCH as u64 + 1);
             if k_ok == 0 {
@@ -1638,7 +1643,7 @@ impl EngineState {
     /// stored switch starts (0: this one), if such a strike is being
     /// followed. O(1). \[audio-thread\]
     pub(super) fn rest_due_in(&self, scene: &CompiledScene) -> Option<usize> {
-        let run = self.rest_run.as_ref()?;
+        let run = self.rest_run.as_ref().filter(|_| self.rest_schedule)?;
         let rest = scene.rest.as_ref()?;
         let r = match run.next {
             0 => rest.t_r,
@@ -1705,6 +1710,14 @@ impl EngineState {
         self.phase = Phase::Free;
         self.discontinuity();
         self.log_event(false);
+    }
+
+    /// Let a strike from rest's stored switch instants end the fast path's
+    /// runs before the samples that hold them (`true`, the default) or not:
+    /// only for tests that check it changes no sample. \[any-thread\]
+    #[doc(hidden)]
+    pub fn set_rest_schedule(&mut self, on: bool) {
+        self.rest_schedule = on;
     }
 
     /// Take strikes from rest through the stored release (`true`, the
