@@ -204,6 +204,17 @@ struct Group {
     o: [[f64; GROUP]; 6],
 }
 
+/// `lanes[..width] = v[at..at + width]`: a constant-size copy (vector moves)
+/// for a full group.
+#[inline(always)]
+fn put(lanes: &mut [f64; GROUP], v: &[f64], at: usize, width: usize) {
+    if width == GROUP {
+        lanes.copy_from_slice(&v[at..at + GROUP]);
+    } else {
+        lanes[..width].copy_from_slice(&v[at..at + width]);
+    }
+}
+
 impl Group {
     /// A group with every lane zero, made once per kernel run and reloaded
     /// for each group (zeroing ~1.5 KB per group of eight blocks cost more
@@ -249,68 +260,40 @@ impl Group {
         }
         let srcs: [&[f64]; 4] = [&p.p00, &p.p01, &p.p10, &p.p11];
         let rsrc: [&[f64]; 3] = [rows.ev, rows.l, rows.r];
-        let at = |v: &[f64], i: usize| -> [f64; GROUP] {
-            let mut x = [0.0; GROUP];
-            x.copy_from_slice(&v[i..i + GROUP]);
-            x
-        };
-        if width == GROUP {
-            // constant-size copies (vector moves)
-            g.a = at(s, base);
-            g.b = at(s, nb + base);
-            for (q, src) in srcs.iter().enumerate() {
-                g.p[q] = at(src, base);
-            }
-            for (q, src) in rsrc.iter().enumerate() {
-                g.row[2 * q] = at(src, base);
-                g.row[2 * q + 1] = at(src, nb + base);
-            }
-            return;
+        put(&mut g.a, s, base, width);
+        put(&mut g.b, s, nb + base, width);
+        for (q, src) in srcs.iter().enumerate() {
+            put(&mut g.p[q], src, base, width);
         }
-        for j in 0..width {
-            let k = base + j;
-            g.a[j] = s[k];
-            g.b[j] = s[nb + k];
-            for (q, src) in srcs.iter().enumerate() {
-                g.p[q][j] = src[k];
-            }
-            for (q, src) in rsrc.iter().enumerate() {
-                g.row[2 * q][j] = src[k];
-                g.row[2 * q + 1][j] = src[nb + k];
-            }
+        for (q, src) in rsrc.iter().enumerate() {
+            put(&mut g.row[2 * q], src, base, width);
+            put(&mut g.row[2 * q + 1], src, nb + base, width);
         }
     }
 
     /// Load the quadratic-form weights of the group's blocks.
     #[inline(always)]
     fn load_quad(&mut self, quad: &EnergyQuad, base: usize, width: usize) {
-        for j in 0..width {
-            self.q[0][j] = quad.aa[base + j];
-            self.q[1][j] = quad.ab[base + j];
-            self.q[2][j] = quad.bb[base + j];
-        }
+        put(&mut self.q[0], &quad.aa, base, width);
+        put(&mut self.q[1], &quad.ab, base, width);
+        put(&mut self.q[2], &quad.bb, base, width);
     }
 
     /// Load the observation's first `n` rows of the group's blocks.
     #[inline(always)]
     fn load_obs(&mut self, rows: &Rows, n: usize, nb: usize, base: usize, width: usize) {
         let rsrc: [&[f64]; 3] = [rows.ev, rows.l, rows.r];
-        for j in 0..width {
-            let k = base + j;
-            for (q, src) in rsrc.iter().enumerate().take(n) {
-                self.o[2 * q][j] = src[k];
-                self.o[2 * q + 1][j] = src[nb + k];
-            }
+        for (q, src) in rsrc.iter().enumerate().take(n) {
+            put(&mut self.o[2 * q], src, base, width);
+            put(&mut self.o[2 * q + 1], src, nb + base, width);
         }
     }
 
     /// Load the slope row of the group's blocks.
     #[inline(always)]
     fn load_slope(&mut self, row: &[f64], nb: usize, base: usize, width: usize) {
-        for j in 0..width {
-            self.d[0][j] = row[base + j];
-            self.d[1][j] = row[nb + base + j];
-        }
+        put(&mut self.d[0], row, base, width);
+        put(&mut self.d[1], row, nb + base, width);
     }
 
     /// Step the group `k` samples, adding its share of each sample's rows
