@@ -1018,7 +1018,7 @@ impl EngineState {
             .as_mut()
             .expect("allocated by process_block_observed");
         let ps = &self.phases[self.phase.index()];
-        let r0 = rows_of(&ps.s, &obs_rows(ph, &obs.zeros, in_contact));
+        let r0 = rows_of(self.simd, &ps.s, &obs_rows(ph, &obs.zeros, in_contact));
         // states 1..k: the rows (and the energy's form) the engine's own
         // kernel pass summed beside its rows (`run_kernel_rows`)
         let (sc, dt, g) = (self.time_scale, self.step_s, self.g);
@@ -1424,13 +1424,14 @@ impl EngineState {
             return (f64::INFINITY, f64::INFINITY);
         }
         let (dt4, tail) = (dt * dt * dt * dt / 384.0, 8.0 / 27.0 * dt);
-        let (mut rem, mut mag) = (0.0, 0.0);
-        for k in 0..nb {
-            let norm = (s[k] * s[k] + s[nb + k] * s[nb + k]).sqrt();
-            let (c1, c4, e) = (ph.ev_d_block[k], ph.ev_d4_block[k], ph.ev_block[k]);
-            rem += exact::hermite_block(c1, c4, e, dt4, tail) * norm;
-            mag += (e + dt * c1) * norm;
-        }
+        let (rem, mag) = kernel::hermite_sums(
+            self.simd,
+            &s[..2 * nb],
+            [&ph.ev_d_block, &ph.ev_d4_block, &ph.ev_block],
+            dt4,
+            tail,
+            dt,
+        );
         (rem * (1.0 + 1e-12), mag)
     }
 
@@ -1458,10 +1459,9 @@ impl EngineState {
     fn fast_margin(&self, scene: &CompiledScene, dt: f64) -> f64 {
         let (ph, s) = (scene.phase(self.phase), &self.phases[self.phase.index()].s);
         let h = dt * dt / 8.0;
-        let (e, w) = kernel::block_measures(s, &ph.ev_dd_block);
+        let (e, w, blocks) = kernel::margin_sums(self.simd, s, &ph.ev_dd_block, &ph.ev_block, h);
         let global2 = ph.ev_dd_norm * ph.ev_dd_norm * e;
         let weighted2 = ph.ev_dd_block_sum * w;
-        let blocks = kernel::block_margin(s, &ph.ev_dd_block, &ph.ev_block, h);
         let g = if self.in_contact() { 0.0 } else { self.g };
         // 1 + 1e-12: the blocks are contractions up to rounding of exp2,
         // and the sums round
@@ -1477,7 +1477,7 @@ impl EngineState {
             l: &out[0],
             r: &out[1],
         };
-        self.cache = rows_of(s, &rows);
+        self.cache = rows_of(self.simd, s, &rows);
         self.cache_ok = true;
     }
 
