@@ -1186,11 +1186,10 @@ impl EngineState {
                 return (0, true);
             }
         }
-        let mut d_j = 0.0;
-        if hermite {
-            let ps = &self.phases[phase.index()];
-            d_j = dot(&ph.ev_d, &ps.s) + if in_contact { 0.0 } else { self.v_h };
-        }
+        // The slope at the run's first state, `phi'`: an O(N) sequential
+        // sum, needed only where the first sample's chord test fails (later
+        // samples take the kernel's slope row), so it is summed there.
+        let mut d_j: Option<f64> = None;
         let observe = match &obs {
             None => Observe::No,
             Some(o) if o.e.is_some() && self.quad_energy_ok(scene) => Observe::MotionEnergy,
@@ -1226,9 +1225,13 @@ impl EngineState {
                 };
                 let ok = chord
                     || hermite && {
+                        let d0 = *d_j.get_or_insert_with(|| {
+                            dot(&ph.ev_d, &self.phases[phase.index()].s)
+                                + if in_contact { 0.0 } else { self.v_h }
+                        });
                         let low = phi0
                             .min(phi1)
-                            .min(phi0 + d_j * dt / 3.0)
+                            .min(phi0 + d0 * dt / 3.0)
                             .min(phi1 - d1 * dt / 3.0);
                         let hammer = if in_contact {
                             off.abs()
@@ -1238,7 +1241,7 @@ impl EngineState {
                         let allow = herm_units * (self.herm_mag + hammer);
                         low - self.herm_rem - allow > 0.0
                     };
-                d_j = d1;
+                d_j = Some(d1);
                 ok
             } else if j == 0 && decided {
                 true
