@@ -808,42 +808,29 @@ fn margin_sums_body(s: &[f64], c: &[f64], e: &[f64], h: f64) -> (f64, f64, f64) 
 }
 
 /// The Hermite certificate's sums of a block state (`EngineState`'s
-/// `hermite_margin`): `(sum_k min(c4_k dt4, 2 e_k + tail c1_k) |s_k|, sum_k
-/// (e_k + dt c1_k) |s_k|)`, each summed block after block in order (the
-/// terms are computed `LANES` blocks at a time; the sums are the sequential
-/// ones, bit for bit on either `path`). O(N). \[audio-thread\]
-#[allow(clippy::too_many_arguments)]
+/// `hermite_margin`) for `[dt4, tail, dt]`: `(sum_k min(c4_k dt4, 2 e_k +
+/// tail c1_k) |s_k|, sum_k (e_k + dt c1_k) |s_k|)`, each summed block after
+/// block in order (the terms are computed `LANES` blocks at a time; the sums
+/// are the sequential ones, bit for bit on either `path`). O(N).
+/// \[audio-thread\]
 #[inline]
-pub fn hermite_sums(
-    path: SimdPath,
-    s: &[f64],
-    [c1, c4, e]: [&[f64]; 3],
-    dt4: f64,
-    tail: f64,
-    dt: f64,
-) -> (f64, f64) {
+pub fn hermite_sums(path: SimdPath, s: &[f64], w: [&[f64]; 3], k: [f64; 3]) -> (f64, f64) {
     match path {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as in `run_block`.
-        SimdPath::Avx2Fma(_) => unsafe { hermite_sums_avx2(s, [c1, c4, e], dt4, tail, dt) },
-        _ => hermite_sums_body(s, [c1, c4, e], dt4, tail, dt),
+        SimdPath::Avx2Fma(_) => unsafe { hermite_sums_avx2(s, w, k) },
+        _ => hermite_sums_body(s, w, k),
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn hermite_sums_avx2(s: &[f64], w: [&[f64]; 3], dt4: f64, tail: f64, dt: f64) -> (f64, f64) {
-    hermite_sums_body(s, w, dt4, tail, dt)
+fn hermite_sums_avx2(s: &[f64], w: [&[f64]; 3], k: [f64; 3]) -> (f64, f64) {
+    hermite_sums_body(s, w, k)
 }
 
 #[inline(always)]
-fn hermite_sums_body(
-    s: &[f64],
-    [c1, c4, e]: [&[f64]; 3],
-    dt4: f64,
-    tail: f64,
-    dt: f64,
-) -> (f64, f64) {
+fn hermite_sums_body(s: &[f64], [c1, c4, e]: [&[f64]; 3], [dt4, tail, dt]: [f64; 3]) -> (f64, f64) {
     let nb = c1.len();
     let (sa, sb) = s.split_at(nb);
     let (sb, c4, e) = (&sb[..nb], &c4[..nb], &e[..nb]);
@@ -1485,7 +1472,7 @@ mod tests {
                     (0..3).all(|q| bits(got[q], want_rows[q])),
                     "{nb} blocks {path:?}: rows"
                 );
-                let (rem, mag) = hermite_sums(path, &s, [&c, &c4, &e], dt4, tail, dt);
+                let (rem, mag) = hermite_sums(path, &s, [&c, &c4, &e], [dt4, tail, dt]);
                 assert!(
                     bits(rem, want_rem) && bits(mag, want_mag),
                     "{nb} blocks {path:?}: Hermite sums"

@@ -1431,9 +1431,7 @@ impl EngineState {
             self.simd,
             &s[..2 * nb],
             [&ph.ev_d_block, &ph.ev_d4_block, &ph.ev_block],
-            dt4,
-            tail,
-            dt,
+            [dt4, tail, dt],
         );
         (rem * (1.0 + 1e-12), mag)
     }
