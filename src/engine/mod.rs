@@ -2150,8 +2150,9 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// `[dot(rows[0], s), dot(rows[1], s), dot(rows[2], s)]` bit for bit (each
-/// the same sequential sum from the same start) in one pass: three
-/// independent chains of additions take about the time of one. O(N).
+/// the same sequential sum from the same start) in one pass: each sum is a
+/// chain of dependent additions, and three independent chains overlap
+/// where three passes would wait for each in turn. O(N).
 pub(crate) fn dot3(rows: [&[f64]; 3], s: &[f64]) -> [f64; 3] {
     let n = s.len().min(rows[0].len());
     if rows.iter().any(|r| r.len().min(s.len()) != n) {
