@@ -3178,28 +3178,31 @@ pub fn trace_header(contacts: usize) -> String {
 
 /// One trace row (without its line end) in the one-contact trace's
 /// number format (shortest round-trip).
-fn push_trace_row(
-    buf: &mut Vec<u8>,
-    fmt: &mut zmij::Buffer,
-    t: f64,
-    o: &MultiObservation,
-    contacts: usize,
-) {
-    use crate::render::push_e;
+fn push_trace_row(buf: &mut Vec<u8>, t: f64, o: &MultiObservation, contacts: usize) {
+    use crate::render::ETexts;
     let flag = |j: usize| if o.active & (1 << j) != 0 { b'1' } else { b'0' };
-    push_e(buf, fmt, t);
-    for x in [o.x_hammer[0], o.v_hammer[0], o.x_contact[0], o.v_contact[0]] {
+    let first = ETexts::new([
+        t,
+        o.x_hammer[0],
+        o.v_hammer[0],
+        o.x_contact[0],
+        o.v_contact[0],
+        o.energy,
+    ]);
+    first.push(buf, 0);
+    for k in 1..5 {
         buf.push(b',');
-        push_e(buf, fmt, x);
+        first.push(buf, k);
     }
     buf.push(b',');
     buf.push(flag(0));
     buf.push(b',');
-    push_e(buf, fmt, o.energy);
+    first.push(buf, 5);
     for j in 1..contacts {
-        for x in [o.x_hammer[j], o.v_hammer[j], o.x_contact[j], o.v_contact[j]] {
+        let e = ETexts::new([o.x_hammer[j], o.v_hammer[j], o.x_contact[j], o.v_contact[j]]);
+        for k in 0..4 {
             buf.push(b',');
-            push_e(buf, fmt, x);
+            e.push(buf, k);
         }
         buf.push(b',');
         buf.push(flag(j));
@@ -3210,7 +3213,6 @@ fn push_trace_row(
 pub struct MultiTraceCsv<W: std::io::Write> {
     out: W,
     buf: Vec<u8>,
-    fmt: zmij::Buffer,
     rate_hz: f64,
     contacts: usize,
 }
@@ -3222,7 +3224,6 @@ impl<W: std::io::Write> MultiTraceCsv<W> {
         Ok(Self {
             out,
             buf: Vec::with_capacity(1 << 16),
-            fmt: zmij::Buffer::new(),
             rate_hz,
             contacts,
         })
@@ -3231,7 +3232,7 @@ impl<W: std::io::Write> MultiTraceCsv<W> {
     /// Write sample `i`'s row.
     pub fn row(&mut self, i: usize, o: &MultiObservation) -> std::io::Result<()> {
         let t = i as f64 / self.rate_hz;
-        push_trace_row(&mut self.buf, &mut self.fmt, t, o, self.contacts);
+        push_trace_row(&mut self.buf, t, o, self.contacts);
         self.buf.push(b'\n');
         if self.buf.len() >= 1 << 16 {
             self.out.write_all(&self.buf)?;

@@ -946,110 +946,169 @@ fn write_row<W: Write>(w: &mut W, r: &TraceRow) -> std::io::Result<()> {
 /// Append one CSV row to `buf`, byte for byte what `{:e}` writes.
 fn push_row(buf: &mut Vec<u8>, r: &TraceRow) {
     let o = &r.obs;
-    let mut fmt = zmij::Buffer::new();
-    for x in [r.t, o.x_hammer, o.v_hammer, o.x_contact, o.v_contact] {
-        push_e(buf, &mut fmt, x);
+    let e = ETexts::new([
+        r.t,
+        o.x_hammer,
+        o.v_hammer,
+        o.x_contact,
+        o.v_contact,
+        o.energy,
+    ]);
+    for k in 0..5 {
+        e.push(buf, k);
         buf.push(b',');
     }
     buf.push(if o.in_contact { b'1' } else { b'0' });
     buf.push(b',');
-    push_e(buf, &mut fmt, o.energy);
+    e.push(buf, 5);
     buf.push(b'\n');
 }
 
-/// Append `x` as `format!("{x:e}")` would: the shortest digits that read
-/// back to `x`, as `d.ddde-x`. zmij (Schubfach) finds them several times
-/// faster than core; the two could differ only on an exact tie between two
-/// shortest candidates (core rounds it up), which needs a short exact
-/// decimal expansion (at most 18 digits): such numbers go to core. zmij
-/// writes exponents of 16 and more and below -5 exactly as `{:e}` does;
-/// between, it writes a decimal fraction (`0.00036`, `123.5`), moved here
-/// into `d.ddde-x` in a local array. Tested byte for byte on random
+/// `N` numbers' text as `format!("{x:e}")` writes it: the shortest digits
+/// that read back to `x`, as `d.ddde-x`, formatted together and then
+/// appended one at a time ([`push`](Self::push)).
+///
+/// zmij (Schubfach) finds the digits several times faster than core; the
+/// two could differ only on an exact tie between two shortest candidates
+/// (core rounds it up), which needs a short exact decimal expansion (at
+/// most 18 digits): such numbers go to core. zmij writes exponents of 16
+/// and more and below -5 exactly as `{:e}` does; between, it writes a
+/// decimal fraction (`0.00036`, `123.5`), rearranged here into `d.ddde-x`.
+///
+/// Why together: each step reads bytes the step before has just written
+/// with stores of other sizes and offsets (zmij's digits, then their
+/// padded copy), and a load that spans several recent stores waits for
+/// them to reach the cache (no store-to-load forwarding). Formatting all
+/// `N` numbers, then copying all `N`, then rearranging each puts `N - 1`
+/// numbers' work between a store and the load that reads it (docs/design.md,
+/// "Offline rendering"). Tested byte for byte against core on random
 /// numbers of every magnitude.
-pub fn push_e(buf: &mut Vec<u8>, fmt: &mut zmij::Buffer, x: f64) {
-    if x == 0.0 {
-        buf.extend_from_slice(if x.is_sign_negative() {
-            b"-0e0"
-        } else {
-            b"0e0"
-        });
-        return;
-    }
-    if !x.is_finite() || short_decimal_expansion(x) {
-        buf.extend_from_slice(format!("{x:e}").as_bytes());
-        return;
-    }
-    // zmij's text (at most 25 bytes) copied into `t` with fixed-size copies
-    let s = fmt.format_finite(x).as_bytes();
-    let len = s.len();
-    let mut t = [b'0'; 48];
-    if len >= 16 {
-        t[..16].copy_from_slice(&s[..16]);
-        t[len - 16..len].copy_from_slice(&s[len - 16..]);
-    } else if len >= 8 {
-        t[..8].copy_from_slice(&s[..8]);
-        t[len - 8..len].copy_from_slice(&s[len - 8..]);
-    } else {
-        t[..len].copy_from_slice(s);
-    }
-    let at = buf.len();
-    if t[len.saturating_sub(5)..len]
-        .iter()
-        .fold(false, |a, &c| a | (c == b'e'))
-    {
-        // `d.ddde-x` or `de-x` already
-        buf.extend_from_slice(&t[..32]);
-        buf.truncate(at + len);
-        return;
-    }
-    // a decimal fraction `int.frac` (`0.00036`, `120.0`; at most 17 digits,
-    // 4 zeros after the point): its digits laid out in `o` as `d.ddd` with
-    // fixed-size copies (no per-byte loop, no call), then `e-x`
-    let b = usize::from(t[0] == b'-');
-    let (u, len) = (&t[b..], len - b);
-    let mut o = [0u8; 48];
-    o[0] = b'-';
-    let (mut m, exp10) = if u[0] == b'0' {
-        // `0.000ddd`: the digits are contiguous after the zeros
-        let mut z = 0;
-        while 2 + z < len && u[2 + z] == b'0' {
-            z += 1;
+pub struct ETexts<const N: usize> {
+    /// Each number's text, zero-padded: final (`fin`) or zmij's.
+    text: [[u8; 48]; N],
+    len: [usize; N],
+    fin: [bool; N],
+}
+
+impl<const N: usize> ETexts<N> {
+    /// Format `xs`.
+    pub fn new(xs: [f64; N]) -> Self {
+        // built in place (returned without a copy)
+        let mut e = Self {
+            text: [[b'0'; 48]; N],
+            len: [0; N],
+            fin: [true; N],
+        };
+        let mut fmts = [(); N].map(|_| zmij::Buffer::new());
+        let mut digits: [&[u8]; N] = [&[]; N];
+        // 1: zmij's digits, or the final text of the numbers core formats
+        for (k, (f, &x)) in fmts.iter_mut().zip(&xs).enumerate() {
+            if x == 0.0 {
+                let z: &[u8] = if x.is_sign_negative() { b"-0e0" } else { b"0e0" };
+                e.text[k][..z.len()].copy_from_slice(z);
+                e.len[k] = z.len();
+            } else if !x.is_finite() || short_decimal_expansion(x) {
+                let mut w = &mut e.text[k][..];
+                // at most 24 bytes (`-2.2250738585072014e-308`)
+                write!(w, "{x:e}").expect("a double's {:e} fits in 48 bytes");
+                e.len[k] = 48 - w.len();
+            } else {
+                digits[k] = f.format_finite(x).as_bytes();
+                e.fin[k] = false;
+            }
         }
-        let d = 2 + z;
-        o[b] = u[d];
-        o[b + 2..b + 18].copy_from_slice(&u[d + 1..d + 17]);
-        (len - d, -(z as i32) - 1)
-    } else {
-        // `ddd.ddd`: the integer digits, then the fraction over the point
-        let p = u[..len].iter().position(|&c| c == b'.').unwrap_or(len);
-        o[b] = u[0];
-        o[b + 2..b + 18].copy_from_slice(&u[1..17]);
-        o[b + p + 1..b + p + 17].copy_from_slice(&u[p + 1..p + 17]);
-        (len - usize::from(p < len), p as i32 - 1)
-    };
-    // o[b] = d0, o[b + 2..=b + m] = d1..d(m-1); drop trailing zeros (`120.0`)
-    while m > 1 && o[b + m] == b'0' {
-        m -= 1;
+        // 2: zmij's text (at most 24 bytes) copied with fixed-size copies
+        for (k, s) in digits.iter().enumerate() {
+            let (t, n) = (&mut e.text[k], s.len());
+            if e.fin[k] {
+                continue;
+            }
+            if n >= 16 {
+                t[..16].copy_from_slice(&s[..16]);
+                t[n - 16..n].copy_from_slice(&s[n - 16..]);
+            } else if n >= 8 {
+                t[..8].copy_from_slice(&s[..8]);
+                t[n - 8..n].copy_from_slice(&s[n - 8..]);
+            } else {
+                t[..n].copy_from_slice(s);
+            }
+            e.len[k] = n;
+        }
+        e
     }
-    let mut end = b + 1;
-    if m > 1 {
-        o[b + 1] = b'.';
-        end = b + m + 1;
-    }
-    o[end] = b'e';
-    end += 1;
-    if exp10 < 0 {
-        o[end] = b'-';
+
+    /// Append number `k`'s text to `buf`.
+    pub fn push(&self, buf: &mut Vec<u8>, k: usize) {
+        let (t, len) = (&self.text[k], self.len[k]);
+        let at = buf.len();
+        if self.fin[k]
+            || t[len.saturating_sub(5)..len]
+                .iter()
+                .fold(false, |a, &c| a | (c == b'e'))
+        {
+            // final, or zmij's `d.ddde-x` / `de-x`
+            buf.extend_from_slice(&t[..32]);
+            buf.truncate(at + len);
+            return;
+        }
+        // a decimal fraction `int.frac` (`0.00036`, `120.0`; at most 17
+        // digits, 4 zeros after the point): its digits laid out in `buf` as
+        // `d.ddd` with fixed-size copies (no per-byte loop, no call), then
+        // `e-x`
+        let b = usize::from(t[0] == b'-');
+        let (u, len) = (&t[b..], len - b);
+        buf.extend_from_slice(&[0; 48]);
+        let o = &mut buf[at..at + 48];
+        o[0] = b'-';
+        let (m, exp10) = if u[0] == b'0' {
+            // `0.000ddd`: the digits are contiguous after the zeros
+            let mut z = 0;
+            while 2 + z < len && u[2 + z] == b'0' {
+                z += 1;
+            }
+            let d = 2 + z;
+            o[b] = u[d];
+            o[b + 2..b + 18].copy_from_slice(&u[d + 1..d + 17]);
+            (len - d, -(z as i32) - 1)
+        } else {
+            // `ddd.ddd`: the integer digits, then the fraction over the point
+            let p = u[..len].iter().position(|&c| c == b'.').unwrap_or(len);
+            o[b] = u[0];
+            o[b + 2..b + 18].copy_from_slice(&u[1..17]);
+            o[b + p + 1..b + p + 17].copy_from_slice(&u[p + 1..p + 17]);
+            if u[len - 1] == b'0' {
+                // `120.0`: zmij's digits end in a zero only there; the
+                // integer's trailing zeros go too (read from `u`, not
+                // from the bytes just stored)
+                let mut m = p;
+                while m > 1 && u[m - 1] == b'0' {
+                    m -= 1;
+                }
+                (m, p as i32 - 1)
+            } else {
+                (len - usize::from(p < len), p as i32 - 1)
+            }
+        };
+        // o[b] = d0, o[b + 2..=b + m] = d1..d(m-1)
+        let mut end = b + 1;
+        if m > 1 {
+            o[b + 1] = b'.';
+            end = b + m + 1;
+        }
+        o[end] = b'e';
         end += 1;
+        if exp10 < 0 {
+            o[end] = b'-';
+            end += 1;
+        }
+        let e = exp10.unsigned_abs();
+        if e >= 10 {
+            o[end] = b'0' + (e / 10 % 10) as u8;
+            end += 1;
+        }
+        o[end] = b'0' + (e % 10) as u8;
+        buf.truncate(at + end + 1);
     }
-    let e = exp10.unsigned_abs();
-    if e >= 10 {
-        o[end] = b'0' + (e / 10 % 10) as u8;
-        end += 1;
-    }
-    o[end] = b'0' + (e % 10) as u8;
-    buf.extend_from_slice(&o[..32]);
-    buf.truncate(at + end + 1);
 }
 
 /// Whether the exact decimal expansion of `x` (finite, nonzero) may have
@@ -1085,7 +1144,7 @@ mod tests {
 
     fn e(x: f64) -> String {
         let mut buf = Vec::new();
-        push_e(&mut buf, &mut zmij::Buffer::new(), x);
+        ETexts::new([x]).push(&mut buf, 0);
         String::from_utf8(buf).unwrap()
     }
 
@@ -1133,8 +1192,22 @@ mod tests {
             let mag = 10f64.powf(rng.uniform(-30.0, 17.0));
             cases.push(rng.uniform(-0.5, 0.5) * mag);
         }
-        for x in cases {
+        for &x in &cases {
             assert_eq!(e(x), format!("{x:e}"), "bits {:#x}", x.to_bits());
+        }
+        // six at a time, as a trace row formats them (special values mixed
+        // with zmij's, each pushed after all six are formatted)
+        for six in cases.chunks_exact(6) {
+            let xs: [f64; 6] = six.try_into().unwrap();
+            let texts = ETexts::new(xs);
+            let mut got = Vec::new();
+            let mut want = String::new();
+            for (k, x) in xs.iter().enumerate() {
+                texts.push(&mut got, k);
+                got.push(b',');
+                want.push_str(&format!("{x:e},"));
+            }
+            assert_eq!(String::from_utf8(got).unwrap(), want);
         }
     }
 

@@ -430,7 +430,9 @@ pub fn render_scene_to(
         Some(p) => {
             let f = std::fs::File::create(p)
                 .with_context(|| format!("cannot create {}", p.display()))?;
-            let f = BufWriter::with_capacity(1 << 20, f);
+            // the traces write chunks of 64 KiB and more: a buffer no larger
+            // passes them to the file without copying them (it holds the header)
+            let f = BufWriter::with_capacity(1 << 16, f);
             Some(match TraceFormat::of(p) {
                 TraceFormat::Csv => TraceFile::Csv(CsvTrace::new(compiled.rate_hz, f)?),
                 TraceFormat::Npy => TraceFile::Npy(NpyTrace::new(compiled.rate_hz, n, f)?),
@@ -610,7 +612,9 @@ fn multi_scene_job(
         Some(p) => {
             let f = std::fs::File::create(p)
                 .with_context(|| format!("cannot create {}", p.display()))?;
-            let f = BufWriter::with_capacity(1 << 20, f);
+            // the traces write chunks of 64 KiB and more: a buffer no larger
+            // passes them to the file without copying them (it holds the header)
+            let f = BufWriter::with_capacity(1 << 16, f);
             Some(match TraceFormat::of(p) {
                 TraceFormat::Csv => Trace::Csv(MultiTraceCsv::new(f, a.rate, k)?),
                 TraceFormat::Npy => Trace::Npy(MultiTraceNpy::new(f, a.rate, k, n)?),
