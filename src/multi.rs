@@ -3179,32 +3179,25 @@ pub fn trace_header(contacts: usize) -> String {
 /// One trace row (without its line end) in the one-contact trace's
 /// number format (shortest round-trip).
 fn push_trace_row(buf: &mut Vec<u8>, t: f64, o: &MultiObservation, contacts: usize) {
-    use crate::render::ETexts;
+    use crate::render::push_es;
     let flag = |j: usize| if o.active & (1 << j) != 0 { b'1' } else { b'0' };
-    let first = ETexts::new([
+    let first = [
         t,
         o.x_hammer[0],
         o.v_hammer[0],
         o.x_contact[0],
         o.v_contact[0],
         o.energy,
-    ]);
-    first.push(buf, 0);
-    for k in 1..5 {
-        buf.push(b',');
-        first.push(buf, k);
-    }
-    buf.push(b',');
-    buf.push(flag(0));
-    buf.push(b',');
-    first.push(buf, 5);
+    ];
+    push_es(buf, first, |buf, k| match k {
+        4 => buf.extend_from_slice(&[b',', flag(0), b',']),
+        5 => {}
+        _ => buf.push(b','),
+    });
     for j in 1..contacts {
-        let e = ETexts::new([o.x_hammer[j], o.v_hammer[j], o.x_contact[j], o.v_contact[j]]);
-        for k in 0..4 {
-            buf.push(b',');
-            e.push(buf, k);
-        }
         buf.push(b',');
+        let xs = [o.x_hammer[j], o.v_hammer[j], o.x_contact[j], o.v_contact[j]];
+        push_es(buf, xs, |buf, _| buf.push(b','));
         buf.push(flag(j));
     }
 }

@@ -946,169 +946,160 @@ fn write_row<W: Write>(w: &mut W, r: &TraceRow) -> std::io::Result<()> {
 /// Append one CSV row to `buf`, byte for byte what `{:e}` writes.
 fn push_row(buf: &mut Vec<u8>, r: &TraceRow) {
     let o = &r.obs;
-    let e = ETexts::new([
+    let xs = [
         r.t,
         o.x_hammer,
         o.v_hammer,
         o.x_contact,
         o.v_contact,
         o.energy,
-    ]);
-    for k in 0..5 {
-        e.push(buf, k);
-        buf.push(b',');
-    }
-    buf.push(if o.in_contact { b'1' } else { b'0' });
-    buf.push(b',');
-    e.push(buf, 5);
-    buf.push(b'\n');
+    ];
+    push_es(buf, xs, |buf, k| match k {
+        4 => buf.extend_from_slice(if o.in_contact { b",1," } else { b",0," }),
+        5 => buf.push(b'\n'),
+        _ => buf.push(b','),
+    });
 }
 
-/// `N` numbers' text as `format!("{x:e}")` writes it: the shortest digits
-/// that read back to `x`, as `d.ddde-x`, formatted together and then
-/// appended one at a time ([`push`](Self::push)).
+/// Append `xs` to `buf` as `format!("{x:e}")` writes each: the shortest
+/// digits that read back to `x`, as `d.ddde-x`; after number `k`,
+/// `after(buf, k)` appends what follows it (a separator).
 ///
 /// zmij (Schubfach) finds the digits several times faster than core; the
 /// two could differ only on an exact tie between two shortest candidates
 /// (core rounds it up), which needs a short exact decimal expansion (at
 /// most 18 digits): such numbers go to core. zmij writes exponents of 16
 /// and more and below -5 exactly as `{:e}` does; between, it writes a
-/// decimal fraction (`0.00036`, `123.5`), rearranged here into `d.ddde-x`.
+/// decimal fraction (`0.00036`, `123.5`), whose digits are moved here into
+/// `d.ddde-x` with fixed-size copies (no per-byte loop, no call).
 ///
-/// Why together: each step reads bytes the step before has just written
-/// with stores of other sizes and offsets (zmij's digits, then their
-/// padded copy), and a load that spans several recent stores waits for
-/// them to reach the cache (no store-to-load forwarding). Formatting all
-/// `N` numbers, then copying all `N`, then rearranging each puts `N - 1`
-/// numbers' work between a store and the load that reads it (docs/design.md,
+/// All `N` numbers are formatted first, then moved: a load that spans
+/// several stores made just before it (zmij's digits are written in pieces
+/// of several sizes) waits for them to reach the cache, and `N - 1`
+/// numbers' work between the two lets them get there (docs/design.md,
 /// "Offline rendering"). Tested byte for byte against core on random
 /// numbers of every magnitude.
-pub struct ETexts<const N: usize> {
-    /// Each number's text, zero-padded: final (`fin`) or zmij's.
-    text: [[u8; 48]; N],
-    len: [usize; N],
-    fin: [bool; N],
+pub fn push_es<const N: usize>(
+    buf: &mut Vec<u8>,
+    xs: [f64; N],
+    mut after: impl FnMut(&mut Vec<u8>, usize),
+) {
+    let mut fmts = [(); N].map(|_| zmij::Buffer::new());
+    // zmij's text, or empty where core or a constant writes the number
+    let mut texts: [&[u8]; N] = [&[]; N];
+    for ((f, &x), t) in fmts.iter_mut().zip(&xs).zip(&mut texts) {
+        if x != 0.0 && x.is_finite() && !short_decimal_expansion(x) {
+            *t = f.format_finite(x).as_bytes();
+        }
+    }
+    for (k, (&x, s)) in xs.iter().zip(texts).enumerate() {
+        if s.is_empty() {
+            if x == 0.0 {
+                buf.extend_from_slice(if x.is_sign_negative() {
+                    b"-0e0"
+                } else {
+                    b"0e0"
+                });
+            } else {
+                write!(buf, "{x:e}").expect("writing to a Vec");
+            }
+        } else {
+            push_zmij_as_e(buf, s);
+        }
+        after(buf, k);
+    }
 }
 
-impl<const N: usize> ETexts<N> {
-    /// Format `xs`.
-    pub fn new(xs: [f64; N]) -> Self {
-        // built in place (returned without a copy)
-        let mut e = Self {
-            text: [[b'0'; 48]; N],
-            len: [0; N],
-            fin: [true; N],
-        };
-        let mut fmts = [(); N].map(|_| zmij::Buffer::new());
-        let mut digits: [&[u8]; N] = [&[]; N];
-        // 1: zmij's digits, or the final text of the numbers core formats
-        for (k, (f, &x)) in fmts.iter_mut().zip(&xs).enumerate() {
-            if x == 0.0 {
-                let z: &[u8] = if x.is_sign_negative() { b"-0e0" } else { b"0e0" };
-                e.text[k][..z.len()].copy_from_slice(z);
-                e.len[k] = z.len();
-            } else if !x.is_finite() || short_decimal_expansion(x) {
-                let mut w = &mut e.text[k][..];
-                // at most 24 bytes (`-2.2250738585072014e-308`)
-                write!(w, "{x:e}").expect("a double's {:e} fits in 48 bytes");
-                e.len[k] = 48 - w.len();
-            } else {
-                digits[k] = f.format_finite(x).as_bytes();
-                e.fin[k] = false;
-            }
+/// Copy `s` (at most 24 bytes) to `o[at..]` in at most two fixed-size,
+/// overlapping copies.
+#[inline(always)]
+fn copy_short(o: &mut [u8], at: usize, s: &[u8]) {
+    let n = s.len();
+    if n >= 16 {
+        o[at..at + 16].copy_from_slice(&s[..16]);
+        o[at + n - 16..at + n].copy_from_slice(&s[n - 16..]);
+    } else if n >= 8 {
+        o[at..at + 8].copy_from_slice(&s[..8]);
+        o[at + n - 8..at + n].copy_from_slice(&s[n - 8..]);
+    } else if n >= 4 {
+        o[at..at + 4].copy_from_slice(&s[..4]);
+        o[at + n - 4..at + n].copy_from_slice(&s[n - 4..]);
+    } else {
+        for (d, &c) in o[at..at + n].iter_mut().zip(s) {
+            *d = c;
         }
-        // 2: zmij's text (at most 24 bytes) copied with fixed-size copies
-        for (k, s) in digits.iter().enumerate() {
-            let (t, n) = (&mut e.text[k], s.len());
-            if e.fin[k] {
-                continue;
-            }
-            if n >= 16 {
-                t[..16].copy_from_slice(&s[..16]);
-                t[n - 16..n].copy_from_slice(&s[n - 16..]);
-            } else if n >= 8 {
-                t[..8].copy_from_slice(&s[..8]);
-                t[n - 8..n].copy_from_slice(&s[n - 8..]);
-            } else {
-                t[..n].copy_from_slice(s);
-            }
-            e.len[k] = n;
-        }
-        e
     }
+}
 
-    /// Append number `k`'s text to `buf`.
-    pub fn push(&self, buf: &mut Vec<u8>, k: usize) {
-        let (t, len) = (&self.text[k], self.len[k]);
-        let at = buf.len();
-        if self.fin[k]
-            || t[len.saturating_sub(5)..len]
-                .iter()
-                .fold(false, |a, &c| a | (c == b'e'))
-        {
-            // final, or zmij's `d.ddde-x` / `de-x`
-            buf.extend_from_slice(&t[..32]);
-            buf.truncate(at + len);
-            return;
-        }
-        // a decimal fraction `int.frac` (`0.00036`, `120.0`; at most 17
-        // digits, 4 zeros after the point): its digits laid out in `buf` as
-        // `d.ddd` with fixed-size copies (no per-byte loop, no call), then
-        // `e-x`
-        let b = usize::from(t[0] == b'-');
-        let (u, len) = (&t[b..], len - b);
-        buf.extend_from_slice(&[0; 48]);
-        let o = &mut buf[at..at + 48];
-        o[0] = b'-';
-        let (m, exp10) = if u[0] == b'0' {
-            // `0.000ddd`: the digits are contiguous after the zeros
-            let mut z = 0;
-            while 2 + z < len && u[2 + z] == b'0' {
-                z += 1;
-            }
-            let d = 2 + z;
-            o[b] = u[d];
-            o[b + 2..b + 18].copy_from_slice(&u[d + 1..d + 17]);
-            (len - d, -(z as i32) - 1)
-        } else {
-            // `ddd.ddd`: the integer digits, then the fraction over the point
-            let p = u[..len].iter().position(|&c| c == b'.').unwrap_or(len);
-            o[b] = u[0];
-            o[b + 2..b + 18].copy_from_slice(&u[1..17]);
-            o[b + p + 1..b + p + 17].copy_from_slice(&u[p + 1..p + 17]);
-            if u[len - 1] == b'0' {
-                // `120.0`: zmij's digits end in a zero only there; the
-                // integer's trailing zeros go too (read from `u`, not
-                // from the bytes just stored)
-                let mut m = p;
-                while m > 1 && u[m - 1] == b'0' {
-                    m -= 1;
-                }
-                (m, p as i32 - 1)
-            } else {
-                (len - usize::from(p < len), p as i32 - 1)
-            }
-        };
-        // o[b] = d0, o[b + 2..=b + m] = d1..d(m-1)
-        let mut end = b + 1;
-        if m > 1 {
-            o[b + 1] = b'.';
-            end = b + m + 1;
-        }
-        o[end] = b'e';
-        end += 1;
-        if exp10 < 0 {
-            o[end] = b'-';
-            end += 1;
-        }
-        let e = exp10.unsigned_abs();
-        if e >= 10 {
-            o[end] = b'0' + (e / 10 % 10) as u8;
-            end += 1;
-        }
-        o[end] = b'0' + (e % 10) as u8;
-        buf.truncate(at + end + 1);
+/// Append zmij's text `s` of a finite nonzero number in `{:e}`'s form.
+fn push_zmij_as_e(buf: &mut Vec<u8>, s: &[u8]) {
+    let at = buf.len();
+    buf.extend_from_slice(&[0; 48]);
+    let o = &mut buf[at..at + 48];
+    let len = s.len();
+    if s[len.saturating_sub(5)..]
+        .iter()
+        .fold(false, |a, &c| a | (c == b'e'))
+    {
+        // `d.ddde-x` or `de-x` already
+        copy_short(o, 0, s);
+        buf.truncate(at + len);
+        return;
     }
+    // a decimal fraction `int.frac` (`0.00036`, `120.0`; at most 17 digits,
+    // 4 zeros after the point)
+    let b = usize::from(s[0] == b'-');
+    let u = &s[b..];
+    o[0] = b'-';
+    let mut end;
+    let exp10 = if u[0] == b'0' {
+        // `0.000ddd`: the digits are contiguous after the zeros (and do not
+        // end in a zero)
+        let d = 2 + u[2..].iter().take_while(|&&c| c == b'0').count();
+        o[b] = u[d];
+        end = b + 1;
+        if d + 1 < u.len() {
+            o[end] = b'.';
+            copy_short(o, end + 1, &u[d + 1..]);
+            end += u.len() - d;
+        }
+        -(d as i32 - 1)
+    } else {
+        // `ddd.ddd`: the integer digits, then the fraction's
+        let p = u.iter().position(|&c| c == b'.').unwrap_or(u.len());
+        let frac = u.get(p + 1..).unwrap_or(&[]);
+        o[b] = u[0];
+        end = b + 1;
+        if frac == b"0" {
+            // `120.0` (zmij's digits end in a zero only there): the
+            // integer's trailing zeros go too
+            let m = p - u[1..p].iter().rev().take_while(|&&c| c == b'0').count();
+            if m > 1 {
+                o[end] = b'.';
+                copy_short(o, end + 1, &u[1..m]);
+                end += m;
+            }
+        } else if p + frac.len() > 1 {
+            o[end] = b'.';
+            copy_short(o, end + 1, &u[1..p]);
+            copy_short(o, end + p, frac);
+            end += p + frac.len();
+        }
+        p as i32 - 1
+    };
+    o[end] = b'e';
+    end += 1;
+    if exp10 < 0 {
+        o[end] = b'-';
+        end += 1;
+    }
+    let e = exp10.unsigned_abs();
+    if e >= 10 {
+        o[end] = b'0' + (e / 10 % 10) as u8;
+        end += 1;
+    }
+    o[end] = b'0' + (e % 10) as u8;
+    buf.truncate(at + end + 1);
 }
 
 /// Whether the exact decimal expansion of `x` (finite, nonzero) may have
@@ -1144,7 +1135,7 @@ mod tests {
 
     fn e(x: f64) -> String {
         let mut buf = Vec::new();
-        ETexts::new([x]).push(&mut buf, 0);
+        push_es(&mut buf, [x], |_, _| {});
         String::from_utf8(buf).unwrap()
     }
 
@@ -1199,14 +1190,9 @@ mod tests {
         // with zmij's, each pushed after all six are formatted)
         for six in cases.chunks_exact(6) {
             let xs: [f64; 6] = six.try_into().unwrap();
-            let texts = ETexts::new(xs);
             let mut got = Vec::new();
-            let mut want = String::new();
-            for (k, x) in xs.iter().enumerate() {
-                texts.push(&mut got, k);
-                got.push(b',');
-                want.push_str(&format!("{x:e},"));
-            }
+            push_es(&mut got, xs, |buf, _| buf.push(b','));
+            let want: String = xs.iter().map(|x| format!("{x:e},")).collect();
             assert_eq!(String::from_utf8(got).unwrap(), want);
         }
     }
