@@ -404,6 +404,14 @@ pub struct SceneOutputs<'a> {
     pub plot: Option<(&'a Path, &'a str)>,
 }
 
+/// Create the trace file `p`. The traces write chunks of 64 KiB and more:
+/// a buffer no larger passes them to the file without copying them (it
+/// holds the header and the last, shorter chunk).
+fn create_trace_file(p: &Path) -> Result<BufWriter<std::fs::File>> {
+    let f = std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?;
+    Ok(BufWriter::with_capacity(1 << 16, f))
+}
+
 /// Render `n` samples of a compiled scene into its outputs, streaming: the
 /// WAV and the CSV are written as the render goes, the plot is drawn from
 /// the envelope ([`TraceEnvelope`]). Without a trace or a plot the engine
@@ -428,11 +436,7 @@ pub fn render_scene_to(
     };
     let trace = match out.trace {
         Some(p) => {
-            let f = std::fs::File::create(p)
-                .with_context(|| format!("cannot create {}", p.display()))?;
-            // the traces write chunks of 64 KiB and more: a buffer no larger
-            // passes them to the file without copying them (it holds the header)
-            let f = BufWriter::with_capacity(1 << 16, f);
+            let f = create_trace_file(p)?;
             Some(match TraceFormat::of(p) {
                 TraceFormat::Csv => TraceFile::Csv(CsvTrace::new(compiled.rate_hz, f)?),
                 TraceFormat::Npy => TraceFile::Npy(NpyTrace::new(compiled.rate_hz, n, f)?),
@@ -610,11 +614,7 @@ fn multi_scene_job(
     let mut wav = FloatWav::create(&job.wav, a.rate, n)?;
     let mut csv = match job.trace.as_deref() {
         Some(p) => {
-            let f = std::fs::File::create(p)
-                .with_context(|| format!("cannot create {}", p.display()))?;
-            // the traces write chunks of 64 KiB and more: a buffer no larger
-            // passes them to the file without copying them (it holds the header)
-            let f = BufWriter::with_capacity(1 << 16, f);
+            let f = create_trace_file(p)?;
             Some(match TraceFormat::of(p) {
                 TraceFormat::Csv => Trace::Csv(MultiTraceCsv::new(f, a.rate, k)?),
                 TraceFormat::Npy => Trace::Npy(MultiTraceNpy::new(f, a.rate, k, n)?),
