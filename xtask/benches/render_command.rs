@@ -3,7 +3,9 @@
 //! the plot, and with the trace CSV and the plot, at 10, 100 and 1000
 //! modes, and with the trace as NumPy `.npy` and the plot, against
 //! `EngineState::process_block` over the same samples. The
-//! compile is left out of both (it is printed by the command separately).
+//! compile is left out of both (it is printed by the command separately),
+//! and each timed render writes new files (the last ones are deleted first,
+//! untimed).
 //!
 //! `cargo bench -p xtask --bench render_command` prints criterion's
 //! timings and, at the end, the ratios measured in one run with the
@@ -14,7 +16,7 @@
 //! free of the engine, into no file (the floor of the CSV render on this
 //! machine: shortest round-trip digits of six numbers per row).
 
-use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
 use modal_contact::compile::{compile, CompiledScene};
 use modal_contact::engine::{EngineState, Motion};
 use modal_contact::render::{render_stream, CsvTrace, TraceSink};
@@ -150,6 +152,16 @@ fn text_alone(rows: &[(Motion, f64)], n: usize) {
     csv.finish().expect("finish");
 }
 
+/// Remove the last render's files, so that each timed render writes new
+/// ones (overwriting a file first truncates it, which costs the kernel time
+/// in proportion to the old file, not to the render: docs/design.md,
+/// "Offline rendering").
+fn fresh(dir: &std::path::Path) {
+    for f in ["bench.wav", "bench.csv", "bench.svg", "bench.npy"] {
+        let _ = std::fs::remove_file(dir.join(f));
+    }
+}
+
 fn scratch() -> PathBuf {
     let d = std::env::temp_dir().join(format!("render-command-bench-{}", std::process::id()));
     std::fs::create_dir_all(&d).expect("temp dir");
@@ -169,7 +181,13 @@ fn command(c: &mut Criterion) {
             g.bench_with_input(
                 BenchmarkId::new(format!("{v:?}"), n_modes),
                 &n_modes,
-                |b, _| b.iter(|| run(v, &sc, n, &dir)),
+                |b, _| {
+                    b.iter_batched(
+                        || fresh(&dir),
+                        |_| run(v, &sc, n, &dir),
+                        BatchSize::PerIteration,
+                    )
+                },
             );
         }
     }
@@ -207,9 +225,11 @@ fn summary(_: &mut Criterion) {
             text_alone(&kept.0, 3 * n);
             text[round] = (t0.elapsed().as_secs_f64() - t1) / (2 * n) as f64;
             for (k, v) in VARIANTS.iter().enumerate() {
+                fresh(&dir);
                 let t0 = Instant::now();
                 run(*v, &sc, n, &dir);
                 let t1 = t0.elapsed().as_secs_f64();
+                fresh(&dir);
                 let t0 = Instant::now();
                 run(*v, &sc, 3 * n, &dir);
                 let t3 = t0.elapsed().as_secs_f64();
