@@ -62,11 +62,12 @@
 //! (the spring starts unstretched: the residual of rounding at the root is
 //! taken up by the rod offset, which adds no energy) and rises.
 
+use super::kernel::BlockProps;
 use super::{dot, EngineState, Phase};
 use super::{kernel, vmath, SimdPath};
 use crate::compile::event::{THETA_RESOLVED, THETA_SLOW};
 use crate::compile::{CompiledPhase, CompiledScene};
-use crate::physics::block::{exp2, mul2};
+use crate::physics::block::{exp2, mul2, OscBlocks};
 
 /// Highest degree of the slow blocks' polynomial (`2^25 / 25! = 2e-18`).
 pub const MAX_DEGREE: usize = 24;
@@ -769,30 +770,9 @@ impl EngineState {
         let ph = current_phase(self, scene);
         let gens = ph.gens.as_ref().expect("block phase");
         let nb = gens.len();
-        // Oscillatory blocks: exp, sin and cos of every block in one
-        // vectorised batch, then `exp(G tau)` from them as in
-        // `OscForm::exp_from`. Blocks with real eigenvalues: exp2.
         let o = &ph.osc;
-        let [mt, wt, e, sn, cs] = &mut self.part_args;
-        let (mt, wt) = (&mut mt[..nb], &mut wt[..nb]);
-        for k in 0..nb {
-            mt[k] = o.m[k] * tau;
-            wt[k] = o.w[k] * tau;
-        }
-        let (e, sn, cs) = (&mut e[..nb], &mut sn[..nb], &mut cs[..nb]);
-        vmath::exp_sincos(self.simd, mt, wt, e, sn, cs);
         let p = &mut self.p_part;
-        let (p00, p01) = (&mut p.p00[..nb], &mut p.p01[..nb]);
-        let (p10, p11) = (&mut p.p10[..nb], &mut p.p11[..nb]);
-        let [n0, n1, n2, n3] = &o.n_w;
-        let (n0, n1, n2, n3) = (&n0[..nb], &n1[..nb], &n2[..nb], &n3[..nb]);
-        for k in 0..nb {
-            let (es, ec) = (e[k] * sn[k], e[k] * cs[k]);
-            p00[k] = ec + es * n0[k];
-            p01[k] = es * n1[k];
-            p10[k] = es * n2[k];
-            p11[k] = ec + es * n3[k];
-        }
+        osc_propagators(self.simd, o, tau, &mut self.part_args, p, nb);
         for &k in &o.other {
             p.set(k, &exp2(&gens[k], tau));
         }
@@ -827,13 +807,7 @@ impl EngineState {
             } else {
                 (&mut ps.s, &self.p_part)
             };
-            let nb = ph.dim / 2;
-            for k in 0..nb {
-                let p = props.get(k);
-                let (a, b) = (s[k], s[nb + k]);
-                s[k] = p[0] * a + p[1] * b;
-                s[nb + k] = p[2] * a + p[3] * b;
-            }
+            kernel::step_blocks(self.simd, props, &mut s[..ph.dim / 2 * 2]);
         }
         if !in_contact {
             self.x_h += self.v_h * tau - 0.5 * self.g * tau * tau;
@@ -1085,29 +1059,34 @@ impl EngineState {
         let ps = &mut self.phases[phase.index()];
         let props = if full { &ps.props } else { &self.p_part };
         let (s, next) = (&ps.s, &mut ps.next);
-        let (ev, evd) = (&ph.ev, &ph.ev_d);
-        let (c1, c4, e) = (&ph.ev_d_block, &ph.ev_d4_block, &ph.ev_block);
-        let c2 = &ph.ev_dd_block;
-        let mut h = HermiteSums::default();
-        for k in 0..nb {
-            let (a, b) = (s[k], s[nb + k]);
-            let p = props.get(k);
-            // exactly `advance_by`'s step
-            let (a1, b1) = (p[0] * a + p[1] * b, p[2] * a + p[3] * b);
-            next[k] = a1;
-            next[nb + k] = b1;
-            let (r0, r1, q0, q1) = (ev[k], ev[nb + k], evd[k], evd[nb + k]);
-            h.f0 += r0 * a + r1 * b;
-            h.d0 += q0 * a + q1 * b;
-            h.f1 += r0 * a1 + r1 * b1;
-            h.d1 += q0 * a1 + q1 * b1;
-            let norm = (a * a + b * b).sqrt();
-            h.rem += hermite_block(c1[k], c4[k], e[k], dt4, tail) * norm;
-            h.m4 += c4[k] * norm;
-            h.m2 += c2[k] * norm;
-            h.mag += (e[k] + tau * c1[k]) * norm;
-            h.mag_d += c1[k] * norm;
-        }
+        let rows = kernel::HermiteRows {
+            ev: &ph.ev,
+            ev_d: &ph.ev_d,
+            c1: &ph.ev_d_block,
+            c2: &ph.ev_dd_block,
+            c4: &ph.ev_d4_block,
+            e: &ph.ev_block,
+        };
+        let [f0, d0, f1, d1, rem, m4, m2, mag, mag_d] = kernel::hermite_step_sums(
+            self.simd,
+            props,
+            &s[..2 * nb],
+            next,
+            &rows,
+            [dt4, tail, tau],
+        );
+        let mut h = HermiteSums {
+            f0,
+            d0,
+            f1,
+            d1,
+            rem,
+            m4,
+            m2,
+            mag,
+            mag_d,
+            ..HermiteSums::default()
+        };
         if in_contact {
             let off = scene.offsets.pi / scene.sk;
             h.f0 += off;
@@ -1346,6 +1325,71 @@ struct Allowance {
 /// The whole blocks' rounding (their bounds come from their own state, per
 /// node).
 #[inline]
+/// The first `nb` blocks' propagators over `tau` into `p`, for the
+/// oscillatory blocks of `o` (the others are left to the caller): `exp`,
+/// `sin` and `cos` of every block in one vectorised batch
+/// ([`vmath::exp_sincos`]), then `exp(G tau)` from them as in
+/// `OscForm::exp_from` (the same products and sums, no fused multiply-add,
+/// so the same bits on either path). O(N). \[audio-thread\]
+fn osc_propagators(
+    simd: SimdPath,
+    o: &OscBlocks,
+    tau: f64,
+    args: &mut [Vec<f64>; 5],
+    p: &mut BlockProps,
+    nb: usize,
+) {
+    #[inline(always)]
+    fn body(
+        simd: SimdPath,
+        o: &OscBlocks,
+        tau: f64,
+        args: &mut [Vec<f64>; 5],
+        p: &mut BlockProps,
+        nb: usize,
+    ) {
+        let [mt, wt, e, sn, cs] = args;
+        let (mt, wt) = (&mut mt[..nb], &mut wt[..nb]);
+        let (m, w) = (&o.m[..nb], &o.w[..nb]);
+        for k in 0..nb {
+            mt[k] = m[k] * tau;
+            wt[k] = w[k] * tau;
+        }
+        let (e, sn, cs) = (&mut e[..nb], &mut sn[..nb], &mut cs[..nb]);
+        vmath::exp_sincos(simd, mt, wt, e, sn, cs);
+        let (p00, p01) = (&mut p.p00[..nb], &mut p.p01[..nb]);
+        let (p10, p11) = (&mut p.p10[..nb], &mut p.p11[..nb]);
+        let [n0, n1, n2, n3] = &o.n_w;
+        let (n0, n1, n2, n3) = (&n0[..nb], &n1[..nb], &n2[..nb], &n3[..nb]);
+        for k in 0..nb {
+            let (es, ec) = (e[k] * sn[k], e[k] * cs[k]);
+            p00[k] = ec + es * n0[k];
+            p01[k] = es * n1[k];
+            p10[k] = es * n2[k];
+            p11[k] = ec + es * n3[k];
+        }
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn body_avx2(
+        simd: SimdPath,
+        o: &OscBlocks,
+        tau: f64,
+        args: &mut [Vec<f64>; 5],
+        p: &mut BlockProps,
+        nb: usize,
+    ) {
+        body(simd, o, tau, args, p, nb)
+    }
+    match simd {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `detect()` makes, after
+        // checking AVX2 and FMA on this CPU.
+        SimdPath::Avx2Fma(_) => unsafe { body_avx2(simd, o, tau, args, p, nb) },
+        _ => body(simd, o, tau, args, p, nb),
+    }
+}
+
 fn whole_allowance(ph: &CompiledPhase, s: &[f64], al: &mut Allowance) {
     let nb = ph.dim / 2;
     for (j, &k) in ph.search.whole.iter().enumerate() {

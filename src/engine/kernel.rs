@@ -125,8 +125,9 @@ impl BlockProps {
         self.p10[k] = p[2];
         self.p11[k] = p[3];
     }
-    /// Block `k`.
-    #[inline]
+    /// Block `k` (the tests' view; the engine steps whole arrays with
+    /// [`step_blocks`]).
+    #[cfg(test)]
     pub fn get(&self, k: usize) -> [f64; 4] {
         [self.p00[k], self.p01[k], self.p10[k], self.p11[k]]
     }
@@ -808,6 +809,175 @@ fn margin_sums_body(s: &[f64], c: &[f64], e: &[f64], h: f64) -> (f64, f64, f64) 
     (lane_sum(ee), lane_sum(w), lane_sum(m))
 }
 
+/// Step every block of `s` (`2 nb` entries, block `k` at `k` and `nb + k`)
+/// by its propagator in `p`, in place: `(a, b) <- P_k (a, b)` with the
+/// scalar step's arithmetic (two products and a sum per entry, no fused
+/// multiply-add), so bit for bit the same on either `path`. O(N).
+/// \[audio-thread\]
+#[inline]
+pub fn step_blocks(path: SimdPath, p: &BlockProps, s: &mut [f64]) {
+    match path {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as in `run_block`.
+        SimdPath::Avx2Fma(_) => unsafe { step_blocks_avx2(p, s) },
+        _ => step_blocks_body(p, s),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn step_blocks_avx2(p: &BlockProps, s: &mut [f64]) {
+    step_blocks_body(p, s)
+}
+
+#[inline(always)]
+fn step_blocks_body(p: &BlockProps, s: &mut [f64]) {
+    let nb = s.len() / 2;
+    let (sa, sb) = s.split_at_mut(nb);
+    let sb = &mut sb[..nb];
+    let (p00, p01, p10, p11) = (&p.p00[..nb], &p.p01[..nb], &p.p10[..nb], &p.p11[..nb]);
+    for k in 0..nb {
+        let (a, b) = (sa[k], sb[k]);
+        sa[k] = p00[k] * a + p01[k] * b;
+        sb[k] = p10[k] * a + p11[k] * b;
+    }
+}
+
+/// The rows a Hermite step reads, each per block (`ev`, `ev_d`: `2 nb`
+/// entries; the bound weights `c1, c2, c4, e`: `nb`).
+pub struct HermiteRows<'a> {
+    /// The event row.
+    pub ev: &'a [f64],
+    /// Its slope row.
+    pub ev_d: &'a [f64],
+    /// Per block: the bounds of the first, second and fourth derivative
+    /// and of the value, per unit of `|s_k|`.
+    pub c1: &'a [f64],
+    /// See `c1`.
+    pub c2: &'a [f64],
+    /// See `c1`.
+    pub c4: &'a [f64],
+    /// See `c1`.
+    pub e: &'a [f64],
+}
+
+/// One Hermite step over the blocks: `next = P s` (each block as
+/// [`step_blocks`] steps it, bit for bit) and the sums the certificates
+/// need, `[f0, d0, f1, d1, rem, m4, m2, mag, mag_d]`: the event row and its
+/// slope row on `s` and on `next`, `sum_k hermite_block(..) |s_k|`, `sum_k
+/// c4_k |s_k|`, `sum_k c2_k |s_k|`, `sum_k (e_k + tau c1_k) |s_k|` and `sum_k
+/// c1_k |s_k|`. Block `k` adds into lane `k mod 4` (the last `nb mod 4`
+/// blocks into lanes 0.. after the whole groups), the lanes reduced in a
+/// fixed order: the same bits on either `path`. `k = [dt4, tail, tau]`.
+/// O(N). \[audio-thread\]
+#[inline]
+pub fn hermite_step_sums(
+    path: SimdPath,
+    p: &BlockProps,
+    s: &[f64],
+    next: &mut [f64],
+    rows: &HermiteRows<'_>,
+    k: [f64; 3],
+) -> [f64; 9] {
+    match path {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as in `run_block`.
+        SimdPath::Avx2Fma(_) => unsafe { hermite_step_avx2(p, s, next, rows, k) },
+        _ => hermite_step_body(p, s, next, rows, k),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn hermite_step_avx2(
+    p: &BlockProps,
+    s: &[f64],
+    next: &mut [f64],
+    rows: &HermiteRows<'_>,
+    k: [f64; 3],
+) -> [f64; 9] {
+    hermite_step_body(p, s, next, rows, k)
+}
+
+#[inline(always)]
+fn hermite_step_body(
+    p: &BlockProps,
+    s: &[f64],
+    next: &mut [f64],
+    rows: &HermiteRows<'_>,
+    [dt4, tail, tau]: [f64; 3],
+) -> [f64; 9] {
+    let nb = s.len() / 2;
+    let (sa, sb) = s.split_at(nb);
+    let sb = &sb[..nb];
+    let (na, nbk) = next[..2 * nb].split_at_mut(nb);
+    let (p00, p01, p10, p11) = (&p.p00[..nb], &p.p01[..nb], &p.p10[..nb], &p.p11[..nb]);
+    let (r0, r1) = rows.ev[..2 * nb].split_at(nb);
+    let (q0, q1) = rows.ev_d[..2 * nb].split_at(nb);
+    let (c1, c2, c4, e) = (
+        &rows.c1[..nb],
+        &rows.c2[..nb],
+        &rows.c4[..nb],
+        &rows.e[..nb],
+    );
+    let mut acc = [[0.0f64; LANES]; 9];
+    // one block's step and terms
+    let terms = |[a, b, p00, p01, p10, p11, r0, r1, q0, q1, c1, c2, c4, e]: [f64; 14]| {
+        let (a1, b1) = (p00 * a + p01 * b, p10 * a + p11 * b);
+        let norm = (a * a + b * b).sqrt();
+        (
+            (a1, b1),
+            [
+                r0 * a + r1 * b,
+                q0 * a + q1 * b,
+                r0 * a1 + r1 * b1,
+                q0 * a1 + q1 * b1,
+                super::exact::hermite_block(c1, c4, e, dt4, tail) * norm,
+                c4 * norm,
+                c2 * norm,
+                (e + tau * c1) * norm,
+                c1 * norm,
+            ],
+        )
+    };
+    let full = nb - nb % LANES;
+    for k0 in (0..full).step_by(LANES) {
+        let (a, b) = (lanes(sa, k0), lanes(sb, k0));
+        let (x00, x01, x10, x11) = (
+            lanes(p00, k0),
+            lanes(p01, k0),
+            lanes(p10, k0),
+            lanes(p11, k0),
+        );
+        let (xr0, xr1, xq0, xq1) = (lanes(r0, k0), lanes(r1, k0), lanes(q0, k0), lanes(q1, k0));
+        let (xc1, xc2, xc4, xe) = (lanes(c1, k0), lanes(c2, k0), lanes(c4, k0), lanes(e, k0));
+        let (mut a1, mut b1) = ([0.0f64; LANES], [0.0f64; LANES]);
+        for l in 0..LANES {
+            let ((a1l, b1l), t) = terms([
+                a[l], b[l], x00[l], x01[l], x10[l], x11[l], xr0[l], xr1[l], xq0[l], xq1[l], xc1[l],
+                xc2[l], xc4[l], xe[l],
+            ]);
+            (a1[l], b1[l]) = (a1l, b1l);
+            for i in 0..9 {
+                acc[i][l] += t[i];
+            }
+        }
+        na[k0..k0 + LANES].copy_from_slice(&a1);
+        nbk[k0..k0 + LANES].copy_from_slice(&b1);
+    }
+    for k in full..nb {
+        let ((a1, b1), t) = terms([
+            sa[k], sb[k], p00[k], p01[k], p10[k], p11[k], r0[k], r1[k], q0[k], q1[k], c1[k], c2[k],
+            c4[k], e[k],
+        ]);
+        (na[k], nbk[k]) = (a1, b1);
+        for i in 0..9 {
+            acc[i][k - full] += t[i];
+        }
+    }
+    acc.map(lane_sum)
+}
+
 /// The Hermite certificate's sums of a block state (`EngineState`'s
 /// `hermite_margin`) for `[dt4, tail, dt]`: `(sum_k min(c4_k dt4, 2 e_k +
 /// tail c1_k) |s_k|, sum_k (e_k + dt c1_k) |s_k|)`, each summed block after
@@ -1477,6 +1647,93 @@ mod tests {
                 assert!(
                     bits(rem, want_rem) && bits(mag, want_mag),
                     "{nb} blocks {path:?}: Hermite sums"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn hermite_step_is_the_scalar_step_with_lane_sums_bit_for_bit() {
+        // every tail length, both paths: the stepped state is the scalar
+        // step's (what `advance_by` did block by block), the sums are the
+        // lanes' (block `k` into lane `k mod 4`); and the lanes' sums are
+        // within the certificates' rounding allowance `(2 nb + 16) u mag`
+        // of the sequential sums the engine took before
+        for nb in [1, 2, 3, 4, 5, 7, 8, 9, 37, 100, 1003] {
+            let (p, s, rows) = setup(nb);
+            let w = |f: &dyn Fn(usize) -> f64| (0..nb).map(f).collect::<Vec<f64>>();
+            let c1 = w(&|k| 0.3 + (k as f64 * 0.7).sin().abs());
+            let c2 = w(&|k| 2.0 + (k as f64 * 0.3).cos());
+            let c4 = w(&|k| 10.0 + (k * k % 13) as f64);
+            let e = w(&|k| 1e-3 * (1.0 + (k % 5) as f64));
+            let hr = HermiteRows {
+                ev: &rows[0],
+                ev_d: &rows[1],
+                c1: &c1,
+                c2: &c2,
+                c4: &c4,
+                e: &e,
+            };
+            let (dt4, tail, tau) = (1e-3, 0.2, 0.5);
+            let mut want_next = s.clone();
+            for k in 0..nb {
+                let (a, b) = (s[k], s[nb + k]);
+                let q = p.get(k);
+                want_next[k] = q[0] * a + q[1] * b;
+                want_next[nb + k] = q[2] * a + q[3] * b;
+            }
+            let (mut lanes_acc, mut seq) = ([[0.0f64; LANES]; 9], [0.0f64; 9]);
+            let mut abs = [0.0f64; 9];
+            for k in 0..nb {
+                let (a, b) = (s[k], s[nb + k]);
+                let (a1, b1) = (want_next[k], want_next[nb + k]);
+                let norm = (a * a + b * b).sqrt();
+                let (r, q) = (&rows[0], &rows[1]);
+                let t = [
+                    r[k] * a + r[nb + k] * b,
+                    q[k] * a + q[nb + k] * b,
+                    r[k] * a1 + r[nb + k] * b1,
+                    q[k] * a1 + q[nb + k] * b1,
+                    super::super::exact::hermite_block(c1[k], c4[k], e[k], dt4, tail) * norm,
+                    c4[k] * norm,
+                    c2[k] * norm,
+                    (e[k] + tau * c1[k]) * norm,
+                    c1[k] * norm,
+                ];
+                for i in 0..9 {
+                    lanes_acc[i][k % LANES] += t[i];
+                    seq[i] += t[i];
+                    abs[i] += t[i].abs();
+                }
+            }
+            let want = lanes_acc.map(lane_sum);
+            for i in 0..9 {
+                // each order rounds within `nb u` of the magnitudes summed
+                let allowance = (2 * nb + 16) as f64 * f64::EPSILON * abs[i];
+                assert!(
+                    (want[i] - seq[i]).abs() <= allowance,
+                    "{nb} blocks: sum {i} reordered by {:e}, allowance {allowance:e}",
+                    (want[i] - seq[i]).abs()
+                );
+            }
+            for path in [SimdPath::detect(), SimdPath::Generic] {
+                let mut next = vec![f64::NAN; 2 * nb];
+                let got = hermite_step_sums(path, &p, &s, &mut next, &hr, [dt4, tail, tau]);
+                let bits =
+                    |x: &[f64], y: &[f64]| x.iter().zip(y).all(|(a, b)| a.to_bits() == b.to_bits());
+                assert!(
+                    bits(&next, &want_next),
+                    "{nb} blocks {path:?}: stepped state"
+                );
+                assert!(
+                    bits(&got, &want),
+                    "{nb} blocks {path:?}: sums {got:?} against {want:?}"
+                );
+                let mut stepped = s.clone();
+                step_blocks(path, &p, &mut stepped);
+                assert!(
+                    bits(&stepped, &want_next),
+                    "{nb} blocks {path:?}: step_blocks"
                 );
             }
         }
