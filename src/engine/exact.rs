@@ -1322,15 +1322,14 @@ struct Allowance {
     gamma: f64,
 }
 
-/// The whole blocks' rounding (their bounds come from their own state, per
-/// node).
-#[inline]
 /// The first `nb` blocks' propagators over `tau` into `p`, for the
 /// oscillatory blocks of `o` (the others are left to the caller): `exp`,
 /// `sin` and `cos` of every block in one vectorised batch
-/// ([`vmath::exp_sincos`]), then `exp(G tau)` from them as in
-/// `OscForm::exp_from` (the same products and sums, no fused multiply-add,
-/// so the same bits on either path). O(N). \[audio-thread\]
+/// ([`vmath::exp_sincos`], whose two paths differ by their fused
+/// multiply-adds), then `exp(G tau)` from them as in `OscForm::exp_from`:
+/// the same products and sums as the scalar loop, without fused
+/// multiply-adds, compiled for AVX2 where the CPU has it. O(N).
+/// \[audio-thread\]
 fn osc_propagators(
     simd: SimdPath,
     o: &OscBlocks,
@@ -1390,6 +1389,9 @@ fn osc_propagators(
     }
 }
 
+/// The whole blocks' rounding (their bounds come from their own state, per
+/// node).
+#[inline]
 fn whole_allowance(ph: &CompiledPhase, s: &[f64], al: &mut Allowance) {
     let nb = ph.dim / 2;
     for (j, &k) in ph.search.whole.iter().enumerate() {
