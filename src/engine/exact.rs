@@ -1484,7 +1484,54 @@ fn dense_apply(
 mod tests {
     use super::*;
     use crate::compile::compile;
+    use crate::engine::ScaleProps;
     use crate::presets;
+
+    #[test]
+    fn propagators_made_ahead_are_the_computed_ones_bit_for_bit() {
+        // every one-contact preset at three scales: the propagators copied
+        // from a `ScaleProps` are `set_time_scale`'s bit for bit; one made
+        // for another scene (other block counts or step) is not used
+        let other = compile(
+            &presets::scene(presets::one_contact().next().unwrap()).unwrap(),
+            48000.0,
+        )
+        .unwrap();
+        for i in presets::one_contact() {
+            let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
+            if sc.free.gens.is_none() || sc.contact.gens.is_none() {
+                continue;
+            }
+            for s in [0.5, 1.0, 2f64.powf(7.0 / 12.0)] {
+                let mut want = EngineState::new(&sc);
+                want.set_time_scale(&sc, s).unwrap();
+                for pre in [ScaleProps::new(&sc, s), ScaleProps::new(&other, s)] {
+                    let mut got = EngineState::new(&sc);
+                    got.set_time_scale_from(&sc, &pre).unwrap();
+                    assert_eq!(got.step_s.to_bits(), want.step_s.to_bits());
+                    for ph in [Phase::Free, Phase::Contact] {
+                        let (g, w) = (
+                            &got.phases[ph.index()].props,
+                            &want.phases[ph.index()].props,
+                        );
+                        for (a, b) in [
+                            (&g.p00, &w.p00),
+                            (&g.p01, &w.p01),
+                            (&g.p10, &w.p10),
+                            (&g.p11, &w.p11),
+                        ] {
+                            assert!(
+                                a.iter()
+                                    .zip(b.iter())
+                                    .all(|(x, y)| x.to_bits() == y.to_bits()),
+                                "preset {i} at {s}: {ph:?} propagators"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn dot3_is_three_dots_bit_for_bit() {

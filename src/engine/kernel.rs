@@ -117,6 +117,16 @@ impl BlockProps {
     pub fn len(&self) -> usize {
         self.p00.len()
     }
+    /// Blocks `0..src.len()` from `src` (the rest, if any, as they are).
+    /// Panics if `src` has more blocks; callers check the counts.
+    /// \[audio-thread\]
+    pub fn copy_from(&mut self, src: &BlockProps) {
+        let n = src.len();
+        self.p00[..n].copy_from_slice(&src.p00);
+        self.p01[..n].copy_from_slice(&src.p01);
+        self.p10[..n].copy_from_slice(&src.p10);
+        self.p11[..n].copy_from_slice(&src.p11);
+    }
     /// Store block `k`.
     #[inline]
     pub fn set(&mut self, k: usize, p: &[f64; 4]) {

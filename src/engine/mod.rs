@@ -677,8 +677,30 @@ impl EngineState {
         Ok(true)
     }
 
+    /// [`set_time_scale`](Self::set_time_scale) at `pre`'s scale, its
+    /// propagators copied from `pre` instead of computed (bit for bit the
+    /// same: `pre` was made by the same function for `scene`). A `pre`
+    /// made for another scene's step or block counts is not used: the
+    /// propagators are then computed. O(N) copies, no transcendental
+    /// function, no allocation. \[audio-thread\]
+    pub fn set_time_scale_from(
+        &mut self,
+        scene: &CompiledScene,
+        pre: &ScaleProps,
+    ) -> Result<(), TimeScaleError> {
+        let s = pre.s;
+        if !(s.is_finite() && s > 0.0) {
+            return Err(TimeScaleError::Invalid);
+        }
+        if s != 1.0 && (scene.free.dense.is_some() || scene.contact.dense.is_some()) {
+            return Err(TimeScaleError::DenseFallback);
+        }
+        self.derive_for(scene, s, false, Some(pre));
+        Ok(())
+    }
+
     fn set_time_scale_inner(&mut self, scene: &CompiledScene, s: f64) {
-        self.derive_for(scene, s, false);
+        self.derive_for(scene, s, false, None);
     }
 
     /// Everything [`set_time_scale_inner`](Self::set_time_scale_inner)
@@ -686,8 +708,17 @@ impl EngineState {
     /// phase's propagators are already those of `scene` at `s` (the same
     /// free phase, the same scale), so only the contact phase's are
     /// computed (one exponential and one sine/cosine per block fewer).
-    fn derive_for(&mut self, scene: &CompiledScene, s: f64, free_kept: bool) {
+    /// `pre`: the propagators at `s`, made ahead ([`ScaleProps`]), copied
+    /// where they fit the scene.
+    fn derive_for(
+        &mut self,
+        scene: &CompiledScene,
+        s: f64,
+        free_kept: bool,
+        pre: Option<&ScaleProps>,
+    ) {
         let free_kept = free_kept && s == self.time_scale && scene.h * s == self.step_s;
+        let pre = pre.filter(|p| p.fits(scene, s));
         // physical velocity is preserved across a change of scale
         let v_phys = self.v_h * self.time_scale;
         self.time_scale = s;
@@ -696,10 +727,16 @@ impl EngineState {
         self.rest_run = None;
         self.v_h = v_phys / s;
         if !free_kept {
-            fill_props(&mut self.phases[FREE].props, &scene.free, self.step_s);
+            match pre {
+                Some(p) => self.phases[FREE].props.copy_from(&p.free),
+                None => fill_props(&mut self.phases[FREE].props, &scene.free, self.step_s),
+            }
             self.phases[FREE].split.update(&scene.free, self.step_s);
         }
-        fill_props(&mut self.phases[CONTACT].props, &scene.contact, self.step_s);
+        match pre {
+            Some(p) => self.phases[CONTACT].props.copy_from(&p.contact),
+            None => fill_props(&mut self.phases[CONTACT].props, &scene.contact, self.step_s),
+        }
         self.phases[CONTACT]
             .split
             .update(&scene.contact, self.step_s);
@@ -1924,7 +1961,7 @@ impl EngineState {
             "rebind_same_free: the free phases differ"
         );
         let scale = self.time_scale;
-        self.derive_for(new, scale, true);
+        self.derive_for(new, scale, true, None);
         true
     }
 
@@ -2130,6 +2167,55 @@ fn fill_props(p: &mut BlockProps, ph: &CompiledPhase, dt: f64) {
         for (k, g) in gens.iter().enumerate() {
             p.set(k, &ph.osc.get(k).map_or_else(|| exp2(g, dt), |o| o.exp(dt)));
         }
+    }
+}
+
+/// A scene's one-sample block propagators at one time scale, both phases:
+/// what [`EngineState::set_time_scale`] computes (one `exp` and one
+/// `sin_cos` per block), made ahead off the audio thread so a note-on at a
+/// common scale copies them instead ([`EngineState::set_time_scale_from`]).
+/// The instrument keeps one per MIDI key of the played scene
+/// (docs/design.md, "The instrument"). \[worker\]
+#[derive(Clone, Debug)]
+pub struct ScaleProps {
+    s: f64,
+    /// The step they were made for (`scene.h * s`).
+    step: f64,
+    free: BlockProps,
+    contact: BlockProps,
+}
+
+impl ScaleProps {
+    /// The propagators of `scene` at time scale `s` (the same function,
+    /// so the same bits, as `set_time_scale`'s). \[worker\]
+    pub fn new(scene: &CompiledScene, s: f64) -> Self {
+        let step = scene.h * s;
+        let of = |ph: &CompiledPhase| {
+            let mut p = BlockProps::new(ph.gens.as_ref().map_or(0, Vec::len));
+            fill_props(&mut p, ph, step);
+            p
+        };
+        Self {
+            s,
+            step,
+            free: of(&scene.free),
+            contact: of(&scene.contact),
+        }
+    }
+
+    /// The time scale they are for.
+    pub fn scale(&self) -> f64 {
+        self.s
+    }
+
+    /// Made for `scene` at `s`: the same step and the same block counts
+    /// (a check, not a proof: the caller pairs them with their scene).
+    fn fits(&self, scene: &CompiledScene, s: f64) -> bool {
+        let nb = |ph: &CompiledPhase| ph.gens.as_ref().map_or(0, Vec::len);
+        self.s == s
+            && self.step == scene.h * s
+            && self.free.len() == nb(&scene.free)
+            && self.contact.len() == nb(&scene.contact)
     }
 }
 

@@ -314,7 +314,7 @@ impl Instrument {
         if !v.active || v.key != key && kit.pitched {
             // woken (or stolen) at rest, at the key's pitch and the bend
             let base = if kit.pitched && tracking {
-                2f64.powf((f64::from(key) - root) / 12.0)
+                super::prepared::key_scale(key, root)
             } else {
                 1.0
             };

@@ -208,6 +208,9 @@ pub struct Stats {
     pub silent_stops: u64,
     /// Note-ons.
     pub notes: u64,
+    /// New notes whose propagators were copied from those made ahead for
+    /// their key (`Prepared`'s key propagators), not computed.
+    pub key_props_copied: u64,
     /// Voice samples rendered under a pressed damper (docs/plugin.md,
     /// "Pressure and the mod wheel").
     pub pressed_samples: u64,

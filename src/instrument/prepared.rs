@@ -10,7 +10,7 @@ use super::{
     lookahead_samples, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_VOICES, OUTPUT_BAND_FRACTION,
 };
 use crate::compile::{compile_with, CompileError, CompiledScene};
-use crate::engine::EngineState;
+use crate::engine::{EngineState, ScaleProps};
 use crate::presets;
 use crate::scene::{Scene, SceneError, Switching};
 
@@ -46,6 +46,12 @@ pub struct Prepared {
     /// mallet on its object alone (what the instrument reads of a scene:
     /// its spectrum, its costs), which no voice plays.
     pub kit: Option<Box<Kit>>,
+    /// The played scene's propagators at each MIDI key's pitch (`[key]`,
+    /// the scale a note-on computes with pitch tracking and no bend), so a
+    /// new note copies them instead of computing an exponential and a sine
+    /// per block on the audio thread; empty for a kit and for a scene with
+    /// a dense phase (which plays at its root pitch only). \[worker\]
+    pub(super) key_props: Vec<ScaleProps>,
 }
 
 /// The scene as played, the one released voices continue on, and the
@@ -659,18 +665,34 @@ fn assemble(
     kit: Option<Box<Kit>>,
 ) -> Box<Prepared> {
     let states = voice_states(&scenes.scene, rate_hz);
+    let root = root_note(base);
+    let sc = &scenes.scene;
+    let key_props = if kit.is_some() || sc.free.dense.is_some() || sc.contact.dense.is_some() {
+        Vec::new()
+    } else {
+        (0..=127u8)
+            .map(|key| ScaleProps::new(sc, key_scale(key, root)))
+            .collect()
+    };
     Box::new(Prepared {
         revision,
         rate_hz,
         params: *params,
-        root_note: root_note(base),
+        root_note: root,
         bouncing: base.hammer.gravity_m_per_s2 > 0.0,
         switching_used,
         fallback_note,
         scenes,
         states,
         kit,
+        key_props,
     })
+}
+
+/// The time scale of MIDI `key` with pitch tracking, the scene's root at
+/// `root` (what a note-on plays before any bend). \[any-thread\]
+pub(super) fn key_scale(key: u8, root: f64) -> f64 {
+    2f64.powf((key as f64 - root) / 12.0)
 }
 
 /// A fresh engine state per voice for `scene`. \[worker\] \[main-thread\]

@@ -1756,3 +1756,50 @@ fn new_notes_take_their_later_contacts_from_the_store() {
         assert_eq!(misses, 0, "{preset}");
     }
 }
+
+/// A new note copies its key's propagators, made ahead with the scene
+/// (`Prepared::key_props`), instead of computing an exponential and a sine
+/// per block: the output is the same bit for bit as with them computed at
+/// the note-on, for notes across the keyboard, chords, a retriggered key
+/// and notes under a bend (which compute theirs: the bent scale is no key's).
+#[test]
+fn key_propagators_made_ahead_play_the_same_bits() {
+    for preset in ["marimba-bar", "steel-plate", "paper-string"] {
+        let p = params(preset);
+        let ahead = prepare(&p.scene, RATE, 0).unwrap();
+        assert_eq!(ahead.key_props.len(), 128, "{preset}");
+        let root = ahead.root_note;
+        for key in [0u8, 60, 127] {
+            assert_eq!(
+                ahead.key_props[usize::from(key)].scale().to_bits(),
+                prepared::key_scale(key, root).to_bits()
+            );
+        }
+        let mut computed = prepare(&p.scene, RATE, 0).unwrap();
+        computed.key_props.clear();
+        let events = [
+            on(0, 36, 0.8),
+            on(10, 60, 0.5),
+            on(10, 67, 0.5),
+            on(20, 61, 1.0),
+            on(2000, 96, 0.7),
+            on(2500, 60, 0.9),
+            bend(3000, 0.5),
+            on(4000, 50, 0.6),
+            bend(5000, 0.0),
+            on(7000, 72, 0.6),
+        ];
+        let mut a = Instrument::new(ahead, p.play);
+        let mut b = Instrument::new(computed, p.play);
+        let ra = render(&mut a, &events, 9000);
+        let rb = render(&mut b, &events, 9000);
+        let bits = |x: &[f32]| x.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+        assert!(ra[0].iter().any(|&v| v != 0.0), "{preset}: silent");
+        assert_eq!(bits(&ra[0]), bits(&rb[0]), "{preset}: left");
+        assert_eq!(bits(&ra[1]), bits(&rb[1]), "{preset}: right");
+        // six new notes at their keys' scales (the retriggered 60 strikes
+        // its ringing voice; the note under the bend computes its own)
+        assert_eq!(a.stats.key_props_copied, 6, "{preset}");
+        assert_eq!(b.stats.key_props_copied, 0, "{preset}");
+    }
+}

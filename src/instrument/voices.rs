@@ -2,7 +2,7 @@
 //! own voice, a new note takes a free voice or steals the quietest), the
 //! damper at note-off, and silence detection.
 
-use super::prepared::{Prepared, Variant};
+use super::prepared::{key_scale, Prepared, Variant};
 use super::{
     impact_speed_m_per_s, Instrument, MAX_PRESSURE_DECAY_PER_S, MAX_VOICES, SILENCE_ENERGY_RATIO,
 };
@@ -116,7 +116,7 @@ impl Instrument {
             let st = &mut p.states[i];
             st.reset(&p.scenes.scene);
             let base = if self.play.pitch_tracking {
-                2f64.powf((key as f64 - p.root_note) / 12.0)
+                key_scale(key, p.root_note)
             } else {
                 1.0
             };
@@ -125,7 +125,17 @@ impl Instrument {
             } else {
                 base * 2f64.powf(self.bend_now / 12.0)
             };
-            match st.set_time_scale(&p.scenes.scene, s) {
+            // the key's propagators made ahead when the scale is the key's
+            // (no bend), else computed here
+            let made = p.key_props.get(usize::from(key)).filter(|k| k.scale() == s);
+            let set = match made {
+                Some(k) => {
+                    self.stats.key_props_copied += 1;
+                    st.set_time_scale_from(&p.scenes.scene, k)
+                }
+                None => st.set_time_scale(&p.scenes.scene, s),
+            };
+            match set {
                 Ok(()) => {}
                 Err(_) => {
                     self.stats.dense_pitch_fallbacks += u64::from(s != 1.0);
