@@ -1801,5 +1801,16 @@ fn key_propagators_made_ahead_play_the_same_bits() {
         // its ringing voice; the note under the bend computes its own)
         assert_eq!(a.stats.key_props_copied, 6, "{preset}");
         assert_eq!(b.stats.key_props_copied, 0, "{preset}");
+        // without pitch tracking every note plays at scale 1: the root's
+        let mut flat = p.play;
+        flat.pitch_tracking = false;
+        let mut c = Instrument::new(prepare(&p.scene, RATE, 0).unwrap(), flat);
+        let mut computed = prepare(&p.scene, RATE, 0).unwrap();
+        computed.key_props.clear();
+        let mut d = Instrument::new(computed, flat);
+        let rc = render(&mut c, &events, 9000);
+        let rd = render(&mut d, &events, 9000);
+        assert_eq!(bits(&rc[0]), bits(&rd[0]), "{preset}: untracked");
+        assert_eq!(c.stats.key_props_copied, 6, "{preset}: untracked");
     }
 }

@@ -125,9 +125,15 @@ impl Instrument {
             } else {
                 base * 2f64.powf(self.bend_now / 12.0)
             };
-            // the key's propagators made ahead when the scale is the key's
-            // (no bend), else computed here
-            let made = p.key_props.get(usize::from(key)).filter(|k| k.scale() == s);
+            // the propagators made ahead for the key's scale (the root's,
+            // scale 1, without pitch tracking) when no bend moves it, else
+            // computed here
+            let slot = if self.play.pitch_tracking {
+                usize::from(key)
+            } else {
+                p.root_note as usize
+            };
+            let made = p.key_props.get(slot).filter(|k| k.scale() == s);
             let set = match made {
                 Some(k) => {
                     self.stats.key_props_copied += 1;
