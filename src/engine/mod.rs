@@ -628,12 +628,7 @@ impl EngineState {
     /// allocation (plus O(N M) for M modes left out by the output band, see
     /// [`EngineState::set_output_band`]). \[audio-thread\]
     pub fn set_time_scale(&mut self, scene: &CompiledScene, s: f64) -> Result<(), TimeScaleError> {
-        if !(s.is_finite() && s > 0.0) {
-            return Err(TimeScaleError::Invalid);
-        }
-        if s != 1.0 && (scene.free.dense.is_some() || scene.contact.dense.is_some()) {
-            return Err(TimeScaleError::DenseFallback);
-        }
+        scale_allowed(scene, s)?;
         self.set_time_scale_inner(scene, s);
         Ok(())
     }
@@ -688,14 +683,8 @@ impl EngineState {
         scene: &CompiledScene,
         pre: &ScaleProps,
     ) -> Result<(), TimeScaleError> {
-        let s = pre.s;
-        if !(s.is_finite() && s > 0.0) {
-            return Err(TimeScaleError::Invalid);
-        }
-        if s != 1.0 && (scene.free.dense.is_some() || scene.contact.dense.is_some()) {
-            return Err(TimeScaleError::DenseFallback);
-        }
-        self.derive_for(scene, s, false, Some(pre));
+        scale_allowed(scene, pre.s)?;
+        self.derive_for(scene, pre.s, false, Some(pre));
         Ok(())
     }
 
@@ -2168,6 +2157,19 @@ fn fill_props(p: &mut BlockProps, ph: &CompiledPhase, dt: f64) {
             p.set(k, &ph.osc.get(k).map_or_else(|| exp2(g, dt), |o| o.exp(dt)));
         }
     }
+}
+
+/// Whether `scene` may run at time scale `s`: finite and positive, and 1
+/// for a scene with a dense phase (whose propagator is made at the
+/// compile's step only).
+fn scale_allowed(scene: &CompiledScene, s: f64) -> Result<(), TimeScaleError> {
+    if !(s.is_finite() && s > 0.0) {
+        return Err(TimeScaleError::Invalid);
+    }
+    if s != 1.0 && (scene.free.dense.is_some() || scene.contact.dense.is_some()) {
+        return Err(TimeScaleError::DenseFallback);
+    }
+    Ok(())
 }
 
 /// A scene's one-sample block propagators at one time scale, both phases:
