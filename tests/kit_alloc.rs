@@ -59,6 +59,10 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
+/// The counter is global: the tests take turns (another test's set-up
+/// would count as this one's allocations).
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 fn armed<R>(what: &str, f: impl FnOnce() -> R) -> R {
     let before = ALLOCS.load(Ordering::Relaxed);
     ARMED.store(true, Ordering::Relaxed);
@@ -76,6 +80,7 @@ fn armed<R>(what: &str, f: impl FnOnce() -> R) -> R {
 
 #[test]
 fn kits_allocate_nothing_on_the_audio_thread() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     const RATE: f64 = 48_000.0;
     TRACE.store(
         std::env::var_os("KIT_ALLOC_TRACE").is_some(),
@@ -152,4 +157,38 @@ fn kits_allocate_nothing_on_the_audio_thread() {
     }
     println!("{notes} events, {} swaps, {:?}", revision - 1, inst.stats);
     assert!(inst.stats.swaps > 20);
+}
+
+/// A copy of a prepared scene (`Prepared: Clone`, as the benches and a
+/// host of the library make one per instrument) plays as the original
+/// does: no allocation. A derived clone of a voice's scratch would keep
+/// only its length, not its room, and the first note at another pitch
+/// would grow it on the audio thread.
+#[test]
+fn a_cloned_prepared_scene_plays_without_allocating() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    const RATE: f64 = 48_000.0;
+    let kit = (0..presets::COUNT).find(|&i| presets::is_kit(i)).unwrap();
+    for preset in ["marimba-bar", "steel-plate", presets::PRESETS[kit].name] {
+        let sp = SceneParams {
+            preset: presets::index_of(preset).unwrap(),
+            ..SceneParams::default()
+        };
+        let original = prepare(&sp, RATE, 0).unwrap();
+        let mut inst = Instrument::new(original.clone(), PlayParams::default());
+        let (mut l, mut r) = (vec![0.0f32; 256], vec![0.0f32; 256]);
+        for round in 0..8u8 {
+            let events: Vec<TimedEvent> = (0..16u8)
+                .map(|k| TimedEvent {
+                    offset: 4 * k as usize,
+                    event: Event::NoteOn {
+                        key: 30 + 4 * k + round,
+                        velocity_norm: 0.8,
+                    },
+                })
+                .collect();
+            armed(preset, || inst.process(&events, &mut l, &mut r));
+        }
+        assert_eq!(inst.stats.notes, 128, "{preset}");
+    }
 }

@@ -151,10 +151,22 @@ pub struct ExactStats {
 /// Which terms of a phase's event function ([`crate::compile::event`])
 /// are slow (one polynomial) and which are fast (evaluated exactly), for the
 /// current step length. Recomputed when the time scale changes.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Default)]
 pub(super) struct TermSplit {
     slow: Vec<u32>,
     fast: Vec<u32>,
+}
+
+impl Clone for TermSplit {
+    /// Keeps the room, not only the length: a derived clone (a cloned
+    /// voice state) would make the next [`update`](Self::update) at
+    /// another step grow the lists on the audio thread.
+    fn clone(&self) -> Self {
+        let mut c = Self::with_capacity(self.slow.capacity().max(self.fast.capacity()));
+        c.slow.extend_from_slice(&self.slow);
+        c.fast.extend_from_slice(&self.fast);
+        c
+    }
 }
 
 impl TermSplit {
