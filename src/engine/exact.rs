@@ -1501,48 +1501,72 @@ mod tests {
 
     #[test]
     fn propagators_made_ahead_are_the_computed_ones_bit_for_bit() {
-        // every one-contact preset at three scales: the propagators copied
-        // from a `ScaleProps` are `set_time_scale`'s bit for bit; one made
-        // for another scene (other block counts or step) is not used
+        // every one-contact preset at three scales, with every mode heard
+        // and with an output band that leaves the top modes out: the
+        // propagators and output rows copied from a `ScaleProps` are
+        // `set_time_scale`'s bit for bit; one made for another scene
+        // (other block counts or step) is not used, nor are band rows
+        // made for another band
         let other = compile(
             &presets::scene(presets::one_contact().next().unwrap()).unwrap(),
             48000.0,
         )
         .unwrap();
+        let bits = |a: &[f64], b: &[f64]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+        };
+        let mut band_rows_used = 0;
         for i in presets::one_contact() {
             let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
             if sc.free.gens.is_none() || sc.contact.gens.is_none() {
                 continue;
             }
             for s in [0.5, 1.0, 2f64.powf(7.0 / 12.0)] {
-                let mut want = EngineState::new(&sc);
-                want.set_time_scale(&sc, s).unwrap();
-                for pre in [ScaleProps::new(&sc, s), ScaleProps::new(&other, s)] {
-                    let mut got = EngineState::new(&sc);
-                    got.set_time_scale_from(&sc, &pre).unwrap();
-                    assert_eq!(got.step_s.to_bits(), want.step_s.to_bits());
-                    for ph in [Phase::Free, Phase::Contact] {
-                        let (g, w) = (
-                            &got.phases[ph.index()].props,
-                            &want.phases[ph.index()].props,
-                        );
-                        for (a, b) in [
-                            (&g.p00, &w.p00),
-                            (&g.p01, &w.p01),
-                            (&g.p10, &w.p10),
-                            (&g.p11, &w.p11),
-                        ] {
-                            assert!(
-                                a.iter()
-                                    .zip(b.iter())
-                                    .all(|(x, y)| x.to_bits() == y.to_bits()),
-                                "preset {i} at {s}: {ph:?} propagators"
-                            );
+                for band in [f64::INFINITY, 3000.0] {
+                    let mut want = EngineState::new(&sc);
+                    want.set_output_band(&sc, band);
+                    want.set_time_scale(&sc, s).unwrap();
+                    for (k, pre) in [
+                        ScaleProps::new(&sc, s, band),
+                        ScaleProps::new(&sc, s, 1234.5),
+                        ScaleProps::new(&other, s, band),
+                    ]
+                    .iter()
+                    .enumerate()
+                    {
+                        let mut got = EngineState::new(&sc);
+                        got.set_output_band(&sc, band);
+                        got.set_time_scale_from(&sc, pre).unwrap();
+                        assert_eq!(got.step_s.to_bits(), want.step_s.to_bits());
+                        for ph in [Phase::Free, Phase::Contact] {
+                            let (g, w) = (&got.phases[ph.index()], &want.phases[ph.index()]);
+                            for (a, b) in [
+                                (&g.props.p00, &w.props.p00),
+                                (&g.props.p01, &w.props.p01),
+                                (&g.props.p10, &w.props.p10),
+                                (&g.props.p11, &w.props.p11),
+                            ] {
+                                assert!(bits(a, b), "preset {i} at {s}: {ph:?} propagators");
+                            }
+                            for ch in 0..2 {
+                                assert!(
+                                    bits(&g.out[ch], &w.out[ch]),
+                                    "preset {i} at {s}, band {band}: {ph:?} output row {ch}"
+                                );
+                            }
+                        }
+                        assert!(bits(&got.out_c_offset, &want.out_c_offset));
+                        assert_eq!(got.band_muted_modes(), want.band_muted_modes());
+                        if k == 0 && pre.band.is_some() {
+                            assert!(want.band_muted_modes() > 0);
+                            band_rows_used += 1;
                         }
                     }
                 }
             }
         }
+        println!("band rows copied in {band_rows_used} cases");
+        assert!(band_rows_used >= 10, "{band_rows_used}");
     }
 
     #[test]

@@ -737,7 +737,7 @@ impl EngineState {
             mix_rows(&mut self.phases[CONTACT].out[ch], &scene.contact, ch, s);
         }
         self.out_c_offset = [scene.offsets.disp_l, scene.offsets.disp_r];
-        self.apply_band(scene);
+        self.apply_band(scene, pre);
         self.g = scene.g;
         self.discontinuity();
     }
@@ -768,42 +768,33 @@ impl EngineState {
         self.band_muted
     }
 
-    /// Subtract the contributions of the modes above the band from the rows
-    /// just mixed by `set_time_scale_inner`.
-    fn apply_band(&mut self, scene: &CompiledScene) {
-        self.band_muted = 0;
-        let Some(gens) = scene.free.gens.as_ref() else {
-            return;
-        };
-        if !self.band_hz.is_finite() {
-            return;
-        }
-        let nb = gens.len();
-        // omega_phys = omega_ref * s; muted when omega_ref * s > 2 pi band
-        let limit = 2.0 * std::f64::consts::PI * self.band_hz / self.time_scale;
-        let dc = scene.contact.dim;
-        for (k, g) in gens.iter().enumerate() {
-            let half_tr = 0.5 * (g[0] + g[3]);
-            let det = g[0] * g[3] - g[1] * g[2];
-            let w2 = det - half_tr * half_tr;
-            if !(w2 > limit * limit) {
-                continue;
-            }
-            self.band_muted += 1;
-            for ch in 0..2 {
-                for i in [k, nb + k] {
-                    let r = self.phases[FREE].out[ch][i];
-                    if r == 0.0 {
-                        continue;
-                    }
-                    self.phases[FREE].out[ch][i] = 0.0;
-                    for j in 0..dc {
-                        self.phases[CONTACT].out[ch][j] -= r * scene.w_fc[(i, j)];
-                    }
-                    self.out_c_offset[ch] -= r * scene.s_f_star[i];
+    /// Leave the modes above the band out of the rows just mixed by
+    /// `derive_for`: the free rows' entries zeroed, their contributions
+    /// subtracted from the contact rows and offsets, O(N M) for M modes
+    /// left out; or, where `pre` holds those contact rows for this band
+    /// (made ahead by the same function, so the same bits), O(N) copies.
+    fn apply_band(&mut self, scene: &CompiledScene, pre: Option<&ScaleProps>) {
+        let ahead = pre
+            .and_then(|p| p.band.as_ref())
+            .filter(|b| b.band_hz == self.band_hz && self.band_hz.is_finite());
+        let [free, contact] = &mut self.phases;
+        let free_rows = free.out.each_mut().map(|r| &mut r[..]);
+        self.band_muted = match ahead {
+            Some(b) => {
+                for (dst, src) in contact.out.iter_mut().zip(&b.contact) {
+                    dst.copy_from_slice(src);
                 }
+                self.out_c_offset = b.offset;
+                band_out(scene, self.band_hz, self.time_scale, free_rows, None)
             }
-        }
+            None => {
+                let carry = (
+                    contact.out.each_mut().map(|r| &mut r[..]),
+                    &mut self.out_c_offset,
+                );
+                band_out(scene, self.band_hz, self.time_scale, free_rows, Some(carry))
+            }
+        };
     }
 
     /// Launch the hammer again from `height_m` with `velocity_m_per_s`
@@ -2185,23 +2176,65 @@ pub struct ScaleProps {
     step: f64,
     free: BlockProps,
     contact: BlockProps,
+    /// The contact output rows with the output band applied, where it
+    /// leaves modes out at this scale (else `None`: the band then costs
+    /// O(N) at a note-on, nothing to make ahead).
+    band: Option<BandRows>,
+}
+
+/// A note's contact output rows and offsets at one scale with the modes
+/// above `band_hz` left out ([`EngineState::set_output_band`]): the
+/// O(N M) part of the band, made ahead.
+#[derive(Clone, Debug)]
+struct BandRows {
+    band_hz: f64,
+    contact: [Vec<f64>; 2],
+    offset: [f64; 2],
 }
 
 impl ScaleProps {
-    /// The propagators of `scene` at time scale `s` (the same function,
-    /// so the same bits, as `set_time_scale`'s). \[worker\]
-    pub fn new(scene: &CompiledScene, s: f64) -> Self {
+    /// The propagators of `scene` at time scale `s`, and its contact
+    /// output rows with the output band `band_hz` applied (the same
+    /// functions, so the same bits, as `set_time_scale`'s on a state whose
+    /// band is `band_hz`). \[worker\]
+    pub fn new(scene: &CompiledScene, s: f64, band_hz: f64) -> Self {
         let step = scene.h * s;
         let of = |ph: &CompiledPhase| {
             let mut p = BlockProps::new(ph.gens.as_ref().map_or(0, Vec::len));
             fill_props(&mut p, ph, step);
             p
         };
+        let rows = |ph: &CompiledPhase| {
+            [0, 1].map(|ch| {
+                let mut r = vec![0.0; ph.dim];
+                mix_rows(&mut r, ph, ch, s);
+                r
+            })
+        };
+        let (mut free, mut contact) = (rows(&scene.free), rows(&scene.contact));
+        let mut offset = [scene.offsets.disp_l, scene.offsets.disp_r];
+        let band_hz = if band_hz > 0.0 {
+            band_hz
+        } else {
+            f64::INFINITY
+        };
+        let muted = band_out(
+            scene,
+            band_hz,
+            s,
+            free.each_mut().map(|r| &mut r[..]),
+            Some((contact.each_mut().map(|r| &mut r[..]), &mut offset)),
+        );
         Self {
             s,
             step,
             free: of(&scene.free),
             contact: of(&scene.contact),
+            band: (muted > 0).then_some(BandRows {
+                band_hz,
+                contact,
+                offset,
+            }),
         }
     }
 
@@ -2219,6 +2252,58 @@ impl ScaleProps {
             && self.free.len() == nb(&scene.free)
             && self.contact.len() == nb(&scene.contact)
     }
+}
+
+/// Zero the entries of the free output rows `free` (mixed at time scale
+/// `s`) of the modes whose frequency is above `band_hz` (physical Hz);
+/// with `carry`, subtract each zeroed entry's contribution from the
+/// contact rows and offsets (the contact rows are the free rows carried
+/// through `s_f = W_fc s_c + s_f*`). Returns how many modes are left out.
+/// O(N), plus O(N) per mode left out with `carry`. \[audio-thread\]
+/// \[worker\]
+fn band_out(
+    scene: &CompiledScene,
+    band_hz: f64,
+    s: f64,
+    free: [&mut [f64]; 2],
+    mut carry: Option<([&mut [f64]; 2], &mut [f64; 2])>,
+) -> usize {
+    let Some(gens) = scene.free.gens.as_ref() else {
+        return 0;
+    };
+    if !band_hz.is_finite() {
+        return 0;
+    }
+    let nb = gens.len();
+    // omega_phys = omega_ref * s; muted when omega_ref * s > 2 pi band
+    let limit = 2.0 * std::f64::consts::PI * band_hz / s;
+    let dc = scene.contact.dim;
+    let mut muted = 0;
+    for (k, g) in gens.iter().enumerate() {
+        let half_tr = 0.5 * (g[0] + g[3]);
+        let det = g[0] * g[3] - g[1] * g[2];
+        let w2 = det - half_tr * half_tr;
+        if !(w2 > limit * limit) {
+            continue;
+        }
+        muted += 1;
+        for ch in 0..2 {
+            for i in [k, nb + k] {
+                let r = free[ch][i];
+                if r == 0.0 {
+                    continue;
+                }
+                free[ch][i] = 0.0;
+                if let Some((out_c, offset)) = carry.as_mut() {
+                    for j in 0..dc {
+                        out_c[ch][j] -= r * scene.w_fc[(i, j)];
+                    }
+                    offset[ch] -= r * scene.s_f_star[i];
+                }
+            }
+        }
+    }
+    muted
 }
 
 fn mix_rows(dst: &mut [f64], ph: &CompiledPhase, ch: usize, s: f64) {

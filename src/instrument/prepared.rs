@@ -671,7 +671,7 @@ fn assemble(
         Vec::new()
     } else {
         (0..=127u8)
-            .map(|key| ScaleProps::new(sc, key_scale(key, root)))
+            .map(|key| ScaleProps::new(sc, key_scale(key, root), output_band_hz(rate_hz)))
             .collect()
     };
     Box::new(Prepared {
@@ -695,9 +695,15 @@ pub(super) fn key_scale(key: u8, root: f64) -> f64 {
     2f64.powf((key as f64 - root) / 12.0)
 }
 
+/// The voices' output band at `rate_hz` (modes above it are left out of
+/// the outputs: [`EngineState::set_output_band`]). \[any-thread\]
+fn output_band_hz(rate_hz: f64) -> f64 {
+    OUTPUT_BAND_FRACTION * 0.5 * rate_hz
+}
+
 /// A fresh engine state per voice for `scene`. \[worker\] \[main-thread\]
 fn voice_states(scene: &CompiledScene, rate_hz: f64) -> Box<[EngineState; MAX_VOICES]> {
-    let band_hz = OUTPUT_BAND_FRACTION * 0.5 * rate_hz;
+    let band_hz = output_band_hz(rate_hz);
     let states: Vec<EngineState> = (0..MAX_VOICES)
         .map(|_| {
             let mut st = EngineState::new(scene);
