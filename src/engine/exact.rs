@@ -1499,6 +1499,48 @@ mod tests {
     use crate::engine::ScaleProps;
     use crate::presets;
 
+    /// The contact output rows and offsets at time scale `s` with the modes
+    /// above `band_hz` left out, written the plain way: each left-out
+    /// free-row entry carried through `W_fc` entry by entry, one channel
+    /// at a time.
+    fn band_reference(sc: &CompiledScene, s: f64, band_hz: f64) -> ([Vec<f64>; 2], [f64; 2]) {
+        let mix = |ph: &crate::compile::CompiledPhase, ch: usize| -> Vec<f64> {
+            let (d, v) = if ch == 0 {
+                (&ph.rows.disp_l, &ph.rows.vel_l)
+            } else {
+                (&ph.rows.disp_r, &ph.rows.vel_r)
+            };
+            d.iter().zip(v).map(|(a, b)| a + b * s).collect()
+        };
+        let mut free = [mix(&sc.free, 0), mix(&sc.free, 1)];
+        let mut contact = [mix(&sc.contact, 0), mix(&sc.contact, 1)];
+        let mut offset = [sc.offsets.disp_l, sc.offsets.disp_r];
+        let gens = sc.free.gens.as_ref().unwrap();
+        let nb = gens.len();
+        let limit = 2.0 * std::f64::consts::PI * band_hz / s;
+        for (k, g) in gens.iter().enumerate() {
+            let half_tr = 0.5 * (g[0] + g[3]);
+            let w2 = g[0] * g[3] - g[1] * g[2] - half_tr * half_tr;
+            if !(w2 > limit * limit) {
+                continue;
+            }
+            for ch in 0..2 {
+                for i in [k, nb + k] {
+                    let r = free[ch][i];
+                    if r == 0.0 {
+                        continue;
+                    }
+                    free[ch][i] = 0.0;
+                    for j in 0..sc.contact.dim {
+                        contact[ch][j] -= r * sc.w_fc[(i, j)];
+                    }
+                    offset[ch] -= r * sc.s_f_star[i];
+                }
+            }
+        }
+        (contact, offset)
+    }
+
     #[test]
     fn propagators_made_ahead_are_the_computed_ones_bit_for_bit() {
         // every one-contact preset at three scales, with every mode heard
@@ -1556,6 +1598,14 @@ mod tests {
                             }
                         }
                         assert!(bits(&got.out_c_offset, &want.out_c_offset));
+                        let (rows, offset) = band_reference(&sc, s, band);
+                        for ch in 0..2 {
+                            assert!(
+                                bits(&want.phases[Phase::Contact.index()].out[ch], &rows[ch]),
+                                "preset {i} at {s}, band {band}: contact row {ch} against the reference"
+                            );
+                        }
+                        assert!(bits(&want.out_c_offset, &offset));
                         assert_eq!(got.band_muted_modes(), want.band_muted_modes());
                         if k == 0 && pre.band.is_some() {
                             assert!(want.band_muted_modes() > 0);

@@ -2265,7 +2265,7 @@ fn band_out(
     scene: &CompiledScene,
     band_hz: f64,
     s: f64,
-    free: [&mut [f64]; 2],
+    mut free: [&mut [f64]; 2],
     mut carry: Option<([&mut [f64]; 2], &mut [f64; 2])>,
 ) -> usize {
     let Some(gens) = scene.free.gens.as_ref() else {
@@ -2277,7 +2277,7 @@ fn band_out(
     let nb = gens.len();
     // omega_phys = omega_ref * s; muted when omega_ref * s > 2 pi band
     let limit = 2.0 * std::f64::consts::PI * band_hz / s;
-    let dc = scene.contact.dim;
+    let (df, dc) = (scene.w_fc.nrows(), scene.contact.dim);
     let mut muted = 0;
     for (k, g) in gens.iter().enumerate() {
         let half_tr = 0.5 * (g[0] + g[3]);
@@ -2287,18 +2287,35 @@ fn band_out(
             continue;
         }
         muted += 1;
-        for ch in 0..2 {
-            for i in [k, nb + k] {
-                let r = free[ch][i];
-                if r == 0.0 {
-                    continue;
+        for i in [k, nb + k] {
+            let r = [free[0][i], free[1][i]];
+            for (f, r) in free.iter_mut().zip(r) {
+                if r != 0.0 {
+                    f[i] = 0.0;
                 }
-                free[ch][i] = 0.0;
-                if let Some((out_c, offset)) = carry.as_mut() {
-                    for j in 0..dc {
-                        out_c[ch][j] -= r * scene.w_fc[(i, j)];
+            }
+            let Some(([out_l, out_r], offset)) = carry.as_mut() else {
+                continue;
+            };
+            // row i of W_fc, strided through its column-major storage,
+            // read once for both channels; each entry takes the same
+            // subtractions in the same order as one channel at a time
+            let row = scene.w_fc.as_slice()[i..].iter().step_by(df);
+            let (out_l, out_r) = (&mut out_l[..dc], &mut out_r[..dc]);
+            match (r[0] != 0.0, r[1] != 0.0) {
+                (true, true) => {
+                    for ((a, b), w) in out_l.iter_mut().zip(out_r.iter_mut()).zip(row) {
+                        *a -= r[0] * w;
+                        *b -= r[1] * w;
                     }
-                    offset[ch] -= r * scene.s_f_star[i];
+                }
+                (true, false) => out_l.iter_mut().zip(row).for_each(|(a, w)| *a -= r[0] * w),
+                (false, true) => out_r.iter_mut().zip(row).for_each(|(b, w)| *b -= r[1] * w),
+                (false, false) => {}
+            }
+            for ch in 0..2 {
+                if r[ch] != 0.0 {
+                    offset[ch] -= r[ch] * scene.s_f_star[i];
                 }
             }
         }
