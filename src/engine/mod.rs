@@ -673,11 +673,14 @@ impl EngineState {
     }
 
     /// [`set_time_scale`](Self::set_time_scale) at `pre`'s scale, its
-    /// propagators copied from `pre` instead of computed (bit for bit the
-    /// same: `pre` was made by the same function for `scene`). A `pre`
-    /// made for another scene's step or block counts is not used: the
-    /// propagators are then computed. O(N) copies, no transcendental
-    /// function, no allocation. \[audio-thread\]
+    /// propagators copied from `pre` instead of computed, and its contact
+    /// output rows too where `pre` holds them for this state's output band
+    /// (bit for bit the same: `pre` was made by the same functions for
+    /// `scene`). A `pre` made for another scene's step or block counts is
+    /// not used: the propagators are then computed; rows made for another
+    /// band are not used: the band is then applied, O(N M) for M modes
+    /// left out. Otherwise O(N) copies, no transcendental function; no
+    /// allocation. \[audio-thread\]
     pub fn set_time_scale_from(
         &mut self,
         scene: &CompiledScene,
@@ -754,11 +757,7 @@ impl EngineState {
     /// A dense-fallback free phase has no modes to leave out (no effect).
     /// Allocation-free, O(N) plus O(N M) for M modes left out. \[audio-thread\]
     pub fn set_output_band(&mut self, scene: &CompiledScene, band_hz: f64) {
-        self.band_hz = if band_hz > 0.0 {
-            band_hz
-        } else {
-            f64::INFINITY
-        };
+        self.band_hz = band_or_all(band_hz);
         // re-mix the rows (and apply the band) at the current scale
         self.set_time_scale_inner(scene, self.time_scale);
     }
@@ -776,7 +775,7 @@ impl EngineState {
     fn apply_band(&mut self, scene: &CompiledScene, pre: Option<&ScaleProps>) {
         let ahead = pre
             .and_then(|p| p.band.as_ref())
-            .filter(|b| b.band_hz == self.band_hz && self.band_hz.is_finite());
+            .filter(|b| b.band_hz == self.band_hz);
         let [free, contact] = &mut self.phases;
         let free_rows = free.out.each_mut().map(|r| &mut r[..]);
         self.band_muted = match ahead {
@@ -2213,11 +2212,7 @@ impl ScaleProps {
         };
         let (mut free, mut contact) = (rows(&scene.free), rows(&scene.contact));
         let mut offset = [scene.offsets.disp_l, scene.offsets.disp_r];
-        let band_hz = if band_hz > 0.0 {
-            band_hz
-        } else {
-            f64::INFINITY
-        };
+        let band_hz = band_or_all(band_hz);
         let muted = band_out(
             scene,
             band_hz,
@@ -2251,6 +2246,16 @@ impl ScaleProps {
             && self.step == scene.h * s
             && self.free.len() == nb(&scene.free)
             && self.contact.len() == nb(&scene.contact)
+    }
+}
+
+/// An output band as [`EngineState::set_output_band`] takes it: NaN or
+/// <= 0 hears every mode (`INFINITY`).
+fn band_or_all(band_hz: f64) -> f64 {
+    if band_hz > 0.0 {
+        band_hz
+    } else {
+        f64::INFINITY
     }
 }
 
