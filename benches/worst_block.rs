@@ -7,8 +7,9 @@
 //! and the 99.9th percentile block, as a fraction of the block's real-time
 //! budget (`block / 48000` s). Above 100 % a block is late: a dropout.
 //!
-//! Beside it: the strike cost per voice, 64 voices, bad input, a pitch
-//! bend, and a 16-note chord with a brightness on every note.
+//! Beside it: the strike cost per voice, one note through the instrument
+//! at three pitches, 64 voices, bad input, a pitch bend, and a 16-note
+//! chord with a brightness on every note.
 //!
 //! `cargo bench --bench worst_block` (a criterion target; the table is
 //! printed, nothing is asserted: timings are never test conditions).
@@ -522,9 +523,51 @@ fn brightness_chord(_: &mut Criterion) {
     }
 }
 
+/// One note through the instrument, as a player plays it: the first
+/// 64-sample block of a fresh instrument's note (note-on, the strike from
+/// rest, the block's stepping) at the object's root and higher, where the
+/// output band leaves the top modes out (docs/design.md, "The
+/// instrument": what the worker made ahead for each key). Median of 21,
+/// microseconds; the budget is 1333 us.
+fn note_block(_: &mut Criterion) {
+    println!("\none note through the instrument, its first 64-sample block at 48 kHz (us, median of 21; budget 1333 us):");
+    println!("| modes | at the root | 15 semitones up | 27 semitones up |");
+    println!("|---|---|---|---|");
+    for n in [200, 1000] {
+        let params = InstrumentParams::default();
+        let prepared = prepare_scene(&object(n), &params.scene, RATE, 0).expect("compile");
+        let root = prepared.root_note.round() as i32;
+        let mut cells = Vec::new();
+        for up in [0, 15, 27] {
+            let key = (root + up).clamp(0, 127) as u8;
+            let evs = [TimedEvent {
+                offset: 0,
+                event: Event::NoteOn {
+                    key,
+                    velocity_norm: 100.0 / 127.0,
+                },
+            }];
+            let mut times = Vec::new();
+            for _ in 0..21 {
+                let mut inst = Instrument::new(prepared.clone(), params.play);
+                let (mut l, mut r) = (vec![0.0f32; 64], vec![0.0f32; 64]);
+                inst.process(&[], &mut l, &mut r);
+                let t0 = Instant::now();
+                inst.process(&evs, &mut l, &mut r);
+                times.push(t0.elapsed().as_secs_f64());
+                assert!(l.iter().chain(&r).all(|x| x.is_finite()));
+            }
+            times.sort_by(f64::total_cmp);
+            cells.push(format!("{:.0}", times[10] * 1e6));
+        }
+        println!("| {n} | {} | {} | {} |", cells[0], cells[1], cells[2]);
+    }
+}
+
 criterion_group!(
     benches,
     strike_cost,
+    note_block,
     polyphony_64,
     bad_input,
     pitch_bend,
