@@ -737,9 +737,7 @@ impl EngineState {
         // rows times s (reference velocities are physical / s).
         for ch in 0..2 {
             mix_rows(&mut self.phases[FREE].out[ch], &scene.free, ch, s);
-            mix_rows(&mut self.phases[CONTACT].out[ch], &scene.contact, ch, s);
         }
-        self.out_c_offset = [scene.offsets.disp_l, scene.offsets.disp_r];
         self.apply_band(scene, pre);
         self.g = scene.g;
         self.discontinuity();
@@ -767,11 +765,13 @@ impl EngineState {
         self.band_muted
     }
 
-    /// Leave the modes above the band out of the rows just mixed by
+    /// Mix the contact output rows at the current scale and leave the modes
+    /// above the band out of them and of the free rows just mixed by
     /// `derive_for`: the free rows' entries zeroed, their contributions
     /// subtracted from the contact rows and offsets, O(N M) for M modes
     /// left out; or, where `pre` holds those contact rows for this band
-    /// (made ahead by the same function, so the same bits), O(N) copies.
+    /// (made ahead by the same functions, so the same bits), O(N) copies
+    /// of them instead.
     fn apply_band(&mut self, scene: &CompiledScene, pre: Option<&ScaleProps>) {
         let ahead = pre
             .and_then(|p| p.band.as_ref())
@@ -787,6 +787,10 @@ impl EngineState {
                 band_out(scene, self.band_hz, self.time_scale, free_rows, None)
             }
             None => {
+                for ch in 0..2 {
+                    mix_rows(&mut contact.out[ch], &scene.contact, ch, self.time_scale);
+                }
+                self.out_c_offset = [scene.offsets.disp_l, scene.offsets.disp_r];
                 let carry = (
                     contact.out.each_mut().map(|r| &mut r[..]),
                     &mut self.out_c_offset,
@@ -2162,10 +2166,12 @@ fn scale_allowed(scene: &CompiledScene, s: f64) -> Result<(), TimeScaleError> {
     Ok(())
 }
 
-/// A scene's one-sample block propagators at one time scale, both phases:
-/// what [`EngineState::set_time_scale`] computes (one `exp` and one
-/// `sin_cos` per block), made ahead off the audio thread so a note-on at a
-/// common scale copies them instead ([`EngineState::set_time_scale_from`]).
+/// A scene's one-sample block propagators at one time scale, both phases,
+/// and its contact output rows with the output band applied where it
+/// leaves modes out: what [`EngineState::set_time_scale`] computes (one
+/// `exp` and one `sin_cos` per block, one row of `W_fc` per mode left
+/// out), made ahead off the audio thread so a note-on at a common scale
+/// copies them instead ([`EngineState::set_time_scale_from`]).
 /// The instrument keeps one per MIDI key of the played scene
 /// (docs/design.md, "The instrument"). \[worker\]
 #[derive(Clone, Debug)]
