@@ -1,6 +1,9 @@
 //! `cargo xtask golden [--write]`: renders every preset and every stability
 //! case of the report, in both switching modes, and hashes the WAV and the
-//! trace CSV of each (64-bit FNV-1a of the bytes the render command writes).
+//! trace of each (64-bit FNV-1a of the WAV's bytes as the render command
+//! writes them, and of the trace's numbers as its CSV text reads back:
+//! every number is checked to read back bit for bit, and the hash does not
+//! depend on how the text spells a number).
 //! `--write` records them in `tests/golden-hashes.txt`; without it the
 //! hashes are compared with that file and any difference is an error.
 //!
@@ -78,7 +81,49 @@ fn render_hashes(
     }
     let mut csv = Vec::new();
     write_trace_csv(&rows, &mut csv)?;
-    Ok((fnv1a(&wav.into_inner()), fnv1a(&csv)))
+    Ok((fnv1a(&wav.into_inner()), trace_hash(&rows, &csv)?))
+}
+
+/// FNV-1a of the little-endian bits of every number of the CSV text `csv`
+/// (header, then one line per row), after checking that the text reads
+/// back to `rows` bit for bit.
+fn trace_hash(rows: &[TraceRow], csv: &[u8]) -> Result<u64> {
+    let text = std::str::from_utf8(csv)?;
+    let mut lines = text.lines();
+    lines.next().context("no header")?;
+    let mut bits = Vec::with_capacity(rows.len() * 7 * 8);
+    let mut read = 0;
+    for (i, (line, r)) in lines.zip(rows).enumerate() {
+        let o = &r.obs;
+        let want = [
+            r.t,
+            o.x_hammer,
+            o.v_hammer,
+            o.x_contact,
+            o.v_contact,
+            f64::from(u8::from(o.in_contact)),
+            o.energy,
+        ];
+        let mut fields = line.split(',');
+        for (k, w) in want.iter().enumerate() {
+            let f = fields.next().with_context(|| format!("row {i}: no column {k}"))?;
+            let x: f64 = f
+                .parse()
+                .with_context(|| format!("row {i} column {k}: {f:?}"))?;
+            if x.to_bits() != w.to_bits() {
+                bail!("row {i} column {k}: {f:?} reads back as {x:e}, the row holds {w:e}");
+            }
+            bits.extend_from_slice(&x.to_le_bytes());
+        }
+        if fields.next().is_some() {
+            bail!("row {i}: more than 7 columns");
+        }
+        read += 1;
+    }
+    if read != rows.len() || text.lines().count() != rows.len() + 1 {
+        bail!("{} rows, {} lines after the header", rows.len(), text.lines().count() - 1);
+    }
+    Ok(fnv1a(&bits))
 }
 
 /// Every case: (name, scene, samples).
@@ -143,7 +188,7 @@ pub fn run(args: GoldenArgs) -> Result<()> {
     if write {
         let mut text = String::from(
             "# Render hashes of every preset and stability case (cargo xtask golden --write).\n\
-             # case | switching | kernels = wav <fnv1a-64> trace <fnv1a-64>\n",
+             # case | switching | kernels = wav <fnv1a-64 of the WAV> trace <fnv1a-64 of the trace's numbers>\n",
         );
         for (k, v) in &now {
             text += &format!("{k} = {v}\n");
