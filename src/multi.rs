@@ -3179,8 +3179,8 @@ pub fn trace_header(contacts: usize) -> String {
 /// One trace row (without its line end) in the one-contact trace's
 /// number format (shortest round-trip).
 fn push_trace_row(buf: &mut Vec<u8>, t: f64, o: &MultiObservation, contacts: usize) {
-    use crate::render::push_es;
-    let flag = |j: usize| if o.active & (1 << j) != 0 { b'1' } else { b'0' };
+    use crate::render::push_numbers;
+    let flag = |j: usize| o.active & (1 << j) != 0;
     let first = [
         t,
         o.x_hammer[0],
@@ -3189,16 +3189,17 @@ fn push_trace_row(buf: &mut Vec<u8>, t: f64, o: &MultiObservation, contacts: usi
         o.v_contact[0],
         o.energy,
     ];
-    push_es(buf, first, |buf, k| match k {
-        4 => buf.extend_from_slice(&[b',', flag(0), b',']),
-        5 => {}
-        _ => buf.push(b','),
+    push_numbers(buf, &first, |k| match k {
+        4 if flag(0) => b",1,",
+        4 => b",0,",
+        5 => b"",
+        _ => b",",
     });
     for j in 1..contacts {
         buf.push(b',');
         let xs = [o.x_hammer[j], o.v_hammer[j], o.x_contact[j], o.v_contact[j]];
-        push_es(buf, xs, |buf, _| buf.push(b','));
-        buf.push(flag(j));
+        push_numbers(buf, &xs, |_| b",");
+        buf.push(if flag(j) { b'1' } else { b'0' });
     }
 }
 

@@ -521,13 +521,15 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
                     .name(format!("trace-csv-format-{k}"))
                     .spawn(move || {
                         for (seq, mut rows) in chunks {
-                            let mut text = spare_text
-                                .try_recv()
-                                .unwrap_or_else(|_| Vec::with_capacity(CSV_CHUNK_ROWS * 160));
-                            text.clear();
+                            // a spare text keeps its length: only what
+                            // this chunk may need beyond it is zeroed
+                            let mut text = spare_text.try_recv().unwrap_or_default();
+                            text.resize(rows.len() * ROW_ROOM, 0);
+                            let mut end = 0;
                             for r in &rows {
-                                push_row(&mut text, r);
+                                end = put_row(&mut text, end, r);
                             }
+                            text.truncate(end);
                             rows.clear();
                             let _ = give_rows.try_send(rows);
                             if to_writer.send((seq, text)).is_err() {
@@ -927,24 +929,33 @@ impl TraceSink for TraceEnvelope {
 /// The trace CSV header (docs/design.md, "The render command and the trace CSV").
 pub const TRACE_HEADER: &str = "t,x_hammer,v_hammer,x_contact,v_contact,in_contact,energy";
 
-/// Write trace rows as CSV (full f64 precision, round-trip exact).
+/// Write trace rows as CSV (each number's shortest round-trip digits,
+/// [`put_numbers`]).
 pub fn write_trace_csv<W: Write>(rows: &[TraceRow], mut w: W) -> std::io::Result<()> {
     writeln!(w, "{TRACE_HEADER}")?;
+    let mut buf = Vec::with_capacity(ROW_ROOM);
     for r in rows {
-        write_row(&mut w, r)?;
+        buf.clear();
+        push_row(&mut buf, r);
+        w.write_all(&buf)?;
     }
     Ok(())
 }
 
-/// One CSV row: `{:e}` for every number (shortest round-trip digits).
-fn write_row<W: Write>(w: &mut W, r: &TraceRow) -> std::io::Result<()> {
-    let mut buf = Vec::with_capacity(192);
-    push_row(&mut buf, r);
-    w.write_all(&buf)
+/// Room for one row in [`put_row`]: 6 numbers, each with its separator
+/// (the `in_contact` flag is part of one).
+const ROW_ROOM: usize = 6 * NUMBER_ROOM;
+
+/// Append one CSV row to `buf` (numbers as [`put_numbers`] writes them).
+fn push_row(buf: &mut Vec<u8>, r: &TraceRow) {
+    let at = buf.len();
+    buf.resize(at + ROW_ROOM, 0);
+    let end = put_row(buf, at, r);
+    buf.truncate(end);
 }
 
-/// Append one CSV row to `buf`, byte for byte what `{:e}` writes.
-fn push_row(buf: &mut Vec<u8>, r: &TraceRow) {
+/// Write one CSV row to `out[at..]` (room for [`ROW_ROOM`] bytes); the end.
+fn put_row(out: &mut [u8], at: usize, r: &TraceRow) -> usize {
     let o = &r.obs;
     let xs = [
         r.t,
@@ -954,64 +965,71 @@ fn push_row(buf: &mut Vec<u8>, r: &TraceRow) {
         o.v_contact,
         o.energy,
     ];
-    push_es(buf, xs, |buf, k| match k {
-        4 => buf.extend_from_slice(if o.in_contact { b",1," } else { b",0," }),
-        5 => buf.push(b'\n'),
-        _ => buf.push(b','),
-    });
+    put_numbers(out, at, &xs, |k| match k {
+        4 if o.in_contact => b",1,",
+        4 => b",0,",
+        5 => b"\n",
+        _ => b",",
+    })
 }
 
-/// Append `xs` to `buf` as `format!("{x:e}")` writes each: the shortest
-/// digits that read back to `x`, as `d.ddde-x`; after number `k`,
-/// `after(buf, k)` appends what follows it (a separator).
+/// Room for one number and its separator in [`put_numbers`]: a number is
+/// at most 24 bytes (`-2.2250738585072014e-308`), a separator at most 8.
+pub const NUMBER_ROOM: usize = 32;
+
+/// Write `xs` to `out[at..]`, each as the shortest decimal text that reads
+/// back to it exactly, as zmij (Schubfach) spells it: a decimal fraction
+/// for exponents -5 to 15 (`0.00036`, `-123.5`, `0.0`), else scientific
+/// (`1.5e-7`, `1e+20`); `NaN`, `inf`, `-inf` (which a trace never holds).
+/// After number `k` comes `sep(k)` (at most 8 bytes: a separator).
+/// `out[at..]` must have room for [`NUMBER_ROOM`] bytes per number; returns
+/// the end of what was written.
 ///
-/// zmij (Schubfach) finds the digits several times faster than core; the
-/// two could differ only on an exact tie between two shortest candidates
-/// (core rounds it up), which needs a short exact decimal expansion (at
-/// most 18 digits): such numbers go to core. zmij writes exponents of 16
-/// and more and below -5 exactly as `{:e}` does; between, it writes a
-/// decimal fraction (`0.00036`, `123.5`), whose digits are moved here into
-/// `d.ddde-x` with fixed-size copies (no per-byte loop, no call).
+/// Every CSV reader reads these (Rust's `parse`, Python's `float`, NumPy);
+/// tested to read back bit for bit, with as many digits as core's shortest,
+/// on numbers of every magnitude. Until 2026-11-29 the digits were moved
+/// into core's `{:e}` spelling, which cost as much again as finding them.
 ///
-/// All `N` numbers are formatted first, then moved: a load that spans
-/// several stores made just before it (zmij's digits are written in pieces
-/// of several sizes) waits for them to reach the cache, and `N - 1`
-/// numbers' work between the two lets them get there (docs/design.md,
-/// "Offline rendering"). Tested byte for byte against core on random
-/// numbers of every magnitude.
-pub fn push_es<const N: usize>(
-    buf: &mut Vec<u8>,
-    xs: [f64; N],
-    mut after: impl FnMut(&mut Vec<u8>, usize),
-) {
-    let mut fmts = [(); N].map(|_| zmij::Buffer::new());
-    // zmij's text, or empty where core or a constant writes the number
-    let mut texts: [&[u8]; N] = [&[]; N];
-    for ((f, &x), t) in fmts.iter_mut().zip(&xs).zip(&mut texts) {
-        if x != 0.0 && x.is_finite() && !short_decimal_expansion(x) {
-            *t = f.format_finite(x).as_bytes();
+/// Up to 8 numbers are formatted first and then moved with fixed-size
+/// copies straight into `out`: a copy call per number took a fifth of the
+/// text's time, and a load that spans several stores made just before it
+/// (zmij writes its digits in pieces of several sizes) waits for them,
+/// which the other numbers' work hides (docs/design.md, "Offline
+/// rendering").
+pub fn put_numbers(
+    out: &mut [u8],
+    mut at: usize,
+    xs: &[f64],
+    sep: impl Fn(usize) -> &'static [u8],
+) -> usize {
+    const BATCH: usize = 8;
+    let mut fmts = [(); BATCH].map(|_| zmij::Buffer::new());
+    for (c, batch) in xs.chunks(BATCH).enumerate() {
+        let mut texts: [&[u8]; BATCH] = [&[]; BATCH];
+        for ((f, &x), t) in fmts.iter_mut().zip(batch).zip(&mut texts) {
+            *t = f.format(x).as_bytes();
+        }
+        for (j, s) in texts[..batch.len()].iter().enumerate() {
+            copy_short(out, at, s);
+            at += s.len();
+            let p = sep(c * BATCH + j);
+            copy_short(out, at, p);
+            at += p.len();
         }
     }
-    for (k, (&x, s)) in xs.iter().zip(texts).enumerate() {
-        if s.is_empty() {
-            if x == 0.0 {
-                buf.extend_from_slice(if x.is_sign_negative() {
-                    b"-0e0"
-                } else {
-                    b"0e0"
-                });
-            } else {
-                write!(buf, "{x:e}").expect("writing to a Vec");
-            }
-        } else {
-            push_zmij_as_e(buf, s);
-        }
-        after(buf, k);
-    }
+    at
 }
 
-/// Copy `s` (at most 24 bytes) to `o[at..]` in at most two fixed-size,
-/// overlapping copies.
+/// Append `xs` to `buf` as [`put_numbers`] writes them.
+pub fn push_numbers(buf: &mut Vec<u8>, xs: &[f64], sep: impl Fn(usize) -> &'static [u8]) {
+    let at = buf.len();
+    buf.resize(at + xs.len() * NUMBER_ROOM, 0);
+    let end = put_numbers(buf, at, xs, sep);
+    buf.truncate(end);
+}
+
+/// Copy `s` (at most 32 bytes) to `o[at..]` in at most two fixed-size,
+/// overlapping copies (no call, no per-byte loop beyond 3 bytes).
 #[inline(always)]
 fn copy_short(o: &mut [u8], at: usize, s: &[u8]) {
     let n = s.len();
@@ -1031,119 +1049,33 @@ fn copy_short(o: &mut [u8], at: usize, s: &[u8]) {
     }
 }
 
-/// Append zmij's text `s` of a finite nonzero number in `{:e}`'s form.
-fn push_zmij_as_e(buf: &mut Vec<u8>, s: &[u8]) {
-    let at = buf.len();
-    buf.extend_from_slice(&[0; 48]);
-    let o = &mut buf[at..at + 48];
-    let len = s.len();
-    if s[len.saturating_sub(5)..]
-        .iter()
-        .fold(false, |a, &c| a | (c == b'e'))
-    {
-        // `d.ddde-x` or `de-x` already
-        copy_short(o, 0, s);
-        buf.truncate(at + len);
-        return;
-    }
-    // a decimal fraction `int.frac` (`0.00036`, `120.0`; at most 17 digits,
-    // 4 zeros after the point)
-    let b = usize::from(s[0] == b'-');
-    let u = &s[b..];
-    o[0] = b'-';
-    let mut end;
-    let exp10 = if u[0] == b'0' {
-        // `0.000ddd`: the digits are contiguous after the zeros (and do not
-        // end in a zero)
-        let d = 2 + u[2..].iter().take_while(|&&c| c == b'0').count();
-        o[b] = u[d];
-        end = b + 1;
-        if d + 1 < u.len() {
-            o[end] = b'.';
-            copy_short(o, end + 1, &u[d + 1..]);
-            end += u.len() - d;
-        }
-        -(d as i32 - 1)
-    } else {
-        // `ddd.ddd`: the integer digits, then the fraction's
-        let p = u.iter().position(|&c| c == b'.').unwrap_or(u.len());
-        let frac = u.get(p + 1..).unwrap_or(&[]);
-        o[b] = u[0];
-        end = b + 1;
-        if frac == b"0" {
-            // `120.0` (zmij's digits end in a zero only there): the
-            // integer's trailing zeros go too
-            let m = p - u[1..p].iter().rev().take_while(|&&c| c == b'0').count();
-            if m > 1 {
-                o[end] = b'.';
-                copy_short(o, end + 1, &u[1..m]);
-                end += m;
-            }
-        } else if p + frac.len() > 1 {
-            o[end] = b'.';
-            copy_short(o, end + 1, &u[1..p]);
-            copy_short(o, end + p, frac);
-            end += p + frac.len();
-        }
-        p as i32 - 1
-    };
-    o[end] = b'e';
-    end += 1;
-    if exp10 < 0 {
-        o[end] = b'-';
-        end += 1;
-    }
-    let e = exp10.unsigned_abs();
-    if e >= 10 {
-        o[end] = b'0' + (e / 10 % 10) as u8;
-        end += 1;
-    }
-    o[end] = b'0' + (e % 10) as u8;
-    buf.truncate(at + end + 1);
-}
-
-/// Whether the exact decimal expansion of `x` (finite, nonzero) may have
-/// 18 significant digits or fewer (an over-estimate: `true` on doubt).
-fn short_decimal_expansion(x: f64) -> bool {
-    let bits = x.abs().to_bits();
-    let biased = ((bits >> 52) & 0x7ff) as i32;
-    let frac = bits & ((1u64 << 52) - 1);
-    let (m, e2) = if biased == 0 {
-        (frac, -1074)
-    } else {
-        (frac | (1u64 << 52), biased - 1075)
-    };
-    let tz = m.trailing_zeros();
-    let (m, e2) = (m >> tz, e2 + tz as i32);
-    if e2 >= 0 {
-        // an integer: below 1e15 its shortest digits are exact (no tie)
-        return x.abs() >= 1e15;
-    }
-    if e2 < -27 {
-        // 5^28 > 1e19: more than 19 digits whatever m (most numbers end here)
-        return false;
-    }
-    // x = m 5^-e2 / 10^-e2: digits of m 5^-e2, over-estimated
-    let sig_bits = f64::from(64 - m.leading_zeros());
-    sig_bits * std::f64::consts::LOG10_2 + f64::from(-e2) * 5f64.log10() <= 19.0
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::test_rng::TestRng;
 
-    fn e(x: f64) -> String {
+    fn text(x: f64) -> String {
         let mut buf = Vec::new();
-        push_es(&mut buf, [x], |_, _| {});
+        push_numbers(&mut buf, &[x], |_| b"");
         String::from_utf8(buf).unwrap()
     }
 
-    /// The fast CSV numbers are `{:e}` byte for byte: special values, every
-    /// power of ten, and random bit patterns (every magnitude, subnormals
-    /// included) and random numbers of audio-like magnitudes.
+    /// Significant digits of a number's text (`-0.00120e3` -> 3).
+    fn digits(s: &str) -> usize {
+        let mantissa = s.split(['e', 'E']).next().unwrap();
+        let d: String = mantissa.chars().filter(char::is_ascii_digit).collect();
+        let d = d.trim_start_matches('0').trim_end_matches('0');
+        d.len().max(1)
+    }
+
+    /// The CSV's numbers read back bit for bit, with the fewest digits
+    /// (as many as core's shortest `{:e}`): special values, every power of
+    /// ten, sample times, numbers with short exact expansions (where two
+    /// shortest candidates can tie), random bit patterns (every magnitude,
+    /// subnormals included) and random numbers of audio-like magnitudes;
+    /// a few spellings pinned; six at a time as a row writes them.
     #[test]
-    fn fast_scientific_format_is_core_format() {
+    fn csv_numbers_read_back_exactly_with_the_fewest_digits() {
         let mut cases = vec![
             0.0,
             -0.0,
@@ -1158,9 +1090,6 @@ mod tests {
             f64::MIN_POSITIVE,
             5e-324,
             f64::MAX,
-            f64::NAN,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
             2.2675736961451248e-5,
             120.0,
             1234567.0,
@@ -1173,26 +1102,42 @@ mod tests {
             2e-320,
         ];
         cases.extend((-320..=308).map(|k| 10f64.powi(k)));
-        // sample times, and numbers with short expansions (ties go to core)
         cases.extend((0..100_000).map(|i| f64::from(i) / 44100.0));
         cases.extend((0..100_000).map(|i| f64::from(i) / 48000.0));
         cases.extend((1..20_000).map(|i| f64::from(i) / 1024.0 - 7.0));
+        cases.extend((1..20_000).map(|i| f64::from(i) * 2f64.powi(60)));
         let mut rng = TestRng(7);
         for _ in 0..300_000 {
-            cases.push(f64::from_bits(rng.next_u64()));
+            let x = f64::from_bits(rng.next_u64());
+            if x.is_finite() {
+                cases.push(x);
+            }
             let mag = 10f64.powf(rng.uniform(-30.0, 17.0));
             cases.push(rng.uniform(-0.5, 0.5) * mag);
         }
         for &x in &cases {
-            assert_eq!(e(x), format!("{x:e}"), "bits {:#x}", x.to_bits());
+            let s = text(x);
+            let back: f64 = s.parse().unwrap_or_else(|e| panic!("{s:?}: {e}"));
+            assert_eq!(back.to_bits(), x.to_bits(), "{s:?} for {x:e}");
+            assert_eq!(digits(&s), digits(&format!("{x:e}")), "{s:?} for {x:e}");
         }
-        // six at a time, as a trace row formats them (special values mixed
-        // with zmij's, each pushed after all six are formatted)
+        for (x, s) in [
+            (0.0, "0.0"),
+            (-0.0, "-0.0"),
+            (0.00036, "0.00036"),
+            (-123.5, "-123.5"),
+            (1.5e-7, "1.5e-7"),
+            (1e20, "1e+20"),
+            (f64::NAN, "NaN"),
+            (f64::INFINITY, "inf"),
+            (f64::NEG_INFINITY, "-inf"),
+        ] {
+            assert_eq!(text(x), s);
+        }
         for six in cases.chunks_exact(6) {
-            let xs: [f64; 6] = six.try_into().unwrap();
             let mut got = Vec::new();
-            push_es(&mut got, xs, |buf, _| buf.push(b','));
-            let want: String = xs.iter().map(|x| format!("{x:e},")).collect();
+            push_numbers(&mut got, six, |_| b",");
+            let want: String = six.iter().map(|&x| text(x) + ",").collect();
             assert_eq!(String::from_utf8(got).unwrap(), want);
         }
     }

@@ -106,7 +106,9 @@ fn trace_hash(rows: &[TraceRow], csv: &[u8]) -> Result<u64> {
         ];
         let mut fields = line.split(',');
         for (k, w) in want.iter().enumerate() {
-            let f = fields.next().with_context(|| format!("row {i}: no column {k}"))?;
+            let f = fields
+                .next()
+                .with_context(|| format!("row {i}: no column {k}"))?;
             let x: f64 = f
                 .parse()
                 .with_context(|| format!("row {i} column {k}: {f:?}"))?;
@@ -121,7 +123,11 @@ fn trace_hash(rows: &[TraceRow], csv: &[u8]) -> Result<u64> {
         read += 1;
     }
     if read != rows.len() || text.lines().count() != rows.len() + 1 {
-        bail!("{} rows, {} lines after the header", rows.len(), text.lines().count() - 1);
+        bail!(
+            "{} rows, {} lines after the header",
+            rows.len(),
+            text.lines().count() - 1
+        );
     }
     Ok(fnv1a(&bits))
 }
