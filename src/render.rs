@@ -987,7 +987,7 @@ pub const NUMBER_ROOM: usize = 32;
 ///
 /// Every CSV reader reads these (Rust's `parse`, Python's `float`, NumPy);
 /// tested to read back bit for bit, with as many digits as core's shortest,
-/// on numbers of every magnitude. Until 2026-11-29 the digits were moved
+/// on numbers of every magnitude. Until 2026-11-28 the digits were moved
 /// into core's `{:e}` spelling, which cost as much again as finding them.
 ///
 /// Up to 8 numbers are formatted first and then moved with fixed-size
