@@ -39,6 +39,23 @@ pub struct TraceRow {
     pub obs: Observation,
 }
 
+impl TraceRow {
+    /// The row's numbers in the order of [`TRACE_HEADER`] (`in_contact` 0
+    /// or 1).
+    pub fn columns(&self) -> [f64; 7] {
+        let o = &self.obs;
+        [
+            self.t,
+            o.x_hammer,
+            o.v_hammer,
+            o.x_contact,
+            o.v_contact,
+            f64::from(u8::from(o.in_contact)),
+            o.energy,
+        ]
+    }
+}
+
 /// Result of a render.
 #[derive(Debug, Clone)]
 pub struct RenderOutput {
@@ -731,13 +748,12 @@ impl<W: Write + Send + 'static> NpyTrace<W> {
     }
 
     fn push(&mut self, i: usize, m: &Motion, e: f64) {
-        let c = if m.in_contact { 1.0 } else { 0.0 };
-        let t = i as f64 / self.rate_hz;
+        let row = TraceRow {
+            t: i as f64 / self.rate_hz,
+            obs: m.with_energy(e),
+        };
         let mut rec = [0u8; NPY_RECORD];
-        for (k, x) in [t, m.x_hammer, m.v_hammer, m.x_contact, m.v_contact, c, e]
-            .into_iter()
-            .enumerate()
-        {
+        for (k, x) in row.columns().into_iter().enumerate() {
             rec[8 * k..8 * k + 8].copy_from_slice(&x.to_le_bytes());
         }
         self.buf.extend_from_slice(&rec);

@@ -94,16 +94,7 @@ fn trace_hash(rows: &[TraceRow], csv: &[u8]) -> Result<u64> {
     let mut bits = Vec::with_capacity(rows.len() * 7 * 8);
     let mut read = 0;
     for (i, (line, r)) in lines.zip(rows).enumerate() {
-        let o = &r.obs;
-        let want = [
-            r.t,
-            o.x_hammer,
-            o.v_hammer,
-            o.x_contact,
-            o.v_contact,
-            f64::from(u8::from(o.in_contact)),
-            o.energy,
-        ];
+        let want = r.columns();
         let mut fields = line.split(',');
         for (k, w) in want.iter().enumerate() {
             let f = fields
