@@ -394,10 +394,7 @@ fn bad_input(_: &mut Criterion) {
             let mut worst = 0.0f64;
             for b in 0..blocks {
                 let evs: &[TimedEvent] = if b == 10 { first } else { &[] };
-                let t0 = Instant::now();
-                inst.process(evs, &mut l, &mut r);
-                worst = worst.max(t0.elapsed().as_secs_f64());
-                assert!(l.iter().chain(&r).all(|x| x.is_finite()));
+                worst = worst.max(timed_process(&mut inst, evs, &mut l, &mut r));
             }
             cells.push(format!("{:.0} %", 100.0 * worst / (64.0 / RATE)));
         }
@@ -457,9 +454,7 @@ fn pitch_bend(_: &mut Criterion) {
                         event: Event::PitchBend { value },
                     }];
                     let evs: &[TimedEvent] = if bend && !value.is_nan() { &evs } else { &[] };
-                    let t0 = Instant::now();
-                    inst.process(evs, &mut l, &mut r);
-                    worst = worst.max(t0.elapsed().as_secs_f64());
+                    worst = worst.max(timed_process(&mut inst, evs, &mut l, &mut r));
                 }
                 best = best.min(worst);
             }
@@ -511,16 +506,23 @@ fn brightness_chord(_: &mut Criterion) {
                     }
                 }
                 let (mut l, mut r) = (vec![0.0f32; 64], vec![0.0f32; 64]);
-                let t0 = Instant::now();
-                inst.process(&evs, &mut l, &mut r);
-                times.push(t0.elapsed().as_secs_f64());
-                assert!(l.iter().chain(&r).all(|x| x.is_finite()));
+                times.push(timed_process(&mut inst, &evs, &mut l, &mut r));
             }
             times.sort_by(f64::total_cmp);
             cells.push(format!("{:.0}", times[20] * 1e6));
         }
         println!("| {name} | {} | {} |", cells[0], cells[1]);
     }
+}
+
+/// The time of one `inst.process(evs, l, r)` call \[s\]; its output
+/// checked finite after the clock stops.
+fn timed_process(inst: &mut Instrument, evs: &[TimedEvent], l: &mut [f32], r: &mut [f32]) -> f64 {
+    let t0 = Instant::now();
+    inst.process(evs, l, r);
+    let t = t0.elapsed().as_secs_f64();
+    assert!(l.iter().chain(r.iter()).all(|x| x.is_finite()));
+    t
 }
 
 /// One note through the instrument, as a player plays it: the first
@@ -552,10 +554,7 @@ fn note_block(_: &mut Criterion) {
                 let mut inst = Instrument::new(prepared.clone(), params.play);
                 let (mut l, mut r) = (vec![0.0f32; 64], vec![0.0f32; 64]);
                 inst.process(&[], &mut l, &mut r);
-                let t0 = Instant::now();
-                inst.process(&evs, &mut l, &mut r);
-                times.push(t0.elapsed().as_secs_f64());
-                assert!(l.iter().chain(&r).all(|x| x.is_finite()));
+                times.push(timed_process(&mut inst, &evs, &mut l, &mut r));
             }
             times.sort_by(f64::total_cmp);
             cells.push(format!("{:.0}", times[10] * 1e6));
