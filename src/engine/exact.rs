@@ -1181,11 +1181,14 @@ impl EngineState {
     /// `(0, w]`; else `phi > 0` from `u_1 = 2 |phi_0| / k` on, and before it
     /// `phi' >= phi'_0 - t M2 > 0` (`M2 = sum_k c2_k |s_k|` bounds `phi''`)
     /// keeps `phi` rising. The search decides the same: a switch needs a
-    /// crossing downwards. The state advances by the partial step, bit for
+    /// crossing downwards. The state advances by the partial step (by the
+    /// one-sample step where the switch was at the sample's start), bit for
     /// bit what the search's "no root" would have left.
     /// docs/numerics.md section 6.2. \[audio-thread\]
     fn hermite_clear_rest(&mut self, scene: &CompiledScene, w: f64) -> bool {
-        let Some(h) = self.hermite_step(scene, w, false) else {
+        // a whole sample (a switch at its start) steps as `advance_by` does
+        // then: by the one-sample propagators
+        let Some(h) = self.hermite_step(scene, w, w == self.step_s) else {
             return false;
         };
         let w4 = w * w * w * w;
@@ -1231,7 +1234,11 @@ impl EngineState {
                 break;
             }
             let full = t == 0.0;
-            if open && t > 0.0 && self.hermite_after_switch && self.hermite_clear_rest(scene, rem) {
+            if open
+                && switches > 0
+                && self.hermite_after_switch
+                && self.hermite_clear_rest(scene, rem)
+            {
                 break;
             }
             self.build_model(scene, rem);
