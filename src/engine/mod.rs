@@ -315,6 +315,14 @@ pub struct EngineState {
     /// the compiler found it would (docs/numerics.md, "A strike on an
     /// object at rest").
     rest_run: Option<RestRun>,
+    /// A strike just put the hammer on the surface (`phi = 0` exactly) and
+    /// nothing has changed the state since: the coming sample's contact
+    /// begins at its start if `phi' < 0` there, without a search
+    /// ([`strike`](Self::strike), docs/numerics.md section 6.9).
+    struck_on_surface: bool,
+    /// Take [`struck_on_surface`](Self::struck_on_surface) (default); off
+    /// only to compare with the search in tests.
+    strike_entry: bool,
     /// Use the stored release of a strike from rest (default); off only to
     /// compare with the dense product in tests and benchmarks.
     rest_enabled: bool,
@@ -448,6 +456,8 @@ impl EngineState {
             search: SearchScratch::new(df.max(dc)),
             t_in_step: 0.0,
             rest_run: None,
+            struck_on_surface: false,
+            strike_entry: true,
             rest_enabled: true,
             rest_schedule: true,
             structured: true,
@@ -481,6 +491,7 @@ impl EngineState {
     /// rows and the curvature bound no longer describe it.
     #[inline]
     fn discontinuity(&mut self) {
+        self.struck_on_surface = false;
         self.cache_ok = false;
         self.bound_epoch = NO_EPOCH;
         self.herm_epoch = NO_EPOCH;
@@ -811,12 +822,19 @@ impl EngineState {
             self.t_in_step = 0.0;
             self.leave_contact(scene);
         }
-        let x_c = dot(&scene.free.rows.x_c, &self.phases[FREE].s);
-        self.x_h = x_c + height_m.max(0.0);
+        // the surface's height as the event function sums it (its row is
+        // `-x_c`, and a negated sum is the sum of the negated terms): a
+        // hammer put on the surface then has `phi = 0` exactly
+        let [ev_s, _, _] = self.event_sums(scene, 0.0, false);
+        let height = height_m.max(0.0);
+        self.x_h = -ev_s + height;
         self.v_h = velocity_m_per_s / self.time_scale;
         // a strike from rest still under way is not followed any further
         self.rest_run = None;
         self.discontinuity();
+        // on the surface: whether the contact begins at this instant is
+        // decided by the coming sample, from `phi' (0)`
+        self.struck_on_surface = self.strike_entry && height == 0.0;
     }
 
     /// One sample: decide the phase at the current instant, return the output
@@ -1773,6 +1791,15 @@ impl EngineState {
         self.fast_hermite = on;
     }
 
+    /// Begin the contact of a strike that puts the hammer on the surface
+    /// moving into it at the strike's instant (`true`, the default) or
+    /// leave that to the search (`false`): only for tests that compare the
+    /// two. \[any-thread\]
+    #[doc(hidden)]
+    pub fn set_strike_entry(&mut self, on: bool) {
+        self.strike_entry = on;
+    }
+
     /// Clear the rest of a sample after a located switch with the Hermite
     /// certificate (`true`, the default) or always with the search
     /// (`false`): only for tests and benchmarks that compare the two.
@@ -1835,14 +1862,22 @@ impl EngineState {
     /// Cheap O(N) energy proxy in reference units: `0.5 |s|^2` of the current
     /// phase plus the hammer's kinetic energy. Exact for modal objects in
     /// flight (orthonormal blocks); within a factor kappa(V)^2 otherwise.
-    /// Used to stop voices that have decayed. \[audio-thread\]
+    /// Used to stop voices that have decayed and to pick the quietest
+    /// voice to steal (for each note-on of a chord that steals: the sum
+    /// runs in four lanes, `x[i]` into lane `i % 4`, which the compiler
+    /// vectorises; a single chain of additions waited for each one).
+    /// \[audio-thread\]
     pub fn energy_proxy(&self, scene: &CompiledScene) -> f64 {
-        let state = 0.5
-            * self.phases[self.phase.index()]
-                .s
-                .iter()
-                .map(|x| x * x)
-                .sum::<f64>();
+        let s = &self.phases[self.phase.index()].s;
+        let (quads, tail) = s.as_chunks::<4>();
+        let mut acc = [0.0; 4];
+        for q in quads {
+            for l in 0..4 {
+                acc[l] += q[l] * q[l];
+            }
+        }
+        let tail: f64 = tail.iter().map(|x| x * x).sum();
+        let state = 0.5 * (((acc[0] + acc[1]) + (acc[2] + acc[3])) + tail);
         match self.phase {
             Phase::Contact => state,
             Phase::Free => state + 0.5 * scene.m_h * self.v_h * self.v_h,
