@@ -246,7 +246,7 @@ fn a_strike_on_the_surface_enters_at_its_instant() {
         let (on, e_on, sw_on, entries_on, c_on) = render(true);
         let (off, e_off, sw_off, entries_off, c_off) = render(false);
         println!(
-            "{n} modes at {speed} m/s: {} strikes; entered at the instant {} (search: {}), later in the first sample {} (search: {}); {sw_on} switches",
+            "{n} modes at {speed} m/s: {} strikes; entered at the instant {} (search: {}), later in the first sample {} (search: {}); {sw_on} switches (search: {sw_off})",
             c_on[0], c_on[1], c_off[1], c_on[3], c_off[3]
         );
         assert_eq!(entries_off, 0);

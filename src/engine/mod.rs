@@ -815,7 +815,10 @@ impl EngineState {
     /// (physical, positive up) while the object keeps its motion: a repeated
     /// strike hits a moving surface. If the old hammer is still in contact it is
     /// lifted off first (its spring is cut: that can only remove energy).
-    /// O(N^2) when in contact, else O(1). \[audio-thread\]
+    /// Put on the surface (`height_m` 0), the coming sample decides at its
+    /// start whether the contact begins there, without a search
+    /// (docs/numerics.md section 6.9). O(N^2) when in contact, else O(N).
+    /// \[audio-thread\]
     pub fn strike(&mut self, scene: &CompiledScene, height_m: f64, velocity_m_per_s: f64) {
         if self.in_contact() {
             // between samples: at the start of the coming one
