@@ -297,3 +297,52 @@ fn a_strike_on_the_surface_enters_at_its_instant() {
         assert!((e_on - e_off).abs() <= 1e-12 * e_off.abs().max(1e-300));
     }
 }
+
+/// The root refinement (docs/numerics.md section 6.4) brackets each root
+/// within the resolution in a few model evaluations: its steps aim just
+/// past the estimate towards the end of the bracket that did not move,
+/// instead of bisecting the rest of a bracket whose other end Halley's
+/// steps never approached (10 to 16 evaluations a root before). On every
+/// preset and stability case, and on strikes of a ringing 200-mode object
+/// at time scales 0.6 to 4.5 (its modes up to 4.5 times higher).
+#[test]
+fn roots_are_refined_in_a_few_model_evaluations() {
+    let (mut roots, mut evals) = (0u64, 0u64);
+    for (name, scene, n, every) in cases() {
+        let sc = compile(&scene, RATE).unwrap();
+        let mut scales = vec![1.0];
+        if every > 0 {
+            scales.extend([0.6, 1.9, 3.4, 4.5]);
+        }
+        for s in scales {
+            let mut st = EngineState::new(&sc);
+            st.set_time_scale(&sc, s).unwrap();
+            let (mut l, mut r) = (vec![0.0; 64], vec![0.0; 64]);
+            let mut done = 0;
+            while done < n {
+                if every > 0 && done % every == 0 && done > 0 {
+                    st.strike(&sc, 0.0, -1.0);
+                }
+                st.process_block(&sc, &mut l, &mut r);
+                done += 64;
+            }
+            let x = st.exact_stats;
+            let per = x.root_evals as f64 / x.roots_refined.max(1) as f64;
+            println!(
+                "{name} at scale {s}: {} roots, {per:.1} evaluations a root",
+                x.roots_refined
+            );
+            assert!(
+                x.root_evals <= 8 * x.roots_refined,
+                "{name} at scale {s}: {per:.1} evaluations a root"
+            );
+            roots += x.roots_refined;
+            evals += x.root_evals;
+        }
+    }
+    println!(
+        "{roots} roots refined in {evals} model evaluations ({:.2} a root)",
+        evals as f64 / roots as f64
+    );
+    assert!(roots > 100);
+}

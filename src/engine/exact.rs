@@ -145,6 +145,10 @@ pub struct ExactStats {
     /// Contacts that began at a strike's instant, the hammer put on the
     /// surface moving into it: entered without a search.
     pub strike_entries: u64,
+    /// Roots refined on the model (docs/numerics.md section 6.4).
+    pub roots_refined: u64,
+    /// The model evaluations those refinements took (about five a root).
+    pub root_evals: u64,
     /// Samples the block kernel stepped past one that failed its test,
     /// thrown away (the run is stepped again up to that sample): the fast
     /// path's speculation that did not pay.
@@ -1007,19 +1011,30 @@ impl EngineState {
     }
 
     /// Refine a certified bracket (`phi(a) >= 0 > phi(b)`, `phi` strictly
-    /// decreasing on it) to the root, on the model: safeguarded Halley,
-    /// bisecting whenever a step does not halve the bracket. Returns a
-    /// point at most [`ROOT_ULPS`] ulps of the sample after the root, on its
-    /// `phi <= 0` side.
+    /// decreasing on it) to the root, on the model: safeguarded Halley.
+    /// Each step aims a quarter of the resolution past its root estimate,
+    /// towards the end of the bracket that did not move (from a point
+    /// where `phi > 0` just after the estimate, from one where `phi <= 0`
+    /// just before it), so two steps near the root bracket it within the
+    /// resolution; a step that would leave the bracket tries half the
+    /// resolution inside the far end instead, and the bracket is bisected
+    /// whenever neither two steps halved it nor one step halved the step.
+    /// Returns a point at most
+    /// [`ROOT_ULPS`] ulps of the sample after the root, on its `phi <= 0`
+    /// side. docs/numerics.md section 6.4. \[audio-thread\]
     fn refine(&mut self, scene: &CompiledScene, a: f64, b: f64) -> f64 {
         let resolution = ROOT_ULPS * f64::EPSILON * self.step_s;
         let halley = |f: f64, d: f64, dd: f64| 2.0 * f * d / (2.0 * d * d - f * dd);
         let (mut a, mut b) = (a, b);
         let [fb, db, ddb] = self.model_eval(scene, b);
+        let mut evals = 1;
         let mut x = b - halley(fb, db, ddb);
-        let mut width = b - a;
-        // ~60 bisections reach the resolution from a whole sample; Halley
-        // steps only make it faster.
+        // the bracket's width one and two steps ago (the first step is
+        // free to move one end only)
+        let mut widths = [b - a, 2.0 * (b - a)];
+        let mut last_step = f64::INFINITY;
+        // ~2 x 60 halvings reach the resolution from a whole sample; Halley
+        // steps only make it faster
         for _ in 0..200 {
             if b - a <= resolution {
                 break;
@@ -1028,8 +1043,10 @@ impl EngineState {
                 x = 0.5 * (a + b);
             }
             let [fx, dx, ddx] = self.model_eval(scene, x);
+            evals += 1;
             let step = halley(fx, dx, ddx);
-            if fx > 0.0 {
+            let before = fx > 0.0;
+            if before {
                 a = x;
             } else {
                 b = x;
@@ -1037,18 +1054,24 @@ impl EngineState {
                     break;
                 }
             }
-            // aim just past the root estimate, onto the phi <= 0 side
             let est = x - step;
-            x = if step.is_finite() {
-                est + 0.25 * resolution
-            } else {
+            x = if !step.is_finite() {
                 0.5 * (a + b)
+            } else if before {
+                (est + 0.25 * resolution).min(b - 0.5 * resolution)
+            } else {
+                (est - 0.25 * resolution).max(a + 0.5 * resolution)
             };
-            if b - a > 0.5 * width {
+            // progress: the bracket halved in two steps, or the step did
+            // in one (Halley converging from one side)
+            if b - a > 0.5 * widths[1] && !(step.abs() <= 0.5 * last_step) {
                 x = 0.5 * (a + b);
             }
-            width = b - a;
+            widths = [b - a, widths[0]];
+            last_step = step.abs();
         }
+        self.exact_stats.roots_refined += 1;
+        self.exact_stats.root_evals += evals;
         b
     }
 
