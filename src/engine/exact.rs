@@ -231,6 +231,12 @@ pub(super) struct SearchScratch {
     f_e: Vec<f64>,
     f_s: Vec<f64>,
     f_c: Vec<f64>,
+    /// The terms a node resolves (indices into the fast terms), their
+    /// arguments and their sines and cosines.
+    f_at: Vec<u32>,
+    f_rt: Vec<f64>,
+    f_rs: Vec<f64>,
+    f_rc: Vec<f64>,
     /// Slow terms' polynomial `sum_j poly[j] tau^j`, its degree, the bound
     /// on the slow part's third derivative, and the truncation errors of the
     /// polynomial's value, slope and curvature.
@@ -283,6 +289,10 @@ impl SearchScratch {
             f_e: v(),
             f_s: v(),
             f_c: v(),
+            f_at: vec![0; n],
+            f_rt: v(),
+            f_rs: v(),
+            f_rc: v(),
             poly: [0.0; MAX_DEGREE + 1],
             ns: 0,
             theta: 0.0,
@@ -513,14 +523,42 @@ impl SearchScratch {
             self.f_mt[i] = self.f_m[i] * tau;
             self.f_wt[i] = self.f_w[i] * tau;
         }
-        vmath::exp_sincos(
-            simd,
-            &self.f_mt[..nf],
-            &self.f_wt[..nf],
-            &mut self.f_e[..nf],
-            &mut self.f_s[..nf],
-            &mut self.f_c[..nf],
-        );
+        if all {
+            vmath::exp_sincos(
+                simd,
+                &self.f_mt[..nf],
+                &self.f_wt[..nf],
+                &mut self.f_e[..nf],
+                &mut self.f_s[..nf],
+                &mut self.f_c[..nf],
+            );
+        } else {
+            // a term the node does not resolve enters through its envelope
+            // alone, which needs no sine or cosine: those of the resolved
+            // terms only, gathered (each lane the same bits either way)
+            vmath::exp_only(simd, &self.f_mt[..nf], &mut self.f_e[..nf]);
+            let mut k = 0;
+            for i in 0..nf {
+                if self.f_mu[i] * w <= THETA_RESOLVED {
+                    self.f_at[k] = i as u32;
+                    self.f_rt[k] = self.f_wt[i];
+                    k += 1;
+                }
+            }
+            if k > 0 {
+                vmath::sincos_only(
+                    simd,
+                    &self.f_rt[..k],
+                    &mut self.f_rs[..k],
+                    &mut self.f_rc[..k],
+                );
+                for j in 0..k {
+                    let i = self.f_at[j] as usize;
+                    self.f_s[i] = self.f_rs[j];
+                    self.f_c[i] = self.f_rc[j];
+                }
+            }
+        }
         let growth = self.growth;
         for i in 0..nf {
             let e = self.f_e[i];

@@ -313,6 +313,83 @@ pub fn exp_sincos(
     }
 }
 
+/// `e[k] = exp(m[k])`: [`exp_sincos`]'s exponentials alone, bit for bit
+/// (the same lanes on the same path). Panics on unequal lengths.
+/// \[audio-thread\]
+#[inline]
+pub fn exp_only(path: SimdPath, m: &[f64], e: &mut [f64]) {
+    assert!(m.len() == e.len(), "exp_only: mismatched lengths");
+    #[inline(always)]
+    fn body<const FMA: bool>(m: &[f64], e: &mut [f64]) {
+        let (mc, mt) = m.as_chunks::<LANES>();
+        let (ec, et) = e.as_chunks_mut::<LANES>();
+        for (mk, ek) in mc.iter().zip(ec) {
+            for j in 0..LANES {
+                ek[j] = exp_lane::<FMA>(mk[j]);
+            }
+        }
+        for (x, y) in mt.iter().zip(et) {
+            *y = exp_lane::<FMA>(*x);
+        }
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn body_avx2(m: &[f64], e: &mut [f64]) {
+        body::<true>(m, e)
+    }
+    match path {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `detect()` makes, after
+        // `is_x86_feature_detected!` confirmed AVX2 and FMA on this CPU.
+        SimdPath::Avx2Fma(_) => unsafe { body_avx2(m, e) },
+        _ => body::<false>(m, e),
+    }
+}
+
+/// `s[k] = sin(r[k])`, `c[k] = cos(r[k])`: [`exp_sincos`]'s sines and
+/// cosines alone, bit for bit (the same lanes on the same path, the same
+/// scalar pass above [`R_FAST`]). Panics on unequal lengths.
+/// \[audio-thread\]
+#[inline]
+pub fn sincos_only(path: SimdPath, r: &[f64], s: &mut [f64], c: &mut [f64]) {
+    let n = r.len();
+    assert!(
+        s.len() == n && c.len() == n,
+        "sincos_only: mismatched lengths"
+    );
+    #[inline(always)]
+    fn body<const FMA: bool>(r: &[f64], s: &mut [f64], c: &mut [f64]) -> bool {
+        let mut big = false;
+        for k in 0..r.len() {
+            let (sk, ck) = sincos_lane::<FMA>(r[k]);
+            s[k] = sk;
+            c[k] = ck;
+            big |= r[k] > R_FAST;
+        }
+        big
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn body_avx2(r: &[f64], s: &mut [f64], c: &mut [f64]) -> bool {
+        body::<true>(r, s, c)
+    }
+    let big = match path {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as in `exp_only`.
+        SimdPath::Avx2Fma(_) => unsafe { body_avx2(r, s, c) },
+        _ => body::<false>(r, s, c),
+    };
+    if big {
+        for k in 0..n {
+            if r[k] > R_FAST {
+                let (sk, ck) = r[k].sin_cos();
+                s[k] = sk;
+                c[k] = ck;
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -456,6 +533,31 @@ mod tests {
             });
         }
         (m, r)
+    }
+
+    /// The exponentials alone and the sines and cosines alone are
+    /// `exp_sincos`'s bit for bit, on both paths, at every length (tails
+    /// included) and above `R_FAST`.
+    #[test]
+    fn exp_only_and_sincos_only_are_exp_sincos_bit_for_bit() {
+        let (mut m, mut r) = random_args(4099, 0x5eed_0007);
+        r[17] = 3.0 * R_FAST;
+        r[4000] = f64::INFINITY;
+        m[5] = -800.0;
+        for path in paths() {
+            for n in (0..=20).chain([1000, 4099]) {
+                let (mut e, mut sn, mut cs) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+                exp_sincos(path, &m[..n], &r[..n], &mut e, &mut sn, &mut cs);
+                let mut e1 = vec![0.0; n];
+                exp_only(path, &m[..n], &mut e1);
+                let (mut s1, mut c1) = (vec![0.0; n], vec![0.0; n]);
+                sincos_only(path, &r[..n], &mut s1, &mut c1);
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&e), bits(&e1), "exp, n = {n}");
+                assert_eq!(bits(&sn), bits(&s1), "sin, n = {n}");
+                assert_eq!(bits(&cs), bits(&c1), "cos, n = {n}");
+            }
+        }
     }
 
     #[test]
