@@ -303,12 +303,18 @@ pub fn exp_sincos(
         _ => body::<false>(m, r, e, s, c),
     };
     if big {
-        for k in 0..n {
-            if r[k] > R_FAST {
-                let (sk, ck) = r[k].sin_cos();
-                s[k] = sk;
-                c[k] = ck;
-            }
+        sincos_beyond_fast(r, s, c);
+    }
+}
+
+/// The arguments above [`R_FAST`] (rare; +inf too), which the vector path
+/// does not reduce: `f64::sin_cos` in a scalar pass.
+fn sincos_beyond_fast(r: &[f64], s: &mut [f64], c: &mut [f64]) {
+    for k in 0..r.len() {
+        if r[k] > R_FAST {
+            let (sk, ck) = r[k].sin_cos();
+            s[k] = sk;
+            c[k] = ck;
         }
     }
 }
@@ -380,13 +386,7 @@ pub fn sincos_only(path: SimdPath, r: &[f64], s: &mut [f64], c: &mut [f64]) {
         _ => body::<false>(r, s, c),
     };
     if big {
-        for k in 0..n {
-            if r[k] > R_FAST {
-                let (sk, ck) = r[k].sin_cos();
-                s[k] = sk;
-                c[k] = ck;
-            }
-        }
+        sincos_beyond_fast(r, s, c);
     }
 }
 
