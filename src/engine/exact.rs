@@ -1057,9 +1057,9 @@ impl EngineState {
     /// resolution; a step that would leave the bracket tries half the
     /// resolution inside the far end instead, and the bracket is bisected
     /// whenever neither two steps halved it nor one step halved the step.
-    /// Returns a point at most
-    /// [`ROOT_ULPS`] ulps of the sample after the root, on its `phi <= 0`
-    /// side. docs/numerics.md section 6.4. \[audio-thread\]
+    /// Returns a point at most [`ROOT_ULPS`] ulps of the sample after the
+    /// root, on its `phi <= 0` side. docs/numerics.md section 6.4.
+    /// \[audio-thread\]
     fn refine(&mut self, scene: &CompiledScene, a: f64, b: f64) -> f64 {
         let resolution = ROOT_ULPS * f64::EPSILON * self.step_s;
         let halley = |f: f64, d: f64, dd: f64| 2.0 * f * d / (2.0 * d * d - f * dd);

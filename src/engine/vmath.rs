@@ -365,14 +365,22 @@ pub fn sincos_only(path: SimdPath, r: &[f64], s: &mut [f64], c: &mut [f64]) {
     );
     #[inline(always)]
     fn body<const FMA: bool>(r: &[f64], s: &mut [f64], c: &mut [f64]) -> bool {
-        let mut big = false;
-        for k in 0..r.len() {
-            let (sk, ck) = sincos_lane::<FMA>(r[k]);
-            s[k] = sk;
-            c[k] = ck;
-            big |= r[k] > R_FAST;
+        // whole chunks of lanes without bounds checks, as `exp_sincos`'s
+        let (rc, rt) = r.as_chunks::<LANES>();
+        let (sc, st) = s.as_chunks_mut::<LANES>();
+        let (cc, ct) = c.as_chunks_mut::<LANES>();
+        let mut big = 0u64;
+        for ((rk, sk), ck) in rc.iter().zip(sc).zip(cc) {
+            for j in 0..LANES {
+                (sk[j], ck[j]) = sincos_lane::<FMA>(rk[j]);
+                big |= (rk[j] > R_FAST) as u64;
+            }
         }
-        big
+        for ((x, y), z) in rt.iter().zip(st).zip(ct) {
+            (*y, *z) = sincos_lane::<FMA>(*x);
+            big |= (*x > R_FAST) as u64;
+        }
+        big != 0
     }
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
