@@ -299,6 +299,9 @@ fn roots_are_refined_in_a_few_model_evaluations() {
         for s in scales {
             let mut st = EngineState::new(&sc);
             st.set_time_scale(&sc, s).unwrap();
+            // every switch through the search, the strikes from rest too
+            // (their certified stored switches otherwise need no root)
+            st.set_rest_trust(false);
             let (mut l, mut r) = (vec![0.0; 64], vec![0.0; 64]);
             let mut done = 0;
             while done < n {

@@ -9,7 +9,7 @@
 //! the default engine, so they check this path too.
 
 use modal_contact::compile::{compile, compile_with, CompiledScene};
-use modal_contact::engine::EngineState;
+use modal_contact::engine::{EngineState, ROOT_ULPS};
 use modal_contact::presets;
 use modal_contact::scene::{Scene, Switching};
 use modal_testkit::scenes::{c_for, wall_strike, ModalStrike, RATE};
@@ -434,4 +434,173 @@ fn stored_switch_instants_schedule_the_runs_without_changing_a_sample() {
         "less thrown away in {fewer} of {} scenes",
         cases.len()
     );
+}
+
+/// Before a scene plays, the engine runs a strike from rest on it and
+/// counts the stored switches its certified search confirms
+/// (`RestStrike::certified`); a voice takes those at their stored instants
+/// without a search. Against
+/// the same engine with every switch located by the search (the stored
+/// instant a hint): on every preset and stability case with a stored
+/// strike and bars of 100..1000 modes, at two pitches, the same contacts,
+/// outputs within ten times what rounding alone moves (or 1e-13 of the
+/// peak), energies within ten times what rounding alone moves (or 1e-13
+/// of the strike's), no energy gain beyond the search's own, no search node spent on a trusted switch.
+#[test]
+fn certified_stored_switches_play_as_the_search_locates_them() {
+    println!("scene | certified / stored | pitch | trusted / located | nodes: trusted / searched | max |out diff| / peak (rounding alone) | max energy diff / E0 (rounding alone) | rho x root resolution");
+    let mut cases: Vec<(String, CompiledScene, usize)> = [100, 200, 1000]
+        .into_iter()
+        .map(|n| {
+            let sc = compile(&modal_testkit::scenes::struck_bar(n, 0.1), RATE).unwrap();
+            (format!("bar of {n} modes"), sc, (0.03 * RATE) as usize)
+        })
+        .collect();
+    for (name, s, n) in scenes() {
+        let sc = compile_with(&s, RATE, Some(Switching::Exact)).unwrap();
+        if sc.rest.is_some() {
+            cases.push((name, sc, n));
+        }
+    }
+    let (mut trusted_runs, mut all_certified) = (0, 0);
+    for (name, sc, n) in &cases {
+        let r = sc.rest.as_ref().unwrap();
+        let stored = r.later.len() + 1;
+        let certified = modal_contact::engine::certify_rest_strike(sc);
+        assert!(certified <= stored, "{name}");
+        all_certified += usize::from(certified == stored);
+        for ts in [1.0, 1.37] {
+            if ts != 1.0 && sc.free.dense.is_some() {
+                continue;
+            }
+            let play = |trust: bool, portable: bool| {
+                let mut st = EngineState::new(sc);
+                st.set_rest_trust(trust);
+                st.set_portable_kernels(portable);
+                st.set_time_scale(sc, ts).unwrap();
+                st.reset(sc);
+                let (mut out, mut energy) = (Vec::with_capacity(*n), Vec::with_capacity(*n));
+                for _ in 0..*n {
+                    out.push(st.tick(sc));
+                    energy.push(st.energy(sc));
+                }
+                Run { out, energy, st }
+            };
+            let (a, b, c) = (play(true, false), play(false, false), play(false, true));
+            let peak = b.out.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
+            let (d_out, d_round) = (out_diff(&a, &b), out_diff(&c, &b));
+            let e0 = b.energy.iter().fold(0.0f64, |m, &e| m.max(e));
+            let (d_e, d_e_round) = (energy_diff(&a, &b), energy_diff(&c, &b));
+            let (x, y) = (&a.st.exact_stats, &b.st.exact_stats);
+            println!(
+                "{name} | {certified} / {stored} | {ts} | {} / {} | {} / {} | {:.1e} ({:.1e}) | {:.1e} ({:.1e}) | {:.1e}",
+                x.rest_trusted,
+                x.located,
+                x.search_nodes,
+                y.search_nodes,
+                d_out / peak,
+                d_round / peak,
+                d_e / e0,
+                d_e_round / e0,
+                ROOT_ULPS * f64::EPSILON * sc.h * ts * r.later.iter().fold(r.rho, |m, w| m.max(w.rho))
+            );
+            assert_eq!(y.rest_trusted, 0, "{name} x{ts}");
+            assert_eq!(a.st.contacts_started, b.st.contacts_started, "{name} x{ts}");
+            assert_eq!(x.located, y.located, "{name} x{ts}");
+            assert_eq!(
+                (x.rest_releases + x.rest_later, x.rest_misses),
+                (y.rest_releases + y.rest_later, y.rest_misses),
+                "{name} x{ts}"
+            );
+            // a certified switch the voice reached is taken without a search
+            let reached = (y.rest_releases + y.rest_later).min(certified as u64);
+            assert_eq!(x.rest_trusted, reached, "{name} x{ts}");
+            assert!(
+                x.search_nodes < y.search_nodes || reached == 0,
+                "{name} x{ts}: {} nodes, {} with the search",
+                x.search_nodes,
+                y.search_nodes
+            );
+            // the search locates a switch to its resolution, the compiler
+            // to the last bit: instants that far apart move the state by up
+            // to rho times that, relative (a stiff contact: rho large)
+            let res = ROOT_ULPS * f64::EPSILON * sc.h * ts;
+            let rho = r.later.iter().fold(r.rho, |m, w| m.max(w.rho));
+            let timing = 2.0 * rho * res;
+            assert!(
+                d_out <= (1e-13 * peak).max(10.0 * d_round).max(timing * peak),
+                "{name} x{ts}: outputs differ by {d_out:e} (peak {peak:e}, rounding alone {d_round:e})"
+            );
+            assert!(
+                d_e <= (1e-13 * e0).max(10.0 * d_e_round).max(2.0 * timing * e0),
+                "{name} x{ts}: energies differ by {d_e:e} (E0 {e0:e}, rounding alone {d_e_round:e})"
+            );
+            let (gain, gain_search) = (largest_rise(&a.energy), largest_rise(&b.energy));
+            assert!(
+                gain <= gain_search.max(0.0) + 1e-15 * e0,
+                "{name} x{ts}: energy gain {gain:e} vs the search's {gain_search:e}"
+            );
+            trusted_runs += usize::from(reached > 0);
+        }
+    }
+    assert!(
+        trusted_runs >= 20,
+        "only {trusted_runs} runs took trusted switches"
+    );
+    assert!(
+        all_certified * 10 >= cases.len() * 9,
+        "every stored switch certified in only {all_certified} of {} scenes",
+        cases.len()
+    );
+}
+
+/// A stored schedule that is wrong from some switch on (an instant moved
+/// by a microsecond, as a compiler's grid that missed a crossing would
+/// leave it) is certified only up to that switch: a voice takes the
+/// switches before it at their stored instants, then locates the wrong
+/// one with its search, counts a miss and takes the products, playing as
+/// the engine does with the search alone.
+#[test]
+fn a_stored_switch_the_engine_does_not_confirm_is_not_trusted() {
+    let mut sc = compile(&modal_testkit::scenes::struck_bar(100, 0.1), RATE).unwrap();
+    let stored = sc.rest.as_ref().unwrap().later.len() + 1;
+    assert!(stored >= 3, "{stored} stored switches");
+    assert_eq!(modal_contact::engine::certify_rest_strike(&sc), stored);
+    // later switch 1 (the second contact's release) moved, the count
+    // forgotten
+    let r = sc.rest.as_mut().unwrap();
+    r.later[1].t += 1e-6;
+    r.certified.take();
+    // the first release and the second entry are confirmed
+    assert_eq!(modal_contact::engine::certify_rest_strike(&sc), 2);
+    let play = |trust: bool| {
+        let mut st = EngineState::new(&sc);
+        st.set_rest_trust(trust);
+        st.reset(&sc);
+        let out: Vec<[f64; 2]> = (0..(0.03 * RATE) as usize).map(|_| st.tick(&sc)).collect();
+        (out, st)
+    };
+    let ((a, sa), (b, sb)) = (play(true), play(false));
+    let (x, y) = (&sa.exact_stats, &sb.exact_stats);
+    println!(
+        "trusted {}, stored taken {} + {}, misses {}; with the search alone: {} + {}, misses {}",
+        x.rest_trusted,
+        x.rest_releases,
+        x.rest_later,
+        x.rest_misses,
+        y.rest_releases,
+        y.rest_later,
+        y.rest_misses
+    );
+    assert_eq!(x.rest_trusted, 2);
+    assert_eq!((x.rest_releases, x.rest_later, x.rest_misses), (1, 1, 1));
+    assert_eq!((y.rest_releases, y.rest_later, y.rest_misses), (1, 1, 1));
+    assert_eq!(sa.contacts_started, sb.contacts_started);
+    let peak = b.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    let d = a
+        .iter()
+        .flatten()
+        .zip(b.iter().flatten())
+        .fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+    assert!(d <= 1e-13 * peak, "{d:e} of {peak:e}");
 }

@@ -27,14 +27,24 @@
 //! adds energy), and a strike from rest costs no product at all within the
 //! stored span (docs/numerics.md, "A strike on an object at rest").
 //!
-//! `t_r` and the later instants are only hints: the instant of a switch is
-//! always the one the engine's certified search locates. An instant that
-//! missed the true first crossing would simply never match, and that
-//! switch and every later one take the dense product.
+//! The compiler finds these instants on a grid and by bisection, which
+//! could miss a crossing between two grid points; they become decisions
+//! only where the engine's own certified search confirms them. Before a
+//! scene is played (the first engine state made for it, or the
+//! instrument's worker for each scene it compiles), the engine runs a
+//! downward strike from rest on it, every switch located by its search,
+//! and counts the stored switches it takes where they are stored
+//! ([`RestStrike::certified`], [`crate::engine::certify_rest_strike`]). A voice takes those at their
+//! stored instants without a search: its strike is `eta` times the same
+//! trajectory, which differs from the certifying run's by rounding only.
+//! A stored switch past them stays a hint the voice's search must confirm;
+//! one that does not come where it is stored ends the run, and that switch
+//! and every later one take the dense product.
 
 use super::CompiledPhase;
 use crate::physics::block::{exp2, mul2, Mat2};
 use nalgebra::DMatrix;
+use std::sync::OnceLock;
 
 /// `|T - t_r| rho` below which the engine uses the stored release: the
 /// remainder of the first-order Taylor step is `<= (|T - t_r| rho)^2 / 2`
@@ -119,6 +129,15 @@ pub struct RestStrike {
     /// ([`REST_SEQ_T_MAX_S`], [`REST_SEQ_MAX`]); valid for a hammer that
     /// struck downwards (`eta < 0`).
     pub later: Vec<RestSwitch>,
+    /// How many of the stored switches (the first release, then `later` in
+    /// order) the engine's own certified search located where they are
+    /// stored, on a downward strike from rest the engine runs
+    /// ([`crate::engine::certify_rest_strike`]; set once, the first time
+    /// an engine state is made for the scene or the scene is certified):
+    /// a voice takes these at their stored instants without a search; a
+    /// stored switch past them, or any while this is unset, stays a hint
+    /// the voice's search must confirm.
+    pub certified: OnceLock<usize>,
 }
 
 /// What the stage reads from the compiled scene.
@@ -191,6 +210,7 @@ pub(super) fn rest_strike(inp: &RestInputs) -> Option<RestStrike> {
         f_d,
         rho,
         later,
+        certified: OnceLock::new(),
     })
 }
 

@@ -130,6 +130,11 @@ pub struct ExactStats {
     /// contacts) that came where the compiler found them: O(N), the state
     /// stored.
     pub rest_later: u64,
+    /// Stored switches of a strike from rest taken at their stored
+    /// instants without a search (the compiler's run of the engine had
+    /// confirmed them: [`crate::compile::rest::RestStrike::certified`]);
+    /// also counted in `located` and in `rest_releases` / `rest_later`.
+    pub rest_trusted: u64,
     /// Switches of a strike from rest that did not come where the compiler
     /// found them (the first release ended elsewhere: another strike, a
     /// change of pitch, a grazing release; or a later switch did): the
@@ -831,7 +836,7 @@ impl EngineState {
     /// Fill `p_part` with the current phase's block propagators over `tau`,
     /// unless it already holds them: one sweep of exp/sin/cos per distinct
     /// `(phase, tau)`.
-    fn ensure_partial(&mut self, scene: &CompiledScene, tau: f64) {
+    pub(super) fn ensure_partial(&mut self, scene: &CompiledScene, tau: f64) {
         let contact = self.in_contact();
         if self.part_ok && self.part_tau == tau && self.part_contact == contact {
             return;
@@ -852,7 +857,7 @@ impl EngineState {
     }
 
     /// Advance the current phase by `tau` (no switching).
-    fn advance_by(&mut self, scene: &CompiledScene, tau: f64, full: bool) {
+    pub(super) fn advance_by(&mut self, scene: &CompiledScene, tau: f64, full: bool) {
         if tau <= 0.0 {
             return;
         }
@@ -1351,6 +1356,18 @@ impl EngineState {
             let rem = step - t;
             if rem <= 0.0 {
                 break;
+            }
+            if let Some(tau) = self.rest_trusted_switch(scene, t) {
+                // a strike from rest's switch where the compiler's run of
+                // this engine located it: no search
+                t = tau;
+                self.t_in_step = t;
+                self.switch_now(scene);
+                self.exact_stats.located += 1;
+                self.exact_stats.rest_trusted += 1;
+                switches += 1;
+                open = true;
+                continue;
             }
             let full = t == 0.0;
             if open

@@ -135,9 +135,8 @@ impl BlockProps {
         self.p10[k] = p[2];
         self.p11[k] = p[3];
     }
-    /// Block `k` (the tests' view; the engine steps whole arrays with
-    /// [`step_blocks`]).
-    #[cfg(test)]
+    /// Block `k` (the engine steps whole arrays with [`step_blocks`]).
+    #[inline]
     pub fn get(&self, k: usize) -> [f64; 4] {
         [self.p00[k], self.p01[k], self.p10[k], self.p11[k]]
     }

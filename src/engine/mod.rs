@@ -44,7 +44,7 @@ use kernel::{
     QuadIo, Rows, SlopeIo, EPOCH,
 };
 
-use crate::compile::rest::{REST_ENERGY_MATCH, REST_MATCH};
+use crate::compile::rest::{RestStrike, REST_ENERGY_MATCH, REST_MATCH};
 use crate::compile::{CompiledPhase, CompiledScene};
 use crate::physics::block::exp2;
 use crate::scene::Switching;
@@ -167,6 +167,110 @@ struct StoredSwitch<'a> {
     s: &'a [f64],
     s_d: &'a [f64],
     hammer_eta: Option<(f64, f64)>,
+}
+
+/// How many of `scene`'s stored switches of a strike from rest
+/// ([`RestStrike`]: the first release, then the later switches in order)
+/// this engine's certified search locates where they are stored: a
+/// downward strike from rest (unit momentum, the hammer put on the
+/// surface) run sample by sample at the scene's rate, each switch located
+/// by the search (the stored instant a hint) and matched against the store
+/// as a voice matches it, up to the first switch that is not where the
+/// store has it. Runs once per scene and records the count
+/// ([`RestStrike::certified`]); later calls return it. A voice takes those
+/// switches at their stored instants without a search. [`EngineState::new`]
+/// calls it; the instrument calls it for every scene it compiles. 0 without
+/// a stored strike or exact switching. Allocates (a voice state).
+/// docs/numerics.md section 6.9. \[any-thread\]
+pub fn certify_rest_strike(scene: &CompiledScene) -> usize {
+    let Some(r) = scene.rest.as_ref() else {
+        return 0;
+    };
+    *r.certified.get_or_init(|| {
+        if scene.switching != Switching::Exact || !(scene.sm > 0.0) {
+            return 0;
+        }
+        let mut st = EngineState::new_uncertified(scene);
+        st.rest_trust = false;
+        st.strike(scene, 0.0, -1.0 / scene.sm);
+        let last = r.later.last().map_or(r.t_r, |sw| sw.t);
+        let samples = (last / scene.h).ceil() as u64 + 2;
+        for _ in 0..samples {
+            st.tick(scene);
+            // the run ends past its last stored switch, or at a miss
+            if st.rest_run.is_none() {
+                break;
+            }
+        }
+        let x = st.exact_stats;
+        (x.rest_releases + x.rest_later) as usize
+    })
+}
+
+/// A strike from rest's next stored switch ([`stored_switch`]).
+struct NextStored<'a> {
+    /// Its instant since the run's first entry \[s, reference time\].
+    t: f64,
+    sw: StoredSwitch<'a>,
+    /// The Taylor step's scale ([`crate::compile::rest::RestSwitch::rho`]).
+    rho: f64,
+    is_entry: bool,
+    /// An entry's stored energy and its derivative.
+    energy: Option<(f64, f64)>,
+}
+
+/// The stored switch `run.next` of `r`: the first release, then the later
+/// switches (stored for a downward strike only). `None` past the last.
+fn stored_switch<'a>(r: &'a RestStrike, run: &RestRun) -> Option<NextStored<'a>> {
+    if run.next == 0 {
+        let sw = StoredSwitch {
+            s: &r.f,
+            s_d: &r.f_d,
+            hammer_eta: None,
+        };
+        return Some(NextStored {
+            t: r.t_r,
+            sw,
+            rho: r.rho,
+            is_entry: false,
+            energy: None,
+        });
+    }
+    let later = r.later.get(run.next - 1).filter(|_| run.eta < 0.0)?;
+    Some(NextStored {
+        t: later.t,
+        sw: StoredSwitch {
+            s: &later.s,
+            s_d: &later.s_d,
+            hammer_eta: later.hammer_eta,
+        },
+        rho: later.rho,
+        is_entry: (run.next - 1).is_multiple_of(2),
+        energy: later.energy,
+    })
+}
+
+/// Whether a switch (`entering`) `d` after the stored instant of `next`
+/// is that switch: the kind agrees, `|d| rho <= REST_MATCH`, and for an
+/// entry the amplitude that gives the stored state the energy the flight
+/// has (`flight()`, the entry conserves it) is the run's to
+/// `REST_ENERGY_MATCH`. The amplitude, or `None` (a miss: the product).
+fn rest_matches(
+    run: &RestRun,
+    next: &NextStored,
+    entering: bool,
+    d: f64,
+    flight: impl FnOnce() -> f64,
+) -> Option<f64> {
+    if next.is_entry != entering || !((d * next.rho).abs() <= REST_MATCH) {
+        return None;
+    }
+    let Some((e, e_d)) = next.energy else {
+        return Some(run.lambda);
+    };
+    let stored = run.eta * run.eta * (e + d * e_d);
+    let lambda = (flight() / stored).sqrt();
+    ((lambda - run.lambda).abs() <= REST_ENERGY_MATCH).then_some(lambda)
 }
 
 /// What a voice keeps per phase, sized for that phase's compiled form.
@@ -326,6 +430,10 @@ pub struct EngineState {
     /// Use the stored release of a strike from rest (default); off only to
     /// compare with the dense product in tests and benchmarks.
     rest_enabled: bool,
+    /// Take a strike from rest's certified stored switches at their stored
+    /// instants without a search (default); off only to compare with the
+    /// search, and for the compiler's certifying run.
+    rest_trust: bool,
     /// Let a strike from rest's stored switch instants schedule the fast
     /// path's runs (default; scheduling only, the same samples bit for bit).
     rest_schedule: bool,
@@ -399,8 +507,16 @@ enum Observe {
 
 impl EngineState {
     /// Allocate state for `scene` and reset it to the scene's initial state.
-    /// [main-thread / worker]
+    /// The first state made for a scene also certifies its stored strike
+    /// from rest ([`certify_rest_strike`]). [main-thread / worker]
     pub fn new(scene: &CompiledScene) -> Self {
+        certify_rest_strike(scene);
+        Self::new_uncertified(scene)
+    }
+
+    /// [`new`](Self::new) without certifying the scene (what the
+    /// certification itself runs on).
+    fn new_uncertified(scene: &CompiledScene) -> Self {
         let df = scene.free.dim;
         let dc = scene.contact.dim;
         let mut st = EngineState {
@@ -459,6 +575,7 @@ impl EngineState {
             struck_on_surface: false,
             strike_entry: true,
             rest_enabled: true,
+            rest_trust: true,
             rest_schedule: true,
             structured: true,
             obs: None,
@@ -1632,40 +1749,15 @@ impl EngineState {
     ) -> Option<(StoredSwitch<'a>, f64, f64)> {
         let run = self.rest_run.take()?;
         let r = scene.rest.as_ref()?;
-        let (t_s, sw, rho, is_entry, energy) = if run.next == 0 {
-            let sw = StoredSwitch {
-                s: &r.f,
-                s_d: &r.f_d,
-                hammer_eta: None,
-            };
-            (r.t_r, sw, r.rho, false, None)
-        } else {
-            // the later switches follow a downward strike
-            let later = r.later.get(run.next - 1).filter(|_| run.eta < 0.0)?;
-            let sw = StoredSwitch {
-                s: &later.s,
-                s_d: &later.s_d,
-                hammer_eta: later.hammer_eta,
-            };
-            let is_entry = (run.next - 1) % 2 == 0;
-            (later.t, sw, later.rho, is_entry, later.energy)
-        };
+        let next = stored_switch(r, &run)?;
         let t = (self.clock - run.clock0) as f64 * self.step_s + (self.t_in_step - run.t0);
-        let d = t - t_s;
-        let mut lambda = run.lambda;
-        let mut on_time = is_entry == entering && (d * rho).abs() <= REST_MATCH;
-        if let (true, Some((e, e_d))) = (on_time, energy) {
-            // an entry: the amplitude that gives the stored state the energy
-            // the state in flight has (the entry conserves it); off the
-            // stored trajectory by more than rounding, the product
-            let stored = run.eta * run.eta * (e + d * e_d);
-            lambda = (self.flight_energy(scene) / stored).sqrt();
-            on_time = (lambda - run.lambda).abs() <= REST_ENERGY_MATCH;
-        }
-        if !on_time {
+        let d = t - next.t;
+        let flight = || self.flight_energy(scene);
+        let Some(lambda) = rest_matches(&run, &next, entering, d, flight) else {
             self.exact_stats.rest_misses += 1;
             return None;
-        }
+        };
+        let sw = next.sw;
         if run.next == 0 {
             self.exact_stats.rest_releases += 1;
         } else {
@@ -1679,6 +1771,42 @@ impl EngineState {
             });
         }
         Some((sw, d, lambda * run.eta))
+    }
+
+    /// A strike from rest's next stored switch where the compiler's run of
+    /// this engine confirmed it ([`RestStrike::certified`]) and it falls
+    /// inside the rest of this sample after `t`: the engine advances to it
+    /// and returns its instant, for the caller to switch there without a
+    /// search. An entry is taken only where the flight's energy there
+    /// matches the stored trajectory's (as [`rest_next`](Self::rest_next)
+    /// checks it), computed before the state moves, so that a state off
+    /// the trajectory leaves everything to the search. `None`: the search
+    /// decides (no such switch, the run ended, [`set_rest_trust`] off).
+    /// docs/numerics.md section 6.9. O(N). \[audio-thread\]
+    ///
+    /// [`set_rest_trust`]: Self::set_rest_trust
+    pub(super) fn rest_trusted_switch(&mut self, scene: &CompiledScene, t: f64) -> Option<f64> {
+        let run = self.rest_run.filter(|_| self.rest_trust)?;
+        let r = scene.rest.as_ref()?;
+        if run.next >= r.certified.get().copied().unwrap_or(0) {
+            return None;
+        }
+        let next = stored_switch(r, &run)?;
+        let k = (self.clock - run.clock0) as f64;
+        let tau = run.t0 + next.t - k * self.step_s;
+        if !(tau > t && tau < self.step_s) || next.is_entry == self.in_contact() {
+            return None;
+        }
+        let w = tau - t;
+        if next.is_entry {
+            // the flight's energy at tau, the state not yet moved
+            self.ensure_partial(scene, w);
+            let d = k * self.step_s + (tau - run.t0) - next.t;
+            let flight = || self.flight_energy_after_partial(scene, w);
+            rest_matches(&run, &next, true, d, flight)?;
+        }
+        self.advance_by(scene, w, false);
+        Some(tau)
     }
 
     /// How many samples from now the one holding a strike from rest's next
@@ -1712,6 +1840,28 @@ impl EngineState {
             acc += q.aa[k] * a * a + q.ab[k] * a * b + q.bb[k] * b * b;
         }
         let eta = scene.sm * self.v_h;
+        0.5 * (acc + eta * eta)
+    }
+
+    /// [`flight_energy`](Self::flight_energy) of the state the partial
+    /// propagators (made for `w`, in flight) would step it to, without
+    /// stepping it (the hammer's momentum is constant in flight without
+    /// gravity, the only flight a strike from rest stores).
+    fn flight_energy_after_partial(&self, scene: &CompiledScene, w: f64) -> f64 {
+        let Some(q) = scene.free.energy_quad.as_ref() else {
+            return f64::NAN;
+        };
+        let s = &self.phases[FREE].s;
+        let p = &self.p_part;
+        let nb = q.aa.len();
+        let mut acc = 0.0;
+        for k in 0..nb {
+            let [p00, p01, p10, p11] = p.get(k);
+            let (a0, b0) = (s[k], s[nb + k]);
+            let (a, b) = (p00 * a0 + p01 * b0, p10 * a0 + p11 * b0);
+            acc += q.aa[k] * a * a + q.ab[k] * a * b + q.bb[k] * b * b;
+        }
+        let eta = scene.sm * (self.v_h - self.g * w);
         0.5 * (acc + eta * eta)
     }
 
@@ -1774,6 +1924,16 @@ impl EngineState {
         if !on {
             self.rest_run = None;
         }
+    }
+
+    /// Take a strike from rest's stored switches that the compiler's run
+    /// of this engine confirmed at their stored instants without a search
+    /// (`true`, the default) or locate each with the search, the stored
+    /// instant a hint (`false`): only for tests and benchmarks that compare
+    /// the two. \[any-thread\]
+    #[doc(hidden)]
+    pub fn set_rest_trust(&mut self, on: bool) {
+        self.rest_trust = on;
     }
 
     /// Switch through the hierarchical changes of basis where the scene has

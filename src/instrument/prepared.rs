@@ -10,7 +10,7 @@ use super::{
     lookahead_samples, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_VOICES, OUTPUT_BAND_FRACTION,
 };
 use crate::compile::{compile_with, CompileError, CompiledScene};
-use crate::engine::{EngineState, ScaleProps};
+use crate::engine::{certify_rest_strike, EngineState, ScaleProps};
 use crate::presets;
 use crate::scene::{Scene, SceneError, Switching};
 
@@ -167,6 +167,16 @@ impl Scenes {
     /// scene does.
     pub fn variants_same_free(&self) -> bool {
         self.played.iter().flatten().all(|v| v.same_free)
+    }
+
+    /// Every compiled scene: the played one, the damped one, the variants.
+    fn all(&self) -> impl Iterator<Item = &CompiledScene> {
+        let played = self.played.iter().flatten().map(|v| &v.scene);
+        let damped_at = self.damped_at.iter().flatten().flatten();
+        std::iter::once(&self.scene)
+            .chain(&self.damped)
+            .chain(played)
+            .chain(damped_at)
     }
 
     /// How many variants (played and damped) are compiled.
@@ -664,6 +674,11 @@ fn assemble(
     scenes: Scenes,
     kit: Option<Box<Kit>>,
 ) -> Box<Prepared> {
+    // here, not on the audio thread: a voice rebound to a scene takes its
+    // certified stored switches without a search (docs/numerics.md 6.9)
+    for sc in scenes.all() {
+        certify_rest_strike(sc);
+    }
     let states = voice_states(&scenes.scene, rate_hz);
     let root = root_note(base);
     let sc = &scenes.scene;
