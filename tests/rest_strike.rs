@@ -235,11 +235,18 @@ fn largest_rise(e: &[f64]) -> f64 {
 
 /// The largest difference between two runs' outputs.
 fn out_diff(p: &Run, q: &Run) -> f64 {
-    p.out
+    diff_and_peak(&p.out, &q.out).0
+}
+
+/// The largest difference between two outputs, and the peak of `b`.
+fn diff_and_peak(a: &[[f64; 2]], b: &[[f64; 2]]) -> (f64, f64) {
+    let peak = b.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
+    let d = a
         .iter()
         .flatten()
-        .zip(q.out.iter().flatten())
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+        .zip(b.iter().flatten())
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    (d, peak)
 }
 
 /// A bar of many modes struck from rest meets the hammer again twice: the
@@ -364,12 +371,7 @@ fn a_disturbed_strike_from_rest_takes_the_dense_products_after() {
         assert_eq!(sa.contacts_started, sb.contacts_started, "{what}");
         // up to the first release the runs differ by rounding only; after
         // it both take the same products from the state they have
-        let peak = b.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
-        let d = a
-            .iter()
-            .flatten()
-            .zip(b.iter().flatten())
-            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        let (d, peak) = diff_and_peak(&a, &b);
         assert!(d <= 1e-12 * peak, "{what}: {d:e} of {peak:e}");
     }
 }
@@ -596,11 +598,6 @@ fn a_stored_switch_the_engine_does_not_confirm_is_not_trusted() {
     assert_eq!((x.rest_releases, x.rest_later, x.rest_misses), (1, 1, 1));
     assert_eq!((y.rest_releases, y.rest_later, y.rest_misses), (1, 1, 1));
     assert_eq!(sa.contacts_started, sb.contacts_started);
-    let peak = b.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-    let d = a
-        .iter()
-        .flatten()
-        .zip(b.iter().flatten())
-        .fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+    let (d, peak) = diff_and_peak(&a, &b);
     assert!(d <= 1e-13 * peak, "{d:e} of {peak:e}");
 }

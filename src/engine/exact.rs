@@ -131,7 +131,7 @@ pub struct ExactStats {
     /// stored.
     pub rest_later: u64,
     /// Stored switches of a strike from rest taken at their stored
-    /// instants without a search (the compiler's run of the engine had
+    /// instants without a search (the engine's certifying run had
     /// confirmed them: [`crate::compile::rest::RestStrike::certified`]);
     /// also counted in `located` and in `rest_releases` / `rest_later`.
     pub rest_trusted: u64,
@@ -1358,8 +1358,8 @@ impl EngineState {
                 break;
             }
             if let Some(tau) = self.rest_trusted_switch(scene, t) {
-                // a strike from rest's switch where the compiler's run of
-                // this engine located it: no search
+                // a strike from rest's switch where the engine's
+                // certifying run located it: no search
                 t = tau;
                 self.t_in_step = t;
                 self.switch_now(scene);

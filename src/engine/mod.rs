@@ -432,7 +432,7 @@ pub struct EngineState {
     rest_enabled: bool,
     /// Take a strike from rest's certified stored switches at their stored
     /// instants without a search (default); off only to compare with the
-    /// search, and for the compiler's certifying run.
+    /// search, and for the certifying run itself.
     rest_trust: bool,
     /// Let a strike from rest's stored switch instants schedule the fast
     /// path's runs (default; scheduling only, the same samples bit for bit).
@@ -1773,8 +1773,8 @@ impl EngineState {
         Some((sw, d, lambda * run.eta))
     }
 
-    /// A strike from rest's next stored switch where the compiler's run of
-    /// this engine confirmed it ([`RestStrike::certified`]) and it falls
+    /// A strike from rest's next stored switch where the engine's
+    /// certifying run confirmed it ([`RestStrike::certified`]) and it falls
     /// inside the rest of this sample after `t`: the engine advances to it
     /// and returns its instant, for the caller to switch there without a
     /// search. An entry is taken only where the flight's energy there
@@ -1802,7 +1802,7 @@ impl EngineState {
             // the flight's energy at tau, the state not yet moved
             self.ensure_partial(scene, w);
             let d = k * self.step_s + (tau - run.t0) - next.t;
-            let flight = || self.flight_energy_after_partial(scene, w);
+            let flight = || self.flight_energy_stepped(scene, Some((&self.p_part, w)));
             rest_matches(&run, &next, true, d, flight)?;
         }
         self.advance_by(scene, w, false);
@@ -1829,39 +1829,29 @@ impl EngineState {
     /// energy form (NaN without one: the compiler stores no later entry
     /// then).
     fn flight_energy(&self, scene: &CompiledScene) -> f64 {
-        let Some(q) = scene.free.energy_quad.as_ref() else {
-            return f64::NAN;
-        };
-        let s = &self.phases[FREE].s;
-        let nb = q.aa.len();
-        let mut acc = 0.0;
-        for k in 0..nb {
-            let (a, b) = (s[k], s[nb + k]);
-            acc += q.aa[k] * a * a + q.ab[k] * a * b + q.bb[k] * b * b;
-        }
-        let eta = scene.sm * self.v_h;
-        0.5 * (acc + eta * eta)
+        self.flight_energy_stepped(scene, None)
     }
 
-    /// [`flight_energy`](Self::flight_energy) of the state the partial
-    /// propagators (made for `w`, in flight) would step it to, without
-    /// stepping it (the hammer's momentum is constant in flight without
-    /// gravity, the only flight a strike from rest stores).
-    fn flight_energy_after_partial(&self, scene: &CompiledScene, w: f64) -> f64 {
+    /// [`flight_energy`](Self::flight_energy) of the state the propagators
+    /// `by` (made for `w`, in flight) would step it to, without stepping
+    /// it; `None`: of the state as it is.
+    fn flight_energy_stepped(&self, scene: &CompiledScene, by: Option<(&BlockProps, f64)>) -> f64 {
         let Some(q) = scene.free.energy_quad.as_ref() else {
             return f64::NAN;
         };
         let s = &self.phases[FREE].s;
-        let p = &self.p_part;
         let nb = q.aa.len();
         let mut acc = 0.0;
         for k in 0..nb {
-            let [p00, p01, p10, p11] = p.get(k);
-            let (a0, b0) = (s[k], s[nb + k]);
-            let (a, b) = (p00 * a0 + p01 * b0, p10 * a0 + p11 * b0);
+            let (mut a, mut b) = (s[k], s[nb + k]);
+            if let Some((p, _)) = by {
+                let [p00, p01, p10, p11] = p.get(k);
+                (a, b) = (p00 * a + p01 * b, p10 * a + p11 * b);
+            }
             acc += q.aa[k] * a * a + q.ab[k] * a * b + q.bb[k] * b * b;
         }
-        let eta = scene.sm * (self.v_h - self.g * w);
+        let v_h = by.map_or(self.v_h, |(_, w)| self.v_h - self.g * w);
+        let eta = scene.sm * v_h;
         0.5 * (acc + eta * eta)
     }
 
@@ -1926,8 +1916,8 @@ impl EngineState {
         }
     }
 
-    /// Take a strike from rest's stored switches that the compiler's run
-    /// of this engine confirmed at their stored instants without a search
+    /// Take a strike from rest's stored switches that the engine's
+    /// certifying run confirmed at their stored instants without a search
     /// (`true`, the default) or locate each with the search, the stored
     /// instant a hint (`false`): only for tests and benchmarks that compare
     /// the two. \[any-thread\]
