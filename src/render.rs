@@ -89,7 +89,8 @@ pub fn switching_line(x: &ExactStats) -> String {
     format!(
         "exact switching: {} located switches, {} grazing touches; capped {}, rod fallbacks {}, uncertified {}; \
          event search: {} nodes, at most {} nodes and {} switches in one sample; \
-         {} samples and {} rests after a switch cleared by the Hermite certificate",
+         {} samples and {} rests after a switch cleared by the Hermite certificate; \
+         strikes from rest: {} stored switches taken ({} without a search), {} not where stored",
         x.located,
         x.grazing,
         x.capped,
@@ -99,7 +100,10 @@ pub fn switching_line(x: &ExactStats) -> String {
         x.max_nodes_in_sample,
         x.max_switches_in_sample,
         x.hermite_cleared,
-        x.hermite_after_switch
+        x.hermite_after_switch,
+        x.rest_releases + x.rest_later,
+        x.rest_trusted,
+        x.rest_misses
     )
 }
 
