@@ -1357,50 +1357,45 @@ impl EngineState {
             if rem <= 0.0 {
                 break;
             }
-            if let Some(tau) = self.rest_trusted_switch(scene, t) {
+            let full = t == 0.0;
+            let found = if let Some(w) = self.rest_trusted_switch(scene, t) {
                 // a strike from rest's switch where the engine's
                 // certifying run located it: no search
-                t = tau;
-                self.t_in_step = t;
-                self.switch_now(scene);
-                self.exact_stats.located += 1;
                 self.exact_stats.rest_trusted += 1;
-                switches += 1;
-                open = true;
-                continue;
-            }
-            let full = t == 0.0;
-            if open
-                && switches > 0
-                && self.hermite_after_switch
-                && self.hermite_clear_rest(scene, rem)
-            {
-                break;
-            }
-            self.build_model(scene, rem);
-            if !(self.search.tol.is_finite() && self.search.tol_d.is_finite()) {
-                self.exact_stats.nonfinite += 1;
-                self.advance_by(scene, rem, full);
-                break;
-            }
-            let mut at_origin = false;
-            if !open {
-                // a sample that starts on (or within rounding beyond) the
-                // surface: the crossing is at this instant
-                let [f0, d0, _] = self.model_eval(scene, 0.0);
-                if f0 < 0.0 || (f0 == 0.0 && d0 < 0.0) {
-                    if f0 < -NEUTRAL_TOL * self.search.tol {
-                        self.exact_stats.rod_fallbacks += 1;
-                    }
-                    at_origin = true;
-                } else if f0 == 0.0 {
-                    open = true;
-                }
-            }
-            let found = if at_origin {
-                Found::At(0.0)
+                Found::At(w)
             } else {
-                self.first_root(scene, rem, open, &mut nodes)
+                if open
+                    && switches > 0
+                    && self.hermite_after_switch
+                    && self.hermite_clear_rest(scene, rem)
+                {
+                    break;
+                }
+                self.build_model(scene, rem);
+                if !(self.search.tol.is_finite() && self.search.tol_d.is_finite()) {
+                    self.exact_stats.nonfinite += 1;
+                    self.advance_by(scene, rem, full);
+                    break;
+                }
+                let mut at_origin = false;
+                if !open {
+                    // a sample that starts on (or within rounding beyond) the
+                    // surface: the crossing is at this instant
+                    let [f0, d0, _] = self.model_eval(scene, 0.0);
+                    if f0 < 0.0 || (f0 == 0.0 && d0 < 0.0) {
+                        if f0 < -NEUTRAL_TOL * self.search.tol {
+                            self.exact_stats.rod_fallbacks += 1;
+                        }
+                        at_origin = true;
+                    } else if f0 == 0.0 {
+                        open = true;
+                    }
+                }
+                if at_origin {
+                    Found::At(0.0)
+                } else {
+                    self.first_root(scene, rem, open, &mut nodes)
+                }
             };
             match found {
                 Found::None => {

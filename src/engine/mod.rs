@@ -1775,12 +1775,13 @@ impl EngineState {
 
     /// A strike from rest's next stored switch where the engine's
     /// certifying run confirmed it ([`RestStrike::certified`]) and it falls
-    /// inside the rest of this sample after `t`: the engine advances to it
-    /// and returns its instant, for the caller to switch there without a
-    /// search. An entry is taken only where the flight's energy there
-    /// matches the stored trajectory's (as [`rest_next`](Self::rest_next)
-    /// checks it), computed before the state moves, so that a state off
-    /// the trajectory leaves everything to the search. `None`: the search
+    /// inside the rest of this sample after `t`: how far after `t` it is,
+    /// for the caller to advance and switch there as it does at a root,
+    /// without a search. An entry is taken only where the flight's energy
+    /// there matches the stored trajectory's (as
+    /// [`rest_next`](Self::rest_next) checks it; the partial propagators
+    /// it needs are those the advance then uses), so that a state off the
+    /// trajectory leaves everything to the search. `None`: the search
     /// decides (no such switch, the run ended, [`set_rest_trust`] off).
     /// docs/numerics.md section 6.9. O(N). \[audio-thread\]
     ///
@@ -1805,8 +1806,7 @@ impl EngineState {
             let flight = || self.flight_energy_stepped(scene, Some((&self.p_part, w)));
             rest_matches(&run, &next, true, d, flight)?;
         }
-        self.advance_by(scene, w, false);
-        Some(tau)
+        Some(w)
     }
 
     /// How many samples from now the one holding a strike from rest's next
