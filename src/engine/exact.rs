@@ -158,6 +158,65 @@ pub struct ExactStats {
     /// thrown away (the run is stepped again up to that sample): the fast
     /// path's speculation that did not pay.
     pub kernel_discarded: u64,
+    /// Strikes from rest played back from their recording
+    /// ([`crate::engine::EngineState::strike_stored`]; the replays a
+    /// voice settled are not counted here).
+    pub replayed: u64,
+    /// Replays settled: the strike run for real up to where its replay
+    /// was, because something changed the voice before its end.
+    pub settled: u64,
+}
+
+impl ExactStats {
+    /// Add `o`'s counts to these (the largest of the per-sample maxima).
+    pub fn add(&mut self, o: &ExactStats) {
+        let ExactStats {
+            located,
+            capped,
+            rod_fallbacks,
+            grazing,
+            uncertified,
+            partial_sweeps,
+            search_nodes,
+            max_nodes_in_sample,
+            max_switches_in_sample,
+            nonfinite,
+            rest_releases,
+            rest_later,
+            rest_trusted,
+            rest_misses,
+            hermite_cleared,
+            hermite_after_switch,
+            strike_entries,
+            roots_refined,
+            root_evals,
+            kernel_discarded,
+            replayed,
+            settled,
+        } = *o;
+        self.located += located;
+        self.capped += capped;
+        self.rod_fallbacks += rod_fallbacks;
+        self.grazing += grazing;
+        self.uncertified += uncertified;
+        self.partial_sweeps += partial_sweeps;
+        self.search_nodes += search_nodes;
+        self.max_nodes_in_sample = self.max_nodes_in_sample.max(max_nodes_in_sample);
+        self.max_switches_in_sample = self.max_switches_in_sample.max(max_switches_in_sample);
+        self.nonfinite += nonfinite;
+        self.rest_releases += rest_releases;
+        self.rest_later += rest_later;
+        self.rest_trusted += rest_trusted;
+        self.rest_misses += rest_misses;
+        self.hermite_cleared += hermite_cleared;
+        self.hermite_after_switch += hermite_after_switch;
+        self.strike_entries += strike_entries;
+        self.roots_refined += roots_refined;
+        self.root_evals += root_evals;
+        self.kernel_discarded += kernel_discarded;
+        self.replayed += replayed;
+        self.settled += settled;
+    }
 }
 
 /// Which terms of a phase's event function ([`crate::compile::event`])

@@ -34,6 +34,7 @@
 pub mod denormal;
 mod exact;
 mod kernel;
+mod replay;
 mod vmath;
 
 pub use exact::{ExactStats, ROOT_ULPS};
@@ -43,6 +44,8 @@ use kernel::{
     rows_of, run_block_with, BlockAcc, BlockIo, BlockProps, BlockRows, Extras, ObsIo, QuadAcc,
     QuadIo, Rows, SlopeIo, EPOCH,
 };
+use replay::Replay;
+pub use replay::{StoredStrike, LINEAR_TOL, MAX_STORED_SAMPLES};
 
 use crate::compile::rest::{RestStrike, REST_ENERGY_MATCH, REST_MATCH};
 use crate::compile::{CompiledPhase, CompiledScene};
@@ -444,6 +447,10 @@ pub struct EngineState {
     /// Offline observation scratch ([`process_block_observed`](Self::process_block_observed)),
     /// allocated on its first call.
     obs: Option<Box<ObsScratch>>,
+    /// A stored strike from rest being played back
+    /// ([`strike_stored`](Self::strike_stored)): the state above is the
+    /// one the strike left until the replay ends or is settled.
+    replay: Option<Replay>,
 }
 
 /// Scratch of the kernel's slope row (`EngineState::run_kernel_rows`).
@@ -579,6 +586,7 @@ impl EngineState {
             rest_schedule: true,
             structured: true,
             obs: None,
+            replay: None,
         };
         st.set_time_scale(scene, 1.0)
             .expect("time scale 1 is always valid");
@@ -592,6 +600,7 @@ impl EngineState {
         self.phases[FREE].s.iter_mut().for_each(|x| *x = 0.0);
         self.phases[CONTACT].s.iter_mut().for_each(|x| *x = 0.0);
         self.phase = Phase::Free;
+        self.replay = None;
         self.rod_m = 0.0;
         self.x_h = scene.hammer_x0;
         self.v_h = scene.hammer_v0 / self.time_scale;
@@ -646,7 +655,11 @@ impl EngineState {
     /// set an initial vibration). Structure of arrays: block `k` is
     /// `(s[k], s[nb + k])`; for a modal object block `k` is mode `k`, i.e.
     /// `s[k] = omega_k q_k` and `s[n + k] = q_k'` (reference time).
+    /// A replaying voice ([`strike_stored`](Self::strike_stored)) stops
+    /// replaying and is at the instant of its strike: settle it
+    /// ([`settle`](Self::settle)) first to change it where it is.
     pub fn free_state_mut(&mut self) -> &mut [f64] {
+        self.replay = None;
         self.rest_run = None;
         self.discontinuity();
         &mut self.phases[FREE].s
@@ -662,6 +675,7 @@ impl EngineState {
     /// `|V s| < sqrt(k) p_static` in a passive phase. For benchmarks and
     /// tests of the steady contact phase. \[any-thread\]
     pub fn rest_in_contact(&mut self) -> &mut [f64] {
+        self.replay = None;
         self.phases[CONTACT].s.iter_mut().for_each(|x| *x = 0.0);
         self.rest_run = None;
         self.rod_m = 0.0;
@@ -672,14 +686,16 @@ impl EngineState {
 
     /// The current phase's state in its block coordinates (read only; the
     /// layout of [`free_state_mut`](Self::free_state_mut)). For tests and
-    /// diagnostics. \[any-thread\]
+    /// diagnostics; a replaying voice's is the one its strike left until
+    /// it is settled ([`settle`](Self::settle)). \[any-thread\]
     pub fn phase_state(&self) -> &[f64] {
         &self.phases[self.phase.index()].s
     }
 
     /// Hammer height \[m\] and physical velocity \[m/s\] while in flight.
     pub fn hammer_in_flight(&self) -> Option<(f64, f64)> {
-        (!self.in_contact()).then_some((self.x_h, self.v_h * self.time_scale))
+        let (x_h, v_h) = self.replay_hammer().unwrap_or((self.x_h, self.v_h));
+        (!self.in_contact()).then_some((x_h, v_h * self.time_scale))
     }
 
     /// Whether the hammer is clear of the object for as long as both fly
@@ -698,7 +714,13 @@ impl EngineState {
     pub fn hammer_clear(&self, scene: &CompiledScene) -> bool {
         let ph = &scene.free;
         let nb = ph.dim / 2;
-        if self.in_contact() || self.g != 0.0 || !(self.v_h >= 0.0) || ph.ev_block.len() != nb {
+        // a replaying voice is never clear: its last stored switch is to come
+        if self.replay.is_some()
+            || self.in_contact()
+            || self.g != 0.0
+            || !(self.v_h >= 0.0)
+            || ph.ev_block.len() != nb
+        {
             return false;
         }
         let s = &self.phases[FREE].s;
@@ -714,6 +736,7 @@ impl EngineState {
     /// object's energy times `factor^2`, the hammer's as it is. In contact
     /// (never pressed) `energy_rt`. \[audio-thread after `reserve_observation`\]
     pub fn energy_rt_scaled(&mut self, scene: &CompiledScene, factor: f64) -> f64 {
+        self.settle(scene);
         let e = self.energy_rt(scene);
         if factor == 1.0 || self.in_contact() {
             return e;
@@ -730,10 +753,10 @@ impl EngineState {
     /// wheel"). With `z(t) = e^(-a t) x(t)` every mode keeps its damped
     /// frequency and decays `a` faster; the free state has no affine part,
     /// so its energy is multiplied by `factor^2`. Refused (false, nothing
-    /// changed) in contact or for a factor outside `(0, 1]`. O(N).
-    /// \[audio-thread\]
+    /// changed) in contact, while replaying a stored strike, or for a
+    /// factor outside `(0, 1]`. O(N). \[audio-thread\]
     pub fn scale_free_state(&mut self, factor: f64) -> bool {
-        if self.in_contact() || !(factor > 0.0 && factor <= 1.0) {
+        if self.replay.is_some() || self.in_contact() || !(factor > 0.0 && factor <= 1.0) {
             return false;
         }
         self.phases[FREE].s.iter_mut().for_each(|x| *x *= factor);
@@ -742,9 +765,11 @@ impl EngineState {
         true
     }
 
-    /// Whether the hammer is in contact (for the coming step).
+    /// Whether the hammer is in contact (for the coming step; a replaying
+    /// voice's as its stored strike has it).
     pub fn in_contact(&self) -> bool {
-        self.phase == Phase::Contact
+        self.replay_in_contact()
+            .unwrap_or(self.phase == Phase::Contact)
     }
 
     /// Current time scale.
@@ -757,6 +782,7 @@ impl EngineState {
     /// [`EngineState::set_output_band`]). \[audio-thread\]
     pub fn set_time_scale(&mut self, scene: &CompiledScene, s: f64) -> Result<(), TimeScaleError> {
         scale_allowed(scene, s)?;
+        self.settle(scene);
         self.set_time_scale_inner(scene, s);
         Ok(())
     }
@@ -786,6 +812,7 @@ impl EngineState {
         if scene.g != 0.0 {
             return Err(TimeScaleError::Gravity);
         }
+        self.settle(scene);
         if self.in_contact() {
             return Ok(false);
         }
@@ -815,6 +842,7 @@ impl EngineState {
         pre: &ScaleProps,
     ) -> Result<(), TimeScaleError> {
         scale_allowed(scene, pre.s)?;
+        self.settle(scene);
         self.derive_for(scene, pre.s, false, Some(pre));
         Ok(())
     }
@@ -883,6 +911,7 @@ impl EngineState {
     /// A dense-fallback free phase has no modes to leave out (no effect).
     /// Allocation-free, O(N) plus O(N M) for M modes left out. \[audio-thread\]
     pub fn set_output_band(&mut self, scene: &CompiledScene, band_hz: f64) {
+        self.settle(scene);
         self.band_hz = band_or_all(band_hz);
         // re-mix the rows (and apply the band) at the current scale
         self.set_time_scale_inner(scene, self.time_scale);
@@ -937,6 +966,7 @@ impl EngineState {
     /// (docs/numerics.md section 6.9). O(N^2) when in contact, else O(N).
     /// \[audio-thread\]
     pub fn strike(&mut self, scene: &CompiledScene, height_m: f64, velocity_m_per_s: f64) {
+        self.settle(scene);
         if self.in_contact() {
             // between samples: at the start of the coming one
             self.t_in_step = 0.0;
@@ -986,6 +1016,7 @@ impl EngineState {
         scene: &CompiledScene,
         look: impl FnOnce(&mut Self) -> R,
     ) -> ([f64; 2], R) {
+        self.settle(scene);
         let _flush = FlushDenormals::new(self.flush_denormals);
         self.n_events = 0;
         self.t_in_step = 0.0;
@@ -1017,10 +1048,13 @@ impl EngineState {
     /// get slower. Allocation-free, no system call, O(N) per sample plus
     /// O(N^2) per switch. \[audio-thread\]
     pub fn process_block(&mut self, scene: &CompiledScene, left: &mut [f64], right: &mut [f64]) {
+        let n = left.len().min(right.len());
+        let mut i = self.replay_block(&mut left[..n], &mut right[..n]);
+        if i == n {
+            return;
+        }
         let _flush = FlushDenormals::new(self.flush_denormals);
         kernel::clean_upper_state(self.simd);
-        let n = left.len().min(right.len());
-        let mut i = 0;
         while i < n {
             let (done, slow) = self.run_fast(scene, &mut left[i..n], &mut right[i..n], false, None);
             i += done;
@@ -1103,14 +1137,18 @@ impl EngineState {
         motion: &mut [Motion],
         mut energy: Option<&mut [f64]>,
     ) {
+        if energy.is_some() {
+            // the energy is not stored with a strike from rest
+            self.settle(scene);
+        }
         self.reserve_observation();
-        let _flush = FlushDenormals::new(self.flush_denormals);
-        kernel::clean_upper_state(self.simd);
         let mut n = left.len().min(right.len()).min(motion.len());
         if let Some(e) = energy.as_deref() {
             n = n.min(e.len());
         }
-        let mut i = 0;
+        let mut i = self.replay_observed(&mut left[..n], &mut right[..n], &mut motion[..n]);
+        let _flush = FlushDenormals::new(self.flush_denormals);
+        kernel::clean_upper_state(self.simd);
         while i < n {
             let (done, slow) = self.run_fast(
                 scene,
@@ -1655,6 +1693,9 @@ impl EngineState {
 
     /// Effective penetration now (`p_eff`, with the rod) \[m\].
     pub fn penetration(&self, scene: &CompiledScene) -> f64 {
+        if let Some(p) = self.replay_penetration() {
+            return p;
+        }
         if self.in_contact() {
             (dot(&scene.contact.rows.pi, &self.phases[CONTACT].s) + scene.offsets.pi) / scene.sk
         } else {
@@ -2021,6 +2062,9 @@ impl EngineState {
     /// vectorises; a single chain of additions waited for each one).
     /// \[audio-thread\]
     pub fn energy_proxy(&self, scene: &CompiledScene) -> f64 {
+        if let Some(e) = self.replay_proxy() {
+            return e;
+        }
         let s = &self.phases[self.phase.index()].s;
         let (quads, tail) = s.as_chunks::<4>();
         let mut acc = [0.0; 4];
@@ -2063,6 +2107,7 @@ impl EngineState {
     /// object or another mode count): the caller then resets the voice.
     /// O(N^2), allocation-free. \[audio-thread\]
     pub fn rebind(&mut self, old: &CompiledScene, new: &CompiledScene) -> bool {
+        self.settle(old);
         if !self.can_rebind(old, new) {
             return false;
         }
@@ -2124,6 +2169,7 @@ impl EngineState {
     /// layouts differ, or for a dense phase away from `s = 1`.
     /// \[audio-thread\]
     pub fn rebind_same_free(&mut self, old: &CompiledScene, new: &CompiledScene) -> bool {
+        self.settle(old);
         if self.in_contact() || !self.can_rebind(old, new) {
             return false;
         }
@@ -2194,6 +2240,7 @@ impl EngineState {
     /// instrument's live view reads it on the audio thread. Same value bit
     /// for bit. \[audio-thread after `reserve_observation`\]
     pub fn energy_rt(&mut self, scene: &CompiledScene) -> f64 {
+        self.settle(scene);
         let mut y = self
             .obs
             .as_mut()
@@ -2365,6 +2412,9 @@ fn scale_allowed(scene: &CompiledScene, s: f64) -> Result<(), TimeScaleError> {
 #[derive(Clone, Debug)]
 pub struct ScaleProps {
     s: f64,
+    /// The strike from rest at this scale, recorded for
+    /// [`EngineState::strike_stored`] ([`ScaleProps::store_strike`]).
+    strike: Option<std::sync::Arc<StoredStrike>>,
     /// The step they were made for (`scene.h * s`).
     step: f64,
     free: BlockProps,
@@ -2416,6 +2466,7 @@ impl ScaleProps {
         );
         Self {
             s,
+            strike: None,
             step,
             free: of(&scene.free),
             contact: of(&scene.contact),

@@ -211,6 +211,9 @@ pub struct Stats {
     /// New notes whose propagators were copied from those made ahead for
     /// their key (`Prepared`'s key propagators), not computed.
     pub key_props_copied: u64,
+    /// New notes on a voice at rest played back from their key's stored
+    /// strike from rest ([`crate::engine::EngineState::strike_stored`]).
+    pub strikes_replayed: u64,
     /// Voice samples rendered under a pressed damper (docs/plugin.md,
     /// "Pressure and the mod wheel").
     pub pressed_samples: u64,

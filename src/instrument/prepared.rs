@@ -4,7 +4,8 @@
 
 use super::kit::Kit;
 use super::mapping::{
-    damped_scene, root_note, scene_for, InstrumentParams, PlayParams, SceneParams,
+    damped_scene, impact_speed_m_per_s, root_note, scene_for, InstrumentParams, PlayParams,
+    SceneParams,
 };
 use super::{
     lookahead_samples, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_VOICES, OUTPUT_BAND_FRACTION,
@@ -114,6 +115,18 @@ pub struct Variant {
     pub pos: i8,
     /// Damper level (once released): the damper plus `damper * DAMPER_STEP`.
     pub damper: i8,
+}
+
+impl Prepared {
+    /// Drop every key's stored strike from rest
+    /// ([`ScaleProps::forget_strike`]): new notes then strike as the
+    /// engine runs them (a comparison for tests and benchmarks).
+    #[doc(hidden)]
+    pub fn forget_stored_strikes(&mut self) {
+        self.key_props
+            .iter_mut()
+            .for_each(ScaleProps::forget_strike);
+    }
 }
 
 impl Scenes {
@@ -682,11 +695,22 @@ fn assemble(
     let states = voice_states(&scenes.scene, rate_hz);
     let root = root_note(base);
     let sc = &scenes.scene;
+    let bouncing = base.hammer.gravity_m_per_s2 > 0.0;
     let key_props = if kit.is_some() || sc.free.dense.is_some() || sc.contact.dense.is_some() {
         Vec::new()
     } else {
+        // each key's strike from rest recorded with its propagators, checked
+        // at the slowest and the fastest impact a note plays
+        let speeds = [impact_speed_m_per_s(0.0), impact_speed_m_per_s(1.0)];
+        let band = output_band_hz(rate_hz);
         (0..=127u8)
-            .map(|key| ScaleProps::new(sc, key_scale(key, root), output_band_hz(rate_hz)))
+            .map(|key| {
+                let mut k = ScaleProps::new(sc, key_scale(key, root), band);
+                if !bouncing {
+                    k.store_strike(sc, band, &speeds);
+                }
+                k
+            })
             .collect()
     };
     Box::new(Prepared {
@@ -694,7 +718,7 @@ fn assemble(
         rate_hz,
         params: *params,
         root_note: root,
-        bouncing: base.hammer.gravity_m_per_s2 > 0.0,
+        bouncing,
         switching_used,
         fallback_note,
         scenes,

@@ -1766,7 +1766,10 @@ fn new_notes_take_their_later_contacts_from_the_store() {
 fn key_propagators_made_ahead_play_the_same_bits() {
     for preset in ["marimba-bar", "steel-plate", "paper-string"] {
         let p = params(preset);
-        let ahead = prepare(&p.scene, RATE, 0).unwrap();
+        let mut ahead = prepare(&p.scene, RATE, 0).unwrap();
+        // the propagators alone (the stored strikes from rest made with them
+        // play the same to rounding: tests/stored_strike.rs)
+        ahead.forget_stored_strikes();
         assert_eq!(ahead.key_props.len(), 128, "{preset}");
         let root = ahead.root_note;
         for key in [0u8, 60, 127] {
@@ -1804,7 +1807,9 @@ fn key_propagators_made_ahead_play_the_same_bits() {
         // without pitch tracking every note plays at scale 1: the root's
         let mut flat = p.play;
         flat.pitch_tracking = false;
-        let mut c = Instrument::new(prepare(&p.scene, RATE, 0).unwrap(), flat);
+        let mut ahead = prepare(&p.scene, RATE, 0).unwrap();
+        ahead.forget_stored_strikes();
+        let mut c = Instrument::new(ahead, flat);
         let mut computed = prepare(&p.scene, RATE, 0).unwrap();
         computed.key_props.clear();
         let mut d = Instrument::new(computed, flat);

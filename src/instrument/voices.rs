@@ -71,6 +71,9 @@ impl Instrument {
         }
         self.stats.notes += 1;
         let speed = impact_speed_m_per_s(velocity_norm);
+        // a new note on a voice at rest whose key's propagators were copied:
+        // the key's stored strike from rest, where it has one
+        let mut stored = None;
         let idx = if let Some(i) = self.voices.iter().position(|v| v.active && v.key == key) {
             // Same key still ringing: strike the moving object again (what
             // its damper took so far goes into its state first).
@@ -149,6 +152,7 @@ impl Instrument {
                 }
             }
             st.reset(&p.scenes.scene);
+            stored = made.map(|_| slot);
             self.voices[i] = Voice {
                 active: true,
                 key,
@@ -178,6 +182,10 @@ impl Instrument {
             let h = self.play.drop_height_m.max(0.0);
             st.strike(&p.scenes.scene, h, -speed);
             e += m_h * p.scenes.scene.g * h;
+        } else if let Some(pre) = stored.and_then(|k| p.key_props.get(k)) {
+            if st.strike_stored(&p.scenes.scene, speed, pre) {
+                self.stats.strikes_replayed += 1;
+            }
         } else {
             st.strike(&p.scenes.scene, 0.0, -speed);
         }
