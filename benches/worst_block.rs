@@ -132,16 +132,22 @@ fn worst_block(_: &mut Criterion) {
             d.w_cf_h = None;
             d.w_fc_h = None;
         }
-        let variants: Vec<(&Prepared, String)> = if structured {
-            vec![
-                (&prepared, n.to_string()),
-                (&dense, format!("{n}, dense switches")),
-            ]
-        } else {
-            vec![(&prepared, n.to_string())]
-        };
+        // and without the strikes from rest played back (every new note
+        // then runs its strike)
+        let mut unstored = prepared.clone();
+        unstored.forget_stored_strikes();
+        let mut variants: Vec<(&Prepared, String)> = vec![(&prepared, n.to_string())];
+        if structured {
+            variants.push((&dense, format!("{n}, dense switches")));
+        }
+        if n >= 200 {
+            variants.push((&unstored, format!("{n}, strikes not played back")));
+        }
         for chord in [1, 4, 16] {
             for (prepared, label) in &variants {
+                if label.contains("back") && chord != 16 {
+                    continue;
+                }
                 let mut cells = Vec::new();
                 for block in [32, 64, 128, 512] {
                     cells.push(cell(block_times(prepared, chord, block), block));
@@ -202,6 +208,28 @@ fn strike_block(
     (worst - base).max(0.0)
 }
 
+/// [`strike_block`] of a strike from rest played back
+/// (`EngineState::strike_stored`) on `st`, reset.
+fn replay_block(
+    sc: &modal_contact::compile::CompiledScene,
+    st: &mut modal_contact::engine::EngineState,
+    pre: &modal_contact::engine::ScaleProps,
+    plain: &mut modal_contact::engine::EngineState,
+) -> f64 {
+    let (mut l, mut r) = (vec![0.0; 64], vec![0.0; 64]);
+    let t0 = Instant::now();
+    plain.process_block(sc, &mut l, &mut r);
+    let base = t0.elapsed().as_secs_f64();
+    assert!(st.strike_stored(sc, 1.0, pre));
+    let mut worst = 0.0f64;
+    for _ in 0..8 {
+        let t0 = Instant::now();
+        st.process_block(sc, &mut l, &mut r);
+        worst = worst.max(t0.elapsed().as_secs_f64());
+    }
+    (worst - base).max(0.0)
+}
+
 /// The block holding one strike, beyond a plain block, measured on one
 /// voice (`EngineState`, 64-sample blocks at 48 kHz, the slowest of the
 /// blocks the strike touches, median of 41 strikes): on a ringing voice
@@ -212,12 +240,14 @@ fn strike_block(
 /// rest (a new note on a voice state reset as the instrument resets its
 /// voices: the stored release, docs/numerics.md "A strike on an object at
 /// rest"), with the ratio to the same strike through the dense
-/// products in the same run.
+/// products in the same run, and played back from its recording
+/// (`EngineState::strike_stored`, what a new note at a key's pitch does:
+/// docs/numerics.md "A strike from rest played back").
 fn strike_cost(_: &mut Criterion) {
-    use modal_contact::engine::EngineState;
+    use modal_contact::engine::{EngineState, ScaleProps};
     println!("\nstrike cost, one voice, 64-sample blocks at 48 kHz (measured: slowest block of the strike less a plain block; median of 41):");
-    println!("| modes | switch multiply-adds (dense) | ringing: measured us | ringing: estimated us | ringing, dense products us | ratio | at rest us | at rest, dense products us | ratio |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| modes | switch multiply-adds (dense) | ringing: measured us | ringing: estimated us | ringing, dense products us | ratio | at rest us | at rest, dense products us | ratio | at rest, played back us |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for n in [10, 50, 100, 200, 400, 1000] {
         let params = InstrumentParams::default();
         let prepared = prepare_scene(&object(n), &params.scene, RATE, 0).expect("compile");
@@ -238,7 +268,14 @@ fn strike_cost(_: &mut Criterion) {
             st.set_rest_strike(rest);
             st
         });
-        let mut extra = [Vec::new(), Vec::new(), Vec::new(), Vec::new()];
+        // a new note's strike played back from its key's recording (the
+        // instrument's path for a voice at rest at a key's pitch)
+        let band = 0.45 * RATE;
+        let mut pre = ScaleProps::new(sc, 1.0, band);
+        let played = pre.store_strike(sc, band, &[0.05, 2.2]);
+        let mut replaying = EngineState::new(sc);
+        replaying.set_output_band(sc, band);
+        let mut extra = [Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new()];
         for _ in 0..41 {
             extra[0].push(strike_block(sc, &mut ringing.clone(), &mut ringing.clone()));
             let mut dense = ringing.clone();
@@ -248,13 +285,17 @@ fn strike_cost(_: &mut Criterion) {
                 st.reset(sc);
                 extra[j].push(strike_block(sc, st, &mut silent.clone()));
             }
+            if played {
+                replaying.reset(sc);
+                extra[4].push(replay_block(sc, &mut replaying, &pre, &mut silent.clone()));
+            }
         }
         let med = extra.map(|mut e| {
             e.sort_by(f64::total_cmp);
-            e[20]
+            e.get(20).copied().unwrap_or(f64::NAN)
         });
         println!(
-            "| {n} | {} ({}) | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            "| {n} | {} ({}) | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
             sc.switch_multiply_adds(),
             2 * sc.free.dim * sc.contact.dim,
             med[0] * 1e6,
@@ -263,7 +304,8 @@ fn strike_cost(_: &mut Criterion) {
             med[3] / med[0],
             med[1] * 1e6,
             med[2] * 1e6,
-            med[2] / med[1]
+            med[2] / med[1],
+            med[4] * 1e6
         );
     }
 }

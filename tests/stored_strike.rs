@@ -82,6 +82,13 @@ fn side_by_side(
         out_b.extend(lb.iter().zip(&rb).map(|(l, r)| [*l, *r]));
         done += len;
         assert_eq!(a.in_contact(), b.in_contact(), "contact at sample {done}");
+        // (a replaying voice is never clear: nor is the engine's before its
+        // last stored switch)
+        assert_eq!(
+            a.hammer_clear(sc),
+            b.hammer_clear(sc),
+            "clear at sample {done}"
+        );
         assert_eq!(
             a.hammer_in_flight().is_some(),
             b.hammer_in_flight().is_some(),

@@ -394,6 +394,10 @@ pub struct EngineState {
     g: f64,
     /// Number of contact starts since the last reset (diagnostic).
     pub contacts_started: u64,
+    /// Of those, the contacts of strikes played back from their recording
+    /// ([`strike_stored`](Self::strike_stored)): counted where the replay
+    /// ends, no switch work of the voice's own (diagnostic).
+    pub contacts_replayed: u64,
     /// Scratch vectors for dense partial steps (exact switching).
     dense_tmp: [Vec<f64>; 3],
     /// Block propagators of the last partial step `exp(G tau)` (exact
@@ -562,6 +566,7 @@ impl EngineState {
             step_s: scene.h,
             g: scene.g,
             contacts_started: 0,
+            contacts_replayed: 0,
             dense_tmp: [
                 vec![0.0; df.max(dc)],
                 vec![0.0; df.max(dc)],
@@ -605,6 +610,7 @@ impl EngineState {
         self.x_h = scene.hammer_x0;
         self.v_h = scene.hammer_v0 / self.time_scale;
         self.contacts_started = 0;
+        self.contacts_replayed = 0;
         self.exact_stats = ExactStats::default();
         self.events_dropped = 0;
         self.clock = 0;

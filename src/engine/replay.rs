@@ -401,6 +401,7 @@ impl EngineState {
         self.herm_until = d.herm_until;
         self.spec_len = d.spec_len;
         self.contacts_started += d.contacts;
+        self.contacts_replayed += d.contacts;
         self.exact_stats.add(&d.stats);
         self.discontinuity();
     }

@@ -435,7 +435,9 @@ impl Instrument {
         } else {
             None
         };
-        let contacts = st.contacts_started;
+        // contacts the voice switched itself (a replayed strike's cost
+        // nothing: they are not work to estimate)
+        let contacts = st.contacts_started - st.contacts_replayed;
         let observing = observe.is_some();
         if tick_into(st, scene, &mut self.vbuf, len, 1.0, 0.0, observe) {
             // damper pressure (docs/plugin.md, "Pressure and the mod
@@ -443,12 +445,14 @@ impl Instrument {
             // last decided, so its pressed motion is the free motion times
             // the damper's decay, sample by sample
             if let Some(pr) = v.pressing.as_mut() {
-                debug_assert!(!st.in_contact() && st.contacts_started == contacts);
+                debug_assert!(
+                    !st.in_contact() && st.contacts_started - st.contacts_replayed == contacts
+                );
                 let motion = observing.then_some(&mut self.motion[..len]);
                 pr.g = decay_into(&mut self.vbuf, len, pr.g, pr.q, motion);
                 self.stats.pressed_samples += len as u64;
             }
-            let new_contacts = st.contacts_started - contacts;
+            let new_contacts = st.contacts_started - st.contacts_replayed - contacts;
             if let Some(probe) = self.probe.as_deref_mut().filter(|_| self.probe_on) {
                 probe.voice_chunk(&VoiceChunk {
                     voice: i,
