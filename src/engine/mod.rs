@@ -818,6 +818,10 @@ impl EngineState {
         if scene.g != 0.0 {
             return Err(TimeScaleError::Gravity);
         }
+        // (a replaying voice in contact waits like any other, unsettled)
+        if self.in_contact() {
+            return Ok(false);
+        }
         self.settle(scene);
         if self.in_contact() {
             return Ok(false);
