@@ -408,6 +408,7 @@ fn audio_thread_sources_use_no_locks_or_io() {
         "engine/kernel.rs",
         "engine/vmath.rs",
         "engine/denormal.rs",
+        "engine/replay.rs",
         "plugin/mod.rs",
         "physics/block.rs",
     ] {
