@@ -344,7 +344,8 @@ fn polyphony_64(_: &mut Criterion) {
     struct Reader(f64);
     impl VoiceProbe for Reader {
         fn voice_chunk(&mut self, chunk: &VoiceChunk) {
-            self.0 += chunk.energy_j + chunk.motion.last().map_or(0.0, |m| m.x_contact);
+            self.0 +=
+                chunk.energy_j.unwrap_or(0.0) + chunk.motion.last().map_or(0.0, |m| m.x_contact);
         }
     }
     let mut times = [Vec::new(), Vec::new()];

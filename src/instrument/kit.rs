@@ -486,7 +486,7 @@ impl Instrument {
                         released: false,
                         start: t0,
                         motion: &self.kit_motion[j][..len],
-                        energy_j,
+                        energy_j: Some(energy_j),
                     });
                 }
             }

@@ -582,7 +582,7 @@ fn the_live_view_shows_every_contact_of_a_kit() {
                 [m.x_hammer, m.v_hammer, m.x_contact, m.v_contact]
                     .iter()
                     .all(|x| x.is_finite())
-            }) && c.energy_j.is_finite();
+            }) && c.energy_j.is_some_and(f64::is_finite);
         }
     }
     let scene = Scene::from_toml_str(include_str!("../../presets/wind-chimes.toml")).unwrap();

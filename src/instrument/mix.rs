@@ -460,7 +460,9 @@ impl Instrument {
                     released: v.released,
                     start: t0,
                     motion: &self.motion[..len],
-                    energy_j: st.energy_rt_scaled(scene, v.pressing.map_or(1.0, |pr| pr.g)),
+                    // (asking a replaying voice would run its strike)
+                    energy_j: (!st.replaying())
+                        .then(|| st.energy_rt_scaled(scene, v.pressing.map_or(1.0, |pr| pr.g))),
                 });
             }
             if self.lanes.meter == WorkMeter::Estimate {

@@ -20,8 +20,11 @@ pub struct VoiceChunk<'a> {
     pub start: u64,
     /// The motion of each sample of the chunk (hammer and contact point).
     pub motion: &'a [Motion],
-    /// The voice's total energy after the chunk's last sample \[J\].
-    pub energy_j: f64,
+    /// The voice's total energy after the chunk's last sample \[J\];
+    /// `None` while the voice plays back a stored strike from rest (the
+    /// recording holds no energies: docs/numerics.md, "A strike from rest
+    /// played back").
+    pub energy_j: Option<f64>,
 }
 
 /// Receives the voices' motion; called on the audio thread, so an

@@ -50,8 +50,9 @@ pub struct LiveFrame {
     pub contact_m: [f32; FRAME_POINTS],
     /// Bit `k`: point `k`'s group was in contact.
     pub contact_bits: u16,
-    /// The voice's energy at the chunk's end \[J\].
-    pub energy_j: f64,
+    /// The voice's energy at the chunk's end \[J\] (`None` while its
+    /// strike is played back from a recording).
+    pub energy_j: Option<f64>,
 }
 
 impl LiveFrame {
@@ -288,7 +289,10 @@ impl LiveHistory {
             ));
         }
         let last = f.first_group + u64::from(f.points.max(1)) - 1;
-        h.energy.push_back((last, f.energy_j));
+        // (no energy while a strike is played back from its recording)
+        if let Some(e) = f.energy_j {
+            h.energy.push_back((last, e));
+        }
         self.now_group = self.now_group.max(last);
         self.frames += 1;
         self.forget(rate_hz);
@@ -351,7 +355,7 @@ mod tests {
             hammer_m: [0.0; FRAME_POINTS],
             contact_m: [0.0; FRAME_POINTS],
             contact_bits: 0,
-            energy_j: 1.0,
+            energy_j: Some(1.0),
         }
     }
 
@@ -435,7 +439,7 @@ mod tests {
             released: true,
             start: 6,
             motion: &m,
-            energy_j: 0.25,
+            energy_j: Some(0.25),
         });
         assert_eq!((f.first_group, f.points), (1, 3));
         assert_eq!(&f.hammer_m[..3], &[0.0, 2.0, 6.0]);
@@ -443,7 +447,7 @@ mod tests {
         assert_eq!(f.contact_bits, 0b010);
         assert_eq!(
             (f.voice, f.key, f.released, f.energy_j),
-            (3, 61, true, 0.25)
+            (3, 61, true, Some(0.25))
         );
     }
 
