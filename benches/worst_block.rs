@@ -194,18 +194,7 @@ fn strike_block(
     st: &mut modal_contact::engine::EngineState,
     plain: &mut modal_contact::engine::EngineState,
 ) -> f64 {
-    let (mut l, mut r) = (vec![0.0; 64], vec![0.0; 64]);
-    let t0 = Instant::now();
-    plain.process_block(sc, &mut l, &mut r);
-    let base = t0.elapsed().as_secs_f64();
-    st.strike(sc, 0.0, -1.0);
-    let mut worst = 0.0f64;
-    for _ in 0..8 {
-        let t0 = Instant::now();
-        st.process_block(sc, &mut l, &mut r);
-        worst = worst.max(t0.elapsed().as_secs_f64());
-    }
-    (worst - base).max(0.0)
+    struck_block(sc, st, plain, |st| st.strike(sc, 0.0, -1.0))
 }
 
 /// [`strike_block`] of a strike from rest played back
@@ -216,11 +205,22 @@ fn replay_block(
     pre: &modal_contact::engine::ScaleProps,
     plain: &mut modal_contact::engine::EngineState,
 ) -> f64 {
+    struck_block(sc, st, plain, |st| assert!(st.strike_stored(sc, 1.0, pre)))
+}
+
+/// The slowest of the 8 blocks after `strike(st)`, less one plain block
+/// of `plain`.
+fn struck_block(
+    sc: &modal_contact::compile::CompiledScene,
+    st: &mut modal_contact::engine::EngineState,
+    plain: &mut modal_contact::engine::EngineState,
+    strike: impl FnOnce(&mut modal_contact::engine::EngineState),
+) -> f64 {
     let (mut l, mut r) = (vec![0.0; 64], vec![0.0; 64]);
     let t0 = Instant::now();
     plain.process_block(sc, &mut l, &mut r);
     let base = t0.elapsed().as_secs_f64();
-    assert!(st.strike_stored(sc, 1.0, pre));
+    strike(st);
     let mut worst = 0.0f64;
     for _ in 0..8 {
         let t0 = Instant::now();

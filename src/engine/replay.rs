@@ -258,7 +258,8 @@ impl EngineState {
     /// the next samples are the recording's times the speed, without a
     /// step, a search or a switch, then the voice goes on from the stored
     /// end state. Returns whether it replays; else it is an ordinary
-    /// strike. O(1) (the recording is shared, not copied). \[audio-thread\]
+    /// strike. O(N) like `strike` (the recording is shared, not copied).
+    /// \[audio-thread\]
     pub fn strike_stored(
         &mut self,
         scene: &CompiledScene,
