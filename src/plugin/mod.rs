@@ -328,6 +328,7 @@ impl Plugin for ModalContact {
             params: self.params.clone(),
             ring: self.ring.clone(),
             pads: self.pads.clone(),
+            handoff: self.handoff.clone(),
         })
     }
 

@@ -67,6 +67,17 @@ pub struct Handoff {
     pub published_revision: AtomicU64,
     /// Wall time of the last compile \[ms\] (worker writes; diagnostics only).
     pub last_compile_ms: AtomicF64,
+    /// Revision of the newest request posted (audio thread or activation
+    /// writes): the editor says "compiling" while it is ahead of
+    /// `published_revision` and no failure answered it.
+    pub requested_revision: AtomicU64,
+    /// Revision the last failure answered (worker writes).
+    pub failed_revision: AtomicU64,
+    /// The worker is compiling now (worker writes).
+    pub busy: AtomicBool,
+    /// The last compile error, for the editor (worker and GUI threads
+    /// only: the audio thread never touches this lock).
+    pub last_error: std::sync::Mutex<Option<String>>,
 }
 
 impl Handoff {
@@ -81,6 +92,10 @@ impl Handoff {
             failures: AtomicU64::new(0),
             published_revision: AtomicU64::new(0),
             last_compile_ms: AtomicF64::new(0.0),
+            requested_revision: AtomicU64::new(0),
+            failed_revision: AtomicU64::new(0),
+            busy: AtomicBool::new(false),
+            last_error: std::sync::Mutex::new(None),
         })
     }
 
@@ -99,6 +114,23 @@ impl Handoff {
     /// the queue is full. Lock-free, never drops. \[audio-thread\]
     pub fn give_back(&self, b: Box<Prepared>) -> Result<(), Box<Prepared>> {
         self.returned.push(b)
+    }
+
+    /// Whether a requested scene is still being compiled (neither
+    /// published nor refused yet). \[any thread\]
+    pub fn compiling(&self) -> bool {
+        let want = self.requested_revision.load(Ordering::Acquire);
+        want > self.published_revision.load(Ordering::Acquire)
+            && want > self.failed_revision.load(Ordering::Acquire)
+    }
+
+    /// The last compile error, if the newest request failed. \[GUI thread\]
+    pub fn error(&self) -> Option<String> {
+        let want = self.requested_revision.load(Ordering::Acquire);
+        if self.failed_revision.load(Ordering::Acquire) < want {
+            return None;
+        }
+        self.last_error.lock().ok().and_then(|e| e.clone())
     }
 
     /// Free everything still queued (when no worker runs). \[main-thread\]

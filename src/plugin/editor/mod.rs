@@ -40,6 +40,9 @@ pub struct EditorLink {
     pub ring: Arc<LiveRing>,
     /// Pad strikes for the audio thread.
     pub pads: Arc<ArrayQueue<Event>>,
+    /// The compile worker's handoff: the editor reads its atomics
+    /// (compiling or not, the last error) and never its queues.
+    pub handoff: Arc<super::worker::Handoff>,
 }
 
 /// The editor's type (the plugin's `Plugin::Editor`).
