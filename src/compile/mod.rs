@@ -19,6 +19,7 @@
 //! 6. `summary`: what was built, in words.
 
 mod basis;
+pub mod cancel;
 pub mod budget;
 mod checks;
 pub mod error;

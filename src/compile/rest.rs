@@ -75,6 +75,9 @@ pub const REST_SEQ_T_MAX_S: f64 = 0.02;
 /// At most this many switches after the first release are stored.
 pub const REST_SEQ_MAX: usize = 16;
 
+/// Grid steps between two looks at the compile's cancellation.
+const CANCEL_CHECK_STEPS: usize = 4096;
+
 /// Block steps (grid points times excited blocks) the compiler spends
 /// following a strike past its first release; where they run out the
 /// stored switches end.
@@ -250,6 +253,13 @@ impl<'a> Flow<'a> {
             .sum()
     }
 
+    /// [`phi`](Self::phi) over the blocks `ex` only (the others are zero).
+    fn phi_on(&self, y: &[f64], ex: &[usize]) -> f64 {
+        ex.iter()
+            .map(|&k| self.ev[k] * y[k] + self.ev[self.nb + k] * y[self.nb + k])
+            .sum()
+    }
+
     /// `y` advanced by `t` through the closed-form block exponentials.
     fn advance(&self, y: &[f64], t: f64) -> Vec<f64> {
         let mut out = vec![0.0; y.len()];
@@ -292,19 +302,24 @@ impl<'a> Flow<'a> {
         let ex: Vec<usize> = (0..self.nb).filter(|&k| self.excited(y0, k)).collect();
         let steps: Vec<Mat2> = ex.iter().map(|&k| exp2(&self.gens[k], dt)).collect();
         let at = |y: &[f64], t: f64| self.phi(y) + a + b * t;
+        // a grid step costs the excited blocks only (each step's work is
+        // what `work` counts: a scene of many modes with few excited must
+        // not pay for all of them per step)
         let mut y = y0.to_vec();
         let mut t = 0.0;
         let mut grid = 0usize;
-        let (y_a, t_a) = loop {
-            let y_prev = y.clone();
+        let t_a = loop {
             for (&k, p) in ex.iter().zip(&steps) {
                 (y[k], y[self.nb + k]) = mul2(p, y[k], y[self.nb + k]);
             }
             grid += 1;
             *work -= ex.len().max(1) as f64;
             let t_next = grid as f64 * dt;
-            let phi = at(&y, t_next);
+            let phi = self.phi_on(&y, &ex) + a + b * t_next;
             if !phi.is_finite() || *work < 0.0 || t_next > t_end {
+                return None;
+            }
+            if grid % CANCEL_CHECK_STEPS == 0 && super::cancel::cancelled() {
                 return None;
             }
             if phi <= 0.0 {
@@ -312,14 +327,13 @@ impl<'a> Flow<'a> {
                     // the first grid point is not clear of the surface
                     return None;
                 }
-                break (y_prev, t);
+                break t;
             }
             t = t_next;
         };
         // the closed form from the segment's start decides; it must agree
         // with the grid on the bracket
         let t_b = t_a + dt;
-        drop(y_a);
         let phi_closed = |tau: f64| at(&self.advance(y0, tau), tau);
         if !(phi_closed(t_a) > 0.0 && phi_closed(t_b) <= 0.0) {
             return None;
