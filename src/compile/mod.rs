@@ -19,8 +19,8 @@
 //! 6. `summary`: what was built, in words.
 
 mod basis;
-pub mod cancel;
 pub mod budget;
+pub mod cancel;
 mod checks;
 pub mod error;
 pub mod event;
