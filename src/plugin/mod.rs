@@ -2,12 +2,22 @@
 //! worker handoff, and the export macros. All voice logic is in
 //! [`crate::instrument`]; this file only moves data between the host and it.
 //!
-//! Threads: `activate`/`deactivate` run on the main thread and may allocate
-//! (the first scene is compiled synchronously in `activate`, so `process`
-//! never runs without one; a sample-rate change arrives as a new `activate`
-//! and recompiles there). `process` runs on the audio thread: it only does
-//! atomic loads of the parameters, lock-free queue operations and the
+//! Threads: `activate`/`deactivate` run on the main thread and may allocate,
+//! but never wait long: `activate` asks the worker for the first scene and
+//! waits at most [`worker::ACTIVATE_WAIT_MS`] for it (a scene that takes
+//! longer is installed by the first block after it is ready: until then
+//! the instance is silent, and an offline render waits for it);
+//! `deactivate` cancels the worker's compile and never joins it (the worker
+//! lives as long as the instance: docs/design.md, "The worker and
+//! activation"). `process` runs on the audio thread: it only does atomic
+//! loads of the parameters, lock-free queue operations and the
 //! instrument's allocation-free rendering.
+//!
+//! Latency (the Lookahead parameter): CLAP allows a new latency only from
+//! `activate`, so a CLAP instance keeps the lookahead it was activated with
+//! and asks the host to restart it when the parameter moves; the VST3 and
+//! standalone wrappers report a new latency from `process` as their APIs
+//! allow (docs/plugin.md, "Lookahead").
 
 pub mod browser;
 pub mod clap_entry;
@@ -19,7 +29,10 @@ pub mod user_scene;
 pub mod voice_ids;
 pub mod worker;
 
-use crate::instrument::{Event, Instrument, InstrumentParams, SceneParams, TimedEvent, MAX_VOICES};
+use crate::instrument::{
+    lookahead_samples, Event, Instrument, PlayParams, SceneParams, TimedEvent, VoiceProbe,
+    MAX_VOICES,
+};
 use crossbeam::queue::ArrayQueue;
 use live::{LiveProbe, LiveRing, RING_FRAMES};
 use nice_plug::midi::{Channel, Key, VoiceID};
@@ -32,18 +45,36 @@ use worker::{CompileRequest, Handoff, Worker};
 /// The plugin.
 pub struct ModalContact {
     params: Arc<ModalContactParams>,
-    /// Audio thread owns it between activate and deactivate.
-    instrument: Option<Instrument>,
+    /// Audio thread owns it between activate and deactivate (built on the
+    /// worker around the activation's first scene).
+    instrument: Option<Box<Instrument>>,
     /// Shared with the worker (queues, counters).
     handoff: Arc<Handoff>,
-    /// Main thread: spawned in activate, joined in deactivate/drop.
+    /// Main thread: spawned at the first activation, joined when the
+    /// instance is dropped.
     worker: Option<Worker>,
     /// Audio thread: the last parameter set requested (or compiled in activate).
     requested: SceneParams,
-    /// Audio thread: request revision counter.
+    /// Request revision counter: increases across activations (a scene of
+    /// an older activation is never installed).
     revision: u64,
+    /// The revision of this activation's first scene.
+    first_revision: u64,
+    /// The live view's probe, until the first instrument takes it.
+    probe: Option<Box<dyn VoiceProbe>>,
+    /// The host renders offline: `process` waits for the scenes it asked
+    /// for (an offline render never depends on the worker's timing).
+    offline: bool,
+    /// The lookahead this activation reports as its latency \[s\] (CLAP:
+    /// fixed until the host restarts the instance).
+    active_lookahead_s: f64,
+    /// A CLAP restart was asked for the Lookahead's new value.
+    restart_requested: bool,
     /// Audio thread: a scene taken from the queue that could not be installed yet.
     pending: Option<Box<crate::instrument::Prepared>>,
+    /// An older activation's instrument taken by mistake, freed on the
+    /// main thread.
+    pending_first: Option<Box<Instrument>>,
     rate_hz: f64,
     /// The host's largest block \[samples\], from activation.
     max_block: usize,
@@ -74,7 +105,13 @@ impl Default for ModalContact {
             worker: None,
             requested,
             revision: 0,
+            first_revision: 0,
+            probe: None,
+            offline: false,
+            active_lookahead_s: 0.0,
+            restart_requested: false,
             pending: None,
+            pending_first: None,
             rate_hz: 0.0,
             max_block: 0,
             panics: 0,
@@ -92,10 +129,18 @@ impl Default for ModalContact {
 impl ModalContact {
     /// Hand retired scenes back, swap in a ready one, and post a request if
     /// the matrix parameters moved. Lock-free, allocation-free. \[audio-thread\]
-    fn maybe_swap_and_request(&mut self) {
+    fn maybe_swap_and_request(&mut self, play: PlayParams) {
+        if self.instrument.is_none() {
+            self.take_first();
+        }
         let Some(inst) = self.instrument.as_mut() else {
             return;
         };
+        if self.offline {
+            // an offline render takes every scene it asked for at the
+            // block it asked for it (allowed to wait: not real time)
+            wait_while(&self.handoff, |h| h.compiling());
+        }
         for slot in inst.retired_slots_mut() {
             if let Some(b) = slot.take() {
                 if let Err(b) = self.handoff.give_back(b) {
@@ -106,7 +151,13 @@ impl ModalContact {
         if inst.can_install() {
             let next = self.pending.take().or_else(|| self.handoff.take_ready());
             if let Some(p) = next {
-                if let Err(p) = inst.install(p) {
+                if p.revision < self.first_revision {
+                    // an older activation's (cannot happen: deactivation
+                    // drains them); freed on the worker
+                    if let Err(p) = self.handoff.give_back(p) {
+                        self.pending = Some(p);
+                    }
+                } else if let Err(p) = inst.install(p) {
                     self.pending = Some(p);
                 }
             }
@@ -117,33 +168,75 @@ impl ModalContact {
                 revision: self.revision + 1,
                 rate_hz: self.rate_hz,
                 max_block: self.max_block,
-                polyphony: self.params.play_params().polyphony,
+                polyphony: play.polyphony,
                 lookahead: inst.lookahead(),
                 params: wanted,
+                first: None,
             };
             if self.handoff.request(req) {
                 self.revision += 1;
                 self.requested = wanted;
+                if self.offline {
+                    wait_while(&self.handoff, |h| h.compiling());
+                }
             }
         }
-        inst.set_play(self.params.play_params());
+        inst.set_play(play);
     }
 
-    /// Stop the worker and free the instrument. \[main-thread\]
-    fn shut_down(&mut self) {
-        if let Some(mut w) = self.worker.take() {
-            w.stop();
+    /// Take the activation's first instrument if the worker has built it
+    /// (an offline render waits for it). Lock-free, allocation-free.
+    /// \[audio-thread\] \[main-thread\]
+    fn take_first(&mut self) {
+        let rev = self.first_revision;
+        if self.offline {
+            wait_while(&self.handoff, |h| h.compiling() && !h.failed(rev));
         }
+        while let Some(inst) = self.handoff.take_first() {
+            if inst.prepared().revision < rev {
+                // an older activation's (cannot happen: deactivation
+                // drains them); kept until the main thread frees it
+                self.pending_first = Some(inst);
+                continue;
+            }
+            let mut inst = inst;
+            // the probe moves in (no allocation); it records while the
+            // editor holds the ring's reading end
+            inst.set_probe(self.probe.take());
+            self.requested = inst.prepared().params;
+            self.instrument = Some(inst);
+            return;
+        }
+    }
+
+    /// Cancel the worker's compiles of this activation and free the
+    /// instrument; never waits for the worker. \[main-thread\]
+    fn shut_down(&mut self) {
+        self.handoff.cancel_through(self.revision);
         self.instrument = None;
         self.pending = None;
-        self.handoff.drain();
+        self.pending_first = None;
+        self.probe = None;
         self.voice_ids = voice_ids::VoiceIds::default();
+    }
+}
+
+/// Wait (sleeping, not spinning) while `busy` says so: offline renders only,
+/// where the host allows a block to take its time. Bounded by the worker
+/// answering every request (a scene, an error, or its cancellation).
+fn wait_while(h: &Handoff, busy: impl Fn(&Handoff) -> bool) {
+    while busy(h) && !h.stopped() {
+        std::thread::sleep(std::time::Duration::from_micros(500));
     }
 }
 
 impl Drop for ModalContact {
     fn drop(&mut self) {
         self.shut_down();
+        if let Some(mut w) = self.worker.take() {
+            w.stop();
+        }
+        self.handoff.drain();
     }
 }
 
@@ -257,9 +350,16 @@ struct Modulated<'a> {
 impl Modulated<'_> {
     /// The instrument's event for a voice's modulation of parameter `poly`:
     /// the parameter at knob position `base + offset` against the played
-    /// scene's value (docs/plugin.md, "Polyphonic modulation").
+    /// scene's value (docs/plugin.md, "Polyphonic modulation"). With Custom
+    /// damper off the Damper knob is not used: a damper offset is taken
+    /// around the scene's damper, the one that plays.
     fn event(&self, poly: u32, key: u8, base: f32, offset: f32) -> Event {
         let p = poly_param(self.params, poly);
+        let base = if poly == params::POLY_DAMPER && !self.played.damper_custom {
+            p.preview_normalized(self.played.damper_norm as f32)
+        } else {
+            base
+        };
         let value = f64::from(p.preview_plain(base + offset));
         let key = Some(key);
         match poly {
@@ -342,84 +442,90 @@ impl Plugin for ModalContact {
         }
     }
 
-    /// Compile the current parameters synchronously for the host's sample
-    /// rate and start the worker. \[main-thread\]
+    /// Ask the worker for the current parameters' scene at the host's
+    /// sample rate and take it if it is ready within
+    /// [`worker::ACTIVATE_WAIT_MS`] (else the first block after it is
+    /// ready does). \[main-thread\]
     fn activate(
         &mut self,
         _audio_io_layout: &AudioIOLayout,
         buffer_config: &BufferConfig,
         context: &mut impl ActivateContext<Self>,
     ) -> bool {
+        let t0 = std::time::Instant::now();
         self.shut_down();
         let rate_hz = buffer_config.sample_rate as f64;
-        let ip: InstrumentParams = self.params.instrument_params();
-        let library = self.params.persisted.library.clone();
-        // What was asked for; else the preset with the same parameters
-        // (the user scene did not compile); else the preset's defaults.
-        let candidates = [
-            ip.scene,
-            SceneParams {
-                user_scene: 0,
-                ..ip.scene
-            },
-            SceneParams {
-                preset: ip.scene.preset,
-                ..SceneParams::default()
-            },
-        ];
-        let mut prepared = None;
+        if self.worker.is_none() {
+            match Worker::spawn(self.handoff.clone(), self.params.persisted.library.clone()) {
+                Ok(w) => self.worker = Some(w),
+                Err(e) => {
+                    nice_log!("modal_contact: cannot start the compile worker: {e}");
+                    return false;
+                }
+            }
+        }
+        let ip = self.params.instrument_params();
         let max_block = buffer_config.max_buffer_size as usize;
-        let host = user_scene::HostBlocks {
+        self.max_block = max_block;
+        self.rate_hz = rate_hz;
+        self.offline = buffer_config.process_mode == ProcessMode::Offline;
+        self.active_lookahead_s = ip.play.lookahead_s;
+        self.restart_requested = false;
+        self.revision += 1;
+        self.first_revision = self.revision;
+        self.requested = ip.scene;
+        let req = CompileRequest {
+            revision: self.revision,
+            rate_hz,
             max_block,
             polyphony: ip.play.polyphony,
-            lookahead: crate::instrument::lookahead_samples(ip.play.lookahead_s, rate_hz),
+            lookahead: lookahead_samples(ip.play.lookahead_s, rate_hz),
+            params: ip.scene,
+            first: Some(ip.play),
         };
-        for c in candidates {
-            match library.prepare(&c, rate_hz, 0, host) {
-                Ok((p, warnings)) => {
-                    for w in warnings {
-                        nice_log!("modal_contact: {w}");
-                    }
-                    prepared = Some(p);
-                    break;
-                }
-                Err(e) => nice_log!("modal_contact: {e}; trying the next fallback"),
-            }
-        }
-        let Some(prepared) = prepared else {
-            nice_log!("modal_contact: cannot compile any scene");
+        // the queues were drained by shut_down: this cannot fail
+        if !self.handoff.request(req) {
+            nice_log!("modal_contact: the compile queue is full at activation");
             return false;
-        };
-        self.max_block = max_block;
-        self.requested = prepared.params;
-        self.revision = 0;
-        self.rate_hz = rate_hz;
-        let mut inst = Instrument::new(prepared, ip.play);
+        }
         // the lookahead is the plugin's latency (docs/plugin.md, "Lookahead")
-        context.set_latency_samples(inst.lookahead() as u32);
+        context.set_latency_samples(lookahead_samples(ip.play.lookahead_s, rate_hz) as u32);
         // the previous instrument (and its probe) was dropped in shut_down
         self.ring.set_rate_hz(rate_hz);
-        inst.set_probe(
-            self.ring
-                .producer()
-                .map(|p| Box::new(LiveProbe(p)) as Box<dyn crate::instrument::VoiceProbe>),
-        );
-        self.instrument = Some(inst);
-        match Worker::spawn(self.handoff.clone(), library) {
-            Ok(w) => self.worker = Some(w),
-            Err(e) => {
-                nice_log!("modal_contact: cannot start the compile worker: {e}");
-                return false;
-            }
-        }
+        self.probe = self
+            .ring
+            .producer()
+            .map(|p| Box::new(LiveProbe(p)) as Box<dyn VoiceProbe>);
         #[cfg(feature = "alloc-bug")]
         {
             self.leak = Vec::new();
         }
+        let deadline = t0 + std::time::Duration::from_millis(worker::ACTIVATE_WAIT_MS);
+        let rev = self.first_revision;
+        loop {
+            self.take_first();
+            if self.instrument.is_some() {
+                break;
+            }
+            if self.handoff.failed(rev) {
+                nice_log!("modal_contact: cannot compile any scene");
+                return false;
+            }
+            if std::time::Instant::now() >= deadline {
+                nice_log!(
+                    "modal_contact: the scene is still compiling after {} ms; the instance \
+                     is silent until it is ready",
+                    worker::ACTIVATE_WAIT_MS
+                );
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_micros(500));
+        }
         true
     }
 
-    /// Join the worker, free the scenes. \[main-thread\]
+    /// Cancel the worker's compile and free the scenes; never waits for
+    /// the worker. \[main-thread\]
     fn deactivate(&mut self) {
         self.shut_down();
     }
@@ -488,7 +594,25 @@ impl ModalContact {
         buffer: &mut Buffer,
         context: &mut impl ProcessContext<Self>,
     ) -> ProcessStatus {
-        self.maybe_swap_and_request();
+        let mut play = self.params.play_params();
+        let wanted_lookahead = lookahead_samples(play.lookahead_s, self.rate_hz);
+        if context.plugin_api() == PluginApi::Clap {
+            // CLAP: the latency changes only in activate; the instance
+            // plays the lookahead it was activated with and asks the host
+            // for a restart (docs/plugin.md, "Lookahead")
+            play.lookahead_s = self.active_lookahead_s;
+            if wanted_lookahead != lookahead_samples(self.active_lookahead_s, self.rate_hz)
+                && !self.restart_requested
+            {
+                self.restart_requested = true;
+                context.request_restart();
+            }
+        } else {
+            // a new Lookahead is a new latency (the wrapper tells the
+            // host only when it changed)
+            context.set_latency_samples(wanted_lookahead as u32);
+        }
+        self.maybe_swap_and_request(play);
         let out = buffer.as_slice();
         let Some(inst) = self.instrument.as_mut() else {
             for ch in out.iter_mut() {
@@ -507,9 +631,6 @@ impl ModalContact {
         let (left, right) = (&mut *left[0], &mut *right[0]);
         // the probe records while the editor holds the ring's reading end
         inst.set_probe_on(self.ring.has_consumer());
-        // a new Lookahead is a new latency (the wrapper tells the host only
-        // when it changed)
-        context.set_latency_samples(inst.lookahead() as u32);
         // audition pads first, at the block's start, then the host's events
         let pads = &self.pads;
         let pad_events =

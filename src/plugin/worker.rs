@@ -1,23 +1,35 @@
 //! The per-instance background compile thread and its lock-free handoff.
 //!
-//! Three bounded queues (crossbeam `ArrayQueue`, lock-free, no allocation
-//! after construction) connect the audio thread and the worker:
+//! Four bounded queues (crossbeam `ArrayQueue`, lock-free, no allocation
+//! after construction) connect the audio thread, the host's main thread and
+//! the worker:
 //!
-//! - `requests` (audio -> worker): a tiny `Copy` [`CompileRequest`]. If it is
-//!   full the audio thread retries at the next block.
+//! - `requests` (audio or main -> worker): a tiny `Copy` [`CompileRequest`].
+//!   If it is full the audio thread retries at the next block.
+//! - `first` (worker -> audio or main): an activation's first scene with the
+//!   instrument built around it (`Box<Instrument>`: made on the worker, as
+//!   building one allocates), taken by `activate` if it is ready within
+//!   [`ACTIVATE_WAIT_MS`], else by the first block after it is.
 //! - `ready` (worker -> audio): a `Box<Prepared>` (compiled scene, its damped
 //!   variant and fresh per-voice states). The audio thread pops it at a block
 //!   boundary and swaps it in.
 //! - `returned` (audio -> worker): retired boxes, freed here. If it is full the
 //!   box stays in the instrument's fixed retired slots until the next block.
 //!
+//! The worker lives as long as the plugin instance: spawned at the first
+//! activation, kept across deactivations, stopped and joined when the
+//! instance is dropped. Deactivation never waits for it: it cancels the
+//! compiles of the old activation ([`Handoff::cancel_through`]) and the
+//! compile gives up at its next look at the flag (docs/design.md, "The
+//! worker and activation").
+//!
 //! The worker polls with `park_timeout` (the audio thread never wakes it: an
-//! unpark is a system call). It is spawned in `activate` and joined in
-//! `deactivate`/drop; the shared nice-plug background thread is not used (one
-//! long eigensolve there would stall every other plugin instance).
+//! unpark is a system call). The shared nice-plug background thread is not
+//! used (one long eigensolve there would stall every other plugin instance).
 
 use super::user_scene::{HostBlocks, SceneLibrary};
-use crate::instrument::{Prepared, SceneParams};
+use crate::compile::cancel::{self, Cancel};
+use crate::instrument::{Instrument, PlayParams, Prepared, SceneParams};
 use atomic_float::AtomicF64;
 use crossbeam::queue::ArrayQueue;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -34,6 +46,13 @@ pub const REQUEST_CAPACITY: usize = 8;
 pub const READY_CAPACITY: usize = 2;
 /// Capacity of the return queue.
 pub const RETURN_CAPACITY: usize = 8;
+/// Capacity of the queue of activations' first instruments.
+pub const FIRST_CAPACITY: usize = 2;
+/// How long `activate` waits for its first scene \[ms\]: the host's main
+/// thread is never held longer (a scene that takes longer is installed by
+/// the first block after it is ready; until then the instance is silent,
+/// and the editor says it compiles).
+pub const ACTIVATE_WAIT_MS: u64 = 80;
 
 /// A request to compile a parameter set (a plain value, never a heap payload).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -51,14 +70,26 @@ pub struct CompileRequest {
     pub lookahead: usize,
     /// What to compile.
     pub params: SceneParams,
+    /// An activation's first scene: the worker builds the instrument with
+    /// these play parameters around it, and tries the activation's
+    /// fallbacks (the preset with the same parameters when a user scene
+    /// fails, then the preset's defaults) before it gives up.
+    pub first: Option<PlayParams>,
 }
 
 /// State shared by the audio thread and the worker (queues and counters).
 pub struct Handoff {
     requests: ArrayQueue<CompileRequest>,
+    first: ArrayQueue<Box<Instrument>>,
     ready: ArrayQueue<Box<Prepared>>,
     returned: ArrayQueue<Box<Prepared>>,
     stop: AtomicBool,
+    /// Compiles of revisions up to this one are cancelled (main thread
+    /// writes: deactivation, the instance's end).
+    cancelled_through: AtomicU64,
+    /// The compile running now and its flag (worker and main thread only:
+    /// the audio thread never touches this lock).
+    running: std::sync::Mutex<Option<(u64, Cancel)>>,
     /// Successful compiles (worker writes, anyone reads).
     pub compiles: AtomicU64,
     /// Failed compiles: the last good scene stays (worker writes).
@@ -85,9 +116,12 @@ impl Handoff {
     pub fn new() -> Arc<Self> {
         Arc::new(Self {
             requests: ArrayQueue::new(REQUEST_CAPACITY),
+            first: ArrayQueue::new(FIRST_CAPACITY),
             ready: ArrayQueue::new(READY_CAPACITY),
             returned: ArrayQueue::new(RETURN_CAPACITY),
             stop: AtomicBool::new(false),
+            cancelled_through: AtomicU64::new(0),
+            running: std::sync::Mutex::new(None),
             compiles: AtomicU64::new(0),
             failures: AtomicU64::new(0),
             published_revision: AtomicU64::new(0),
@@ -100,9 +134,54 @@ impl Handoff {
     }
 
     /// Post a request; false if the queue is full (retry later). Lock-free,
-    /// no allocation. \[audio-thread\]
+    /// no allocation. \[audio-thread\] \[main-thread\]
     pub fn request(&self, req: CompileRequest) -> bool {
-        self.requests.push(req).is_ok()
+        let ok = self.requests.push(req).is_ok();
+        if ok {
+            self.requested_revision
+                .fetch_max(req.revision, Ordering::AcqRel);
+        }
+        ok
+    }
+
+    /// Take an activation's first instrument if one is ready. Lock-free.
+    /// \[audio-thread\] \[main-thread\]
+    pub fn take_first(&self) -> Option<Box<Instrument>> {
+        self.first.pop()
+    }
+
+    /// Whether the worker was told to stop (the instance ends).
+    pub fn stopped(&self) -> bool {
+        self.stop.load(Ordering::Acquire)
+    }
+
+    /// Whether the request of `revision` failed (every fallback refused).
+    pub fn failed(&self, revision: u64) -> bool {
+        self.failed_revision.load(Ordering::Acquire) >= revision
+    }
+
+    /// Cancel the compiles of every revision up to `revision` (the running
+    /// one gives up at its next look at its flag), and drop what they
+    /// already delivered. Returns at once: it never waits for the worker.
+    /// Blocks only on the worker's short critical sections (no compile runs
+    /// under the lock). \[main-thread\]
+    pub fn cancel_through(&self, revision: u64) {
+        self.cancelled_through.fetch_max(revision, Ordering::AcqRel);
+        let running = lock(&self.running);
+        if let Some((r, c)) = running.as_ref() {
+            if *r <= revision {
+                c.cancel();
+            }
+        }
+        // under the lock: the worker delivers under it too, and looks at
+        // `cancelled_through` first, so nothing of these revisions comes after
+        while self.first.pop().is_some() {}
+        while self.ready.pop().is_some() {}
+        while self.requests.pop().is_some() {}
+    }
+
+    fn is_cancelled(&self, revision: u64) -> bool {
+        revision <= self.cancelled_through.load(Ordering::Acquire)
     }
 
     /// Take a compiled scene if one is ready. Lock-free. \[audio-thread\]
@@ -136,9 +215,16 @@ impl Handoff {
     /// Free everything still queued (when no worker runs). \[main-thread\]
     pub fn drain(&self) {
         while self.returned.pop().is_some() {}
+        while self.first.pop().is_some() {}
         while self.ready.pop().is_some() {}
         while self.requests.pop().is_some() {}
     }
+}
+
+/// Lock a mutex shared by the worker and the main thread, taking the value
+/// even if a panicking thread poisoned it (plain values, always consistent).
+fn lock<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// The worker thread of one plugin instance.
@@ -161,11 +247,12 @@ impl Worker {
         })
     }
 
-    /// Stop and join the worker, then free whatever is still queued.
-    /// \[main-thread\]
+    /// Stop and join the worker (its compile cancelled first), then free
+    /// whatever is still queued. \[main-thread\]
     pub fn stop(&mut self) {
         if let Some(t) = self.thread.take() {
             self.handoff.stop.store(true, Ordering::Release);
+            self.handoff.cancel_through(u64::MAX);
             t.thread().unpark();
             let _ = t.join();
         }
@@ -188,6 +275,12 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
         }
         let mut newest: Option<CompileRequest> = None;
         while let Some(r) = h.requests.pop() {
+            // an activation's first request is never dropped for a later
+            // parameter change: the later one follows it
+            if newest.is_some_and(|n| n.first.is_some() && r.first.is_none()) {
+                let _ = h.requests.push(r);
+                break;
+            }
             if newest.is_none_or(|n| r.revision >= n.revision) {
                 newest = Some(r);
             }
@@ -196,55 +289,208 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
             std::thread::park_timeout(Duration::from_millis(POLL_INTERVAL_MS));
             continue;
         };
+        if h.is_cancelled(req.revision) {
+            continue;
+        }
+        let c = Cancel::new();
+        *lock(&h.running) = Some((req.revision, c.clone()));
+        if h.is_cancelled(req.revision) {
+            c.cancel();
+        }
+        h.busy.store(true, Ordering::Release);
         let t0 = Instant::now();
-        let host = HostBlocks {
-            max_block: req.max_block,
-            polyphony: req.polyphony,
-            lookahead: req.lookahead,
-        };
-        match lib.prepare(&req.params, req.rate_hz, req.revision, host) {
-            Ok((p, warnings)) => {
+        // a panic in a compile is a failed compile, not a dead worker (an
+        // offline render waits for the worker's answer)
+        let done = cancel::scope(&c, || {
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| compile(lib, &req)))
+                .unwrap_or_else(|_| Err("the compile panicked".to_string()))
+        });
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        // an activation's first scene comes with its instrument, built
+        // here (building one allocates)
+        let done = done.map(|(p, warnings)| {
+            let variants = p.scenes.variant_count();
+            let delivery = match req.first {
+                Some(play) => Delivery::First(Box::new(Instrument::new(p, play))),
+                None => Delivery::Ready(p),
+            };
+            (delivery, warnings, variants)
+        });
+        h.busy.store(false, Ordering::Release);
+        let mut running = lock(&h.running);
+        *running = None;
+        if c.is_cancelled() || h.is_cancelled(req.revision) {
+            // an old activation's: dropped here, on the worker, after the
+            // lock is released
+            drop(running);
+            drop(done);
+            continue;
+        }
+        match done {
+            Ok((delivery, warnings, variants)) => {
+                // delivered under the lock: `cancel_through` drains after
+                // it, so nothing of a cancelled revision stays queued
+                match delivery {
+                    Delivery::First(inst) => publish(&h.first, inst),
+                    Delivery::Ready(p) => publish(&h.ready, p),
+                }
+                h.published_revision
+                    .fetch_max(req.revision, Ordering::AcqRel);
+                drop(running);
                 for w in warnings {
                     nice_plug::nice_log!("modal_contact: {w}");
                 }
                 if req.params.variants != Default::default() {
                     nice_plug::nice_log!(
-                        "modal_contact: {} per-voice variant scenes (hardness, strike position, \
-                         damper levels for polyphonic modulation) compiled with the scene in \
-                         {:.0} ms",
-                        p.scenes.variant_count(),
-                        t0.elapsed().as_secs_f64() * 1e3
+                        "modal_contact: {variants} per-voice variant scenes (hardness, strike \
+                         position, damper levels for polyphonic modulation) compiled with the \
+                         scene in {ms:.0} ms",
                     );
                 }
-                h.last_compile_ms
-                    .store(t0.elapsed().as_secs_f64() * 1e3, Ordering::Relaxed);
+                h.last_compile_ms.store(ms, Ordering::Relaxed);
                 h.compiles.fetch_add(1, Ordering::Relaxed);
-                h.published_revision.store(req.revision, Ordering::Release);
-                publish(h, p);
             }
             Err(e) => {
+                drop(running);
                 h.failures.fetch_add(1, Ordering::Relaxed);
                 nice_plug::nice_log!(
                     "modal_contact: compile of revision {} failed, keeping the last scene: {e}",
                     req.revision
                 );
+                *lock(&h.last_error) = Some(e);
+                h.failed_revision.fetch_max(req.revision, Ordering::AcqRel);
             }
         }
     }
 }
 
+/// What a compile delivers.
+enum Delivery {
+    /// An activation's first scene, in its instrument.
+    First(Box<Instrument>),
+    /// A later scene, for the instrument to install.
+    Ready(Box<Prepared>),
+}
+
+/// Compile one request: what was asked for, and for an activation's first
+/// scene its fallbacks (the user scene did not compile: the preset with the
+/// same parameters; else the preset's defaults). \[worker\]
+fn compile(
+    lib: &SceneLibrary,
+    req: &CompileRequest,
+) -> Result<(Box<Prepared>, Vec<String>), String> {
+    let host = HostBlocks {
+        max_block: req.max_block,
+        polyphony: req.polyphony,
+        lookahead: req.lookahead,
+    };
+    let candidates = if req.first.is_some() {
+        vec![
+            req.params,
+            SceneParams {
+                user_scene: 0,
+                ..req.params
+            },
+            SceneParams {
+                preset: req.params.preset,
+                ..SceneParams::default()
+            },
+        ]
+    } else {
+        vec![req.params]
+    };
+    let mut errors = Vec::new();
+    for c in candidates {
+        match lib.prepare(&c, req.rate_hz, req.revision, host) {
+            Ok(done) => return Ok(done),
+            Err(e) => {
+                cancel::check().map_err(|c| c.to_string())?;
+                nice_plug::nice_log!("modal_contact: {e}; trying the next fallback");
+                errors.push(e);
+            }
+        }
+    }
+    Err(errors.join("; "))
+}
+
 /// Publish, replacing a stale unread result if the queue is full (the stale
 /// box is freed here, on the worker). \[worker\]
-fn publish(h: &Handoff, mut p: Box<Prepared>) {
+fn publish<T>(q: &ArrayQueue<T>, mut p: T) {
     loop {
-        match h.ready.push(p) {
+        match q.push(p) {
             Ok(()) => return,
             Err(back) => {
                 p = back;
-                if let Some(stale) = h.ready.pop() {
+                if let Some(stale) = q.pop() {
                     drop(stale);
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn request(revision: u64, first: bool) -> CompileRequest {
+        CompileRequest {
+            revision,
+            rate_hz: 48_000.0,
+            max_block: 256,
+            polyphony: 16,
+            lookahead: 0,
+            params: SceneParams::default(),
+            first: first.then(PlayParams::default),
+        }
+    }
+
+    fn wait_for(h: &Handoff, what: impl Fn(&Handoff) -> bool) {
+        let t0 = Instant::now();
+        while !what(h) {
+            assert!(t0.elapsed() < Duration::from_secs(60), "the worker never answered");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    /// A cancelled activation's scene is never delivered, whether its
+    /// compile had started or not; the next activation's is, in its
+    /// instrument; a later request arrives as a scene to install.
+    #[test]
+    fn a_cancelled_revision_is_never_delivered() {
+        let h = Handoff::new();
+        let mut w = Worker::spawn(h.clone(), Arc::new(SceneLibrary::default())).unwrap();
+        for wait_ms in [0u64, 5, 20] {
+            let base = h.requested_revision.load(Ordering::Acquire);
+            assert!(h.request(request(base + 1, true)));
+            assert!(h.compiling());
+            std::thread::sleep(Duration::from_millis(wait_ms));
+            h.cancel_through(base + 1);
+            assert!(h.request(request(base + 2, true)));
+            wait_for(&h, |h| !h.compiling());
+            assert_eq!(h.published_revision.load(Ordering::Acquire), base + 2);
+            let inst = h.take_first().expect("the second activation's instrument");
+            assert_eq!(inst.prepared().revision, base + 2);
+            assert!(h.take_first().is_none(), "the cancelled one came too");
+            assert!(h.take_ready().is_none());
+            assert!(!h.failed(base + 2));
+        }
+        let base = h.requested_revision.load(Ordering::Acquire);
+        assert!(h.request(request(base + 1, false)));
+        wait_for(&h, |h| !h.compiling());
+        assert_eq!(h.take_ready().expect("a scene").revision, base + 1);
+        assert!(h.take_first().is_none());
+        w.stop();
+        assert!(h.stopped());
+    }
+
+    /// A compile cancelled inside its scope gives up and says so.
+    #[test]
+    fn a_compile_cancelled_in_its_scope_reports_cancelled() {
+        let lib = SceneLibrary::default();
+        let c = Cancel::new();
+        c.cancel();
+        let r = cancel::scope(&c, || compile(&lib, &request(1, true)));
+        assert_eq!(r.err().as_deref(), Some("compile cancelled"));
     }
 }
