@@ -60,6 +60,9 @@ pub struct ModalContact {
     revision: u64,
     /// The revision of this activation's first scene.
     first_revision: u64,
+    /// The revision of the scene the instrument should play now (the last
+    /// request posted, or the kept scene's).
+    latest_request: u64,
     /// The live view's probe, until the first instrument takes it.
     probe: Option<Box<dyn VoiceProbe>>,
     /// The host renders offline: `process` waits for the scenes it asked
@@ -70,6 +73,11 @@ pub struct ModalContact {
     active_lookahead_s: f64,
     /// A CLAP restart was asked for the Lookahead's new value.
     restart_requested: bool,
+    /// The last activation's scene set, kept for the next one when it
+    /// asks for the same parameters at the same rate (a host's restart
+    /// for a new latency or block size then compiles nothing): the rate,
+    /// the parameters it was requested for, the scenes.
+    parked: Option<(f64, SceneParams, Box<crate::instrument::Prepared>)>,
     /// Audio thread: a scene taken from the queue that could not be installed yet.
     pending: Option<Box<crate::instrument::Prepared>>,
     /// An older activation's instrument taken by mistake, freed on the
@@ -106,10 +114,12 @@ impl Default for ModalContact {
             requested,
             revision: 0,
             first_revision: 0,
+            latest_request: 0,
             probe: None,
             offline: false,
             active_lookahead_s: 0.0,
             restart_requested: false,
+            parked: None,
             pending: None,
             pending_first: None,
             rate_hz: 0.0,
@@ -175,6 +185,7 @@ impl ModalContact {
             };
             if self.handoff.request(req) {
                 self.revision += 1;
+                self.latest_request = self.revision;
                 self.requested = wanted;
                 if self.offline {
                     wait_while(&self.handoff, |h| h.compiling());
@@ -203,7 +214,6 @@ impl ModalContact {
             // the probe moves in (no allocation); it records while the
             // editor holds the ring's reading end
             inst.set_probe(self.probe.take());
-            self.requested = inst.prepared().params;
             self.instrument = Some(inst);
             return;
         }
@@ -213,7 +223,12 @@ impl ModalContact {
     /// instrument; never waits for the worker. \[main-thread\]
     fn shut_down(&mut self) {
         self.handoff.cancel_through(self.revision);
-        self.instrument = None;
+        self.parked = self
+            .instrument
+            .take()
+            // it plays the last request's scene: nothing newer was asked for
+            .filter(|inst| inst.prepared().revision == self.latest_request)
+            .map(|inst| (self.rate_hz, self.requested, inst.into_prepared()));
         self.pending = None;
         self.pending_first = None;
         self.probe = None;
@@ -474,19 +489,30 @@ impl Plugin for ModalContact {
         self.revision += 1;
         self.first_revision = self.revision;
         self.requested = ip.scene;
-        let req = CompileRequest {
-            revision: self.revision,
-            rate_hz,
-            max_block,
-            polyphony: ip.play.polyphony,
-            lookahead: lookahead_samples(ip.play.lookahead_s, rate_hz),
-            params: ip.scene,
-            first: Some(ip.play),
-        };
-        // the queues were drained by shut_down: this cannot fail
-        if !self.handoff.request(req) {
-            nice_log!("modal_contact: the compile queue is full at activation");
-            return false;
+        // the last activation's scenes, if they are what is asked for now
+        let reuse = self
+            .parked
+            .take()
+            .filter(|(rate, params, _)| *rate == rate_hz && *params == ip.scene);
+        if let Some((_, _, prepared)) = reuse {
+            self.latest_request = prepared.revision;
+            self.instrument = Some(Box::new(Instrument::new(prepared, ip.play)));
+        } else {
+            self.latest_request = self.revision;
+            let req = CompileRequest {
+                revision: self.revision,
+                rate_hz,
+                max_block,
+                polyphony: ip.play.polyphony,
+                lookahead: lookahead_samples(ip.play.lookahead_s, rate_hz),
+                params: ip.scene,
+                first: Some(ip.play),
+            };
+            // the queues were drained by shut_down: this cannot fail
+            if !self.handoff.request(req) {
+                nice_log!("modal_contact: the compile queue is full at activation");
+                return false;
+            }
         }
         // the lookahead is the plugin's latency (docs/plugin.md, "Lookahead")
         context.set_latency_samples(lookahead_samples(ip.play.lookahead_s, rate_hz) as u32);
@@ -499,6 +525,11 @@ impl Plugin for ModalContact {
         #[cfg(feature = "alloc-bug")]
         {
             self.leak = Vec::new();
+        }
+        if let Some(inst) = self.instrument.as_mut() {
+            // a kept scene: its instrument is ready now
+            inst.set_probe(self.probe.take());
+            return true;
         }
         let deadline = t0 + std::time::Duration::from_millis(worker::ACTIVATE_WAIT_MS);
         let rev = self.first_revision;
