@@ -145,6 +145,9 @@ pub enum CompileError {
     NoEquilibrium,
     /// A compiled matrix has non-finite entries.
     NonFinite(&'static str),
+    /// The compile was cancelled ([`super::cancel`]: the plugin instance
+    /// that asked for it was deactivated or ended).
+    Cancelled,
 }
 
 impl CompileError {
@@ -163,6 +166,7 @@ impl CompileError {
             Self::NotPassive { .. } => "not passive",
             Self::NoEquilibrium => "no equilibrium",
             Self::NonFinite(_) => "non-finite",
+            Self::Cancelled => "cancelled",
         }
     }
 
@@ -231,6 +235,7 @@ impl fmt::Display for CompileError {
                 "the contact system has no finite static equilibrium under gravity"
             ),
             Self::NonFinite(what) => write!(f, "{what} has non-finite entries"),
+            Self::Cancelled => write!(f, "{}", super::cancel::Cancelled),
         }
     }
 }

@@ -525,7 +525,9 @@ pub fn compile_opts(
         .map_err(CompileError::OverBudget)?;
     // 2. model and decompositions
     let object = routes::object(scene, &spec, ci)?;
+    cancel::check().map_err(|_| CompileError::Cancelled)?;
     let dec = routes::decompose(scene, ci, &object, rate_hz, &cost, opts)?;
+    cancel::check().map_err(|_| CompileError::Cancelled)?;
     // 3. equilibrium, 4. rows, and the changes of basis
     let y_star = basis::equilibrium(&dec, object.params.g != 0.0)?;
     let rows = rows::build(scene, &object, &dec, &y_star);
@@ -544,6 +546,7 @@ pub fn compile_opts(
         scene,
         ci,
     )?;
+    cancel::check().map_err(|_| CompileError::Cancelled)?;
     // 5b. a strike on the object at rest
     let rest = rest::rest_strike(&rest::RestInputs {
         free: &free,
@@ -559,6 +562,7 @@ pub fn compile_opts(
         h,
         t_max: REST_T_MAX_S,
     });
+    cancel::check().map_err(|_| CompileError::Cancelled)?;
     // 6. summary
     let (mut summary, search_nodes_estimate) = summary::write(&summary::Facts {
         scene,
