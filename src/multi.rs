@@ -189,13 +189,19 @@ pub enum MultiError {
         /// Its value.
         value: f64,
     },
-    /// Two contacts between the same two sides.
+    /// Two contacts with one penetration: the same two sides the same way
+    /// round at the same gap, a wall's height counted in the gap (one
+    /// spring-damper twice). The other way round they are two faces (a
+    /// floor and a ceiling), at another gap two stages: both allowed.
     SamePoint(usize, usize),
     /// A contact whose sides cannot touch: a side in contact with itself,
     /// two walls, a mass that does not exist, one that starts pressed in.
     Sides {
         /// The contact.
         contact: usize,
+        /// Its part at fault: `"lower"`, `"upper"` or `"gap_m"` (the
+        /// sides' start).
+        part: &'static str,
         /// Why.
         why: String,
     },
@@ -237,23 +243,16 @@ impl std::fmt::Display for MultiError {
                 dim,
                 flops,
                 bytes,
-            } => {
-                let b = CompileBudget::DEFAULT;
-                write!(
-                    f,
-                    "object.mode: {phases} phases of up to {dim} coordinates would take about \
-                     {flops:.1e} flop and {:.0} MB to compile, over the compile budget ({:.1e} \
-                     flop, {:.0} MB): fewer modes (max_freq_hz, max_modes) or fewer contacts",
-                    bytes / 1e6,
-                    b.max_flops,
-                    b.max_bytes / 1e6
-                )
-            }
+            } => write!(
+                f,
+                "object.mode: {}",
+                over_budget(*phases, *dim, *flops, *bytes)
+            ),
             Self::SamePoint(a, b) => write!(
                 f,
                 "contacts[{a}] and contacts[{b}]: two contacts on one point pair"
             ),
-            Self::Sides { contact, why } => write!(f, "contacts[{contact}]: {why}"),
+            Self::Sides { contact, why, .. } => write!(f, "contacts[{contact}]: {why}"),
             Self::Phase { mask, why } => {
                 write!(f, "the phase with contacts {mask:#b} in contact: {why}")
             }
@@ -262,6 +261,185 @@ impl std::fmt::Display for MultiError {
 }
 
 impl std::error::Error for MultiError {}
+
+fn over_budget(phases: usize, dim: usize, flops: f64, bytes: f64) -> String {
+    let b = CompileBudget::DEFAULT;
+    format!(
+        "{phases} phases of up to {dim} coordinates would take about {flops:.1e} flop and {:.0} \
+         MB to compile, over the compile budget ({:.1e} flop, {:.0} MB): fewer modes \
+         (max_freq_hz, max_modes) or fewer contacts",
+        bytes / 1e6,
+        b.max_flops,
+        b.max_bytes / 1e6
+    )
+}
+
+impl MultiError {
+    /// The refusal of a model made by [`MultiModel::from_scene`] from
+    /// `scene`, as a scene error naming the scene's field: `contact`,
+    /// `striker[i]`, `touch[i]` and their keys, `hammer`, a pickup...
+    /// (what a compile of the model refuses, [`CompiledMulti::new`]).
+    pub fn in_scene(&self, scene: &Scene) -> SceneError {
+        SceneNames::of(scene).error(self)
+    }
+}
+
+/// The scene's field paths of a model's parts, in the order of
+/// [`MultiModel::from_scene`] (contact 0 `[contact]`, then each
+/// `[[striker]]`, then each `[[touch]]`; mass 0 `[hammer]`, then each
+/// striker), so a model's refusal names what to change in the scene.
+struct SceneNames {
+    /// `"touch"` when the scene has touches, else `"striker"`.
+    key: &'static str,
+    /// Per contact: its table, its lower side, its upper side, and the
+    /// field that sets where its sides start.
+    contacts: Vec<[String; 4]>,
+    /// Per mass: its table.
+    masses: Vec<String>,
+    /// The object in a contact with the most modes, when known.
+    largest: Option<String>,
+}
+
+impl SceneNames {
+    fn of(scene: &Scene) -> Self {
+        let c = &scene.contact;
+        let struck = if c.point.is_some() {
+            "contact.point"
+        } else {
+            "contact.object"
+        };
+        let mut contacts = vec![[
+            "contact".to_string(),
+            struck.to_string(),
+            "hammer".to_string(),
+            "hammer.height_m".to_string(),
+        ]];
+        let mut masses = vec!["hammer".to_string()];
+        for i in 0..scene.striker.len() {
+            let s = format!("striker[{i}]");
+            contacts.push([
+                s.clone(),
+                format!("{s}.point"),
+                s.clone(),
+                format!("{s}.height_m"),
+            ]);
+            masses.push(s);
+        }
+        for i in 0..scene.touch.len() {
+            let t = format!("touch[{i}]");
+            contacts.push([
+                t.clone(),
+                format!("{t}.lower"),
+                format!("{t}.upper"),
+                format!("{t}.gap_m"),
+            ]);
+        }
+        Self {
+            key: if scene.touch.is_empty() {
+                "striker"
+            } else {
+                "touch"
+            },
+            contacts,
+            masses,
+            largest: None,
+        }
+    }
+
+    /// A model's field, as [`MultiModel::validate`] names it, as the
+    /// scene's.
+    fn field(&self, field: &str) -> String {
+        let indexed = |prefix: &str| -> Option<(usize, &str)> {
+            let (i, rest) = field.strip_prefix(prefix)?.split_once(']')?;
+            Some((i.parse().ok()?, rest))
+        };
+        if let Some((j, rest)) = indexed("contacts[") {
+            if let Some(c) = self.contacts.get(j) {
+                if rest.starts_with(".lower") {
+                    return c[1].clone();
+                }
+                if rest.starts_with(".upper") {
+                    return c[2].clone();
+                }
+                return format!("{}{rest}", c[0]);
+            }
+        }
+        if let Some((j, rest)) = indexed("masses[") {
+            if let Some(m) = self.masses.get(j) {
+                return format!("{m}{rest}");
+            }
+        }
+        match field {
+            "gravity_m_per_s2" => "hammer.gravity_m_per_s2".into(),
+            f if f.starts_with("freq_hz") || f.starts_with("sigma") => "object".into(),
+            f if f.starts_with("pickups") => "pickup".into(),
+            f if f.starts_with("masses") => "striker".into(),
+            f => f.into(),
+        }
+    }
+
+    /// `e` as a scene error naming the scene's field.
+    fn error(&self, e: &MultiError) -> SceneError {
+        let name = |j: usize| {
+            self.contacts
+                .get(j)
+                .map_or_else(|| format!("contacts[{j}]"), |c| c[0].clone())
+        };
+        match e {
+            MultiError::ContactCount(n) => SceneError::new(
+                self.key,
+                format!("{n} contacts, a scene of several contacts has 1 to {MAX_CONTACTS}"),
+            ),
+            MultiError::Length { field, got, want } => {
+                SceneError::new(self.field(field), format!("{got} entries for {want} modes"))
+            }
+            MultiError::Value { field, value } => {
+                SceneError::new(self.field(field), format!("{value} is out of range"))
+            }
+            MultiError::SamePoint(a, b) => SceneError::new(
+                name(*b),
+                format!(
+                    "the same pair as {} (the same two sides the same way round at the same \
+                     gap; two walls at one height are one surface): two contacts on one point \
+                     pair; make them one contact, or set them apart with gap_m",
+                    name(*a)
+                ),
+            ),
+            MultiError::Sides { contact, part, why } => {
+                let k = match *part {
+                    "lower" => 1,
+                    "upper" => 2,
+                    "gap_m" => 3,
+                    _ => 0,
+                };
+                let path = self
+                    .contacts
+                    .get(*contact)
+                    .map_or_else(|| format!("contacts[{contact}]"), |c| c[k].clone());
+                SceneError::new(path, why.clone())
+            }
+            MultiError::OverBudget {
+                phases,
+                dim,
+                flops,
+                bytes,
+            } => SceneError::new(
+                self.largest.clone().unwrap_or_else(|| "object".into()),
+                over_budget(*phases, *dim, *flops, *bytes),
+            ),
+            MultiError::Phase { mask, why } => {
+                let members: Vec<String> = (0..MAX_CONTACTS)
+                    .filter(|j| mask & (1 << j) != 0)
+                    .map(name)
+                    .collect();
+                SceneError::new(
+                    members.first().cloned().unwrap_or_else(|| self.key.into()),
+                    format!("the phase with {} in contact: {why}", members.join(", ")),
+                )
+            }
+        }
+    }
+}
 
 /// Where one side of a contact is in a phase: rows over `s` and
 /// constants for its position and velocity, plus the flight slot it rides
@@ -591,7 +769,11 @@ impl MultiModel {
         }
         for (j, c) in self.contacts.iter().enumerate() {
             let f = |name: &str| format!("contacts[{j}].{name}");
-            let sides = |why: String| MultiError::Sides { contact: j, why };
+            let sides = |part: &'static str, why: String| MultiError::Sides {
+                contact: j,
+                part,
+                why,
+            };
             check_value(
                 &f("stiffness_n_per_m"),
                 c.stiffness_n_per_m,
@@ -612,37 +794,82 @@ impl MultiModel {
                         }
                     }
                     MultiEnd::Mass(m) if *m >= self.masses.len() => {
-                        return Err(sides(format!(
-                            "{name} is mass {m}, there are {}",
-                            self.masses.len()
-                        )));
+                        return Err(sides(
+                            name,
+                            format!("{name} is mass {m}, there are {}", self.masses.len()),
+                        ));
                     }
                     MultiEnd::Mass(_) => {}
                     MultiEnd::Wall(h) => check_value(&f(&format!("{name}.wall")), *h, true)?,
                 }
             }
             if matches!((&c.lower, &c.upper), (MultiEnd::Wall(_), MultiEnd::Wall(_))) {
-                return Err(sides("two walls cannot touch".into()));
+                return Err(sides("upper", "two walls cannot touch".into()));
             }
             if c.lower == c.upper {
-                return Err(sides("a side in contact with itself".into()));
+                return Err(sides("upper", "a side in contact with itself".into()));
             }
             let p0 = self.rest_height(&c.lower) - self.rest_height(&c.upper) - c.gap_m;
             if p0 > 0.0 {
-                return Err(sides(format!(
-                    "starts {p0:e} m pressed in: its sides must start apart or touching"
-                )));
+                return Err(sides(
+                    "gap_m",
+                    format!("starts {p0:e} m pressed in: its sides must start apart or touching"),
+                ));
             }
-            for (l, other) in self.contacts[..j].iter().enumerate() {
-                let same = (other.lower == c.lower && other.upper == c.upper)
-                    || (other.lower == c.upper && other.upper == c.lower);
-                if same {
-                    return Err(MultiError::SamePoint(l, j));
-                }
+            if let Some(l) = self.contacts[..j]
+                .iter()
+                .position(|other| same_penetration(other, c))
+            {
+                return Err(MultiError::SamePoint(l, j));
             }
         }
         Ok(())
     }
+}
+
+impl MultiModel {
+    /// Every phase's eigendecomposition and checks (about 40 d^3 flop for
+    /// d coordinates) and its two bases (2 d^2 numbers) within the compile
+    /// budget: refused before any of it.
+    fn within_budget(&self) -> Result<(), MultiError> {
+        let phases = 1usize << self.contacts.len();
+        let dim = 2 * (self.n() + self.masses.len());
+        let d = dim as f64;
+        let flops = phases as f64 * 40.0 * d * d * d;
+        let bytes = phases as f64 * 3.0 * d * d * 8.0;
+        let budget = CompileBudget::DEFAULT;
+        if flops > budget.max_flops || bytes > budget.max_bytes {
+            return Err(MultiError::OverBudget {
+                phases,
+                dim,
+                flops,
+                bytes,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Two contacts with one penetration `p = x_lower - x_upper - gap`: the
+/// same sides the same way round, and the same gap once a wall's height is
+/// counted in it (`p = h - x_upper - gap` against a wall below, `x_lower -
+/// h - gap` against one above), so a wall is told by where it is, not by
+/// its kind. Such a pair is one spring-damper twice. The same sides the
+/// other way round are two faces (a mass between a floor and a ceiling),
+/// at another gap two stages of a contact: different contacts.
+fn same_penetration(a: &MultiContact, b: &MultiContact) -> bool {
+    let same_side = |x: &MultiEnd, y: &MultiEnd| match (x, y) {
+        (MultiEnd::Wall(_), MultiEnd::Wall(_)) => true,
+        _ => x == y,
+    };
+    let offset = |c: &MultiContact| {
+        let wall = |e: &MultiEnd| match e {
+            MultiEnd::Wall(h) => *h,
+            _ => 0.0,
+        };
+        c.gap_m - wall(&c.lower) + wall(&c.upper)
+    };
+    same_side(&a.lower, &b.lower) && same_side(&a.upper, &b.upper) && offset(a) == offset(b)
 }
 
 /// The scene's objects a side of a contact names, as the model's sides
@@ -704,9 +931,13 @@ impl MultiModel {
     /// then each `[[striker]]`'s, then each `[[touch]]`; the pickups on
     /// objects in a contact (those elsewhere hear nothing). A clear error
     /// naming the field where the scene asks for what several contacts do
-    /// not take yet.
+    /// not take yet; the model's own checks and the compile budget are
+    /// taken here too, each refusal naming the scene's field
+    /// ([`MultiError::in_scene`]).
     pub fn from_scene(scene: &Scene, rate_hz: f64) -> Result<Self, SceneError> {
         scene.validate()?;
+        let mut names = SceneNames::of(scene);
+        let given = scene;
         let original_mallet = scene.hammer.object.clone().zip(scene.hammer.point.clone());
         let expanded = scene.expanded(rate_hz)?;
         let scene = &expanded;
@@ -732,6 +963,7 @@ impl MultiModel {
         }
         let mut first_mode = vec![None; scene.object.len()];
         let (mut freq_hz, mut sigma) = (vec![], vec![]);
+        let mut most = 0;
         for (field, name) in named {
             let field = field.as_str();
             let o = scene
@@ -744,6 +976,11 @@ impl MultiModel {
                         for md in &m.mode {
                             freq_hz.push(md.freq_hz);
                             sigma.push(md.t60_s.map_or(0.0, |t| LN_1000 / t));
+                        }
+                        if m.mode.len() > most {
+                            most = m.mode.len();
+                            names.largest =
+                                given.object_index(name).map(|o| format!("object[{o}]"));
                         }
                     }
                 }
@@ -902,14 +1139,10 @@ impl MultiModel {
             gravity_m_per_s2: scene.hammer.gravity_m_per_s2,
             pickups,
         };
-        let key = if scene.touch.is_empty() {
-            "striker"
-        } else {
-            "touch"
-        };
         model
             .validate()
-            .map_err(|e| SceneError::new(key, e.to_string()))?;
+            .and_then(|()| model.within_budget())
+            .map_err(|e| names.error(&e))?;
         Ok(model)
     }
 }
@@ -1528,24 +1761,8 @@ impl CompiledMulti {
     pub fn new(model: &MultiModel, rate_hz: f64) -> Result<Self, MultiError> {
         model.validate()?;
         check_value("rate_hz", rate_hz, rate_hz > 0.0)?;
-        // every phase's eigendecomposition and checks (about 40 d^3 flop
-        // for d coordinates) and its two bases (2 d^2 numbers), refused
-        // before any of it
+        model.within_budget()?;
         let k = model.contacts.len();
-        let phases = 1usize << k;
-        let dim = 2 * (model.n() + model.masses.len());
-        let d = dim as f64;
-        let flops = phases as f64 * 40.0 * d * d * d;
-        let bytes = phases as f64 * 3.0 * d * d * 8.0;
-        let budget = CompileBudget::DEFAULT;
-        if flops > budget.max_flops || bytes > budget.max_bytes {
-            return Err(MultiError::OverBudget {
-                phases,
-                dim,
-                flops,
-                bytes,
-            });
-        }
         let h = 1.0 / rate_hz;
         let phases = (0..1u32 << k)
             .map(|mask| MultiPhase::new(model, mask, h))
