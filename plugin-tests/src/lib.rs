@@ -16,6 +16,7 @@ use clack_extensions::latency::{HostLatency, HostLatencyImpl, PluginLatency};
 use clack_extensions::params::{ParamInfoBuffer, PluginParams};
 use clack_extensions::preset_discovery::prelude::{HostPresetLoad, Location, PluginPresetLoad};
 use clack_extensions::preset_discovery::HostPresetLoadImpl;
+use clack_extensions::render::{PluginRender, RenderMode};
 use clack_extensions::state::PluginState;
 use clack_host::events::event_types::{
     MidiEvent, NoteEndEvent, NoteExpressionEvent, NoteExpressionType, NoteOffEvent, NoteOnEvent,
@@ -32,6 +33,7 @@ use nice_plug::prelude::ClapPlugin;
 use std::ffi::CString;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::Mutex;
 
 /// The plugin's CLAP id, as the plugin declares it: the tests check that
@@ -156,13 +158,27 @@ fn bundle_dir(variant: Variant) -> PathBuf {
 // ---------------------------------------------------------------------------
 // Minimal clack host
 
-/// Host callbacks (all no-ops: the test drives everything itself).
-pub struct TestShared;
+/// Host callbacks callable from any thread: they only record what the
+/// plugin asked for; the test's main loop decides when to act on it
+/// ([`Session::restart_pending`], [`LoadedPlugin::run_callbacks`]).
+#[derive(Default)]
+pub struct TestShared {
+    /// Times the plugin asked to be deactivated and re-activated
+    /// (`clap_host::request_restart`, from any thread).
+    pub restarts_requested: AtomicU32,
+    /// The plugin asked for a call of its `on_main_thread`
+    /// (`clap_host::request_callback`) that the host has not made yet.
+    pub callback_requested: AtomicBool,
+}
 
 impl SharedHandler<'_> for TestShared {
-    fn request_restart(&self) {}
+    fn request_restart(&self) {
+        self.restarts_requested.fetch_add(1, Ordering::SeqCst);
+    }
     fn request_process(&self) {}
-    fn request_callback(&self) {}
+    fn request_callback(&self) {
+        self.callback_requested.store(true, Ordering::SeqCst);
+    }
 }
 
 /// Host type.
@@ -187,6 +203,12 @@ pub struct TestMainThread {
     pub preset_events: std::cell::RefCell<Vec<String>>,
     /// Times the plugin said its latency changed (CLAP latency extension).
     pub latency_changes: std::cell::Cell<u32>,
+    /// Set while the host is inside `clap_plugin::activate`: the only
+    /// place CLAP allows `clap_host_latency::changed`.
+    pub in_activate: std::cell::Cell<bool>,
+    /// Times the plugin said its latency changed outside
+    /// `clap_plugin::activate` (a breach of the latency extension's rule).
+    pub latency_violations: std::cell::Cell<u32>,
 }
 
 impl MainThreadHandler<'_> for TestMainThread {}
@@ -194,6 +216,10 @@ impl MainThreadHandler<'_> for TestMainThread {}
 impl HostLatencyImpl for TestMainThread {
     fn changed(&self) {
         self.latency_changes.set(self.latency_changes.get() + 1);
+        if !self.in_activate.get() {
+            self.latency_violations
+                .set(self.latency_violations.get() + 1);
+        }
     }
 }
 
@@ -491,6 +517,9 @@ pub fn param_id(id: &str) -> u32 {
 pub struct LoadedPlugin {
     // Field order matters: the instance is dropped before the entry.
     instance: PluginInstance<TestHost>,
+    /// [`TestShared::restarts_requested`] just before the last activation:
+    /// requests after it are still to be honoured.
+    restarts_at_activate: u32,
     _entry: PluginEntry,
 }
 
@@ -587,7 +616,7 @@ impl LoadedPlugin {
         let entry = load_entry(bundle);
         let id = CString::new(PLUGIN_ID).expect("id");
         let instance = PluginInstance::<TestHost>::new(
-            |_| TestShared,
+            |_| TestShared::default(),
             |_| TestMainThread::default(),
             &entry,
             &id,
@@ -596,6 +625,7 @@ impl LoadedPlugin {
         .expect("instantiate plugin");
         Self {
             instance,
+            restarts_at_activate: 0,
             _entry: entry,
         }
     }
@@ -620,6 +650,72 @@ impl LoadedPlugin {
     /// Times the plugin told the host its latency changed.
     pub fn latency_changes(&mut self) -> u32 {
         self.instance.access_handler(|h| h.latency_changes.get())
+    }
+
+    /// Times the plugin told the host its latency changed outside
+    /// `clap_plugin::activate` (CLAP allows it only inside).
+    pub fn latency_violations(&mut self) -> u32 {
+        self.instance.access_handler(|h| h.latency_violations.get())
+    }
+
+    /// Times the plugin asked the host to restart it (from any thread).
+    pub fn restarts_requested(&self) -> u32 {
+        self.instance
+            .access_shared_handler(|h| h.restarts_requested.load(Ordering::SeqCst))
+    }
+
+    /// The host's main loop: call the plugin's `on_main_thread` if it asked
+    /// for it since the last call. Returns whether it was called.
+    pub fn run_callbacks(&mut self) -> bool {
+        let asked = self
+            .instance
+            .access_shared_handler(|h| h.callback_requested.swap(false, Ordering::SeqCst));
+        if asked {
+            self.instance.call_on_main_thread_callback();
+        }
+        asked
+    }
+
+    /// Set parameters (CLAP values, see [`HostEvent::Param`]) through the
+    /// params extension's `flush`, as a host does while the plugin is not
+    /// processing. Only while deactivated (the test host has no active
+    /// flush).
+    pub fn flush_params(&mut self, values: &[(u32, f64)]) {
+        let params: PluginParams = self
+            .instance
+            .plugin_handle()
+            .get_extension()
+            .expect("params extension");
+        let mut events = EventBuffer::with_capacity(values.len());
+        for &(id, value) in values {
+            events.push(&ParamValueEvent::new(
+                0,
+                ClapId::new(id),
+                Pckn::match_all(),
+                value,
+            ));
+        }
+        let mut out = EventBuffer::with_capacity(16);
+        let mut handle = self
+            .instance
+            .inactive_plugin_handle()
+            .expect("flush_params: the plugin is active");
+        params.flush(&mut handle, &events.as_input(), &mut out.as_output());
+    }
+
+    /// Set the render mode (CLAP render extension): `true` for offline (an
+    /// export: no real-time constraint), `false` for real time. Returns
+    /// whether the plugin accepted it. Set it while deactivated: the next
+    /// activation runs in it.
+    pub fn set_render_mode(&mut self, offline: bool) -> bool {
+        let handle = self.instance.plugin_handle();
+        let ext: PluginRender = handle.get_extension().expect("render extension");
+        let mode = if offline {
+            RenderMode::Offline
+        } else {
+            RenderMode::Realtime
+        };
+        ext.set(&handle, mode).is_ok()
     }
 
     /// The latency the plugin reports \[samples\] (CLAP latency extension).
@@ -683,20 +779,34 @@ impl LoadedPlugin {
             min_frames_count: min_frames as u32,
             max_frames_count: max_frames as u32,
         };
-        let processor = self.instance.activate(|_, _| (), config).expect("activate");
-        let processor = processor.start_processing().expect("start processing");
+        let processor = self.start(config);
         Session {
             plugin: self,
-            processor: Some(processor),
-            max_frames,
-            left: vec![0f32; max_frames],
-            right: vec![0f32; max_frames],
-            out_ports: AudioPorts::with_capacity(2, 1),
-            in_events: EventBuffer::with_capacity(1024),
-            out_events: EventBuffer::with_capacity(256),
-            steady: 0,
-            note_ends: Vec::new(),
+            config,
+            audio: Audio {
+                processor: Some(processor),
+                max_frames,
+                left: vec![0f32; max_frames],
+                right: vec![0f32; max_frames],
+                out_ports: AudioPorts::with_capacity(2, 1),
+                in_events: EventBuffer::with_capacity(1024),
+                out_events: EventBuffer::with_capacity(256),
+                steady: 0,
+                note_ends: Vec::new(),
+            },
         }
+    }
+
+    /// `clap_plugin::activate` (flagged for the latency extension's rule,
+    /// see [`TestMainThread::in_activate`]), then `start_processing`. A
+    /// restart asked for before this call is honoured by it.
+    fn start(&mut self, config: PluginAudioConfiguration) -> StartedPluginAudioProcessor<TestHost> {
+        self.restarts_at_activate = self.restarts_requested();
+        self.instance.access_handler(|h| h.in_activate.set(true));
+        let activated = self.instance.activate(|_, _| (), config);
+        self.instance.access_handler(|h| h.in_activate.set(false));
+        let processor = activated.expect("activate");
+        processor.start_processing().expect("start processing")
     }
 
     /// Activate, render, deactivate. Returns `[left, right]`.
@@ -728,9 +838,17 @@ impl LoadedPlugin {
 }
 
 /// An activated, processing instance: blocks are processed one at a time,
-/// with whatever sizes and events the caller chooses.
+/// with whatever sizes and events the caller chooses, on the caller's
+/// thread or on another one ([`Session::on_audio_thread`]).
 pub struct Session<'a> {
     plugin: &'a mut LoadedPlugin,
+    config: PluginAudioConfiguration,
+    audio: Audio,
+}
+
+/// The audio-thread side of a [`Session`]: the started processor and the
+/// host's buffers. It can be handed to another thread.
+pub struct Audio {
     processor: Option<StartedPluginAudioProcessor<TestHost>>,
     max_frames: usize,
     left: Vec<f32>,
@@ -756,6 +874,104 @@ pub struct NoteEnd {
 }
 
 impl Session<'_> {
+    /// Process one block on the caller's thread: see [`Audio::process`].
+    pub fn process(
+        &mut self,
+        frames: usize,
+        block_start: usize,
+        events: &[HostEvent],
+    ) -> [&[f32]; 2] {
+        self.audio.process(frames, block_start, events)
+    }
+
+    /// Process part of a script on the caller's thread: see
+    /// [`Audio::render`].
+    pub fn render(
+        &mut self,
+        start: usize,
+        total: usize,
+        block: usize,
+        events: &[HostEvent],
+    ) -> [Vec<f32>; 2] {
+        self.audio.render(start, total, block, events)
+    }
+
+    /// The plugin's note-end events so far, in order.
+    pub fn note_ends(&self) -> &[NoteEnd] {
+        &self.audio.note_ends
+    }
+
+    /// Run `f` with the audio side on another thread (as a host's audio
+    /// thread runs `process`), and wait for it. A panic in `f` is the
+    /// caller's.
+    pub fn on_audio_thread<R: Send>(&mut self, f: impl FnOnce(&mut Audio) -> R + Send) -> R {
+        let audio = &mut self.audio;
+        std::thread::scope(|s| {
+            s.spawn(move || f(audio))
+                .join()
+                .unwrap_or_else(|e| std::panic::resume_unwind(e))
+        })
+    }
+
+    /// The instance, for main-thread calls while it is active (its
+    /// latency, its callbacks, its parameters' values).
+    pub fn plugin(&mut self) -> &mut LoadedPlugin {
+        self.plugin
+    }
+
+    /// The plugin asked for a restart (`clap_host::request_restart`) after
+    /// the last activation began.
+    pub fn restart_pending(&self) -> bool {
+        self.plugin.restarts_requested() > self.plugin.restarts_at_activate
+    }
+
+    /// What a host does between two activations: stop processing,
+    /// deactivate, run `f` on the deactivated instance (the host's
+    /// main-thread work: callbacks, a parameter flush), activate with the
+    /// same configuration and start processing again. The audio side
+    /// keeps its buffers and its steady time.
+    pub fn deactivated<R>(&mut self, f: impl FnOnce(&mut LoadedPlugin) -> R) -> R {
+        self.stop();
+        let r = f(self.plugin);
+        self.audio.processor = Some(self.plugin.start(self.config));
+        r
+    }
+
+    /// Honour the plugin's restart requests as a host does (deactivate,
+    /// run its callbacks, activate) until it asks for none; at most
+    /// `limit` restarts. Returns how many were made.
+    pub fn honour_restarts(&mut self, limit: u32) -> u32 {
+        let mut n = 0;
+        while self.restart_pending() {
+            assert!(
+                n < limit,
+                "the plugin asked for more than {limit} restarts in a row"
+            );
+            self.deactivated(|p| p.run_callbacks());
+            n += 1;
+        }
+        n
+    }
+
+    /// The host's reset (e.g. on transport jumps).
+    pub fn reset(&mut self) {
+        self.audio.reset();
+    }
+
+    /// Stop processing and deactivate.
+    pub fn deactivate(mut self) {
+        self.stop();
+    }
+
+    fn stop(&mut self) {
+        if let Some(p) = self.audio.processor.take() {
+            let stopped = p.stop_processing();
+            self.plugin.instance.deactivate(stopped);
+        }
+    }
+}
+
+impl Audio {
     /// Process one block of `frames` (0 allowed, at most the activation's
     /// maximum) with `events` whose `at` is absolute: `block_start` is
     /// subtracted. The output buffers are poisoned with NaN first, so every
@@ -880,16 +1096,38 @@ impl Session<'_> {
         self.processor.as_mut().expect("processing").reset();
     }
 
-    /// Stop processing and deactivate.
-    pub fn deactivate(mut self) {
-        self.stop();
-    }
-
-    fn stop(&mut self) {
-        if let Some(p) = self.processor.take() {
-            let stopped = p.stop_processing();
-            self.plugin.instance.deactivate(stopped);
+    /// Process frames `start..start + total` of a script whose events are
+    /// at positions from its start, in blocks of `block` counted from
+    /// `start` (the last may be shorter); events outside those frames are
+    /// left out. Returns `[left, right]`.
+    pub fn render(
+        &mut self,
+        start: usize,
+        total: usize,
+        block: usize,
+        events: &[HostEvent],
+    ) -> [Vec<f32>; 2] {
+        let end = start + total;
+        let mut sorted: Vec<HostEvent> = events
+            .iter()
+            .filter(|e| (start..end).contains(&e.at()))
+            .copied()
+            .collect();
+        sorted.sort_by_key(|e| e.at());
+        let mut out = [Vec::with_capacity(total), Vec::with_capacity(total)];
+        let (mut next, mut pos) = (0usize, start);
+        while pos < end {
+            let len = block.min(end - pos);
+            let first = next;
+            while next < sorted.len() && sorted[next].at() < pos + len {
+                next += 1;
+            }
+            let b = self.process(len, pos, &sorted[first..next]);
+            out[0].extend_from_slice(b[0]);
+            out[1].extend_from_slice(b[1]);
+            pos += len;
         }
+        out
     }
 }
 

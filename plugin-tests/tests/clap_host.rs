@@ -175,30 +175,34 @@ fn rt_checks_build_equals_the_library() {
 /// The Lookahead parameter (docs/plugin.md, "Lookahead") through a real
 /// host: 10 ms at 48 kHz is a latency of 480 samples the plugin reports,
 /// and the phrase sounds as the library plays it, 480 samples later,
-/// after 480 samples of silence. Set in one render (a host's parameter
-/// event), then the next activation starts with it.
+/// after 480 samples of silence. Set by a host's parameter event while the
+/// plugin plays: it keeps its latency until the host restarts it, and
+/// tells the host the new one from `activate` (CLAP's rule).
 fn check_lookahead(variant: Variant) {
     let rate = 48_000.0;
+    let block = 64;
     let mut p = LoadedPlugin::load(&clap_bundle(variant));
-    assert_eq!(p.latency(), 0, "no latency by default");
-    p.render(&RenderSpec::new(
-        rate,
-        256,
-        4096,
-        vec![param(0, ids::LOOKAHEAD, 10.0)],
-    ));
-    assert_eq!(p.latency(), 480, "the new lookahead is the latency");
-    // (the plugin was active: it asked for a restart and tells the host at
-    // the next activation, as CLAP requires)
-    let told = p.latency_changes();
+    let mut s = p.activate(rate, 1, block);
+    assert_eq!(s.plugin().latency(), 0, "no latency by default");
+    s.render(0, 4096, block, &[param(0, ids::LOOKAHEAD, 10.0)]);
+    let before_restart = s.plugin().latency();
+    let restarts = s.honour_restarts(4);
+    // (the activation's first scene may come after it: docs/plugin.md,
+    // "Parameter changes: the swap design"; time for the worker, not a
+    // timing assertion)
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    s.render(0, block, block, &[]);
     let events = phrase(rate);
     let total = (rate * 2.0) as usize;
-    let late = p.render(&RenderSpec::new(rate, 64, total + 480, events.clone()));
-    assert_eq!(p.latency(), 480);
-    assert!(
-        p.latency_changes() > told,
-        "the host was told at the activation"
-    );
+    let late = s.render(0, total + 480, block, &events);
+    let (latency, told) = (s.plugin().latency(), s.plugin().latency_changes());
+    let violations = s.plugin().latency_violations();
+    s.deactivate();
+    assert_eq!(violations, 0, "latency changed outside activate");
+    assert_eq!(before_restart, 0, "the latency changed before a restart");
+    assert!(restarts >= 1, "the plugin asked for no restart");
+    assert_eq!(latency, 480, "the new lookahead is the latency");
+    assert!(told >= 1, "the host was not told of the new latency");
     let lib = library_render(&InstrumentParams::default(), rate, total, &events);
     assert!(late[0][..480]
         .iter()
@@ -206,9 +210,9 @@ fn check_lookahead(variant: Variant) {
         .all(|x| *x == 0.0));
     let d = max_abs_diff(&late[0][480..], &lib[0]).max(max_abs_diff(&late[1][480..], &lib[1]));
     println!(
-        "{}: lookahead 10 ms = latency {} samples; peak {:.3}; max |plugin(t + 480) - library(t)| = {d:.3e}",
+        "{}: lookahead 10 ms = latency {latency} samples after {restarts} restart(s); peak {:.3}; \
+         max |plugin(t + 480) - library(t)| = {d:.3e}",
         variant.name(),
-        p.latency(),
         peak(&lib[0])
     );
     assert!(peak(&lib[0]) > 0.05);
@@ -225,6 +229,164 @@ fn lookahead_is_a_reported_latency_and_changes_nothing_else() {
 #[test]
 fn lookahead_under_rt_checks() {
     check_lookahead(Variant::RtChecks);
+}
+
+/// What a host's main thread does between two chunks of audio: honour a
+/// restart the plugin asked for (deactivate, run its callbacks, activate),
+/// else run its callbacks. Returns the restarts made (0 or 1).
+fn host_step(s: &mut Session) -> u32 {
+    if s.restart_pending() {
+        s.deactivated(|p| p.run_callbacks());
+        1
+    } else {
+        s.plugin().run_callbacks();
+        0
+    }
+}
+
+/// Frames `start..start + total` of `events`, processed on an audio thread
+/// `chunk` blocks at a time, with a [`host_step`] after each chunk.
+/// Returns the output and the restarts made.
+fn play(
+    s: &mut Session,
+    start: usize,
+    total: usize,
+    block: usize,
+    chunk: usize,
+    events: &[HostEvent],
+) -> ([Vec<f32>; 2], u32) {
+    let mut out = [Vec::with_capacity(total), Vec::with_capacity(total)];
+    let mut restarts = 0;
+    let mut pos = start;
+    while pos < start + total {
+        let len = (block * chunk).min(start + total - pos);
+        let part = s.on_audio_thread(|a| a.render(pos, len, block, events));
+        out[0].extend_from_slice(&part[0]);
+        out[1].extend_from_slice(&part[1]);
+        restarts += host_step(s);
+        pos += len;
+    }
+    (out, restarts)
+}
+
+/// Silence on the audio thread until a chunk passes with no restart made
+/// or asked for (at most 8 chunks). Returns the restarts made.
+fn settle(s: &mut Session, block: usize) -> u32 {
+    let mut restarts = 0;
+    for _ in 0..8 {
+        let (out, r) = play(s, 0, 4 * block, block, 4, &[]);
+        assert!(out[0].iter().chain(&out[1]).all(|x| *x == 0.0));
+        restarts += r;
+        if r == 0 && !s.restart_pending() {
+            return restarts;
+        }
+    }
+    panic!("the plugin still asks for restarts after 8 chunks");
+}
+
+/// The lookahead's latency through a host that follows CLAP's latency
+/// rule (docs/plugin.md, "Lookahead"): `clap_host_latency::changed` only
+/// inside `clap_plugin::activate` (the test host counts every other call
+/// as a violation), a new latency asked for with `request_restart`. Audio
+/// runs on its own thread, the host's main thread works between chunks:
+/// it restarts the plugin when asked and runs its callbacks. A Lookahead
+/// of 10 ms comes as a parameter event in `process`; later one of 15 ms in
+/// the last block before the host stops, and while stopped the host
+/// flushes 20 ms. After each, the plugin reports the new latency (480,
+/// then 960 samples) and plays the phrase that much later, to within
+/// 1e-6 of the library; until a restart it keeps the old one. The host
+/// renders offline (CLAP `render` extension), so each activation's first
+/// scene is in place before its first block whatever the worker's speed
+/// (docs/plugin.md, "Parameter changes: the swap design"); the restart is
+/// asked for in `process` as in real time.
+fn check_latency_protocol(variant: Variant) {
+    let rate = 48_000.0;
+    let block = 256;
+    let total = (rate * 2.0) as usize;
+    let events = phrase(rate);
+    let lib = library_render(&InstrumentParams::default(), rate, total, &events);
+    let mut p = LoadedPlugin::load(&clap_bundle(variant));
+    assert!(p.set_render_mode(true), "the offline mode was refused");
+    let mut s = p.activate(rate, 1, block);
+    assert_eq!(s.plugin().latency(), 0, "no latency by default");
+    let mut restarts = settle(&mut s, block);
+    // a parameter event in the second block of a chunk
+    let change = [param(block + 77, ids::LOOKAHEAD, 10.0)];
+    s.on_audio_thread(|a| a.render(0, 4 * block, block, &change));
+    let asked = s.plugin().restarts_requested();
+    let kept = s.plugin().latency();
+    restarts += host_step(&mut s) + settle(&mut s, block);
+    let first = s.plugin().latency();
+    let (late, during) = play(&mut s, 0, total + 960, block, 32, &events);
+    // the event just before the host stops, then a flush while stopped
+    let change = [param(3 * block + 5, ids::LOOKAHEAD, 15.0)];
+    s.on_audio_thread(|a| a.render(0, 4 * block, block, &change));
+    s.deactivated(|p| {
+        p.run_callbacks();
+        p.flush_params(&[(param_id(ids::LOOKAHEAD), 20.0)]);
+        p.run_callbacks();
+    });
+    restarts += settle(&mut s, block);
+    let second = s.plugin().latency();
+    let (later, during_2) = play(&mut s, 0, total + 960, block, 32, &events);
+    let violations = s.plugin().latency_violations();
+    let told = s.plugin().latency_changes();
+    let requested = s.plugin().restarts_requested();
+    s.deactivate();
+    println!(
+        "{}: {violations} latency change(s) outside activate, {told} inside or out; \
+         {requested} restart(s) asked for, {restarts} made; latency {kept} until the restart, \
+         then {first}, then {second}",
+        variant.name()
+    );
+    assert_eq!(
+        violations, 0,
+        "clap_host_latency::changed outside clap_plugin::activate"
+    );
+    assert!(
+        asked >= 1,
+        "no restart asked for after the Lookahead changed"
+    );
+    assert_eq!(
+        kept, 0,
+        "the latency changed before the host restarted the plugin"
+    );
+    assert_eq!(first, 480, "10 ms at 48 kHz");
+    assert_eq!(second, 960, "the flushed 20 ms");
+    assert!(
+        told >= 2,
+        "the host was told of {told} latency change(s), not 2"
+    );
+    assert_eq!(
+        (during, during_2),
+        (0, 0),
+        "restarts asked for while the phrase played"
+    );
+    for (out, delay) in [(&late, 480), (&later, 960)] {
+        assert!(out[0][..delay]
+            .iter()
+            .chain(&out[1][..delay])
+            .all(|x| *x == 0.0));
+        let d = max_abs_diff(&out[0][delay..delay + total], &lib[0])
+            .max(max_abs_diff(&out[1][delay..delay + total], &lib[1]));
+        println!("  delay {delay}: max |plugin(t + {delay}) - library(t)| = {d:.3e}");
+        assert!(
+            d <= 1e-6,
+            "delayed by {delay}: plugin and library differ by {d}"
+        );
+    }
+}
+
+#[test]
+fn latency_changes_only_inside_activate() {
+    check_latency_protocol(Variant::Release);
+}
+
+/// The same through the rt-checks build (a restart asked for from
+/// `process` allocates nothing).
+#[test]
+fn latency_changes_only_inside_activate_under_rt_checks() {
+    check_latency_protocol(Variant::RtChecks);
 }
 
 pub fn check_param_swap(variant: Variant) {
@@ -645,7 +807,7 @@ fn hardness_poly_modulation_and_note_ends_through_the_host() {
             .collect();
         session.process(block, start, &here);
     }
-    let ends = session.note_ends.clone();
+    let ends = session.note_ends().to_vec();
     session.deactivate();
     println!("note ends: {ends:?}");
     let end_of = |id: u32| ends.iter().find(|e| e.id == Some(id)).copied();
