@@ -319,7 +319,7 @@ impl<'a> Flow<'a> {
             if !phi.is_finite() || *work < 0.0 || t_next > t_end {
                 return None;
             }
-            if grid % CANCEL_CHECK_STEPS == 0 && super::cancel::cancelled() {
+            if grid.is_multiple_of(CANCEL_CHECK_STEPS) && super::cancel::cancelled() {
                 return None;
             }
             if phi <= 0.0 {
