@@ -138,7 +138,8 @@ fn ms_since(t: Instant) -> f64 {
 }
 
 fn trial(bundle: &std::path::Path, state: Option<&[u8]>, rng: &mut TestRng, t: &mut Times) {
-    let mut p = LoadedPlugin::load(bundle);
+    // a live host's instance (real-time mode)
+    let mut p = LoadedPlugin::load_realtime(bundle);
     if let Some(s) = state {
         p.load_state(s);
     }

@@ -611,8 +611,23 @@ impl RenderSpec {
 }
 
 impl LoadedPlugin {
-    /// Load and instantiate the plugin of `bundle`.
+    /// Load and instantiate the plugin of `bundle`, set to render offline
+    /// (CLAP render extension): the harness calls `process` far faster
+    /// than real time, as an export does, and an offline render waits for
+    /// the scenes it asks for, so a render never depends on how fast the
+    /// plugin's worker is (docs/plugin.md, "Parameter changes: the swap
+    /// design"). [`LoadedPlugin::load_realtime`] is a live host's
+    /// instance.
     pub fn load(bundle: &Path) -> Self {
+        let mut p = Self::load_realtime(bundle);
+        assert!(p.set_render_mode(true), "the render extension refused offline");
+        p
+    }
+
+    /// Load and instantiate the plugin of `bundle` in real-time mode (a
+    /// live host's: the first scene may come blocks after the activation,
+    /// a parameter's scene when the worker is done).
+    pub fn load_realtime(bundle: &Path) -> Self {
         let entry = load_entry(bundle);
         let id = CString::new(PLUGIN_ID).expect("id");
         let instance = PluginInstance::<TestHost>::new(

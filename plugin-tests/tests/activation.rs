@@ -58,7 +58,7 @@ fn a_long_compile_never_holds_activate_or_deactivate() {
     let state = big_state(&bundle);
 
     // realtime: activate returns before the scene is compiled
-    let mut p = LoadedPlugin::load(&bundle);
+    let mut p = LoadedPlugin::load_realtime(&bundle);
     p.load_state(&state);
     let t0 = Instant::now();
     let mut s = p.activate(RATE, 1, BLOCK);
@@ -89,7 +89,7 @@ fn a_long_compile_never_holds_activate_or_deactivate() {
     );
 
     // deactivate while the compile runs, then destroy
-    let mut q = LoadedPlugin::load(&bundle);
+    let mut q = LoadedPlugin::load_realtime(&bundle);
     q.load_state(&state);
     let s = q.activate(RATE, 1, BLOCK);
     let t0 = Instant::now();
@@ -106,7 +106,6 @@ fn a_long_compile_never_holds_activate_or_deactivate() {
     // offline: the first block waits for the scene and plays the note
     let mut r = LoadedPlugin::load(&bundle);
     r.load_state(&state);
-    assert!(r.set_render_mode(true), "the render extension refused offline");
     let mut s = r.activate(RATE, 1, BLOCK);
     let first = s.process(BLOCK, 0, &[on(0, 60, 0.9)]);
     assert!(!silent(&first), "offline: the first block must play the note");
