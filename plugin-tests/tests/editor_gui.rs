@@ -7,11 +7,15 @@
 //!
 //! Asserts: the window appears at the editor's default size and is not
 //! blank; the user scene folder lists a valid and an invalid scene (the
-//! invalid one with its error); clicking an audition pad makes the live view
-//! change; clicking the valid user scene loads it (the window's top bar
-//! changes) and it plays; editing its file offers a reload in the top bar;
-//! the process never aborted. The screenshots are written to
-//! `target/plugin-tests/editor/` (README's picture is one of them).
+//! invalid one with its error, in red); with nothing moving the window is
+//! not redrawn (the application takes almost no CPU); clicking an audition
+//! pad makes the live view change; clicking the valid user scene loads it
+//! (the window's top bar changes) and it plays; editing its file offers a
+//! reload in the top bar; a reload the compiler refuses shows its error
+//! there in red, one that takes seconds "compiling…" until it plays; the
+//! process never aborted. The screenshots are
+//! written to `target/plugin-tests/editor/`; README's picture
+//! (docs/editor.png) is `editor-struck.png`.
 //!
 //! Needs: Xvfb, xdotool, xwd and xdpyinfo (x11-apps, x11-utils), ImageMagick's
 //! `convert` (Debian: xvfb xdotool x11-apps x11-utils imagemagick
@@ -196,23 +200,91 @@ fn assert_alive(app: &mut Child, out: &Path) {
 
 const USER_SCENE: &str = include_str!("../../presets/wood-block.toml");
 
+/// The invalid scene of the folder: the wood block with a negative decay
+/// rate.
+fn invalid_scene() -> String {
+    let bad = USER_SCENE.replacen("decay_rate_per_s = ", "decay_rate_per_s = -", 1);
+    let e = modal_contact::scene::Scene::from_toml_str(&bad)
+        .expect_err("the invalid scene must not validate");
+    assert!(e.path.ends_with("decay_rate_per_s"), "{e}");
+    bad
+}
+
+/// A valid scene named `my-block` that takes seconds to compile: a modal
+/// object of 600 modes, every one of them at the contact point.
+fn slow_scene() -> String {
+    let mut s = String::from(
+        "version = 1\nname = \"my-block\"\nduration_s = 1.0\n\n[[object]]\nname = \"plate\"\n\
+         kind = \"modal\"\npoints = [\"contact\", \"pickup\"]\n",
+    );
+    for k in 0..600 {
+        let w = 1.0 / (1.0 + k as f64 * 0.01);
+        s += &format!(
+            "\n[[object.mode]]\nfreq_hz = {}\nt60_s = {}\nweights = [{w}, {}]\n",
+            110.0 * (1.0 + k as f64).powf(1.3),
+            2.0 / (1.0 + k as f64 * 0.02),
+            if k % 2 == 0 { w } else { -w }
+        );
+    }
+    s + "\n[hammer]\nmass_kg = 0.03\nheight_m = 0.001\nvelocity_m_per_s = -2.0\n\n\
+         [contact]\nobject = \"plate\"\npoint = \"contact\"\nstiffness_n_per_m = 3e5\n\
+         damping_n_s_per_m = 40.0\n\n[[pickup]]\nobject = \"plate\"\npoint = \"pickup\"\n\
+         quantity = \"velocity\"\ngain = 0.5\n"
+}
+
+/// The share of one core the process `pid` takes over `span` (its threads'
+/// user and system time from `/proc/<pid>/stat`).
+fn cpu_share(pid: u32, span: Duration) -> f64 {
+    let ticks = || -> u64 {
+        let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap();
+        // the fields after the command's closing parenthesis; utime and
+        // stime are the 14th and 15th of the line
+        let rest = &stat[stat.rfind(')').unwrap() + 2..];
+        let f: Vec<&str> = rest.split_whitespace().collect();
+        f[11].parse::<u64>().unwrap() + f[12].parse::<u64>().unwrap()
+    };
+    let hz: f64 = Command::new("getconf")
+        .arg("CLK_TCK")
+        .output()
+        .ok()
+        .and_then(|o| String::from_utf8_lossy(&o.stdout).trim().parse().ok())
+        .unwrap_or(100.0);
+    let a = ticks();
+    std::thread::sleep(span);
+    (ticks() - a) as f64 / hz / span.as_secs_f64()
+}
+
+/// Pixels in a region that are the editor's error red (240, 90, 80),
+/// give or take the text's anti-aliasing.
+fn red_pixels(s: &Shot, x0: usize, y0: usize, x1: usize, y1: usize) -> usize {
+    let mut n = 0;
+    for y in y0..y1.min(s.h) {
+        for x in x0..x1.min(s.w) {
+            let [r, g, b] = s.px(x, y).map(u16::from);
+            n += usize::from(r >= 120 && r >= 2 * g && r >= 2 * b);
+        }
+    }
+    n
+}
+
 #[test]
 fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
     let bin = standalone();
     let out = workspace_root().join("target/plugin-tests/editor");
     let _ = std::fs::remove_dir_all(&out);
-    let scenes = out.join("data/modalcontact/scenes");
+    std::fs::create_dir_all(&out).unwrap();
+    // the user data directory: a short path, as the browser shows it in
+    // README's picture
+    let data = std::env::temp_dir().join("modal-contact-editor");
+    let _ = std::fs::remove_dir_all(&data);
+    let scenes = data.join("modalcontact/scenes");
     std::fs::create_dir_all(&scenes).unwrap();
     std::fs::write(
         scenes.join("my-block.toml"),
         USER_SCENE.replace("name = \"wood-block\"", "name = \"my-block\""),
     )
     .unwrap();
-    std::fs::write(
-        scenes.join("typo.toml"),
-        USER_SCENE.replacen("t60_s = ", "t60_s = -", 1),
-    )
-    .unwrap();
+    std::fs::write(scenes.join("typo.toml"), invalid_scene()).unwrap();
 
     let display = free_display();
     let xvfb = Killed(
@@ -253,7 +325,7 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
             ])
             .env("DISPLAY", &display)
             .env("LIBGL_ALWAYS_SOFTWARE", "1")
-            .env("XDG_DATA_HOME", out.join("data"))
+            .env("XDG_DATA_HOME", &data)
             .stdout(log.try_clone().unwrap())
             .stderr(log)
             .spawn()
@@ -307,6 +379,30 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
     let before = shot(&display, &wid, Some(&out.join("editor-idle.png")));
     let (w, h) = (before.w, before.h);
     println!("idle: {} colours", before.colours(0, 0, w, h));
+    // the folder's entries (below the built-in list: one 23-pixel row per
+    // preset; at 7 presets the first entry sat at y = 327): the invalid
+    // file's error in red below its name
+    let user_row_y = 327 + 23 * (modal_contact::presets::COUNT as u32 - 7);
+    let listed_red = red_pixels(&before, 0, user_row_y as usize, 260, h);
+    println!("folder list: {listed_red} red pixels (the invalid file's error)");
+    assert!(
+        listed_red > 100,
+        "the invalid file's error is not shown ({listed_red} red pixels)"
+    );
+
+    // nothing moves: the window is not redrawn, the application idles
+    // (the audio thread's dummy backend and the worker's poll remain;
+    // redrawing at the display rate took about 40 % of a core here)
+    let idle = cpu_share(app.0.id(), Duration::from_secs(3));
+    println!(
+        "idle: the application takes {:.1} % of one core",
+        idle * 100.0
+    );
+    assert!(
+        idle < 0.12,
+        "the idle editor takes {:.1} % of one core: is it redrawn when nothing changed?",
+        idle * 100.0
+    );
 
     // an audition pad (the second, "root", in the bottom row between the
     // side panels), struck high: the live view must move
@@ -326,11 +422,9 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
         "the application died (allocation in process?)"
     );
 
-    // the user scene (the first entry of the folder list, below the
-    // built-in list: one 23-pixel row per preset; at 7 presets it sat at
-    // y = 327): the top bar names it once the worker compiled it
+    // the user scene (the first entry of the folder list): the top bar
+    // names it once the worker compiled it
     let listing = std::fs::read_to_string(out.join("standalone.log")).unwrap_or_default();
-    let user_row_y = 327 + 23 * (modal_contact::presets::COUNT as u32 - 7);
     click(&display, &wid, 56, user_row_y);
     std::thread::sleep(Duration::from_millis(1500));
     let loaded = shot(&display, &wid, Some(&out.join("editor-user-scene.png")));
@@ -347,11 +441,14 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
     assert!(user_struck.diff(&loaded, view.0, view.1, view.2, view.3) > 2000);
     assert_alive(&mut app.0, &out);
 
-    // the file changes on disk: the top bar offers a reload (checked once a
-    // second), the scene is not swapped silently
+    // the file changes on disk (into an invalid scene): the top bar offers
+    // a reload (checked once a second), the scene is not swapped silently
     let file = scenes.join("my-block.toml");
-    let text = std::fs::read_to_string(&file).unwrap();
-    std::fs::write(&file, text + "\n# edited\n").unwrap();
+    std::fs::write(
+        &file,
+        invalid_scene().replace("name = \"wood-block\"", "name = \"my-block\""),
+    )
+    .unwrap();
     std::thread::sleep(Duration::from_millis(2500));
     let offered = shot(
         &display,
@@ -363,6 +460,61 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
     assert!(
         top > 100,
         "no reload offered after the file changed on disk"
+    );
+    assert_alive(&mut app.0, &out);
+
+    // reload it: the compile fails, the top bar says why in red (the last
+    // good scene plays on)
+    let changed_x: Vec<usize> = (0..w)
+        .filter(|&x| (0..30).any(|y| offered.px(x, y) != user_struck.px(x, y)))
+        .collect();
+    let button_x = (changed_x[0] + changed_x[changed_x.len() - 1]) / 2;
+    click(&display, &wid, button_x as u32, 14);
+    std::thread::sleep(Duration::from_millis(1500));
+    let failed = shot(&display, &wid, Some(&out.join("editor-reload-failed.png")));
+    let red = red_pixels(&failed, 0, 24, w, 44);
+    println!("top bar: {red} red pixels after reloading the invalid file");
+    assert!(
+        red > 100,
+        "the failed compile's error is not shown in the top bar ({red} red pixels)"
+    );
+    assert_alive(&mut app.0, &out);
+
+    // a valid scene that takes seconds to compile: while it does, the top
+    // bar says "compiling…" (and no longer the error); once it plays, the
+    // label is gone
+    std::fs::write(&file, slow_scene()).unwrap();
+    std::thread::sleep(Duration::from_millis(2500));
+    click(&display, &wid, button_x as u32, 14);
+    std::thread::sleep(Duration::from_millis(400));
+    let compiling = shot(&display, &wid, Some(&out.join("editor-compiling.png")));
+    let red = red_pixels(&compiling, 0, 24, w, 44);
+    assert_eq!(
+        red, 0,
+        "the error is still shown while the new scene compiles"
+    );
+    let t2 = Instant::now();
+    let compiled = loop {
+        std::thread::sleep(Duration::from_millis(500));
+        let s = shot(&display, &wid, None);
+        // the summary line names the new scene's 600 modes once it plays
+        if s.diff(&compiling, 0, 24, w, 44) > 100 {
+            break s;
+        }
+        assert!(
+            t2.elapsed() < Duration::from_secs(120),
+            "the 600-mode scene never finished compiling"
+        );
+    };
+    println!(
+        "600-mode scene compiled within {:.1} s of the reload",
+        t2.elapsed().as_secs_f64()
+    );
+    let label = compiled.diff(&compiling, 0, 0, w, 24);
+    println!("top bar: {label} pixels changed when the compile ended (the \"compiling…\" label)");
+    assert!(
+        label > 100,
+        "no \"compiling…\" in the top bar while the scene compiled"
     );
     assert_alive(&mut app.0, &out);
     let _ = Command::new("kill")

@@ -15,7 +15,7 @@
 //! so the ratio of these sums between modes bounds the relative level.
 
 use super::CompileOptions;
-use crate::scene::{ObjectSpec, Quantity, Scene};
+use crate::scene::{ObjectSpec, Quantity, Scene, SceneError};
 
 /// What the compiler does with one mode of the struck modal object.
 #[derive(Debug, Clone, PartialEq)]
@@ -130,6 +130,60 @@ pub fn mode_fates(
             .map(|(i, mode)| fate(i, mode))
             .collect(),
     )
+}
+
+/// The struck object's modes as the compiler resolves them (see
+/// [`struck_mode_fates`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StruckModes {
+    /// Every mode and its fate: the struck object's own first, then a
+    /// modal mallet's, which the compiler joins to the struck object
+    /// (docs/design.md, "Modal mallets").
+    pub fates: Vec<ModeFate>,
+    /// How many of `fates` are the struck object's own.
+    pub own: usize,
+}
+
+/// The struck object of `scene` turned into its modes the way the compiler
+/// does before it leaves any out (stage 0 of `compile`: [`Scene::expanded`]
+/// at `rate_hz`, so an object from geometry and material becomes its modes
+/// and a modal mallet's modes join the struck object's), and what the
+/// compiler does with each ([`mode_fates`]). `Ok(None)`: the struck object
+/// has no modes to list (a lumped string, a wall). An error names the field
+/// the expansion refused. \[worker\]
+pub fn struck_mode_fates(
+    scene: &Scene,
+    rate_hz: f64,
+    opts: &CompileOptions,
+) -> Result<Option<StruckModes>, SceneError> {
+    let expanded = scene.expanded(rate_hz)?;
+    let ci = expanded
+        .object_index(&expanded.contact.object)
+        .ok_or_else(|| {
+            SceneError::new(
+                "contact.object",
+                format!("no object named {:?}", expanded.contact.object),
+            )
+        })?;
+    let Some(fates) = mode_fates(&expanded, ci, rate_hz, opts) else {
+        return Ok(None);
+    };
+    // a joined mallet's modes come last (the expansion clears
+    // `hammer.object` when it joins one)
+    let joined = scene
+        .hammer
+        .object
+        .as_deref()
+        .filter(|_| expanded.hammer.object.is_none())
+        .and_then(|m| expanded.object_index(m))
+        .map_or(0, |mi| match &expanded.object[mi] {
+            ObjectSpec::Modal(m) => m.mode.len(),
+            _ => 0,
+        });
+    Ok(Some(StruckModes {
+        own: fates.len().saturating_sub(joined),
+        fates,
+    }))
 }
 
 /// The struck object with the unneeded modes removed, and why each went.

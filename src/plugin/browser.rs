@@ -31,12 +31,28 @@ pub struct Entry {
     pub status: Result<String, String>,
 }
 
+/// What the user folder holds.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Folder {
+    /// The folder does not exist yet (a first start, before anyone made
+    /// it): nothing to list and nothing wrong; the browser offers to
+    /// create it.
+    Missing,
+    /// Its scene files.
+    Listed(Vec<Entry>),
+}
+
 /// Every `.toml` file directly in `dir`, sorted by name, each parsed and
-/// validated. A folder that does not exist or cannot be read is an error
-/// with the reason (the browser shows it); a file that cannot be read is an
-/// entry with its error.
-pub fn list_folder(dir: &Path) -> Result<Vec<Entry>, String> {
-    let rd = std::fs::read_dir(dir).map_err(|e| format!("cannot read {}: {e}", dir.display()))?;
+/// validated; [`Folder::Missing`] if `dir` does not exist. A folder that
+/// cannot be read (no permission, a file where the folder should be) is an
+/// error with the reason (the browser shows it); a file that cannot be read
+/// is an entry with its error.
+pub fn list_folder(dir: &Path) -> Result<Folder, String> {
+    let rd = match std::fs::read_dir(dir) {
+        Ok(rd) => rd,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Folder::Missing),
+        Err(e) => return Err(format!("cannot read {}: {e}", dir.display())),
+    };
     let mut entries: Vec<Entry> = rd
         .filter_map(|e| e.ok())
         .map(|e| e.path())
@@ -60,7 +76,7 @@ pub fn list_folder(dir: &Path) -> Result<Vec<Entry>, String> {
         })
         .collect();
     entries.sort_by(|a, b| a.name.cmp(&b.name));
-    Ok(entries)
+    Ok(Folder::Listed(entries))
 }
 
 #[cfg(test)]
@@ -82,7 +98,9 @@ mod tests {
         let bad = good.replacen("t60_s = ", "t60_s = -", 1);
         std::fs::write(dir.join("c-invalid.toml"), bad).unwrap();
         std::fs::write(dir.join("notes.txt"), "not a scene").unwrap();
-        let list = list_folder(&dir).unwrap();
+        let Folder::Listed(list) = list_folder(&dir).unwrap() else {
+            panic!("the folder exists")
+        };
         let names: Vec<&str> = list.iter().map(|e| e.name.as_str()).collect();
         assert_eq!(names, ["a-broken", "b-good", "c-invalid"]);
         assert!(
@@ -96,10 +114,54 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
+    /// A first start: the folder (and its parents) not made yet lists as
+    /// missing, without an error; once made, it lists as empty.
     #[test]
-    fn a_missing_folder_is_an_error_not_a_panic() {
-        let e = list_folder(Path::new("/nonexistent/modal-contact/scenes")).unwrap_err();
-        assert!(e.contains("cannot read /nonexistent"), "{e}");
+    fn a_folder_not_made_yet_is_missing_not_an_error() {
+        let dir = std::env::temp_dir().join(format!("mc-browser-missing-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let scenes = dir.join("modalcontact/scenes");
+        assert_eq!(list_folder(&scenes), Ok(Folder::Missing));
+        std::fs::create_dir_all(&scenes).unwrap();
+        assert_eq!(list_folder(&scenes), Ok(Folder::Listed(Vec::new())));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A folder that is there but cannot be read is an error with the
+    /// reason: a file where the folder should be (or in its path), a folder
+    /// without read permission.
+    #[test]
+    fn an_unreadable_folder_is_an_error_with_the_reason() {
+        let dir =
+            std::env::temp_dir().join(format!("mc-browser-unreadable-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("scenes");
+        std::fs::write(&file, "not a folder").unwrap();
+        let e = list_folder(&file).unwrap_err();
+        assert!(
+            e.starts_with(&format!("cannot read {}: ", file.display())),
+            "{e}"
+        );
+        assert!(e.to_lowercase().contains("not a directory"), "{e}");
+        let e = list_folder(&file.join("inside")).unwrap_err();
+        assert!(e.to_lowercase().contains("not a directory"), "{e}");
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let locked = dir.join("locked");
+            std::fs::create_dir(&locked).unwrap();
+            std::fs::set_permissions(&locked, std::fs::Permissions::from_mode(0o000)).unwrap();
+            if std::fs::read_dir(&locked).is_ok() {
+                // a privileged user reads it anyway: nothing to refuse
+                println!("permissions are not enforced for this user: that case is not checked");
+            } else {
+                let e = list_folder(&locked).unwrap_err();
+                assert!(e.to_lowercase().contains("permission denied"), "{e}");
+            }
+            std::fs::set_permissions(&locked, std::fs::Permissions::from_mode(0o755)).unwrap();
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -10,13 +10,16 @@
 //! compile never stops the sound: the last good scene keeps playing and the
 //! error, with the field's path, is shown in the window and logged.
 
-use crate::compile::{prune::mode_fates, CompileOptions};
+use crate::compile::{
+    prune::{struck_mode_fates, StruckModes},
+    CompileOptions,
+};
 use crate::instrument::{
     lookahead_samples, prepare, prepare_scene, scene_for, InstrumentParams, Prepared, SceneParams,
     StrikeCost,
 };
 use crate::presets;
-use crate::scene::Scene;
+use crate::scene::{ObjectSpec, Scene};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -63,6 +66,20 @@ pub struct SpectrumLine {
     pub pruned: Option<String>,
     /// Above the output band at the root note (not heard).
     pub out_of_band: bool,
+    /// A modal mallet's mode (joined to the struck object, as the compiler
+    /// does: docs/design.md, "Modal mallets").
+    pub mallet: bool,
+}
+
+/// Why a report has no spectrum.
+#[derive(Debug, Clone, PartialEq)]
+pub enum NoSpectrum {
+    /// The struck object has no modes to list (a lumped string, a wall):
+    /// said plainly, not an error.
+    NoModes(String),
+    /// Turning the struck object into its modes failed: the error, with
+    /// the field's path (shown as an error).
+    Failed(String),
 }
 
 /// What the worker last did, for the editor (and the log).
@@ -78,8 +95,11 @@ pub struct CompileReport {
     pub summary: String,
     /// The error, if this compile failed (the previous scene plays on).
     pub error: Option<String>,
-    /// Modes of the struck object (empty for strings and walls).
+    /// Modes of the struck object (empty for strings and walls, and when
+    /// `no_spectrum` says why).
     pub spectrum: Vec<SpectrumLine>,
+    /// Why `spectrum` is empty (`None` before the first compile).
+    pub no_spectrum: Option<NoSpectrum>,
     /// The scene's root note.
     pub root_note: f64,
     /// Sample rate compiled for \[Hz\].
@@ -247,7 +267,10 @@ impl SceneLibrary {
                 }
                 let ms = t0.elapsed().as_secs_f64() * 1e3;
                 report.error = None;
-                report.spectrum = spectrum(&base, &params, &p);
+                (report.spectrum, report.no_spectrum) = match spectrum(&base, &params, &p) {
+                    Ok(s) => (s, None),
+                    Err(why) => (Vec::new(), Some(why)),
+                };
                 report.summary = summary_line(&p, &report.spectrum, ms);
                 report.root_note = p.root_note;
                 report.rate_hz = rate_hz;
@@ -340,8 +363,16 @@ fn summary_line(p: &Prepared, spectrum: &[SpectrumLine], ms: f64) -> String {
     )
 }
 
-/// The struck object's modes as the compiler treats them, at the root note.
-fn spectrum(base: &Scene, params: &SceneParams, p: &Prepared) -> Vec<SpectrumLine> {
+/// The struck object's modes as the compiler treats them, at the root note:
+/// resolved to its modes as the compiler does
+/// ([`struck_mode_fates`]: an object from geometry and material expanded at
+/// the compile's rate, a modal mallet's modes joined). A kit's engine keeps
+/// every mode (docs/design.md, "Several contacts"): none is shown left out.
+fn spectrum(
+    base: &Scene,
+    params: &SceneParams,
+    p: &Prepared,
+) -> Result<Vec<SpectrumLine>, NoSpectrum> {
     let played = scene_for(
         base,
         &InstrumentParams {
@@ -349,20 +380,40 @@ fn spectrum(base: &Scene, params: &SceneParams, p: &Prepared) -> Vec<SpectrumLin
             play: Default::default(),
         },
     );
-    let Some(ci) = played.object_index(&played.contact.object) else {
-        return Vec::new();
+    let opts = if played.several_contacts() {
+        CompileOptions {
+            exact_savings: false,
+            approximations: false,
+            ..CompileOptions::DEFAULT
+        }
+    } else {
+        CompileOptions::DEFAULT
+    };
+    let struck = struck_mode_fates(&played, p.rate_hz, &opts)
+        .map_err(|e| NoSpectrum::Failed(e.to_string()))?;
+    let Some(StruckModes { fates, own }) = struck else {
+        let name = &played.contact.object;
+        let what = match played.object_index(name).map(|i| &played.object[i]) {
+            Some(ObjectSpec::String(st)) => format!(
+                "{name:?} is a lumped string of {} masses, not a table of modes: no spectrum to show",
+                st.masses
+            ),
+            _ => format!("{name:?} is a wall, without modes: no spectrum to show"),
+        };
+        return Err(NoSpectrum::NoModes(what));
     };
     let band_hz = crate::instrument::OUTPUT_BAND_FRACTION * 0.5 * p.rate_hz;
-    mode_fates(&played, ci, p.rate_hz, &CompileOptions::DEFAULT)
-        .unwrap_or_default()
+    Ok(fates
         .into_iter()
-        .map(|f| SpectrumLine {
+        .enumerate()
+        .map(|(i, f)| SpectrumLine {
             freq_hz: f.freq_hz,
             level: f.level,
             out_of_band: f.freq_hz > band_hz,
             pruned: f.dropped,
+            mallet: i >= own,
         })
-        .collect()
+        .collect())
 }
 
 #[cfg(test)]
@@ -513,6 +564,93 @@ gain = 0.5
             r.strike_warning(64, ms * 1e-3).is_some(),
             "64 voices need more"
         );
+    }
+
+    /// Every preset's mode spectrum, played as the preset and as a user
+    /// scene of the same text: the struck object's modes as the compiler
+    /// resolves them (objects from geometry and material included), the
+    /// lowest kept one at the frequency the instrument tunes to (the root
+    /// note is the MIDI note nearest it; a `fundamental_hz` is met); a
+    /// lumped string says plainly that it has no spectrum.
+    #[test]
+    fn every_preset_shows_its_modes_at_its_tuning() {
+        for (i, pr) in presets::PRESETS.iter().enumerate() {
+            let lib = SceneLibrary::default();
+            let params = SceneParams {
+                preset: i,
+                ..SceneParams::default()
+            };
+            lib.prepare(&params, 48_000.0, 1, HOST)
+                .unwrap_or_else(|e| panic!("{}: {e}", pr.name));
+            let r = lib.report();
+            lib.load(user(pr.toml));
+            lib.prepare(&wanted(&lib), 48_000.0, 2, HOST)
+                .unwrap_or_else(|e| panic!("{} as a user scene: {e}", pr.name));
+            let u = lib.report();
+            assert!(u.user && !r.user);
+            assert_eq!(u.spectrum, r.spectrum, "{}", pr.name);
+            assert_eq!(u.no_spectrum, r.no_spectrum, "{}", pr.name);
+            let played = scene_for(
+                &presets::scene(i).unwrap(),
+                &InstrumentParams {
+                    scene: params,
+                    play: Default::default(),
+                },
+            );
+            let ci = played.object_index(&played.contact.object).unwrap();
+            if matches!(played.object[ci], ObjectSpec::String(_)) {
+                assert!(r.spectrum.is_empty(), "{}", pr.name);
+                assert!(
+                    matches!(&r.no_spectrum, Some(NoSpectrum::NoModes(w)) if w.contains("lumped string")),
+                    "{}: {:?}",
+                    pr.name,
+                    r.no_spectrum
+                );
+                println!("{:24} {:?}", pr.name, r.no_spectrum);
+                continue;
+            }
+            assert_eq!(r.no_spectrum, None, "{}", pr.name);
+            let own: Vec<&SpectrumLine> = r.spectrum.iter().filter(|m| !m.mallet).collect();
+            let lowest = own
+                .iter()
+                .filter(|m| m.pruned.is_none())
+                .map(|m| m.freq_hz)
+                .min_by(f64::total_cmp)
+                .unwrap_or_else(|| panic!("{}: no mode kept: {:?}", pr.name, r.spectrum));
+            let tuned = crate::instrument::lowest_frequency_hz(&played).unwrap();
+            assert!(
+                (lowest / tuned - 1.0).abs() < 1e-9,
+                "{}: lowest kept mode {lowest} Hz, tuned to {tuned} Hz",
+                pr.name
+            );
+            let note = 69.0 + 12.0 * (lowest / 440.0).log2();
+            assert!(
+                (note - r.root_note).abs() <= 0.5,
+                "{}: lowest kept mode {lowest} Hz (note {note:.2}), root note {}",
+                pr.name,
+                r.root_note
+            );
+            let fundamental = pr
+                .toml
+                .lines()
+                .find_map(|l| l.trim().strip_prefix("fundamental_hz = "))
+                .map(|v| v.trim().parse::<f64>().unwrap());
+            if let Some(f) = fundamental {
+                assert!(
+                    (lowest / f - 1.0).abs() < 1e-9,
+                    "{}: lowest kept mode {lowest} Hz, fundamental_hz {f}",
+                    pr.name
+                );
+            }
+            println!(
+                "{:24} {:3} modes ({:3} kept, {} of the mallet), lowest kept {lowest:8.2} Hz, root note {}",
+                pr.name,
+                r.spectrum.len(),
+                r.spectrum.iter().filter(|m| m.pruned.is_none()).count(),
+                r.spectrum.len() - own.len(),
+                r.root_note
+            );
+        }
     }
 
     #[test]

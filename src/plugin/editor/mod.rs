@@ -2,15 +2,24 @@
 //! groups, the live view of the voices, the object's mode spectrum, the
 //! scene browser and the audition pads (docs/plugin.md, "The editor").
 //!
-//! Threads: everything here runs on the GUI thread. It talks to the audio
-//! thread only through lock-free structures: the host's parameter gestures
-//! (begin/set/end), the live ring's consumer end ([`super::live`]), and the
-//! pad queue ([`EditorLink::pads`]). The scene library's mutexes are shared
-//! with the worker, never with the audio thread.
+//! Threads: the window runs on the GUI thread, with one helper, the watch
+//! thread, while it is open. They talk to the audio thread only through
+//! lock-free structures: the host's parameter gestures (begin/set/end), the
+//! live ring's consumer end ([`super::live`], held by the watch thread), and
+//! the pad queue ([`EditorLink::pads`]). The scene library's mutexes are
+//! shared with the worker, never with the audio thread.
+//!
+//! Repaints: the window is drawn when something it shows changed, and
+//! otherwise not (docs/plugin.md, "The editor"). Input, the host's
+//! parameter and state changes and egui's own animations ask for a frame
+//! by themselves; the watch thread asks for one when the live ring brought
+//! frames (a voice sounds), when the worker starts or ends a compile, and
+//! when the playing scene's file changed on disk; the folder listing and
+//! the file dialog ask when they are done.
 
 mod view;
 
-use super::browser::{self, Entry};
+use super::browser::{self, Folder};
 use super::live::{LiveConsumer, LiveHistory, LiveRing};
 use super::params::{ModalContactParams, EDITOR_SIZE};
 use super::user_scene::{lock, UserScene};
@@ -25,7 +34,9 @@ use nice_plug_egui::{
     NiceEguiApp, RepaintNotifier,
 };
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime};
 
 /// Audition pad strikes waiting for the audio thread (it plays them at the
@@ -59,51 +70,141 @@ pub fn create(link: EditorLink) -> Option<ModalEditor> {
             can_resize: true,
             ..ResizeHint::default()
         });
-    let app = App::new(link, notifier.clone());
+    let app = App::new(link, notifier.clone(), state.clone());
     create_egui_editor(state, notifier, settings, app)
 }
 
 /// A listing of the user folder, made on a background thread.
-type Listing = Arc<Mutex<Option<(PathBuf, Result<Vec<Entry>, String>)>>>;
+type Listing = Arc<Mutex<Option<(PathBuf, Result<Folder, String>)>>>;
+
+/// How often the watch thread looks (the live view's frame rate at most).
+const WATCH_INTERVAL: Duration = Duration::from_millis(16);
+/// How often the watch thread looks at the playing scene's file.
+const DISK_INTERVAL: Duration = Duration::from_secs(1);
+
+/// The live view's data: the ring's reading end (held while the window is
+/// open: the audio thread records only then) and what was read.
+#[derive(Default)]
+struct Live {
+    consumer: Option<LiveConsumer>,
+    history: LiveHistory,
+}
+
+/// The playing file's modification time when it was loaded, and whether
+/// the file changed since.
+#[derive(Default)]
+struct Disk {
+    loaded_mtime: Option<SystemTime>,
+    changed: bool,
+}
+
+/// What the watch thread shares with the GUI thread (never with the audio
+/// thread).
+#[derive(Default)]
+struct Shared {
+    live: Mutex<Live>,
+    disk: Mutex<Disk>,
+}
+
+/// The running watch thread and its stop flag.
+struct Watch {
+    stop: Arc<AtomicBool>,
+    thread: JoinHandle<()>,
+}
+
+impl Watch {
+    fn stop(self) {
+        self.stop.store(true, Ordering::Release);
+        let _ = self.thread.join();
+    }
+}
 
 /// The editor's state on the GUI thread.
 pub struct App {
     link: EditorLink,
     notifier: RepaintNotifier,
+    state: Arc<EguiEditorState>,
     gui: Option<GuiContext>,
-    consumer: Option<LiveConsumer>,
-    history: LiveHistory,
+    shared: Arc<Shared>,
+    watch: Option<Watch>,
     listing: Listing,
     listed_at: Option<Instant>,
     folder_text: String,
     picked: Arc<Mutex<Option<PathBuf>>>,
     open_error: Option<String>,
-    /// The playing file's modification time when it was loaded, and whether
-    /// the file changed since.
-    loaded_mtime: Option<SystemTime>,
-    changed_on_disk: bool,
-    checked_at: Option<Instant>,
+    /// The library's generation and the worker's failure count when the
+    /// editor last chose a scene (see [`App::refused`]).
+    chosen: (u64, u64),
     /// Pads held down: (key).
     pad_down: Option<u8>,
 }
 
 impl App {
-    fn new(link: EditorLink, notifier: RepaintNotifier) -> Self {
+    fn new(link: EditorLink, notifier: RepaintNotifier, state: Arc<EguiEditorState>) -> Self {
         Self {
             link,
             notifier,
+            state,
             gui: None,
-            consumer: None,
-            history: LiveHistory::default(),
+            shared: Arc::default(),
+            watch: None,
             listing: Arc::new(Mutex::new(None)),
             listed_at: None,
             folder_text: String::new(),
             picked: Arc::new(Mutex::new(None)),
             open_error: None,
-            loaded_mtime: None,
-            changed_on_disk: false,
-            checked_at: None,
+            chosen: (0, 0),
             pad_down: None,
+        }
+    }
+
+    /// Remember what was chosen now (a user scene loaded, a preset
+    /// clicked, the window opened).
+    fn note_choice(&mut self) {
+        self.chosen = (
+            self.link.params.persisted.library.active(),
+            self.link.handoff.failures.load(Ordering::Acquire),
+        );
+    }
+
+    /// Whether the worker refused the user scene last chosen. The library
+    /// then goes back to what plays (the last good user scene under a new
+    /// generation, or the preset while the refused text is kept), and that
+    /// compile succeeds: neither the report nor the handoff's newest
+    /// request holds the error any more, so the editor tells it from the
+    /// generation having moved after a failure.
+    fn refused(&self) -> bool {
+        let lib = &self.link.params.persisted.library;
+        let (generation, failures) = self.chosen;
+        (lib.active() == 0 && lib.requested().is_some())
+            || (lib.active() != generation
+                && self.link.handoff.failures.load(Ordering::Acquire) > failures)
+    }
+
+    /// Start the watch thread for a window being opened (after stopping a
+    /// previous one: nice-plug-egui says when a window opens, not when it
+    /// closes, so the thread ends by itself once the window it saw open is
+    /// closed).
+    fn start_watch(&mut self) {
+        if let Some(w) = self.watch.take() {
+            w.stop();
+        }
+        let stop = Arc::new(AtomicBool::new(false));
+        let w = Watcher {
+            stop: stop.clone(),
+            shared: self.shared.clone(),
+            ring: self.link.ring.clone(),
+            params: self.link.params.clone(),
+            handoff: self.link.handoff.clone(),
+            state: self.state.clone(),
+            notifier: self.notifier.clone(),
+        };
+        match std::thread::Builder::new()
+            .name("modal-contact-editor-watch".into())
+            .spawn(move || w.run())
+        {
+            Ok(thread) => self.watch = Some(Watch { stop, thread }),
+            Err(e) => self.open_error = Some(format!("the live view cannot start: {e}")),
         }
     }
 
@@ -134,57 +235,53 @@ impl App {
     fn load_file(&mut self, path: &std::path::Path) {
         match UserScene::from_file(path) {
             Ok(s) => {
-                self.loaded_mtime = mtime(path);
-                self.changed_on_disk = false;
+                *lock(&self.shared.disk) = Disk {
+                    loaded_mtime: mtime(path),
+                    changed: false,
+                };
                 self.open_error = None;
                 self.link.params.persisted.library.load(s);
+                self.note_choice();
             }
             Err(e) => self.open_error = Some(e),
-        }
-    }
-
-    /// Whether the playing scene's file changed on disk (checked once a
-    /// second; offered for reload, never swapped silently).
-    fn check_disk(&mut self) {
-        if self
-            .checked_at
-            .is_some_and(|t| t.elapsed() < Duration::from_secs(1))
-        {
-            return;
-        }
-        self.checked_at = Some(Instant::now());
-        let Some(playing) = self.link.params.persisted.library.playing() else {
-            self.changed_on_disk = false;
-            return;
-        };
-        let Some(path) = &playing.path else {
-            return;
-        };
-        let now = mtime(path);
-        if self.loaded_mtime.is_none() {
-            // a project opened with this scene: compare the text once
-            self.loaded_mtime = now;
-            self.changed_on_disk = std::fs::read_to_string(path).is_ok_and(|t| t != playing.text);
-        } else if now != self.loaded_mtime {
-            self.changed_on_disk = std::fs::read_to_string(path).is_ok_and(|t| t != playing.text);
         }
     }
 
     fn top_bar(&mut self, ui: &mut egui::Ui) {
         let lib = self.link.params.persisted.library.clone();
         let report = lib.report();
+        // the newest request: still compiling, or its error, or that of
+        // the user scene chosen last if it was refused (the last good scene
+        // plays on)
+        let h = &self.link.handoff;
+        let compiling = h.compiling();
+        let error = if compiling {
+            None
+        } else {
+            h.error()
+                .or_else(|| {
+                    self.refused()
+                        .then(|| lock(&h.last_error).clone())
+                        .flatten()
+                })
+                .or_else(|| report.error.clone())
+        };
+        let changed_on_disk = lock(&self.shared.disk).changed;
         ui.horizontal(|ui| {
             ui.heading("Modal Contact");
             ui.separator();
             let what = if report.user { "user scene" } else { "preset" };
             ui.label(RichText::new(format!("{} ({what})", report.scene)).strong());
-            if self.changed_on_disk && ui.button("File changed on disk: reload").clicked() {
+            if compiling {
+                ui.label(RichText::new("compiling\u{2026}").italics());
+            }
+            if changed_on_disk && ui.button("File changed on disk: reload").clicked() {
                 if let Some(p) = lib.playing().and_then(|s| s.path.clone()) {
                     self.load_file(&p);
                 }
             }
         });
-        match &report.error {
+        match &error {
             Some(e) => {
                 ui.colored_label(Color32::from_rgb(240, 90, 80), format!("Not loaded: {e}"));
             }
@@ -211,6 +308,7 @@ impl App {
             let selected = !user_active && i == current;
             if ui.selectable_label(selected, p.title).clicked() {
                 lib.clear();
+                self.note_choice();
                 setter.begin_set_parameter(&params.scene);
                 setter.set_parameter(&params.scene, super::params::PresetChoice::from_index(i));
                 setter.end_set_parameter(&params.scene);
@@ -276,10 +374,13 @@ impl App {
             Some((_, Err(e))) => {
                 ui.colored_label(Color32::from_rgb(240, 90, 80), e);
             }
-            Some((_, Ok(entries))) if entries.is_empty() => {
+            Some((_, Ok(Folder::Missing))) => {
+                ui.label("This folder does not exist yet: \"Create folder\" makes it.");
+            }
+            Some((_, Ok(Folder::Listed(entries)))) if entries.is_empty() => {
                 ui.label("No .toml scene files here yet (see docs/plugin.md, \"Write your first scene\").");
             }
-            Some((_, Ok(entries))) => {
+            Some((_, Ok(Folder::Listed(entries)))) => {
                 for e in entries {
                     let selected = playing
                         .as_ref()
@@ -443,9 +544,10 @@ impl NiceEguiApp for App {
         _frame: &mut nice_plug_egui::Frame,
     ) -> Result<(), nice_plug_egui::baseview::HandlerError> {
         self.gui = Some(gui);
-        // holding the consumer switches the audio thread's recording on
-        self.consumer = self.link.ring.consumer();
-        self.history = LiveHistory::default();
+        self.note_choice();
+        // the watch thread holds the ring's reading end while the window is
+        // open, which switches the audio thread's recording on
+        self.start_watch();
         Ok(())
     }
 
@@ -454,10 +556,6 @@ impl NiceEguiApp for App {
             return;
         };
         let setter = gui.param_setter();
-        if let Some(c) = self.consumer.as_mut() {
-            self.history.drain(c);
-        }
-        self.check_disk();
         egui::Panel::top("top").show(ui, |ui| self.top_bar(ui));
         egui::Panel::left("browser")
             .resizable(true)
@@ -471,11 +569,15 @@ impl NiceEguiApp for App {
         egui::CentralPanel::default().show(ui, |ui| {
             let rate = self.link.ring.rate_hz();
             let report = self.link.params.persisted.library.report();
-            view::live_view(ui, &self.history, rate, self.link.ring.dropped());
+            view::live_view(
+                ui,
+                &lock(&self.shared.live).history,
+                rate,
+                self.link.ring.dropped(),
+            );
             view::spectrum(ui, &report);
         });
-        // the live view moves: repaint at the display (poll) rate
-        self.notifier.request_repaint();
+        // no repaint asked here: see the module doc
     }
 
     fn resized(&mut self, size: nice_plug_egui::baseview::WindowSize) {
@@ -486,9 +588,102 @@ impl NiceEguiApp for App {
     }
 
     fn editor_closed(&mut self) {
-        // giving the consumer back switches the recording off
-        self.consumer = None;
+        // the watch thread gives the ring's reading end back, which
+        // switches the recording off
+        if let Some(w) = self.watch.take() {
+            w.stop();
+        }
         self.gui = None;
+    }
+}
+
+impl Drop for App {
+    fn drop(&mut self) {
+        if let Some(w) = self.watch.take() {
+            w.stop();
+        }
+    }
+}
+
+/// The watch thread's view of the plugin (see the module doc).
+struct Watcher {
+    stop: Arc<AtomicBool>,
+    shared: Arc<Shared>,
+    ring: Arc<LiveRing>,
+    params: Arc<ModalContactParams>,
+    handoff: Arc<super::worker::Handoff>,
+    state: Arc<EguiEditorState>,
+    notifier: RepaintNotifier,
+}
+
+impl Watcher {
+    /// Look every [`WATCH_INTERVAL`] until stopped or until the window,
+    /// once seen open, is closed; ask for a repaint when something shown
+    /// changed. \[watch thread\]
+    fn run(self) {
+        let mut seen_open = false;
+        let mut compile = None;
+        let mut disk_at: Option<Instant> = None;
+        while !self.stop.load(Ordering::Acquire) {
+            let open = self.state.is_open();
+            if !open && seen_open {
+                break;
+            }
+            seen_open |= open;
+            let mut repaint = false;
+            if open {
+                let mut live = lock(&self.shared.live);
+                let Live { consumer, history } = &mut *live;
+                if consumer.is_none() {
+                    *consumer = self.ring.consumer();
+                    *history = LiveHistory::default();
+                }
+                if let Some(c) = consumer.as_mut() {
+                    repaint |= history.drain(c) > 0;
+                }
+            }
+            // the worker started or ended a compile (its report changed)
+            let h = &self.handoff;
+            let now = (
+                h.compiling(),
+                h.compiles.load(Ordering::Acquire),
+                h.failures.load(Ordering::Acquire),
+                self.params.persisted.library.active(),
+            );
+            repaint |= compile.replace(now) != Some(now);
+            if disk_at.is_none_or(|t| t.elapsed() >= DISK_INTERVAL) {
+                disk_at = Some(Instant::now());
+                repaint |= self.check_disk();
+            }
+            if repaint {
+                self.notifier.request_repaint();
+            }
+            std::thread::sleep(WATCH_INTERVAL);
+        }
+        // giving the reading end back switches the recording off
+        lock(&self.shared.live).consumer = None;
+    }
+
+    /// Whether the playing scene's file changed on disk since it was
+    /// loaded (offered for reload, never swapped silently); true when that
+    /// answer changed.
+    fn check_disk(&self) -> bool {
+        let playing = self.params.persisted.library.playing();
+        let mut disk = lock(&self.shared.disk);
+        let was = disk.changed;
+        match playing.as_ref().and_then(|p| Some((p, p.path.as_ref()?))) {
+            None => disk.changed = false,
+            Some((playing, path)) => {
+                let now = mtime(path);
+                if disk.loaded_mtime.is_none() || now != disk.loaded_mtime {
+                    // (a project opened with this scene: its text is
+                    // compared once)
+                    disk.loaded_mtime = now;
+                    disk.changed = std::fs::read_to_string(path).is_ok_and(|t| t != playing.text);
+                }
+            }
+        }
+        disk.changed != was
     }
 }
 

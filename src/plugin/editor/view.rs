@@ -1,7 +1,7 @@
 //! Drawing the live view and the spectrum with egui's painter.
 
 use super::super::live::{LiveHistory, DECIMATION};
-use super::super::user_scene::CompileReport;
+use super::super::user_scene::{CompileReport, NoSpectrum};
 use egui::{self, pos2, Color32, Rect, Sense, Shape, Stroke};
 
 /// A colour per voice (repeats every eight).
@@ -162,8 +162,9 @@ pub fn live_view(ui: &mut egui::Ui, h: &LiveHistory, rate_hz: f64, dropped: u64)
 }
 
 /// The struck object's modes at the root note: level against frequency
-/// (log axes); kept modes in colour, modes the compiler leaves out in grey,
-/// modes above the output band in red.
+/// (log axes); kept modes in colour (a modal mallet's in orange), modes the
+/// compiler leaves out in grey, modes above the output band in red. Without
+/// modes, why: plainly for a lumped string or a wall, in red for an error.
 pub fn spectrum(ui: &mut egui::Ui, report: &CompileReport) {
     let (r, painter) = frame(
         ui,
@@ -171,12 +172,19 @@ pub fn spectrum(ui: &mut egui::Ui, report: &CompileReport) {
         "Mode spectrum at the root note (level re the loudest)",
     );
     if report.spectrum.is_empty() {
+        let (text, colour) = match &report.no_spectrum {
+            Some(NoSpectrum::NoModes(why)) => (why.clone(), Color32::from_gray(150)),
+            Some(NoSpectrum::Failed(e)) => {
+                (format!("No spectrum: {e}"), Color32::from_rgb(240, 90, 80))
+            }
+            None => ("no scene compiled yet".to_string(), Color32::from_gray(150)),
+        };
         painter.text(
             r.center(),
             egui::Align2::CENTER_CENTER,
-            "no modal object struck (a string or a wall)",
+            text,
             egui::FontId::proportional(12.0),
-            Color32::from_gray(150),
+            colour,
         );
         return;
     }
@@ -193,12 +201,15 @@ pub fn spectrum(ui: &mut egui::Ui, report: &CompileReport) {
         [pos2(nyq, r.top()), pos2(nyq, r.bottom())],
         Stroke::new(1.0, Color32::from_rgb(160, 60, 60)),
     );
-    let mut kept = 0;
+    let (mut kept, mut mallet) = (0, 0);
     for m in &report.spectrum {
         let colour = if m.pruned.is_some() {
             Color32::from_gray(110)
         } else if m.out_of_band {
             Color32::from_rgb(220, 80, 80)
+        } else if m.mallet {
+            mallet += 1;
+            Color32::from_rgb(240, 170, 70)
         } else {
             kept += 1;
             Color32::from_rgb(110, 200, 255)
@@ -213,7 +224,12 @@ pub fn spectrum(ui: &mut egui::Ui, report: &CompileReport) {
         r.left_top(),
         egui::Align2::LEFT_TOP,
         format!(
-            "{kept} modes heard, {} left out (grey), {} above the band (red); 20 Hz .. {:.0} kHz, 0 .. -80 dB",
+            "{kept} modes heard{}, {} left out (grey), {} above the band (red); 20 Hz .. {:.0} kHz, 0 .. -80 dB",
+            if mallet > 0 {
+                format!(" and {mallet} of the mallet (orange)")
+            } else {
+                String::new()
+            },
             report.spectrum.iter().filter(|m| m.pruned.is_some()).count(),
             report.spectrum.iter().filter(|m| m.pruned.is_none() && m.out_of_band).count(),
             report.rate_hz / 1000.0
