@@ -302,8 +302,10 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
         // a panic in a compile is a failed compile, not a dead worker (an
         // offline render waits for the worker's answer)
         let done = cancel::scope(&c, || {
-            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| compile(lib, &req)))
-                .unwrap_or_else(|_| Err("the compile panicked".to_string()))
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                compile(lib, &req, |e| *lock(&h.last_error) = Some(e.to_string()))
+            }))
+            .unwrap_or_else(|_| Err("the compile panicked".to_string()))
         });
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         // an activation's first scene comes with its instrument, built
@@ -375,9 +377,12 @@ enum Delivery {
 /// Compile one request: what was asked for, and for an activation's first
 /// scene its fallbacks (the user scene did not compile: the preset with the
 /// same parameters; else the preset's defaults). \[worker\]
+/// Each candidate's error goes to `refused` as it comes (the editor shows
+/// why a saved user scene plays the preset instead). \[worker\]
 fn compile(
     lib: &SceneLibrary,
     req: &CompileRequest,
+    mut refused: impl FnMut(&str),
 ) -> Result<(Box<Prepared>, Vec<String>), String> {
     let host = HostBlocks {
         max_block: req.max_block,
@@ -406,6 +411,7 @@ fn compile(
             Err(e) => {
                 cancel::check().map_err(|c| c.to_string())?;
                 nice_plug::nice_log!("modal_contact: {e}; trying the next fallback");
+                refused(&e);
                 errors.push(e);
             }
         }
@@ -448,7 +454,10 @@ mod tests {
     fn wait_for(h: &Handoff, what: impl Fn(&Handoff) -> bool) {
         let t0 = Instant::now();
         while !what(h) {
-            assert!(t0.elapsed() < Duration::from_secs(60), "the worker never answered");
+            assert!(
+                t0.elapsed() < Duration::from_secs(60),
+                "the worker never answered"
+            );
             std::thread::sleep(Duration::from_millis(1));
         }
     }
@@ -490,7 +499,7 @@ mod tests {
         let lib = SceneLibrary::default();
         let c = Cancel::new();
         c.cancel();
-        let r = cancel::scope(&c, || compile(&lib, &request(1, true)));
+        let r = cancel::scope(&c, || compile(&lib, &request(1, true), |_| {}));
         assert_eq!(r.err().as_deref(), Some("compile cancelled"));
     }
 }
