@@ -179,6 +179,29 @@ pub struct Scene {
     /// Opt-in approximate savings (none by default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub approximate: Option<ApproxSpec>,
+    /// How the instrument plays the scene: what a note's release does
+    /// (absent: [`DEFAULT_RELEASE_DAMPER`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub play: Option<PlaySpec>,
+}
+
+/// The damper of a scene that does not say (`[play]` or its `damper`
+/// absent): decay times after a note's release divided by `1 + 50 * 0.5`,
+/// what every scene played before scenes could say it.
+pub const DEFAULT_RELEASE_DAMPER: f64 = 0.5;
+
+/// The `[play]` table: how the instrument plays the scene (docs/plugin.md,
+/// "Velocity, pitch, voices"). Offline renders have no notes and ignore it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct PlaySpec {
+    /// How strongly a released note is damped, 0 ..= 1, as the Damper
+    /// parameter: decay times after note-off divided by `1 + 50 * damper`;
+    /// 0: no damper, the object rings on after the release (a marimba bar,
+    /// a bell). Absent: [`DEFAULT_RELEASE_DAMPER`]. The plugin's Damper
+    /// replaces it when Custom damper is on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub damper: Option<f64>,
 }
 
 /// Opt-in approximations: each drops modes and adds a (measured) error.
@@ -681,7 +704,20 @@ impl Scene {
         self.validate_strikers()?;
         self.validate_touches()?;
         self.validate_notes()?;
-        self.validate_pickups()
+        self.validate_pickups()?;
+        if let Some(p) = &self.play {
+            p.validate()?;
+        }
+        Ok(())
+    }
+
+    /// How strongly a released note is damped: `[play] damper`, or
+    /// [`DEFAULT_RELEASE_DAMPER`] when the scene does not say.
+    pub fn release_damper(&self) -> f64 {
+        self.play
+            .as_ref()
+            .and_then(|p| p.damper)
+            .unwrap_or(DEFAULT_RELEASE_DAMPER)
     }
 
     /// Notes: MIDI notes (0..=127), and only where there are several
@@ -1142,6 +1178,21 @@ impl ApproxSpec {
     }
 }
 
+impl PlaySpec {
+    fn validate(&self) -> Result<(), SceneError> {
+        if let Some(d) = self.damper {
+            check_finite("play.damper", d)?;
+            if !(0.0..=1.0).contains(&d) {
+                return Err(SceneError::new(
+                    "play.damper",
+                    format!("must be within 0 ..= 1, got {d}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
 impl HammerSpec {
     fn validate(&self) -> Result<(), SceneError> {
         let h = self;
@@ -1312,4 +1363,66 @@ fn validate_string(base: &str, s: &StringSpec) -> Result<(), SceneError> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const BAR: &str = r#"
+version = 1
+name = "t"
+[[object]]
+name = "bar"
+kind = "modal"
+points = ["contact"]
+[[object.mode]]
+freq_hz = 220.0
+t60_s = 1.0
+weights = [1.0]
+[hammer]
+mass_kg = 0.03
+height_m = 0.001
+[contact]
+object = "bar"
+point = "contact"
+stiffness_n_per_m = 3e5
+[[pickup]]
+object = "bar"
+point = "contact"
+"#;
+
+    /// `[play] damper`: absent is today's 0.5, 0 ..= 1 is taken as
+    /// written and survives a round trip through TOML; anything else is
+    /// refused with its field path.
+    #[test]
+    fn play_damper_is_read_checked_and_defaults_to_half() {
+        let plain = Scene::from_toml_str(BAR).unwrap();
+        assert_eq!(plain.play, None);
+        assert_eq!(plain.release_damper(), DEFAULT_RELEASE_DAMPER);
+        assert!(!plain.to_toml_string().contains("[play]"));
+        let empty = Scene::from_toml_str(&format!("{BAR}[play]\n")).unwrap();
+        assert_eq!(empty.release_damper(), 0.5);
+        for d in [0.0, 0.25, 1.0] {
+            let s = Scene::from_toml_str(&format!("{BAR}[play]\ndamper = {d:?}\n")).unwrap();
+            assert_eq!(s.release_damper(), d);
+            let back = Scene::from_toml_str(&s.to_toml_string()).unwrap();
+            assert_eq!(back, s, "round trip");
+        }
+        for (value, want) in [
+            ("-0.1", "play.damper: must be within 0 ..= 1, got -0.1"),
+            ("1.5", "play.damper: must be within 0 ..= 1, got 1.5"),
+            ("nan", "play.damper: must be finite, got NaN"),
+            ("inf", "play.damper: must be finite, got inf"),
+            ("\"off\"", "invalid type: string \"off\", expected f64"),
+        ] {
+            let text = format!("{BAR}[play]\ndamper = {value}\n");
+            let got = Scene::from_toml_str(&text).unwrap_err().to_string();
+            assert!(got.contains(want), "{value}: {got}");
+        }
+        let got = Scene::from_toml_str(&format!("{BAR}[play]\ndampr = 0.0\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(got.contains("unknown field `dampr`"), "{got}");
+    }
 }

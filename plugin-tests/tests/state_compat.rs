@@ -1,7 +1,8 @@
 //! Projects saved before the parameters came from one list load unchanged
 //! in the BUILT (release) plugin: the same preset for every saved scene id,
 //! every other value as saved, and saving again gives the same bytes plus
-//! the parameters added since, at their defaults.
+//! the parameters added since, at their defaults (Custom damper on: that
+//! build's Damper always applied, and keeps applying).
 //!
 //! The state below is what that build saved (nice-plug's CLAP state: an
 //! 8-byte little-endian length, then the JSON; parameters in id order, the
@@ -36,9 +37,14 @@ const SHIPPED_SCENES: [&str; 7] = [
 ];
 
 /// What saving [`SAVED`] back writes: the same entries, and the parameters
-/// added since that build at their defaults (ids in order).
+/// added since that build at their defaults (ids in order), but Custom
+/// damper on (the saved Damper plays, as it did).
 fn saved_back(saved: &str) -> String {
     saved
+        .replace(
+            r#""damper":{"f32":0.25},"#,
+            r#""damper":{"f32":0.25},"damper_custom":{"bool":true},"#,
+        )
         .replace(
             r#""pitch_tracking":{"bool":false},"#,
             r#""lookahead":{"i32":0},"pitch_tracking":{"bool":false},"polyphony":{"i32":16},"#,
@@ -67,6 +73,8 @@ fn a_state_saved_before_the_single_list_loads_unchanged() {
         (ids::SWITCHING, 0.0),
         (ids::PITCH_TRACKING, 0.0),
         (ids::STRIKE_CUSTOM, 1.0),
+        // new since, and on: the saved Damper keeps applying
+        (ids::DAMPER_CUSTOM, 1.0),
     ] {
         let got = p.param_value(param_id(id));
         assert!((got - want).abs() < 1e-6, "{id}: {got} (saved {want})");
@@ -110,4 +118,47 @@ fn every_saved_scene_id_loads_as_the_same_preset() {
             "{id}: saved back under the same id"
         );
     }
+}
+
+/// A project saved before Custom damper existed plays the Damper it was
+/// saved with: on the marimba bar (whose own damper is 0: it rings on), a
+/// note released after 50 ms sounds exactly as with a state that says
+/// Custom damper on, and is damped far below the one of a state that says
+/// off.
+#[test]
+fn a_state_saved_before_custom_damper_plays_its_damper() {
+    let bundle = clap_bundle(Variant::Release);
+    let old = SAVED.replace(
+        r#""scene":{"string":"wood-block"}"#,
+        r#""scene":{"string":"marimba-bar"}"#,
+    );
+    let saying = |custom: bool| {
+        old.replace(
+            r#""damper":{"f32":0.25},"#,
+            &format!(r#""damper":{{"f32":0.25}},"damper_custom":{{"bool":{custom}}},"#),
+        )
+    };
+    let play = |json: &str| {
+        let mut p = LoadedPlugin::load(&bundle);
+        assert!(p.try_load_state(&state_of(json)), "{json}");
+        let rate = 44_100.0;
+        let t0 = 1_024;
+        let mut spec = RenderSpec::new(
+            rate,
+            256,
+            22_050,
+            vec![on(t0, 57, 0.8), off(t0 + 2_205, 57)],
+        );
+        // (time for the worker's compile before the note; not a timing
+        // assertion)
+        spec.settle_after = vec![0];
+        spec.settle_ms = 400;
+        let out = p.render(&spec);
+        assert!(peak(&out[0]) > 1e-3, "silent");
+        rms(&out[0][t0 + 2_205 + 4_410..])
+    };
+    let (old_tail, on_tail, off_tail) = (play(&old), play(&saying(true)), play(&saying(false)));
+    println!("release tails: old state {old_tail:.3e}, Custom damper on {on_tail:.3e}, off {off_tail:.3e}");
+    assert_eq!(old_tail, on_tail, "the old state plays its Damper");
+    assert!(old_tail < 0.01 * off_tail, "{old_tail} vs {off_tail}");
 }

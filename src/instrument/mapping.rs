@@ -7,7 +7,7 @@ use super::{
     IMPACT_SPEED_RANGE_M_PER_S, MIN_IMPACT_SPEED_M_PER_S, UNDAMPED_RELEASE_T60_S,
 };
 use crate::presets;
-use crate::scene::{ObjectSpec, Scene, Switching};
+use crate::scene::{ObjectSpec, Scene, Switching, DEFAULT_RELEASE_DAMPER};
 
 /// Velocity (0..1) to the hammer's impact speed \[m/s\]: `0.05 + 2.95 vel^2`.
 /// \[any-thread\]
@@ -47,8 +47,15 @@ pub struct SceneParams {
     pub strike_pos_norm: Option<f64>,
     /// Decay time multiplier (T60 times it; Rayleigh damping over it).
     pub decay_scale: f64,
-    /// Damper strength after note-off, 0..1.
+    /// Damper strength after note-off, 0..1 (decay times after note-off
+    /// divided by `1 + 50 * damper`): the Damper parameter's when
+    /// `damper_custom`, else unused until [`SceneParams::resolved_for`]
+    /// puts the scene's own there (a [`Prepared`](super::Prepared)'s
+    /// `params` carry the value it plays).
     pub damper_norm: f64,
+    /// Damper strength from `damper_norm` (the Damper parameter); off: the
+    /// scene's own (`[play] damper`, [`Scene::release_damper`]).
+    pub damper_custom: bool,
     /// Gravity for bouncing scenes (scenes whose hammer has gravity) \[m/s^2\].
     pub gravity_m_per_s2: f64,
     /// Switching method (exact falls back to offset-rod if the compiler refuses it).
@@ -70,12 +77,26 @@ impl Default for SceneParams {
             damping_factor: 1.0,
             strike_pos_norm: None,
             decay_scale: 1.0,
-            damper_norm: 0.5,
+            damper_norm: DEFAULT_RELEASE_DAMPER,
+            damper_custom: false,
             gravity_m_per_s2: 9.81,
             switching: Switching::Exact,
             user_scene: 0,
             variants: VariantSet::default(),
         }
+    }
+}
+
+impl SceneParams {
+    /// These parameters as `base` plays them: without `damper_custom`,
+    /// `damper_norm` is the scene's own damper ([`Scene::release_damper`]:
+    /// `[play] damper`, else [`DEFAULT_RELEASE_DAMPER`]). \[any-thread\]
+    pub fn resolved_for(&self, base: &Scene) -> SceneParams {
+        let mut p = *self;
+        if !p.damper_custom {
+            p.damper_norm = base.release_damper();
+        }
+        p
     }
 }
 

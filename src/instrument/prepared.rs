@@ -25,7 +25,8 @@ pub struct Prepared {
     pub revision: u64,
     /// Sample rate \[Hz\].
     pub rate_hz: f64,
-    /// The parameters it was built from.
+    /// The parameters it was built from, resolved for its scene (the
+    /// damper it plays: [`SceneParams::resolved_for`]).
     pub params: SceneParams,
     /// The compiled scenes.
     pub scenes: Scenes,
@@ -578,6 +579,9 @@ pub fn prepare_scene(
     rate_hz: f64,
     revision: u64,
 ) -> Result<Box<Prepared>, PrepareError> {
+    // the scene's own damper unless Custom damper is on: what is compiled,
+    // and what the prepared params say is played
+    let params = &params.resolved_for(base);
     let ip = InstrumentParams {
         scene: *params,
         play: PlayParams::default(),

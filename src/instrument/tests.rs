@@ -341,6 +341,7 @@ fn damper_shortens_the_release_and_silent_voices_stop() {
     let tail = |damper: f64| {
         let mut p = params("marimba-bar");
         p.scene.damper_norm = damper;
+        p.scene.damper_custom = true;
         let mut inst = instrument(&p);
         let [l, _] = render(&mut inst, &[on(0, 57, 0.8), off(4410, 57)], 44_100);
         (rms(&l[22_050..]), inst)
@@ -350,6 +351,7 @@ fn damper_shortens_the_release_and_silent_voices_stop() {
     assert!(damped < 0.01 * free, "damped {damped} free {free}");
     let mut p = params("wood-block");
     p.scene.damper_norm = 1.0;
+    p.scene.damper_custom = true;
     let mut inst = instrument(&p);
     render(&mut inst, &[on(0, 70, 1.0), off(100, 70)], 44_100);
     assert_eq!(
@@ -488,7 +490,11 @@ fn pedal(offset: usize, sustain: bool, down: bool) -> TimedEvent {
 
 /// Render `events` (sorted) and return the left channel.
 fn play(events: &[TimedEvent], n: usize) -> Vec<f32> {
-    let mut inst = instrument(&params("marimba-bar"));
+    // the bar damped on release (the Damper parameter's 0.5; the preset has
+    // no damper of its own), so that there is something for the pedals to hold
+    let mut p = params("marimba-bar");
+    p.scene.damper_custom = true;
+    let mut inst = instrument(&p);
     render(&mut inst, events, n)[0].clone()
 }
 
@@ -1559,6 +1565,7 @@ fn position_modulation_strikes_at_its_level() {
 fn damper_modulation_damps_the_release_at_its_level() {
     let mut p = params("marimba-bar");
     p.scene.damper_norm = 0.5;
+    p.scene.damper_custom = true;
     p.scene.variants.damper = true;
     let pr = prepare(&p.scene, RATE, 0).unwrap();
     assert_eq!(

@@ -32,7 +32,7 @@ use crate::instrument::{
     MAX_BEND_RANGE_SEMITONES, MAX_LOOKAHEAD_S, MAX_VOICES,
 };
 use crate::presets;
-use crate::scene::Switching;
+use crate::scene::{Switching, DEFAULT_RELEASE_DAMPER};
 use crossbeam::atomic::AtomicCell;
 use nice_plug::plugin::{ParamValue, PluginState};
 use nice_plug::prelude::*;
@@ -538,9 +538,10 @@ parameters! {
         name: "Damper",
         kind: linear(0.0, 1.0, 0.5, "", 3),
         applies: Applies::Recompile,
-        doc: "How strongly a released note is damped: decay times after note-off \
-              are divided by `1 + 50 * damper`. 0 = the object rings on after release. \
-              Per voice in CLAP hosts (polyphonic modulation, in levels).",
+        doc: "How strongly a released note is damped, with Custom damper on: decay \
+              times after note-off are divided by `1 + 50 * damper`. 0 = the object \
+              rings on after release. Per voice in CLAP hosts (polyphonic modulation, \
+              in levels, around the damper that plays).",
     },
     pitch_tracking: BoolParam = PITCH_TRACKING {
         id: "pitch_tracking",
@@ -639,6 +640,16 @@ parameters! {
               192 kHz). A change restarts the output (the host restarts its audio \
               for the new latency).",
     },
+    damper_custom: BoolParam = DAMPER_CUSTOM {
+        id: "damper_custom",
+        name: "Custom damper",
+        kind: Kind::Bool { default: false },
+        applies: Applies::Recompile,
+        doc: "Off: a released note is damped as the scene says (its `[play] damper`; \
+              the scenes table gives each preset's, 0.5 for a scene that does not say). \
+              On: use Damper. A project saved before this parameter existed loads \
+              with it on, so it keeps the Damper it was saved with.",
+    },
 }
 
 impl ModalContactParams {
@@ -655,7 +666,14 @@ impl ModalContactParams {
                 .value()
                 .then(|| self.strike_pos.value() as f64),
             decay_scale: self.decay.value() as f64,
-            damper_norm: self.damper.value() as f64,
+            // the knob only counts when it is used: moving it with Custom
+            // damper off asks for no compile
+            damper_norm: if self.damper_custom.value() {
+                self.damper.value() as f64
+            } else {
+                DEFAULT_RELEASE_DAMPER
+            },
+            damper_custom: self.damper_custom.value(),
             gravity_m_per_s2: self.gravity.value() as f64,
             switching: SWITCHING_METHOD[self.switching.value().index()],
             user_scene: self.persisted.library.active(),
@@ -780,11 +798,27 @@ impl Persisted {
 /// value that is of the wrong type, not finite, outside its range, or an
 /// unknown choice id (a preset this version does not have) is replaced by
 /// the default too (without this, a missing or refused value would silently
-/// keep whatever the instance had before the load). Entries for ids this
-/// version does not know are left alone (nice-plug skips them). Returns one
-/// note per replaced value, for the log. \[main-thread\]
+/// keep whatever the instance had before the load). One exception: a state
+/// that stores Damper but not Custom damper (saved before Custom damper
+/// existed) gets Custom damper on, so its Damper keeps applying. Entries for
+/// ids this version does not know are left alone (nice-plug skips them).
+/// Returns one note per replaced value, for the log. \[main-thread\]
 pub fn migrate_state(state: &mut PluginState) -> Vec<String> {
     let mut notes = Vec::new();
+    // A state that stores the Damper but not Custom damper was saved when
+    // the Damper always applied: it keeps applying (the project sounds as
+    // it did), where a new instance plays the scene's own damper.
+    if state.params.contains_key(ids::DAMPER) && !state.params.contains_key(ids::DAMPER_CUSTOM) {
+        notes.push(format!(
+            "{}: missing in a state that stores {}, using on (the saved Damper applies, as \
+             when it was saved)",
+            ids::DAMPER_CUSTOM,
+            ids::DAMPER
+        ));
+        state
+            .params
+            .insert(ids::DAMPER_CUSTOM.to_string(), ParamValue::Bool(true));
+    }
     for spec in PARAMS {
         let stored = state.params.get(spec.id);
         let ok = match (spec.kind, stored) {
@@ -882,7 +916,7 @@ mod tests {
             "switching",
         ];
         // later ids are appended, never inserted or renamed
-        let added = ["polyphony", "bend_range", "lookahead"];
+        let added = ["polyphony", "bend_range", "lookahead", "damper_custom"];
         let all: Vec<&str> = shipped.iter().chain(&added).copied().collect();
         assert_eq!(ids::ALL.as_slice(), all.as_slice());
         let listed: Vec<&str> = PARAMS.iter().map(|s| s.id).collect();
@@ -1110,6 +1144,7 @@ mod tests {
         assert_eq!(got.scene.preset, d.scene.preset);
         assert_eq!(got.scene.strike_pos_norm, d.scene.strike_pos_norm);
         assert_eq!(got.scene.switching, d.scene.switching);
+        assert_eq!(got.scene.damper_custom, d.scene.damper_custom);
         assert_eq!(got.play.pitch_tracking, d.play.pitch_tracking);
         // the list's f32 literals, read back as f64
         let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
@@ -1150,9 +1185,11 @@ mod tests {
     fn applies_matches_the_instrument() {
         let base = || {
             let p = ModalContactParams::default();
-            // with a custom strike position, so that Strike position counts
+            // with a custom strike position and damper, so that Strike
+            // position and Damper count
             unsafe {
                 ptr(&p, ids::STRIKE_CUSTOM)._internal_set_normalized_value(1.0);
+                ptr(&p, ids::DAMPER_CUSTOM)._internal_set_normalized_value(1.0);
             }
             p
         };
@@ -1177,6 +1214,70 @@ mod tests {
                 s.applies
             );
         }
+    }
+
+    /// Custom damper off (a new instance): the knob is not used and moving
+    /// it asks for no compile; on: the knob is the damper.
+    #[test]
+    fn the_damper_knob_counts_only_with_custom_damper() {
+        let p = ModalContactParams::default();
+        assert!(!p.damper_custom.value(), "a new instance plays the scene's");
+        let before = p.scene_params();
+        assert!(!before.damper_custom);
+        unsafe { ptr(&p, ids::DAMPER)._internal_set_normalized_value(0.9) };
+        assert_eq!(
+            p.scene_params(),
+            before,
+            "the knob moved, nothing to compile"
+        );
+        unsafe { ptr(&p, ids::DAMPER_CUSTOM)._internal_set_normalized_value(1.0) };
+        let on = p.scene_params();
+        assert!(on.damper_custom);
+        assert!((on.damper_norm - 0.9).abs() < 1e-6, "{}", on.damper_norm);
+    }
+
+    /// A state saved before Custom damper existed stores Damper and not
+    /// Custom damper: it loads with Custom damper on, so its Damper keeps
+    /// applying (the project sounds as it did). A state that stores both
+    /// keeps both; an empty one gets the defaults (off).
+    #[test]
+    fn states_saved_before_custom_damper_keep_their_damper() {
+        let mut old = full_state();
+        old.params.remove(ids::DAMPER_CUSTOM);
+        old.params.insert(ids::DAMPER.into(), ParamValue::F32(0.25));
+        let notes = migrate_state(&mut old);
+        println!("{notes:?}");
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(notes[0].starts_with("damper_custom: missing"), "{notes:?}");
+        same!(old.params[ids::DAMPER_CUSTOM], ParamValue::Bool(true));
+        same!(old.params[ids::DAMPER], ParamValue::F32(0.25));
+        // what the plugin then plays: the saved damper
+        let p = ModalContactParams::default();
+        unsafe {
+            ptr(&p, ids::DAMPER)._internal_set_normalized_value(0.25);
+            ptr(&p, ids::DAMPER_CUSTOM)._internal_set_normalized_value(1.0);
+        }
+        let sp = p.scene_params();
+        assert!(sp.damper_custom && (sp.damper_norm - 0.25).abs() < 1e-6);
+        // even with its Damper refused (then the default, 0.5, as then)
+        let mut bad = full_state();
+        bad.params.remove(ids::DAMPER_CUSTOM);
+        bad.params
+            .insert(ids::DAMPER.into(), ParamValue::F32(f32::NAN));
+        assert_eq!(migrate_state(&mut bad).len(), 2);
+        same!(bad.params[ids::DAMPER_CUSTOM], ParamValue::Bool(true));
+        same!(bad.params[ids::DAMPER], ParamValue::F32(0.5));
+        // saved with this version: kept as saved, either way
+        for custom in [false, true] {
+            let mut new = full_state();
+            new.params
+                .insert(ids::DAMPER_CUSTOM.into(), ParamValue::Bool(custom));
+            assert!(migrate_state(&mut new).is_empty());
+            same!(new.params[ids::DAMPER_CUSTOM], ParamValue::Bool(custom));
+        }
+        // nothing stored: the defaults
+        let empty = full_state();
+        same!(empty.params[ids::DAMPER_CUSTOM], ParamValue::Bool(false));
     }
 
     #[test]

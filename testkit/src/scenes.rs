@@ -123,6 +123,7 @@ impl SceneBuilder {
             touch: Vec::new(),
             pickup: self.pickups,
             approximate: self.approximate,
+            play: None,
         }
     }
 

@@ -6,8 +6,8 @@
 //! committed file differs from what would be written (CI runs it).
 //!
 //! What the scenes table says about each preset (root note, whether Strike
-//! position or Gravity moves anything) is computed by the instrument's own
-//! functions, not restated here.
+//! position or Gravity moves anything, its damper) is computed by the
+//! instrument's own functions or read from the scene, not restated here.
 
 use anyhow::{bail, Context, Result};
 use modal_contact::instrument::{root_note, scene_for, InstrumentParams};
@@ -89,8 +89,8 @@ fn tables() -> Result<String> {
            starts / at every block.\n\n";
     md += "The scenes, in the order of the Scene parameter (hosts that automate it store \
            this position; new scenes are only ever appended):\n\n";
-    md += "| Scene (id) | Root note | Strike position moves the contact | Bouncing (Gravity, Drop height) | Description |\n";
-    md += "|---|---|---|---|---|\n";
+    md += "| Scene (id) | Root note | Strike position moves the contact | Bouncing (Gravity, Drop height) | Damper (`[play] damper`) | Description |\n";
+    md += "|---|---|---|---|---|---|\n";
     for (i, p) in PRESETS.iter().enumerate() {
         let scene = presets::scene(i).with_context(|| p.name.to_string())?;
         let with = |f: &dyn Fn(&mut InstrumentParams)| {
@@ -103,8 +103,14 @@ fn tables() -> Result<String> {
         let bouncing = with(&|ip| ip.scene.gravity_m_per_s2 = 1.0)
             != with(&|ip| ip.scene.gravity_m_per_s2 = 20.0);
         let yes = |b: bool| if b { "yes" } else { "no" };
+        let d = scene.release_damper();
+        let damper = if d > 0.0 {
+            format!("{d}")
+        } else {
+            "0: rings on".to_string()
+        };
         md += &format!(
-            "| {} (`{}`) | {} | {} | {} | {} |\n",
+            "| {} (`{}`) | {} | {} | {} | {damper} | {} |\n",
             p.title,
             p.name,
             note_name(root_note(&scene)),
