@@ -1,5 +1,5 @@
-//! Cooperative cancellation of long compiles (docs/design.md, "The worker
-//! and activation").
+//! Cooperative cancellation of long compiles (docs/design.md, "The plugin
+//! and its threads").
 //!
 //! The plugin's worker runs each compile inside [`scope`] with a
 //! [`Cancel`] of its own; deactivation and the instance's end cancel it.

@@ -8,8 +8,8 @@
 //! longer is installed by the first block after it is ready: until then
 //! the instance is silent, and an offline render waits for it);
 //! `deactivate` cancels the worker's compile and never joins it (the worker
-//! lives as long as the instance: docs/design.md, "The worker and
-//! activation"). `process` runs on the audio thread: it only does atomic
+//! lives as long as the instance: docs/design.md, "The plugin
+//! and its threads"). `process` runs on the audio thread: it only does atomic
 //! loads of the parameters, lock-free queue operations and the
 //! instrument's allocation-free rendering.
 //!

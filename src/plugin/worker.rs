@@ -21,7 +21,7 @@
 //! instance is dropped. Deactivation never waits for it: it cancels the
 //! compiles of the old activation ([`Handoff::cancel_through`]) and the
 //! compile gives up at its next look at the flag (docs/design.md, "The
-//! worker and activation").
+//! plugin and its threads").
 //!
 //! The worker polls with `park_timeout` (the audio thread never wakes it: an
 //! unpark is a system call). The shared nice-plug background thread is not
