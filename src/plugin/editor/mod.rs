@@ -415,7 +415,10 @@ impl App {
                 });
                 group(ui, "Object", |ui| {
                     slider(ui, &p.decay, setter);
-                    slider(ui, &p.damper, setter);
+                    // off: the scene's own damper plays (its `[play]` table)
+                    // and the knob is not used
+                    toggle(ui, &p.damper_custom, setter);
+                    ui.add_enabled_ui(p.damper_custom.value(), |ui| slider(ui, &p.damper, setter));
                     slider(ui, &p.gravity, setter);
                     slider(ui, &p.drop_height_mm, setter);
                 });
