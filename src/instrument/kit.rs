@@ -9,7 +9,9 @@
 //!   key at the key's pitch ([`MultiState::set_time_scale`], as a voice of
 //!   one contact), up to [`MAX_KIT_VOICES`]; a note throws the next mallet
 //!   of its key's voice in turn (a repeated key rolls), a new key takes a
-//!   free voice or steals the quietest.
+//!   free voice or steals the quietest, whose running state fades out in
+//!   a spare kit state over [`super::FADE_S`] as a stolen voice of one
+//!   contact does (the new key starts at once on a state at rest).
 //! - A scene whose mallets list notes (`notes` of `[hammer]` and each
 //!   `[[striker]]`) is one kit voice at the scene's pitch: a note throws
 //!   every mallet that lists it (a drum kit).
@@ -21,9 +23,14 @@
 //! below [`SILENCE_ENERGY_RATIO`] of the throw's energy).
 //!
 //! Kit voice `i` renders in voice `i`'s lane, so the lookahead, the gain,
-//! the output guard and the fade of a swap are the voices' own.
+//! the output guard and the fades of a swap and of a steal are the
+//! voices' own.
 
-use super::{impact_speed_m_per_s, Instrument, CHECK_INTERVAL_SAMPLES, SILENCE_ENERGY_RATIO};
+use super::mix::{spare_for_fade, StealFade, FADE_LANE};
+use super::{
+    impact_speed_m_per_s, Instrument, Variant, CHECK_INTERVAL_SAMPLES, SILENCE_ENERGY_RATIO,
+    STEAL_FADES,
+};
 use crate::engine::TimeScaleError;
 use crate::multi::{CompiledMulti, MultiModel, MultiState, MAX_CONTACTS};
 use crate::scene::{Scene, SceneError};
@@ -62,6 +69,10 @@ pub struct Kit {
     pub sc: CompiledMulti,
     /// The kit voices ([`MAX_KIT_VOICES`] when pitched, else 1).
     pub(super) voices: Vec<KitVoice>,
+    /// Spare states for stolen kit voices to fade out in
+    /// ([`STEAL_FADES`] when pitched; none for one voice, which is never
+    /// stolen).
+    pub(super) spares: Vec<MultiState>,
     /// Per MIDI note: the mallets it throws (bit `i`: mallet `i`, whose
     /// contact is contact `i`; `[hammer]` is mallet 0, striker `i` mallet
     /// `i + 1`).
@@ -106,6 +117,11 @@ impl Kit {
         // a voice pitched up leaves its modes above Nyquist out of its
         // outputs, as a voice of one contact does
         st.set_output_band(&sc, super::OUTPUT_BAND_FRACTION * 0.5 * rate_hz);
+        let spares = if pitched {
+            vec![st.clone(); STEAL_FADES]
+        } else {
+            Vec::new()
+        };
         let voice = KitVoice {
             st,
             next: 0,
@@ -116,6 +132,7 @@ impl Kit {
         };
         Ok(Self {
             voices: vec![voice; if pitched { MAX_KIT_VOICES } else { 1 }],
+            spares,
             mallets: lists.len(),
             pitched,
             keys,
@@ -180,22 +197,28 @@ impl Kit {
         buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
         len: usize,
         (g0, dg): (f64, f64),
-        mut look: impl FnMut(usize, &MultiState, &CompiledMulti),
+        look: impl FnMut(usize, &MultiState, &CompiledMulti),
     ) -> bool {
-        let st = &mut self.voices[i].st;
-        let mut finite = true;
-        for k in 0..len {
-            look(k, st, &self.sc);
-            let [l, r] = st.tick(&self.sc);
-            finite &= l.is_finite() && r.is_finite();
-            let g = (g0 - k as f64 * dg).max(0.0);
-            buf[0][k] = l * g;
-            buf[1][k] = r * g;
-        }
-        if !finite {
-            st.rest(&self.sc);
-        }
-        finite
+        tick_state(&mut self.voices[i].st, &self.sc, buf, len, (g0, dg), look)
+    }
+
+    /// Tick spare state `f` (a stolen kit voice fading out) `len` samples
+    /// into `buf`, without a gain (the fade's is the caller's); false if a
+    /// sample was not a number (the state then rests). \[audio-thread\]
+    pub(super) fn tick_spare_into(
+        &mut self,
+        f: usize,
+        buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
+        len: usize,
+    ) -> bool {
+        tick_state(
+            &mut self.spares[f],
+            &self.sc,
+            buf,
+            len,
+            (1.0, 0.0),
+            |_, _, _| {},
+        )
     }
 
     /// Take over the running state of kit voice `i` of `old`, a kit of
@@ -233,16 +256,43 @@ impl Kit {
         self.voices.get(i).map(|v| &v.st)
     }
 
-    /// The contacts started by every kit voice, per contact.
+    /// The contacts started by every kit voice (and by the stolen ones
+    /// fading out in its spare states), per contact.
     pub fn contacts_started(&self) -> [u64; MAX_CONTACTS] {
         let mut out = [0; MAX_CONTACTS];
-        for v in &self.voices {
-            for (o, c) in out.iter_mut().zip(v.st.stats.contacts_started) {
+        for st in self.voices.iter().map(|v| &v.st).chain(&self.spares) {
+            for (o, c) in out.iter_mut().zip(st.stats.contacts_started) {
                 *o += c;
             }
         }
         out
     }
+}
+
+/// Tick `st` `len` samples into `buf` with a linear gain ramp
+/// `g0 - k dg`, calling `look` on the state before each sample; false if a
+/// sample was not a number (the state then rests). \[audio-thread\]
+fn tick_state(
+    st: &mut MultiState,
+    sc: &CompiledMulti,
+    buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
+    len: usize,
+    (g0, dg): (f64, f64),
+    mut look: impl FnMut(usize, &MultiState, &CompiledMulti),
+) -> bool {
+    let mut finite = true;
+    for k in 0..len {
+        look(k, st, sc);
+        let [l, r] = st.tick(sc);
+        finite &= l.is_finite() && r.is_finite();
+        let g = (g0 - k as f64 * dg).max(0.0);
+        buf[0][k] = l * g;
+        buf[1][k] = r * g;
+    }
+    if !finite {
+        st.rest(sc);
+    }
+    finite
 }
 
 impl KitVoice {
@@ -312,6 +362,21 @@ impl Instrument {
         let v = &mut self.voices[idx];
         let kv = &mut kit.voices[idx];
         if !v.active || v.key != key && kit.pitched {
+            let sounded = !(v.fresh && v.onset_pos == self.sample_pos);
+            if v.active && sounded && !kit.spares.is_empty() {
+                // stolen while it sounds: its running state fades out in a
+                // spare (docs/plugin.md, "Voices")
+                let cut = &mut self.stats.steal_fades_cut;
+                let f = spare_for_fade(&self.steal_fades, kit.spares.len(), cut);
+                std::mem::swap(&mut kv.st, &mut kit.spares[f]);
+                self.steal_fades[f] = Some(StealFade {
+                    at: Variant::default(),
+                    on_damped: false,
+                    left: self.fade_len,
+                });
+                self.lanes.begin(FADE_LANE, self.sample_pos);
+                self.stats.steals_faded += 1;
+            }
             // woken (or stolen) at rest, at the key's pitch and the bend
             let base = if kit.pitched && tracking {
                 super::prepared::key_scale(key, root)
@@ -331,13 +396,18 @@ impl Instrument {
                 self.lanes.begin(idx, self.sample_pos);
             }
             v.active = true;
+            v.fresh = true;
             v.base_scale = base;
             v.tuning_now = 0.0;
             v.tuning_target = 0.0;
-        } else if v.tuning_target != 0.0 || v.tuning_now != 0.0 {
-            // a new note starts untuned (from where it is, gliding)
-            v.tuning_target = 0.0;
-            self.tuning_moving = true;
+        } else {
+            // a new note on its ringing voice
+            v.fresh = false;
+            if v.tuning_target != 0.0 || v.tuning_now != 0.0 {
+                // a new note starts untuned (from where it is, gliding)
+                v.tuning_target = 0.0;
+                self.tuning_moving = true;
+            }
         }
         v.key = key;
         v.onset_pos = self.sample_pos;

@@ -693,3 +693,57 @@ fn kits_take_random_abuse() {
     }
     println!("kits: {:?}", inst.stats);
 }
+
+/// A pitched kit steals as a voice of one contact does: at polyphony 1,
+/// a new key takes the ringing kit voice, whose running state fades out
+/// over [`FADE_S`] in a spare kit state while the new key starts at once
+/// on a state at rest: the output is the old key times the fade's gain
+/// plus the new key alone, sample by sample (cutting it would miss that by
+/// the old key's amplitude). The contacts the fade's state starts still count.
+#[test]
+fn a_stolen_kit_voice_fades_out_while_the_new_key_starts() {
+    let scene = two_mallets();
+    let run = |events: &[TimedEvent], n: usize| {
+        let p = prepare_scene(&scene, &SceneParams::default(), RATE, 0).unwrap();
+        let play = PlayParams {
+            gain_db: 0.0,
+            polyphony: 1,
+            ..PlayParams::default()
+        };
+        let mut inst = Instrument::new(p, play);
+        let out = render(&mut inst, events, n);
+        (out, inst)
+    };
+    let (t0, n) = (14_400, 19_200);
+    let fade = (FADE_S * RATE).round() as usize;
+    let (y, inst) = run(&[on(0, 57, 0.8), on(t0, 64, 0.8)], n);
+    let (a, alone) = run(&[on(0, 57, 0.8)], n);
+    let (b, _) = run(&[on(t0, 64, 0.8)], n);
+    assert_eq!((inst.stats.steals, inst.stats.steals_faded), (1, 1));
+    assert_eq!(inst.voice_keys()[0], Some(64));
+    let gain = |k: usize| {
+        if k < t0 {
+            1.0
+        } else {
+            (fade.saturating_sub(k - t0)) as f64 / fade as f64
+        }
+    };
+    for ch in 0..2 {
+        let (mut worst, mut cut) = (0.0f64, 0.0f64);
+        for k in 0..n {
+            let old = gain(k) * f64::from(a[ch][k]);
+            worst = worst.max((f64::from(y[ch][k]) - old - f64::from(b[ch][k])).abs());
+            if k >= t0 {
+                cut = cut.max(old.abs());
+            }
+        }
+        println!("channel {ch}: {worst:e} from the faded sum, a cut would miss by {cut:e}");
+        assert!(
+            worst <= 1e-6 && cut > 1e-3,
+            "channel {ch}: {worst:e}, {cut:e}"
+        );
+    }
+    // the old key's contacts (up to the steal) are still counted
+    let both = started(&inst).iter().sum::<u64>();
+    assert!(both >= started(&alone).iter().sum::<u64>(), "{both}");
+}

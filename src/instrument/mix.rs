@@ -20,7 +20,8 @@
 use super::events::TimedEvent;
 use super::probe::VoiceChunk;
 use super::{
-    Event, Instrument, BEND_TICK_SAMPLES, CHECK_INTERVAL_SAMPLES, MAX_VOICES, OUTPUT_CEILING,
+    Event, Instrument, Prepared, Variant, BEND_TICK_SAMPLES, CHECK_INTERVAL_SAMPLES, MAX_VOICES,
+    OUTPUT_CEILING, STEAL_FADES,
 };
 use crate::compile::CompiledScene;
 use crate::engine::denormal::FlushDenormals;
@@ -61,9 +62,40 @@ pub enum WorkMeter {
 const OUT_EVERY: usize = 256;
 /// Samples a lane's ring can hold: the longest lookahead plus a piece.
 const RING_CAP: usize = (MAX_LOOKAHEAD_SAMPLES + OUT_EVERY).next_power_of_two();
-/// The lane of the voices that fade out after a swap (after the voices' own).
+/// The lane of the voices that fade out after a swap or a steal (after the
+/// voices' own).
 pub(super) const FADE_LANE: usize = MAX_VOICES;
 const LANES: usize = MAX_VOICES + 1;
+
+/// A stolen voice fading out in a spare state (docs/plugin.md, "Voices"),
+/// on the instrument's clock: the variant of the scene it plays, and the
+/// samples of the fade still to come. The next sample's gain is
+/// `left / fade_len`: 1 at the sample of the steal, `1 / fade_len` at the
+/// fade's last; a function of the sample alone, not of where the clock's
+/// chunks fall.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct StealFade {
+    pub(super) at: Variant,
+    pub(super) on_damped: bool,
+    pub(super) left: usize,
+}
+
+/// The spare a new steal fade takes among the first `n` of `fades` (`n`
+/// within 1 ..= [`STEAL_FADES`]): a free one, else the one nearest the
+/// end of its fade (that fade is cut: counted in `cut`).
+pub(super) fn spare_for_fade(
+    fades: &[Option<StealFade>; STEAL_FADES],
+    n: usize,
+    cut: &mut u64,
+) -> usize {
+    let fades = &fades[..n.clamp(1, STEAL_FADES)];
+    if let Some(f) = fades.iter().position(Option::is_none) {
+        return f;
+    }
+    *cut += 1;
+    let left = |f: usize| fades[f].map_or(0, |d| d.left);
+    (0..fades.len()).min_by_key(|&f| left(f)).unwrap_or(0)
+}
 
 /// Each voice's clock and samples, the chunks and gains of the
 /// instrument's clock, and where the output is. Allocated once.
@@ -325,10 +357,15 @@ impl Instrument {
         for k in 0..len as u64 {
             l.gain[(t0 + k) as usize & l.mask] = self.gain;
         }
+        let steals = self.steal_fades.iter().any(Option::is_some);
+        if self.fading.is_none() && !steals {
+            self.sample_pos += len as u64;
+            return;
+        }
+        for ch in &mut self.acc {
+            ch[..len].iter_mut().for_each(|x| *x = 0.0);
+        }
         if let Some(f) = self.fading.as_deref_mut() {
-            for ch in &mut self.acc {
-                ch[..len].iter_mut().for_each(|x| *x = 0.0);
-            }
             for i in 0..MAX_VOICES {
                 let Some((at, on_damped)) = self.fade_voices[i] else {
                     continue;
@@ -355,12 +392,28 @@ impl Instrument {
                     self.stats.nonfinite_resets += 1;
                 }
             }
-            self.lanes.push(FADE_LANE, &self.acc, len);
+            // stolen voices that were fading at the swap
+            let fades = &mut self.old_steal_fades;
+            let (acc, vbuf) = (&mut self.acc, &mut self.vbuf);
+            let bad = &mut self.stats.nonfinite_resets;
+            steal_fades_into(f, fades, self.fade_len, (acc, vbuf), len, bad);
+        }
+        if steals {
+            let fades = &mut self.steal_fades;
+            let (acc, vbuf) = (&mut self.acc, &mut self.vbuf);
+            let bad = &mut self.stats.nonfinite_resets;
+            steal_fades_into(&mut self.cur, fades, self.fade_len, (acc, vbuf), len, bad);
+        }
+        self.lanes.push(FADE_LANE, &self.acc, len);
+        if self.fading.is_some() {
             self.fade_left = self.fade_left.saturating_sub(len);
             if self.fade_left == 0 {
                 self.fade_voices = [None; MAX_VOICES];
-                if let Some(slot) = self.retired.iter_mut().find(|s| s.is_none()) {
-                    *slot = self.fading.take();
+                // the old box goes back once its stolen voices have faded too
+                if self.old_steal_fades.iter().all(Option::is_none) {
+                    if let Some(slot) = self.retired.iter_mut().find(|s| s.is_none()) {
+                        *slot = self.fading.take();
+                    }
                 }
             }
         }
@@ -639,6 +692,57 @@ fn tick_into(
         }
     }
     finite
+}
+
+/// Add `len` samples of the stolen voices fading out in `p`'s spare states
+/// (`fades`, by spare; a kit's spare kit states when `p` is a kit) into
+/// `acc`, each times its fade's gain ([`StealFade`]); a fade that ends frees
+/// its spare, one that produced a sample that is not a number stops there
+/// (nothing of that chunk sounds; its spare is reset; counted in
+/// `nonfinite`). `vbuf` is scratch.
+fn steal_fades_into(
+    p: &mut Prepared,
+    fades: &mut [Option<StealFade>; STEAL_FADES],
+    fade_len: usize,
+    (acc, vbuf): (
+        &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
+        &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
+    ),
+    len: usize,
+    nonfinite: &mut u64,
+) {
+    for (f, slot) in fades.iter_mut().enumerate() {
+        let Some(fade) = slot.as_mut() else {
+            continue;
+        };
+        let m = len.min(fade.left);
+        let finite = match p.kit.as_deref_mut() {
+            Some(kit) => kit.tick_spare_into(f, vbuf, m),
+            None => {
+                let scene = p.scenes.bound(fade.at, fade.on_damped);
+                let st = &mut p.spares[f];
+                let ok = tick_into(st, scene, vbuf, m, 1.0, 0.0, None);
+                if !ok {
+                    st.reset(&p.scenes.scene);
+                }
+                ok
+            }
+        };
+        if finite {
+            for k in 0..m {
+                let g = (fade.left - k) as f64 / fade_len as f64;
+                acc[0][k] += vbuf[0][k] * g;
+                acc[1][k] += vbuf[1][k] * g;
+            }
+            fade.left -= m;
+        } else {
+            *nonfinite += 1;
+            fade.left = 0;
+        }
+        if fade.left == 0 {
+            *slot = None;
+        }
+    }
 }
 
 /// Multiply the `len` samples of `buf` (and the probe's contact point) by

@@ -61,7 +61,10 @@
 //!   ([`PlayParams::polyphony`], at most [`MAX_VOICES`], all allocated once). A repeated note
 //!   strikes its own voice again while it rings: the hammer hits the moving
 //!   surface ([`EngineState::strike`]). A new note takes a free voice, else
-//!   steals the quietest one (lowest energy). A voice whose energy falls below
+//!   steals the quietest one (lowest energy): the new note starts on it at
+//!   once, and its running state moves into a spare state
+//!   ([`STEAL_FADES`]) and fades out over [`FADE_S`] instead of being cut
+//!   (docs/plugin.md, "Voices"). A voice whose energy falls below
 //!   [`SILENCE_ENERGY_RATIO`] of its strike's energy (checked every
 //!   [`CHECK_INTERVAL_SAMPLES`] samples of the instrument's own clock, so the
 //!   result does not depend on how the host splits blocks) stops and costs
@@ -72,9 +75,10 @@
 //!   pointer swap per voice, no allocation). If a voice cannot be carried (other
 //!   preset, other mode count, dense fallback at s != 1) it is faded out over
 //!   [`FADE_S`] on the old scene instead of being cut, and a new note starts
-//!   clean on the new one. Old boxes go to fixed [`Instrument::retired_slots_mut`]
-//!   for the caller to hand back to a non-realtime thread: nothing is dropped
-//!   here.
+//!   clean on the new one. Stolen voices still fading fade on in the old
+//!   box's spare states. Old boxes go to fixed
+//!   [`Instrument::retired_slots_mut`] (once their fades have ended) for the
+//!   caller to hand back to a non-realtime thread: nothing is dropped here.
 
 mod events;
 mod kit;
@@ -116,9 +120,17 @@ pub const CHECK_INTERVAL_SAMPLES: usize = 64;
 /// A voice stops when its energy is below this fraction of its strike's
 /// energy: -90 dB, far below audibility after a full-scale strike.
 pub const SILENCE_ENERGY_RATIO: f64 = 1e-9;
-/// Fade-out length for voices that cannot be carried across a swap \[s\]
-/// (5 ms: short enough to feel immediate, long enough not to click).
+/// Fade-out length for voices that cannot be carried across a swap and for
+/// stolen voices \[s\] (5 ms: short enough to feel immediate, long enough
+/// not to click: the linear ramp adds at most a voice's amplitude over the
+/// fade's length to a sample's step, no more than the voice's own largest
+/// step for every mode above `1 / (2 pi FADE_S)` = 32 Hz).
 pub const FADE_S: f64 = 0.005;
+/// Stolen voices that can fade out at once (each one a spare engine state
+/// per [`Prepared`], and per pitched kit a spare kit state): a steal while
+/// every one fades cuts the fade nearest its end (counted in
+/// [`Stats::steal_fades_cut`]). docs/plugin.md, "Voices".
+pub const STEAL_FADES: usize = 16;
 /// Released decay times are divided by `1 + DAMPER_T60_DIVISOR * damper`
 /// (damper 1 = 51 times shorter: a felt damper on a bar).
 pub const DAMPER_T60_DIVISOR: f64 = 50.0;
@@ -200,6 +212,12 @@ pub struct Stats {
     pub voices_faded: u64,
     /// Notes that stole a sounding voice.
     pub steals: u64,
+    /// Of those, the stolen voices that fade out over [`FADE_S`] (the
+    /// others had not sounded yet: struck from rest at that very sample).
+    pub steals_faded: u64,
+    /// Fades of stolen voices cut because every spare state was fading
+    /// ([`STEAL_FADES`]): the one nearest its end was taken.
+    pub steal_fades_cut: u64,
     /// Voices reset because they produced a non-finite sample.
     pub nonfinite_resets: u64,
     /// Notes played at s = 1 because the scene uses the dense fallback.
@@ -234,6 +252,12 @@ pub struct Instrument {
     fade_voices: [Option<(Variant, bool)>; MAX_VOICES],
     fade_left: usize,
     fade_len: usize,
+    /// Stolen voices fading out in the spare states of `cur`
+    /// (`Prepared::spares`, a pitched kit's `Kit::spares`), by spare.
+    steal_fades: [Option<mix::StealFade>; STEAL_FADES],
+    /// The same for the spare states of `fading` (fades that were under
+    /// way at the swap).
+    old_steal_fades: [Option<mix::StealFade>; STEAL_FADES],
     retired: [Option<Box<Prepared>>; RETIRED_SLOTS],
     play: PlayParams,
     gain: f64,
@@ -333,6 +357,8 @@ impl Instrument {
             fade_voices: [None; MAX_VOICES],
             fade_left: 0,
             fade_len,
+            steal_fades: [None; STEAL_FADES],
+            old_steal_fades: [None; STEAL_FADES],
             retired: Default::default(),
             play,
             gain: 1.0,
@@ -615,9 +641,13 @@ impl Instrument {
         let old = std::mem::replace(&mut self.cur, new);
         (0..MAX_VOICES).for_each(|i| self.press_decide(i));
         self.stats.swaps += 1;
-        if any_fade {
+        // stolen voices still fading go on in the old box's spare states
+        let steals = std::mem::replace(&mut self.steal_fades, [None; STEAL_FADES]);
+        let any_steal = steals.iter().any(Option::is_some);
+        if any_fade || any_steal {
             self.fading = Some(old);
-            self.fade_left = self.fade_len;
+            self.old_steal_fades = steals;
+            self.fade_left = if any_fade { self.fade_len } else { 0 };
             self.lanes.begin(mix::FADE_LANE, self.sample_pos);
         } else {
             self.retire(old);
@@ -643,6 +673,8 @@ impl Instrument {
         self.voices = [Voice::default(); MAX_VOICES];
         self.fade_voices = [None; MAX_VOICES];
         self.fade_left = 0;
+        self.steal_fades = [None; STEAL_FADES];
+        self.old_steal_fades = [None; STEAL_FADES];
         self.restart_lanes();
     }
 

@@ -9,6 +9,7 @@ use super::mapping::{
 };
 use super::{
     lookahead_samples, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_VOICES, OUTPUT_BAND_FRACTION,
+    STEAL_FADES,
 };
 use crate::compile::{compile_with, CompileError, CompiledScene};
 use crate::engine::{certify_rest_strike, EngineState, ScaleProps};
@@ -43,6 +44,10 @@ pub struct Prepared {
     /// On the heap, as the variants (a `Prepared` is built on whichever
     /// thread compiles it, a host's thread at activation).
     pub(super) states: Box<[EngineState; MAX_VOICES]>,
+    /// [`STEAL_FADES`] more, sized as `states`: a stolen voice's running
+    /// state moves into one to fade out (docs/plugin.md, "Voices"); none
+    /// for a kit (its own spares, [`Kit`]).
+    pub(super) spares: Box<[EngineState]>,
     /// A scene of several contacts, played as a kit (docs/design.md,
     /// "Played as a kit"); then `scenes` holds the first
     /// mallet on its object alone (what the instrument reads of a scene:
@@ -697,6 +702,11 @@ fn assemble(
         certify_rest_strike(sc);
     }
     let states = voice_states(&scenes.scene, rate_hz);
+    let spares: Box<[EngineState]> = if kit.is_some() {
+        Box::new([])
+    } else {
+        voice_states::<STEAL_FADES>(&scenes.scene, rate_hz)
+    };
     let root = root_note(base);
     let sc = &scenes.scene;
     let bouncing = base.hammer.gravity_m_per_s2 > 0.0;
@@ -727,6 +737,7 @@ fn assemble(
         fallback_note,
         scenes,
         states,
+        spares,
         kit,
         key_props,
     })
@@ -744,10 +755,11 @@ fn output_band_hz(rate_hz: f64) -> f64 {
     OUTPUT_BAND_FRACTION * 0.5 * rate_hz
 }
 
-/// A fresh engine state per voice for `scene`. \[worker\] \[main-thread\]
-fn voice_states(scene: &CompiledScene, rate_hz: f64) -> Box<[EngineState; MAX_VOICES]> {
+/// `N` fresh engine states for `scene` (one per voice, or the spares).
+/// \[worker\] \[main-thread\]
+fn voice_states<const N: usize>(scene: &CompiledScene, rate_hz: f64) -> Box<[EngineState; N]> {
     let band_hz = output_band_hz(rate_hz);
-    let states: Vec<EngineState> = (0..MAX_VOICES)
+    let states: Vec<EngineState> = (0..N)
         .map(|_| {
             let mut st = EngineState::new(scene);
             st.set_output_band(scene, band_hz);
@@ -757,8 +769,8 @@ fn voice_states(scene: &CompiledScene, rate_hz: f64) -> Box<[EngineState; MAX_VO
             st
         })
         .collect();
-    let Ok(states) = <Box<[EngineState; MAX_VOICES]>>::try_from(states.into_boxed_slice()) else {
-        unreachable!("MAX_VOICES states were made");
+    let Ok(states) = <Box<[EngineState; N]>>::try_from(states.into_boxed_slice()) else {
+        unreachable!("N states were made");
     };
     states
 }

@@ -1837,3 +1837,260 @@ fn key_propagators_made_ahead_play_the_same_bits() {
         assert_eq!(c.stats.key_props_copied, 6, "{preset}: untracked");
     }
 }
+
+/// A stolen voice fades out over [`FADE_S`] while the new note starts at
+/// once (docs/plugin.md, "Voices"): the issue's case, the marimba at
+/// polyphony 1, A3 then E4 300 ms later, at 48 kHz. The output is the old
+/// note times the fade's gain (1 up to the steal, then `(L - j) / L` at the
+/// `j`-th sample after it, `L` the fade's length) plus the new note
+/// rendered alone, sample by sample; so the step at the steal is the
+/// ringing note's own plus at most its amplitude over `L`, where a cut
+/// makes a step of its whole amplitude.
+#[test]
+fn a_stolen_voice_fades_out_while_the_new_note_starts_at_once() {
+    const RATE_48K: f64 = 48_000.0;
+    let mut p = params("marimba-bar");
+    p.play.polyphony = 1;
+    let t0 = (0.3 * RATE_48K) as usize;
+    let n = t0 + 4_800;
+    let fade = ((FADE_S * RATE_48K).round()) as usize;
+    let mut fails = Vec::new();
+    for vel in [100.0 / 127.0, 1.0] {
+        let run = |events: &[TimedEvent]| {
+            let mut inst = Instrument::new(prepare(&p.scene, RATE_48K, 0).unwrap(), p.play);
+            let out = render(&mut inst, events, n);
+            (out, inst.stats)
+        };
+        let (y, stats) = run(&[on(0, 57, vel), on(t0, 64, vel)]);
+        let (a, _) = run(&[on(0, 57, vel)]);
+        let (b, _) = run(&[on(t0, 64, vel)]);
+        assert_eq!(stats.steals, 1);
+        let gain = |k: usize| {
+            if k < t0 {
+                1.0
+            } else {
+                (fade.saturating_sub(k - t0)) as f64 / fade as f64
+            }
+        };
+        for ch in 0..2 {
+            let ring_step = (t0 - 4_800..t0)
+                .map(|k| step_at(&a[ch], k))
+                .fold(0.0, f64::max);
+            let ring_peak = (t0 - 4_800..t0)
+                .map(|k| (a[ch][k] as f64).abs())
+                .fold(0.0, f64::max);
+            let jump = step_at(&y[ch], t0);
+            // the last 10 ms before the steal, and the output and the new
+            // note alone over the fade
+            let ring_step_10ms = (t0 - 480..t0)
+                .map(|k| step_at(&a[ch], k))
+                .fold(0.0, f64::max);
+            let out_step = (t0..t0 + fade)
+                .map(|k| step_at(&y[ch], k))
+                .fold(0.0, f64::max);
+            let new_step = (t0..t0 + fade)
+                .map(|k| step_at(&b[ch], k))
+                .fold(0.0, f64::max);
+            // the output less the new note: the old note as it fades
+            let rest: Vec<f32> = (0..n).map(|k| y[ch][k] - b[ch][k]).collect();
+            let rest_step = (t0..t0 + fade + 2)
+                .map(|k| step_at(&rest, k))
+                .fold(0.0, f64::max);
+            let worst = (0..n)
+                .map(|k| (y[ch][k] as f64 - (gain(k) * a[ch][k] as f64 + b[ch][k] as f64)).abs())
+                .fold(0.0, f64::max);
+            println!(
+                "velocity {:.0}, channel {ch}: step at the steal {jump:.3e}, the ringing note's \
+                 largest step {ring_step:.3e} over 100 ms ({ring_step_10ms:.3e} over 10 ms), \
+                 its peak {ring_peak:.3e}; largest step over the fade of the output \
+                 {out_step:.3e}, of the new note alone {new_step:.3e}, of the output less the \
+                 new note {rest_step:.3e}; farthest from the faded old note plus the new one \
+                 {worst:.1e}",
+                vel * 127.0,
+            );
+            if worst > 1e-6 {
+                fails.push(format!("the old note faded plus the new note: {worst:e}"));
+            }
+            if rest_step > ring_step + ring_peak / fade as f64 + 1e-7 {
+                fails.push(format!("step {rest_step:e}, the note's own {ring_step:e}"));
+            }
+        }
+    }
+    assert!(fails.is_empty(), "{fails:?}");
+}
+
+/// The step of `x` into sample `k`.
+fn step_at(x: &[f32], k: usize) -> f64 {
+    (x[k] as f64 - x[k - 1] as f64).abs()
+}
+
+/// Steals at every polyphony (1 ..= [`MAX_VOICES`], every value of the
+/// Polyphony parameter): `poly` notes ringing, then a new one steals the
+/// quietest. The output is, sample by sample, the old notes without the
+/// new one, less the stolen note, plus the stolen note times the fade's
+/// gain, plus the new note rendered alone (so it starts at once): each
+/// rendered on an instrument of its own. The stolen note's part of the
+/// output steps at most by its own largest step plus its amplitude over
+/// the fade's length; cutting it would miss the first check by the stolen
+/// note's amplitude, which each case checks is far above the tolerance.
+#[test]
+fn steals_at_every_polyphony_fade_the_stolen_voice_without_a_jump() {
+    let fade = ((FADE_S * RATE).round()) as usize;
+    let key = |j: usize| 30 + ((j * 37) % 64) as u8;
+    let vel = |j: usize| 0.4 + 0.06 * ((j * 13) % 10) as f64;
+    let mut worst_ratio = 0.0f64;
+    for poly in 1..=MAX_VOICES {
+        let mut p = params("marimba-bar");
+        p.play.polyphony = poly;
+        let notes: Vec<TimedEvent> = (0..poly).map(|j| on(100 * j, key(j), vel(j))).collect();
+        let t_s = 100 * poly + 2_205;
+        let n = t_s + fade + 500;
+        let steal = on(t_s, 100, 0.8);
+        let render_all = |events: &[TimedEvent]| {
+            let mut inst = instrument(&p);
+            let out = render(&mut inst, events, n);
+            (out, inst)
+        };
+        // the steal, in two blocks to see which voice it takes
+        let mut inst = instrument(&p);
+        let [l0, r0] = render(&mut inst, &notes, t_s);
+        let before = inst.voice_keys();
+        let [l1, r1] = render(&mut inst, &[on(0, 100, 0.8)], n - t_s);
+        let after = inst.voice_keys();
+        assert_eq!(inst.stats.steals, 1, "polyphony {poly}");
+        assert_eq!(inst.stats.steals_faded, 1, "polyphony {poly}");
+        // the new note is on the voice it stole (another may have stopped
+        // since, silent)
+        let i = after.iter().position(|k| *k == Some(100)).unwrap();
+        let j = (0..poly).find(|&j| before[i] == Some(key(j))).unwrap();
+        let y = [[l0, l1].concat(), [r0, r1].concat()];
+        let (rest, _) = render_all(&notes);
+        let (a, _) = render_all(&[notes[j]]);
+        let (b, _) = render_all(&[steal]);
+        let gain = |k: usize| {
+            if k < t_s {
+                1.0
+            } else {
+                (fade.saturating_sub(k - t_s)) as f64 / fade as f64
+            }
+        };
+        for ch in 0..2 {
+            let f = |x: &[Vec<f32>; 2], k: usize| x[ch][k] as f64;
+            let peak = (0..n).map(|k| f(&rest, k).abs()).fold(0.0, f64::max);
+            let tol = 1e-6 * (1.0 + peak);
+            let mut worst = 0.0f64;
+            for k in 0..n {
+                let expect = f(&rest, k) - f(&a, k) + gain(k) * f(&a, k) + f(&b, k);
+                worst = worst.max((f(&y, k) - expect).abs());
+            }
+            // what a cut would have missed by
+            let cut = (t_s..t_s + fade / 2)
+                .map(|k| gain(k) * f(&a, k).abs())
+                .fold(0.0, f64::max);
+            assert!(
+                worst <= tol && cut > 100.0 * tol,
+                "polyphony {poly}, channel {ch}: {worst:e} from the faded sum (tolerance \
+                 {tol:e}, a cut would miss by {cut:e})"
+            );
+            // the stolen note as it fades: the output less the others and
+            // the new note
+            let faded: Vec<f32> = (0..n)
+                .map(|k| (f(&y, k) - f(&rest, k) + f(&a, k) - f(&b, k)) as f32)
+                .collect();
+            let own = (t_s - 441..t_s)
+                .map(|k| step_at(&a[ch], k))
+                .fold(0.0, f64::max);
+            let amp = (t_s - 441..t_s + fade)
+                .map(|k| f(&a, k).abs())
+                .fold(0.0, f64::max);
+            let at_steal = (t_s..t_s + fade + 2)
+                .map(|k| step_at(&faded, k))
+                .fold(0.0, f64::max);
+            assert!(
+                at_steal <= own + amp / fade as f64 + 4.0 * tol,
+                "polyphony {poly}, channel {ch}: step {at_steal:e}, the stolen note's own \
+                 {own:e}, amplitude {amp:e}"
+            );
+            worst_ratio = worst_ratio.max(at_steal / own);
+        }
+    }
+    println!("largest step of a fading stolen note over its own largest step: {worst_ratio:.3}");
+}
+
+/// Only a voice that has sounded fades: a chord of more notes than the
+/// polyphony on one sample takes its own notes back without a fade (they
+/// have not sounded yet), as it always did; a chord on ringing voices
+/// fades them all, and more steals at once than there are spare states
+/// cut the fades nearest their end, counted, never a sample that is not a
+/// number.
+#[test]
+fn only_sounding_voices_fade_and_too_many_at_once_cut_the_oldest_fade() {
+    let mut p = params("marimba-bar");
+    p.play.polyphony = 2;
+    let mut inst = instrument(&p);
+    let chord: Vec<TimedEvent> = (0..5).map(|k| on(0, 50 + k, 0.8)).collect();
+    let [l, _] = render(&mut inst, &chord, 4_410);
+    assert_eq!((inst.stats.steals, inst.stats.steals_faded), (3, 0));
+    assert!(l.iter().all(|x| x.is_finite()) && rms(&l) > 0.0);
+    let again: Vec<TimedEvent> = (0..2).map(|k| on(0, 70 + k, 0.8)).collect();
+    render(&mut inst, &again, 4_410);
+    assert_eq!((inst.stats.steals, inst.stats.steals_faded), (5, 2));
+    assert_eq!(inst.stats.steal_fades_cut, 0);
+
+    p.play.polyphony = MAX_VOICES;
+    let mut inst = instrument(&p);
+    let notes: Vec<TimedEvent> = (0..64).map(|k| on(10 * k, 30 + k as u8, 0.7)).collect();
+    render(&mut inst, &notes, 4_410);
+    let burst = STEAL_FADES + 4;
+    let chord: Vec<TimedEvent> = (0..burst).map(|k| on(0, 100 + k as u8, 0.7)).collect();
+    render(&mut inst, &chord, 1);
+    assert_eq!(inst.stats.steals, burst as u64);
+    assert_eq!(inst.stats.steals_faded, burst as u64);
+    assert_eq!(inst.stats.steal_fades_cut, 4);
+    let new = inst
+        .voice_keys()
+        .iter()
+        .flatten()
+        .filter(|&&k| k >= 100)
+        .count();
+    assert_eq!(new, burst, "every note of the chord sounds");
+    let [l, r] = render(&mut inst, &[], 4_410);
+    assert!(l.iter().chain(&r).all(|x| x.is_finite()));
+}
+
+/// A swap while a stolen voice fades: the fade goes on in the old box's
+/// spare state (the box is handed back when it ends), so the output is
+/// the one without the swap (the same scene compiled again: the carried
+/// voice plays on, to the last bits); the new box's spares take the next
+/// steal.
+#[test]
+fn a_swap_during_a_steal_fade_lets_it_finish() {
+    let mut p = params("marimba-bar");
+    p.play.polyphony = 1;
+    let t0 = 13_230;
+    let n = 4_410;
+    let run = |swap: bool| {
+        let mut inst = instrument(&p);
+        let [mut l, _] = render(&mut inst, &[on(0, 57, 0.8), on(t0 - 64, 64, 0.8)], t0);
+        if swap {
+            assert!(inst.can_install());
+            inst.install(prepare(&p.scene, RATE, 1).unwrap()).unwrap();
+            assert!(!inst.can_install(), "the old box waits for its fade");
+            assert_eq!(inst.stats.voices_carried, 1);
+        }
+        let [l1, _] = render(&mut inst, &[on(n / 2, 69, 0.8)], n);
+        l.extend(l1);
+        assert!(inst.can_install());
+        (l, inst.stats)
+    };
+    let (plain, s0) = run(false);
+    let (swapped, s1) = run(true);
+    assert_eq!((s0.steals_faded, s1.steals_faded), (2, 2));
+    let peak = plain.iter().fold(0.0f32, |m, x| m.max(x.abs()));
+    let worst = plain
+        .iter()
+        .zip(&swapped)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    assert!(worst <= 1e-5 * peak, "{worst:e} (peak {peak:e})");
+}

@@ -1,10 +1,13 @@
 //! Voices: one per sounding note; allocation (a repeated note restrikes its
-//! own voice, a new note takes a free voice or steals the quietest), the
-//! damper at note-off, and silence detection.
+//! own voice, a new note takes a free voice or steals the quietest, whose
+//! running state fades out in a spare), the damper at note-off, and
+//! silence detection.
 
+use super::mix::{spare_for_fade, StealFade, FADE_LANE};
 use super::prepared::{key_scale, Prepared, Variant};
 use super::{
     impact_speed_m_per_s, Instrument, MAX_PRESSURE_DECAY_PER_S, MAX_VOICES, SILENCE_ENERGY_RATIO,
+    STEAL_FADES,
 };
 use crate::compile::CompiledScene;
 use crate::engine::EngineState;
@@ -32,6 +35,11 @@ pub(super) struct Voice {
     /// The instrument's clock at its last note-on: a tuning at this very
     /// sample applies at once.
     pub(super) onset_pos: u64,
+    /// Its last note-on struck it from rest (a new voice, not a repeated
+    /// note on its ringing one): while the clock is still at `onset_pos`
+    /// nothing of it has sounded, and a steal there takes it without a
+    /// fade.
+    pub(super) fresh: bool,
     /// Its note's pressure, 0 .. 1 ([`super::Event::NotePressure`]).
     pub(super) pressure: f64,
     /// The variant of the scene it is bound to (hardness and position
@@ -95,6 +103,7 @@ impl Instrument {
             v.bright_level = 0;
             v.hard_level = 0;
             v.released = false;
+            v.fresh = false;
             v.pressure = 0.0;
             // a new note starts untuned (from where it is, gliding)
             v.tuning_target = 0.0;
@@ -103,7 +112,6 @@ impl Instrument {
             }
             i
         } else {
-            let p = &mut *self.cur;
             let poly = self.play.polyphony.clamp(1, MAX_VOICES);
             let i = match self.voices[..poly].iter().position(|v| !v.active) {
                 Some(i) => {
@@ -113,9 +121,12 @@ impl Instrument {
                 }
                 None => {
                     self.stats.steals += 1;
-                    quietest(p, &self.voices[..poly])
+                    let i = quietest(&self.cur, &self.voices[..poly]);
+                    self.fade_stolen(i);
+                    i
                 }
             };
+            let p = &mut *self.cur;
             let st = &mut p.states[i];
             st.reset(&p.scenes.scene);
             let base = if self.play.pitch_tracking {
@@ -163,6 +174,7 @@ impl Instrument {
                 tuning_target: 0.0,
                 tuning_now: 0.0,
                 onset_pos: 0,
+                fresh: true,
                 pressure: 0.0,
                 at: Variant::default(),
                 want: Variant::default(),
@@ -191,6 +203,33 @@ impl Instrument {
         }
         self.voices[idx].strike_energy = e;
         self.voices[idx].onset_pos = self.sample_pos;
+    }
+
+    /// Voice `i` is stolen by a new note (docs/plugin.md, "Voices"): unless
+    /// nothing of it has sounded yet (struck from rest at this very
+    /// sample), its running state (with what its damper took so far) moves
+    /// into a spare state ([`spare_for_fade`]) and fades out from here over
+    /// [`super::FADE_S`] on the instrument's clock, in the fade's lane,
+    /// while the voice goes on with the spare's state for the new note,
+    /// which starts at once. A swap of two states: O(1), allocation-free.
+    /// \[audio-thread\]
+    fn fade_stolen(&mut self, i: usize) {
+        let v = self.voices[i];
+        if !v.active || v.fresh && v.onset_pos == self.sample_pos {
+            return;
+        }
+        self.press_flush(i);
+        let cut = &mut self.stats.steal_fades_cut;
+        let f = spare_for_fade(&self.steal_fades, STEAL_FADES, cut);
+        let p = &mut *self.cur;
+        std::mem::swap(&mut p.states[i], &mut p.spares[f]);
+        self.steal_fades[f] = Some(StealFade {
+            at: v.at,
+            on_damped: v.on_damped,
+            left: self.fade_len,
+        });
+        self.lanes.begin(FADE_LANE, self.sample_pos);
+        self.stats.steals_faded += 1;
     }
 
     pub(super) fn note_off(&mut self, key: Option<u8>) {
