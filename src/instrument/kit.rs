@@ -94,14 +94,8 @@ impl Kit {
     pub fn new(scene: &Scene, rate_hz: f64) -> Result<Self, SceneError> {
         let model = MultiModel::from_scene(scene, rate_hz)?;
         let switching = scene.contact.switching.unwrap_or_default();
-        let sc = CompiledMulti::with_switching(&model, rate_hz, switching).map_err(|e| {
-            let key = if scene.touch.is_empty() {
-                "striker"
-            } else {
-                "touch"
-            };
-            SceneError::new(key, e.to_string())
-        })?;
+        let sc = CompiledMulti::with_switching(&model, rate_hz, switching)
+            .map_err(|e| e.in_scene(scene))?;
         let lists: Vec<&Vec<u8>> = std::iter::once(&scene.hammer.notes)
             .chain(scene.striker.iter().map(|s| &s.notes))
             .collect();

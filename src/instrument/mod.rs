@@ -404,6 +404,14 @@ impl Instrument {
         &self.cur
     }
 
+    /// The scene set it plays, taken back as the instrument ends (a fading
+    /// or retired one is dropped): a new instrument may be built around it
+    /// ([`Instrument::new`]); its voice states start over at their next
+    /// note as a stolen voice's does. \[main-thread\]
+    pub fn into_prepared(self) -> Box<Prepared> {
+        self.cur
+    }
+
     /// Update the parameters that need no compile (gain and the lookahead
     /// now; pitch tracking and drop height at the next note). \[audio-thread\]
     pub fn set_play(&mut self, mut play: PlayParams) {

@@ -11,7 +11,7 @@ use super::{
     lookahead_samples, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_VOICES, OUTPUT_BAND_FRACTION,
     STEAL_FADES,
 };
-use crate::compile::{compile_with, CompileError, CompiledScene};
+use crate::compile::{cancel, compile_with, CompileError, CompiledScene};
 use crate::engine::{certify_rest_strike, EngineState, ScaleProps};
 use crate::presets;
 use crate::scene::{Scene, SceneError, Switching};
@@ -515,6 +515,9 @@ pub enum PrepareError {
     /// A scene of several contacts that does not make a kit (the field
     /// and why).
     Kit(SceneError),
+    /// The compile was cancelled (the instance was deactivated or ended:
+    /// [`crate::compile::cancel`]).
+    Cancelled,
 }
 
 impl std::fmt::Display for PrepareError {
@@ -525,11 +528,18 @@ impl std::fmt::Display for PrepareError {
                 write!(f, "damped scene has other dimensions than the scene")
             }
             Self::Kit(e) => write!(f, "{e}"),
+            Self::Cancelled => write!(f, "{}", cancel::Cancelled),
         }
     }
 }
 
 impl std::error::Error for PrepareError {}
+
+impl From<cancel::Cancelled> for PrepareError {
+    fn from(_: cancel::Cancelled) -> Self {
+        Self::Cancelled
+    }
+}
 
 impl From<CompileError> for PrepareError {
     fn from(e: CompileError) -> Self {
@@ -551,10 +561,17 @@ fn side_by_side<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Ve
     }
     let per = items.len().div_ceil(threads);
     let f = &f;
+    // the compile's cancellation goes along (crate::compile::cancel)
+    let cancel = cancel::current();
+    let cancel = cancel.as_ref();
     std::thread::scope(|scope| {
         let running: Vec<_> = items
             .chunks(per)
-            .map(|chunk| scope.spawn(move || chunk.iter().map(f).collect::<Vec<R>>()))
+            .map(|chunk| {
+                scope.spawn(move || {
+                    cancel::within(cancel, || chunk.iter().map(f).collect::<Vec<R>>())
+                })
+            })
             .collect();
         running
             .into_iter()
@@ -597,6 +614,7 @@ pub fn prepare_scene(
     }
     let (scene, switching_used, fallback_note) =
         compile_with_fallback(&played_scene, rate_hz, params.switching)?;
+    cancel::check()?;
     let damped = if params.damper_norm > 0.0 {
         let d = damped_scene(&played_scene, params.damper_norm);
         Some(compile_with(&d, rate_hz, Some(switching_used))?)
@@ -645,6 +663,7 @@ pub fn prepare_scene(
                 scene: t,
             })
     });
+    cancel::check()?;
     let mut played: Vec<Option<VariantScene>> = (0..LEVELS * LEVELS).map(|_| None).collect();
     for (&(h, pl), v) in pairs.iter().zip(compiled) {
         played[cell(h, pl)] = v;
@@ -674,18 +693,19 @@ pub fn prepare_scene(
     for (&d, v) in dampers.iter().zip(compiled) {
         damped_at[slot(d)] = v;
     }
+    cancel::check()?;
     let scenes = Scenes {
         scene,
         damped,
         played,
         damped_at,
     };
-    Ok(assemble(
+    assemble(
         (base, params, rate_hz, revision),
         (switching_used, fallback_note),
         scenes,
         None,
-    ))
+    )
 }
 
 /// A [`Prepared`] of compiled scenes (and a kit), with a fresh engine
@@ -695,7 +715,7 @@ fn assemble(
     (switching_used, fallback_note): (Switching, Option<String>),
     scenes: Scenes,
     kit: Option<Box<Kit>>,
-) -> Box<Prepared> {
+) -> Result<Box<Prepared>, PrepareError> {
     // here, not on the audio thread: a voice rebound to a scene takes its
     // certified stored switches without a search (docs/numerics.md 6.9)
     for sc in scenes.all() {
@@ -719,15 +739,17 @@ fn assemble(
         let band = output_band_hz(rate_hz);
         (0..=127u8)
             .map(|key| {
+                cancel::check()?;
                 let mut k = ScaleProps::new(sc, key_scale(key, root), band);
                 if !bouncing {
                     k.store_strike(sc, band, &speeds);
                 }
-                k
+                Ok(k)
             })
-            .collect()
+            .collect::<Result<_, cancel::Cancelled>>()?
     };
-    Box::new(Prepared {
+    cancel::check()?;
+    Ok(Box::new(Prepared {
         revision,
         rate_hz,
         params: *params,
@@ -740,7 +762,7 @@ fn assemble(
         spares,
         kit,
         key_props,
-    })
+    }))
 }
 
 /// The time scale of MIDI `key` with pitch tracking, the scene's root at
@@ -800,10 +822,10 @@ fn prepare_kit(
         played: (0..LEVELS * LEVELS).map(|_| None).collect(),
         damped_at: (0..LEVELS).map(|_| None).collect(),
     };
-    Ok(assemble(
+    assemble(
         (base, params, rate_hz, revision),
         (used, None),
         scenes,
         Some(Box::new(kit)),
-    ))
+    )
 }

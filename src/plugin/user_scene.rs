@@ -256,6 +256,11 @@ impl SceneLibrary {
             .map_err(|e| format!("scene {name:?}: {e}"))?;
             Ok((base, p))
         });
+        // a cancelled compile (the instance deactivated) reports nothing:
+        // the editor keeps what it showed
+        if crate::compile::cancel::cancelled() {
+            return Err(format!("scene {name:?}: {}", crate::compile::cancel::Cancelled));
+        }
         let mut report = lock(&self.report);
         report.serial += 1;
         report.scene = name;
