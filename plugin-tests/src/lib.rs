@@ -620,7 +620,10 @@ impl LoadedPlugin {
     /// instance.
     pub fn load(bundle: &Path) -> Self {
         let mut p = Self::load_realtime(bundle);
-        assert!(p.set_render_mode(true), "the render extension refused offline");
+        assert!(
+            p.set_render_mode(true),
+            "the render extension refused offline"
+        );
         p
     }
 

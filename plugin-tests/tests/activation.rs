@@ -108,6 +108,9 @@ fn a_long_compile_never_holds_activate_or_deactivate() {
     r.load_state(&state);
     let mut s = r.activate(RATE, 1, BLOCK);
     let first = s.process(BLOCK, 0, &[on(0, 60, 0.9)]);
-    assert!(!silent(&first), "offline: the first block must play the note");
+    assert!(
+        !silent(&first),
+        "offline: the first block must play the note"
+    );
     s.deactivate();
 }

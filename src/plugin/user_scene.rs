@@ -259,7 +259,10 @@ impl SceneLibrary {
         // a cancelled compile (the instance deactivated) reports nothing:
         // the editor keeps what it showed
         if crate::compile::cancel::cancelled() {
-            return Err(format!("scene {name:?}: {}", crate::compile::cancel::Cancelled));
+            return Err(format!(
+                "scene {name:?}: {}",
+                crate::compile::cancel::Cancelled
+            ));
         }
         let mut report = lock(&self.report);
         report.serial += 1;

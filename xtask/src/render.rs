@@ -608,8 +608,8 @@ fn multi_scene_job(
         .map(Switching::from)
         .or(scene.contact.switching)
         .unwrap_or_default();
-    let compiled = CompiledMulti::with_switching(&model, a.rate, switching)
-        .map_err(|e| e.in_scene(scene))?;
+    let compiled =
+        CompiledMulti::with_switching(&model, a.rate, switching).map_err(|e| e.in_scene(scene))?;
     let compile_s = t0.elapsed().as_secs_f64();
     let k = compiled.contacts();
     let mut wav = FloatWav::create(&job.wav, a.rate, n)?;
