@@ -359,7 +359,7 @@ impl Instrument {
             let sounded = !(v.fresh && v.onset_pos == self.sample_pos);
             if v.active && sounded && !kit.spares.is_empty() {
                 // stolen while it sounds: its running state fades out in a
-                // spare (docs/plugin.md, "Voices")
+                // spare (docs/plugin.md, "Velocity, pitch, voices")
                 let cut = &mut self.stats.steal_fades_cut;
                 let f = spare_for_fade(&self.steal_fades, kit.spares.len(), cut);
                 std::mem::swap(&mut kv.st, &mut kit.spares[f]);

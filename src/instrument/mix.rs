@@ -67,7 +67,7 @@ const RING_CAP: usize = (MAX_LOOKAHEAD_SAMPLES + OUT_EVERY).next_power_of_two();
 pub(super) const FADE_LANE: usize = MAX_VOICES;
 const LANES: usize = MAX_VOICES + 1;
 
-/// A stolen voice fading out in a spare state (docs/plugin.md, "Voices"),
+/// A stolen voice fading out in a spare state (docs/plugin.md, "Velocity, pitch, voices"),
 /// on the instrument's clock: the variant of the scene it plays, and the
 /// samples of the fade still to come. The next sample's gain is
 /// `left / fade_len`: 1 at the sample of the steal, `1 / fade_len` at the

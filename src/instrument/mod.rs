@@ -64,7 +64,7 @@
 //!   steals the quietest one (lowest energy): the new note starts on it at
 //!   once, and its running state moves into a spare state
 //!   ([`STEAL_FADES`]) and fades out over [`FADE_S`] instead of being cut
-//!   (docs/plugin.md, "Voices"). A voice whose energy falls below
+//!   (docs/plugin.md, "Velocity, pitch, voices"). A voice whose energy falls below
 //!   [`SILENCE_ENERGY_RATIO`] of its strike's energy (checked every
 //!   [`CHECK_INTERVAL_SAMPLES`] samples of the instrument's own clock, so the
 //!   result does not depend on how the host splits blocks) stops and costs
@@ -129,7 +129,7 @@ pub const FADE_S: f64 = 0.005;
 /// Stolen voices that can fade out at once (each one a spare engine state
 /// per [`Prepared`], and per pitched kit a spare kit state): a steal while
 /// every one fades cuts the fade nearest its end (counted in
-/// [`Stats::steal_fades_cut`]). docs/plugin.md, "Voices".
+/// [`Stats::steal_fades_cut`]). docs/plugin.md, "Velocity, pitch, voices".
 pub const STEAL_FADES: usize = 16;
 /// Released decay times are divided by `1 + DAMPER_T60_DIVISOR * damper`
 /// (damper 1 = 51 times shorter: a felt damper on a bar).

@@ -45,7 +45,7 @@ pub struct Prepared {
     /// thread compiles it, a host's thread at activation).
     pub(super) states: Box<[EngineState; MAX_VOICES]>,
     /// [`STEAL_FADES`] more, sized as `states`: a stolen voice's running
-    /// state moves into one to fade out (docs/plugin.md, "Voices"); none
+    /// state moves into one to fade out (docs/plugin.md, "Velocity, pitch, voices"); none
     /// for a kit (its own spares, [`Kit`]).
     pub(super) spares: Box<[EngineState]>,
     /// A scene of several contacts, played as a kit (docs/design.md,

@@ -1839,7 +1839,7 @@ fn key_propagators_made_ahead_play_the_same_bits() {
 }
 
 /// A stolen voice fades out over [`FADE_S`] while the new note starts at
-/// once (docs/plugin.md, "Voices"): the case, the marimba at
+/// once (docs/plugin.md, "Velocity, pitch, voices"): the case, the marimba at
 /// polyphony 1, A3 then E4 300 ms later, at 48 kHz. The output is the old
 /// note times the fade's gain (1 up to the steal, then `(L - j) / L` at the
 /// `j`-th sample after it, `L` the fade's length) plus the new note

@@ -205,7 +205,7 @@ impl Instrument {
         self.voices[idx].onset_pos = self.sample_pos;
     }
 
-    /// Voice `i` is stolen by a new note (docs/plugin.md, "Voices"): unless
+    /// Voice `i` is stolen by a new note (docs/plugin.md, "Velocity, pitch, voices"): unless
     /// nothing of it has sounded yet (struck from rest at this very
     /// sample), its running state (with what its damper took so far) moves
     /// into a spare state ([`spare_for_fade`]) and fades out from here over
