@@ -1,6 +1,7 @@
 //! How long the host's main thread waits in `activate` and `deactivate` of
 //! the BUILT release plugin (clack-host), over every scene and a seeded
-//! sweep of every parameter (docs/plugin.md, "Activation").
+//! sweep of every parameter (docs/plugin.md, "Parameter changes: the swap
+//! design").
 //!
 //! Each trial loads an instance, loads a state with random parameter
 //! values in their ranges (the scene too), activates (timed), sends in

@@ -806,6 +806,9 @@ fn hardness_poly_modulation_and_note_ends_through_the_host() {
     let mut p = LoadedPlugin::load(&clap_bundle(Variant::Release));
     let mut session = p.activate(rate, 1, 256);
     let script = [
+        // the marimba rings on after its release: a damper that follows
+        // the key makes the released note die away
+        param(0, ids::DAMPER_CUSTOM, 1.0),
         on_id(100, 60, 0.8, 1),
         on_id(100, 64, 0.7, 2),
         on_id(200, 67, 0.8, 3),

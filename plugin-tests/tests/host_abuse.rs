@@ -374,6 +374,10 @@ fn audio_thread_sources_use_no_locks_or_io() {
     // convention) and, whatever their docs say, every file of the engine,
     // the instrument and the block operations the engine calls. Found by walking src/, not listed by hand, so a
     // new audio-thread file is scanned without anyone remembering to add it.
+    // The waits for a scene and the locks the worker shares with the main
+    // thread live in plugin/waits.rs, which carries no audio-thread tag: a
+    // real-time block never reaches it (an offline render's does, where the
+    // host allows a block to wait).
     let root = workspace_root().join("src");
     let mut files = Vec::new();
     let mut stack = vec![root.clone()];

@@ -27,6 +27,7 @@ pub mod mpe;
 pub mod params;
 pub mod user_scene;
 pub mod voice_ids;
+pub mod waits;
 pub mod worker;
 
 use crate::instrument::{
@@ -240,9 +241,7 @@ impl ModalContact {
 /// where the host allows a block to take its time. Bounded by the worker
 /// answering every request (a scene, an error, or its cancellation).
 fn wait_while(h: &Handoff, busy: impl Fn(&Handoff) -> bool) {
-    while busy(h) && !h.stopped() {
-        std::thread::sleep(std::time::Duration::from_micros(500));
-    }
+    waits::while_busy(|| busy(h) && !h.stopped(), None);
 }
 
 impl Drop for ModalContact {
@@ -533,24 +532,19 @@ impl Plugin for ModalContact {
         }
         let deadline = t0 + std::time::Duration::from_millis(worker::ACTIVATE_WAIT_MS);
         let rev = self.first_revision;
-        loop {
-            self.take_first();
-            if self.instrument.is_some() {
-                break;
-            }
+        let h = &self.handoff;
+        waits::while_busy(|| h.compiling() && !h.failed(rev), Some(deadline));
+        self.take_first();
+        if self.instrument.is_none() {
             if self.handoff.failed(rev) {
                 nice_log!("modal_contact: cannot compile any scene");
                 return false;
             }
-            if std::time::Instant::now() >= deadline {
-                nice_log!(
-                    "modal_contact: the scene is still compiling after {} ms; the instance \
-                     is silent until it is ready",
-                    worker::ACTIVATE_WAIT_MS
-                );
-                break;
-            }
-            std::thread::sleep(std::time::Duration::from_micros(500));
+            nice_log!(
+                "modal_contact: the scene is still compiling after {} ms; the instance is \
+                 silent until it is ready",
+                worker::ACTIVATE_WAIT_MS
+            );
         }
         true
     }

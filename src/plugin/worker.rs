@@ -28,6 +28,7 @@
 //! used (one long eigensolve there would stall every other plugin instance).
 
 use super::user_scene::{HostBlocks, SceneLibrary};
+use super::waits::Shared;
 use crate::compile::cancel::{self, Cancel};
 use crate::instrument::{Instrument, PlayParams, Prepared, SceneParams};
 use atomic_float::AtomicF64;
@@ -89,7 +90,7 @@ pub struct Handoff {
     cancelled_through: AtomicU64,
     /// The compile running now and its flag (worker and main thread only:
     /// the audio thread never touches this lock).
-    running: std::sync::Mutex<Option<(u64, Cancel)>>,
+    running: Shared<Option<(u64, Cancel)>>,
     /// Successful compiles (worker writes, anyone reads).
     pub compiles: AtomicU64,
     /// Failed compiles: the last good scene stays (worker writes).
@@ -108,7 +109,7 @@ pub struct Handoff {
     pub busy: AtomicBool,
     /// The last compile error, for the editor (worker and GUI threads
     /// only: the audio thread never touches this lock).
-    pub last_error: std::sync::Mutex<Option<String>>,
+    last_error: Shared<Option<String>>,
 }
 
 impl Handoff {
@@ -121,7 +122,7 @@ impl Handoff {
             returned: ArrayQueue::new(RETURN_CAPACITY),
             stop: AtomicBool::new(false),
             cancelled_through: AtomicU64::new(0),
-            running: std::sync::Mutex::new(None),
+            running: Shared::new(None),
             compiles: AtomicU64::new(0),
             failures: AtomicU64::new(0),
             published_revision: AtomicU64::new(0),
@@ -129,7 +130,7 @@ impl Handoff {
             requested_revision: AtomicU64::new(0),
             failed_revision: AtomicU64::new(0),
             busy: AtomicBool::new(false),
-            last_error: std::sync::Mutex::new(None),
+            last_error: Shared::new(None),
         })
     }
 
@@ -158,6 +159,12 @@ impl Handoff {
     /// Whether the request of `revision` failed (every fallback refused).
     pub fn failed(&self, revision: u64) -> bool {
         self.failed_revision.load(Ordering::Acquire) >= revision
+    }
+
+    /// The last compile error (also of a candidate an activation's
+    /// fallbacks passed over). \[GUI thread\]
+    pub fn last_error(&self) -> Option<String> {
+        lock(&self.last_error).clone()
     }
 
     /// Cancel the compiles of every revision up to `revision` (the running
@@ -209,7 +216,7 @@ impl Handoff {
         if self.failed_revision.load(Ordering::Acquire) < want {
             return None;
         }
-        self.last_error.lock().ok().and_then(|e| e.clone())
+        self.last_error()
     }
 
     /// Free everything still queued (when no worker runs). \[main-thread\]
@@ -221,10 +228,9 @@ impl Handoff {
     }
 }
 
-/// Lock a mutex shared by the worker and the main thread, taking the value
-/// even if a panicking thread poisoned it (plain values, always consistent).
-fn lock<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
+/// The value behind a lock of the worker's and the main thread's.
+fn lock<T>(m: &Shared<T>) -> std::sync::MutexGuard<'_, T> {
+    m.get()
 }
 
 /// The worker thread of one plugin instance.

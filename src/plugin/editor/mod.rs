@@ -259,11 +259,7 @@ impl App {
             None
         } else {
             h.error()
-                .or_else(|| {
-                    self.refused()
-                        .then(|| lock(&h.last_error).clone())
-                        .flatten()
-                })
+                .or_else(|| self.refused().then(|| h.last_error()).flatten())
                 .or_else(|| report.error.clone())
         };
         let changed_on_disk = lock(&self.shared.disk).changed;
