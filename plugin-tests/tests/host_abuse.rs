@@ -284,7 +284,9 @@ fn velocity_zero_note_on_is_a_note_off() {
 #[test]
 fn random_sample_accurate_automation_of_every_parameter() {
     let bundle = clap_bundle(Variant::RtChecks);
-    let mut p = LoadedPlugin::load(&bundle);
+    // a live host's instance: an offline render would wait for the scene
+    // of every one of these thousands of changes
+    let mut p = LoadedPlugin::load_realtime(&bundle);
     let rate = 48_000.0;
     let total = (20.0 * rate) as usize;
     let mut rng = TestRng(2024);
@@ -353,7 +355,9 @@ fn random_sample_accurate_automation_of_every_parameter() {
     );
     assert!(rms(&out[0]) > 1e-4, "the automation silenced everything");
     // the plugin still plays normally afterwards
-    // (the automation left the parameters anywhere: bring the gain up)
+    // (the automation left the parameters anywhere: bring the gain up;
+    // rendered offline, so the note waits for the scene of those values)
+    assert!(p.set_render_mode(true));
     let mut session = p.activate(rate, 1, 512);
     let gain = HostEvent::Param {
         at: 0,
