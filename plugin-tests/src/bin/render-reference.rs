@@ -26,6 +26,9 @@ fn main() {
             "--samples" => samples = val().parse().expect("--samples"),
             "--out" => out = Some(val()),
             "--gain-db" => params.play.gain_db = val().parse().expect("--gain-db"),
+            // the Damper knob applies (Custom damper on) instead of the
+            // scene's own damper
+            "--damper-custom" => params.scene.damper_custom = true,
             "--preset" => {
                 let name = val();
                 params.scene.preset =
