@@ -164,7 +164,7 @@ impl Handoff {
     /// The last compile error (also of a candidate an activation's
     /// fallbacks passed over). \[GUI thread\]
     pub fn last_error(&self) -> Option<String> {
-        lock(&self.last_error).clone()
+        self.last_error.get().clone()
     }
 
     /// Cancel the compiles of every revision up to `revision` (the running
@@ -174,7 +174,7 @@ impl Handoff {
     /// under the lock). \[main-thread\]
     pub fn cancel_through(&self, revision: u64) {
         self.cancelled_through.fetch_max(revision, Ordering::AcqRel);
-        let running = lock(&self.running);
+        let running = self.running.get();
         if let Some((r, c)) = running.as_ref() {
             if *r <= revision {
                 c.cancel();
@@ -226,11 +226,6 @@ impl Handoff {
         while self.ready.pop().is_some() {}
         while self.requests.pop().is_some() {}
     }
-}
-
-/// The value behind a lock of the worker's and the main thread's.
-fn lock<T>(m: &Shared<T>) -> std::sync::MutexGuard<'_, T> {
-    m.get()
 }
 
 /// The worker thread of one plugin instance.
@@ -299,7 +294,7 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
             continue;
         }
         let c = Cancel::new();
-        *lock(&h.running) = Some((req.revision, c.clone()));
+        *h.running.get() = Some((req.revision, c.clone()));
         if h.is_cancelled(req.revision) {
             c.cancel();
         }
@@ -309,7 +304,7 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
         // offline render waits for the worker's answer)
         let done = cancel::scope(&c, || {
             std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                compile(lib, &req, |e| *lock(&h.last_error) = Some(e.to_string()))
+                compile(lib, &req, |e| *h.last_error.get() = Some(e.to_string()))
             }))
             .unwrap_or_else(|_| Err("the compile panicked".to_string()))
         });
@@ -325,7 +320,7 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
             (delivery, warnings, variants)
         });
         h.busy.store(false, Ordering::Release);
-        let mut running = lock(&h.running);
+        let mut running = h.running.get();
         *running = None;
         if c.is_cancelled() || h.is_cancelled(req.revision) {
             // an old activation's: dropped here, on the worker, after the
@@ -365,7 +360,7 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
                     "modal_contact: compile of revision {} failed, keeping the last scene: {e}",
                     req.revision
                 );
-                *lock(&h.last_error) = Some(e);
+                *h.last_error.get() = Some(e);
                 h.failed_revision.fetch_max(req.revision, Ordering::AcqRel);
             }
         }
