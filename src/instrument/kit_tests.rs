@@ -4,7 +4,7 @@
 //! blocks and the lookahead do not change a sample, a kit voice stops when
 //! silent and wakes at rest, a swap carries or fades it.
 
-use super::tests::{on, render};
+use super::tests::{on, render, steal_fade_gain};
 use super::*;
 use crate::multi::{CompiledMulti, MultiModel, MultiState};
 use crate::scene::{Scene, Switching};
@@ -721,13 +721,7 @@ fn a_stolen_kit_voice_fades_out_while_the_new_key_starts() {
     let (b, _) = run(&[on(t0, 64, 0.8)], n);
     assert_eq!((inst.stats.steals, inst.stats.steals_faded), (1, 1));
     assert_eq!(inst.voice_keys()[0], Some(64));
-    let gain = |k: usize| {
-        if k < t0 {
-            1.0
-        } else {
-            (fade.saturating_sub(k - t0)) as f64 / fade as f64
-        }
-    };
+    let gain = |k: usize| steal_fade_gain(k, t0, fade);
     for ch in 0..2 {
         let (mut worst, mut cut) = (0.0f64, 0.0f64);
         for k in 0..n {

@@ -36,6 +36,17 @@ pub(super) fn render(inst: &mut Instrument, events: &[TimedEvent], n: usize) -> 
     [l, r]
 }
 
+/// The gain of a voice stolen at sample `t0` at sample `k`: 1 before the
+/// steal, then a linear ramp to 0 over `fade` samples (docs/plugin.md,
+/// "Velocity, pitch, voices"), written out here, not taken from the mixer.
+pub(super) fn steal_fade_gain(k: usize, t0: usize, fade: usize) -> f64 {
+    if k < t0 {
+        1.0
+    } else {
+        (fade.saturating_sub(k - t0)) as f64 / fade as f64
+    }
+}
+
 pub(super) fn on(offset: usize, key: u8, vel: f64) -> TimedEvent {
     TimedEvent {
         offset,
@@ -1865,13 +1876,7 @@ fn a_stolen_voice_fades_out_while_the_new_note_starts_at_once() {
         let (a, _) = run(&[on(0, 57, vel)]);
         let (b, _) = run(&[on(t0, 64, vel)]);
         assert_eq!(stats.steals, 1);
-        let gain = |k: usize| {
-            if k < t0 {
-                1.0
-            } else {
-                (fade.saturating_sub(k - t0)) as f64 / fade as f64
-            }
-        };
+        let gain = |k: usize| steal_fade_gain(k, t0, fade);
         for ch in 0..2 {
             let ring_step = (t0 - 4_800..t0)
                 .map(|k| step_at(&a[ch], k))
@@ -1967,13 +1972,7 @@ fn steals_at_every_polyphony_fade_the_stolen_voice_without_a_jump() {
         let (rest, _) = render_all(&notes);
         let (a, _) = render_all(&[notes[j]]);
         let (b, _) = render_all(&[steal]);
-        let gain = |k: usize| {
-            if k < t_s {
-                1.0
-            } else {
-                (fade.saturating_sub(k - t_s)) as f64 / fade as f64
-            }
-        };
+        let gain = |k: usize| steal_fade_gain(k, t_s, fade);
         for ch in 0..2 {
             let f = |x: &[Vec<f32>; 2], k: usize| x[ch][k] as f64;
             let peak = (0..n).map(|k| f(&rest, k).abs()).fold(0.0, f64::max);
