@@ -157,6 +157,12 @@ pub struct Scene {
     /// Default render length \[s\].
     #[serde(default = "default_duration_s")]
     pub duration_s: f64,
+    /// The real instrument this scene models, by its General MIDI name
+    /// (e.g. "marimba"): `cargo xtask compare-real` compares the scene's
+    /// strike with recordings of it (docs/design.md, "How close to the real
+    /// instruments"); absent: not compared. Rendering ignores it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub real_instrument: Option<String>,
     /// The objects of the scene (at least one).
     #[serde(default)]
     pub object: Vec<ObjectSpec>,

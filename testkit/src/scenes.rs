@@ -124,6 +124,7 @@ impl SceneBuilder {
             pickup: self.pickups,
             approximate: self.approximate,
             play: None,
+            real_instrument: None,
         }
     }
 
