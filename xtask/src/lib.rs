@@ -7,8 +7,11 @@
 //! - [`plot`]: the render plot and the report's diagrams;
 //! - [`report`]: `cargo xtask report` (error against run time, stability);
 //! - [`multisample`]: every note x velocity layer of a scene as WAVs plus
-//!   an SFZ file.
+//!   an SFZ file;
+//! - [`compare_real`]: `cargo xtask compare-real` (the presets against real
+//!   recordings from the FluidR3 General MIDI soundfont).
 
+pub mod compare_real;
 pub mod multisample;
 pub mod offline;
 pub mod plot;

@@ -19,11 +19,16 @@
 //!   `tests/golden-hashes.txt`
 //! - `cargo xtask param-docs [--check]`: the parameter and scene tables of
 //!   `docs/plugin.md`, from the plugin's own lists
+//! - `cargo xtask compare-real [--preset NAME]... [--out DIR] [--sf2 PATH]
+//!   [--check] [--seconds S]`: the presets that name a real instrument
+//!   against its recorded samples in the FluidR3 General MIDI soundfont
+//!   (`docs/compare-real.md`, plots in `docs/compare-real/`, WAV pairs in
+//!   `target/compare-real/`)
 
 mod golden;
 mod paramdocs;
 
-use xtask::{multisample, render, report};
+use xtask::{compare_real, multisample, render, report};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -67,6 +72,12 @@ enum Command {
     /// Write the parameter and scene tables of docs/plugin.md from the
     /// plugin's own lists.
     ParamDocs(ParamDocsArgs),
+    /// Compare every preset that names a real instrument with its recorded
+    /// samples in the FluidR3 General MIDI soundfont (Debian package
+    /// fluid-soundfont-gm): partials, decay times, attack brightness,
+    /// 1/3-octave distance, a confusion table and the targets of issue 49
+    /// (writes docs/compare-real.md and its plots).
+    CompareReal(compare_real::CompareRealArgs),
     /// Anything else: nice-plug's xtask (`bundle`, `bundle-universal`, ...).
     #[command(external_subcommand)]
     NicePlug(Vec<String>),
@@ -102,6 +113,7 @@ fn main() -> Result<()> {
         Some(Command::Demo) => run_demo(),
         Some(Command::Golden(a)) => golden::run(a),
         Some(Command::ParamDocs(a)) => paramdocs::run(a.check),
+        Some(Command::CompareReal(a)) => compare_real::run(&a),
         Some(Command::NicePlug(args)) => nice_plug_xtask::main_with_args("cargo xtask", args),
         None => nice_plug_xtask::main(),
     }

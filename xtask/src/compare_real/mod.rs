@@ -1,0 +1,1310 @@
+//! `cargo xtask compare-real`: every preset that names a real instrument
+//! (its `real_instrument` key, a General MIDI name) against real recorded
+//! samples of that instrument, the raw sample data of the FluidR3 General
+//! MIDI soundfont (Debian package `fluid-soundfont-gm`).
+//!
+//! For each such preset: the scene's strike is rendered (as `cargo xtask
+//! render` renders it, mixed to mono), the soundfont's zones for the
+//! preset's key are played as a sampler plays them (transposed to that
+//! key and resampled to the render's rate; no envelope, filter or loop),
+//! and both are measured from their onsets ([`analysis`]): the
+//! recording's strongest partials and whether the render has them, decay
+//! times per partial, the attack's centroid and energy above 5 kHz, and
+//! the 1/3-octave distance; then the same distance between recordings of
+//! related instruments (the scale of what "close" means), a confusion
+//! table, and the targets of issue 49 per preset. Writes
+//! `DIR/compare-real.md` and `DIR/compare-real/*.svg` (default `docs`),
+//! and WAV pairs (recording, render) into `target/compare-real/`.
+
+pub mod analysis;
+pub mod gm;
+mod plots;
+pub mod sf2;
+
+use analysis::{Peak, Spectrum, T60};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use gm::GmSound;
+use modal_contact::instrument::root_note;
+use modal_contact::scene::Scene;
+use rayon::prelude::*;
+use sf2::{KeyRegion, SoundFont, VELOCITY};
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Where Debian's `fluid-soundfont-gm` installs the soundfont.
+pub const DEFAULT_SF2: &str = "/usr/share/sounds/sf2/FluidR3_GM.sf2";
+/// The Debian package that holds it.
+pub const SF2_PACKAGE: &str = "fluid-soundfont-gm";
+
+/// Sample rate of the renders and of the played recordings \[Hz\]: the
+/// render command's default.
+pub const RATE_HZ: f64 = 44100.0;
+/// The stretch whose spectra are compared (band levels, plots) \[s\]
+/// from the onset, shortened to the shorter signal when one is shorter.
+pub const WINDOW_S: f64 = 0.5;
+/// The window of the long spectrum whose peaks are the partials \[s\].
+pub const PARTIAL_WINDOW_S: f64 = 1.0;
+/// The attack \[s\] from the onset.
+pub const ATTACK_S: f64 = 0.05;
+/// The frequency above which the attack's energy is counted \[Hz\].
+pub const HF_HZ: f64 = 5000.0;
+/// The recording's partials compared.
+pub const PARTIALS: usize = 4;
+/// Peaks further below the strongest are not taken as partials \[dB\].
+pub const PEAK_RANGE_DB: f64 = 60.0;
+/// A render peak counts as a partial within this many dB of the render's
+/// strongest peak.
+pub const RENDER_RANGE_DB: f64 = 60.0;
+/// Partials on the T60 plots, per signal.
+pub const PLOT_PARTIALS: usize = 8;
+
+/// Target: 1/3-octave distance at most this \[dB\].
+pub const TARGET_DISTANCE_DB: f64 = 6.0;
+/// Target: attack centroid ratio (render / real) within this range.
+pub const TARGET_CENTROID: (f64, f64) = (0.75, 1.33);
+/// Target: energy above 5 kHz within +- this of the real's \[dB\].
+pub const TARGET_HF_DB: f64 = 6.0;
+/// Target: the recording's strongest partials present within this \[cents\].
+pub const TARGET_CENTS: f64 = 15.0;
+/// Target: T60 per partial within this factor.
+pub const TARGET_T60_FACTOR: f64 = 1.5;
+/// A render partial this near a real one (cents) is the one whose decay is
+/// compared with it.
+pub const T60_MATCH_CENTS: f64 = 50.0;
+
+/// The furthest a recording is transposed \[cents\]: an octave. A
+/// sample played further from its recorded pitch no longer sounds like
+/// the instrument (its timbre and band limit move with it), so a pitched
+/// recording is played at the nearest key within an octave of its zones'
+/// root keys instead, and the report says so.
+pub const MAX_TRANSPOSE_CENTS: f64 = 1200.0;
+
+/// The recordings every preset is compared with in the confusion table,
+/// besides the instruments the presets name.
+pub const CONFUSION_EXTRA: [&str; 5] = [
+    "Xylophone",
+    "Celesta",
+    "Steel Drums",
+    "Timpani",
+    "Hi Wood Block",
+];
+
+/// The pairs of recordings of related instruments whose distance is the
+/// scale of "close"; a pitched pair is played at a common key: the key of
+/// the first preset that names its first instrument, or the nearest key
+/// at which both are within an octave of their recordings
+/// (`common_key`).
+pub const SCALE_PAIRS: [(&str, &str); 7] = [
+    ("Marimba", "Xylophone"),
+    ("Marimba", "Vibraphone"),
+    ("Glockenspiel", "Celesta"),
+    ("Tubular Bells", "Glockenspiel"),
+    ("Low Floor Tom", "High Floor Tom"),
+    ("Acoustic Snare", "Electric Snare"),
+    ("Woodblock", "Hi Wood Block"),
+];
+
+/// Presets that name no instrument because FluidR3 has no fitting
+/// recording, and what it has instead (found by listing its preset
+/// headers and the kit's zones: see the report's last section).
+pub const NO_RECORDING: [(&str, &str); 2] = [
+    (
+        "bell",
+        "FluidR3's bells are Tubular Bells (program 14), whose sample also plays bank 8's \
+         Church Bell, Tinkle Bell (program 112, a toy bell), Agogo and the kit's Cowbell and \
+         Ride Bell: no church bell",
+    ),
+    (
+        "steel-plate",
+        "no struck plate: the nearest are the kit's cymbals (domed bronze)",
+    ),
+];
+
+/// `cargo xtask compare-real [--preset NAME]... [--out DIR] [--sf2 PATH]
+/// [--check] [--seconds S]`.
+#[derive(Args, Debug)]
+pub struct CompareRealArgs {
+    /// Where compare-real.md goes (the plots into its compare-real/).
+    #[arg(long, default_value = "docs")]
+    pub out: PathBuf,
+    /// Compare only this preset (file name without .toml; repeatable).
+    #[arg(long = "preset", value_name = "NAME")]
+    pub presets: Vec<String>,
+    /// The General MIDI soundfont (Debian package fluid-soundfont-gm).
+    #[arg(long, default_value = DEFAULT_SF2)]
+    pub sf2: PathBuf,
+    /// Exit non-zero when any target fails (else always 0 after the
+    /// report).
+    #[arg(long)]
+    pub check: bool,
+    /// Length of each render \[s\].
+    #[arg(long, default_value_t = 4.0)]
+    pub seconds: f64,
+}
+
+/// The workspace root (the presets and `target/` are found from it).
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The keys nearest `key` first (`key`, then one below, one above, ...).
+fn keys_around(key: u8) -> impl Iterator<Item = u8> {
+    let k = i32::from(key);
+    std::iter::once(k)
+        .chain((1..128).flat_map(move |d| [k - d, k + d]))
+        .filter(|k| (0..128).contains(k))
+        .map(|k| k as u8)
+}
+
+/// Whether `s` played at `key` is transposed at most
+/// [`MAX_TRANSPOSE_CENTS`] (a percussion key always is: it plays at its
+/// own key).
+fn near_recorded(sf: &SoundFont, s: GmSound, key: u8) -> bool {
+    let (bank, program) = s.bank_program();
+    sf.transposition(bank, program, s.key_for(key), VELOCITY)
+        .is_some_and(|c| c <= MAX_TRANSPOSE_CENTS + 1e-9)
+}
+
+/// The key `s` is played at to stand for `key`: its percussion key; else
+/// `key` itself when that is within an octave of the recording, otherwise
+/// the nearest key that is ([`MAX_TRANSPOSE_CENTS`]); `key` when none is.
+fn playable_key(sf: &SoundFont, s: GmSound, key: u8) -> u8 {
+    if s.is_drum() {
+        return s.key_for(key);
+    }
+    keys_around(key)
+        .find(|&k| near_recorded(sf, s, k))
+        .unwrap_or(key)
+}
+
+/// The common key of two recordings compared with each other: the
+/// nearest key to `key` at which both are within an octave of their
+/// recordings ([`MAX_TRANSPOSE_CENTS`]), `key` when there is none.
+fn common_key(sf: &SoundFont, a: GmSound, b: GmSound, key: u8) -> u8 {
+    keys_around(key)
+        .find(|&k| near_recorded(sf, a, k) && near_recorded(sf, b, k))
+        .unwrap_or(key)
+}
+
+/// A preset file and what it names.
+struct PresetFile {
+    /// File name without `.toml`.
+    stem: String,
+    scene: Scene,
+    /// The key the scene sounds at ([`root_note`], rounded).
+    key: u8,
+    /// The instrument it names: none, or an unknown name.
+    real: Result<Option<GmSound>, String>,
+}
+
+fn load_presets(dir: &Path) -> Result<Vec<PresetFile>> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .with_context(|| format!("cannot read {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    files.sort();
+    files
+        .iter()
+        .map(|p| {
+            let scene = Scene::from_file(p).with_context(|| format!("presets/{}", file_name(p)))?;
+            let stem = p
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let real = match &scene.real_instrument {
+                None => Ok(None),
+                Some(n) => GmSound::parse(n).map(Some).ok_or_else(|| {
+                    format!("{n:?} is not a General MIDI program or percussion key name")
+                }),
+            };
+            Ok(PresetFile {
+                stem,
+                key: root_note(&scene).round().clamp(0.0, 127.0) as u8,
+                scene,
+                real,
+            })
+        })
+        .collect()
+}
+
+fn file_name(p: &Path) -> String {
+    p.file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// The scene's strike rendered as `cargo xtask render` renders it (the
+/// scene as written, one or several contacts), the two channels mixed to
+/// mono.
+fn render_mono(scene: &Scene, seconds: f64) -> Result<Vec<f64>> {
+    use modal_contact::render::{render_compiled, render_length};
+    let n = render_length(seconds, RATE_HZ)?;
+    let (l, r) = if scene.several_contacts() {
+        use modal_contact::multi::{render_multi, CompiledMulti, MultiModel};
+        let model = MultiModel::from_scene(scene, RATE_HZ)?;
+        let switching = scene.contact.switching.unwrap_or_default();
+        let compiled = CompiledMulti::with_switching(&model, RATE_HZ, switching)
+            .map_err(|e| e.in_scene(scene))?;
+        let (mut l, mut r) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        render_multi(
+            &compiled,
+            n,
+            |a, b| {
+                l.extend_from_slice(a);
+                r.extend_from_slice(b);
+                Ok(())
+            },
+            None,
+        )?;
+        (l, r)
+    } else {
+        let compiled = modal_contact::compile::compile_with(scene, RATE_HZ, None)?;
+        let out = render_compiled(&compiled, n, false);
+        (out.left, out.right)
+    };
+    let mono: Vec<f64> = l.iter().zip(&r).map(|(a, b)| 0.5 * (a + b)).collect();
+    if mono.iter().any(|x| !x.is_finite()) {
+        bail!("the render is not finite");
+    }
+    if mono.iter().all(|x| *x == 0.0) {
+        bail!("the render is silent");
+    }
+    Ok(mono)
+}
+
+/// A sound ready to measure: from its onset, at [`RATE_HZ`].
+struct Sound {
+    /// The samples from the onset.
+    x: Vec<f64>,
+    /// Where the onset was in the played or rendered signal \[s\].
+    onset_s: f64,
+    /// Its band limit \[Hz\] (a recording's sample rate and transposition).
+    band_limit_hz: f64,
+}
+
+impl Sound {
+    fn new(full: &[f64], band_limit_hz: f64) -> Self {
+        let o = analysis::onset(full, RATE_HZ);
+        Self {
+            x: full[o..].to_vec(),
+            onset_s: o as f64 / RATE_HZ,
+            band_limit_hz,
+        }
+    }
+
+    fn seconds(&self) -> f64 {
+        self.x.len() as f64 / RATE_HZ
+    }
+}
+
+/// A recording: a soundfont key region played at a key.
+struct Recording {
+    region: KeyRegion,
+    played: Sound,
+}
+
+impl Recording {
+    /// The region played at [`RATE_HZ`].
+    fn new(region: KeyRegion) -> Self {
+        let full = region.play(RATE_HZ);
+        let limit = region.band_limit_hz().min(0.5 * RATE_HZ);
+        Self {
+            played: Sound::new(&full, limit),
+            region,
+        }
+    }
+
+    /// One line on the samples and their transposition.
+    fn describe(&self) -> String {
+        let r = &self.region;
+        let zones: Vec<String> = r
+            .zones
+            .iter()
+            .map(|z| {
+                let looped = match z.looped {
+                    Some((a, b)) => format!(
+                        ", looped {:.3}-{:.3} s in the soundfont (the loop is not played)",
+                        a as f64 / z.rate_hz,
+                        b as f64 / z.rate_hz
+                    ),
+                    None => String::new(),
+                };
+                format!(
+                    "\"{}\" ({}, {} Hz, {:.2} s{looped})",
+                    z.name,
+                    z.channel(),
+                    z.rate_hz,
+                    z.seconds()
+                )
+            })
+            .collect();
+        let z0 = &r.zones[0];
+        let transposed = r.zones.iter().map(|z| z.cents / 100.0).collect::<Vec<_>>();
+        let same = transposed.iter().all(|t| (t - transposed[0]).abs() < 1e-9);
+        let semis = if same {
+            format!("{:+.2}", transposed[0])
+        } else {
+            transposed
+                .iter()
+                .map(|t| format!("{t:+.2}"))
+                .collect::<Vec<_>>()
+                .join(" / ")
+        };
+        let far = r.zones.iter().map(|z| z.cents.abs()).fold(0.0, f64::max) > 1200.0;
+        let caution = if far {
+            ". **Caution**: transposed by more than an octave, far from where it was recorded \
+             (its timbre and band limit moved with it): this comparison says little"
+        } else {
+            ""
+        };
+        format!(
+            "FluidR3 \"{}\" (bank {} program {}) key {} velocity {}: {} zone{} {}{}; root key {}; \
+             played at key {} as a sampler plays it: transposed {semis} semitones, resampled to {} Hz; \
+             {:.2} s from the onset, band limit {:.1} kHz{caution}",
+            r.preset_name,
+            r.bank,
+            r.program,
+            r.key,
+            r.velocity,
+            r.zones.len(),
+            if r.zones.len() == 1 { "" } else { "s" },
+            zones.join(" + "),
+            if r.zones.len() > 1 { " mixed to mono" } else { "" },
+            z0.root_key,
+            r.key,
+            RATE_HZ,
+            self.played.seconds(),
+            self.played.band_limit_hz / 1000.0
+        )
+    }
+}
+
+/// The partials of a sound: the strongest peaks of its long spectrum.
+fn partials(s: &Sound, range_db: f64) -> Vec<Peak> {
+    let (spec, n) = analysis::long_spectrum(&s.x, RATE_HZ, PARTIAL_WINDOW_S);
+    let hi = (0.95 * s.band_limit_hz).min(20000.0);
+    analysis::peaks(&spec, n, 30.0, hi, range_db)
+}
+
+/// One of the recording's strongest partials against the render.
+struct PartialRow {
+    real: Peak,
+    /// Frequency over the lowest of the compared partials.
+    ratio: f64,
+    /// The render's nearest partial and its distance in cents.
+    render: Option<(Peak, f64)>,
+    t60_real: T60,
+    /// The render's decay at its partial within [`T60_MATCH_CENTS`].
+    t60_render: Option<T60>,
+}
+
+impl PartialRow {
+    fn present(&self) -> bool {
+        self.render.is_some_and(|(_, c)| c.abs() <= TARGET_CENTS)
+    }
+
+    /// Render T60 / real T60 when both have a fit.
+    fn t60_ratio(&self) -> Option<f64> {
+        let r = self.t60_real.seconds()?;
+        let g = self.t60_render.as_ref()?.seconds()?;
+        Some(g / r)
+    }
+}
+
+/// A target's outcome.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Verdict {
+    Pass,
+    Fail,
+    /// Not measurable here (said why).
+    NotApplicable,
+}
+
+impl Verdict {
+    fn of(ok: bool) -> Self {
+        if ok {
+            Self::Pass
+        } else {
+            Self::Fail
+        }
+    }
+
+    fn word(self) -> &'static str {
+        match self {
+            Self::Pass => "PASS",
+            Self::Fail => "FAIL",
+            Self::NotApplicable => "n/a",
+        }
+    }
+}
+
+/// One target of issue 49 for one preset.
+struct Target {
+    name: &'static str,
+    verdict: Verdict,
+    detail: String,
+}
+
+/// The partials plotted on the T60 plot: frequency and fit.
+type Decays = Vec<(f64, T60)>;
+
+/// A preset measured against its recording.
+struct Comparison {
+    stem: String,
+    sound: GmSound,
+    key: u8,
+    recording: String,
+    render_onset_s: f64,
+    window_s: f64,
+    rows: Vec<PartialRow>,
+    centroid: (f64, f64),
+    hf_db: (f64, f64),
+    distance: f64,
+    /// Distance to every recording of the confusion set (`None`: no zone)
+    /// and the key it was played at.
+    confusion: Vec<(GmSound, Option<f64>, u8)>,
+    targets: Vec<Target>,
+    /// For the plots: the two energy spectra (real, render).
+    spectra: (Spectrum, Spectrum),
+    /// For the plots: decays of the strongest partials (real, render).
+    decays: (Decays, Decays),
+    /// For the WAVs: the two signals from their onsets.
+    signals: (Vec<f64>, Vec<f64>),
+}
+
+/// The 1/3-octave distance between two sounds over the first
+/// [`WINDOW_S`] (or the shorter one's length).
+fn distance(a: &Sound, b: &Sound) -> f64 {
+    let t = WINDOW_S.min(a.seconds()).min(b.seconds());
+    let la = analysis::band_levels(&analysis::welch(&a.x, RATE_HZ, t));
+    let lb = analysis::band_levels(&analysis::welch(&b.x, RATE_HZ, t));
+    analysis::third_octave_distance(&la, &lb)
+}
+
+/// The decays of a sound's partials.
+fn decays(s: &Sound, frames: &[Vec<f64>], peaks: &[Peak]) -> Decays {
+    peaks
+        .iter()
+        .map(|p| {
+            (
+                p.freq_hz,
+                analysis::fit_t60(&analysis::track(frames, RATE_HZ, p.freq_hz)),
+            )
+        })
+        .filter(|_| !s.x.is_empty())
+        .collect()
+}
+
+type RecordingKey = (GmSound, u8);
+
+/// Measure a preset against its recording and the confusion set.
+fn compare(
+    p: &PresetFile,
+    sound: GmSound,
+    render: &Sound,
+    recs: &BTreeMap<RecordingKey, std::result::Result<Recording, String>>,
+    keys: &BTreeMap<RecordingKey, u8>,
+    set: &[GmSound],
+) -> Result<Comparison> {
+    let own_key = keys[&(sound, p.key)];
+    let own = match &recs[&(sound, own_key)] {
+        Ok(r) => r,
+        Err(e) => bail!("{e}"),
+    };
+    let real = &own.played;
+    let window_s = WINDOW_S.min(real.seconds()).min(render.seconds());
+
+    // partials
+    let real_peaks = partials(real, PEAK_RANGE_DB);
+    let render_peaks = partials(render, RENDER_RANGE_DB);
+    let real_frames = analysis::stft(&real.x);
+    let render_frames = analysis::stft(&render.x);
+    let strongest: Vec<Peak> = real_peaks.iter().copied().take(PARTIALS).collect();
+    let lowest = strongest
+        .iter()
+        .map(|p| p.freq_hz)
+        .fold(f64::INFINITY, f64::min);
+    let rows = strongest
+        .iter()
+        .map(|&rp| {
+            let near = render_peaks
+                .iter()
+                .map(|q| (*q, analysis::cents(rp.freq_hz, q.freq_hz)))
+                .min_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
+            let t60_render = near
+                .filter(|(_, c)| c.abs() <= T60_MATCH_CENTS)
+                .map(|(q, _)| {
+                    analysis::fit_t60(&analysis::track(&render_frames, RATE_HZ, q.freq_hz))
+                });
+            PartialRow {
+                real: rp,
+                ratio: rp.freq_hz / lowest,
+                render: near,
+                t60_real: analysis::fit_t60(&analysis::track(&real_frames, RATE_HZ, rp.freq_hz)),
+                t60_render,
+            }
+        })
+        .collect::<Vec<_>>();
+
+    // attack
+    let ra = analysis::attack_spectrum(&real.x, RATE_HZ, ATTACK_S);
+    let ga = analysis::attack_spectrum(&render.x, RATE_HZ, ATTACK_S);
+    let centroid = (analysis::centroid(&ra), analysis::centroid(&ga));
+    let hf_db = (
+        analysis::fraction_above_db(&ra, HF_HZ),
+        analysis::fraction_above_db(&ga, HF_HZ),
+    );
+
+    // bands
+    let spectra = (
+        analysis::welch(&real.x, RATE_HZ, window_s),
+        analysis::welch(&render.x, RATE_HZ, window_s),
+    );
+    let dist = analysis::third_octave_distance(
+        &analysis::band_levels(&spectra.0),
+        &analysis::band_levels(&spectra.1),
+    );
+    let confusion: Vec<(GmSound, Option<f64>, u8)> = set
+        .iter()
+        .map(|&s| {
+            let k = keys[&(s, p.key)];
+            let d = recs[&(s, k)]
+                .as_ref()
+                .ok()
+                .map(|r| distance(render, &r.played));
+            (s, d, k)
+        })
+        .collect();
+
+    // targets
+    let mut targets = Vec::new();
+    targets.push(Target {
+        name: "1/3-octave distance <= 6 dB",
+        verdict: Verdict::of(dist <= TARGET_DISTANCE_DB),
+        detail: format!("{dist:.1} dB"),
+    });
+    let cr = centroid.1 / centroid.0;
+    targets.push(Target {
+        name: "attack centroid 0.75-1.33x",
+        verdict: Verdict::of((TARGET_CENTROID.0..=TARGET_CENTROID.1).contains(&cr)),
+        detail: format!("{cr:.2}x"),
+    });
+    let hd = hf_db.1 - hf_db.0;
+    let (hf_verdict, hf_detail) = if real.band_limit_hz < HF_HZ * 1.1 {
+        (
+            Verdict::NotApplicable,
+            format!(
+                "{hd:+.1} dB, but the recording stops at {:.1} kHz",
+                real.band_limit_hz / 1000.0
+            ),
+        )
+    } else {
+        (
+            Verdict::of(hd.abs() <= TARGET_HF_DB),
+            format!("{hd:+.1} dB"),
+        )
+    };
+    targets.push(Target {
+        name: "energy > 5 kHz within +-6 dB",
+        verdict: hf_verdict,
+        detail: hf_detail,
+    });
+    let present = rows.iter().filter(|r| r.present()).count();
+    let elsewhere = if own_key == sound.key_for(p.key) {
+        String::new()
+    } else {
+        format!(", the recording at key {own_key}")
+    };
+    targets.push(Target {
+        name: "4 strongest partials within 15 cents",
+        verdict: Verdict::of(present == rows.len() && rows.len() == PARTIALS),
+        detail: format!("{present} of {}{elsewhere}", rows.len()),
+    });
+    let ratios: Vec<f64> = rows.iter().filter_map(PartialRow::t60_ratio).collect();
+    targets.push(if ratios.is_empty() {
+        Target {
+            name: "T60 within 1.5x",
+            verdict: Verdict::NotApplicable,
+            detail: "no partial with a fit on both".into(),
+        }
+    } else {
+        let ok = ratios
+            .iter()
+            .filter(|r| (1.0 / TARGET_T60_FACTOR..=TARGET_T60_FACTOR).contains(*r))
+            .count();
+        Target {
+            name: "T60 within 1.5x",
+            verdict: Verdict::of(ok == ratios.len()),
+            detail: format!("{ok} of {} fitted", ratios.len()),
+        }
+    });
+    let nearest = confusion
+        .iter()
+        .filter_map(|(s, d, _)| d.map(|d| (*s, d)))
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    targets.push(Target {
+        name: "nearest recording is its own",
+        verdict: Verdict::of(nearest.is_some_and(|(s, _)| s == sound)),
+        detail: nearest.map_or("none".into(), |(s, d)| format!("{} ({d:.1} dB)", s.name())),
+    });
+
+    let real_top: Vec<Peak> = real_peaks.iter().copied().take(PLOT_PARTIALS).collect();
+    let render_top: Vec<Peak> = render_peaks.iter().copied().take(PLOT_PARTIALS).collect();
+    Ok(Comparison {
+        stem: p.stem.clone(),
+        sound,
+        key: p.key,
+        recording: if own_key == sound.key_for(p.key) {
+            own.describe()
+        } else {
+            format!(
+                "{}. Played at key {own_key}, not at the preset's key {}: there the recording would be \
+                 transposed by more than an octave (see the method)",
+                own.describe(),
+                p.key
+            )
+        },
+        render_onset_s: render.onset_s,
+        window_s,
+        rows,
+        centroid,
+        hf_db,
+        distance: dist,
+        confusion,
+        targets,
+        decays: (
+            decays(real, &real_frames, &real_top),
+            decays(render, &render_frames, &render_top),
+        ),
+        spectra,
+        signals: (real.x.clone(), render.x.clone()),
+    })
+}
+
+/// Today's date (UTC) as YYYY-MM-DD (H. Hinnant's days-to-civil algorithm).
+fn today_utc() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    let z = (secs / 86400) as i64 + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!("{y:04}-{m:02}-{d:02}")
+}
+
+fn rustc_version() -> String {
+    std::process::Command::new("rustc")
+        .arg("--version")
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+        .unwrap_or_else(|| "rustc (version unknown)".into())
+}
+
+fn fmt_t60(t: &T60) -> String {
+    match t {
+        T60::Fit { t60_s, to_end, .. } => {
+            format!("{t60_s:.2}{}", if *to_end { " (to end)" } else { "" })
+        }
+        T60::NoFit(why) => format!("no fit: {why}"),
+    }
+}
+
+fn fmt_hz(f: f64) -> String {
+    if f >= 1000.0 {
+        format!("{:.2} k", f / 1000.0)
+    } else {
+        format!("{f:.1}")
+    }
+}
+
+/// What FluidR3 offers for the presets that name no recording: preset
+/// headers whose names say bell, chime, gong, plate, cymbal, triangle,
+/// agogo or steel (not the steel-string guitar), each with the samples its zones play at key 72, and the
+/// standard kit's metal keys with theirs.
+fn bells_and_plates(sf: &SoundFont) -> String {
+    const WORDS: [&str; 8] = [
+        "bell", "chime", "gong", "plate", "cymbal", "triangle", "agogo", "steel",
+    ];
+    let samples = |bank: u16, program: u16, key: u8| -> String {
+        match sf.key_region(bank, program, key, VELOCITY) {
+            Ok(r) => {
+                let mut names: Vec<String> = Vec::new();
+                for z in &r.zones {
+                    let n = format!("\"{}\"", z.name);
+                    if !names.contains(&n) {
+                        names.push(n);
+                    }
+                }
+                names.join(", ")
+            }
+            Err(_) => "no zone".into(),
+        }
+    };
+    let mut s = String::new();
+    for h in sf.presets() {
+        let low = h.name.to_lowercase();
+        if h.bank < 128 && WORDS.iter().any(|w| low.contains(w)) && !low.contains("guitar") {
+            let _ = writeln!(
+                s,
+                "- bank {} program {} \"{}\": key 72 plays {}",
+                h.bank,
+                h.program,
+                h.name,
+                samples(h.bank, h.program, 72)
+            );
+        }
+    }
+    for key in [49u8, 51, 52, 53, 55, 56, 57, 59, 80, 81] {
+        let _ = writeln!(
+            s,
+            "- kit (bank 128 program 0) key {key} {}: plays {}",
+            GmSound::Drum(key).name(),
+            samples(128, 0, key)
+        );
+    }
+    s
+}
+
+/// The report's method section.
+fn method_text(seconds: f64) -> String {
+    format!(
+        "Each preset's strike is rendered as `cargo xtask render presets/NAME.toml --seconds {seconds}` renders it \
+(the scene as written, {RATE_HZ} Hz, the two channels mixed to mono). The recording is the raw sample data of \
+the FluidR3 soundfont's zones for the instrument (General MIDI bank 0 program, or the standard kit, bank 128, for a \
+percussion key) at the preset's key (`modal_contact::instrument::root_note`, rounded) and velocity {VELOCITY}, played as a sampler plays it \
+and nothing more: transposed by scaleTuning x (key - root key) + coarse and fine tune + the sample's pitch \
+correction, resampled to {RATE_HZ} Hz by windowed-sinc interpolation, the zones (a stereo pair's left and right) \
+mixed to mono; no envelope, filter, effect or loop (a looped sample ends where its data ends). Percussion keys \
+are played at their own key (only their fine tune applies). A pitched recording is never transposed by more than \
+an octave (further from its recorded pitch a sample no longer sounds like the instrument: its timbre and band \
+limit move with it): where the preset's key would ask for more, it is played at the nearest key within an octave \
+and the report says so. Both signals start at their onset (1 ms before the \
+first sample within 40 dB of the peak); levels are normalised (every measure below is a ratio).
+
+- **Partials**: peaks of a Hann-windowed spectrum of the first {PARTIAL_WINDOW_S} s (zero-padded 4x, \
+parabolic interpolation), each the largest within +-3 % and within {PEAK_RANGE_DB} dB of the strongest; the \
+recording's {PARTIALS} strongest, their ratio to the lowest of them, and the render's nearest peak (render peaks \
+count within {RENDER_RANGE_DB} dB of the render's strongest), its level relative to the render's strongest and \
+the error in cents.
+- **T60**: each partial's level per frame of a 4096-point Hann STFT (hop 512; the largest bin within +-2 bins), \
+a least-squares line in dB from 3 dB below its peak down to 10 dB above the noise floor (the median of the last \
+10 % of the frames when the track has levelled off there; when it still falls, the signal ended first and the \
+line runs to its end: \"to end\") or 60 dB below its start, whichever comes first (a render has no noise floor); \
+T60 = 60 dB / slope, no fit below {min} dB of fitted decay. The render's decay is fitted at its partial within \
+{T60_MATCH_CENTS} cents of the real one.
+- **Attack**: the first {attack} ms (1 ms fade-in, 5 ms fade-out): the power-weighted spectral centroid above 20 Hz, \
+and the energy above {hf} kHz as a fraction of the total, in dB.
+- **1/3-octave distance**: band energies of the first {WINDOW_S} s (or the shorter signal's length; 8192-point \
+Hann frames at hop 2048, a 10 ms fade-out at the end), 26 bands 50 Hz - 16 kHz (IEC 61260 base-10 centres), each \
+over the sum of the 26 bands in dB and floored {floor} dB below the loudest band; the distance is the RMS over the \
+bands of the two sets' difference (`analysis::third_octave_distance`).
+- **Targets** (issue 49): distance <= {TARGET_DISTANCE_DB} dB; centroid ratio (render / real) within \
+{c0}-{c1}; energy above 5 kHz within +-{TARGET_HF_DB} dB of the real's; the recording's {PARTIALS} strongest \
+partials present in the render within {TARGET_CENTS} cents; T60 ratio within {TARGET_T60_FACTOR}x for each \
+partial with a fit on both; the nearest recording in the confusion table is the preset's own instrument.",
+        min = analysis::MIN_FIT_DB,
+        attack = ATTACK_S * 1000.0,
+        hf = HF_HZ / 1000.0,
+        floor = analysis::BAND_FLOOR_DB,
+        c0 = TARGET_CENTROID.0,
+        c1 = TARGET_CENTROID.1,
+    )
+}
+
+/// `cargo xtask compare-real`.
+pub fn run(a: &CompareRealArgs) -> Result<()> {
+    let t0 = Instant::now();
+    if !a.sf2.is_file() {
+        bail!(
+            "soundfont {} not found: install the Debian package {SF2_PACKAGE} \
+             (apt-get install {SF2_PACKAGE}), or give another with --sf2 PATH",
+            a.sf2.display()
+        );
+    }
+    if !(a.seconds > 0.0 && a.seconds <= 60.0) {
+        bail!("--seconds must be in (0, 60], got {}", a.seconds);
+    }
+    let root = workspace_root();
+    let all = load_presets(&root.join("presets"))?;
+    for name in &a.presets {
+        if !all.iter().any(|p| &p.stem == name) {
+            bail!("no preset presets/{name}.toml");
+        }
+    }
+    let chosen: Vec<&PresetFile> = all
+        .iter()
+        .filter(|p| a.presets.is_empty() || a.presets.contains(&p.stem))
+        .collect();
+    let compared: Vec<(&PresetFile, GmSound)> = chosen
+        .iter()
+        .filter_map(|p| match p.real {
+            Ok(Some(s)) => Some((*p, s)),
+            _ => None,
+        })
+        .collect();
+
+    // the soundfont and the renders, side by side
+    let (sf, renders) = rayon::join(
+        || SoundFont::open(&a.sf2),
+        || {
+            compared
+                .par_iter()
+                .map(|(p, _)| {
+                    render_mono(&p.scene, a.seconds)
+                        .with_context(|| format!("rendering presets/{}.toml", p.stem))
+                })
+                .collect::<Vec<_>>()
+        },
+    );
+    let sf = sf?;
+    let renders: Vec<Sound> = renders
+        .into_iter()
+        .map(|r| r.map(|x| Sound::new(&x, 0.5 * RATE_HZ)))
+        .collect::<Result<_>>()?;
+
+    // every recording needed, once: own, confusion set, scale pairs
+    let mut set: Vec<GmSound> = Vec::new();
+    for p in &all {
+        if let Ok(Some(s)) = p.real {
+            if !set.contains(&s) {
+                set.push(s);
+            }
+        }
+    }
+    for n in CONFUSION_EXTRA {
+        let s = GmSound::parse(n).expect("a GM name");
+        if !set.contains(&s) {
+            set.push(s);
+        }
+    }
+    let key_of = |s: GmSound| -> u8 {
+        all.iter()
+            .find(|p| matches!(p.real, Ok(Some(x)) if x == s))
+            .map_or(60, |p| p.key)
+    };
+    // the key each recording is played at, for each preset's key
+    let mut keys: BTreeMap<RecordingKey, u8> = BTreeMap::new();
+    let mut wanted: Vec<RecordingKey> = Vec::new();
+    for (p, _) in &compared {
+        for &o in &set {
+            let k = playable_key(&sf, o, p.key);
+            keys.insert((o, p.key), k);
+            if !wanted.contains(&(o, k)) {
+                wanted.push((o, k));
+            }
+        }
+    }
+    let pairs: Vec<(GmSound, GmSound, u8)> = SCALE_PAIRS
+        .iter()
+        .map(|(x, y)| {
+            let (x, y) = (
+                GmSound::parse(x).expect("GM"),
+                GmSound::parse(y).expect("GM"),
+            );
+            (x, y, common_key(&sf, x, y, key_of(x)))
+        })
+        .collect();
+    for &(x, y, k) in &pairs {
+        for s in [x, y] {
+            if !wanted.contains(&(s, s.key_for(k))) {
+                wanted.push((s, s.key_for(k)));
+            }
+        }
+    }
+    let recs: BTreeMap<RecordingKey, std::result::Result<Recording, String>> = wanted
+        .par_iter()
+        .map(|&(s, key)| {
+            let (bank, program) = s.bank_program();
+            let r = sf
+                .key_region(bank, program, key, VELOCITY)
+                .map(Recording::new)
+                .map_err(|e| format!("{e:#}"));
+            ((s, key), r)
+        })
+        .collect();
+
+    let comparisons: Vec<Result<Comparison>> = compared
+        .par_iter()
+        .zip(&renders)
+        .map(|((p, s), render)| {
+            compare(p, *s, render, &recs, &keys, &set)
+                .with_context(|| format!("comparing presets/{}.toml", p.stem))
+        })
+        .collect();
+
+    // the report
+    let sf_size = std::fs::metadata(&a.sf2).map(|m| m.len()).unwrap_or(0);
+    let mut md = String::new();
+    let _ = writeln!(md, "# Presets against real recordings\n");
+    let only = if a.presets.is_empty() {
+        String::new()
+    } else {
+        format!(" --preset {}", a.presets.join(" --preset "))
+    };
+    let _ = writeln!(
+        md,
+        "Generated by `cargo xtask compare-real{only}` on {} with {}, soundfont {} ({sf_size} bytes, Debian \
+         package `{SF2_PACKAGE}`); do not edit by hand.\n",
+        today_utc(),
+        rustc_version(),
+        file_name(&a.sf2)
+    );
+    let mut body = String::new();
+    let _ = writeln!(body, "## Method\n\n{}\n", method_text(a.seconds));
+
+    // summary
+    let _ = writeln!(body, "## Summary\n");
+    let _ = writeln!(
+        body,
+        "| preset | real instrument | key | distance [dB] | centroid render/real | > 5 kHz render-real [dB] | partials within 15 cents | T60 within 1.5x | nearest recording | targets passed |"
+    );
+    let _ = writeln!(body, "|---|---|---|---|---|---|---|---|---|---|");
+    let (mut passed, mut failed, mut failures) = (0, 0, Vec::new());
+    for c in &comparisons {
+        match c {
+            Ok(c) => {
+                let t =
+                    |i: usize| format!("{} {}", c.targets[i].detail, c.targets[i].verdict.word());
+                let p = c
+                    .targets
+                    .iter()
+                    .filter(|t| t.verdict == Verdict::Pass)
+                    .count();
+                let f = c
+                    .targets
+                    .iter()
+                    .filter(|t| t.verdict == Verdict::Fail)
+                    .count();
+                passed += p;
+                failed += f;
+                if f > 0 {
+                    failures.push(c.stem.clone());
+                }
+                let _ = writeln!(
+                    body,
+                    "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {p} of {} |",
+                    c.stem,
+                    c.sound.label(),
+                    c.key,
+                    t(0),
+                    t(1),
+                    t(2),
+                    t(3),
+                    t(4),
+                    t(5),
+                    c.targets
+                        .iter()
+                        .filter(|t| t.verdict != Verdict::NotApplicable)
+                        .count()
+                );
+            }
+            Err(e) => {
+                failed += 1;
+                let _ = writeln!(body, "| error | {e:#} | | | | | | | | |");
+                failures.push(format!("{e:#}"));
+            }
+        }
+    }
+    let mut not_compared = Vec::new();
+    for p in &chosen {
+        match &p.real {
+            Ok(Some(_)) => {}
+            Ok(None) => {
+                let why = NO_RECORDING
+                    .iter()
+                    .find(|(s, _)| *s == p.stem)
+                    .map_or("names no real instrument".to_string(), |(_, w)| {
+                        format!("no fitting recording in FluidR3: {w}")
+                    });
+                not_compared.push(format!("- {}: not compared ({why})", p.stem));
+            }
+            Err(e) => {
+                failed += 1;
+                failures.push(format!("{}: {e}", p.stem));
+                not_compared.push(format!("- {}: not compared ({e})", p.stem));
+            }
+        }
+    }
+    let summary = format!(
+        "Targets: {passed} passed, {failed} failed over {} compared presets ({} pass all); n/a targets are not counted.",
+        comparisons.len(),
+        comparisons
+            .iter()
+            .filter(|c| c.as_ref().is_ok_and(|c| c.targets.iter().all(|t| t.verdict != Verdict::Fail)))
+            .count()
+    );
+    let _ = writeln!(body, "\n{summary}\n");
+    if !not_compared.is_empty() {
+        let _ = writeln!(body, "{}\n", not_compared.join("\n"));
+    }
+
+    // scale of close
+    let _ = writeln!(
+        body,
+        "## The scale of \"close\": recordings of related instruments\n"
+    );
+    let _ = writeln!(body, "| recording | recording | key | distance [dB] |");
+    let _ = writeln!(body, "|---|---|---|---|");
+    for &(x, y, k) in &pairs {
+        let (rx, ry) = (&recs[&(x, x.key_for(k))], &recs[&(y, y.key_for(k))]);
+        let key = match (x.is_drum(), y.is_drum()) {
+            (true, true) => "kit keys".to_string(),
+            (false, false) => k.to_string(),
+            _ => format!("{k} (the program)"),
+        };
+        let d = match (rx, ry) {
+            (Ok(a), Ok(b)) => format!("{:.1}", distance(&a.played, &b.played)),
+            (Err(e), _) | (_, Err(e)) => format!("n/a: {e}"),
+        };
+        let _ = writeln!(body, "| {} | {} | {key} | {d} |", x.label(), y.label());
+    }
+    let _ = writeln!(body);
+
+    // confusion
+    let _ = writeln!(
+        body,
+        "## Confusion table\n\nThe 1/3-octave distance [dB] of each preset's render (its key in brackets) to every \
+         recording, pitched recordings played at the preset's key; **bold**: the nearest; `!`: the nearest is not \
+         the preset's own instrument (marked `=`).\n"
+    );
+    let mut head = "| preset |".to_string();
+    let mut rule = "|---|".to_string();
+    for s in &set {
+        let _ = write!(head, " {} |", s.name());
+        rule.push_str("---|");
+    }
+    let _ = writeln!(body, "{head}\n{rule}");
+    let mut moved = false;
+    for c in comparisons.iter().flatten() {
+        let nearest = c
+            .confusion
+            .iter()
+            .filter_map(|(s, d, _)| d.map(|d| (*s, d)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(s, _)| s);
+        let flag = if nearest == Some(c.sound) { "" } else { " !" };
+        let _ = write!(body, "| {} ({}){flag} |", c.stem, c.key);
+        for (s, d, k) in &c.confusion {
+            let own = if *s == c.sound { "=" } else { "" };
+            let at = if *k != s.key_for(c.key) {
+                moved = true;
+                format!(" @{k}")
+            } else {
+                String::new()
+            };
+            let cell = match d {
+                Some(d) if Some(*s) == nearest => format!("**{own}{d:.1}**{at}"),
+                Some(d) => format!("{own}{d:.1}{at}"),
+                None => "n/a".into(),
+            };
+            let _ = write!(body, " {cell} |");
+        }
+        let _ = writeln!(body);
+    }
+    if moved {
+        let _ = writeln!(
+            body,
+            "\n`@K`: played at key K, the nearest key within an octave of the recording (at the preset's key it \
+             would be transposed further)."
+        );
+    }
+    let _ = writeln!(body);
+
+    // per preset
+    let plot_dir = a.out.join("compare-real");
+    let wav_dir = root.join("target/compare-real");
+    std::fs::create_dir_all(&plot_dir)
+        .with_context(|| format!("cannot create {}", plot_dir.display()))?;
+    std::fs::create_dir_all(&wav_dir).context("cannot create target/compare-real")?;
+    for c in comparisons.iter().flatten() {
+        let _ = writeln!(body, "## {} ({})\n", c.stem, c.sound.label());
+        let _ = writeln!(body, "Recording: {}.\n", c.recording);
+        let _ = writeln!(
+            body,
+            "Render: {} s at {RATE_HZ} Hz, onset at {:.1} ms. Spectra over the first {:.2} s.\n",
+            a.seconds,
+            c.render_onset_s * 1000.0,
+            c.window_s
+        );
+        let _ = writeln!(
+            body,
+            "| # | real [Hz] | ratio | real level [dB] | render nearest [Hz] | render level [dB] | error [cents] | within 15 cents | T60 real [s] | T60 render [s] | render/real |"
+        );
+        let _ = writeln!(body, "|---|---|---|---|---|---|---|---|---|---|---|");
+        for (i, r) in c.rows.iter().enumerate() {
+            let (rf, rl, rc) = match r.render {
+                Some((q, cents)) => (
+                    fmt_hz(q.freq_hz),
+                    format!("{:.1}", q.level_db),
+                    format!("{cents:+.1}"),
+                ),
+                None => ("none".into(), String::new(), String::new()),
+            };
+            let _ = writeln!(
+                body,
+                "| {} | {} | {:.3} | {:.1} | {rf} | {rl} | {rc} | {} | {} | {} | {} |",
+                i + 1,
+                fmt_hz(r.real.freq_hz),
+                r.ratio,
+                r.real.level_db,
+                if r.present() { "yes" } else { "no" },
+                fmt_t60(&r.t60_real),
+                r.t60_render
+                    .as_ref()
+                    .map_or("no partial within 50 cents".into(), fmt_t60),
+                r.t60_ratio().map_or(String::new(), |x| format!("{x:.2}")),
+            );
+        }
+        let _ = writeln!(body);
+        let _ = writeln!(body, "| measure | real | render | render vs real |");
+        let _ = writeln!(body, "|---|---|---|---|");
+        let _ = writeln!(
+            body,
+            "| attack centroid ({} ms) | {:.0} Hz | {:.0} Hz | {:.2}x |",
+            ATTACK_S * 1000.0,
+            c.centroid.0,
+            c.centroid.1,
+            c.centroid.1 / c.centroid.0
+        );
+        let _ = writeln!(
+            body,
+            "| energy above 5 kHz ({} ms) | {:.1} dB | {:.1} dB | {:+.1} dB |",
+            ATTACK_S * 1000.0,
+            c.hf_db.0,
+            c.hf_db.1,
+            c.hf_db.1 - c.hf_db.0
+        );
+        let _ = writeln!(body, "| 1/3-octave distance | | | {:.1} dB |\n", c.distance);
+        let line: Vec<String> = c
+            .targets
+            .iter()
+            .map(|t| format!("{}: {} ({})", t.name, t.verdict.word(), t.detail))
+            .collect();
+        let _ = writeln!(body, "Targets: {}.\n", line.join("; "));
+        let spec_svg = plot_dir.join(format!("{}-spectrum.svg", c.stem));
+        let t60_svg = plot_dir.join(format!("{}-t60.svg", c.stem));
+        plots::spectra(
+            &c.spectra.0,
+            &c.spectra.1,
+            &c.rows.iter().map(|r| r.real.freq_hz).collect::<Vec<_>>(),
+            &format!(
+                "{} against {}: first {:.2} s",
+                c.stem,
+                c.sound.name(),
+                c.window_s
+            ),
+            &spec_svg,
+        )?;
+        plots::decays(
+            &c.decays.0,
+            &c.decays.1,
+            &format!("{} against {}: T60 per partial", c.stem, c.sound.name()),
+            &t60_svg,
+        )?;
+        let _ = writeln!(
+            body,
+            "![{0} spectra](compare-real/{0}-spectrum.svg)\n![{0} T60](compare-real/{0}-t60.svg)\n",
+            c.stem
+        );
+        write_pair(&wav_dir, &c.stem, &c.signals.0, &c.signals.1)?;
+    }
+
+    let _ = writeln!(
+        body,
+        "## What FluidR3 offers for bells and plates\n\nPreset headers whose names say bell, chime, gong, plate, \
+         cymbal, triangle, agogo or steel (the samples they play at key 72), and the standard kit's metal keys:\n\n{}",
+        bells_and_plates(&sf)
+    );
+    md.push_str(&body);
+    let md_path = a.out.join("compare-real.md");
+    std::fs::write(&md_path, &md).with_context(|| format!("cannot write {}", md_path.display()))?;
+    print!("{body}");
+    println!("{summary}");
+    eprintln!(
+        "wrote {} and {}/*.svg; WAV pairs in target/compare-real/ ({:.1} s)",
+        md_path.display(),
+        plot_dir.display(),
+        t0.elapsed().as_secs_f64()
+    );
+    if a.check && failed > 0 {
+        bail!("{failed} targets failed ({})", failures.join(", "));
+    }
+    Ok(())
+}
+
+/// Write the recording and the render as `NAME-real.wav` and
+/// `NAME-render.wav` (32-bit float, both peaks at -6 dBFS, the mono signal
+/// on both channels).
+fn write_pair(dir: &Path, stem: &str, real: &[f64], render: &[f64]) -> Result<()> {
+    for (what, x) in [("real", real), ("render", render)] {
+        let peak = x.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-300);
+        let y: Vec<f32> = x.iter().map(|v| (0.5 * v / peak) as f32).collect();
+        crate::offline::write_wav(
+            &dir.join(format!("{stem}-{what}.wav")),
+            RATE_HZ,
+            &y,
+            &y,
+            crate::offline::WavFormat::Float32,
+        )?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_date_is_a_calendar_date() {
+        let d = today_utc();
+        assert_eq!(d.len(), 10);
+        assert!(d.starts_with("20"));
+    }
+
+    #[test]
+    fn every_preset_names_a_known_instrument_or_none() {
+        let all = load_presets(&workspace_root().join("presets")).unwrap();
+        assert!(all.len() >= 10);
+        for p in &all {
+            assert!(p.real.is_ok(), "{}: {:?}", p.stem, p.real.as_ref().err());
+        }
+        let named = all.iter().filter(|p| matches!(p.real, Ok(Some(_)))).count();
+        assert!(named >= 1);
+    }
+
+    #[test]
+    fn the_tables_names_are_general_midi_names() {
+        for n in CONFUSION_EXTRA
+            .iter()
+            .chain(SCALE_PAIRS.iter().flat_map(|(a, b)| [a, b]))
+        {
+            assert!(GmSound::parse(n).is_some(), "{n}");
+        }
+    }
+
+    #[test]
+    fn a_missing_soundfont_names_the_package() {
+        let a = CompareRealArgs {
+            out: std::env::temp_dir(),
+            presets: vec![],
+            sf2: PathBuf::from("/nonexistent/FluidR3_GM.sf2"),
+            check: false,
+            seconds: 1.0,
+        };
+        let e = run(&a).unwrap_err().to_string();
+        assert!(e.contains(SF2_PACKAGE), "{e}");
+    }
+}
