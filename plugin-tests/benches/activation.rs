@@ -15,6 +15,7 @@
 //! `cargo bench -p plugin-tests --bench activation [-- TRIALS [SEED]]`
 //! prints the worst and median of each, per scene and over all.
 
+use modal_contact::instrument::MAX_LOOKAHEAD_S;
 use modal_contact::plugin::params::{Kind, ParamSpec, PARAMS};
 use modal_contact::presets::PRESETS;
 use modal_testkit::rng::TestRng;
@@ -132,6 +133,9 @@ struct Times {
     deactivate: Vec<f64>,
     activate_wild: Vec<f64>,
     deactivate_wild: Vec<f64>,
+    /// Whether a note struck at the first sample after `activate` returned
+    /// is heard in that block or the next ones of the plugin's latency.
+    first_block_sounds: Vec<bool>,
 }
 
 fn ms_since(t: Instant) -> f64 {
@@ -147,6 +151,17 @@ fn trial(bundle: &std::path::Path, state: Option<&[u8]>, rng: &mut TestRng, t: &
     let t0 = Instant::now();
     let mut s = p.activate(RATE, 1, BLOCK);
     t.activate.push(ms_since(t0));
+    // the note comes out after the plugin's latency (the Lookahead, at
+    // most MAX_LOOKAHEAD_S): blocks processed back to back, so it is heard
+    // in them only if the scene was there when activate returned
+    let blocks = 1 + (MAX_LOOKAHEAD_S * RATE).ceil() as usize / BLOCK + 1;
+    let mut heard = false;
+    for b in 0..blocks {
+        let ev = if b == 0 { vec![on(0, 60, 0.9)] } else { vec![] };
+        let out = s.process(BLOCK, 0, &ev);
+        heard |= out.iter().any(|c| c.iter().any(|x| *x != 0.0));
+    }
+    t.first_block_sounds.push(heard);
     let events = wild_events(rng);
     s.process(BLOCK, 0, &events);
     let t0 = Instant::now();
@@ -183,9 +198,9 @@ fn main() {
     );
     println!(
         "| scene | activate median / worst [ms] | deactivate | activate (wild values) | \
-         deactivate (its compile running) |"
+         deactivate (its compile running) | a note at once |"
     );
-    println!("|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|");
     for (i, preset) in PRESETS.iter().enumerate() {
         let mut t = Times::default();
         trial(&bundle, Some(&scene_state(i)), &mut rng, &mut t);
@@ -197,18 +212,21 @@ fn main() {
             let (m, w) = stats(x);
             format!("{m:.1} / {w:.1}")
         };
+        let sounds = t.first_block_sounds.iter().filter(|s| **s).count();
         println!(
-            "| {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {sounds} / {} |",
             preset.name,
             cell(&t.activate),
             cell(&t.deactivate),
             cell(&t.activate_wild),
-            cell(&t.deactivate_wild)
+            cell(&t.deactivate_wild),
+            t.first_block_sounds.len()
         );
         all.activate.extend(t.activate);
         all.deactivate.extend(t.deactivate);
         all.activate_wild.extend(t.activate_wild);
         all.deactivate_wild.extend(t.deactivate_wild);
+        all.first_block_sounds.extend(t.first_block_sounds);
     }
     let worst = |x: &[f64]| stats(x).1;
     println!(
@@ -216,5 +234,11 @@ fn main() {
         2 * all.activate.len(),
         worst(&all.activate).max(worst(&all.activate_wild)),
         worst(&all.deactivate).max(worst(&all.deactivate_wild)),
+    );
+    println!(
+        "a note at the first sample after activate is heard at once (after the latency) in {} \
+         of {} first activations",
+        all.first_block_sounds.iter().filter(|s| **s).count(),
+        all.first_block_sounds.len()
     );
 }

@@ -100,10 +100,11 @@ pub use mapping::{
 };
 pub use mix::{WorkMeter, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_LOOKAHEAD_SAMPLES};
 pub use prepared::{
-    damper_level, hardness_level, position_level, prepare, prepare_scene, timbre_level,
-    PrepareError, Prepared, Scenes, StrikeCost, Variant, DAMPER_STEP, POSITION_STEP, STEP_NS_FIXED,
-    STEP_NS_PER_STATE, STRIKE_BUDGET_FRACTION, STRIKE_NS_FIXED, STRIKE_NS_PER_STATE,
-    STRIKE_NS_PER_SWITCH_FLOP, TIMBRE_LEVEL_MAX, TIMBRE_MAX_STATES, TIMBRE_STIFFNESS_STEP,
+    damper_level, hardness_level, position_level, prepare, prepare_scene, prepare_scene_staged,
+    prepare_staged, timbre_level, PrepareError, Prepared, Scenes, Stage, StrikeCost, Variant,
+    DAMPER_STEP, POSITION_STEP, STEP_NS_FIXED, STEP_NS_PER_STATE, STRIKE_BUDGET_FRACTION,
+    STRIKE_NS_FIXED, STRIKE_NS_PER_STATE, STRIKE_NS_PER_SWITCH_FLOP, TIMBRE_LEVEL_MAX,
+    TIMBRE_MAX_STATES, TIMBRE_STIFFNESS_STEP,
 };
 pub use probe::{VoiceChunk, VoiceProbe};
 

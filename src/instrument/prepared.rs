@@ -59,6 +59,24 @@ pub struct Prepared {
     /// per block on the audio thread; empty for a kit and for a scene with
     /// a dense phase (which plays at its root pitch only). \[worker\]
     pub(super) key_props: Vec<ScaleProps>,
+    /// Everything [`Stage::Full`] compiles is here: false for a
+    /// [`Stage::Playable`] scene that left variants or the keys' stored
+    /// strikes out (the worker follows it with the full one).
+    pub complete: bool,
+}
+
+/// How much of a scene [`prepare_staged`] compiles.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Stage {
+    /// The played scene and its damped scene only: no variants, no stored
+    /// strikes (new notes compute their propagators and strike on the
+    /// audio thread, as after a bend). An activation's first scene on a
+    /// live host, so the instance sounds within the activation's wait
+    /// (docs/design.md, "The plugin and its threads").
+    Playable,
+    /// Everything: the variants and every key's stored strike.
+    #[default]
+    Full,
 }
 
 /// The scene as played, the one released voices continue on, and the
@@ -587,8 +605,18 @@ pub fn prepare(
     rate_hz: f64,
     revision: u64,
 ) -> Result<Box<Prepared>, PrepareError> {
+    prepare_staged(params, rate_hz, revision, Stage::Full)
+}
+
+/// [`prepare`] of `stage`. \[worker\] \[main-thread\]
+pub fn prepare_staged(
+    params: &SceneParams,
+    rate_hz: f64,
+    revision: u64,
+    stage: Stage,
+) -> Result<Box<Prepared>, PrepareError> {
     let base = presets::scene(params.preset).map_err(CompileError::Scene)?;
-    prepare_scene(&base, params, rate_hz, revision)
+    prepare_scene_staged(&base, params, rate_hz, revision, stage)
 }
 
 /// [`prepare`] for a scene given as a value (a user's scene file, an
@@ -600,6 +628,17 @@ pub fn prepare_scene(
     params: &SceneParams,
     rate_hz: f64,
     revision: u64,
+) -> Result<Box<Prepared>, PrepareError> {
+    prepare_scene_staged(base, params, rate_hz, revision, Stage::Full)
+}
+
+/// [`prepare_scene`] of `stage`. \[worker\] \[main-thread\]
+pub fn prepare_scene_staged(
+    base: &Scene,
+    params: &SceneParams,
+    rate_hz: f64,
+    revision: u64,
+    stage: Stage,
 ) -> Result<Box<Prepared>, PrepareError> {
     // the scene's own damper unless Custom damper is on: what is compiled,
     // and what the prepared params say is played
@@ -635,11 +674,17 @@ pub fn prepare_scene(
     let same_layout =
         |t: &CompiledScene| t.free.dim == scene.free.dim && t.contact.dim == scene.contact.dim;
     let levels = -TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX;
-    let pairs: Vec<(i8, i8)> = levels
+    let mut pairs: Vec<(i8, i8)> = levels
         .clone()
         .flat_map(|h| levels.clone().map(move |pl| (h, pl)))
         .filter(|&(h, pl)| small && (h, pl) != (0, 0) && (pl == 0 || positions))
         .collect();
+    // what a playable stage leaves out
+    let mut left_out = false;
+    if stage == Stage::Playable {
+        left_out |= !pairs.is_empty();
+        pairs.clear();
+    }
     // compiled side by side (each is a compile of its own)
     let compiled: Vec<Option<VariantScene>> = side_by_side(&pairs, |&(h, pl)| {
         let mut p = *params;
@@ -669,11 +714,15 @@ pub fn prepare_scene(
         played[cell(h, pl)] = v;
     }
     // the damper levels: `Some(None)` where the level's damper is 0
-    let dampers: Vec<i8> = if small && params.variants.damper {
+    let mut dampers: Vec<i8> = if small && params.variants.damper {
         levels.filter(|&d| d != 0).collect()
     } else {
         Vec::new()
     };
+    if stage == Stage::Playable {
+        left_out |= !dampers.is_empty();
+        dampers.clear();
+    }
     let compiled: Vec<Option<Option<CompiledScene>>> = side_by_side(&dampers, |&d| {
         let value = (params.damper_norm + f64::from(d) * DAMPER_STEP).clamp(0.0, 1.0);
         if value > 0.0 {
@@ -705,6 +754,7 @@ pub fn prepare_scene(
         (switching_used, fallback_note),
         scenes,
         None,
+        (stage, left_out),
     )
 }
 
@@ -715,6 +765,7 @@ fn assemble(
     (switching_used, fallback_note): (Switching, Option<String>),
     scenes: Scenes,
     kit: Option<Box<Kit>>,
+    (stage, mut left_out): (Stage, bool),
 ) -> Result<Box<Prepared>, PrepareError> {
     // here, not on the audio thread: a voice rebound to a scene takes its
     // certified stored switches without a search (docs/numerics.md 6.9)
@@ -730,7 +781,11 @@ fn assemble(
     let root = root_note(base);
     let sc = &scenes.scene;
     let bouncing = base.hammer.gravity_m_per_s2 > 0.0;
-    let key_props = if kit.is_some() || sc.free.dense.is_some() || sc.contact.dense.is_some() {
+    let no_keys = kit.is_some() || sc.free.dense.is_some() || sc.contact.dense.is_some();
+    let key_props = if no_keys {
+        Vec::new()
+    } else if stage == Stage::Playable {
+        left_out = true;
         Vec::new()
     } else {
         // each key's strike from rest recorded with its propagators, checked
@@ -762,6 +817,7 @@ fn assemble(
         spares,
         kit,
         key_props,
+        complete: !left_out,
     }))
 }
 
@@ -827,5 +883,6 @@ fn prepare_kit(
         (used, None),
         scenes,
         Some(Box::new(kit)),
+        (Stage::Full, false),
     )
 }

@@ -31,7 +31,7 @@ pub mod waits;
 pub mod worker;
 
 use crate::instrument::{
-    lookahead_samples, Event, Instrument, PlayParams, SceneParams, TimedEvent, VoiceProbe,
+    lookahead_samples, Event, Instrument, PlayParams, SceneParams, Stage, TimedEvent, VoiceProbe,
     MAX_VOICES,
 };
 use crossbeam::queue::ArrayQueue;
@@ -183,6 +183,8 @@ impl ModalContact {
                 lookahead: inst.lookahead(),
                 params: wanted,
                 first: None,
+                stage: Stage::Full,
+                upgrade: false,
             };
             if self.handoff.request(req) {
                 self.revision += 1;
@@ -492,7 +494,7 @@ impl Plugin for ModalContact {
         let reuse = self
             .parked
             .take()
-            .filter(|(rate, params, _)| *rate == rate_hz && *params == ip.scene);
+            .filter(|(rate, params, p)| *rate == rate_hz && *params == ip.scene && p.complete);
         if let Some((_, _, prepared)) = reuse {
             self.latest_request = prepared.revision;
             self.instrument = Some(Box::new(Instrument::new(prepared, ip.play)));
@@ -506,6 +508,16 @@ impl Plugin for ModalContact {
                 lookahead: lookahead_samples(ip.play.lookahead_s, rate_hz),
                 params: ip.scene,
                 first: Some(ip.play),
+                // a live host gets a playable scene first (within the
+                // activation's wait), then the whole one; an offline render
+                // waits for the whole one (its output never depends on the
+                // worker's timing)
+                stage: if self.offline {
+                    Stage::Full
+                } else {
+                    Stage::Playable
+                },
+                upgrade: false,
             };
             // the queues were drained by shut_down: this cannot fail
             if !self.handoff.request(req) {

@@ -15,8 +15,8 @@ use crate::compile::{
     CompileOptions,
 };
 use crate::instrument::{
-    lookahead_samples, prepare, prepare_scene, scene_for, InstrumentParams, Prepared, SceneParams,
-    StrikeCost,
+    lookahead_samples, prepare_scene_staged, prepare_staged, scene_for, InstrumentParams, Prepared,
+    SceneParams, Stage, StrikeCost,
 };
 use crate::presets;
 use crate::scene::{ObjectSpec, Scene};
@@ -226,6 +226,19 @@ impl SceneLibrary {
         revision: u64,
         host: HostBlocks,
     ) -> Result<(Box<Prepared>, Vec<String>), String> {
+        self.prepare_staged(params, rate_hz, revision, host, Stage::Full)
+    }
+
+    /// [`Self::prepare`] of `stage` (an activation's first scene on a live
+    /// host is [`Stage::Playable`]). \[worker\] \[main-thread\]
+    pub fn prepare_staged(
+        &self,
+        params: &SceneParams,
+        rate_hz: f64,
+        revision: u64,
+        host: HostBlocks,
+        stage: Stage,
+    ) -> Result<(Box<Prepared>, Vec<String>), String> {
         let t0 = Instant::now();
         let mut params = *params;
         let user = if params.user_scene == 0 {
@@ -250,8 +263,8 @@ impl SceneLibrary {
         };
         let result = base.and_then(|base| {
             let p = match &user {
-                Some(_) => prepare_scene(&base, &params, rate_hz, revision),
-                None => prepare(&params, rate_hz, revision),
+                Some(_) => prepare_scene_staged(&base, &params, rate_hz, revision, stage),
+                None => prepare_staged(&params, rate_hz, revision, stage),
             }
             .map_err(|e| format!("scene {name:?}: {e}"))?;
             Ok((base, p))

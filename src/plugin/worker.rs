@@ -30,7 +30,7 @@
 use super::user_scene::{HostBlocks, SceneLibrary};
 use super::waits::Shared;
 use crate::compile::cancel::{self, Cancel};
-use crate::instrument::{Instrument, PlayParams, Prepared, SceneParams};
+use crate::instrument::{Instrument, PlayParams, Prepared, SceneParams, Stage};
 use atomic_float::AtomicF64;
 use crossbeam::queue::ArrayQueue;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -76,6 +76,13 @@ pub struct CompileRequest {
     /// fallbacks (the preset with the same parameters when a user scene
     /// fails, then the preset's defaults) before it gives up.
     pub first: Option<PlayParams>,
+    /// How much to compile: an activation's first scene on a live host is
+    /// [`Stage::Playable`], and the worker follows it with the whole scene
+    /// (an upgrade of the same revision) unless it is already complete.
+    pub stage: Stage,
+    /// This is such an upgrade: installed as a later scene; if it fails,
+    /// the playable scene plays on and no failure is reported.
+    pub upgrade: bool,
 }
 
 /// State shared by the audio thread and the worker (queues and counters).
@@ -313,11 +320,21 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
         // here (building one allocates)
         let done = done.map(|(p, warnings)| {
             let variants = p.scenes.variant_count();
+            // the whole scene follows a playable one, compiled with what
+            // that one used (a fallback's parameters, the generation of
+            // the user scene)
+            let upgrade = (!p.complete).then_some(CompileRequest {
+                params: p.params,
+                first: None,
+                stage: Stage::Full,
+                upgrade: true,
+                ..req
+            });
             let delivery = match req.first {
                 Some(play) => Delivery::First(Box::new(Instrument::new(p, play))),
                 None => Delivery::Ready(p),
             };
-            (delivery, warnings, variants)
+            (delivery, warnings, variants, upgrade)
         });
         h.busy.store(false, Ordering::Release);
         let mut running = h.running.get();
@@ -330,7 +347,7 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
             continue;
         }
         match done {
-            Ok((delivery, warnings, variants)) => {
+            Ok((delivery, warnings, variants, upgrade)) => {
                 // delivered under the lock: `cancel_through` drains after
                 // it, so nothing of a cancelled revision stays queued
                 match delivery {
@@ -339,6 +356,12 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
                 }
                 h.published_revision
                     .fetch_max(req.revision, Ordering::AcqRel);
+                // queued behind any newer request: coalescing drops it
+                // when a parameter moved meanwhile (a full queue holds
+                // newer requests: it is dropped then too)
+                if let Some(u) = upgrade {
+                    let _ = h.requests.push(u);
+                }
                 drop(running);
                 for w in warnings {
                     nice_plug::nice_log!("modal_contact: {w}");
@@ -352,6 +375,14 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
                 }
                 h.last_compile_ms.store(ms, Ordering::Relaxed);
                 h.compiles.fetch_add(1, Ordering::Relaxed);
+            }
+            Err(e) if req.upgrade => {
+                drop(running);
+                nice_plug::nice_log!(
+                    "modal_contact: the variants of revision {} did not compile, the scene \
+                     plays without them: {e}",
+                    req.revision
+                );
             }
             Err(e) => {
                 drop(running);
@@ -390,7 +421,7 @@ fn compile(
         polyphony: req.polyphony,
         lookahead: req.lookahead,
     };
-    let candidates = if req.first.is_some() {
+    let candidates = if req.first.is_some() && !req.upgrade {
         vec![
             req.params,
             SceneParams {
@@ -407,7 +438,7 @@ fn compile(
     };
     let mut errors = Vec::new();
     for c in candidates {
-        match lib.prepare(&c, req.rate_hz, req.revision, host) {
+        match lib.prepare_staged(&c, req.rate_hz, req.revision, host, req.stage) {
             Ok(done) => return Ok(done),
             Err(e) => {
                 cancel::check().map_err(|c| c.to_string())?;
@@ -449,6 +480,8 @@ mod tests {
             lookahead: 0,
             params: SceneParams::default(),
             first: first.then(PlayParams::default),
+            stage: Stage::Full,
+            upgrade: false,
         }
     }
 
@@ -492,6 +525,78 @@ mod tests {
         assert!(h.take_first().is_none());
         w.stop();
         assert!(h.stopped());
+    }
+
+    fn preset(name: &str) -> usize {
+        crate::presets::PRESETS
+            .iter()
+            .position(|p| p.name == name)
+            .unwrap()
+    }
+
+    fn playable_first(revision: u64, name: &str) -> CompileRequest {
+        let mut r = request(revision, true);
+        r.params.preset = preset(name);
+        r.stage = Stage::Playable;
+        r
+    }
+
+    /// Wait for the next later scene (or none within `ms`).
+    fn next_ready(h: &Handoff, ms: u64) -> Option<Box<Prepared>> {
+        let t0 = Instant::now();
+        loop {
+            if let Some(p) = h.take_ready() {
+                return Some(p);
+            }
+            if t0.elapsed() > Duration::from_millis(ms) {
+                return None;
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    /// A live host's first scene is playable at once (no variants, no
+    /// stored strikes) and the whole scene of the same revision follows as
+    /// a later scene; a cancellation drops that upgrade too, and a newer
+    /// request replaces it; a kit (nothing to add) is complete at once.
+    #[test]
+    fn a_playable_first_scene_is_followed_by_the_whole_one() {
+        let h = Handoff::new();
+        let mut w = Worker::spawn(h.clone(), Arc::new(SceneLibrary::default())).unwrap();
+        assert!(h.request(playable_first(1, "marimba-bar")));
+        wait_for(&h, |h| !h.compiling());
+        let inst = h.take_first().expect("the playable scene");
+        let first = inst.prepared();
+        assert!(!first.complete);
+        assert_eq!(first.scenes.variant_count(), 0);
+        let full = next_ready(&h, 60_000).expect("the whole scene follows");
+        assert_eq!(full.revision, 1);
+        assert!(full.complete);
+        assert!(full.scenes.variant_count() > 0);
+        assert_eq!(full.params, first.params);
+        assert_eq!(h.failures.load(Ordering::Acquire), 0);
+
+        // cancelled as soon as the playable scene is there: no upgrade
+        assert!(h.request(playable_first(2, "marimba-bar")));
+        wait_for(&h, |h| !h.compiling());
+        assert!(h.take_first().is_some());
+        h.cancel_through(2);
+        let mut later = request(3, false);
+        later.params.preset = preset("steel-plate");
+        assert!(h.request(later));
+        let got = next_ready(&h, 60_000).expect("the later request's scene");
+        assert_eq!(got.revision, 3, "the cancelled upgrade came");
+        assert!(next_ready(&h, 200).is_none());
+
+        // a kit has no variants or stored strikes: complete at once
+        assert!(h.request(playable_first(4, "snare-pair")));
+        wait_for(&h, |h| !h.compiling());
+        assert!(h.take_first().expect("the kit").prepared().complete);
+        assert!(
+            next_ready(&h, 500).is_none(),
+            "an upgrade of a complete scene"
+        );
+        w.stop();
     }
 
     /// A compile cancelled inside its scope gives up and says so.
