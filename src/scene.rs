@@ -208,6 +208,13 @@ pub struct PlaySpec {
     /// replaces it when Custom damper is on.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub damper: Option<f64>,
+    /// The pitch a listener names \[Hz\], where it is not the struck
+    /// object's lowest mode: a tubular chime's strike note (about half its
+    /// fourth mode's frequency), a bell's prime (an octave above its hum).
+    /// The instrument's root note is the MIDI note nearest it (absent: the
+    /// lowest mode's, [`crate::instrument::root_note`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pitch_hz: Option<f64>,
 }
 
 /// Opt-in approximations: each drops modes and adds a (measured) error.
@@ -1195,6 +1202,12 @@ impl PlaySpec {
                 ));
             }
         }
+        if let Some(f) = self.pitch_hz {
+            check_positive("play.pitch_hz", f)?;
+            // MIDI notes 0 ..= 127 (8.2 Hz ..= 12.5 kHz)
+            check_min("play.pitch_hz", f, 8.0)?;
+            check_max("play.pitch_hz", f, 13_000.0)?;
+        }
         Ok(())
     }
 }
@@ -1430,5 +1443,34 @@ point = "contact"
             .unwrap_err()
             .to_string();
         assert!(got.contains("unknown field `dampr`"), "{got}");
+    }
+
+    /// `[play] pitch_hz`: read, written back, checked with its field path;
+    /// `real_instrument` likewise read and written back.
+    #[test]
+    fn play_pitch_and_real_instrument_are_read_and_checked() {
+        let text = format!("{BAR}[play]\npitch_hz = 493.0\n");
+        let s = Scene::from_toml_str(&text).unwrap();
+        assert_eq!(s.play.as_ref().and_then(|p| p.pitch_hz), Some(493.0));
+        assert_eq!(Scene::from_toml_str(&s.to_toml_string()).unwrap(), s);
+        for (value, want) in [
+            ("0.0", "play.pitch_hz: must be > 0, got 0"),
+            ("-5.0", "play.pitch_hz: must be > 0, got -5"),
+            ("nan", "play.pitch_hz: must be finite, got NaN"),
+            ("4.0", "play.pitch_hz"),
+            ("20000.0", "play.pitch_hz"),
+        ] {
+            let text = format!("{BAR}[play]\npitch_hz = {value}\n");
+            let got = Scene::from_toml_str(&text).unwrap_err().to_string();
+            assert!(got.contains(want), "{value}: {got}");
+        }
+        let named = BAR.replacen(
+            "version = 1\n",
+            "version = 1\nreal_instrument = \"Marimba\"\n",
+            1,
+        );
+        let s = Scene::from_toml_str(&named).unwrap();
+        assert_eq!(s.real_instrument.as_deref(), Some("Marimba"));
+        assert_eq!(Scene::from_toml_str(&s.to_toml_string()).unwrap(), s);
     }
 }

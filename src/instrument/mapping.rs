@@ -355,10 +355,12 @@ pub fn lowest_frequency_hz(scene: &Scene) -> Option<f64> {
     }
 }
 
-/// The MIDI note nearest the scene's lowest modal frequency (60 when unknown).
+/// The MIDI note nearest the scene's pitch: `[play] pitch_hz` where the
+/// scene names it, else its lowest modal frequency (60 when unknown).
 /// \[any-thread\]
 pub fn root_note(scene: &Scene) -> f64 {
-    match lowest_frequency_hz(scene) {
+    let named = scene.play.as_ref().and_then(|p| p.pitch_hz);
+    match named.or_else(|| lowest_frequency_hz(scene)) {
         Some(f) => (69.0 + 12.0 * (f / 440.0).log2()).round().clamp(0.0, 127.0),
         None => DEFAULT_ROOT_NOTE,
     }
