@@ -6,4 +6,5 @@
 
 pub mod chain;
 pub mod materials;
+pub mod radiation;
 pub mod shapes;
