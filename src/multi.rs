@@ -1125,6 +1125,9 @@ impl MultiModel {
                 let row = match p.quantity {
                     Quantity::Displacement => &mut pickups[ch].0,
                     Quantity::Velocity => &mut pickups[ch].1,
+                    // none in an expanded scene: each became a displacement
+                    // and a velocity pickup (`Scene::expanded`)
+                    Quantity::Pressure => continue,
                 };
                 for (r, wi) in row.iter_mut().zip(&w) {
                     *r += wi * p.gain * g;

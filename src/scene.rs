@@ -182,6 +182,9 @@ pub struct Scene {
     /// What is heard.
     #[serde(default)]
     pub pickup: Vec<PickupSpec>,
+    /// Far listeners the pressure pickups name (empty: none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub listener: Vec<ListenerSpec>,
     /// Opt-in approximate savings (none by default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub approximate: Option<ApproxSpec>,
@@ -541,7 +544,36 @@ pub enum Quantity {
     Velocity,
     /// Displacement of the point \[m\].
     Displacement,
+    /// Sound pressure radiated by the whole object to a far listener \[Pa\]:
+    /// the pickup's `point` names a `[[listener]]`, its object is one from
+    /// geometry (docs/design.md, "Radiation to a listener").
+    Pressure,
 }
+
+/// A listener far from the objects, for pressure pickups: its distance and
+/// direction in each object's own frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ListenerSpec {
+    /// Name a pressure pickup's `point` refers to.
+    pub name: String,
+    /// Distance from the object \[m\] (the far field: several times the
+    /// object's size).
+    pub distance_m: f64,
+    /// Angle from the object's radiating face's normal \[deg\], 0 ..= 90.
+    #[serde(default)]
+    pub polar_deg: f64,
+    /// Angle around that normal from the object's x axis (its length, a
+    /// plate's first side, a membrane's angle origin) \[deg\].
+    #[serde(default)]
+    pub azimuth_deg: f64,
+}
+
+/// Farthest listener \[m\].
+pub const MAX_LISTENER_DISTANCE_M: f64 = 1000.0;
+/// Nearest listener \[m\] (closer is not the far field of any object;
+/// it also keeps the pressure pickups' gains within [`MAX_GAIN`]).
+pub const MIN_LISTENER_DISTANCE_M: f64 = 0.1;
 
 /// A pickup: a point that is heard.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -564,6 +596,53 @@ pub struct PickupSpec {
 
 fn default_gain() -> f64 {
     1.0
+}
+
+/// The angular frequency \[rad/s\] (1 kHz) and the area \[m^2\] the
+/// pressure rows are written in units of: a mode's weights on a listener's
+/// pseudo-points are `(omega_n / PRESSURE_REF_OMEGA)^k W_n /
+/// PRESSURE_REF_AREA_M2` (within [`MAX_WEIGHT`] for every audible mode of
+/// any object the limits allow), the pickups' gains carry the rest.
+pub const PRESSURE_REF_OMEGA: f64 = 2.0 * std::f64::consts::PI * 1000.0;
+/// See [`PRESSURE_REF_OMEGA`].
+pub const PRESSURE_REF_AREA_M2: f64 = 1.0e-3;
+
+/// The two pickups a pressure pickup becomes in [`Scene::expanded`]: the
+/// radiated pressure of mode `n` toward listener `l` at distance `r` is
+/// `-(rho0 / (2 pi r)) (omega_n^2 Re W_n q_n + omega_n Im W_n q_n')`
+/// (docs/design.md, "Radiation to a listener"), so a displacement pickup
+/// on the point `{l}~q` (weights `(omega_n / omega_ref)^2 Re W_n / A_ref`)
+/// and a velocity pickup on `{l}~v` (weights `(omega_n / omega_ref) Im W_n
+/// / A_ref`), their gains `-g rho0 / (2 pi r)` times `omega_ref^2 A_ref`
+/// and `omega_ref A_ref`.
+fn pressure_pickups(pk: &PickupSpec, listeners: &[ListenerSpec]) -> Vec<PickupSpec> {
+    use crate::bodies::radiation::AIR_DENSITY_KG_PER_M3;
+    let Some(l) = listeners.iter().find(|l| l.name == pk.point) else {
+        return Vec::new();
+    };
+    let g = -pk.gain * AIR_DENSITY_KG_PER_M3 / (2.0 * std::f64::consts::PI * l.distance_m)
+        * PRESSURE_REF_AREA_M2;
+    let w = PRESSURE_REF_OMEGA;
+    vec![
+        PickupSpec {
+            point: pressure_point(&l.name, false),
+            quantity: Quantity::Displacement,
+            gain: g * w * w,
+            ..pk.clone()
+        },
+        PickupSpec {
+            point: pressure_point(&l.name, true),
+            quantity: Quantity::Velocity,
+            gain: g * w,
+            ..pk.clone()
+        },
+    ]
+}
+
+/// The name of a listener's pseudo-point on an expanded object: `{l}~q`
+/// (weights on the modal displacements) or `{l}~v` (on the velocities).
+pub fn pressure_point(listener: &str, velocity: bool) -> String {
+    format!("{listener}~{}", if velocity { 'v' } else { 'q' })
 }
 
 fn check_finite(path: &str, v: f64) -> Result<(), SceneError> {
@@ -672,12 +751,33 @@ impl Scene {
         let mut out = self.clone();
         for (i, obj) in out.object.iter_mut().enumerate() {
             if let Some(p) = obj.physical() {
-                let modal = p.to_modal(&format!("object[{i}]"), rate_hz)?;
+                // the listeners its pressure pickups name
+                let heard: Vec<&ListenerSpec> = self
+                    .listener
+                    .iter()
+                    .filter(|l| {
+                        self.pickup.iter().any(|pk| {
+                            pk.quantity == Quantity::Pressure
+                                && pk.object == p.name()
+                                && pk.point == l.name
+                        })
+                    })
+                    .collect();
+                let modal = p.to_modal_heard(&format!("object[{i}]"), rate_hz, &heard)?;
                 *obj = ObjectSpec::Modal(modal);
             } else if let ObjectSpec::Chain(c) = obj {
                 *obj = ObjectSpec::Modal(c.to_modal());
             }
         }
+        out.pickup = self
+            .pickup
+            .iter()
+            .flat_map(|pk| match pk.quantity {
+                Quantity::Pressure => pressure_pickups(pk, &self.listener),
+                _ => vec![pk.clone()],
+            })
+            .collect();
+        out.listener.clear();
         out.merge_mallet()?;
         Ok(out)
     }
@@ -717,6 +817,7 @@ impl Scene {
         self.validate_strikers()?;
         self.validate_touches()?;
         self.validate_notes()?;
+        self.validate_listeners()?;
         self.validate_pickups()?;
         if let Some(p) = &self.play {
             p.validate()?;
@@ -1140,6 +1241,35 @@ impl Scene {
         Ok(())
     }
 
+    /// The listeners: unique names, distance and angles in range.
+    fn validate_listeners(&self) -> Result<(), SceneError> {
+        for (i, l) in self.listener.iter().enumerate() {
+            let base = format!("listener[{i}]");
+            if l.name.is_empty() || self.listener[..i].iter().any(|o| o.name == l.name) {
+                return Err(SceneError::new(
+                    format!("{base}.name"),
+                    format!("must be a name no other listener has, got {:?}", l.name),
+                ));
+            }
+            let d = format!("{base}.distance_m");
+            check_positive(&d, l.distance_m)?;
+            check_min(&d, l.distance_m, MIN_LISTENER_DISTANCE_M)?;
+            check_max(&d, l.distance_m, MAX_LISTENER_DISTANCE_M)?;
+            let p = format!("{base}.polar_deg");
+            check_finite(&p, l.polar_deg)?;
+            if !(0.0..=90.0).contains(&l.polar_deg) {
+                return Err(SceneError::new(
+                    p,
+                    format!("must be within 0 ..= 90, got {}", l.polar_deg),
+                ));
+            }
+            let a = format!("{base}.azimuth_deg");
+            check_finite(&a, l.azimuth_deg)?;
+            check_abs_max(&a, l.azimuth_deg, 360.0)?;
+        }
+        Ok(())
+    }
+
     /// Each pickup's object and point exist; gain and pan.
     fn validate_pickups(&self) -> Result<(), SceneError> {
         for (i, p) in self.pickup.iter().enumerate() {
@@ -1150,7 +1280,28 @@ impl Scene {
                     format!("no object named {:?}", p.object),
                 ));
             };
-            if !self.object[oi].point_names().contains(&p.point) {
+            if p.quantity == Quantity::Pressure {
+                if self.object[oi].physical().is_none() {
+                    return Err(SceneError::new(
+                        format!("{base}.quantity"),
+                        format!(
+                            "pressure needs an object from geometry (bar, tube, plate, membrane, \
+                             stiff_string); {:?} is a {}",
+                            p.object,
+                            self.object[oi].kind()
+                        ),
+                    ));
+                }
+                if !self.listener.iter().any(|l| l.name == p.point) {
+                    return Err(SceneError::new(
+                        format!("{base}.point"),
+                        format!(
+                            "a pressure pickup names a listener: no [[listener]] {:?}",
+                            p.point
+                        ),
+                    ));
+                }
+            } else if !self.object[oi].point_names().contains(&p.point) {
                 return Err(SceneError::new(
                     format!("{base}.point"),
                     format!("object {:?} has no point {:?}", p.object, p.point),

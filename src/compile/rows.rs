@@ -106,6 +106,9 @@ fn mixed_pickups(scene: &Scene, o: &Object) -> ([DVector<f64>; 4], Vec<String>) 
                 vl += &rows.vel * (p.gain * gl);
                 vr += &rows.vel * (p.gain * gr);
             }
+            // none in an expanded scene: each became a displacement and a
+            // velocity pickup (`Scene::expanded`)
+            Quantity::Pressure => {}
         }
     }
     ([dl, dr, vl, vr], dropped)

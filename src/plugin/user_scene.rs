@@ -644,10 +644,14 @@ gain = 0.5
                 "{}: lowest kept mode {lowest} Hz, tuned to {tuned} Hz",
                 pr.name
             );
-            let note = 69.0 + 12.0 * (lowest / 440.0).log2();
+            // the root note is the named pitch's (`[play] pitch_hz`: a
+            // chime's strike note, a bell's prime), else the lowest mode's
+            let named = played.play.as_ref().and_then(|p| p.pitch_hz);
+            let pitch = named.unwrap_or(lowest);
+            let note = 69.0 + 12.0 * (pitch / 440.0).log2();
             assert!(
                 (note - r.root_note).abs() <= 0.5,
-                "{}: lowest kept mode {lowest} Hz (note {note:.2}), root note {}",
+                "{}: pitch {pitch} Hz (note {note:.2}; lowest kept mode {lowest} Hz), root note {}",
                 pr.name,
                 r.root_note
             );

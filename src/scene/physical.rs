@@ -12,10 +12,12 @@
 //! equivalent compile to the same thing.
 
 use super::{
-    check_finite, check_non_negative, check_positive, ModalSpec, ModeSpec, SceneError, MAX_FREQ_HZ,
-    MAX_MODES_PER_OBJECT, MAX_WEIGHT, MIN_FREQ_HZ, MIN_T60_S,
+    check_finite, check_non_negative, check_positive, pressure_point, ListenerSpec, ModalSpec,
+    ModeSpec, SceneError, MAX_FREQ_HZ, MAX_MODES_PER_OBJECT, MAX_WEIGHT, MIN_FREQ_HZ, MIN_T60_S,
+    PRESSURE_REF_AREA_M2, PRESSURE_REF_OMEGA,
 };
 use crate::bodies::materials::{self, Material};
+use crate::bodies::radiation::{far_field, Direction, SOUND_SPEED_M_PER_S};
 use crate::bodies::shapes::{
     Bar, BeamSupport, LossModel, Membrane, Plate, PlateEdges, Point, Shape, ShapeMode, StiffString,
     Tube,
@@ -769,6 +771,19 @@ impl<'a> PhysicalSpec<'a> {
     /// limits, each mode's T60 from the loss model and its weight at every
     /// point from the mass-normalised shape. Errors name the field.
     pub fn to_modal(&self, base: &str, rate_hz: f64) -> Result<ModalSpec, SceneError> {
+        self.to_modal_heard(base, rate_hz, &[])
+    }
+
+    /// [`Self::to_modal`] with two more points per listener, `{l}~q` and
+    /// `{l}~v` ([`crate::scene::pressure_point`]): each mode's weights for
+    /// the pressure it radiates toward the listener (docs/design.md,
+    /// "Radiation to a listener"; `crate::bodies::radiation`).
+    pub fn to_modal_heard(
+        &self,
+        base: &str,
+        rate_hz: f64,
+        listeners: &[&ListenerSpec],
+    ) -> Result<ModalSpec, SceneError> {
         let (shape, eta) = self.shape(base)?;
         let loss = self.loss().model(eta);
         loss.validate().map_err(|e| shape_error(base, e))?;
@@ -869,15 +884,46 @@ impl<'a> PhysicalSpec<'a> {
                 }
                 weights.push(w);
             }
+            for l in listeners {
+                let dir = Direction {
+                    polar_deg: l.polar_deg,
+                    azimuth_deg: l.azimuth_deg,
+                };
+                let (re, im) = far_field(&shape, m, dir, SOUND_SPEED_M_PER_S).map_err(|e| {
+                    SceneError::new(format!("{base}: listener {:?}", l.name), e.to_string())
+                })?;
+                let r = m.omega() / PRESSURE_REF_OMEGA;
+                for w in [
+                    weight_scale * r * r * re / PRESSURE_REF_AREA_M2,
+                    weight_scale * r * im / PRESSURE_REF_AREA_M2,
+                ] {
+                    if !(w.abs() <= MAX_WEIGHT) {
+                        return Err(SceneError::new(
+                            base.to_string(),
+                            format!(
+                                "mode {k} ({}) radiates with weight {w:e} toward listener {:?}, \
+                                 beyond {MAX_WEIGHT:e}",
+                                m.label, l.name
+                            ),
+                        ));
+                    }
+                    weights.push(w);
+                }
+            }
             mode.push(ModeSpec {
                 freq_hz: m.freq_hz,
                 t60_s,
                 weights,
             });
         }
+        let mut names: Vec<String> = points.into_iter().map(|(n, _)| n).collect();
+        for l in listeners {
+            names.push(pressure_point(&l.name, false));
+            names.push(pressure_point(&l.name, true));
+        }
         Ok(ModalSpec {
             name: self.name().to_string(),
-            points: points.into_iter().map(|(n, _)| n).collect(),
+            points: names,
             mode,
         })
     }

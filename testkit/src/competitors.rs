@@ -288,6 +288,8 @@ impl PwlSystem {
             let row = match p.quantity {
                 Quantity::Displacement => &pr.disp,
                 Quantity::Velocity => &pr.vel,
+                // none in an expanded scene (`Scene::expanded`)
+                Quantity::Pressure => continue,
             };
             for (acc, r) in pick.iter_mut().zip(row.iter()) {
                 *acc += p.gain * r;

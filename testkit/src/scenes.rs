@@ -125,6 +125,7 @@ impl SceneBuilder {
             approximate: self.approximate,
             play: None,
             real_instrument: None,
+            listener: Vec::new(),
         }
     }
 
