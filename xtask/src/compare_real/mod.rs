@@ -309,13 +309,13 @@ struct Recording {
 
 impl Recording {
     /// The region played at [`RATE_HZ`].
-    fn new(region: KeyRegion) -> Self {
-        let full = region.play(RATE_HZ);
+    fn new(region: KeyRegion) -> std::result::Result<Self, String> {
+        let full = region.play(RATE_HZ)?;
         let limit = region.band_limit_hz().min(0.5 * RATE_HZ);
-        Self {
+        Ok(Self {
             played: Sound::new(&full, limit),
             region,
-        }
+        })
     }
 
     /// One line on the samples and their transposition.
@@ -930,8 +930,8 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
             let (bank, program) = s.bank_program();
             let r = sf
                 .key_region(bank, program, key, VELOCITY)
-                .map(Recording::new)
-                .map_err(|e| format!("{e:#}"));
+                .map_err(|e| format!("{e:#}"))
+                .and_then(Recording::new);
             ((s, key), r)
         })
         .collect();

@@ -53,7 +53,7 @@ pub struct ZoneSample {
 impl ZoneSample {
     /// The sample played at its key and at `rate_hz`: read at 2^(cents/1200)
     /// times its own rate, band-limited ([`resample`]).
-    pub fn play(&self, rate_hz: f64) -> Vec<f64> {
+    pub fn play(&self, rate_hz: f64) -> Result<Vec<f64>, String> {
         let step = 2f64.powf(self.cents / 1200.0) * self.rate_hz / rate_hz;
         resample(&self.data, step)
     }
@@ -95,8 +95,12 @@ impl KeyRegion {
     /// loop): every zone played at `rate_hz` ([`ZoneSample::play`]), times
     /// its gain, summed and divided by the number of zones (a stereo
     /// pair's left and right are mixed to mono).
-    pub fn play(&self, rate_hz: f64) -> Vec<f64> {
-        let played: Vec<Vec<f64>> = self.zones.iter().map(|z| z.play(rate_hz)).collect();
+    pub fn play(&self, rate_hz: f64) -> Result<Vec<f64>, String> {
+        let played: Vec<Vec<f64>> = self
+            .zones
+            .iter()
+            .map(|z| z.play(rate_hz))
+            .collect::<Result<_, _>>()?;
         let n = played.iter().map(Vec::len).max().unwrap_or(0);
         let mut out = vec![0.0; n];
         let k = self.zones.len().max(1) as f64;
@@ -105,7 +109,7 @@ impl KeyRegion {
                 *o += z.gain * x / k;
             }
         }
-        out
+        Ok(out)
     }
 
     /// The band limit of the played sound \[Hz\]: the lowest zone's
@@ -460,7 +464,7 @@ pub(crate) mod tests {
         );
         assert_eq!(z.channel(), "mono");
         // played at 44.1 kHz: about an octave down, twice the rate -> 4x as long
-        let played = r.play(44100.0);
+        let played = r.play(44100.0).unwrap();
         let expect = 2205.0 * 2.0 * 2f64.powf(1204.0 / 1200.0);
         assert!(
             (played.len() as f64 - expect).abs() < 2.0,
