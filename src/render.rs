@@ -1007,8 +1007,8 @@ pub const NUMBER_ROOM: usize = 32;
 ///
 /// Every CSV reader reads these (Rust's `parse`, Python's `float`, NumPy);
 /// tested to read back bit for bit, with as many digits as core's shortest,
-/// on numbers of every magnitude. Until 2026-11-28 the digits were moved
-/// into core's `{:e}` spelling, which cost as much again as finding them.
+/// on numbers of every magnitude. The digits are not moved into core's
+/// `{:e}` spelling: that move costs as much again as finding them.
 ///
 /// Up to 8 numbers are formatted first and then moved with fixed-size
 /// copies straight into `out`: a copy call per number took a fifth of the
