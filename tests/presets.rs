@@ -235,6 +235,9 @@ fn rewritten_presets_keep_their_sound() {
         /// a preset whose strike point has moved since (the fixture checks
         /// the object's model, so it is read at the points it was made at)
         points: Option<&'static str>,
+        /// the bar's resonator tube, added since the fixture: left out (it
+        /// damps and moves the modes on purpose: tests/radiation.rs)
+        resonator: bool,
     }
     let cases = [
         Case {
@@ -243,6 +246,7 @@ fn rewritten_presets_keep_their_sound() {
             replaced: &[],
             render: Some(1e-3),
             points: None,
+            resonator: false,
         },
         // the torsional modes at the uniform bar's frequencies instead of
         // an arch estimate
@@ -252,6 +256,7 @@ fn rewritten_presets_keep_their_sound() {
             replaced: &[1, 3],
             render: None,
             points: None,
+            resonator: true,
         },
         // the exact Timoshenko root instead of its first-order expansion
         Case {
@@ -264,6 +269,7 @@ fn rewritten_presets_keep_their_sound() {
                 "points = { contact = [0.06903556710181151, 0.006], \
                  pickup = [0.006136494853494357, -0.0075] }",
             ),
+            resonator: false,
         },
         Case {
             name: "wood-block",
@@ -271,6 +277,7 @@ fn rewritten_presets_keep_their_sound() {
             replaced: &[],
             render: None,
             points: None,
+            resonator: false,
         },
     ];
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -284,15 +291,18 @@ fn rewritten_presets_keep_their_sound() {
         let name = case.name;
         let old = Scene::from_file(&dir.join(format!("{name}.toml"))).unwrap();
         let path = root.join(format!("presets/{name}.toml"));
-        let new = match case.points {
-            None => Scene::from_file(&path).unwrap(),
-            Some(line) => {
-                let text = std::fs::read_to_string(&path).unwrap();
-                let at = text.find("\npoints = {").expect("a points line") + 1;
-                let end = at + text[at..].find('\n').unwrap();
-                Scene::from_toml_str(&format!("{}{line}{}", &text[..at], &text[end..])).unwrap()
-            }
-        };
+        let mut text = std::fs::read_to_string(&path).unwrap();
+        if let Some(line) = case.points {
+            let at = text.find("\npoints = {").expect("a points line") + 1;
+            let end = at + text[at..].find('\n').unwrap();
+            text = format!("{}{line}{}", &text[..at], &text[end..]);
+        }
+        if case.resonator {
+            let at = text.find("\nresonator = {").expect("a resonator line") + 1;
+            let end = at + text[at..].find('\n').unwrap() + 1;
+            text = format!("{}{}", &text[..at], &text[end..]);
+        }
+        let new = Scene::from_toml_str(&text).unwrap();
         assert!(new.object[0].physical().is_some(), "{name} is physical");
         let ex = new.expanded(48000.0).unwrap();
         let (ObjectSpec::Modal(a), ObjectSpec::Modal(b)) = (&old.object[0], &ex.object[0]) else {

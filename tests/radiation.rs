@@ -249,3 +249,129 @@ quantity = "pressure"
         "{got}"
     );
 }
+
+/// A marimba bar (the preset's A3) with a resonator tube, heard straight
+/// above, where a free bar's own far field is zero to first order (its
+/// modes have no net volume) and the tube's monopole is what is heard.
+fn resonated_bar(resonator: &str) -> String {
+    format!(
+        r#"version = 1
+name = "resonated-bar"
+[[object]]
+name = "bar"
+kind = "bar"
+material = {{ name = "rosewood", density_kg_per_m3 = 1050.0, youngs_modulus_pa = 20e9, shear_modulus_pa = 1.6e9, loss_factor = 0.0075 }}
+length_m = 0.4
+width_m = 0.058
+thickness_m = 0.022
+tuning = [1.0, 4.0, 10.0]
+fundamental_hz = 220.0
+max_freq_hz = 3000.0
+loss = {{ decay_rate_per_s = 0.5 }}
+{resonator}
+points = {{ contact = 0.18, centre = 0.2 }}
+[hammer]
+mass_kg = 0.03
+height_m = 0.001
+velocity_m_per_s = -2.0
+[contact]
+object = "bar"
+point = "contact"
+stiffness_n_per_m = 3e5
+damping_n_s_per_m = 40.0
+[[listener]]
+name = "above"
+distance_m = 1.0
+[[pickup]]
+object = "bar"
+point = "above"
+quantity = "pressure"
+"#
+    )
+}
+
+/// The tube's effect reaches the compiled object as the design says
+/// (docs/design.md, "Resonator tubes"): each mode's decay rate grows by
+/// the tube's `S_c^2 phi^2 Re(Z_par) / 2`, its frequency moves by the
+/// reactance's share, and its listener weights gain the tube's monopole;
+/// the fundamental, tuned to the tube, is the one the tube takes most from
+/// and radiates loudest.
+#[test]
+fn a_resonator_tube_damps_and_radiates_each_mode_as_the_design_says() {
+    use modal_contact::bodies::resonator::Resonator;
+    let with = Scene::from_toml_str(&resonated_bar(
+        r#"resonator = { radius_m = 0.031, point = "centre" }"#,
+    ))
+    .unwrap()
+    .expanded(48000.0)
+    .unwrap();
+    let without = Scene::from_toml_str(&resonated_bar(""))
+        .unwrap()
+        .expanded(48000.0)
+        .unwrap();
+    let (ObjectSpec::Modal(a), ObjectSpec::Modal(b)) = (&with.object[0], &without.object[0]) else {
+        panic!("not modal");
+    };
+    assert_eq!(a.mode.len(), b.mode.len());
+    let at = |m: &modal_contact::scene::ModalSpec, p: &str| {
+        m.points.iter().position(|q| q == p).unwrap()
+    };
+    let (centre, q) = (at(b, "centre"), at(a, &pressure_point("above", false)));
+    let area = PI * 0.031f64.powi(2); // the bar (58 mm) covers the 62 mm mouth's width
+    let tube = Resonator::tuned(0.031, b.mode[0].freq_hz, area).unwrap();
+    let sigma = |t60: f64| 1000f64.ln() / t60;
+    let mut loudest = (0.0, 0usize);
+    for (k, (ma, mb)) in a.mode.iter().zip(&b.mode).enumerate() {
+        let e = tube.on_mode(mb.freq_hz, mb.weights[centre]);
+        let added = sigma(ma.t60_s.unwrap()) - sigma(mb.t60_s.unwrap());
+        let shift = ma.freq_hz - mb.freq_hz;
+        // the bar's own weight straight above is zero to rounding: the
+        // listener's `~q` weight is the tube's, in the rows' units
+        let r = 2.0 * PI * mb.freq_hz / PRESSURE_REF_OMEGA;
+        let want = r * r * e.far_field.0 / PRESSURE_REF_AREA_M2;
+        println!(
+            "mode {k}: {:.1} Hz, sigma +{added:.4} (tube {:.4}) 1/s, shift {shift:+.5} Hz, ~q weight {:.4e} (tube {want:.4e})",
+            mb.freq_hz, e.decay_rate_per_s, ma.weights[q]
+        );
+        assert!((added - e.decay_rate_per_s).abs() <= 1e-9 * sigma(mb.t60_s.unwrap()));
+        assert!((shift - e.freq_shift_hz).abs() <= 1e-9 * mb.freq_hz);
+        assert!((ma.weights[q] - want).abs() <= 1e-6 * want.abs().max(1e-6));
+        if e.far_field.0.hypot(e.far_field.1) > loudest.0 {
+            loudest = (e.far_field.0.hypot(e.far_field.1), k);
+        }
+    }
+    assert_eq!(loudest.1, 0, "the tuned fundamental radiates loudest");
+    let fundamental = sigma(a.mode[0].t60_s.unwrap()) - sigma(b.mode[0].t60_s.unwrap());
+    assert!(
+        fundamental > 1.0,
+        "the tube takes {fundamental} 1/s from the fundamental"
+    );
+}
+
+#[test]
+fn bad_resonators_are_refused_with_their_field() {
+    for (res, field) in [
+        (
+            r#"resonator = { radius_m = 0.031, point = "nowhere" }"#,
+            "object[0].resonator.point",
+        ),
+        (
+            r#"resonator = { radius_m = 0.0, point = "centre" }"#,
+            "object[0].resonator.radius_m",
+        ),
+        (
+            r#"resonator = { radius_m = 0.031, point = "centre", tuned_hz = -1.0 }"#,
+            "object[0].resonator.tuned_hz",
+        ),
+        (
+            r#"resonator = { radius_m = 3.0, point = "centre" }"#,
+            "object[0].resonator",
+        ),
+    ] {
+        let e = Scene::from_toml_str(&resonated_bar(res))
+            .unwrap_err()
+            .to_string();
+        println!("{res}: {e}");
+        assert!(e.contains(field), "{res}: {e}");
+    }
+}

@@ -7,4 +7,5 @@
 pub mod chain;
 pub mod materials;
 pub mod radiation;
+pub mod resonator;
 pub mod shapes;

@@ -18,6 +18,7 @@ use super::{
 };
 use crate::bodies::materials::{self, Material};
 use crate::bodies::radiation::{far_field, Direction, SOUND_SPEED_M_PER_S};
+use crate::bodies::resonator::Resonator;
 use crate::bodies::shapes::{
     Bar, BeamSupport, LossModel, Membrane, Plate, PlateEdges, Point, Shape, ShapeMode, StiffString,
     Tube,
@@ -287,8 +288,27 @@ pub struct BarSpec {
     /// Most modes listed (default and limit `MAX_MODES_PER_OBJECT`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_modes: Option<usize>,
+    /// A resonator tube under the bar (docs/design.md, "Resonator tubes").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub resonator: Option<ResonatorSpec>,
     /// Named points: position along the bar from one end \[m\].
     pub points: BTreeMap<String, PointSpec>,
+}
+
+/// `resonator = { radius_m, point, tuned_hz }` on a bar: a round tube,
+/// closed at the bottom, open under the bar's `point` (docs/design.md,
+/// "Resonator tubes").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ResonatorSpec {
+    /// Inner radius of the tube \[m\].
+    pub radius_m: f64,
+    /// The bar's named point over the tube's axis.
+    pub point: String,
+    /// The frequency its air column is tuned to \[Hz\]; default the bar's
+    /// lowest mode.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tuned_hz: Option<f64>,
 }
 
 /// `kind = "tube"`: a round tube (chime) or rod.
@@ -860,12 +880,30 @@ impl<'a> PhysicalSpec<'a> {
         let weight_scale = self.weight_scale(base, &shape)?;
         let mut mode = Vec::with_capacity(modes.len());
         let radiation = self.plate_radiation(base, &shape)?;
+        let lowest = modes
+            .iter()
+            .map(|m| m.freq_hz)
+            .fold(f64::INFINITY, f64::min);
+        let resonator = self.resonator(base, &shape, lowest)?;
         for (k, m) in modes.iter().enumerate() {
+            // what the tube does to this mode ringing at its frequency
+            let tube = match &resonator {
+                Some((r, at)) => {
+                    let phi = weight_scale
+                        * m.shape_at(*at).map_err(|e| {
+                            SceneError::new(format!("{base}.resonator.point"), e.to_string())
+                        })?;
+                    Some(r.on_mode(m.freq_hz, phi))
+                }
+                None => None,
+            };
             let sigma = loss
                 .decay_rate(m.freq_hz)
                 .map_err(|e| shape_error(base, e))?
-                + radiation.as_ref().map_or(0.0, |r| r(m.freq_hz));
+                + radiation.as_ref().map_or(0.0, |r| r(m.freq_hz))
+                + tube.map_or(0.0, |t| t.decay_rate_per_s);
             let t60_s = (sigma > 0.0).then(|| (1000f64.ln() / sigma).max(MIN_T60_S));
+            let freq_hz = m.freq_hz + tube.map_or(0.0, |t| t.freq_shift_hz);
             let mut weights = Vec::with_capacity(points.len());
             for (name, p) in &points {
                 let w = weight_scale
@@ -892,6 +930,8 @@ impl<'a> PhysicalSpec<'a> {
                 let (re, im) = far_field(&shape, m, dir, SOUND_SPEED_M_PER_S).map_err(|e| {
                     SceneError::new(format!("{base}: listener {:?}", l.name), e.to_string())
                 })?;
+                // the tube's monopole beside the bar's own far field
+                let (re, im) = tube.map_or((re, im), |t| (re + t.far_field.0, im + t.far_field.1));
                 let r = m.omega() / PRESSURE_REF_OMEGA;
                 for w in [
                     weight_scale * r * r * re / PRESSURE_REF_AREA_M2,
@@ -911,7 +951,7 @@ impl<'a> PhysicalSpec<'a> {
                 }
             }
             mode.push(ModeSpec {
-                freq_hz: m.freq_hz,
+                freq_hz,
                 t60_s,
                 weights,
             });
@@ -926,6 +966,39 @@ impl<'a> PhysicalSpec<'a> {
             points: names,
             mode,
         })
+    }
+
+    /// A bar's resonator tube and the point over its axis; `lowest_hz`
+    /// (the bar's lowest mode) is its default tuning. The bar covers the
+    /// mouth across its width: `S_c = min(pi a^2, 2 a b)`.
+    fn resonator(
+        &self,
+        base: &str,
+        shape: &Shape,
+        lowest_hz: f64,
+    ) -> Result<Option<(Resonator, Point)>, SceneError> {
+        let (PhysicalSpec::Bar(spec), Shape::Bar(bar)) = (self, shape) else {
+            return Ok(None);
+        };
+        let Some(r) = &spec.resonator else {
+            return Ok(None);
+        };
+        let path = format!("{base}.resonator");
+        let Some(p) = spec.points.get(&r.point) else {
+            return Err(SceneError::new(
+                format!("{path}.point"),
+                format!("names no point of the bar: {:?}", r.point),
+            ));
+        };
+        let at = self.point(base, &r.point, *p)?;
+        check_positive(&format!("{path}.radius_m"), r.radius_m)?;
+        let tuned = r.tuned_hz.unwrap_or(lowest_hz);
+        check_positive(&format!("{path}.tuned_hz"), tuned)?;
+        let a = r.radius_m;
+        let covered = (PI * a * a).min(2.0 * a * bar.width_m);
+        let tube =
+            Resonator::tuned(a, tuned, covered).map_err(|e| SceneError::new(path.clone(), e))?;
+        Ok(Some((tube, at)))
     }
 
     /// `sqrt(m_uniform / mass_kg)` of an undercut bar whose mass is given
@@ -990,6 +1063,9 @@ impl<'a> PhysicalSpec<'a> {
             .map_err(|e| shape_error(&format!("{base}.loss"), e))?;
         self.plate_radiation(base, &shape)?;
         self.weight_scale(base, &shape)?;
+        if let Some(f) = self.lowest_frequency_hz() {
+            self.resonator(base, &shape, f)?;
+        }
         if let Some(f) = self.limits().max_freq_hz {
             check_positive(&format!("{base}.max_freq_hz"), f)?;
         }
