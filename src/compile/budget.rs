@@ -27,15 +27,16 @@
 //! per general eigendecomposition (one for the secular route), 8 bytes per
 //! entry.
 //!
-//! Calibration (2-core development machine, release profile, 2026-11): one
-//! estimated flop is ~45 ps, so the default budget of 1.5e12 is about a
-//! minute. Measured: modal objects by the secular route, 800 / 1000 / 1500 /
-//! 1900 modes all coupled: 1.0 / 1.7 / 4.4 / 7.5 s (estimates 0.5 / 0.9 /
-//! 3.0 / 6.9 s), peak RSS 267 / 412 / 914 / 1457 MB (estimates 267 / 417 /
-//! 938 / 1504 MB); 1000 modes through the general route (a degenerate pair
-//! refuses the secular one): 7.1 s (estimate 7.2 s), 476 MB (577 MB);
-//! strings of 400 / 800 / 1000 masses: 1.3 / 9.8 / 16.6 s (estimates 1.5 /
-//! 11.8 / 23 s), 95 / 387 / 528 MB (estimates 114 / 450 / 700 MB).
+//! Calibration (release profile, on the 2-core AMD EPYC development
+//! machine): one estimated flop is ~45 ps there, so the default budget of
+//! 1.5e12 is about a minute. The estimates against the measured compiles:
+//! modal objects by the secular route, 800 to 1900 modes all coupled, time
+//! 0.5x-0.9x of the measured and peak RSS within 3 %; 1000 modes through
+//! the general route (a degenerate pair refuses the secular one) time 1.0x,
+//! memory 1.2x; strings of 400 to 1000 masses time 1.2x-1.4x, memory
+//! 1.2x-1.3x. `cargo bench --bench engine -- summary` prints the compile
+//! time of 100, 400 and 1000 modes on the machine it runs on
+//! (docs/benchmarks.md).
 
 use super::error::OverBudget;
 use crate::scene::{ObjectSpec, Scene};

@@ -104,9 +104,10 @@ const NO_EPOCH: u64 = u64::MAX;
 /// run first loads every block's state, propagator and rows (at 200 modes
 /// about as long as stepping 10 samples), so short runs cost nearly as
 /// much as long ones, while a failure costs the run and a re-run of the
-/// samples before it; restarting at 16 rather than 1 made one strike on a
-/// ringing object about 9 % cheaper at 200 modes and 18 % at 50
-/// (alternating runs of both builds). Speed only: the kernel's per-sample
+/// samples before it; so restarting at 16 rather than 1 makes a strike on
+/// a ringing object cheaper, the more so the fewer its modes (the strike
+/// table of `cargo bench --bench worst_block` measures a strike). Speed
+/// only: the kernel's per-sample
 /// sums do not depend on a run's length, so the output is the same bit for
 /// bit.
 const SPEC_RESTART: usize = 16;

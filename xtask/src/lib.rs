@@ -6,11 +6,14 @@
 //! - [`render`]: `cargo xtask render`, one scene or a batch;
 //! - [`plot`]: the render plot and the report's diagrams;
 //! - [`report`]: `cargo xtask report` (error against run time, stability);
+//! - [`benchmarks`]: `cargo xtask benchmarks` (the measurement benches'
+//!   tables, written to docs/benchmarks.md);
 //! - [`multisample`]: every note x velocity layer of a scene as WAVs plus
 //!   an SFZ file;
 //! - [`compare_real`]: `cargo xtask compare-real` (the presets against real
 //!   recordings from the FluidR3 General MIDI soundfont).
 
+pub mod benchmarks;
 pub mod compare_real;
 pub mod multisample;
 pub mod offline;

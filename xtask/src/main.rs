@@ -15,6 +15,10 @@
 //! - `cargo xtask demo`: bundle (release) and render a demo through the built
 //!   CLAP plugin into `target/demo/*.wav`
 //! - `cargo xtask report [--quick] [--out DIR] [--only SECTION] [--scene NAME]`
+//! - `cargo xtask benchmarks [--out docs/benchmarks.md] [--quick] [--only
+//!   NAME]...`: runs the measurement benches and writes the tables they
+//!   print to `docs/benchmarks.md`, stamped with machine, OS, compiler and
+//!   date
 //! - `cargo xtask golden [--write]`: bit-identical renders against
 //!   `tests/golden-hashes.txt`
 //! - `cargo xtask param-docs [--check]`: the parameter and scene tables of
@@ -28,7 +32,7 @@
 mod golden;
 mod paramdocs;
 
-use xtask::{compare_real, multisample, render, report};
+use xtask::{benchmarks, compare_real, multisample, render, report};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -59,6 +63,12 @@ enum Command {
     /// Error against run time of the engine and the usual integrators, the
     /// stability table and the f32 study (writes report/report.md).
     Report(report::ReportArgs),
+    /// Run the measurement benches (engine, worst block, several contacts,
+    /// render command, activation, the stiff cases) and write the tables
+    /// they print to docs/benchmarks.md, each section stamped with the
+    /// machine, OS, compiler and date of its run. Relative paths are from
+    /// the workspace root.
+    Benchmarks(benchmarks::BenchmarksArgs),
     /// Every test: bundles the plugin three ways, runs the workspace tests
     /// (the plugin tests load those bundles), then the VST3 tests
     /// (pedalboard, Ardour).
@@ -107,6 +117,10 @@ fn main() -> Result<()> {
         Some(Command::Render(a)) => render::run(&a),
         Some(Command::Multisample(a)) => multisample::run(&a),
         Some(Command::Report(a)) => report::run(a),
+        Some(Command::Benchmarks(a)) => {
+            nice_plug_xtask::chdir_workspace_root()?;
+            benchmarks::run(&a)
+        }
         // The arguments go to cargo test verbatim: clap drops the `--` of
         // `cargo xtask test -- --nocapture`, which cargo test needs.
         Some(Command::Test(_)) => run_tests(&argv[2..]),
