@@ -79,6 +79,12 @@ pub const MAX_GRAVITY_M_PER_S2: f64 = 1.0e4;
 pub const MAX_GAIN: f64 = 1.0e6;
 /// Longest `duration_s` \[s\] (the renderer's limit).
 pub const MAX_DURATION_S: f64 = 3600.0;
+/// Quietest and loudest `level_db` \[dB\], the output level a scene states
+/// (docs/design.md, "Scene files"): far wider than the spread of the
+/// presets' loudness, which it evens out.
+pub const MIN_LEVEL_DB: f64 = -60.0;
+/// See [`MIN_LEVEL_DB`].
+pub const MAX_LEVEL_DB: f64 = 40.0;
 
 /// A validation or parse error that names the field and the reason.
 #[derive(Debug, Clone, PartialEq)]
@@ -163,6 +169,14 @@ pub struct Scene {
     /// instruments"); absent: not compared. Rendering ignores it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub real_instrument: Option<String>,
+    /// The scene's output level \[dB\]: a gain of `10^(level_db / 20)` on
+    /// every pickup, so that scenes of very different physics sound at one
+    /// loudness at the same velocity (the presets' values are set by `cargo
+    /// xtask levels --write`: docs/design.md, "Scene files" and "Offline
+    /// rendering"). [`Scene::expanded`] applies it; 0 (the default) leaves
+    /// the pickups as written.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub level_db: f64,
     /// The objects of the scene (at least one).
     #[serde(default)]
     pub object: Vec<ObjectSpec>,
@@ -238,6 +252,10 @@ pub struct ApproxSpec {
 
 fn default_duration_s() -> f64 {
     1.0
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// One object; `kind` selects the variant.
@@ -745,8 +763,10 @@ impl Scene {
     /// plate, membrane, stiff string) replaced by the modal object it
     /// describes at `rate_hz` (docs/design.md, "Objects from geometry and
     /// material"); other objects as they are; a modal mallet's modes joined
-    /// to the struck object's (docs/design.md, "Modal mallets"). The
-    /// compiler runs on this.
+    /// to the struck object's (docs/design.md, "Modal mallets"); every
+    /// pickup's gain times [`Scene::level_gain`] (the expanded scene's
+    /// `level_db` is 0: its pickups carry the level). The compiler runs on
+    /// this.
     pub fn expanded(&self, rate_hz: f64) -> Result<Scene, SceneError> {
         let mut out = self.clone();
         for (i, obj) in out.object.iter_mut().enumerate() {
@@ -777,9 +797,24 @@ impl Scene {
                 _ => vec![pk.clone()],
             })
             .collect();
+        // the scene's level: after the pressure pickups' expansion, so it
+        // scales every output row alike (docs/design.md, "Scene files")
+        if self.level_db != 0.0 {
+            let g = self.level_gain();
+            for pk in &mut out.pickup {
+                pk.gain *= g;
+            }
+            out.level_db = 0.0;
+        }
         out.listener.clear();
         out.merge_mallet()?;
         Ok(out)
+    }
+
+    /// The linear gain of `level_db`, `10^(level_db / 20)` (exactly 1 at
+    /// 0 dB).
+    pub fn level_gain(&self) -> f64 {
+        10f64.powf(self.level_db / 20.0)
     }
 
     /// Several contacts (`[[striker]]` or `[[touch]]`): the several-contact
@@ -804,6 +839,16 @@ impl Scene {
         }
         check_positive("duration_s", self.duration_s)?;
         check_max("duration_s", self.duration_s, MAX_DURATION_S)?;
+        check_finite("level_db", self.level_db)?;
+        if !(MIN_LEVEL_DB..=MAX_LEVEL_DB).contains(&self.level_db) {
+            return Err(SceneError::new(
+                "level_db",
+                format!(
+                    "must be within {MIN_LEVEL_DB} ..= {MAX_LEVEL_DB} dB, got {}",
+                    self.level_db
+                ),
+            ));
+        }
         if self.object.is_empty() {
             return Err(SceneError::new("object", "at least one object is needed"));
         }
@@ -1309,6 +1354,17 @@ impl Scene {
             }
             check_finite(&format!("{base}.gain"), p.gain)?;
             check_abs_max(&format!("{base}.gain"), p.gain, MAX_GAIN)?;
+            // the gain the engine gets: times the scene's level
+            let heard = p.gain * self.level_gain();
+            if heard.abs() > MAX_GAIN {
+                return Err(SceneError::new(
+                    "level_db",
+                    format!(
+                        "{base}.gain {:e} at level_db {} makes {heard:e}; |gain x level| must be <= {MAX_GAIN:e}",
+                        p.gain, self.level_db
+                    ),
+                ));
+            }
             check_finite(&format!("{base}.pan"), p.pan)?;
             if !(-1.0..=1.0).contains(&p.pan) {
                 return Err(SceneError::new(
@@ -1623,5 +1679,57 @@ point = "contact"
         let s = Scene::from_toml_str(&named).unwrap();
         assert_eq!(s.real_instrument.as_deref(), Some("Marimba"));
         assert_eq!(Scene::from_toml_str(&s.to_toml_string()).unwrap(), s);
+    }
+
+    /// `level_db`: absent is 0 and not written back; a value is read,
+    /// written back and multiplies every pickup's gain in the expanded
+    /// scene (whose own level is then 0); anything out of range, not a
+    /// number, or a level that takes a pickup's gain past [`MAX_GAIN`] is
+    /// refused naming `level_db`.
+    #[test]
+    fn level_db_is_read_checked_and_scales_the_pickups() {
+        let plain = Scene::from_toml_str(BAR).unwrap();
+        assert_eq!(plain.level_db, 0.0);
+        assert_eq!(plain.level_gain(), 1.0);
+        assert!(!plain.to_toml_string().contains("level_db"));
+        assert_eq!(
+            plain.expanded(48000.0).unwrap(),
+            plain.expanded(48000.0).unwrap()
+        );
+        let text = BAR.replacen("version = 1\n", "version = 1\nlevel_db = -6.5\n", 1);
+        let s = Scene::from_toml_str(&text).unwrap();
+        assert_eq!(s.level_db, -6.5);
+        assert!(s.to_toml_string().contains("level_db = -6.5"));
+        assert_eq!(Scene::from_toml_str(&s.to_toml_string()).unwrap(), s);
+        let (e0, e1) = (
+            plain.expanded(48000.0).unwrap(),
+            s.expanded(48000.0).unwrap(),
+        );
+        assert_eq!(e1.level_db, 0.0);
+        assert_eq!(e0.pickup.len(), e1.pickup.len());
+        for (a, b) in e0.pickup.iter().zip(&e1.pickup) {
+            assert_eq!(b.gain, a.gain * 10f64.powf(-6.5 / 20.0));
+        }
+        e1.validate().unwrap();
+        for (value, want) in [
+            ("nan", "level_db: must be finite, got NaN"),
+            ("inf", "level_db: must be finite, got inf"),
+            ("40.5", "level_db: must be within -60 ..= 40 dB, got 40.5"),
+            ("-61.0", "level_db: must be within -60 ..= 40 dB, got -61"),
+            ("\"loud\"", "invalid type: string \"loud\", expected f64"),
+        ] {
+            let text = BAR.replacen(
+                "version = 1\n",
+                &format!("version = 1\nlevel_db = {value}\n"),
+                1,
+            );
+            let got = Scene::from_toml_str(&text).unwrap_err().to_string();
+            assert!(got.contains(want), "{value}: {got}");
+        }
+        // BAR ends in its pickup's table
+        let loud =
+            BAR.replacen("version = 1\n", "version = 1\nlevel_db = 40.0\n", 1) + "gain = 1e5\n";
+        let got = Scene::from_toml_str(&loud).unwrap_err().to_string();
+        assert!(got.starts_with("level_db: pickup[0].gain"), "{got}");
     }
 }

@@ -577,9 +577,10 @@ parameters! {
         name: "Output gain",
         kind: linear(-60.0, 12.0, -6.0, " dB", 1),
         applies: Applies::NextBlock,
-        doc: "Output level. The presets' pickup gains are their normalisation: \
-              the strike written in a generated preset peaks around 0.35 per \
-              channel at 0 dB (0.5 per pickup, panned to the centre).",
+        doc: "Output level, after the scene's own level (`level_db`, a gain on \
+              its pickups): the presets' levels put a strike at velocity 100 at \
+              one loudness, low enough that a 16-note chord stays below full \
+              scale at this gain's default (docs/levels.md).",
     },
     switching: EnumParam<SwitchingChoice> = SWITCHING {
         id: "switching",

@@ -125,6 +125,7 @@ impl SceneBuilder {
             approximate: self.approximate,
             play: None,
             real_instrument: None,
+            level_db: 0.0,
             listener: Vec::new(),
         }
     }

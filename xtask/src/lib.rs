@@ -11,10 +11,13 @@
 //! - [`multisample`]: every note x velocity layer of a scene as WAVs plus
 //!   an SFZ file;
 //! - [`compare_real`]: `cargo xtask compare-real` (the presets against real
-//!   recordings from the FluidR3 General MIDI soundfont).
+//!   recordings from the FluidR3 General MIDI soundfont);
+//! - [`levels`]: `cargo xtask levels` (each preset's loudness at one
+//!   velocity, and the `level_db` that evens them out).
 
 pub mod benchmarks;
 pub mod compare_real;
+pub mod levels;
 pub mod multisample;
 pub mod offline;
 pub mod plot;

@@ -28,11 +28,15 @@
 //!   against its recorded samples in the FluidR3 General MIDI soundfont
 //!   (`docs/compare-real.md`, plots in `docs/compare-real/`, WAV pairs in
 //!   `target/compare-real/`)
+//! - `cargo xtask levels [--check] [--write] [--out docs/levels.md]
+//!   [--presets DIR]`: each preset's loudness and peaks at velocity 100,
+//!   and the `level_db` that puts it at the common target
+//!   (`docs/levels.md`; `--write` sets the presets' levels)
 
 mod golden;
 mod paramdocs;
 
-use xtask::{benchmarks, compare_real, multisample, render, report};
+use xtask::{benchmarks, compare_real, levels, multisample, render, report};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -88,6 +92,12 @@ enum Command {
     /// 1/3-octave distance, a confusion table and the targets of issue 49
     /// (writes docs/compare-real.md and its plots).
     CompareReal(compare_real::CompareRealArgs),
+    /// Each preset's loudness (EBU R128) and peaks struck at velocity 100,
+    /// a 16-note chord's peak, and the level_db that puts it at the
+    /// common target (writes docs/levels.md; --write sets the presets'
+    /// level_db, --check fails on a preset off its level or a clipping
+    /// chord).
+    Levels(levels::LevelsArgs),
     /// Anything else: nice-plug's xtask (`bundle`, `bundle-universal`, ...).
     #[command(external_subcommand)]
     NicePlug(Vec<String>),
@@ -128,6 +138,7 @@ fn main() -> Result<()> {
         Some(Command::Golden(a)) => golden::run(a),
         Some(Command::ParamDocs(a)) => paramdocs::run(a.check),
         Some(Command::CompareReal(a)) => compare_real::run(&a),
+        Some(Command::Levels(a)) => levels::run(&a),
         Some(Command::NicePlug(args)) => nice_plug_xtask::main_with_args("cargo xtask", args),
         None => nice_plug_xtask::main(),
     }

@@ -133,6 +133,19 @@ pub fn play_note(
     velocity: u8,
     samples: usize,
 ) -> NoteRender {
+    play_notes(prepared, params, &[note], velocity, samples)
+}
+
+/// Strike every note of `notes` at MIDI velocity `velocity` together at
+/// sample 0 (a chord; in this order, on the same sample) and render
+/// `samples` samples, as [`play_note`] does one.
+pub fn play_notes(
+    prepared: &Prepared,
+    params: &InstrumentParams,
+    notes: &[u8],
+    velocity: u8,
+    samples: usize,
+) -> NoteRender {
     // a kit (docs/design.md, "Played as a kit"): its own summary
     let summary = prepared
         .kit
@@ -147,14 +160,17 @@ pub fn play_note(
     let mut left = vec![0.0f32; samples];
     let mut right = vec![0.0f32; samples];
     let t0 = Instant::now();
-    let on = TimedEvent {
-        offset: 0,
-        event: Event::NoteOn {
-            key: note,
-            velocity_norm: velocity_norm(velocity),
-        },
-    };
-    inst.process(&[on], &mut left, &mut right);
+    let on: Vec<TimedEvent> = notes
+        .iter()
+        .map(|&key| TimedEvent {
+            offset: 0,
+            event: Event::NoteOn {
+                key,
+                velocity_norm: velocity_norm(velocity),
+            },
+        })
+        .collect();
+    inst.process(&on, &mut left, &mut right);
     let render_s = t0.elapsed().as_secs_f64();
     let contacts = match &inst.prepared().kit {
         Some(k) => k.contacts_started().iter().sum(),
@@ -171,6 +187,15 @@ pub fn play_note(
         fallback_note,
         render_s,
     }
+}
+
+/// The note that plays a scene as written: its root
+/// ([`modal_contact::instrument::root_note`], rounded), what `cargo xtask
+/// render --velocities` strikes when no notes are given.
+pub fn root_key(scene: &Scene) -> u8 {
+    modal_contact::instrument::root_note(scene)
+        .round()
+        .clamp(0.0, 127.0) as u8
 }
 
 /// The sample format of a written WAV.

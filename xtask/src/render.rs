@@ -9,7 +9,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use modal_contact::compile::{compile_with, CompiledScene};
-use modal_contact::instrument::{root_note, InstrumentParams};
+use modal_contact::instrument::InstrumentParams;
 use modal_contact::render::{
     render_length, render_stream, CsvTrace, NpyTrace, StreamStats, TraceEnvelope, TraceSink,
 };
@@ -268,7 +268,7 @@ pub fn plan(a: &RenderArgs) -> Result<Vec<Job>> {
         }
         let notes = match (&notes, &scene) {
             (Some(n), _) => n.clone(),
-            (None, Some(sc)) => vec![root_note(sc).round().clamp(0.0, 127.0) as u8],
+            (None, Some(sc)) => vec![offline::root_key(sc)],
             // The job fails with the scene file's error when it runs.
             (None, None) => vec![60],
         };

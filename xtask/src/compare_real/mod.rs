@@ -686,7 +686,7 @@ fn compare(
 }
 
 /// Today's date (UTC) as YYYY-MM-DD (H. Hinnant's days-to-civil algorithm).
-fn today_utc() -> String {
+pub(crate) fn today_utc() -> String {
     let secs = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_secs())
@@ -703,7 +703,8 @@ fn today_utc() -> String {
     format!("{y:04}-{m:02}-{d:02}")
 }
 
-fn rustc_version() -> String {
+/// `rustc --version`, or a note that it is unknown.
+pub(crate) fn rustc_version() -> String {
     std::process::Command::new("rustc")
         .arg("--version")
         .output()
