@@ -13,7 +13,9 @@
 //!   tests on the built bundles and the VST3 tests through pedalboard and
 //!   in Ardour
 //! - `cargo xtask demo`: bundle (release) and render a demo through the built
-//!   CLAP plugin into `target/demo/*.wav`
+//!   CLAP plugin into `target/demo/*.wav`, and each preset that names a real
+//!   instrument into `target/demo/real/NAME.wav` beside its recording
+//!   (`NAME-real.wav`, from the FluidR3 soundfont when it is installed)
 //! - `cargo xtask report [--quick] [--out DIR] [--only SECTION] [--scene NAME]`
 //! - `cargo xtask benchmarks [--out docs/benchmarks.md] [--quick] [--only
 //!   NAME]...`: runs the measurement benches and writes the tables they
@@ -78,7 +80,9 @@ enum Command {
     /// (pedalboard, Ardour).
     Test(TestArgs),
     /// Bundle the release plugin and render a demo through the built CLAP
-    /// plugin into target/demo/.
+    /// plugin into target/demo/; each preset that names a real instrument
+    /// into target/demo/real/NAME.wav beside its recording, NAME-real.wav
+    /// (FluidR3 soundfont, Debian package fluid-soundfont-gm, if installed).
     Demo,
     /// Check that every preset and stability case renders bit-identically
     /// to tests/golden-hashes.txt.
@@ -278,7 +282,11 @@ fn run_tests(extra: &[String]) -> Result<()> {
 }
 
 /// `cargo xtask demo`: bundle the release plugin and render the demo through
-/// the built CLAP plugin (plugin-tests' host) into `target/demo/`.
+/// the built CLAP plugin (plugin-tests' host) into `target/demo/`, the
+/// presets that name a real instrument into `target/demo/real/`, and beside
+/// each the recording `cargo xtask compare-real` compares it with
+/// ([`compare_real::demo_recordings`]; without the soundfont, one line
+/// says which package holds it).
 fn run_demo() -> Result<()> {
     nice_plug_xtask::chdir_workspace_root()?;
     nice_plug_xtask::main_with_args(
@@ -295,5 +303,13 @@ fn run_demo() -> Result<()> {
         "--",
         &format!("target/bundled/{BUNDLE_NAME}.clap"),
         "target/demo",
-    ]))
+    ]))?;
+    let lines = compare_real::demo_recordings(
+        Path::new("target/demo/real"),
+        Path::new(compare_real::DEFAULT_SF2),
+    )?;
+    for l in lines {
+        println!("{l}");
+    }
+    Ok(())
 }
