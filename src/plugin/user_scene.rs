@@ -441,7 +441,7 @@ fn spectrum(
 mod tests {
     use super::*;
 
-    /// The README's "write your first scene" example (docs/plugin.md).
+    /// The example of docs/plugin.md, "Write your first scene".
     const THREE_MODES: &str = r#"
 version = 1
 name = "three"

@@ -362,8 +362,8 @@ impl PwlSystem {
         self.pick.iter().zip(s).map(|(a, b)| a * b).sum()
     }
 
-    /// Energy and penetration of a full state (the README's conventions; gravity
-    /// potential zero at `x_h = 0`).
+    /// Energy and penetration of a full state (docs/design.md, "Conventions
+    /// and units"; gravity potential zero at `x_h = 0`).
     #[inline]
     pub fn energy_and_penetration(&self, s: &[f64]) -> (f64, f64) {
         let n2 = 2 * self.n;
@@ -464,7 +464,7 @@ pub struct SimOutput {
     pub pickup: Vec<f64>,
     /// Hammer height \[m\].
     pub x_hammer: Vec<f64>,
-    /// Energy \[J\] (the README's conventions).
+    /// Energy \[J\] (docs/design.md, "Conventions and units").
     pub energy: Vec<f64>,
     /// Contacts as (start, end) times \[s\] on the fine grid: start = first fine
     /// state with `p > 0`, end = first later fine state with `p <= 0`. A contact

@@ -2,13 +2,13 @@
 //! of formatted TOML text, and the scene families they share.
 //!
 //! [`SceneBuilder`] fills [`Scene`] with the scene file's defaults (what
-//! README.md's scene contract says an omitted key means: velocity,
-//! gravity and damping 0, pickups measuring velocity at gain 1, centred,
-//! switching and approximations unset, `duration_s = 1`) and validates the
-//! result exactly as a scene file is validated. Numbers go in as `f64`s, so
-//! nothing depends on how a number would have been printed (the TOML
-//! texts these builders replace wrote every number so that it read back
-//! exactly; the values are the same).
+//! the scene contract, docs/design.md, "Scene files", says an omitted key
+//! means: velocity, gravity and damping 0, pickups measuring velocity at
+//! gain 1, centred, switching and approximations unset, `duration_s = 1`)
+//! and validates the result exactly as a scene file is validated. Numbers
+//! go in as `f64`s, so nothing depends on how a number would have been
+//! printed (the TOML texts these builders replace wrote every number so
+//! that it read back exactly; the values are the same).
 //!
 //! The families ([`ModalStrike`], [`chattering`], [`plate`],
 //! [`wall_strike`]) are the synthetic scenes of the report and the
