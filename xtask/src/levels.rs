@@ -60,7 +60,8 @@ pub const CLIP_DBFS: f64 = -1.0;
 /// clipped.
 pub const MAX_WRITE_PASSES: usize = 3;
 /// The comment of a `level_db` line `--write` adds.
-pub const WRITTEN_BY: &str = "# output level: set by cargo xtask levels --write (docs/levels.md)";
+pub const WRITTEN_BY: &str =
+    "# output level, set by cargo xtask levels --write (docs/levels.md has the method)";
 
 /// `cargo xtask levels [--check] [--write] [--out docs/levels.md]
 /// [--presets DIR]`.
