@@ -503,6 +503,7 @@ fn a_panic_in_process_is_caught_silenced_and_logged() {
         let v = line.split(key).nth(1).expect(key);
         v.split_whitespace().next().unwrap().parse().expect(key)
     };
-    assert!(num("rms_before_panic=") > 1e-3, "{line}");
-    assert!(num("rms_of_the_next_note=") > 1e-3, "{line}");
+    // sounding: the presets play at -45 LUFS (docs/levels.md)
+    assert!(num("rms_before_panic=") > 1e-4, "{line}");
+    assert!(num("rms_of_the_next_note=") > 1e-4, "{line}");
 }

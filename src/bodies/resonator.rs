@@ -13,8 +13,9 @@
 //! - the mouth pressure is `p_m = Z_par U_s`, `Z_par = Z_t Z_r / (Z_t +
 //!   Z_r)`; it pushes back on the bar with the force `-S_c p_m`, so a mass-
 //!   normalised mode of weight `phi` at the tube's axis gains the decay
-//!   rate `sigma = S_c^2 phi^2 Re(Z_par) / 2` and its frequency moves by
-//!   `-S_c^2 phi^2 Im(Z_par) / (4 pi)` \[Hz\];
+//!   rate `sigma = S_c^2 phi^2 Re(Z_par) / 2`, and the reactive part would
+//!   move its frequency by `-S_c^2 phi^2 Im(Z_par) / (4 pi)` \[Hz\] (a
+//!   scene leaves that out: docs/design.md, "Resonator tubes");
 //! - the room receives the flow out of the mouth, `U_r = p_m / Z_r`, and
 //!   the bar's top face draws `U_s` from above: together, within a small
 //!   fraction of a wavelength, a monopole of strength `U_r - U_s = -U_s
@@ -83,7 +84,8 @@ pub struct Resonator {
 pub struct ModeEffect {
     /// Decay rate added \[1/s\].
     pub decay_rate_per_s: f64,
-    /// Frequency change \[Hz\].
+    /// Frequency change the reactive load would make \[Hz\] (scenes do
+    /// not apply it: the bar keeps its tuning).
     pub freq_shift_hz: f64,
     /// The monopole the mode radiates through the tube, in the units of
     /// `bodies::radiation::far_field`'s `W_n` (`(re, im)`, m^2/sqrt(kg)):

@@ -198,8 +198,8 @@ fn strike_position_moves_the_string_contact_and_interpolates_modal_weights() {
     );
 
     // two points: ignored
-    let b = modal_base("marimba-bar");
-    let mut p = params("marimba-bar");
+    let b = modal_base("wood-block");
+    let mut p = params("wood-block");
     p.scene.strike_pos_norm = Some(0.3);
     assert_eq!(scene_for(&b, &p).object, b.object);
 }
@@ -462,8 +462,11 @@ fn presets_need_no_realtime_warning_at_any_hardness() {
                 pr.scenes.scene.name,
                 pr.realtime_warning()
             );
+            // a few nodes per sample near a switch; the glockenspiel's
+            // brass mallet (a contact of three samples at 44.1 kHz) takes
+            // about ten
             assert!(
-                pr.scenes.scene.search_nodes_estimate <= 8.0,
+                pr.scenes.scene.search_nodes_estimate <= 12.0,
                 "{}",
                 pr.scenes.scene.summary
             );
@@ -1196,8 +1199,10 @@ fn pressure_only_takes_energy_and_spares_strikes_and_bouncing_scenes() {
         ep[399], ef[399]
     );
     assert!(rise <= 0.0, "{rise:e}");
-    // pressed, it fell to the silence test's -90 dB and stopped
-    assert!(ep[399] < 1e-4 * ef[399]);
+    // pressed, it fell to the silence test's -90 dB and stopped; the free
+    // note (its energy also going into the marimba's resonator) holds a
+    // thousand times more
+    assert!(ep[399] < 1e-3 * ef[399]);
     assert!(!pressed.voices[0].active && free.voices[0].active);
     // note 64 unpressed: the same energy either way
     assert_eq!(
@@ -1992,7 +1997,7 @@ fn steals_at_every_polyphony_fade_the_stolen_voice_without_a_jump() {
         for ch in 0..2 {
             let f = |x: &[Vec<f32>; 2], k: usize| x[ch][k] as f64;
             let peak = (0..n).map(|k| f(&rest, k).abs()).fold(0.0, f64::max);
-            let tol = 1e-6 * (1.0 + peak);
+            let tol = 1e-6 * (1e-2 + peak);
             let mut worst = 0.0f64;
             for k in 0..n {
                 let expect = f(&rest, k) - f(&a, k) + gain(k) * f(&a, k) + f(&b, k);

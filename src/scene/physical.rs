@@ -903,7 +903,9 @@ impl<'a> PhysicalSpec<'a> {
                 + radiation.as_ref().map_or(0.0, |r| r(m.freq_hz))
                 + tube.map_or(0.0, |t| t.decay_rate_per_s);
             let t60_s = (sigma > 0.0).then(|| (1000f64.ln() / sigma).max(MIN_T60_S));
-            let freq_hz = m.freq_hz + tube.map_or(0.0, |t| t.freq_shift_hz);
+            // the tube's frequency shift (under 0.1 cent on the presets) is
+            // not applied: the bar keeps the tuning its maker gave it
+            let freq_hz = m.freq_hz;
             let mut weights = Vec::with_capacity(points.len());
             for (name, p) in &points {
                 let w = weight_scale
