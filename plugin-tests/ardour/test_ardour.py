@@ -603,7 +603,9 @@ def test_renders_equal_the_plugin_own_render():
             assert lat["plugin"] == 0 and lat["track"] == 0, lat  # the plugin reports none
             assert c["lag"] == lat["plugin"], c
             assert c["max_diff"] <= TOLERANCE, c
-            assert c["ref_peak"] > 0.05, c
+            # sounding: the presets play at -45 LUFS at velocity 100
+            # (docs/levels.md), peaks of a few hundredths at 0 dB
+            assert c["ref_peak"] > 0.005, c
 
 
 def default_take():
@@ -718,7 +720,8 @@ def test_scene_parameter():
         f"  bell vs marimba (both -12 dB): max difference {change:.4f}; "
         f"bell equals the library's bell to {c['max_diff']:.1e}"
     )
-    assert change > 0.05, change
+    # the presets play at -45 LUFS (docs/levels.md): peaks of a few hundredths
+    assert change > 0.005, change
 
 
 def test_session_reload_restores_parameters():
