@@ -228,16 +228,12 @@ impl Stamp {
         let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
         let os_release = std::fs::read_to_string("/etc/os-release").unwrap_or_default();
         let kernel = std::fs::read_to_string("/proc/sys/kernel/osrelease").unwrap_or_default();
-        let secs = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.as_secs())
-            .unwrap_or(0);
         Stamp {
             cpu: cpu_model(&cpuinfo),
             cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
             os: os_name(&os_release, kernel.trim()),
             rustc: command_line("rustc", &["--version"]),
-            date: civil_date(secs / 86_400),
+            date: today(),
         }
     }
 
@@ -288,7 +284,7 @@ fn capitalised(s: &str) -> String {
 }
 
 /// The first line a command prints, or a note that it could not run.
-fn command_line(cmd: &str, args: &[&str]) -> String {
+pub fn command_line(cmd: &str, args: &[&str]) -> String {
     Command::new(cmd)
         .args(args)
         .output()
@@ -301,6 +297,15 @@ fn command_line(cmd: &str, args: &[&str]) -> String {
                 .map(str::to_string)
         })
         .unwrap_or_else(|| format!("{cmd} (version unknown)"))
+}
+
+/// Today (UTC), `YYYY-MM-DD`.
+pub fn today() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    civil_date(secs / 86_400)
 }
 
 /// `YYYY-MM-DD` of the day `days` after 1970-01-01 (H. Hinnant's

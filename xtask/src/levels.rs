@@ -446,19 +446,10 @@ fn scene_files(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-/// The CPU model and its cores (Linux), or the architecture.
+/// The CPU model and its cores (the benchmarks page's stamp).
 fn machine() -> String {
-    let cpu = std::fs::read_to_string("/proc/cpuinfo").ok().and_then(|s| {
-        s.lines()
-            .find(|l| l.starts_with("model name"))
-            .and_then(|l| l.split_once(':'))
-            .map(|(_, m)| m.trim().to_string())
-    });
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    match cpu {
-        Some(c) => format!("{c}, {cores} cores"),
-        None => format!("{}, {cores} cores", std::env::consts::ARCH),
-    }
+    let st = crate::benchmarks::Stamp::here();
+    format!("{}, {} cores", st.cpu, st.cores)
 }
 
 /// The page's method section.

@@ -685,33 +685,14 @@ fn compare(
     })
 }
 
-/// Today's date (UTC) as YYYY-MM-DD (H. Hinnant's days-to-civil algorithm).
+/// Today's date (UTC) as YYYY-MM-DD (the benchmarks page's stamp).
 pub(crate) fn today_utc() -> String {
-    let secs = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_secs())
-        .unwrap_or(0);
-    let z = (secs / 86400) as i64 + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!("{y:04}-{m:02}-{d:02}")
+    crate::benchmarks::today()
 }
 
 /// `rustc --version`, or a note that it is unknown.
 pub(crate) fn rustc_version() -> String {
-    std::process::Command::new("rustc")
-        .arg("--version")
-        .output()
-        .ok()
-        .filter(|o| o.status.success())
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
-        .unwrap_or_else(|| "rustc (version unknown)".into())
+    crate::benchmarks::command_line("rustc", &["--version"])
 }
 
 fn fmt_t60(t: &T60) -> String {
