@@ -73,9 +73,9 @@ use nalgebra::DMatrix;
 /// Most contacts of one scene.
 pub const MAX_CONTACTS: usize = 4;
 
-/// Most switches taken within one sample; beyond, the rest of the sample
-/// runs in its phase without a search ([`MultiStats::capped`]).
-pub const MAX_SWITCHES_PER_SAMPLE: usize = 64;
+/// Most switches taken within one sample, the engine's; beyond, the rest of
+/// the sample runs in its phase without a search ([`MultiStats::capped`]).
+pub use crate::engine::MAX_SWITCHES_PER_SAMPLE;
 
 /// Halving stops at pieces narrower than this fraction of the sample.
 const LEAF: f64 = 1e-15;
@@ -2528,7 +2528,7 @@ impl MultiState {
         let h = self.step_h;
         let mut t = 0.0;
         let mut starts = [Start::Value; MAX_CONTACTS];
-        let mut taken = 0;
+        let mut taken: u64 = 0;
         while t < h {
             let ph = &sc.phases[self.mask as usize];
             let rem = h - t;

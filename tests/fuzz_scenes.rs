@@ -573,6 +573,8 @@ struct GenScene {
     approx: Option<(Option<f64>, Option<f64>, Option<f64>)>,
     other_rate: f64,
     extra_key: bool,
+    /// The scene's `level_db` (omitted: 0 dB).
+    level_db: Option<f64>,
 }
 
 /// A pickup: object index, point index, quantity, gain, pan.
@@ -755,6 +757,13 @@ fn scene_strategy() -> BoxedStrategy<GenScene> {
         approx,
         select(&[8000.0, 192_000.0][..]),
         prop_oneof![100 => Just(false), 1 => Just(true)],
+        opt(
+            num(
+                uni(MIN_LEVEL_DB, MAX_LEVEL_DB),
+                &[MIN_LEVEL_DB - 1e-9, MAX_LEVEL_DB + 1.0, -1e300],
+            ),
+            30,
+        ),
     )
         .prop_map(
             |(
@@ -765,6 +774,7 @@ fn scene_strategy() -> BoxedStrategy<GenScene> {
                 approx,
                 other_rate,
                 extra_key,
+                level_db,
             )| GenScene {
                 version,
                 duration,
@@ -776,6 +786,7 @@ fn scene_strategy() -> BoxedStrategy<GenScene> {
                 approx,
                 other_rate,
                 extra_key,
+                level_db,
             },
         )
         .boxed()
@@ -797,6 +808,9 @@ fn render(g: &GenScene) -> String {
     let _ = writeln!(t, "version = {}\nname = \"fuzz\"", g.version);
     if let Some(d) = g.duration {
         let _ = writeln!(t, "duration_s = {}", tf(d));
+    }
+    if let Some(l) = g.level_db {
+        let _ = writeln!(t, "level_db = {}", tf(l));
     }
     let name = |i: usize| -> String {
         match (g.name_fault, i) {

@@ -486,3 +486,85 @@ fn fast_modes_fall_through_the_subnormal_range_without_changing_the_output() {
         assert!(max_diff <= 1e-290, "{sw:?}: output changed by {max_diff:e}");
     }
 }
+
+/// A hammer of 1e-12 kg riding on a 17-mass string through a contact damper
+/// whose pole (c / m_h = 1.4e13 /s) is 1e9 times the string's fastest mode
+/// (a case the scene fuzzer found): after the hammer settles on the string,
+/// the contact and free phases disagree on its relative velocity (4e-18
+/// m/s) by more than it is, each sees the other's start as a crossing, and
+/// the switches followed one another at the root resolution, up to 3e14 of
+/// them in a sample (a hang). docs/numerics.md, "Why it terminates, and what
+/// it costs": the switches of a sample are capped, and the capped samples
+/// add no energy.
+#[test]
+fn a_feather_light_hammer_riding_on_a_string_is_bounded() {
+    use modal_contact::engine::MAX_SWITCHES_PER_SAMPLE;
+    let text = r#"
+version = 1
+name = "feather on a string"
+[[object]]
+name = "o0"
+kind = "string"
+masses = 17
+mass_kg = 6.658489234035998e-4
+spring_n_per_m = 1.824125766070555e4
+rayleigh_alpha_per_s = 0.557502799185875
+points = { c = 13 }
+[hammer]
+mass_kg = 1e-12
+height_m = 9.58412229092028e-5
+velocity_m_per_s = -0.016193417265352256
+[contact]
+object = "o0"
+point = "c"
+stiffness_n_per_m = 1.5381904967072227e4
+damping_n_s_per_m = 13.79395038801944
+[[pickup]]
+object = "o0"
+point = "c"
+"#;
+    let scene = Scene::from_toml_str(text).unwrap();
+    for rate in [44100.0, 8000.0] {
+        for sw in MODES {
+            let sc = compile_with(&scene, rate, Some(sw)).unwrap();
+            let label = format!("feather on a string at {rate} Hz, {}", sw.as_str());
+            let bound = energy_rounding_bound(&sc);
+            let mg = sc.m_h * sc.g;
+            let mut st = EngineState::new(&sc);
+            let n = (rate / 44.1) as usize;
+            for segment in 0..2 {
+                if segment == 1 {
+                    // struck again, 1 mm above the string at 0.5 m/s
+                    st.strike(&sc, 1e-3, -0.5);
+                }
+                let mut prev = st.observe(&sc);
+                for i in 0..2 * n {
+                    let out = st.tick(&sc);
+                    let obs = st.observe(&sc);
+                    assert!(
+                        out[0].is_finite() && out[1].is_finite() && obs.energy.is_finite(),
+                        "{label}: not finite at {segment}/{i}"
+                    );
+                    let rel = (obs.energy - prev.energy) / (energy_scale(&prev, mg) + 1e-300);
+                    assert!(
+                        rel <= bound,
+                        "{label}: energy rose at {segment}/{i}: {:e} -> {:e} (rel {rel:e} > {bound:e})",
+                        prev.energy,
+                        obs.energy
+                    );
+                    prev = obs;
+                }
+            }
+            let x = &st.exact_stats;
+            assert!(
+                x.max_switches_in_sample <= MAX_SWITCHES_PER_SAMPLE,
+                "{label}: {x:?}"
+            );
+            assert!(st.contacts_started > 0, "{label}: the hammer never landed");
+            println!(
+                "{label}: contacts {}, located {}, capped samples {}, switches/sample <= {}, nodes/sample <= {}",
+                st.contacts_started, x.located, x.capped, x.max_switches_in_sample, x.max_nodes_in_sample
+            );
+        }
+    }
+}

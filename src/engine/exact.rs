@@ -51,10 +51,18 @@
 //! shrink only until the fast blocks whose amplitude can still change the
 //! sign are resolved (`w ~ 1 / |mu|`), and below that only next to a root
 //! or a tangency, where the bisection descends along one path to the root
-//! resolution (at most ~50 levels). There is no depth limit and no cap on the
-//! switches of a sample: after a switch the next one is at least the root
-//! resolution later, so a sample holds at most `1 / (ROOT_ULPS eps)` of
-//! them, a bound the loop carries (its counter `capped` therefore stays 0).
+//! resolution (at most ~50 levels). There is no depth limit. The switches of
+//! a sample are capped at [`MAX_SWITCHES_PER_SAMPLE`]: in exact arithmetic a
+//! switch hands the new phase a `phi` that rises, but when the two phases'
+//! decompositions disagree on the relative velocity by more than it is (a
+//! hammer riding on the object with no force, stiff phases), each phase sees
+//! the other's start as an immediate crossing and the switches would follow
+//! one another at the root resolution, up to `1 / (ROOT_ULPS eps)` of them
+//! (docs/numerics.md, "Why it terminates, and what it costs"). At the cap the
+//! rest of the sample runs in its phase without a search (counted in
+//! `capped`); both phases are passive, and a penetration left by the free
+//! phase is taken up by the offset rod at the next entry, so the cap adds no
+//! energy.
 //!
 //! A switch happens on a crossing with `phi` going down (a touch with zero
 //! relative speed that does not cross carries no impulse and is not a
@@ -77,6 +85,11 @@ pub const MAX_DEGREE: usize = 24;
 /// decides, so resolving further only costs evaluations. It is also the
 /// least time between two switches.
 pub const ROOT_ULPS: f64 = 16.0;
+/// Most switches located within one sample (every engine, one or several
+/// contacts); beyond, the rest of the sample runs in its phase without a
+/// search ([`ExactStats::capped`]). Real contacts switch a few times per
+/// sample at most (a brass mallet's 3-sample contact: 2).
+pub const MAX_SWITCHES_PER_SAMPLE: u64 = 64;
 /// A node is neutral when `|phi| <= NEUTRAL_TOL` roundings on all of it.
 const NEUTRAL_TOL: f64 = 4.0;
 /// Rounding allowance of the model, in units of `u` times the magnitude of
@@ -96,8 +109,10 @@ const TAYLOR_TERMS: usize = 20;
 pub struct ExactStats {
     /// Switches located inside samples.
     pub located: u64,
-    /// Samples that reached the loop's bound on switches (provably
-    /// unreachable: at least the root resolution passes between switches).
+    /// Samples that reached [`MAX_SWITCHES_PER_SAMPLE`] (switches at the
+    /// root resolution, one after another: a contact at zero force that
+    /// the phases' rounding cannot decide); the rest of such a sample runs
+    /// in its phase without a search.
     pub capped: u64,
     /// Samples that started on the wrong side of the surface by more than
     /// rounding (a crossing missed in the sample before: never expected).
@@ -1382,8 +1397,7 @@ impl EngineState {
     /// phase's time scales. Allocation-free. \[audio-thread\]
     pub(super) fn advance_exact(&mut self, scene: &CompiledScene) {
         let step = self.step_s;
-        // the least time between two switches is the root resolution
-        let max_switches = (1.0 / (ROOT_ULPS * f64::EPSILON)) as u64 + 2;
+        let max_switches = MAX_SWITCHES_PER_SAMPLE;
         let mut t = 0.0; // time consumed in this sample
         let mut switches: u64 = 0;
         let mut nodes: u64 = 0;

@@ -37,7 +37,7 @@ mod kernel;
 mod replay;
 mod vmath;
 
-pub use exact::{ExactStats, ROOT_ULPS};
+pub use exact::{ExactStats, MAX_SWITCHES_PER_SAMPLE, ROOT_ULPS};
 use exact::{SearchScratch, TermSplit};
 use kernel::SimdPath;
 use kernel::{

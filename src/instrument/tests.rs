@@ -302,6 +302,29 @@ fn pitch_is_the_same_system_played_faster() {
     assert_eq!(l1, l2, "pitch tracking off: every key plays the root");
 }
 
+/// A host that times a note past the block's end (against the CLAP and
+/// VST3 rules) has it taken at the block's end: the same samples as the
+/// note at the next block's first sample, never a panic or an index out of
+/// range.
+#[test]
+fn a_note_timed_past_the_block_end_is_taken_at_its_end() {
+    let p = params("marimba-bar");
+    let (n, total) = (256, 4096);
+    let play = |offset: usize| {
+        let mut inst = instrument(&p);
+        let (mut l, mut r) = (vec![0.0f32; total], vec![0.0f32; total]);
+        inst.process(&[on(offset, 57, 0.8)], &mut l[..n], &mut r[..n]);
+        inst.process(&[], &mut l[n..], &mut r[n..]);
+        l
+    };
+    let late = play(n + 1000);
+    let at_end = play(n);
+    assert!(late[..n].iter().all(|x| *x == 0.0));
+    assert!(late[n..].iter().any(|x| *x != 0.0));
+    assert_eq!(late, at_end);
+    assert_eq!(play(usize::MAX), at_end);
+}
+
 #[test]
 fn louder_velocity_is_louder_and_block_splitting_does_not_matter() {
     let level = |vel| {
