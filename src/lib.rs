@@ -2,9 +2,47 @@
 //! of contacting modal objects with piece-wise linear interaction force").
 //!
 //! Layers (docs/design.md, "Layers"): [`bodies`] (modes from geometry and
-//! material) -> [`scene`] (parse, validate) -> [`compile`]
-//! (off the audio thread: decompositions, propagators) -> [`compile::CompiledScene`]
-//! -> [`engine`] (per sample, allocation-free) ; [`render`] drives it offline.
+//! material) -> [`scene`] (parse, validate) -> [`compile`](mod@compile)
+//! (off the audio thread: decompositions, propagators) -> [`CompiledScene`]
+//! -> [`engine`] (per sample, allocation-free); [`render`](mod@render)
+//! drives it offline, [`instrument`] plays notes through it, and `plugin`
+//! (feature `plugin`, on by default) puts the instrument in a CLAP or VST3
+//! host.
+//!
+//! # Embedding
+//!
+//! Without the plugin (`default-features = false`) the crate is the core:
+//! scene, compiler, engine and offline render, with none of the plugin's
+//! dependencies (nice-plug, egui, rfd, directories, clap-sys). The names
+//! below are re-exported here; every module stays public for what goes
+//! further. A scene file, compiled at 48 kHz, struck once and played in
+//! blocks of 64 samples (`examples/embed.rs` does the same and writes a WAV
+//! file):
+//!
+//! ```
+//! use modal_contact::{compile, EngineState, Scene};
+//! use std::path::Path;
+//!
+//! let scene = Scene::from_file(Path::new("presets/marimba-bar.toml"))?;
+//! let compiled = compile(&scene, 48_000.0)?;
+//! let mut voice = EngineState::new(&compiled);
+//! // the hammer put on the surface, moving down at 2 m/s
+//! voice.strike(&compiled, 0.0, -2.0);
+//! let (mut left, mut right) = ([0.0; 64], [0.0; 64]);
+//! let mut out = Vec::new();
+//! for _ in 0..2 * 48_000 / 64 {
+//!     voice.process_block(&compiled, &mut left, &mut right);
+//!     out.extend(left.iter().zip(&right).flat_map(|(l, r)| [*l, *r]));
+//! }
+//! assert!(out.iter().any(|x| x.abs() > 1e-6));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! [`Scene::from_file`] and [`compile()`] refuse a bad scene with an error
+//! that names the field ([`SceneError`], [`CompileError`]);
+//! [`EngineState::strike`] and [`EngineState::process_block`] then neither
+//! fail nor allocate. [`render()`] renders a scene offline in one call,
+//! with the per-sample trace if asked ([`RenderOptions`]).
 
 pub mod bodies;
 pub mod compile;
@@ -12,6 +50,7 @@ pub mod engine;
 pub mod instrument;
 pub mod multi;
 pub mod physics;
+#[cfg(feature = "plugin")]
 pub mod plugin;
 pub mod presets;
 pub mod render;
@@ -21,3 +60,8 @@ pub mod scene;
 // crate that depends on this one; testkit re-exports it for everything else.
 #[doc(hidden)]
 pub mod test_rng;
+
+pub use compile::{compile, CompileError, CompiledScene};
+pub use engine::EngineState;
+pub use render::{render, RenderError, RenderOptions, RenderOutput};
+pub use scene::{Scene, SceneError};

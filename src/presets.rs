@@ -2,10 +2,10 @@
 //!
 //! [`PRESETS`] is the one list of presets: the plugin's "Scene" parameter
 //! takes its choices, their ids and the names hosts show from it
-//! ([`crate::plugin::params`]), `cargo xtask param-docs` writes the scenes
-//! table of docs/plugin.md from it, and the tests iterate over it. Adding a
-//! preset means adding its TOML file and one line at the END of the list
-//! (then `cargo xtask param-docs`).
+//! (`plugin::params`, with the feature `plugin`), `cargo xtask param-docs`
+//! writes the scenes table of docs/plugin.md from it, and the tests iterate
+//! over it. Adding a preset means adding its TOML file and one line at the
+//! END of the list (then `cargo xtask param-docs`).
 //!
 //! Why a written list and not a build script that scans `presets/*.toml`: the
 //! order is part of the plugin's interface, and a folder has no order. nice-plug

@@ -9,7 +9,8 @@
 //! - every named tolerance of the compiler and the engine is named in
 //!   docs/numerics.md or docs/design.md;
 //! - the picture of the layers in docs/design.md lists every module of the
-//!   plugin crate, and no module imports one drawn above it.
+//!   plugin crate, and no module imports one drawn above it;
+//! - the README's embedding example is the crate documentation's doctest.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -370,5 +371,48 @@ fn the_layer_picture_matches_the_code() {
         upward.is_empty(),
         "imports running up the picture:\n{}",
         upward.join("\n")
+    );
+}
+
+/// The lines of the first fenced code block after the line `heading` in
+/// `text` (without the fences).
+fn code_block_after<'a>(text: &[&'a str], heading: &str) -> Vec<&'a str> {
+    let at = text
+        .iter()
+        .position(|l| *l == heading)
+        .unwrap_or_else(|| panic!("no line {heading:?}"));
+    let open = at
+        + text[at..]
+            .iter()
+            .position(|l| l.starts_with("```"))
+            .expect("a code block");
+    let len = text[open + 1..]
+        .iter()
+        .position(|l| l.starts_with("```"))
+        .expect("the block's end");
+    text[open + 1..open + 1 + len].to_vec()
+}
+
+#[test]
+fn readme_embedding_is_the_crate_doctest() {
+    let root = root();
+    let lib = std::fs::read_to_string(root.join("src/lib.rs")).unwrap();
+    let doc: Vec<&str> = lib
+        .lines()
+        .filter_map(|l| l.strip_prefix("//!"))
+        .map(|l| l.strip_prefix(' ').unwrap_or(l))
+        .collect();
+    // what rustdoc shows of the doctest: its hidden `# ` lines left out
+    let shown: Vec<&str> = code_block_after(&doc, "# Embedding")
+        .into_iter()
+        .filter(|l| !(*l == "#" || l.starts_with("# ")))
+        .collect();
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let readme: Vec<&str> = readme.lines().collect();
+    let snippet = code_block_after(&readme, "## Embedding");
+    assert!(shown.len() > 5, "the crate doc's example: {shown:?}");
+    assert_eq!(
+        snippet, shown,
+        "README.md, \"Embedding\", is not the example of src/lib.rs, \"Embedding\""
     );
 }

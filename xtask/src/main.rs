@@ -10,8 +10,9 @@
 //! - `cargo xtask multisample SCENE.toml --notes 36..96 --step 3
 //!   --velocities 4 --out DIR`: WAVs and an SFZ file for any sampler`
 //! - `cargo xtask test [CARGO TEST ARGS]`: every test, including the plugin
-//!   tests on the built bundles and the VST3 tests through pedalboard and
-//!   in Ardour
+//!   tests on the built bundles, the core built without the plugin
+//!   (`examples/embed.rs`) and the VST3 tests through pedalboard and in
+//!   Ardour
 //! - `cargo xtask demo`: bundle (release) and render a demo through the built
 //!   CLAP plugin into `target/demo/*.wav`, and each preset that names a real
 //!   instrument into `target/demo/real/NAME.wav` beside its recording
@@ -76,8 +77,9 @@ enum Command {
     /// the workspace root.
     Benchmarks(benchmarks::BenchmarksArgs),
     /// Every test: bundles the plugin three ways, runs the workspace tests
-    /// (the plugin tests load those bundles), then the VST3 tests
-    /// (pedalboard, Ardour).
+    /// (the plugin tests load those bundles), the core without the plugin
+    /// (its doctest, examples/embed.rs), then the VST3 tests (pedalboard,
+    /// Ardour).
     Test(TestArgs),
     /// Bundle the release plugin and render a demo through the built CLAP
     /// plugin into target/demo/; each preset that names a real instrument
@@ -200,7 +202,8 @@ fn ensure_venv() -> Result<PathBuf> {
 /// bundles the plugin three ways (release; rt-checks with the test-only
 /// alloc-bug trigger; the test-only panic-bug), builds the allocation-checked
 /// standalone application for the editor test,
-/// runs the workspace tests (plugin-tests load those bundles), then renders
+/// runs the workspace tests (plugin-tests load those bundles), the core
+/// without the plugin ([`run_embed`]), then renders
 /// the VST3 with pedalboard and in Ardour.
 fn run_tests(extra: &[String]) -> Result<()> {
     nice_plug_xtask::chdir_workspace_root()?;
@@ -243,6 +246,7 @@ fn run_tests(extra: &[String]) -> Result<()> {
             .join(modal_testkit::bundles::STANDALONE_BIN),
     );
     let cargo_tests = run(&mut cmd);
+    let embed_test = run_embed();
     // The VST3 test compares with the library through this binary.
     run(std::process::Command::new("cargo").args([
         "build",
@@ -277,8 +281,79 @@ fn run_tests(extra: &[String]) -> Result<()> {
     let vst3_test = host_test("plugin-tests/vst3/test_vst3.py");
     let ardour_test = host_test("plugin-tests/ardour/test_ardour.py");
     cargo_tests?;
+    embed_test?;
     vst3_test?;
     ardour_test
+}
+
+/// The cargo arguments of the core without the plugin (README,
+/// "Embedding"): `-p`, since the workspace's other crates turn the plugin
+/// on; the `test-release` profile, after the workspace's tests, so the
+/// build reuses their compilations of the dependencies
+/// (feature-union/Cargo.toml).
+const CORE_ARGS: [&str; 5] = [
+    "-p",
+    "modal_contact",
+    "--profile",
+    "test-release",
+    "--no-default-features",
+];
+
+/// The core without the plugin: its doctest (the README's embedding
+/// example), `examples/embed.rs` writing a WAV file that is read back
+/// (stereo, 48 kHz, 2 s, finite, not silent), and the example refusing a
+/// missing scene file with exit code 1 and a message.
+fn run_embed() -> Result<()> {
+    run(std::process::Command::new("cargo")
+        .args(["test", "--doc"])
+        .args(CORE_ARGS))?;
+    let dir = Path::new("target/embed");
+    std::fs::create_dir_all(dir)?;
+    let wav = dir.join("marimba-bar.wav");
+    if wav.exists() {
+        std::fs::remove_file(&wav)?;
+    }
+    let example = |args: &[&Path]| {
+        let mut cmd = std::process::Command::new("cargo");
+        cmd.arg("run")
+            .args(CORE_ARGS)
+            .args(["--example", "embed", "--"])
+            .args(args);
+        cmd
+    };
+    run(&mut example(&[Path::new("presets/marimba-bar.toml"), &wav]))?;
+    let mut reader =
+        hound::WavReader::open(&wav).with_context(|| format!("reading {}", wav.display()))?;
+    let spec = reader.spec();
+    let samples: Vec<f32> = reader.samples::<f32>().collect::<Result<_, _>>()?;
+    let peak = samples.iter().fold(0.0_f32, |m, x| m.max(x.abs()));
+    println!(
+        "{}: {} channels, {} Hz, {} samples, peak {peak:.3e}",
+        wav.display(),
+        spec.channels,
+        spec.sample_rate,
+        samples.len()
+    );
+    if spec.channels != 2 || spec.sample_rate != 48_000 || samples.len() != 2 * 2 * 48_000 {
+        bail!("{}: not 2 s of stereo at 48 kHz: {spec:?}", wav.display());
+    }
+    if samples.iter().any(|x| !x.is_finite()) || !(peak > 1e-4) {
+        bail!("{}: silent or not finite (peak {peak:e})", wav.display());
+    }
+    let missing = dir.join("no-such-scene.toml");
+    let mut cmd = example(&[&missing, &dir.join("missing.wav")]);
+    eprintln!("+ {cmd:?}");
+    let out = cmd
+        .output()
+        .with_context(|| format!("cannot run {cmd:?}"))?;
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if out.status.code() != Some(1) || !stderr.contains("embed: cannot read") {
+        bail!(
+            "the example should refuse a missing scene with exit code 1 and a message; {}:\n{stderr}",
+            out.status
+        );
+    }
+    Ok(())
 }
 
 /// `cargo xtask demo`: bundle the release plugin and render the demo through
