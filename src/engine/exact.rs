@@ -1535,14 +1535,6 @@ struct HermiteSums {
     v_h1: f64,
 }
 
-/// Block `k`'s share of the Hermite remainder per unit of `|s_k|`: the
-/// smaller of `c4_k dt^4 / 384` (`dt4`) and `2 e_k + 8/27 dt c1_k`
-/// (`tail = 8/27 dt`). [`EngineState::hermite_clear`].
-#[inline(always)]
-pub(super) fn hermite_block(c1: f64, c4: f64, e: f64, dt4: f64, tail: f64) -> f64 {
-    (c4 * dt4).min(2.0 * e + tail * c1)
-}
-
 /// Rounding allowance being summed while a model is built: computing each
 /// amplitude `C` from the state rounds each product once (`|re| |s_k|`, and
 /// `|im| |s_k|` of which at most `min(1, w rem)` shows), for the value
@@ -2010,7 +2002,7 @@ mod tests {
                         let nb = ph.dim / 2;
                         let rem: f64 = (0..nb)
                             .map(|k| {
-                                hermite_block(
+                                kernel::hermite_block(
                                     ph.ev_d_block[k],
                                     ph.ev_d4_block[k],
                                     ph.ev_block[k],

@@ -23,6 +23,7 @@
 //! function (with fused multiply-adds) and once for the baseline target. The
 //! two paths round differently (FMA), each deterministically.
 
+use super::vmath::{madd, SimdPath};
 use crate::compile::EnergyQuad;
 use crate::physics::hodlr::Hodlr;
 
@@ -32,42 +33,6 @@ pub const EPOCH: usize = 64;
 /// Blocks (modes) processed together in registers: two 4-lane vectors.
 pub const GROUP: usize = 8;
 const LANES: usize = 4;
-
-/// Proof that this CPU has AVX2 and FMA. Only [`SimdPath::detect`] makes
-/// one (its field is private to this module), so no code, not even in this
-/// crate, can ask for the AVX2 kernels on a CPU that lacks them: the
-/// `unsafe` calls into `#[target_feature]` functions below rely on it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Avx2Fma(());
-
-/// Which kernel variant runs on this machine.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum SimdPath {
-    /// AVX2 with FMA (x86-64, detected at run time).
-    Avx2Fma(Avx2Fma),
-    /// Portable code for the baseline target (SSE2 on x86-64).
-    Generic,
-}
-
-impl SimdPath {
-    /// Detect the best path for this CPU.
-    pub(crate) fn detect() -> Self {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-                return SimdPath::Avx2Fma(Avx2Fma(()));
-            }
-        }
-        SimdPath::Generic
-    }
-    /// Human-readable name (benchmarks print it).
-    pub(crate) fn name(self) -> &'static str {
-        match self {
-            SimdPath::Avx2Fma(_) => "avx2+fma (runtime-detected)",
-            SimdPath::Generic => "generic (baseline target)",
-        }
-    }
-}
 
 /// Clear the upper halves of the vector registers (`vzeroupper`) on the
 /// AVX2 path. Code elsewhere in the process (e.g. a linear-algebra library
@@ -179,17 +144,12 @@ impl Default for BlockRows {
     }
 }
 
-/// `a b + c`: fused (one rounding) in the FMA copy of a kernel, two
-/// roundings in the baseline copy. Only call it from `#[inline(always)]`
-/// bodies, so that it is compiled inside the `target_feature` function
-/// (elsewhere `mul_add` would be a call into libm's software fma).
+/// Block `k`'s share of the Hermite remainder per unit of `|s_k|`: the
+/// smaller of `c4_k dt^4 / 384` (`dt4`) and `2 e_k + 8/27 dt c1_k`
+/// (`tail = 8/27 dt`). `EngineState::hermite_clear`.
 #[inline(always)]
-pub(crate) fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
-    if FMA {
-        a.mul_add(b, c)
-    } else {
-        a * b + c
-    }
+pub(super) fn hermite_block(c1: f64, c4: f64, e: f64, dt4: f64, tail: f64) -> f64 {
+    (c4 * dt4).min(2.0 * e + tail * c1)
 }
 
 /// The fixed reduction of four lanes (the same everywhere, for determinism).
@@ -941,7 +901,7 @@ fn hermite_step_body(
                 q0 * a + q1 * b,
                 r0 * a1 + r1 * b1,
                 q0 * a1 + q1 * b1,
-                super::exact::hermite_block(c1, c4, e, dt4, tail) * norm,
+                hermite_block(c1, c4, e, dt4, tail) * norm,
                 c4 * norm,
                 c2 * norm,
                 (e + tau * c1) * norm,
@@ -1017,7 +977,7 @@ fn hermite_sums_body(s: &[f64], [c1, c4, e]: [&[f64]; 3], [dt4, tail, dt]: [f64;
     let terms = |a: f64, b: f64, c1: f64, c4: f64, e: f64| {
         let norm = (a * a + b * b).sqrt();
         (
-            super::exact::hermite_block(c1, c4, e, dt4, tail) * norm,
+            hermite_block(c1, c4, e, dt4, tail) * norm,
             (e + dt * c1) * norm,
         )
     };
@@ -1637,7 +1597,7 @@ mod tests {
             let (mut want_rem, mut want_mag) = (0.0, 0.0);
             for k in 0..nb {
                 let norm = (s[k] * s[k] + s[nb + k] * s[nb + k]).sqrt();
-                want_rem += super::super::exact::hermite_block(c[k], c4[k], e[k], dt4, tail) * norm;
+                want_rem += super::hermite_block(c[k], c4[k], e[k], dt4, tail) * norm;
                 want_mag += (e[k] + dt * c[k]) * norm;
             }
             for path in [SimdPath::detect(), SimdPath::Generic] {
@@ -1703,7 +1663,7 @@ mod tests {
                     q[k] * a + q[nb + k] * b,
                     r[k] * a1 + r[nb + k] * b1,
                     q[k] * a1 + q[nb + k] * b1,
-                    super::super::exact::hermite_block(c1[k], c4[k], e[k], dt4, tail) * norm,
+                    super::hermite_block(c1[k], c4[k], e[k], dt4, tail) * norm,
                     c4[k] * norm,
                     c2[k] * norm,
                     (e[k] + tau * c1[k]) * norm,

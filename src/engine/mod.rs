@@ -21,7 +21,7 @@
 //!
 //! The SIMD kernels (`kernel`, `vmath`) are private: which ones run is
 //! chosen by run-time detection, and the AVX2 ones can only be reached with
-//! the token that detection makes (`kernel::SimdPath`).
+//! the token that detection makes (`vmath::SimdPath`).
 //!
 //! Time scaling (pitch): a voice may run the scene with its time axis scaled by
 //! `s` (every frequency times `s`, every decay time over `s`, contact stiffness
@@ -39,13 +39,13 @@ mod vmath;
 
 pub use exact::{ExactStats, MAX_SWITCHES_PER_SAMPLE, ROOT_ULPS};
 use exact::{SearchScratch, TermSplit};
-use kernel::SimdPath;
 use kernel::{
     rows_of, run_block_with, BlockAcc, BlockIo, BlockProps, BlockRows, Extras, ObsIo, QuadAcc,
     QuadIo, Rows, SlopeIo, EPOCH,
 };
 use replay::Replay;
 pub use replay::{StoredStrike, LINEAR_TOL, MAX_STORED_SAMPLES};
+use vmath::SimdPath;
 
 use crate::compile::rest::{RestStrike, REST_ENERGY_MATCH, REST_MATCH};
 use crate::compile::{CompiledPhase, CompiledScene};

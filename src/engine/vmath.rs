@@ -47,7 +47,55 @@
 //!
 //! [`kernel`]: super::kernel
 
-use crate::engine::kernel::{madd, SimdPath};
+/// Proof that this CPU has AVX2 and FMA. Only [`SimdPath::detect`] makes
+/// one (its field is private to this module), so no code, not even in this
+/// crate, can ask for the AVX2 kernels on a CPU that lacks them: the
+/// `unsafe` calls into `#[target_feature]` functions here and in
+/// [`kernel`](super::kernel) rely on it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Avx2Fma(());
+
+/// Which kernel variant runs on this machine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum SimdPath {
+    /// AVX2 with FMA (x86-64, detected at run time).
+    Avx2Fma(Avx2Fma),
+    /// Portable code for the baseline target (SSE2 on x86-64).
+    Generic,
+}
+
+impl SimdPath {
+    /// Detect the best path for this CPU.
+    pub(crate) fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+                return SimdPath::Avx2Fma(Avx2Fma(()));
+            }
+        }
+        SimdPath::Generic
+    }
+    /// Human-readable name (benchmarks print it).
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            SimdPath::Avx2Fma(_) => "avx2+fma (runtime-detected)",
+            SimdPath::Generic => "generic (baseline target)",
+        }
+    }
+}
+
+/// `a b + c`: fused (one rounding) in the FMA copy of a kernel, two
+/// roundings in the baseline copy. Only call it from `#[inline(always)]`
+/// bodies, so that it is compiled inside the `target_feature` function
+/// (elsewhere `mul_add` would be a call into libm's software fma).
+#[inline(always)]
+pub(crate) fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
+    if FMA {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
+}
 
 /// Largest `r` the vector path reduces itself (`q = round(r 2/pi) < 2^20`
 /// keeps the products `q pio2_k` exact); larger arguments fall back to

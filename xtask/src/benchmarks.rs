@@ -284,6 +284,11 @@ fn capitalised(s: &str) -> String {
 }
 
 /// The first line a command prints, or a note that it could not run.
+/// `rustc --version`, or a note that it is unknown.
+pub fn rustc_version() -> String {
+    command_line("rustc", &["--version"])
+}
+
 pub fn command_line(cmd: &str, args: &[&str]) -> String {
     Command::new(cmd)
         .args(args)
