@@ -70,8 +70,8 @@ use crate::physics::model::LN_1000;
 use crate::scene::{End as SceneEnd, ObjectSpec, Quantity, Scene, SceneError, Switching};
 use nalgebra::DMatrix;
 
-/// Most contacts of one scene.
-pub const MAX_CONTACTS: usize = 4;
+/// Most contacts of one scene, the scene's.
+pub use crate::scene::MAX_CONTACTS;
 
 /// Most switches taken within one sample, the engine's; beyond, the rest of
 /// the sample runs in its phase without a search ([`MultiStats::capped`]).
