@@ -10,7 +10,8 @@
 //!   docs/numerics.md or docs/design.md;
 //! - the picture of the layers in docs/design.md lists every module of the
 //!   plugin crate, and no module imports one drawn above it;
-//! - the README's embedding example is the crate documentation's doctest.
+//! - the README's embedding example is the crate documentation's doctest;
+//! - every file of `tests/` is in exactly one test binary of Cargo.toml.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -415,4 +416,88 @@ fn readme_embedding_is_the_crate_doctest() {
         snippet, shown,
         "README.md, \"Embedding\", is not the example of src/lib.rs, \"Embedding\""
     );
+}
+
+/// Every file of `tests/` is built and run by exactly one test binary: the
+/// package sets `autotests = false` (a few binaries link faster than one per
+/// file), so a file that is neither a `[[test]]` of Cargo.toml nor included
+/// by one (`#[path = "stability.rs"] mod stability;`) would never run.
+#[test]
+fn every_test_file_is_in_one_test_binary() {
+    let root = root();
+    let manifest: toml::Table = std::fs::read_to_string(root.join("Cargo.toml"))
+        .unwrap()
+        .parse()
+        .expect("Cargo.toml parses");
+    let package = manifest["package"].as_table().expect("[package]");
+    assert_eq!(
+        package.get("autotests").and_then(|v| v.as_bool()),
+        Some(false),
+        "Cargo.toml's [package] sets autotests = false (the [[test]] targets list the binaries)"
+    );
+    let targets = manifest
+        .get("test")
+        .and_then(|t| t.as_array())
+        .expect("[[test]] targets in Cargo.toml");
+    // file of tests/ -> the binaries that build it
+    let mut built: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    let mut problems = Vec::new();
+    for t in targets {
+        let name = t.get("name").and_then(|n| n.as_str()).expect("a name");
+        let Some(path) = t.get("path").and_then(|p| p.as_str()) else {
+            problems.push(format!("[[test]] {name} has no path"));
+            continue;
+        };
+        let Some(file) = path.strip_prefix("tests/") else {
+            problems.push(format!("[[test]] {name}: {path} is not in tests/"));
+            continue;
+        };
+        built.entry(file.into()).or_default().push(name.into());
+        let Ok(text) = std::fs::read_to_string(root.join(path)) else {
+            problems.push(format!("[[test]] {name}: {path} does not exist"));
+            continue;
+        };
+        for line in text.lines() {
+            if let Some(rest) = line.trim().strip_prefix("#[path = \"") {
+                let included = rest.split('"').next().unwrap_or("");
+                built.entry(included.into()).or_default().push(name.into());
+            }
+        }
+    }
+    let mut files = Vec::new();
+    for e in std::fs::read_dir(root.join("tests")).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_file() && p.extension().is_some_and(|x| x == "rs") {
+            files.push(p.file_name().unwrap().to_string_lossy().into_owned());
+        }
+    }
+    files.sort();
+    for f in &files {
+        match built.get(f).map(Vec::as_slice) {
+            None | Some([]) => problems.push(format!(
+                "tests/{f} is in no test binary: include it in a harness of \
+                 Cargo.toml's [[test]] targets (`#[path = \"{f}\"] mod ...;`)"
+            )),
+            Some([_]) => {}
+            Some(more) => problems.push(format!("tests/{f} is in several binaries: {more:?}")),
+        }
+    }
+    for f in built.keys() {
+        if !files.contains(f) {
+            problems.push(format!(
+                "tests/{f} is named by Cargo.toml or a harness but does not exist"
+            ));
+        }
+    }
+    println!(
+        "{} files of tests/ in {} test binaries",
+        files.len(),
+        targets.len()
+    );
+    assert!(
+        files.len() > 20,
+        "only {} files found: the scan is broken",
+        files.len()
+    );
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
 }

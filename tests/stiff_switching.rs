@@ -84,7 +84,8 @@
 //!
 //! The table (one row per case) is printed and written to
 //! `target/stiff_switching.md`. Run with
-//! `cargo test --profile test-release --test stiff_switching -- --nocapture`;
+//! `cargo test --profile test-release --test numerics stiff_switching:: --
+//! --nocapture`;
 //! the cases run on all cores.
 
 use modal_contact::compile::compile_with;

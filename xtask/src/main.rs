@@ -122,7 +122,8 @@ struct ParamDocsArgs {
 #[derive(Args, Debug)]
 struct TestArgs {
     /// Passed to `cargo test --workspace --profile test-release
-    /// --no-fail-fast` as written (e.g. `--test stability -- --nocapture`).
+    /// --no-fail-fast` as written (e.g. `--test numerics stability:: --
+    /// --nocapture`).
     #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
     cargo_test_args: Vec<String>,
 }

@@ -1,0 +1,14 @@
+//! The instrument, in one test binary: the lookahead, the damper on
+//! release, and no subnormal f32 output.
+//!
+//! Each module is one file of `tests/`; a test is named `file::test`
+//! (`cargo test --test instrument lookahead::`). Cargo.toml lists the test
+//! binaries and `tests/doc_references.rs` checks that every file of
+//! `tests/` is in exactly one of them.
+
+#[path = "lookahead.rs"]
+mod lookahead;
+#[path = "release_damper.rs"]
+mod release_damper;
+#[path = "subnormal_output.rs"]
+mod subnormal_output;
