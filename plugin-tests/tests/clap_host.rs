@@ -969,3 +969,107 @@ fn pressure_aftertouch_and_mod_wheel_through_the_host_match_the_library() {
     ];
     plugin_equals_library("MPE pressure", rate, total, mpe, &meant);
 }
+
+/// MIDI's channel mode messages through a real host (docs/plugin.md,
+/// "Pedals"): All Notes Off (controller 123) is a note-off of every key,
+/// so the sustain pedal holds the notes until Reset All Controllers (121)
+/// lifts it (and brings the bent wheel back to its centre); All Sound Off
+/// (120) fades every note out in 5 ms, pedal or not, then the output is
+/// exactly silent until the next note. The plugin's render equals the
+/// library's driven with the events those messages mean; before, the
+/// plugin ignored all three (the notes rang on).
+#[test]
+fn channel_mode_messages_through_the_host_match_the_library() {
+    use modal_contact::instrument::{prepare, Event, Instrument, TimedEvent, FADE_S};
+    let bundle = clap_bundle(Variant::Release);
+    let rate = 48_000.0;
+    let total = 48_000;
+    // the bar damped on release (Custom damper on at sample 0, the notes
+    // from the third block on, after its compile), so that a release shows
+    let t0 = 512;
+    let fade = (FADE_S * rate).round() as usize;
+    let (sound_off, next) = (t0 + 20_000, t0 + 30_000);
+    let host = vec![
+        on(t0 + 100, 60, 0.8),
+        on(t0 + 200, 64, 0.7),
+        cc(t0 + 300, 64, 127),
+        cc(t0 + 2_000, 123, 0),
+        plugin_tests::pitch_bend(t0 + 3_000, 16383),
+        cc(t0 + 8_000, 121, 0),
+        on(t0 + 12_000, 67, 0.9),
+        cc(t0 + 12_050, 64, 127),
+        on(t0 + 12_100, 72, 0.8),
+        cc(sound_off, 120, 0),
+        on(next, 62, 0.8),
+        cc(t0 + 36_000, 64, 0),
+        cc(t0 + 40_000, 123, 0),
+    ];
+    let mut spec = RenderSpec::new(
+        rate,
+        256,
+        total,
+        [param(0, ids::DAMPER_CUSTOM, 1.0)]
+            .into_iter()
+            .chain(host.iter().copied())
+            .collect(),
+    );
+    spec.settle_after = vec![0];
+    spec.settle_ms = 400;
+    let plugin = LoadedPlugin::load(&bundle).render(&spec);
+
+    let note = |offset: usize, key: u8, v: f64| TimedEvent {
+        offset,
+        event: Event::NoteOn {
+            key,
+            velocity_norm: v as f32 as f64,
+        },
+    };
+    let ev = |offset: usize, event: Event| TimedEvent { offset, event };
+    let meant = [
+        note(t0 + 100, 60, 0.8),
+        note(t0 + 200, 64, 0.7),
+        ev(t0 + 300, Event::Sustain { down: true }),
+        ev(t0 + 2_000, Event::AllNotesOff),
+        ev(t0 + 3_000, Event::PitchBend { value: 1.0 }),
+        ev(t0 + 8_000, Event::ResetControllers),
+        note(t0 + 12_000, 67, 0.9),
+        ev(t0 + 12_050, Event::Sustain { down: true }),
+        note(t0 + 12_100, 72, 0.8),
+        ev(sound_off, Event::AllSoundOff),
+        note(next, 62, 0.8),
+        ev(t0 + 36_000, Event::Sustain { down: false }),
+        ev(t0 + 40_000, Event::AllNotesOff),
+    ];
+    let mut params = InstrumentParams::default();
+    params.scene.damper_custom = true;
+    let mut inst = Instrument::new(prepare(&params.scene, rate, 0).unwrap(), params.play);
+    let (mut l, mut r) = (vec![0.0; total], vec![0.0; total]);
+    inst.process(&meant, &mut l, &mut r);
+    let lib = [l, r];
+    let d = max_abs_diff(&plugin[0], &lib[0]).max(max_abs_diff(&plugin[1], &lib[1]));
+    println!("channel mode messages: max |plugin - library| = {d:.3e}");
+    assert!(peak(&lib[0]) > 1e-3, "the library's render is silent");
+    assert!(d <= 1e-6, "plugin and library differ by {d}");
+    // silent from the end of All Sound Off's fade to the next note
+    let sounding = peak(&plugin[0][sound_off - 500..sound_off]);
+    let after = plugin
+        .iter()
+        .flat_map(|c| &c[sound_off + fade..next])
+        .fold(0.0f32, |m, x| m.max(x.abs()));
+    println!("before All Sound Off peak {sounding:.3e}, after its fade {after:e}");
+    assert!(sounding > 1e-3 && after == 0.0, "{sounding}, {after}");
+    // the pedal held the notes All Notes Off released: the same notes
+    // without controller 123 ring the same until the reset
+    let mut no_123 = spec.clone();
+    no_123.events.retain(|e| {
+        !matches!(
+            e,
+            HostEvent::Midi {
+                data: [0xB0, 123, _],
+                ..
+            }
+        )
+    });
+    let held = LoadedPlugin::load(&bundle).render(&no_123);
+    assert_eq!(plugin[0][..t0 + 8_000], held[0][..t0 + 8_000]);
+}

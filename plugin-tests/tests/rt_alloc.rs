@@ -10,7 +10,9 @@
 //! parameter swaps including a preset change with its fade-out,
 //! a switching change and a strike-position change, and bad input: all 128
 //! keys at velocity 127 in one block at 64 voices, then a note on every
-//! sample for 256 samples, stealing voices mid-contact) runs in a child process
+//! sample for 256 samples, stealing voices mid-contact; notes ended at once by
+//! All Notes Off, Reset All Controllers, All Sound Off and a lowered
+//! Polyphony) runs in a child process
 //! (this test binary re-executed with `MODAL_CONTACT_CHILD_BUNDLE` set), so an
 //! abort is observed rather than killing the test run. In the `rt-checks`
 //! build note 2 at velocity 0.123 (test-only `alloc-bug` trigger) allocates in `process` on purpose: the child must die; the
@@ -152,6 +154,27 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
         midi(23_600, [0xB0, 1, 0]),
     ]);
     events.push(midi(24_600, [0xB0, 6, 0]));
+    // notes ended at once: All Notes Off under the sustain pedal, Reset
+    // All Controllers (the pedal up, the wheel back), All Sound Off fading
+    // every voice, then 24 notes and the Polyphony lowered to 4 under them
+    // (the 20 quietest end: 16 fade, the rest are cut), and All Sound Off
+    // again while those fade
+    events.extend([
+        midi(27_000, [0xB0, 64, 127]),
+        midi(27_100, [0xB0, 123, 0]),
+        plugin_tests::pitch_bend(27_150, 12_000),
+        midi(27_200, [0xB1, 121, 0]),
+        midi(27_300, [0xB0, 120, 0]),
+    ]);
+    for i in 0..24usize {
+        events.push(HostEvent::NoteOn {
+            at: 27_400 + 10 * i,
+            key: 40 + i as u8,
+            velocity: 0.3 + 0.02 * i as f64,
+        });
+    }
+    events.push(param(28_000, ids::POLYPHONY, 3.0));
+    events.push(midi(28_100, [0xB0, 120, 0]));
     events.push(param(first_change, ids::HARDNESS, 0.6));
     events.push(param(first_change, ids::DECAY, 0.4));
     events.push(param(45_000, ids::STRIKE_CUSTOM, 1.0));
@@ -308,6 +331,16 @@ fn kit_script(bundle: &Path) -> String {
             midi(30_400, [0xB0, 64, 0]),
             plugin_tests::note_brightness(30_500, 60, 1.0),
             param(34_000, ids::HARDNESS, 0.7),
+        ]);
+        // kit voices ended at once: the Polyphony lowered under the roll's
+        // and the chords' voices, then the channel mode messages
+        events.extend([
+            param(29_000, ids::POLYPHONY, 1.0),
+            midi(31_000, [0xB0, 123, 0]),
+            midi(31_100, [0xB0, 121, 0]),
+            on(31_200, 60, 0.8),
+            on(31_210, 67, 0.8),
+            midi(31_300, [0xB0, 120, 0]),
         ]);
         events.push(on(40_000, 62, 0.8));
         let mut spec = RenderSpec::new(rate, 64, 48_000, events);

@@ -17,8 +17,31 @@ pub enum Event {
         /// MIDI key.
         key: u8,
     },
-    /// Release every voice (the pedals do not hold it).
+    /// Every key up (MIDI CC 123, All Notes Off; a CLAP note-off of every
+    /// key): a note-off for every sounding note, so the pedals hold what
+    /// they hold (MIDI 1.0: the notes a pedal sustains sound on until it
+    /// comes up) and a scene without damper rings on (docs/plugin.md,
+    /// "Pedals").
     AllNotesOff,
+    /// Stop the note of `key` (every note for `None`) at once (a CLAP
+    /// note choke): its voice fades out over [`FADE_S`](super::FADE_S)
+    /// exactly as a stolen voice does, whatever the pedals, and is free
+    /// for the next note (docs/plugin.md, "Velocity, pitch, voices").
+    Choke {
+        /// MIDI key, or `None` for every voice.
+        key: Option<u8>,
+    },
+    /// MIDI CC 120, All Sound Off: every sounding voice fades out over
+    /// [`FADE_S`](super::FADE_S) as a stolen voice does, whatever the
+    /// pedals; the pedals and the controllers stay as they are.
+    AllSoundOff,
+    /// MIDI CC 121, Reset All Controllers (MIDI's recommended practice
+    /// RP-015): the sustain and sostenuto pedals up (the notes they held
+    /// whose keys are up are damped, as when a pedal comes up), the wheel
+    /// at its centre (the voices glide back), channel aftertouch, the mod
+    /// wheel and every note's pressure at 0. Notes, brightness and
+    /// per-note tuning stay.
+    ResetControllers,
     /// Sustain (damper) pedal, MIDI CC 64: while down, released notes are
     /// not damped; when it comes up, every note no longer held is.
     Sustain {

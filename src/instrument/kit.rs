@@ -26,10 +26,8 @@
 //! the output guard and the fades of a swap and of a steal are the
 //! voices' own.
 
-use super::mix::{spare_for_fade, StealFade, FADE_LANE};
 use super::{
-    impact_speed_m_per_s, Instrument, Variant, CHECK_INTERVAL_SAMPLES, SILENCE_ENERGY_RATIO,
-    STEAL_FADES,
+    impact_speed_m_per_s, Instrument, CHECK_INTERVAL_SAMPLES, SILENCE_ENERGY_RATIO, STEAL_FADES,
 };
 use crate::engine::TimeScaleError;
 use crate::multi::{CompiledMulti, MultiModel, MultiState, MAX_CONTACTS};
@@ -43,6 +41,12 @@ pub const SILENCE_AMPLITUDE_RATIO: f64 = 3.1622776601683795e-5;
 /// Kit voices of a pitched kit (each holds every phase's tables at its
 /// pitch: about 170 KB for four contacts on 100 modes).
 pub const MAX_KIT_VOICES: usize = 16;
+
+/// Spare kit states of a kit whose mallets list notes (one kit voice,
+/// never stolen): its voice fades out in one when choked or silenced by
+/// All Sound Off, as a stolen voice does; two, so that a choke, a new
+/// note and a second choke within [`super::FADE_S`] cut no fade.
+pub const LISTED_KIT_SPARES: usize = 2;
 
 /// One kit voice: the scene's running state at its pitch, its turn and its
 /// silence test.
@@ -69,9 +73,10 @@ pub struct Kit {
     pub sc: CompiledMulti,
     /// The kit voices ([`MAX_KIT_VOICES`] when pitched, else 1).
     pub(super) voices: Vec<KitVoice>,
-    /// Spare states for stolen kit voices to fade out in
-    /// ([`STEAL_FADES`] when pitched; none for one voice, which is never
-    /// stolen).
+    /// Spare states for kit voices to fade out in when stolen, choked or
+    /// ended by All Sound Off or a lowered Polyphony ([`STEAL_FADES`]
+    /// when pitched; [`LISTED_KIT_SPARES`] for the one voice of a kit of
+    /// listed notes, which is never stolen).
     pub(super) spares: Vec<MultiState>,
     /// Per MIDI note: the mallets it throws (bit `i`: mallet `i`, whose
     /// contact is contact `i`; `[hammer]` is mallet 0, striker `i` mallet
@@ -111,11 +116,14 @@ impl Kit {
         // a voice pitched up leaves its modes above Nyquist out of its
         // outputs, as a voice of one contact does
         st.set_output_band(&sc, super::OUTPUT_BAND_FRACTION * 0.5 * rate_hz);
-        let spares = if pitched {
-            vec![st.clone(); STEAL_FADES]
-        } else {
-            Vec::new()
-        };
+        let spares = vec![
+            st.clone();
+            if pitched {
+                STEAL_FADES
+            } else {
+                LISTED_KIT_SPARES
+            }
+        ];
         let voice = KitVoice {
             st,
             next: 0,
@@ -240,6 +248,14 @@ impl Kit {
         true
     }
 
+    /// How loud kit voice `i` is, as a steal compares kit voices: its
+    /// output's peak since its last throw (0 for no such voice).
+    pub(super) fn loudness(&self, i: usize) -> f64 {
+        self.voices
+            .get(i)
+            .map_or(0.0, |kv| kv.interval_peak.max(kv.peak))
+    }
+
     /// The running state of kit voice 0 (tests, tools). \[audio-thread\]
     pub fn state(&self) -> &MultiState {
         &self.voices[0].st
@@ -317,26 +333,40 @@ impl Instrument {
         let tracking = self.play.pitch_tracking;
         let poly = self.play.polyphony.clamp(1, super::MAX_VOICES);
         let root = self.cur.root_note;
-        let Some(kit) = self.cur.kit.as_deref_mut() else {
+        let Some(kit) = self.cur.kit.as_deref() else {
             return;
         };
         self.stats.notes += 1;
-        let idx = if !kit.pitched {
+        let (pitched, kits) = (kit.pitched, kit.voices.len().min(super::MAX_VOICES));
+        let idx = if !pitched {
             0
         } else {
-            let n = kit.voices.len().min(poly);
-            let own = (0..n).find(|&i| self.voices[i].active && self.voices[i].key == key);
-            let free = || (0..n).find(|&i| !self.voices[i].active);
-            match own.or_else(free) {
+            // its key's voice, a free one while fewer than the limit
+            // sound, else the quietest (the voices that sound may be any:
+            // a lowered Polyphony ends the quietest, wherever they are)
+            let voices = &self.voices[..kits];
+            let own = voices.iter().position(|v| v.active && v.key == key);
+            let sounding = voices.iter().filter(|v| v.active).count();
+            let free = voices.iter().position(|v| !v.active);
+            match own.or(free.filter(|_| sounding < kits.min(poly))) {
                 Some(i) => i,
                 None => {
                     self.stats.steals += 1;
-                    let loud = |i: usize| kit.voices[i].interval_peak.max(kit.voices[i].peak);
-                    (0..n)
-                        .min_by(|&a, &b| loud(a).total_cmp(&loud(b)))
-                        .unwrap_or(0)
+                    let mut among = [false; super::MAX_VOICES];
+                    (0..kits).for_each(|i| among[i] = self.voices[i].active);
+                    self.quietest(&among).unwrap_or(0)
                 }
             }
+        };
+        let v = self.voices[idx];
+        let wake = !v.active || v.key != key && pitched;
+        // stolen while it sounds: its running state fades out in a spare
+        // (docs/plugin.md, "Velocity, pitch, voices")
+        if wake && v.active && self.fade_voice(idx, false) {
+            self.stats.steals_faded += 1;
+        }
+        let Some(kit) = self.cur.kit.as_deref_mut() else {
+            return;
         };
         let which = if kit.pitched {
             let kv = &mut kit.voices[idx];
@@ -355,22 +385,7 @@ impl Instrument {
         }
         let v = &mut self.voices[idx];
         let kv = &mut kit.voices[idx];
-        if !v.active || v.key != key && kit.pitched {
-            let sounded = !(v.fresh && v.onset_pos == self.sample_pos);
-            if v.active && sounded && !kit.spares.is_empty() {
-                // stolen while it sounds: its running state fades out in a
-                // spare (docs/plugin.md, "Velocity, pitch, voices")
-                let cut = &mut self.stats.steal_fades_cut;
-                let f = spare_for_fade(&self.steal_fades, kit.spares.len(), cut);
-                std::mem::swap(&mut kv.st, &mut kit.spares[f]);
-                self.steal_fades[f] = Some(StealFade {
-                    at: Variant::default(),
-                    on_damped: false,
-                    left: self.fade_len,
-                });
-                self.lanes.begin(FADE_LANE, self.sample_pos);
-                self.stats.steals_faded += 1;
-            }
+        if wake {
             // woken (or stolen) at rest, at the key's pitch and the bend
             let base = if kit.pitched && tracking {
                 super::prepared::key_scale(key, root)
@@ -473,6 +488,17 @@ impl Instrument {
         if kit.bouncing || !kit.pitched && key.is_some() {
             return;
         }
+        // the voices of `key` fading out glide to it too
+        let mut fading = false;
+        for fades in [&mut self.steal_fades, &mut self.old_steal_fades] {
+            for fade in fades.iter_mut().flatten() {
+                if key.is_none_or(|k| k == fade.key) {
+                    fade.tuning_target = t;
+                    fading |= fade.tuning_now != t;
+                }
+            }
+        }
+        self.tuning_moving |= fading;
         for (i, kv) in kit.voices.iter_mut().enumerate() {
             let v = &mut self.voices[i];
             if !v.active || key.is_some_and(|k| k != v.key) {

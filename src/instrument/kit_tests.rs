@@ -4,7 +4,7 @@
 //! blocks and the lookahead do not change a sample, a kit voice stops when
 //! silent and wakes at rest, a swap carries or fades it.
 
-use super::tests::{on, render, steal_fade_gain};
+use super::tests::{at, largest, on, render, steal_fade_gain, worst_and_tol};
 use super::*;
 use crate::multi::{CompiledMulti, MultiModel, MultiState};
 use crate::scene::{Scene, Switching};
@@ -740,4 +740,152 @@ fn a_stolen_kit_voice_fades_out_while_the_new_key_starts() {
     // the old key's contacts (up to the steal) are still counted
     let both = started(&inst).iter().sum::<u64>();
     assert!(both >= started(&alone).iter().sum::<u64>(), "{both}");
+}
+
+/// Kit voices end as voices do (docs/plugin.md, "Velocity, pitch,
+/// voices"): a choke of a pitched kit's key, All Sound Off and a lowered
+/// Polyphony (the quietest kit voice) fade them out exactly as a stolen
+/// kit voice fades (the output is the others plus the ended ones times
+/// the steal's fade gain, where a release, which a kit ignores, would
+/// leave them ringing); a kit of listed notes, one voice for every key,
+/// fades in a spare kit state of its own when its last note's key or
+/// every note is choked, and a choke of another key leaves it; a stolen
+/// kit voice follows the wheel and its note's tuning while it fades.
+#[test]
+fn kit_voices_end_and_bend_as_voices_do() {
+    let fade = (FADE_S * RATE).round() as usize;
+    let n = 16_800;
+    let f = |x: &[Vec<f32>; 2], ch: usize, k: usize| f64::from(x[ch][k]);
+    let run = |scene: &Scene, poly: usize, events: &[TimedEvent]| {
+        let p = prepare_scene(scene, &SceneParams::default(), RATE, 0).unwrap();
+        let play = PlayParams {
+            gain_db: 0.0,
+            polyphony: poly,
+            ..PlayParams::default()
+        };
+        let mut inst = Instrument::new(p, play);
+        let mut ev = events.to_vec();
+        ev.sort_by_key(|e| e.offset);
+        let out = render(&mut inst, &ev, n);
+        (out, inst)
+    };
+    let check = |what: &str, y: &[Vec<f32>; 2], expect: &dyn Fn(usize, usize) -> f64, miss: f64| {
+        let (worst, tol) = worst_and_tol(y, expect);
+        println!("{what}: {worst:.2e} from the faded sum (tolerance {tol:.1e}), without the fade it would miss by {miss:.2e}");
+        assert!(
+            worst <= tol && miss > 100.0 * tol,
+            "{what}: {worst:e}, {miss:e}"
+        );
+    };
+    let scene = two_mallets();
+    let t0 = 14_400;
+    let gain = |k: usize| steal_fade_gain(k, t0, fade);
+    let notes = [on(0, 57, 0.9), on(500, 64, 0.3)];
+    let (both, _) = run(&scene, 4, &notes);
+    let (a, _) = run(&scene, 4, &notes[..1]);
+    let (b, _) = run(&scene, 4, &notes[1..]);
+    let ringing = |x: &[Vec<f32>; 2]| largest(x, t0 + fade..n, |_| 1.0);
+
+    let (y, inst) = run(
+        &scene,
+        4,
+        &[&notes[..], &[at(t0, Event::Choke { key: Some(57) })]].concat(),
+    );
+    assert_eq!(inst.voice_keys()[..2], [None, Some(64)]);
+    assert_eq!(inst.stats.voices_ended_faded, 1);
+    let expect = |ch, k| f(&b, ch, k) + gain(k) * f(&a, ch, k);
+    check("kit choke", &y, &expect, ringing(&a));
+
+    let (y, inst) = run(
+        &scene,
+        4,
+        &[&notes[..], &[at(t0, Event::AllSoundOff)]].concat(),
+    );
+    assert_eq!(
+        (inst.active_voices(), inst.stats.voices_ended_faded),
+        (0, 2)
+    );
+    check(
+        "kit all sound off",
+        &y,
+        &|ch, k| gain(k) * f(&both, ch, k),
+        ringing(&both),
+    );
+
+    // Polyphony 4 -> 1: the quieter key (64) fades
+    let p = prepare_scene(&scene, &SceneParams::default(), RATE, 0).unwrap();
+    let play = PlayParams {
+        gain_db: 0.0,
+        polyphony: 4,
+        ..PlayParams::default()
+    };
+    let mut inst = Instrument::new(p, play);
+    let [l0, r0] = render(&mut inst, &notes, t0);
+    inst.set_play(PlayParams {
+        polyphony: 1,
+        ..play
+    });
+    let [l1, r1] = render(&mut inst, &[], n - t0);
+    let y = [[l0, l1].concat(), [r0, r1].concat()];
+    assert_eq!(inst.voice_keys()[..2], [Some(57), None]);
+    let expect = |ch, k| f(&a, ch, k) + gain(k) * f(&b, ch, k);
+    check("kit polyphony lowered", &y, &expect, ringing(&b));
+
+    // a stolen kit voice bends and glides with its note's tuning
+    let moves = [
+        at(t0, Event::PitchBend { value: -1.0 }),
+        at(
+            t0 + 30,
+            Event::NoteTuning {
+                key: Some(57),
+                semitones: 2.0,
+            },
+        ),
+    ];
+    let (y, _) = run(
+        &scene,
+        1,
+        &[&notes[..1], &[on(t0, 64, 0.3)], &moves[..]].concat(),
+    );
+    let (a_moved, _) = run(&scene, 1, &[&notes[..1], &moves[..]].concat());
+    let (b_moved, _) = run(&scene, 1, &[&[on(t0, 64, 0.3)], &moves[..]].concat());
+    let deaf = (0..2)
+        .flat_map(|ch| (t0..t0 + fade).map(move |k| (ch, k)))
+        .map(|(ch, k)| (gain(k) * (f(&a_moved, ch, k) - f(&a, ch, k))).abs())
+        .fold(0.0, f64::max);
+    let expect = |ch, k| gain(k) * f(&a_moved, ch, k) + f(&b_moved, ch, k);
+    check("stolen kit voice bent", &y, &expect, deaf);
+
+    // a kit of listed notes (its modes die in 0.15 s: end it early)
+    let listed = small_kit("notes = [60]", "notes = [62, 60]");
+    let t0 = 2_400;
+    let gain = |k: usize| steal_fade_gain(k, t0, fade);
+    let ringing = |x: &[Vec<f32>; 2]| largest(x, t0 + fade..n, |_| 1.0);
+    let (a, _) = run(&listed, 16, &[on(0, 62, 0.8), on(100, 60, 0.8)]);
+    for key in [Some(60), None] {
+        let ev = [
+            on(0, 62, 0.8),
+            on(100, 60, 0.8),
+            at(t0, Event::Choke { key }),
+        ];
+        let (y, inst) = run(&listed, 16, &ev);
+        assert_eq!(inst.active_voices(), 0);
+        let what = format!("listed kit, choke of {key:?}");
+        check(&what, &y, &|ch, k| gain(k) * f(&a, ch, k), ringing(&a));
+    }
+    let ev = [
+        on(0, 62, 0.8),
+        on(100, 60, 0.8),
+        at(t0, Event::Choke { key: Some(62) }),
+    ];
+    let (y, _) = run(&listed, 16, &ev);
+    assert!(y == a, "a choke of a key that is not its last note's");
+    let ev = [on(0, 62, 0.8), on(100, 60, 0.8), at(t0, Event::AllSoundOff)];
+    let (y, _) = run(&listed, 16, &ev);
+    check(
+        "listed kit, all sound off",
+        &y,
+        &|ch, k| gain(k) * f(&a, ch, k),
+        ringing(&a),
+    );
 }

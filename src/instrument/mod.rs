@@ -64,7 +64,12 @@
 //!   steals the quietest one (lowest energy): the new note starts on it at
 //!   once, and its running state moves into a spare state
 //!   ([`STEAL_FADES`]) and fades out over [`FADE_S`] instead of being cut
-//!   (docs/plugin.md, "Velocity, pitch, voices"). A voice whose energy falls below
+//!   (docs/plugin.md, "Velocity, pitch, voices"). A choke
+//!   ([`Event::Choke`]), All Sound Off ([`Event::AllSoundOff`]) and a
+//!   lowered polyphony (the quietest voices beyond it) end voices the same
+//!   way: each fades out in a spare state over [`FADE_S`], and a fading
+//!   voice follows the bend, its note's tuning and the pressure as a
+//!   sounding one does. A voice whose energy falls below
 //!   [`SILENCE_ENERGY_RATIO`] of its strike's energy (checked every
 //!   [`CHECK_INTERVAL_SAMPLES`] samples of the instrument's own clock, so the
 //!   result does not depend on how the host splits blocks) stops and costs
@@ -93,7 +98,7 @@ mod tests;
 mod voices;
 
 pub use events::{Event, TimedEvent};
-pub use kit::{Kit, MAX_KIT_VOICES, SILENCE_AMPLITUDE_RATIO};
+pub use kit::{Kit, LISTED_KIT_SPARES, MAX_KIT_VOICES, SILENCE_AMPLITUDE_RATIO};
 pub use mapping::{
     damped_scene, impact_speed_m_per_s, lowest_frequency_hz, root_note, scene_for,
     InstrumentParams, PlayParams, SceneParams, VariantSet,
@@ -216,9 +221,20 @@ pub struct Stats {
     /// Of those, the stolen voices that fade out over [`FADE_S`] (the
     /// others had not sounded yet: struck from rest at that very sample).
     pub steals_faded: u64,
-    /// Fades of stolen voices cut because every spare state was fading
-    /// ([`STEAL_FADES`]): the one nearest its end was taken.
+    /// Fades cut because every spare state was fading ([`STEAL_FADES`]):
+    /// for a steal or a choke of one note the fade nearest its end was
+    /// taken; for voices ended together (All Sound Off, a choke of every
+    /// note, a lowered Polyphony; the loudest first) the fade nearest its
+    /// end if it began earlier, else the voice ending now (the quietest
+    /// left) went without a fade.
     pub steal_fades_cut: u64,
+    /// Voices ended by a choke, All Sound Off or a lowered Polyphony
+    /// ([`Event::Choke`], [`Event::AllSoundOff`]).
+    pub voices_ended: u64,
+    /// Of those, the ones that fade out over [`FADE_S`] as a stolen voice
+    /// does (the others had not sounded yet, or were cut: counted in
+    /// [`Stats::steal_fades_cut`]).
+    pub voices_ended_faded: u64,
     /// Voices reset because they produced a non-finite sample.
     pub nonfinite_resets: u64,
     /// Notes played at s = 1 because the scene uses the dense fallback.
@@ -414,7 +430,9 @@ impl Instrument {
     }
 
     /// Update the parameters that need no compile (gain and the lookahead
-    /// now; pitch tracking and drop height at the next note). \[audio-thread\]
+    /// now; pitch tracking and drop height at the next note; a polyphony
+    /// below the voices that sound ends the quietest of them now, each
+    /// fading out as a stolen voice does). \[audio-thread\]
     pub fn set_play(&mut self, mut play: PlayParams) {
         play.polyphony = play.polyphony.clamp(1, MAX_VOICES);
         play.bend_range_semitones = if play.bend_range_semitones.is_finite() {
@@ -424,15 +442,9 @@ impl Instrument {
             DEFAULT_BEND_RANGE_SEMITONES
         };
         if play.polyphony < self.play.polyphony {
-            self.sync_all(true);
-            // voices above a lowered limit are released (damped), as the
-            // player would lift the keys
-            for i in play.polyphony..MAX_VOICES {
-                let v = self.voices[i];
-                if v.active && !v.released {
-                    self.release_voice(i);
-                }
-            }
+            // the voices beyond a lowered limit, the quietest first, fade
+            // out as stolen voices do
+            self.end_beyond(play.polyphony);
         }
         self.play = play;
         let g = 10f64.powf(play.gain_db / 20.0);
@@ -467,8 +479,12 @@ impl Instrument {
         let target = self.bend_target();
         let step = BEND_SLEW_SEMITONES_PER_S * BEND_TICK_SAMPLES as f64 / self.cur.rate_hz;
         self.bend_now = slew(self.bend_now, target, step);
+        // the voices fading out follow the bend too
+        let (fades_pending, fades_moving) = self.fades_bend_tick(step);
         if self.cur.kit.is_some() {
-            (self.bend_pending, self.tuning_moving) = self.kit_bend_tick(step);
+            let (pending, moving) = self.kit_bend_tick(step);
+            self.bend_pending = pending || fades_pending;
+            self.tuning_moving = moving || fades_moving;
             return;
         }
         let mut pending = false;
@@ -497,8 +513,8 @@ impl Instrument {
             }
             self.press_decide(i);
         }
-        self.bend_pending = pending;
-        self.tuning_moving = tuning_moving;
+        self.bend_pending = pending || fades_pending;
+        self.tuning_moving = tuning_moving || fades_moving;
     }
 
     /// A per-note tuning ([`Event::NoteTuning`]). \[audio-thread\]
@@ -511,6 +527,15 @@ impl Instrument {
         if self.cur.kit.is_some() {
             self.kit_note_tuning(key, t);
             return;
+        }
+        // the voices of `key` fading out glide to it too
+        if !self.cur.bouncing {
+            let mut fading = false;
+            self.for_fades(key, |f| {
+                f.tuning_target = t;
+                fading |= f.tuning_now != t;
+            });
+            self.tuning_moving |= fading;
         }
         for i in 0..MAX_VOICES {
             let v = &mut self.voices[i];
@@ -699,9 +724,29 @@ impl Instrument {
                 self.note_on(key, velocity_norm)
             }
             Event::NoteOff { key } => self.key_up(key),
+            // every key up: what the pedals hold rings on
             Event::AllNotesOff => {
                 self.pedals.keys_down = [0; 2];
-                self.note_off(None)
+                self.damp_unheld();
+            }
+            Event::Choke { key } => self.choke(key),
+            Event::AllSoundOff => self.end_all(),
+            Event::ResetControllers => {
+                self.pedals.sustain = false;
+                self.pedals.sostenuto = false;
+                self.pedals.sostenuto_keys = [0; 2];
+                self.damp_unheld();
+                self.bend_wheel = 0.0;
+                self.channel_pressure = 0.0;
+                self.mod_wheel = 0.0;
+                for i in 0..MAX_VOICES {
+                    if self.voices[i].active {
+                        self.voices[i].pressure = 0.0;
+                    }
+                    self.repress(i);
+                }
+                self.for_fades(None, |f| f.pressure = 0.0);
+                self.repress_fades();
             }
             Event::Sustain { down } => {
                 self.pedals.sustain = down;
@@ -726,6 +771,9 @@ impl Instrument {
                         self.repress(i);
                     }
                 }
+                // and the voices of `key` fading out
+                self.for_fades(key, |f| f.pressure = value);
+                self.repress_fades();
             }
             Event::NoteBrightness { key, value } => {
                 let level = timbre_level(value);
@@ -746,10 +794,12 @@ impl Instrument {
             Event::ChannelPressure { value } => {
                 self.channel_pressure = unit(value);
                 (0..MAX_VOICES).for_each(|i| self.repress(i));
+                self.repress_fades();
             }
             Event::ModWheel { value } => {
                 self.mod_wheel = unit(value);
                 (0..MAX_VOICES).for_each(|i| self.repress(i));
+                self.repress_fades();
             }
             Event::Sostenuto { down } => {
                 if down && !self.pedals.sostenuto {

@@ -3,11 +3,11 @@
 //! running state fades out in a spare), the damper at note-off, and
 //! silence detection.
 
-use super::mix::{spare_for_fade, StealFade, FADE_LANE};
+use super::mix::{spare_for_fade, spare_for_fade_together, StealFade, FADE_LANE};
 use super::prepared::{key_scale, Prepared, Variant};
 use super::{
-    impact_speed_m_per_s, Instrument, MAX_PRESSURE_DECAY_PER_S, MAX_VOICES, SILENCE_ENERGY_RATIO,
-    STEAL_FADES,
+    impact_speed_m_per_s, slew, Instrument, MAX_PRESSURE_DECAY_PER_S, MAX_VOICES,
+    SILENCE_ENERGY_RATIO, STEAL_FADES,
 };
 use crate::compile::CompiledScene;
 use crate::engine::EngineState;
@@ -112,8 +112,13 @@ impl Instrument {
             }
             i
         } else {
+            // a free voice while fewer than the Polyphony sound, else the
+            // quietest is stolen (the voices that sound may be any of the
+            // 64: a lowered Polyphony ends the quietest, wherever they are)
             let poly = self.play.polyphony.clamp(1, MAX_VOICES);
-            let i = match self.voices[..poly].iter().position(|v| !v.active) {
+            let sounding = self.voices.iter().filter(|v| v.active).count();
+            let free = self.voices.iter().position(|v| !v.active);
+            let i = match free.filter(|_| sounding < poly) {
                 Some(i) => {
                     // its lane sounds again from now
                     self.lanes.begin(i, self.sample_pos);
@@ -121,8 +126,12 @@ impl Instrument {
                 }
                 None => {
                     self.stats.steals += 1;
-                    let i = quietest(&self.cur, &self.voices[..poly]);
-                    self.fade_stolen(i);
+                    let mut among = [false; MAX_VOICES];
+                    (0..MAX_VOICES).for_each(|i| among[i] = self.voices[i].active);
+                    let i = self.quietest(&among).unwrap_or(0);
+                    if self.fade_voice(i, false) {
+                        self.stats.steals_faded += 1;
+                    }
                     i
                 }
             };
@@ -205,31 +214,183 @@ impl Instrument {
         self.voices[idx].onset_pos = self.sample_pos;
     }
 
-    /// Voice `i` is stolen by a new note (docs/plugin.md, "Velocity, pitch, voices"): unless
-    /// nothing of it has sounded yet (struck from rest at this very
-    /// sample), its running state (with what its damper took so far) moves
-    /// into a spare state ([`spare_for_fade`]) and fades out from here over
-    /// [`super::FADE_S`] on the instrument's clock, in the fade's lane,
-    /// while the voice goes on with the spare's state for the new note,
-    /// which starts at once. A swap of two states: O(1), allocation-free.
-    /// \[audio-thread\]
-    fn fade_stolen(&mut self, i: usize) {
+    /// Voice `i`'s note fades out from here: stolen by a new note, choked,
+    /// ended by All Sound Off or a lowered Polyphony (docs/plugin.md,
+    /// "Velocity, pitch, voices"). Unless nothing of it has sounded yet
+    /// (struck from rest at this very sample), its running state (with
+    /// what its damper took so far) moves into a spare state
+    /// ([`spare_for_fade`]; a kit's spare kit state) and fades out from
+    /// here over [`super::FADE_S`] on the instrument's clock, in the fade's
+    /// lane, following the bend, its note's tuning and the pressure
+    /// ([`StealFade`]), while the voice keeps the spare's state (a new note
+    /// starts it over). `together`: one of several voices ended at once,
+    /// the loudest first ([`spare_for_fade_together`]): when every spare
+    /// holds the fade of a louder one that began at this sample, it is not
+    /// faded (cut, counted). Whether it fades. A swap of two states: O(1),
+    /// allocation-free. \[audio-thread\]
+    pub(super) fn fade_voice(&mut self, i: usize, together: bool) -> bool {
         let v = self.voices[i];
         if !v.active || v.fresh && v.onset_pos == self.sample_pos {
+            return false;
+        }
+        let spares = match self.cur.kit.as_deref() {
+            Some(kit) if i < kit.voices.len() => kit.spares.len(),
+            Some(_) => 0,
+            None => STEAL_FADES,
+        };
+        if spares == 0 {
+            return false;
+        }
+        let (fades, cut) = (&self.steal_fades, &mut self.stats.steal_fades_cut);
+        let f = if together {
+            match spare_for_fade_together(fades, spares, self.fade_len, cut) {
+                Some(f) => f,
+                None => return false,
+            }
+        } else {
+            spare_for_fade(fades, spares, cut)
+        };
+        self.press_flush(i);
+        let p = &mut *self.cur;
+        let mut fade = StealFade::of(&v, self.fade_len);
+        match p.kit.as_deref_mut() {
+            Some(kit) => {
+                std::mem::swap(&mut kit.voices[i].st, &mut kit.spares[f]);
+                // a kit voice plays the scene as compiled (no variants)
+                fade.at = Variant::default();
+                fade.on_damped = false;
+            }
+            None => std::mem::swap(&mut p.states[i], &mut p.spares[f]),
+        }
+        fade_decide(p, f, &mut fade, self.channel_pressure.max(self.mod_wheel));
+        self.steal_fades[f] = Some(fade);
+        self.lanes.begin(FADE_LANE, self.sample_pos);
+        true
+    }
+
+    /// End voice `i` now, without a click (a choke, All Sound Off, a
+    /// lowered Polyphony): it fades out as a stolen voice does
+    /// ([`Instrument::fade_voice`]) and is free for the next note.
+    /// Allocation-free. \[audio-thread\]
+    pub(super) fn end_voice(&mut self, i: usize, together: bool) {
+        if !self.voices[i].active {
             return;
         }
-        self.press_flush(i);
-        let cut = &mut self.stats.steal_fades_cut;
-        let f = spare_for_fade(&self.steal_fades, STEAL_FADES, cut);
-        let p = &mut *self.cur;
-        std::mem::swap(&mut p.states[i], &mut p.spares[f]);
-        self.steal_fades[f] = Some(StealFade {
-            at: v.at,
-            on_damped: v.on_damped,
-            left: self.fade_len,
-        });
-        self.lanes.begin(FADE_LANE, self.sample_pos);
-        self.stats.steals_faded += 1;
+        self.stats.voices_ended += 1;
+        if self.fade_voice(i, together) {
+            self.stats.voices_ended_faded += 1;
+        }
+        let v = &mut self.voices[i];
+        v.active = false;
+        v.pressing = None;
+    }
+
+    /// End the voices of `ending` together, the loudest first, so that
+    /// when there are more of them than spare states the quietest are the
+    /// ones cut ([`spare_for_fade_together`]). Allocation-free.
+    /// \[audio-thread\]
+    pub(super) fn end_voices(&mut self, ending: &[bool; MAX_VOICES]) {
+        let mut loud = [0.0f64; MAX_VOICES];
+        let mut left = [false; MAX_VOICES];
+        for i in 0..MAX_VOICES {
+            left[i] = ending[i] && self.voices[i].active;
+            if left[i] {
+                let e = self.loudness(i);
+                loud[i] = if e.is_nan() { 0.0 } else { e };
+            }
+        }
+        while let Some(i) = (0..MAX_VOICES)
+            .filter(|&i| left[i])
+            .max_by(|&a, &b| loud[a].total_cmp(&loud[b]))
+        {
+            left[i] = false;
+            self.end_voice(i, true);
+        }
+    }
+
+    /// Every voice fades out (All Sound Off, a choke of every note).
+    /// \[audio-thread\]
+    pub(super) fn end_all(&mut self) {
+        self.end_voices(&[true; MAX_VOICES]);
+    }
+
+    /// A lowered Polyphony: while more voices sound than `limit` (a
+    /// pitched kit: its kit voices, up to [`super::MAX_KIT_VOICES`]), the
+    /// quietest ([`Instrument::quietest`], the rule of a steal) are ended
+    /// as stolen voices fade. Allocation-free. \[audio-thread\]
+    pub(super) fn end_beyond(&mut self, limit: usize) {
+        let limit = match self.cur.kit.as_deref() {
+            Some(kit) => limit.min(kit.voices.len()),
+            None => limit,
+        };
+        let count = |inst: &Self| inst.voices.iter().filter(|v| v.active).count();
+        if count(self) <= limit {
+            return;
+        }
+        // every voice at the clock (a silent one stops first)
+        self.sync_all(true);
+        let mut among = [false; MAX_VOICES];
+        (0..MAX_VOICES).for_each(|i| among[i] = self.voices[i].active);
+        let mut ending = [false; MAX_VOICES];
+        for _ in limit..count(self) {
+            let Some(q) = self.quietest(&among) else {
+                break;
+            };
+            among[q] = false;
+            ending[q] = true;
+        }
+        self.end_voices(&ending);
+    }
+
+    /// The voice a steal takes among `among`: the quietest (a voice: the
+    /// lowest energy, [`EngineState::energy_proxy`] in physical units; a
+    /// kit voice: the lowest peak since its throw), the first of equals.
+    pub(super) fn quietest(&self, among: &[bool; MAX_VOICES]) -> Option<usize> {
+        if let Some(kit) = self.cur.kit.as_deref() {
+            let n = kit.voices.len().min(MAX_VOICES);
+            return (0..n)
+                .filter(|&i| among[i])
+                .min_by(|&a, &b| kit.loudness(a).total_cmp(&kit.loudness(b)));
+        }
+        let mut best = None;
+        let mut best_e = f64::INFINITY;
+        for i in (0..MAX_VOICES).filter(|&i| among[i]) {
+            let e = self.loudness(i);
+            if !(e >= best_e) {
+                best = Some(i);
+                best_e = e;
+            }
+        }
+        best
+    }
+
+    /// How loud voice `i` is, as a steal compares voices: a voice's energy
+    /// in physical units ([`EngineState::energy_proxy`] times its time
+    /// scale squared), a kit voice's peak since its throw.
+    fn loudness(&self, i: usize) -> f64 {
+        let p = &*self.cur;
+        if let Some(kit) = p.kit.as_deref() {
+            return kit.loudness(i);
+        }
+        let (v, st) = (&self.voices[i], &p.states[i]);
+        let s = st.time_scale();
+        st.energy_proxy(p.scenes.bound(v.at, v.on_damped)) * s * s
+    }
+
+    /// A choke ([`super::Event::Choke`]): the voice of `key` (every voice
+    /// for `None`; a kit voice is its last note's) fades out now.
+    /// \[audio-thread\]
+    pub(super) fn choke(&mut self, key: Option<u8>) {
+        match key {
+            None => self.end_all(),
+            Some(k) => {
+                for i in 0..MAX_VOICES {
+                    if self.voices[i].active && self.voices[i].key == k {
+                        self.end_voice(i, false);
+                    }
+                }
+            }
+        }
     }
 
     pub(super) fn note_off(&mut self, key: Option<u8>) {
@@ -389,6 +550,123 @@ impl Instrument {
     }
 }
 
+impl Instrument {
+    /// The fading voices' damper decisions (as a voice's,
+    /// [`Instrument::repress`]): what each took goes into its spare's
+    /// state, then it is decided again at the pressure now. Taken on the
+    /// instrument's silence-check grid and after every event that changes
+    /// a pressure. O(fades N). \[audio-thread\]
+    pub(super) fn repress_fades(&mut self) {
+        let floor = self.channel_pressure.max(self.mod_wheel);
+        let sets = [
+            (Some(&mut *self.cur), &mut self.steal_fades),
+            (self.fading.as_deref_mut(), &mut self.old_steal_fades),
+        ];
+        for (p, fades) in sets {
+            let Some(p) = p else { continue };
+            for (f, slot) in fades.iter_mut().enumerate() {
+                if let Some(fade) = slot.as_mut() {
+                    fade_flush(p, f, fade);
+                    fade_decide(p, f, fade, floor);
+                }
+            }
+        }
+    }
+
+    /// Set what `set` sets on the fading voices of `key` (every one for
+    /// `None`), in the scene set played and in the one a swap left fading.
+    pub(super) fn for_fades(&mut self, key: Option<u8>, mut set: impl FnMut(&mut StealFade)) {
+        for fades in [&mut self.steal_fades, &mut self.old_steal_fades] {
+            for fade in fades.iter_mut().flatten() {
+                if key.is_none_or(|k| k == fade.key) {
+                    set(fade);
+                }
+            }
+        }
+    }
+
+    /// One update of a moving bend for the fading voices (the sounding
+    /// voices' rule, [`Instrument::bend_tick`]): each steps its tuning and
+    /// takes its new time scale without adding or removing energy; one in
+    /// contact takes it at a later update; a bouncing scene's are not bent.
+    /// Whether one waits, and whether a tuning still moves. O(fades N),
+    /// allocation-free. \[audio-thread\]
+    pub(super) fn fades_bend_tick(&mut self, step: f64) -> (bool, bool) {
+        let (bend, floor) = (self.bend_now, self.channel_pressure.max(self.mod_wheel));
+        let (mut pending, mut moving) = (false, false);
+        let sets = [
+            (Some(&mut *self.cur), &mut self.steal_fades),
+            (self.fading.as_deref_mut(), &mut self.old_steal_fades),
+        ];
+        for (p, fades) in sets {
+            let Some(p) = p else { continue };
+            for (f, slot) in fades.iter_mut().enumerate() {
+                let Some(fade) = slot.as_mut() else { continue };
+                fade.tuning_now = slew(fade.tuning_now, fade.tuning_target, step);
+                if p.kit.as_deref().map_or(p.bouncing, |k| k.bouncing) {
+                    continue;
+                }
+                moving |= fade.tuning_now != fade.tuning_target;
+                let s = fade.base_scale * 2f64.powf((bend + fade.tuning_now) / 12.0);
+                let bent = match p.kit.as_deref_mut() {
+                    Some(kit) => match kit.spares.get_mut(f) {
+                        Some(st) if st.time_scale() != s => st.bend_time_scale(&kit.sc, s),
+                        _ => continue,
+                    },
+                    None => {
+                        if p.spares.get(f).is_none_or(|st| st.time_scale() == s) {
+                            continue;
+                        }
+                        // pressed: its damper's decay first, and decided
+                        // again at its new pitch
+                        fade_flush(p, f, fade);
+                        let scene = p.scenes.bound(fade.at, fade.on_damped);
+                        let bent = p.spares[f].bend_time_scale(scene, s);
+                        fade_decide(p, f, fade, floor);
+                        bent
+                    }
+                };
+                // Err: a fade that cannot scale time stays put
+                if let Ok(false) = bent {
+                    pending = true;
+                }
+            }
+        }
+        (pending, moving)
+    }
+}
+
+/// Put what fade `f`'s damper took since its last decision into its spare
+/// state of `p` and stop pressing it ([`Instrument::press_flush`]'s rule).
+fn fade_flush(p: &mut Prepared, f: usize, fade: &mut StealFade) {
+    if let Some(pr) = fade.pressing.take() {
+        if pr.g != 1.0 {
+            if let Some(st) = p.spares.get_mut(f) {
+                let taken = st.scale_free_state(pr.g);
+                debug_assert!(taken, "a pressed fade is out of contact");
+            }
+        }
+    }
+}
+
+/// Decide whether fade `f` of `p` is pressed from now to its next decision
+/// ([`Instrument::press_decide`]'s rule): its note's pressure or `floor`
+/// (the channel's and the mod wheel's) above 0, not a bouncing scene nor a
+/// kit, its hammer clear of the object.
+pub(super) fn fade_decide(p: &Prepared, f: usize, fade: &mut StealFade, floor: f64) {
+    if fade.pressing.is_some() || p.bouncing || p.kit.is_some() {
+        return;
+    }
+    let press = fade.pressure.max(floor);
+    let Some(st) = p.spares.get(f) else {
+        return;
+    };
+    if press > 0.0 && st.hammer_clear(p.scenes.bound(fade.at, fade.on_damped)) {
+        let q = (-MAX_PRESSURE_DECAY_PER_S * press / p.rate_hz).exp();
+        fade.pressing = Some(Pressing { q, g: 1.0 });
+    }
+}
+
 /// Energy that decides whether a voice still sounds (reference units), or
 /// `None` while the hammer is still on its way (the strike is to come).
 fn audible_energy(st: &EngineState, scene: &CompiledScene) -> Option<f64> {
@@ -408,18 +686,4 @@ fn audible_energy(st: &EngineState, scene: &CompiledScene) -> Option<f64> {
         // The hammer flies away for good: only the object sounds.
         Some((proxy - 0.5 * scene.m_h * v_ref * v_ref).max(0.0))
     }
-}
-
-fn quietest(p: &Prepared, voices: &[Voice]) -> usize {
-    let mut best = 0;
-    let mut best_e = f64::INFINITY;
-    for (i, v) in voices.iter().enumerate() {
-        let s = p.states[i].time_scale();
-        let e = p.states[i].energy_proxy(p.scenes.bound(v.at, v.on_damped)) * s * s;
-        if !(e >= best_e) {
-            best = i;
-            best_e = e;
-        }
-    }
-    best
 }

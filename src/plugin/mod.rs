@@ -267,6 +267,12 @@ const TIMBRE_CC: u8 = 74;
 const SUSTAIN_CC: u8 = 64;
 /// MIDI controller of the sostenuto pedal.
 const SOSTENUTO_CC: u8 = 66;
+/// MIDI channel mode message All Sound Off (controller 120).
+const ALL_SOUND_OFF_CC: u8 = 120;
+/// MIDI channel mode message Reset All Controllers (controller 121).
+const RESET_CONTROLLERS_CC: u8 = 121;
+/// MIDI channel mode message All Notes Off (controller 123).
+const ALL_NOTES_OFF_CC: u8 = 123;
 /// A pedal is down from controller value 64 of 127 (nice-plug gives the
 /// value divided by 127).
 const PEDAL_DOWN: f32 = 64.0 / 127.0;
@@ -277,10 +283,31 @@ fn note_event(event: &NoteEvent<()>) -> Option<Event> {
             key,
             velocity_norm: velocity as f64,
         }),
-        NoteEvent::NoteOff { key, .. } | NoteEvent::Choke { key, .. } => Some(match key.number() {
+        // (a CLAP wildcard key with a note id is that note's:
+        // `for_note_id`)
+        NoteEvent::NoteOff { key, .. } => Some(match key.number() {
             Some(key) => Event::NoteOff { key },
             None => Event::AllNotesOff,
         }),
+        // A CLAP choke: the note stops at once, in the steal's fade
+        // (docs/plugin.md, "Velocity, pitch, voices").
+        NoteEvent::Choke { key, .. } => Some(Event::Choke { key: key.number() }),
+        // MIDI's channel mode messages (docs/plugin.md, "Pedals"); not the
+        // VST3 wrapper's placeholder a host restoring a session sends back
+        // (see `MidiChannelPressure` below).
+        NoteEvent::MidiCC { cc, value, .. }
+            if value != VST3_CC_PLACEHOLDER
+                && matches!(
+                    cc,
+                    ALL_SOUND_OFF_CC | RESET_CONTROLLERS_CC | ALL_NOTES_OFF_CC
+                ) =>
+        {
+            Some(match cc {
+                ALL_SOUND_OFF_CC => Event::AllSoundOff,
+                RESET_CONTROLLERS_CC => Event::ResetControllers,
+                _ => Event::AllNotesOff,
+            })
+        }
         // The pedals (docs/plugin.md, "Pedals"): down from 64 of 127 on,
         // MIDI's convention for switch controllers.
         NoteEvent::MidiCC { cc, value, .. } if cc == SUSTAIN_CC || cc == SOSTENUTO_CC => {
@@ -345,6 +372,31 @@ fn note_event(event: &NoteEvent<()>) -> Option<Event> {
         }
         _ => None,
     }
+}
+
+/// A CLAP note-off or choke of any key but one note id (CLAP matches a
+/// wildcard key with a note id as that note) ends only that note: the
+/// event for the key of the id, or none when the id is not sounding. Any
+/// other event: `e` as it is.
+fn for_note_id(event: &NoteEvent<()>, e: Event, ids: &voice_ids::VoiceIds) -> Option<Event> {
+    let (NoteEvent::NoteOff {
+        voice_id: VoiceID::ID(id),
+        key: Key::Wildcard,
+        ..
+    }
+    | NoteEvent::Choke {
+        voice_id: VoiceID::ID(id),
+        key: Key::Wildcard,
+        ..
+    }) = *event
+    else {
+        return Some(e);
+    };
+    let key = ids.key_of(id)?;
+    Some(match e {
+        Event::Choke { .. } => Event::Choke { key: Some(key) },
+        _ => Event::NoteOff { key },
+    })
 }
 
 /// The parameter of polyphonic modulation id `poly`.
@@ -693,7 +745,7 @@ impl ModalContact {
                 return Some(TimedEvent { offset: at, event });
             }
             let event = context.next_event()?;
-            let Some(e) = note_event(&event) else {
+            let Some(e) = note_event(&event).and_then(|e| for_note_id(&event, e, ids)) else {
                 // polyphonic modulation (docs/plugin.md, "Polyphonic
                 // modulation"): a voice's offset, or the parameter moved
                 // under every modulated voice
@@ -779,6 +831,10 @@ impl ModalContact {
                     NoteEvent::MidiChannelPressure { channel, .. },
                     Event::ChannelPressure { value },
                 ) if mpe.pressure(channel, value, out) => {}
+                // Reset All Controllers on an MPE member channel: its
+                // notes' bend and pressure (the channel's controllers)
+                (NoteEvent::MidiCC { channel, .. }, Event::ResetControllers)
+                    if mpe.reset_controllers(channel, out) => {}
                 _ => out.set_one(e),
             }
             (next, at) = (0, event.timing() as usize);
@@ -884,6 +940,94 @@ mod tests {
         }
         assert_eq!(pressure(0.5), None);
         assert_eq!(wheel(0.5), None);
+    }
+
+    /// What note ends become: a CLAP choke is a choke of its key (every
+    /// key for the wildcard), not a note-off; a note-off of the wildcard
+    /// key is every key up; MIDI's channel mode messages 120 (All Sound
+    /// Off), 121 (Reset All Controllers) and 123 (All Notes Off) are
+    /// theirs, on any channel and at any value but the VST3 wrapper's
+    /// placeholder; a note-off or choke of the wildcard key with a note id
+    /// is that note's (nothing when the id is not sounding).
+    #[test]
+    fn note_ends_and_channel_mode_messages_map_to_their_events() {
+        let choke = |key: Key, voice_id: VoiceID| NoteEvent::Choke {
+            timing: 0,
+            voice_id,
+            channel: Channel::Number(0),
+            key,
+        };
+        let note_off = |key: Key, voice_id: VoiceID| NoteEvent::NoteOff {
+            timing: 0,
+            voice_id,
+            channel: Channel::Number(0),
+            key,
+            velocity: 0.0,
+        };
+        let any = VoiceID::Wildcard;
+        assert_eq!(
+            note_event(&choke(Key::Number(60), any)),
+            Some(Event::Choke { key: Some(60) })
+        );
+        assert_eq!(
+            note_event(&choke(Key::Wildcard, any)),
+            Some(Event::Choke { key: None })
+        );
+        assert_eq!(
+            note_event(&note_off(Key::Number(60), any)),
+            Some(Event::NoteOff { key: 60 })
+        );
+        assert_eq!(
+            note_event(&note_off(Key::Wildcard, any)),
+            Some(Event::AllNotesOff)
+        );
+        let cc = |channel: u8, cc: u8, value: f32| {
+            note_event(&NoteEvent::MidiCC {
+                timing: 0,
+                channel,
+                cc,
+                value,
+            })
+        };
+        for channel in [0, 9, 15] {
+            for value in [0.0, 1.0 / 127.0, 1.0] {
+                assert_eq!(cc(channel, 120, value), Some(Event::AllSoundOff));
+                assert_eq!(cc(channel, 121, value), Some(Event::ResetControllers));
+                assert_eq!(cc(channel, 123, value), Some(Event::AllNotesOff));
+            }
+        }
+        for c in [120, 121, 123] {
+            assert_eq!(cc(0, c, VST3_CC_PLACEHOLDER), None, "controller {c}");
+        }
+        assert_eq!(cc(0, 122, 0.0), None, "local control: not ours");
+
+        // a note id with the wildcard key
+        let mut ids = voice_ids::VoiceIds::default();
+        ids.note_on(64, Some(7), 0);
+        let by_id = |event: NoteEvent<()>| {
+            let e = note_event(&event)?;
+            for_note_id(&event, e, &ids)
+        };
+        let (id7, id8) = (VoiceID::ID(7), VoiceID::ID(8));
+        assert_eq!(
+            by_id(choke(Key::Wildcard, id7)),
+            Some(Event::Choke { key: Some(64) })
+        );
+        assert_eq!(by_id(choke(Key::Wildcard, id8)), None);
+        assert_eq!(
+            by_id(note_off(Key::Wildcard, id7)),
+            Some(Event::NoteOff { key: 64 })
+        );
+        assert_eq!(by_id(note_off(Key::Wildcard, id8)), None);
+        // a key given: the key's
+        assert_eq!(
+            by_id(choke(Key::Number(60), id8)),
+            Some(Event::Choke { key: Some(60) })
+        );
+        assert_eq!(
+            by_id(note_off(Key::Wildcard, any)),
+            Some(Event::AllNotesOff)
+        );
     }
 
     #[test]

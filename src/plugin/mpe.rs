@@ -32,10 +32,10 @@ pub const MEMBER_BEND_RANGE_SEMITONES: f64 = 48.0;
 /// No channel (a key not sounding from any member channel).
 const NONE: u8 = u8::MAX;
 
-/// What one MIDI message becomes: at most one event per key, plus one.
+/// What one MIDI message becomes: at most two events per key, plus one.
 #[derive(Debug, Clone)]
 pub struct Out {
-    events: [Event; 129],
+    events: [Event; 257],
     len: usize,
 }
 
@@ -49,7 +49,7 @@ impl Out {
     /// No events.
     pub fn new() -> Self {
         Self {
-            events: [Event::AllNotesOff; 129],
+            events: [Event::AllNotesOff; 257],
             len: 0,
         }
     }
@@ -262,6 +262,35 @@ impl Mpe {
         true
     }
 
+    /// Reset All Controllers (CC 121) on `channel`: its RPN selection is
+    /// forgotten (MIDI's recommended practice RP-015); `false` (and `out`
+    /// untouched) off the member channels (MPE off, the manager channel, a
+    /// channel outside the zone: the reset of every voice's controllers),
+    /// else `true` with the member channel's bend and pressure at rest and
+    /// the keys sounding from it back at their pitch and without pressure
+    /// in `out` (a tuning and a pressure per key).
+    pub fn reset_controllers(&mut self, channel: u8, out: &mut Out) -> bool {
+        let c = channel as usize & 15;
+        self.rpn[c] = (127, 127);
+        if !self.is_member(channel) {
+            return false;
+        }
+        self.bend[c] = 0.0;
+        self.pressure[c] = 0.0;
+        out.clear();
+        for (key, &ch) in self.key_channel.iter().enumerate() {
+            if ch == channel {
+                let key = Some(key as u8);
+                out.push(Event::NoteTuning {
+                    key,
+                    semitones: 0.0,
+                });
+                out.push(Event::NotePressure { key, value: 0.0 });
+            }
+        }
+        true
+    }
+
     /// A controller (`value` 0 ..= 127): follows RPN selection and data
     /// entry for RPN 6 (the zone) on channel 1 and RPN 0 (bend range) on
     /// member channels. Returns whether it was one of those controllers.
@@ -398,6 +427,54 @@ mod tests {
             [on(69)],
             "the zone message resets"
         );
+    }
+
+    /// Reset All Controllers on a member channel brings its notes back to
+    /// their pitch and out of pressure (a tuning and a pressure of 0 per
+    /// key, every key of a crowded channel) and a later note on it starts
+    /// plain; off, on the manager channel or outside the zone it is the
+    /// reset of every voice's controllers. It forgets the channel's RPN
+    /// selection either way.
+    #[test]
+    fn reset_all_controllers_rests_a_member_channel() {
+        let reset = |m: &mut Mpe, channel: u8| {
+            let mut out = Out::new();
+            m.reset_controllers(channel, &mut out)
+                .then(|| out.as_slice().to_vec())
+        };
+        let mut m = Mpe::default();
+        assert!(reset(&mut m, 1).is_none(), "off");
+        configure(&mut m, 3);
+        note_on(&mut m, 2, on(60));
+        note_on(&mut m, 3, on(64));
+        assert!(press(&mut m, 2, 0.5).is_some());
+        let mut out = Out::new();
+        assert!(m.pitch_bend(2, 0.25, &mut out));
+        let rest = |key: u8| {
+            [
+                tune(key, 0.0),
+                Event::NotePressure {
+                    key: Some(key),
+                    value: 0.0,
+                },
+            ]
+        };
+        assert_eq!(reset(&mut m, 2).unwrap(), rest(60));
+        assert_eq!(note_on(&mut m, 2, on(67)), [on(67)], "starts plain");
+        assert!(reset(&mut m, 0).is_none(), "manager channel");
+        assert!(reset(&mut m, 9).is_none(), "outside the zone");
+        // every key of a channel that holds all 128
+        for key in 0..128 {
+            note_on(&mut m, 3, on(key));
+        }
+        let all = reset(&mut m, 3).unwrap();
+        assert_eq!(all.len(), 256);
+        assert_eq!(all[254..], rest(127));
+        // the RPN selection is forgotten: a data entry after it is no one's
+        assert!(m.controller(0, 101, 0));
+        assert!(m.controller(0, 100, 0));
+        assert!(reset(&mut m, 0).is_none());
+        assert!(!m.controller(0, 6, 12), "no RPN selected");
     }
 
     fn brighten(m: &mut Mpe, channel: u8, value: f64) -> Option<Vec<Event>> {

@@ -609,8 +609,9 @@ parameters! {
         },
         applies: Applies::NextNote,
         doc: "How many notes sound at once. A note beyond it steals the quietest \
-              voice; lowering it releases (damps) the voices above the new limit. \
-              The voices are allocated once: changing it allocates nothing.",
+              voice; lowering it below the voices that sound ends the quietest of \
+              them, each fading out in 5 ms as a stolen voice does. The voices \
+              are allocated once: changing it allocates nothing.",
     },
     bend_range: FloatParam = BEND_RANGE {
         id: "bend_range",
