@@ -10,10 +10,12 @@
 //!   docs/numerics.md or docs/design.md;
 //! - the picture of the layers in docs/design.md lists every module of the
 //!   plugin crate, and no module imports one drawn above it;
+//! - no two source files import each other, directly or around a circle
+//!   (in the plugin crate and in xtask);
 //! - the README's embedding example is the crate documentation's doctest;
 //! - every file of `tests/` is in exactly one test binary of Cargo.toml.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 fn root() -> PathBuf {
@@ -272,7 +274,7 @@ fn every_tolerance_is_documented() {
 /// The `crate::<module>` paths used by a source file's code (not its
 /// comments or its test module).
 fn crate_imports(text: &str) -> Vec<String> {
-    let code = text.split("#[cfg(test)]").next().unwrap_or("");
+    let code = &text[..test_module_start(text)];
     let mut out = Vec::new();
     for line in code.lines() {
         let t = line.trim_start();
@@ -500,4 +502,284 @@ fn every_test_file_is_in_one_test_binary() {
         files.len()
     );
     assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+/// Where a source file's test module starts (the `#[cfg(test)]` before its
+/// first `mod`; a `#[cfg(test)]` item before it is code), or its end.
+fn test_module_start(text: &str) -> usize {
+    text.match_indices("#[cfg(test)]")
+        .find(|(i, m)| text[i + m.len()..].trim_start().starts_with("mod "))
+        .map_or(text.len(), |(i, _)| i)
+}
+
+/// The code of a source file without comments, string contents and its
+/// test module (from the `#[cfg(test)]` of the first `mod`).
+fn code_only(text: &str) -> String {
+    let end = test_module_start(text);
+    let mut out = String::new();
+    for line in text[..end].lines() {
+        let t = line.split("//").next().unwrap_or("");
+        // string literals hold no paths to count
+        let mut in_str = false;
+        for c in t.chars() {
+            if c == '"' {
+                in_str = !in_str;
+                continue;
+            }
+            if !in_str {
+                out.push(c);
+            }
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// The module path of every `.rs` file under `src` (`src/lib.rs` or
+/// `src/main.rs` is the root `[]`, `a/mod.rs` and `a.rs` are `[a]`,
+/// `a/b.rs` is `[a, b]`).
+fn module_files(src: &Path) -> BTreeMap<Vec<String>, PathBuf> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![src.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+                continue;
+            }
+            if p.extension().is_none_or(|x| x != "rs") {
+                continue;
+            }
+            let rel = p.strip_prefix(src).unwrap();
+            let mut m: Vec<String> = rel
+                .with_extension("")
+                .components()
+                .map(|c| c.as_os_str().to_string_lossy().into_owned())
+                .collect();
+            if matches!(m.last().map(String::as_str), Some("mod" | "lib" | "main")) {
+                m.pop();
+            }
+            if rel.starts_with("bin") {
+                continue;
+            }
+            out.insert(m, p);
+        }
+    }
+    out
+}
+
+/// The paths a file's code names, each as the segments after the file's
+/// own module is resolved (`crate::a::b`, `super::a`, `self::a`, and a
+/// child module named at the start of a `use`), one brace group deep.
+fn named_paths(code: &str, module: &[String], children: &[String]) -> Vec<Vec<String>> {
+    let ident = |s: &str| -> String {
+        s.chars()
+            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+            .collect()
+    };
+    let mut out = Vec::new();
+    let bytes: Vec<char> = code.chars().collect();
+    let text: String = bytes.iter().collect();
+    let mut starts: Vec<(usize, Vec<String>)> = Vec::new();
+    for (i, _) in text.match_indices("crate::") {
+        starts.push((i + 7, Vec::new()));
+    }
+    for (i, _) in text.match_indices("super::") {
+        // count the chain of `super::`
+        if i >= 7 && &text[i - 7..i] == "super::" {
+            continue;
+        }
+        let mut base = module.to_vec();
+        let mut j = i;
+        while text[j..].starts_with("super::") {
+            base.pop();
+            j += 7;
+        }
+        starts.push((j, base));
+    }
+    for (i, _) in text.match_indices("self::") {
+        if i >= 2 && &text[i - 2..i] == "::" {
+            continue;
+        }
+        starts.push((i + 6, module.to_vec()));
+    }
+    for (i, _) in text.match_indices("use ") {
+        let rest = &text[i + 4..];
+        let first = ident(rest);
+        if children.contains(&first) {
+            starts.push((i + 4, module.to_vec()));
+        }
+    }
+    for (at, base) in starts {
+        let rest = &text[at..];
+        if let Some(group) = rest.strip_prefix('{') {
+            // one brace group: each item's leading segments
+            let mut depth = 0;
+            let mut item = String::new();
+            for c in group.chars() {
+                match c {
+                    '{' => depth += 1,
+                    '}' if depth == 0 => break,
+                    '}' => depth -= 1,
+                    ',' if depth == 0 => {
+                        let mut p = base.clone();
+                        p.extend(item.trim().split("::").map(ident).filter(|s| !s.is_empty()));
+                        out.push(p);
+                        item.clear();
+                        continue;
+                    }
+                    _ => {}
+                }
+                item.push(c);
+            }
+            let mut p = base.clone();
+            p.extend(item.trim().split("::").map(ident).filter(|s| !s.is_empty()));
+            out.push(p);
+            continue;
+        }
+        let mut p = base.clone();
+        let mut r = rest;
+        loop {
+            let id = ident(r);
+            if id.is_empty() {
+                break;
+            }
+            r = &r[id.len()..];
+            p.push(id);
+            match r.strip_prefix("::") {
+                Some(t) if !t.starts_with('{') => r = t,
+                _ => break,
+            }
+        }
+        out.push(p);
+    }
+    out
+}
+
+/// File -> files whose items it names, between files of which neither is
+/// the other's module ancestor (a module's file and its own submodules'
+/// files are one room: a parent declares its children, children use
+/// their parent's items).
+fn file_graph(src: &Path) -> BTreeMap<PathBuf, BTreeSet<PathBuf>> {
+    let files = module_files(src);
+    let mut graph: BTreeMap<PathBuf, BTreeSet<PathBuf>> = BTreeMap::new();
+    for (m, f) in &files {
+        let text = std::fs::read_to_string(f).unwrap();
+        let code = code_only(&text);
+        let children: Vec<String> = files
+            .keys()
+            .filter(|k| k.len() == m.len() + 1 && k.starts_with(m))
+            .map(|k| k.last().unwrap().clone())
+            .collect();
+        let edges = graph.entry(f.clone()).or_default();
+        for p in named_paths(&code, m, &children) {
+            // the longest prefix that is a module file
+            let Some(target) = (1..=p.len())
+                .rev()
+                .map(|n| &p[..n])
+                .find(|q| files.contains_key(*q))
+            else {
+                continue;
+            };
+            if target.starts_with(m) || m.starts_with(target) {
+                continue;
+            }
+            edges.insert(files[target].clone());
+        }
+    }
+    graph
+}
+
+/// The cycles of a file graph (each once, as the files of one strongly
+/// connected component with more than one file).
+fn cycles(graph: &BTreeMap<PathBuf, BTreeSet<PathBuf>>) -> Vec<Vec<PathBuf>> {
+    // Tarjan's strongly connected components, recursive (small graphs)
+    struct T<'a> {
+        g: &'a BTreeMap<PathBuf, BTreeSet<PathBuf>>,
+        index: BTreeMap<&'a PathBuf, usize>,
+        low: BTreeMap<&'a PathBuf, usize>,
+        stack: Vec<&'a PathBuf>,
+        on: BTreeSet<&'a PathBuf>,
+        out: Vec<Vec<PathBuf>>,
+    }
+    fn visit<'a>(t: &mut T<'a>, v: &'a PathBuf) {
+        let i = t.index.len();
+        t.index.insert(v, i);
+        t.low.insert(v, i);
+        t.stack.push(v);
+        t.on.insert(v);
+        if let Some(ws) = t.g.get(v) {
+            for w in ws {
+                let Some((w, _)) = t.g.get_key_value(w) else {
+                    continue;
+                };
+                if !t.index.contains_key(w) {
+                    visit(t, w);
+                    let lw = t.low[w];
+                    let lv = t.low.get_mut(v).unwrap();
+                    *lv = (*lv).min(lw);
+                } else if t.on.contains(w) {
+                    let iw = t.index[w];
+                    let lv = t.low.get_mut(v).unwrap();
+                    *lv = (*lv).min(iw);
+                }
+            }
+        }
+        if t.low[v] == t.index[v] {
+            let mut comp = Vec::new();
+            while let Some(w) = t.stack.pop() {
+                t.on.remove(w);
+                comp.push(w.clone());
+                if w == v {
+                    break;
+                }
+            }
+            if comp.len() > 1 {
+                comp.sort();
+                t.out.push(comp);
+            }
+        }
+    }
+    let mut t = T {
+        g: graph,
+        index: BTreeMap::new(),
+        low: BTreeMap::new(),
+        stack: Vec::new(),
+        on: BTreeSet::new(),
+        out: Vec::new(),
+    };
+    for v in graph.keys() {
+        if !t.index.contains_key(v) {
+            visit(&mut t, v);
+        }
+    }
+    t.out
+}
+
+/// docs/design.md, "Layers": no two files import each other, directly or
+/// around a circle, in the plugin crate and in xtask (a module's file and
+/// its own submodules' files count as one).
+#[test]
+fn no_file_imports_a_file_that_imports_it() {
+    let root = root();
+    let mut found = Vec::new();
+    for src in ["src", "xtask/src"] {
+        let graph = file_graph(&root.join(src));
+        let edges: usize = graph.values().map(BTreeSet::len).sum();
+        println!("{src}: {} files, {edges} imports between them", graph.len());
+        assert!(
+            edges > 10,
+            "{src}: the import reader found only {edges} imports"
+        );
+        for c in cycles(&graph) {
+            found.push(
+                c.iter()
+                    .map(|p| p.strip_prefix(&root).unwrap().display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(" <-> "),
+            );
+        }
+    }
+    assert!(found.is_empty(), "import cycles:\n{}", found.join("\n"));
 }

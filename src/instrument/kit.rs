@@ -388,7 +388,7 @@ impl Instrument {
         if wake {
             // woken (or stolen) at rest, at the key's pitch and the bend
             let base = if kit.pitched && tracking {
-                super::prepared::key_scale(key, root)
+                super::mapping::key_scale(key, root)
             } else {
                 1.0
             };

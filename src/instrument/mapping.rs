@@ -365,3 +365,9 @@ pub fn root_note(scene: &Scene) -> f64 {
         None => DEFAULT_ROOT_NOTE,
     }
 }
+
+/// The time scale of MIDI `key` with pitch tracking, the scene's root at
+/// `root` (what a note-on plays before any bend). \[any-thread\]
+pub(super) fn key_scale(key: u8, root: f64) -> f64 {
+    2f64.powf((key as f64 - root) / 12.0)
+}

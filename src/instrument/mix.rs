@@ -19,9 +19,9 @@
 
 use super::events::TimedEvent;
 use super::probe::VoiceChunk;
-use super::voices::{Pressing, Voice};
+use super::voices::{StealFade, FADE_LANE};
 use super::{
-    Event, Instrument, Prepared, Variant, BEND_TICK_SAMPLES, CHECK_INTERVAL_SAMPLES, MAX_VOICES,
+    Event, Instrument, Prepared, BEND_TICK_SAMPLES, CHECK_INTERVAL_SAMPLES, MAX_VOICES,
     OUTPUT_CEILING, STEAL_FADES,
 };
 use crate::compile::CompiledScene;
@@ -63,96 +63,7 @@ pub enum WorkMeter {
 const OUT_EVERY: usize = 256;
 /// Samples a lane's ring can hold: the longest lookahead plus a piece.
 const RING_CAP: usize = (MAX_LOOKAHEAD_SAMPLES + OUT_EVERY).next_power_of_two();
-/// The lane of the voices that fade out after a swap or a steal (after the
-/// voices' own).
-pub(super) const FADE_LANE: usize = MAX_VOICES;
 const LANES: usize = MAX_VOICES + 1;
-
-/// A voice fading out in a spare state (stolen, choked, ended by All
-/// Sound Off or a lowered Polyphony: docs/plugin.md, "Velocity, pitch,
-/// voices"), on the instrument's clock: the variant of the scene it plays,
-/// and the samples of the fade still to come. The next sample's gain is
-/// `left / fade_len`: 1 at the sample of the steal, `1 / fade_len` at the
-/// fade's last; a function of the sample alone, not of where the clock's
-/// chunks fall. While it fades it follows the pitch bend, its note's
-/// tuning and the pressure as a sounding voice does: its note's pitch
-/// without them, its tuning, its key and its note's pressure are kept
-/// here, and its damper between two decisions
-/// ([`Instrument::fades_bend_tick`], [`Instrument::repress_fades`]).
-#[derive(Debug, Clone, Copy)]
-pub(super) struct StealFade {
-    pub(super) at: Variant,
-    pub(super) on_damped: bool,
-    pub(super) left: usize,
-    /// Its note's key (a per-note tuning or pressure of that key still
-    /// reaches it).
-    pub(super) key: u8,
-    /// Time scale of its note without the bend and its tuning.
-    pub(super) base_scale: f64,
-    /// Its note's tuning now and where it glides \[semitones\].
-    pub(super) tuning_now: f64,
-    pub(super) tuning_target: f64,
-    /// Its note's pressure, 0 .. 1.
-    pub(super) pressure: f64,
-    /// The damper pressing it since its last decision.
-    pub(super) pressing: Option<Pressing>,
-}
-
-impl StealFade {
-    /// The fade of voice `v` starting now (`fade_len` samples).
-    pub(super) fn of(v: &Voice, fade_len: usize) -> Self {
-        Self {
-            at: v.at,
-            on_damped: v.on_damped,
-            left: fade_len,
-            key: v.key,
-            base_scale: v.base_scale,
-            tuning_now: v.tuning_now,
-            tuning_target: v.tuning_target,
-            pressure: v.pressure,
-            pressing: None,
-        }
-    }
-}
-
-/// The spare a new steal fade takes among the first `n` of `fades` (`n`
-/// within 1 ..= [`STEAL_FADES`]): a free one, else the one nearest the
-/// end of its fade (that fade is cut: counted in `cut`).
-pub(super) fn spare_for_fade(
-    fades: &[Option<StealFade>; STEAL_FADES],
-    n: usize,
-    cut: &mut u64,
-) -> usize {
-    let fades = &fades[..n.clamp(1, STEAL_FADES)];
-    if let Some(f) = fades.iter().position(Option::is_none) {
-        return f;
-    }
-    *cut += 1;
-    let left = |f: usize| fades[f].map_or(0, |d| d.left);
-    (0..fades.len()).min_by_key(|&f| left(f)).unwrap_or(0)
-}
-
-/// [`spare_for_fade`] for voices ended together, loudest first (All Sound
-/// Off, a choke of every note, a lowered Polyphony): a free spare, else
-/// the one nearest the end of its fade if that fade began before this
-/// sample (it is cut: counted in `cut`), else `None`: every spare holds
-/// the fade of a louder voice ended at this very sample, and this one is
-/// the one to cut.
-pub(super) fn spare_for_fade_together(
-    fades: &[Option<StealFade>; STEAL_FADES],
-    n: usize,
-    fade_len: usize,
-    cut: &mut u64,
-) -> Option<usize> {
-    let fades = &fades[..n.clamp(1, STEAL_FADES)];
-    if let Some(f) = fades.iter().position(Option::is_none) {
-        return Some(f);
-    }
-    let left = |f: usize| fades[f].map_or(0, |d| d.left);
-    let f = (0..fades.len()).min_by_key(|&f| left(f)).unwrap_or(0);
-    *cut += 1;
-    (left(f) < fade_len).then_some(f)
-}
 
 /// Each voice's clock and samples, the chunks and gains of the
 /// instrument's clock, and where the output is. Allocated once.

@@ -271,10 +271,10 @@ pub struct Instrument {
     fade_len: usize,
     /// Stolen voices fading out in the spare states of `cur`
     /// (`Prepared::spares`, a pitched kit's `Kit::spares`), by spare.
-    steal_fades: [Option<mix::StealFade>; STEAL_FADES],
+    steal_fades: [Option<voices::StealFade>; STEAL_FADES],
     /// The same for the spare states of `fading` (fades that were under
     /// way at the swap).
-    old_steal_fades: [Option<mix::StealFade>; STEAL_FADES],
+    old_steal_fades: [Option<voices::StealFade>; STEAL_FADES],
     retired: [Option<Box<Prepared>>; RETIRED_SLOTS],
     play: PlayParams,
     gain: f64,
@@ -682,7 +682,7 @@ impl Instrument {
             self.fading = Some(old);
             self.old_steal_fades = steals;
             self.fade_left = if any_fade { self.fade_len } else { 0 };
-            self.lanes.begin(mix::FADE_LANE, self.sample_pos);
+            self.lanes.begin(voices::FADE_LANE, self.sample_pos);
         } else {
             self.retire(old);
         }

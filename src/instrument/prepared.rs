@@ -4,8 +4,8 @@
 
 use super::kit::Kit;
 use super::mapping::{
-    damped_scene, impact_speed_m_per_s, root_note, scene_for, InstrumentParams, PlayParams,
-    SceneParams,
+    damped_scene, impact_speed_m_per_s, key_scale, root_note, scene_for, InstrumentParams,
+    PlayParams, SceneParams,
 };
 use super::{
     lookahead_samples, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_VOICES, OUTPUT_BAND_FRACTION,
@@ -819,12 +819,6 @@ fn assemble(
         key_props,
         complete: !left_out,
     }))
-}
-
-/// The time scale of MIDI `key` with pitch tracking, the scene's root at
-/// `root` (what a note-on plays before any bend). \[any-thread\]
-pub(super) fn key_scale(key: u8, root: f64) -> f64 {
-    2f64.powf((key as f64 - root) / 12.0)
 }
 
 /// The voices' output band at `rate_hz` (modes above it are left out of

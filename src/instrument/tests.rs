@@ -1855,7 +1855,7 @@ fn key_propagators_made_ahead_play_the_same_bits() {
         for key in [0u8, 60, 127] {
             assert_eq!(
                 ahead.key_props[usize::from(key)].scale().to_bits(),
-                prepared::key_scale(key, root).to_bits()
+                mapping::key_scale(key, root).to_bits()
             );
         }
         let mut computed = prepare(&p.scene, RATE, 0).unwrap();

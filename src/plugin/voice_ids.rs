@@ -11,9 +11,7 @@
 //!
 //! Plain data, fixed size: the audio thread owns it; no allocation.
 
-use super::params::{POLY_DAMPER, POLY_POSITION};
-use crate::instrument::{VariantSet, MAX_VOICES};
-use std::sync::atomic::{AtomicBool, Ordering};
+use crate::instrument::MAX_VOICES;
 
 /// Keys of MIDI.
 const KEYS: usize = 128;
@@ -140,37 +138,6 @@ impl VoiceIds {
     pub fn take_ended(&mut self) -> impl Iterator<Item = HostVoice> + '_ {
         let n = std::mem::take(&mut self.ended_len);
         self.ended[..n].iter().copied()
-    }
-}
-
-/// Which per-voice variants a host's polyphonic modulation has asked for
-/// since the plugin was created: the audio thread sets them when the first
-/// modulation of Strike position or Damper arrives, and the next compile
-/// includes them (docs/plugin.md, "Polyphonic modulation"). Atomics: the
-/// audio thread stores, any thread loads.
-#[derive(Debug, Default)]
-pub struct VariantsWanted {
-    position: AtomicBool,
-    damper: AtomicBool,
-}
-
-impl VariantsWanted {
-    /// The variants asked for. \[any-thread\]
-    pub fn get(&self) -> VariantSet {
-        VariantSet {
-            position: self.position.load(Ordering::Relaxed),
-            damper: self.damper.load(Ordering::Relaxed),
-        }
-    }
-
-    /// Ask for the variants of polyphonic modulation id `poly` (Hardness
-    /// needs none: its levels are always there). \[audio-thread\]
-    pub fn want(&self, poly: u32) {
-        match poly {
-            POLY_POSITION => self.position.store(true, Ordering::Relaxed),
-            POLY_DAMPER => self.damper.store(true, Ordering::Relaxed),
-            _ => {}
-        }
     }
 }
 
