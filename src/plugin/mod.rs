@@ -25,6 +25,7 @@ pub mod editor;
 pub mod live;
 pub mod mpe;
 pub mod params;
+pub mod poly;
 pub mod user_scene;
 pub mod voice_ids;
 pub mod waits;

@@ -25,9 +25,10 @@
 //! `ids_never_change` holds them), and only append choices at the end (CLAP
 //! automation stores a choice's index).
 
+pub use super::poly::{VariantsWanted, POLY_DAMPER, POLY_HARDNESS, POLY_POSITION};
 use super::user_scene::{lock, SceneLibrary, UserScene};
 use crate::instrument::{
-    InstrumentParams, PlayParams, SceneParams, VariantSet, DEFAULT_BEND_RANGE_SEMITONES,
+    InstrumentParams, PlayParams, SceneParams, DEFAULT_BEND_RANGE_SEMITONES,
     MAX_BEND_RANGE_SEMITONES, MAX_LOOKAHEAD_S, MAX_VOICES,
 };
 use crate::presets;
@@ -38,7 +39,6 @@ use nice_plug::prelude::*;
 use std::collections::BTreeMap;
 use std::marker::PhantomData;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// One parameter's metadata: an entry of [`PARAMS`].
@@ -325,14 +325,6 @@ impl FromSpec for FloatParam {
         }
     }
 }
-
-/// The CLAP polyphonic modulation id of Hardness (docs/plugin.md,
-/// "Polyphonic modulation").
-pub const POLY_HARDNESS: u32 = 0;
-/// The CLAP polyphonic modulation id of Strike position.
-pub const POLY_POSITION: u32 = 1;
-/// The CLAP polyphonic modulation id of Damper.
-pub const POLY_DAMPER: u32 = 2;
 
 /// The parameters a CLAP host may modulate per voice, with their
 /// polyphonic modulation ids.
@@ -861,37 +853,6 @@ fn float_in_range(p: &FloatParam, v: f32) -> bool {
     }
     let back = p.preview_plain(p.preview_normalized(v));
     (back - v).abs() <= 1e-4 * v.abs().max(1.0)
-}
-
-/// Which per-voice variants a host's polyphonic modulation has asked for
-/// since the plugin was created: the audio thread sets them when the first
-/// modulation of Strike position or Damper arrives, and the next compile
-/// includes them (docs/plugin.md, "Polyphonic modulation"). Atomics: the
-/// audio thread stores, any thread loads.
-#[derive(Debug, Default)]
-pub struct VariantsWanted {
-    position: AtomicBool,
-    damper: AtomicBool,
-}
-
-impl VariantsWanted {
-    /// The variants asked for. \[any-thread\]
-    pub fn get(&self) -> VariantSet {
-        VariantSet {
-            position: self.position.load(Ordering::Relaxed),
-            damper: self.damper.load(Ordering::Relaxed),
-        }
-    }
-
-    /// Ask for the variants of polyphonic modulation id `poly` (Hardness
-    /// needs none: its levels are always there). \[audio-thread\]
-    pub fn want(&self, poly: u32) {
-        match poly {
-            POLY_POSITION => self.position.store(true, Ordering::Relaxed),
-            POLY_DAMPER => self.damper.store(true, Ordering::Relaxed),
-            _ => {}
-        }
-    }
 }
 
 #[cfg(test)]
