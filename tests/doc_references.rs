@@ -340,19 +340,7 @@ fn the_layer_picture_matches_the_code() {
         let dir = root.join("src").join(m);
         let files: Vec<PathBuf> = if dir.is_dir() {
             // every .rs file under it, submodule folders included
-            let mut files = Vec::new();
-            let mut stack = vec![dir.clone()];
-            while let Some(d) = stack.pop() {
-                for e in std::fs::read_dir(&d).unwrap() {
-                    let p = e.unwrap().path();
-                    if p.is_dir() {
-                        stack.push(p);
-                    } else if p.extension().is_some_and(|x| x == "rs") {
-                        files.push(p);
-                    }
-                }
-            }
-            files
+            rs_files(&dir)
         } else {
             vec![root.join("src").join(format!("{m}.rs"))]
         };
@@ -535,36 +523,42 @@ fn code_only(text: &str) -> String {
     out
 }
 
-/// The module path of every `.rs` file under `src` (`src/lib.rs` or
-/// `src/main.rs` is the root `[]`, `a/mod.rs` and `a.rs` are `[a]`,
-/// `a/b.rs` is `[a, b]`).
-fn module_files(src: &Path) -> BTreeMap<Vec<String>, PathBuf> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![src.to_path_buf()];
+/// Every `.rs` file under `dir`, subfolders included.
+fn rs_files(dir: &Path) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
     while let Some(d) = stack.pop() {
         for e in std::fs::read_dir(&d).unwrap() {
             let p = e.unwrap().path();
             if p.is_dir() {
                 stack.push(p);
-                continue;
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                files.push(p);
             }
-            if p.extension().is_none_or(|x| x != "rs") {
-                continue;
-            }
-            let rel = p.strip_prefix(src).unwrap();
-            let mut m: Vec<String> = rel
-                .with_extension("")
-                .components()
-                .map(|c| c.as_os_str().to_string_lossy().into_owned())
-                .collect();
-            if matches!(m.last().map(String::as_str), Some("mod" | "lib" | "main")) {
-                m.pop();
-            }
-            if rel.starts_with("bin") {
-                continue;
-            }
-            out.insert(m, p);
         }
+    }
+    files
+}
+
+/// The module path of every `.rs` file under `src` (`src/lib.rs` or
+/// `src/main.rs` is the root `[]`, `a/mod.rs` and `a.rs` are `[a]`,
+/// `a/b.rs` is `[a, b]`).
+fn module_files(src: &Path) -> BTreeMap<Vec<String>, PathBuf> {
+    let mut out = BTreeMap::new();
+    for p in rs_files(src) {
+        let rel = p.strip_prefix(src).unwrap();
+        let mut m: Vec<String> = rel
+            .with_extension("")
+            .components()
+            .map(|c| c.as_os_str().to_string_lossy().into_owned())
+            .collect();
+        if matches!(m.last().map(String::as_str), Some("mod" | "lib" | "main")) {
+            m.pop();
+        }
+        if rel.starts_with("bin") {
+            continue;
+        }
+        out.insert(m, p);
     }
     out
 }
