@@ -11,7 +11,8 @@
 //! recording's strongest partials and whether the render has them, decay
 //! times per partial, the attack's centroid and energy above 5 kHz, and
 //! the 1/3-octave distance; then the same distance between recordings of
-//! related instruments (the scale of what "close" means), a confusion
+//! related instruments and between two recordings of each named
+//! instrument (the scale of what "close" means), a confusion
 //! table, and the targets of issue 49 per preset. Writes
 //! `DIR/compare-real.md` and `DIR/compare-real/*.svg` (default `docs`),
 //! and WAV pairs (recording, render) into `target/compare-real/`.
@@ -188,6 +189,46 @@ fn common_key(sf: &SoundFont, a: GmSound, b: GmSound, key: u8) -> u8 {
     keys_around(key)
         .find(|&k| near_recorded(sf, a, k) && near_recorded(sf, b, k))
         .unwrap_or(key)
+}
+
+/// The General MIDI kits (bank 128 programs) searched, in this order, for
+/// another recording of a percussion key: Room, Power, Jazz, Brush,
+/// Orchestra (the General Standard 2 kit numbers).
+pub const OTHER_KITS: [u16; 5] = [8, 16, 32, 40, 48];
+
+/// Another recording of `s` at `key`, for the scale of "close": for a
+/// pitched instrument the samples of the nearest other key range of the
+/// same preset, played at `key` (transposed at most an octave,
+/// [`MAX_TRANSPOSE_CENTS`]); for a percussion key the same key of the
+/// first other kit ([`OTHER_KITS`]) whose samples differ. `None` when the
+/// soundfont has no such recording.
+fn another_recording(sf: &SoundFont, s: GmSound, key: u8) -> Option<KeyRegion> {
+    let (bank, program) = s.bank_program();
+    let key = s.key_for(key);
+    let own = sf.key_region(bank, program, key, VELOCITY).ok()?;
+    let names = |r: &KeyRegion| -> Vec<String> { r.zones.iter().map(|z| z.name.clone()).collect() };
+    let own_names = names(&own);
+    let differs = |r: &KeyRegion| names(r).iter().all(|n| !own_names.contains(n));
+    if s.is_drum() {
+        return OTHER_KITS.iter().find_map(|&kit| {
+            sf.key_region(bank, kit, key, VELOCITY)
+                .ok()
+                .filter(|r| differs(r))
+        });
+    }
+    keys_around(key)
+        .skip(1)
+        .take_while(|&k| k.abs_diff(key) <= 12)
+        .find_map(|k| {
+            sf.key_region_played_at(bank, program, k, key, VELOCITY)
+                .ok()
+                .filter(|r| {
+                    differs(r)
+                        && r.zones
+                            .iter()
+                            .all(|z| z.cents.abs() <= MAX_TRANSPOSE_CENTS + 1e-9)
+                })
+        })
 }
 
 /// A preset file and what it names.
@@ -897,6 +938,17 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
             }
         }
     }
+    // the same instruments, another recording each, at the first preset's key
+    let mut own_sounds: Vec<(GmSound, u8)> = Vec::new();
+    for (p, s) in &compared {
+        if !own_sounds.iter().any(|(x, _)| x == s) {
+            own_sounds.push((*s, playable_key(&sf, *s, p.key)));
+        }
+    }
+    let others: Vec<(GmSound, u8, Option<std::result::Result<Recording, String>>)> = own_sounds
+        .par_iter()
+        .map(|&(s, k)| (s, k, another_recording(&sf, s, k).map(Recording::new)))
+        .collect();
     let recs: BTreeMap<RecordingKey, std::result::Result<Recording, String>> = wanted
         .par_iter()
         .map(|&(s, key)| {
@@ -1043,6 +1095,69 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
             (Err(e), _) | (_, Err(e)) => format!("n/a: {e}"),
         };
         let _ = writeln!(body, "| {} | {} | {key} | {d} |", x.label(), y.label());
+    }
+    let _ = writeln!(body);
+    let _ = writeln!(
+        body,
+        "## The scale of \"close\": the same instrument, another recording\n\n\
+         Each instrument a preset names, at that preset's key: its recording against another recording of the \
+         same instrument in FluidR3 (a pitched instrument: the samples of the nearest other key range, played at \
+         the key, transposed at most an octave; a percussion key: the same key of another kit, {}), by the same \
+         1/3-octave distance. Two recordings of one instrument differ by this much; a render cannot be expected \
+         to come much closer.\n",
+        OTHER_KITS
+            .iter()
+            .map(|k| format!("bank 128 program {k}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let _ = writeln!(
+        body,
+        "| instrument | key | recording | another recording | distance [dB] |"
+    );
+    let _ = writeln!(body, "|---|---|---|---|---|");
+    let sample_names = |r: &KeyRegion| {
+        r.zones
+            .iter()
+            .map(|z| format!("\"{}\"", z.name))
+            .collect::<Vec<_>>()
+            .join(" + ")
+    };
+    for (s, k, other) in &others {
+        let own = &recs.get(&(*s, s.key_for(*k)));
+        let (own_desc, d) = match (own, other) {
+            (Some(Ok(a)), Some(Ok(b))) => (
+                sample_names(&a.region),
+                format!("{:.1}", distance(&a.played, &b.played)),
+            ),
+            (Some(Ok(a)), None) => (sample_names(&a.region), "n/a: no other recording".into()),
+            (Some(Err(e)), _) | (_, Some(Err(e))) => (String::new(), format!("n/a: {e}")),
+            (None, _) => (String::new(), "n/a: not played".into()),
+        };
+        let other_desc = match other {
+            Some(Ok(b)) => {
+                let r = &b.region;
+                let semis = r
+                    .zones
+                    .iter()
+                    .map(|z| z.cents / 100.0)
+                    .fold(0.0, |a: f64, c| if c.abs() > a.abs() { c } else { a });
+                format!(
+                    "{} (\"{}\", bank {} program {}), transposed {semis:+.2} semitones",
+                    sample_names(r),
+                    r.preset_name,
+                    r.bank,
+                    r.program
+                )
+            }
+            _ => "none".into(),
+        };
+        let _ = writeln!(
+            body,
+            "| {} | {} | {own_desc} | {other_desc} | {d} |",
+            s.label(),
+            s.key_for(*k)
+        );
     }
     let _ = writeln!(body);
 
@@ -1338,6 +1453,24 @@ fn write_pair(dir: &Path, stem: &str, real: &[f64], render: &[f64]) -> Result<()
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Another recording of a pitched instrument is the nearest other key
+    /// range's sample heard at the key; a kit key with no other kit has none.
+    #[test]
+    fn another_recording_is_the_next_key_ranges_sample_at_the_same_key() {
+        let sf = SoundFont::read(&mut std::io::Cursor::new(sf2::tests::tiny_sf2())).unwrap();
+        let marimba = GmSound::parse("Marimba").unwrap();
+        let own = sf.key_region(0, 12, 57, VELOCITY).unwrap();
+        let other = another_recording(&sf, marimba, 57).expect("the high range");
+        assert_eq!(own.zones[0].name, "low");
+        assert_eq!((other.key, other.zones[0].name.as_str()), (57, "high"));
+        assert_eq!(other.zones[0].cents, 50.0 * (57.0 - 60.0));
+        // from the high range, the other is the low range's sample
+        let back = another_recording(&sf, marimba, 64).unwrap();
+        assert_eq!((back.key, back.zones[0].name.as_str()), (64, "low"));
+        let snare = GmSound::parse("Acoustic Snare").unwrap();
+        assert!(another_recording(&sf, snare, 38).is_none());
+    }
 
     #[test]
     fn the_date_is_a_calendar_date() {

@@ -172,6 +172,21 @@ impl SoundFont {
     /// them, and in each of their instruments every zone whose ranges hold
     /// them (SoundFont 2.04, section 9.6: all such zones play together).
     pub fn key_region(&self, bank: u16, program: u16, key: u8, velocity: u8) -> Result<KeyRegion> {
+        self.key_region_played_at(bank, program, key, key, velocity)
+    }
+
+    /// The zones that sound for `source_key` at `velocity`, as a sampler
+    /// would play them at `key` ([`ZoneSample::cents`] at `key`): another
+    /// recording of the instrument, the samples of a neighbouring key
+    /// range, heard at the same pitch.
+    pub fn key_region_played_at(
+        &self,
+        bank: u16,
+        program: u16,
+        source_key: u8,
+        key: u8,
+        velocity: u8,
+    ) -> Result<KeyRegion> {
         let preset = self
             .sf
             .get_presets()
@@ -180,7 +195,7 @@ impl SoundFont {
                 p.get_bank_number() == i32::from(bank) && p.get_patch_number() == i32::from(program)
             })
             .ok_or_else(|| anyhow!("no preset bank {bank} program {program} in the soundfont"))?;
-        let (k, v) = (i32::from(key), i32::from(velocity));
+        let (k, v) = (i32::from(source_key), i32::from(velocity));
         let mut zones = Vec::new();
         for pr in preset.get_regions().iter().filter(|r| r.contains(k, v)) {
             let inst = &self.sf.get_instruments()[pr.get_instrument_id()];
@@ -190,7 +205,7 @@ impl SoundFont {
         }
         if zones.is_empty() {
             bail!(
-                "preset {:?} (bank {bank} program {program}) has no zone for key {key} velocity {velocity}",
+                "preset {:?} (bank {bank} program {program}) has no zone for key {source_key} velocity {velocity}",
                 preset.get_name()
             );
         }
@@ -476,6 +491,14 @@ pub(crate) mod tests {
         assert_eq!(hi.zones[0].name, "high");
         assert_eq!(hi.zones[0].cents, 50.0 * 4.0);
         assert!((hi.zones[0].data[10] - 0.25).abs() < 1e-12);
+
+        // the high range's sample heard at key 57: its zone, transposed as
+        // the zone would be at 57 (scale tuning 50: 50 x (57 - 60))
+        let other = sf.key_region_played_at(0, 12, 64, 57, VELOCITY).unwrap();
+        assert_eq!((other.key, other.zones[0].name.as_str()), (57, "high"));
+        assert_eq!(other.zones[0].cents, 50.0 * -3.0);
+        assert!(sf.key_region_played_at(0, 12, 64, 57, 0).is_ok());
+        assert!(sf.key_region_played_at(0, 13, 64, 57, VELOCITY).is_err());
 
         let kit = sf.key_region(128, 0, 38, VELOCITY).unwrap();
         assert_eq!(kit.zones[0].name, "high");
