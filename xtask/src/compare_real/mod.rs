@@ -542,6 +542,8 @@ fn decays(s: &Sound, frames: &[Vec<f64>], peaks: &[Peak]) -> Decays {
 }
 
 type RecordingKey = (GmSound, u8);
+/// A recording played, or why it could not be.
+type Played = std::result::Result<Recording, String>;
 
 /// Measure a preset against its recording and the confusion set.
 fn compare(
@@ -945,7 +947,7 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
             own_sounds.push((*s, playable_key(&sf, *s, p.key)));
         }
     }
-    let others: Vec<(GmSound, u8, Option<std::result::Result<Recording, String>>)> = own_sounds
+    let others: Vec<(GmSound, u8, Option<Played>)> = own_sounds
         .par_iter()
         .map(|&(s, k)| (s, k, another_recording(&sf, s, k).map(Recording::new)))
         .collect();
