@@ -2379,20 +2379,21 @@ impl MultiState {
     /// the model's units, so a mass's physical velocity is `scale` times
     /// its velocity here, and the outputs' velocity pickups take the
     /// factor. O(N) now for the current phase, O(N) for another phase when
-    /// it is first entered at this scale; allocation-free. Not a number or
-    /// not positive: 1. \[audio-thread\]
-    pub fn set_time_scale(&mut self, sc: &CompiledMulti, scale: f64) {
-        let scale = if scale.is_finite() && scale > 0.0 {
-            scale
-        } else {
-            1.0
-        };
+    /// it is first entered at this scale; allocation-free. A scale that is
+    /// not finite and positive is refused ([`TimeScaleError::Invalid`], as
+    /// the one-contact engine's `EngineState::set_time_scale` refuses it)
+    /// and nothing changes. \[audio-thread\]
+    pub fn set_time_scale(&mut self, sc: &CompiledMulti, scale: f64) -> Result<(), TimeScaleError> {
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(TimeScaleError::Invalid);
+        }
         self.scale = scale;
         self.step_h = sc.h * scale;
         self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
         let m = self.mask as usize;
         self.tables[m].make(&sc.phases[m], &sc.model, scale, self.step_h, self.band_hz);
         self.set_shift(sc);
+        Ok(())
     }
 
     /// Leave the objects' modes whose frequency (at the current time
@@ -2460,7 +2461,7 @@ impl MultiState {
         for v in self.v_f.iter_mut() {
             *v *= r;
         }
-        self.set_time_scale(sc, scale);
+        self.set_time_scale(sc, scale)?;
         Ok(true)
     }
 

@@ -249,7 +249,7 @@ fn a_time_scale_is_the_model_played_faster() {
             m.masses[1].velocity_m_per_s = -1.0;
             let sc = CompiledMulti::new(&m, RATE).unwrap();
             let mut st = MultiState::new(&sc);
-            st.set_time_scale(&sc, s);
+            st.set_time_scale(&sc, s).unwrap();
             let mut fast = m.clone();
             fast.freq_hz.iter_mut().for_each(|f| *f *= s);
             fast.sigma.iter_mut().for_each(|x| *x *= s);
@@ -373,6 +373,38 @@ fn a_bend_keeps_the_energy_and_plays_the_model_faster() {
     );
 }
 
+/// A time scale that is not finite and positive is refused, as the
+/// one-contact engine refuses it (`EngineState::set_time_scale`), and the
+/// state plays on as it was, sample for sample.
+#[test]
+fn a_bad_time_scale_is_refused_and_changes_nothing() {
+    use modal_contact::engine::TimeScaleError;
+    let mut m = two_mallets(24, [0.0, 0.004], 0.0);
+    m.masses[0].velocity_m_per_s = -1.2;
+    let sc = CompiledMulti::new(&m, RATE).unwrap();
+    let mut st = MultiState::new(&sc);
+    st.set_time_scale(&sc, 1.5).unwrap();
+    // refused in contact, where a switch is near
+    let mut k = 0;
+    while st.active() == 0 && k < 48_000 {
+        st.tick(&sc);
+        k += 1;
+    }
+    assert_ne!(st.active(), 0, "in contact within {k} samples");
+    let mut same = st.clone();
+    for bad in [f64::NAN, 0.0, -1.0, f64::INFINITY, f64::NEG_INFINITY] {
+        assert_eq!(
+            st.set_time_scale(&sc, bad),
+            Err(TimeScaleError::Invalid),
+            "{bad}"
+        );
+        assert_eq!(st.time_scale(), 1.5);
+    }
+    for k in 0..4000 {
+        assert_eq!(st.tick(&sc), same.tick(&sc), "sample {k}");
+    }
+}
+
 /// The output band ([`MultiState::set_output_band`]): the outputs are
 /// those of the same model whose pickups leave out the modes above the
 /// band (at the state's scale): its own compile, whose phases step the
@@ -405,14 +437,14 @@ fn the_output_band_hears_the_model_without_its_top_modes() {
         let sc1 = CompiledMulti::with_switching(&w1, RATE, sw).unwrap();
         let sc2 = CompiledMulti::with_switching(&w2, RATE, sw).unwrap();
         let mut st = MultiState::new(&sc);
-        st.set_time_scale(&sc, s1);
+        st.set_time_scale(&sc, s1).unwrap();
         st.set_output_band(&sc, band);
         let mut all = st.clone();
         all.set_output_band(&sc, f64::INFINITY);
         let mut reference = MultiState::new(&sc1);
-        reference.set_time_scale(&sc1, s1);
+        reference.set_time_scale(&sc1, s1).unwrap();
         let mut full = MultiState::new(&sc);
-        full.set_time_scale(&sc, s1);
+        full.set_time_scale(&sc, s1).unwrap();
         assert_eq!(st.band_muted_modes(), muted1);
         let (mut peak, mut worst, mut worst_all) = (0.0f64, 0.0f64, 0.0f64);
         for k in 0..12000 {

@@ -397,7 +397,11 @@ impl Instrument {
             } else {
                 base * 2f64.powf(self.bend_now / 12.0)
             };
-            kv.st.set_time_scale(&kit.sc, scale);
+            if kv.st.set_time_scale(&kit.sc, scale).is_err() {
+                // (a key's scale and the bend are finite and positive; were
+                // they not, the voice would play at the scene's pitch)
+                let _ = kv.st.set_time_scale(&kit.sc, 1.0);
+            }
             kv.st.rest(&kit.sc);
             kv.peak = 0.0;
             kv.interval_peak = 0.0;
