@@ -515,6 +515,47 @@ fn pitch_bend(_: &mut Criterion) {
     }
 }
 
+/// Every preset as the plugin plays it: the same 16 keys (every other
+/// semitone from C3) struck again every [`CHORD_EVERY_S`] on their own
+/// voices, still ringing (a strike on a ringing object locates every
+/// switch: none is played back), 64-sample blocks at 48 kHz; the worst
+/// block and the 99.9th percentile, % of the budget. The presets keep the
+/// worst block under half of it (docs/design.md, "How close to the real
+/// instruments", mode bands).
+fn preset_chords(_: &mut Criterion) {
+    use modal_contact::instrument::{prepare, SceneParams};
+    println!("\npresets, the same 16-note chord struck again every {CHORD_EVERY_S} s on its ringing voices, 64-sample blocks at 48 kHz, {SECONDS} s: worst block, % of the budget (max / 99.9th percentile):");
+    println!("| preset | 64 samples |");
+    println!("|---|---|");
+    let total = (SECONDS * RATE) as usize;
+    let every = (CHORD_EVERY_S * RATE) as usize;
+    for (i, p) in modal_contact::presets::PRESETS.iter().enumerate() {
+        let sp = SceneParams {
+            preset: i,
+            ..SceneParams::default()
+        };
+        let prepared = prepare(&sp, RATE, 0).expect("compile");
+        let mut inst = Instrument::new(prepared, InstrumentParams::default().play);
+        let (mut l, mut r) = (vec![0.0f32; 64], vec![0.0f32; 64]);
+        let mut times = Vec::with_capacity(total / 64);
+        let mut evs = Vec::with_capacity(16);
+        for start in (0..total).step_by(64) {
+            evs.clear();
+            if start % every < 64 {
+                evs.extend((0..16u8).map(|k| TimedEvent {
+                    offset: 0,
+                    event: Event::NoteOn {
+                        key: 48 + 2 * k,
+                        velocity_norm: 100.0 / 127.0,
+                    },
+                }));
+            }
+            times.push(timed_process(&mut inst, &evs, &mut l, &mut r));
+        }
+        println!("| {} | {} |", p.name, cell(times, 64));
+    }
+}
+
 /// A 16-note chord struck in one 64-sample block at 48 kHz on presets,
 /// without and with a brightness on every note at its onset (each voice
 /// moved to another hardness level's scene before its first contact,
@@ -622,6 +663,7 @@ criterion_group!(
     bad_input,
     pitch_bend,
     brightness_chord,
+    preset_chords,
     worst_block,
     lookahead
 );

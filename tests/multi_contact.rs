@@ -865,8 +865,8 @@ fn strikers_in_a_scene_file() {
     );
     assert!(e.contains("striker[0].mass_kg"), "{e}");
     let e = bad(
-        "damping_n_s_per_m = 43.4722\n\n[[pickup]]",
-        "damping_n_s_per_m = 43.4722\nswitching = \"exact\"\n\n[[pickup]]",
+        "damping_n_s_per_m = 43.4722\n\n[[listener]]",
+        "damping_n_s_per_m = 43.4722\nswitching = \"exact\"\n\n[[listener]]",
     );
     assert!(e.contains("switching"), "{e}");
     // the offset rod is a switching method of several contacts too

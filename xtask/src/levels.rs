@@ -54,6 +54,10 @@ pub const CHORD_SPAN: u8 = 24;
 /// A chord peaking above this clips \[dBFS\] (one dB of margin for a
 /// converter's inter-sample peaks).
 pub const CLIP_DBFS: f64 = -1.0;
+/// How far below [`CLIP_DBFS`] `--write` puts a chord that would clip at
+/// the target \[dB\]: more than the 0.05 dB a level written to 0.1 dB may
+/// round up.
+pub const CHORD_MARGIN_DB: f64 = 0.1;
 /// How often `--write` measures and writes again at most: a second pass
 /// is needed only where a strike reached the instrument's output ceiling
 /// (+12 dBFS) at its old level, so that its loudness was measured
@@ -135,9 +139,18 @@ pub struct Measured {
 }
 
 impl Measured {
-    /// The `level_db` that puts the strike at [`TARGET_LUFS`].
+    /// The `level_db` `--write` writes: the one that puts the strike at
+    /// [`TARGET_LUFS`], or, where the chord would peak above [`CLIP_DBFS`]
+    /// there, the one that puts the chord's peak [`CHORD_MARGIN_DB`] below
+    /// it, as long as the strike stays within [`TOLERANCE_LU`] of the
+    /// target (further down, the target's lowest level: `--check` then
+    /// names the clipping chord).
     pub fn level_for_target(&self) -> f64 {
-        self.target_level_db
+        if self.chord_peak_at(self.target_level_db) <= CLIP_DBFS - CHORD_MARGIN_DB {
+            return self.target_level_db;
+        }
+        let headroom = self.level_db + (CLIP_DBFS - CHORD_MARGIN_DB) - self.chord_peak_dbfs;
+        headroom.max(self.target_level_db - TOLERANCE_LU)
     }
 
     /// The chord's peak over the strike's loudness \[dB\]: what decides
@@ -146,10 +159,15 @@ impl Measured {
         self.chord_peak_dbfs - self.lufs
     }
 
-    /// The chord's peak at [`Measured::level_for_target`] \[dBFS\] (peaks
-    /// move dB for dB with the level).
+    /// The chord's peak at [`Measured::level_for_target`] \[dBFS\].
     pub fn chord_peak_at_target(&self) -> f64 {
-        self.chord_peak_dbfs + self.target_level_db - self.level_db
+        self.chord_peak_at(self.level_for_target())
+    }
+
+    /// The chord's peak at `level_db` \[dBFS\] (peaks move dB for dB with
+    /// the level).
+    pub fn chord_peak_at(&self, level_db: f64) -> f64 {
+        self.chord_peak_dbfs + level_db - self.level_db
     }
 
     /// What `--check` refuses, as phrases (empty: none).
@@ -472,7 +490,9 @@ may be before a chord clips.
 - **Target**: {TARGET_LUFS} LUFS +-{TOLERANCE_LU} LU, and no chord above {CLIP_DBFS} dBFS. The target is set by the \
 chords' headroom: with crests up to about 42 dB, a louder target (EBU R128's programme level, -23 LUFS, would be the \
 usual one) would make most chords clip; Output gain is the player's. \"level_db for target\" is the \
-level that puts the strike at {TARGET_LUFS} LUFS: a scene's level is a gain on every pickup, so the output scales by \
+level that puts the strike at {TARGET_LUFS} LUFS, or, where the chord would peak above {CLIP_DBFS} dBFS there, the \
+level that puts the chord {CHORD_MARGIN_DB} dB below it, as long as the strike stays within {TOLERANCE_LU} LU of the \
+target: a scene's level is a gain on every pickup, so the output scales by \
 exactly that gain: its peaks move dB for dB with it, and its loudness nearly so (the absolute gate at -70 LUFS \
 does not move with the signal, so a quiet tail's blocks join or leave the measure as the level moves: up to about \
 1 LU here). So the level is found on these samples scaled to it, measured again until within 0.01 LU, and one \
@@ -706,6 +726,33 @@ mod tests {
             f64::NEG_INFINITY
         );
         assert!((sample_peak_dbfs(&[&sine]) + 20.0).abs() < 1e-3);
+    }
+
+    /// A chord that would clip at the target lowers the written level, by
+    /// no more than the tolerance; one that does not leaves it at the
+    /// target.
+    #[test]
+    fn a_chord_that_would_clip_lowers_the_level_within_the_tolerance() {
+        let m = |chord_peak_dbfs: f64| Measured {
+            stem: "x".into(),
+            level_db: -10.0,
+            key: 60,
+            kind: Kind::Pitched,
+            chord: vec![60],
+            lufs: -44.0,
+            peak_dbfs: -20.0,
+            chord_peak_dbfs,
+            target_level_db: -11.0,
+        };
+        // at the target the chord peaks 1 dB lower than measured
+        assert_eq!(m(-3.0).level_for_target(), -11.0);
+        let lowered = m(0.0).level_for_target();
+        assert!((lowered - (-10.0 - 1.1)).abs() < 1e-12, "{lowered}");
+        let l = m(1.5).level_for_target();
+        assert!((l - (-12.6)).abs() < 1e-12, "{l}");
+        assert!((l + 10.0 + 1.5 - (CLIP_DBFS - CHORD_MARGIN_DB)).abs() < 1e-12);
+        // further than the tolerance: the target's lowest level
+        assert_eq!(m(5.0).level_for_target(), -11.0 - TOLERANCE_LU);
     }
 
     #[test]
