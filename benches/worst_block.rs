@@ -520,8 +520,8 @@ fn pitch_bend(_: &mut Criterion) {
 /// voices, still ringing (a strike on a ringing object locates every
 /// switch: none is played back), 64-sample blocks at 48 kHz; the worst
 /// block and the 99.9th percentile, % of the budget. The presets keep the
-/// worst block under half of it (docs/design.md, "How close to the real
-/// instruments", mode bands).
+/// worst block under half of it, but for the wind chimes (docs/design.md,
+/// "How close to the real instruments", mode bands).
 fn preset_chords(_: &mut Criterion) {
     use modal_contact::instrument::{prepare, SceneParams};
     println!("\npresets, the same 16-note chord struck again every {CHORD_EVERY_S} s on its ringing voices, 64-sample blocks at 48 kHz, {SECONDS} s: worst block, % of the budget (max / 99.9th percentile):");
