@@ -667,6 +667,29 @@ fn mpe_member_channel_bends_tune_their_notes_through_the_host() {
 /// plugin's render equals the library's with the same pedal events, and a
 /// note released under the sustain pedal rings on (its tail is louder than
 /// the same note released without the pedal).
+/// The plugin's render of `events` in 256-sample blocks after its Damper
+/// is set to Custom (parameter changes at sample 0, then 400 ms for the
+/// worker to swap the scene in).
+fn render_with_custom_damper(
+    bundle: &std::path::Path,
+    rate: f64,
+    total: usize,
+    events: &[HostEvent],
+) -> [Vec<f32>; 2] {
+    let mut spec = RenderSpec::new(
+        rate,
+        256,
+        total,
+        [param(0, ids::DAMPER_CUSTOM, 1.0)]
+            .into_iter()
+            .chain(events.iter().copied())
+            .collect(),
+    );
+    spec.settle_after = vec![0];
+    spec.settle_ms = 400;
+    LoadedPlugin::load(bundle).render(&spec)
+}
+
 #[test]
 fn pedals_through_the_host_match_the_library() {
     let bundle = clap_bundle(Variant::Release);
@@ -687,20 +710,8 @@ fn pedals_through_the_host_match_the_library() {
         cc(t0 + 20_000, 64, 0),
         cc(t0 + 30_000, 66, 10),
     ];
-    let render_damped = |events: &[HostEvent]| {
-        let mut spec = RenderSpec::new(
-            rate,
-            256,
-            total,
-            [param(0, ids::DAMPER_CUSTOM, 1.0)]
-                .into_iter()
-                .chain(events.iter().copied())
-                .collect(),
-        );
-        spec.settle_after = vec![0];
-        spec.settle_ms = 400;
-        LoadedPlugin::load(&bundle).render(&spec)
-    };
+    let render_damped =
+        |events: &[HostEvent]| render_with_custom_damper(&bundle, rate, total, events);
     let plugin = render_damped(&events);
     let mut params = InstrumentParams::default();
     params.scene.damper_custom = true;
@@ -1004,18 +1015,7 @@ fn channel_mode_messages_through_the_host_match_the_library() {
         cc(t0 + 36_000, 64, 0),
         cc(t0 + 40_000, 123, 0),
     ];
-    let mut spec = RenderSpec::new(
-        rate,
-        256,
-        total,
-        [param(0, ids::DAMPER_CUSTOM, 1.0)]
-            .into_iter()
-            .chain(host.iter().copied())
-            .collect(),
-    );
-    spec.settle_after = vec![0];
-    spec.settle_ms = 400;
-    let plugin = LoadedPlugin::load(&bundle).render(&spec);
+    let plugin = render_with_custom_damper(&bundle, rate, total, &host);
 
     let note = |offset: usize, key: u8, v: f64| TimedEvent {
         offset,
@@ -1060,16 +1060,19 @@ fn channel_mode_messages_through_the_host_match_the_library() {
     assert!(sounding > 1e-3 && after == 0.0, "{sounding}, {after}");
     // the pedal held the notes All Notes Off released: the same notes
     // without controller 123 ring the same until the reset
-    let mut no_123 = spec.clone();
-    no_123.events.retain(|e| {
-        !matches!(
-            e,
-            HostEvent::Midi {
-                data: [0xB0, 123, _],
-                ..
-            }
-        )
-    });
-    let held = LoadedPlugin::load(&bundle).render(&no_123);
+    let no_123: Vec<HostEvent> = host
+        .iter()
+        .copied()
+        .filter(|e| {
+            !matches!(
+                e,
+                HostEvent::Midi {
+                    data: [0xB0, 123, _],
+                    ..
+                }
+            )
+        })
+        .collect();
+    let held = render_with_custom_damper(&bundle, rate, total, &no_123);
     assert_eq!(plugin[0][..t0 + 8_000], held[0][..t0 + 8_000]);
 }
