@@ -72,7 +72,18 @@ fn block_times_ahead(
     lookahead: usize,
 ) -> Vec<f64> {
     let total = (SECONDS * RATE) as usize;
-    let evs = events(chord, total);
+    run_blocks(prepared, &events(chord, total), total, block, lookahead)
+}
+
+/// Per-block seconds of playing `evs` for `total` samples in blocks of
+/// `block` with a lookahead of `lookahead` samples.
+fn run_blocks(
+    prepared: &Prepared,
+    evs: &[TimedEvent],
+    total: usize,
+    block: usize,
+    lookahead: usize,
+) -> Vec<f64> {
     let mut inst = Instrument::new(Box::new(prepared.clone()), InstrumentParams::default().play);
     inst.set_lookahead(lookahead);
     let (mut l, mut r) = (vec![0.0f32; block], vec![0.0f32; block]);
@@ -529,29 +540,25 @@ fn preset_chords(_: &mut Criterion) {
     println!("|---|---|");
     let total = (SECONDS * RATE) as usize;
     let every = (CHORD_EVERY_S * RATE) as usize;
+    let evs: Vec<TimedEvent> = (0..total)
+        .step_by(every)
+        .flat_map(|at| {
+            (0..16u8).map(move |k| TimedEvent {
+                offset: at,
+                event: Event::NoteOn {
+                    key: 48 + 2 * k,
+                    velocity_norm: 100.0 / 127.0,
+                },
+            })
+        })
+        .collect();
     for (i, p) in modal_contact::presets::PRESETS.iter().enumerate() {
         let sp = SceneParams {
             preset: i,
             ..SceneParams::default()
         };
         let prepared = prepare(&sp, RATE, 0).expect("compile");
-        let mut inst = Instrument::new(prepared, InstrumentParams::default().play);
-        let (mut l, mut r) = (vec![0.0f32; 64], vec![0.0f32; 64]);
-        let mut times = Vec::with_capacity(total / 64);
-        let mut evs = Vec::with_capacity(16);
-        for start in (0..total).step_by(64) {
-            evs.clear();
-            if start % every < 64 {
-                evs.extend((0..16u8).map(|k| TimedEvent {
-                    offset: 0,
-                    event: Event::NoteOn {
-                        key: 48 + 2 * k,
-                        velocity_norm: 100.0 / 127.0,
-                    },
-                }));
-            }
-            times.push(timed_process(&mut inst, &evs, &mut l, &mut r));
-        }
+        let times = run_blocks(&prepared, &evs, total, 64, 0);
         println!("| {} | {} |", p.name, cell(times, 64));
     }
 }
