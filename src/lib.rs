@@ -41,8 +41,9 @@
 //! [`Scene::from_file`] and [`compile()`] refuse a bad scene with an error
 //! that names the field ([`SceneError`], [`CompileError`]);
 //! [`EngineState::strike`] and [`EngineState::process_block`] then neither
-//! fail nor allocate. [`render()`] renders a scene offline in one call,
-//! with the per-sample trace if asked ([`RenderOptions`]).
+//! fail nor allocate. [`render()`] renders a scene of one to four contacts
+//! offline in one call, with the per-sample trace if asked
+//! ([`RenderOptions`]); [`render::Compiled`] compiles either kind for it.
 
 pub mod bodies;
 pub mod compile;

@@ -2363,6 +2363,16 @@ impl MultiState {
         out
     }
 
+    /// `left.len().min(right.len())` samples ([`tick`](Self::tick) each),
+    /// the engine's block call for a several-contact scene: the same
+    /// samples bit for bit however the caller splits its blocks.
+    /// \[audio-thread\]
+    pub fn process_block(&mut self, sc: &CompiledMulti, left: &mut [f64], right: &mut [f64]) {
+        for (l, r) in left.iter_mut().zip(right.iter_mut()) {
+            [*l, *r] = self.tick(sc);
+        }
+    }
+
     /// The output `[left, right]` of the current state.
     pub fn output(&self, _sc: &CompiledMulti) -> [f64; 2] {
         let tb = &self.tables[self.mask as usize];
@@ -2477,7 +2487,7 @@ impl MultiState {
     /// closed one whose `p - d` is at or below 0 opens (its spring's `k (p
     /// - d)^2 / 2` leaves). Contacts that switch here switch together,
     /// through the physical state. The trace observes after it
-    /// ([`render_multi`]). O(K dim), plus a switch. \[audio-thread\]
+    /// (`crate::render::render_stream_several`). O(K dim), plus a switch. \[audio-thread\]
     pub fn decide(&mut self, sc: &CompiledMulti) {
         if sc.switching != Switching::OffsetRod || self.decided == self.clock {
             return;
@@ -3321,227 +3331,5 @@ fn step_to(ph: &MultiPhase, t: f64, s: &[f64], out: &mut [f64]) {
         let (x0, x1) = mul2(&p, s[k], s[nb + k]);
         out[k] = x0;
         out[nb + k] = x1;
-    }
-}
-
-/// What a several-contact render did.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct MultiRenderStats {
-    /// The engine's counters.
-    pub stats: MultiStats,
-    /// Largest absolute output sample.
-    pub peak: f64,
-    /// Output samples that were not finite (written as they are).
-    pub nonfinite: u64,
-}
-
-/// What [`render_multi`] hands each sample's observation to.
-pub type ObserveFn<'a> = dyn FnMut(usize, &MultiObservation) -> std::io::Result<()> + 'a;
-
-/// Render `n` samples of `sc` from its initial state: the audio in chunks
-/// of [`crate::render::STREAM_CHUNK`] to `audio`, and, when `observe` is
-/// given, every sample's observation (sample `i` at time `i / fs`, 0 the
-/// initial state, `n` of them). O(N) per sample and O(N^2) per switch;
-/// observing adds O(N^2) per sample (the energy through the change of
-/// basis).
-pub fn render_multi(
-    sc: &CompiledMulti,
-    n: usize,
-    mut audio: impl FnMut(&[f64], &[f64]) -> std::io::Result<()>,
-    mut observe: Option<&mut ObserveFn<'_>>,
-) -> std::io::Result<MultiRenderStats> {
-    let mut st = MultiState::new(sc);
-    let chunk = crate::render::STREAM_CHUNK;
-    let (mut l, mut r) = (Vec::with_capacity(chunk), Vec::with_capacity(chunk));
-    let mut out = MultiRenderStats::default();
-    let mut i = 0;
-    while i < n {
-        l.clear();
-        r.clear();
-        for _ in 0..chunk.min(n - i) {
-            if let Some(f) = observe.as_mut() {
-                // after the switching decision at this instant (the trace's
-                // convention)
-                st.decide(sc);
-                f(i, &st.observe(sc))?;
-            }
-            let [a, b] = st.tick(sc);
-            for x in [a, b] {
-                if x.is_finite() {
-                    out.peak = out.peak.max(x.abs());
-                } else {
-                    out.nonfinite += 1;
-                }
-            }
-            l.push(a);
-            r.push(b);
-            i += 1;
-        }
-        audio(&l, &r)?;
-    }
-    out.stats = st.stats;
-    Ok(out)
-}
-
-/// The several-contact trace's header (docs/design.md, "Several
-/// contacts"): the one-contact columns for contact 0 (`energy` the total),
-/// then `x_hammer_j, v_hammer_j, x_contact_j, v_contact_j, in_contact_j`
-/// for each further contact `j`.
-pub fn trace_header(contacts: usize) -> String {
-    let mut h = String::from("t,x_hammer,v_hammer,x_contact,v_contact,in_contact,energy");
-    for j in 1..contacts {
-        h.push_str(&format!(
-            ",x_hammer_{j},v_hammer_{j},x_contact_{j},v_contact_{j},in_contact_{j}"
-        ));
-    }
-    h
-}
-
-/// One trace row (without its line end) in the one-contact trace's
-/// number format (shortest round-trip).
-fn push_trace_row(buf: &mut Vec<u8>, t: f64, o: &MultiObservation, contacts: usize) {
-    use crate::render::push_numbers;
-    let flag = |j: usize| o.active & (1 << j) != 0;
-    let first = [
-        t,
-        o.x_hammer[0],
-        o.v_hammer[0],
-        o.x_contact[0],
-        o.v_contact[0],
-        o.energy,
-    ];
-    push_numbers(buf, &first, |k| match k {
-        4 if flag(0) => b",1,",
-        4 => b",0,",
-        5 => b"",
-        _ => b",",
-    });
-    for j in 1..contacts {
-        buf.push(b',');
-        let xs = [o.x_hammer[j], o.v_hammer[j], o.x_contact[j], o.v_contact[j]];
-        push_numbers(buf, &xs, |_| b",");
-        buf.push(if flag(j) { b'1' } else { b'0' });
-    }
-}
-
-/// The several-contact trace CSV, written as the render goes.
-pub struct MultiTraceCsv<W: std::io::Write> {
-    out: W,
-    buf: Vec<u8>,
-    rate_hz: f64,
-    contacts: usize,
-}
-
-impl<W: std::io::Write> MultiTraceCsv<W> {
-    /// Write the header ([`trace_header`]).
-    pub fn new(mut out: W, rate_hz: f64, contacts: usize) -> std::io::Result<Self> {
-        writeln!(out, "{}", trace_header(contacts))?;
-        Ok(Self {
-            out,
-            buf: Vec::with_capacity(1 << 16),
-            rate_hz,
-            contacts,
-        })
-    }
-
-    /// Write sample `i`'s row.
-    pub fn row(&mut self, i: usize, o: &MultiObservation) -> std::io::Result<()> {
-        let t = i as f64 / self.rate_hz;
-        push_trace_row(&mut self.buf, t, o, self.contacts);
-        self.buf.push(b'\n');
-        if self.buf.len() >= 1 << 16 {
-            self.out.write_all(&self.buf)?;
-            self.buf.clear();
-        }
-        Ok(())
-    }
-
-    /// Write what is left and flush.
-    pub fn finish(mut self) -> std::io::Result<()> {
-        self.out.write_all(&self.buf)?;
-        self.out.flush()
-    }
-}
-
-/// The several-contact trace as a NumPy `.npy` file: the CSV's columns
-/// ([`trace_header`]) as named little-endian f64 fields, one record per
-/// sample (`in_contact` fields 0 or 1), the numbers' own bits; the row
-/// count is in the header, so [`finish`](Self::finish) checks that every
-/// row came.
-pub struct MultiTraceNpy<W: std::io::Write> {
-    out: W,
-    buf: Vec<u8>,
-    rate_hz: f64,
-    contacts: usize,
-    rows: usize,
-    written: usize,
-}
-
-impl<W: std::io::Write> MultiTraceNpy<W> {
-    /// Write the header for `rows` records.
-    pub fn new(mut out: W, rate_hz: f64, contacts: usize, rows: usize) -> std::io::Result<Self> {
-        out.write_all(&crate::render::npy_header_with(
-            &trace_header(contacts),
-            rows,
-        ))?;
-        Ok(Self {
-            out,
-            buf: Vec::with_capacity(1 << 16),
-            rate_hz,
-            contacts,
-            rows,
-            written: 0,
-        })
-    }
-
-    /// Write sample `i`'s record.
-    pub fn row(&mut self, i: usize, o: &MultiObservation) -> std::io::Result<()> {
-        if self.written == self.rows {
-            return Err(std::io::Error::other(
-                "more trace rows than the header says",
-            ));
-        }
-        let flag = |j: usize| if o.active & (1 << j) != 0 { 1.0 } else { 0.0 };
-        let mut put = |x: f64| self.buf.extend_from_slice(&x.to_le_bytes());
-        put(i as f64 / self.rate_hz);
-        for x in [
-            o.x_hammer[0],
-            o.v_hammer[0],
-            o.x_contact[0],
-            o.v_contact[0],
-            flag(0),
-            o.energy,
-        ] {
-            put(x);
-        }
-        for j in 1..self.contacts {
-            for x in [
-                o.x_hammer[j],
-                o.v_hammer[j],
-                o.x_contact[j],
-                o.v_contact[j],
-                flag(j),
-            ] {
-                put(x);
-            }
-        }
-        self.written += 1;
-        if self.buf.len() >= 1 << 16 {
-            self.out.write_all(&self.buf)?;
-            self.buf.clear();
-        }
-        Ok(())
-    }
-
-    /// Write what is left and flush; an error if rows are missing.
-    pub fn finish(mut self) -> std::io::Result<()> {
-        if self.written != self.rows {
-            return Err(std::io::Error::other(format!(
-                "{} of {} trace rows written",
-                self.written, self.rows
-            )));
-        }
-        self.out.write_all(&self.buf)?;
-        self.out.flush()
     }
 }

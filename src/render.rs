@@ -1,9 +1,10 @@
 //! Offline rendering: scene -> compile -> engine, with an optional trace
 //! (docs/design.md, "The render command and the trace CSV"). Used by `cargo xtask render`, the report and tests.
 
-use crate::compile::{compile_with, CompileError, CompiledScene};
+use crate::compile::{compile_with, CompileError, CompiledScene, RATE_RANGE_HZ};
 use crate::engine::{EngineState, ExactStats, Motion, Observation};
-use crate::scene::{Scene, Switching, MAX_DURATION_S};
+use crate::multi::{CompiledMulti, MultiModel, MultiObservation, MultiState, MultiStats};
+use crate::scene::{Scene, Switching, MAX_CONTACTS, MAX_DURATION_S};
 use std::io::Write;
 
 /// Options of an offline render.
@@ -65,14 +66,23 @@ pub struct RenderOutput {
     pub left: Vec<f64>,
     /// See `left`.
     pub right: Vec<f64>,
-    /// Trace rows, if requested.
+    /// Trace rows, if requested (of a several-contact scene: contact 0's
+    /// motion and the total energy; the further contacts in
+    /// `trace_further`).
     pub trace: Option<Vec<TraceRow>>,
-    /// The compiler's summary.
+    /// The further contacts' motion of a several-contact scene's trace:
+    /// `contacts - 1` per trace row, contact 1 first (empty for one
+    /// contact, or without a trace).
+    pub trace_further: Vec<Motion>,
+    /// The compiler's summary (one contact; empty for several).
     pub summary: String,
-    /// Number of contacts that started.
+    /// Number of contacts that started (of every contact).
     pub contacts: u64,
-    /// What exact switching did (all zero with the offset rod).
+    /// What exact switching did (one contact; all zero with the offset
+    /// rod).
     pub exact_stats: ExactStats,
+    /// What the several-contact engine did (`None` for one contact).
+    pub several: Option<MultiStats>,
 }
 
 impl RenderOutput {
@@ -143,12 +153,96 @@ impl From<CompileError> for RenderError {
     }
 }
 
-/// Render a scene offline (in memory; [`render_stream`] for long renders).
+/// Render a scene of one to [`MAX_CONTACTS`] contacts offline (in
+/// memory; [`Compiled::stream`] for long renders).
 pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<RenderOutput, RenderError> {
     let seconds = opts.seconds.unwrap_or(scene.duration_s);
     let n = render_length(seconds, opts.rate_hz)?;
-    let compiled = compile_with(scene, opts.rate_hz, opts.switching)?;
-    Ok(render_compiled(&compiled, n, opts.trace))
+    Ok(Compiled::new(scene, opts.rate_hz, opts.switching)?.render(n, opts.trace))
+}
+
+/// A scene compiled for a render: one contact runs on the engine
+/// ([`crate::engine`]), several on the several-contact engine
+/// ([`crate::multi`]); the render, its trace and its sinks are the same
+/// for both (docs/design.md, "Offline rendering").
+#[derive(Debug, Clone)]
+#[allow(clippy::large_enum_variant)]
+pub enum Compiled {
+    /// A scene of one contact.
+    One(CompiledScene),
+    /// A scene of several contacts (`[[striker]]`, `[[touch]]`).
+    Several(CompiledMulti),
+}
+
+impl Compiled {
+    /// Compile `scene` at `rate_hz`, with `switching` overriding the
+    /// scene's switching method: through [`compile_with`] for one contact,
+    /// through [`MultiModel::from_scene`] and [`CompiledMulti`] for
+    /// several (their refusals name the scene's field).
+    pub fn new(
+        scene: &Scene,
+        rate_hz: f64,
+        switching: Option<Switching>,
+    ) -> Result<Self, CompileError> {
+        if !scene.several_contacts() {
+            return compile_with(scene, rate_hz, switching).map(Self::One);
+        }
+        if !(rate_hz.is_finite() && (RATE_RANGE_HZ.0..=RATE_RANGE_HZ.1).contains(&rate_hz)) {
+            return Err(CompileError::SampleRate(rate_hz));
+        }
+        let model = MultiModel::from_scene(scene, rate_hz)?;
+        let switching = switching.or(scene.contact.switching).unwrap_or_default();
+        CompiledMulti::with_switching(&model, rate_hz, switching)
+            .map(Self::Several)
+            .map_err(|e| CompileError::Scene(e.in_scene(scene)))
+    }
+
+    /// Sample rate \[Hz\].
+    pub fn rate_hz(&self) -> f64 {
+        match self {
+            Self::One(c) => c.rate_hz,
+            Self::Several(c) => c.rate_hz,
+        }
+    }
+
+    /// Number of contacts.
+    pub fn contacts(&self) -> usize {
+        match self {
+            Self::One(_) => 1,
+            Self::Several(c) => c.contacts(),
+        }
+    }
+
+    /// The switching method it runs with.
+    pub fn switching(&self) -> Switching {
+        match self {
+            Self::One(c) => c.switching,
+            Self::Several(c) => c.switching,
+        }
+    }
+
+    /// Render `n` samples from the initial state in memory, with the
+    /// trace if asked ([`render_compiled`], [`render_several`]).
+    pub fn render(&self, n: usize, trace: bool) -> RenderOutput {
+        match self {
+            Self::One(c) => render_compiled(c, n, trace),
+            Self::Several(c) => render_several(c, n, trace),
+        }
+    }
+
+    /// Stream a render of `n` samples from the initial state
+    /// ([`render_stream`], [`render_stream_several`]).
+    pub fn stream(
+        &self,
+        n: usize,
+        audio: impl FnMut(&[f64], &[f64]) -> std::io::Result<()>,
+        trace: Option<&mut dyn TraceSink>,
+    ) -> std::io::Result<StreamStats> {
+        match self {
+            Self::One(c) => render_stream(c, n, audio, trace),
+            Self::Several(c) => render_stream_several(c, n, audio, trace),
+        }
+    }
 }
 
 /// Samples in `seconds` at `rate_hz`, or why that is not a render length.
@@ -166,6 +260,8 @@ pub fn render_compiled(compiled: &CompiledScene, n: usize, trace: bool) -> Rende
     let mut rows = TraceRows {
         rate_hz: compiled.rate_hz,
         rows: Vec::with_capacity(if trace { n } else { 0 }),
+        further: Vec::new(),
+        contacts: 1,
     };
     let audio = |l: &[f64], r: &[f64]| {
         left.extend_from_slice(l);
@@ -179,9 +275,44 @@ pub fn render_compiled(compiled: &CompiledScene, n: usize, trace: bool) -> Rende
         left,
         right,
         trace: trace.then_some(rows.rows),
+        trace_further: Vec::new(),
         summary: compiled.summary.clone(),
         contacts: stats.contacts,
         exact_stats: stats.exact_stats,
+        several: None,
+    }
+}
+
+/// Render `n` samples of a compiled several-contact scene from its initial
+/// state, in memory.
+pub fn render_several(compiled: &CompiledMulti, n: usize, trace: bool) -> RenderOutput {
+    let mut left = Vec::with_capacity(n);
+    let mut right = Vec::with_capacity(n);
+    let k = compiled.contacts();
+    let mut rows = TraceRows {
+        rate_hz: compiled.rate_hz,
+        rows: Vec::with_capacity(if trace { n } else { 0 }),
+        further: Vec::with_capacity(if trace { n * (k - 1) } else { 0 }),
+        contacts: k,
+    };
+    let audio = |l: &[f64], r: &[f64]| {
+        left.extend_from_slice(l);
+        right.extend_from_slice(r);
+        Ok(())
+    };
+    let sink: Option<&mut dyn TraceSink> = if trace { Some(&mut rows) } else { None };
+    let stats =
+        render_stream_several(compiled, n, audio, sink).expect("in-memory sinks do not fail");
+    RenderOutput {
+        rate_hz: compiled.rate_hz,
+        left,
+        right,
+        trace: trace.then_some(rows.rows),
+        trace_further: rows.further,
+        summary: String::new(),
+        contacts: stats.contacts,
+        exact_stats: stats.exact_stats,
+        several: stats.several,
     }
 }
 
@@ -201,6 +332,8 @@ pub struct StreamStats {
     pub peak: f64,
     /// Samples (left or right) that were not finite.
     pub nonfinite: usize,
+    /// What the several-contact engine did (`None` for one contact).
+    pub several: Option<MultiStats>,
 }
 
 /// Where a render's trace goes, sample by sample (docs/design.md, "Offline
@@ -212,6 +345,25 @@ pub trait TraceSink {
     /// Record sample `i` (time `i / fs`): its motion, and its energy when
     /// [`wants_energy`](Self::wants_energy) said so.
     fn record(&mut self, i: usize, motion: &Motion, energy: Option<f64>) -> std::io::Result<()>;
+    /// Record sample `i` of a several-contact render: each contact's motion
+    /// (contact 0 first) and the total energy. A sink that keeps one
+    /// contact's motion takes a single motion and refuses more (an error,
+    /// not a dropped column); the trace files, the rows in memory and the
+    /// plot's envelope take every contact.
+    fn record_several(
+        &mut self,
+        i: usize,
+        motions: &[Motion],
+        energy: Option<f64>,
+    ) -> std::io::Result<()> {
+        match motions {
+            [m] => self.record(i, m, energy),
+            _ => Err(std::io::Error::other(format!(
+                "this trace takes one contact, the render has {}",
+                motions.len()
+            ))),
+        }
+    }
     /// Whether the sink wants the energy of (nearly) every sample. When it
     /// does not, the render runs the engine's block path with the motion
     /// ([`EngineState::process_block_observed`], one kernel pass summing
@@ -327,13 +479,84 @@ pub fn render_stream(
     Ok(stats)
 }
 
+/// [`render_stream`] for a several-contact scene: `audio` receives
+/// consecutive chunks of at most [`STREAM_CHUNK`] samples, `trace` (if any)
+/// every sample's motion of each contact and the total energy through
+/// [`TraceSink::record_several`] (after the switching decision at that
+/// instant, as the one-contact trace). O(N) per sample and O(N^2) per
+/// switch; a trace adds O(N^2) per sample (the energy through the change of
+/// basis).
+pub fn render_stream_several(
+    compiled: &CompiledMulti,
+    n: usize,
+    mut audio: impl FnMut(&[f64], &[f64]) -> std::io::Result<()>,
+    mut trace: Option<&mut dyn TraceSink>,
+) -> std::io::Result<StreamStats> {
+    let mut st = MultiState::new(compiled);
+    let k = compiled.contacts();
+    let (mut l, mut r) = (
+        vec![0.0; STREAM_CHUNK.min(n)],
+        vec![0.0; STREAM_CHUNK.min(n)],
+    );
+    let mut motions = [Motion::default(); MAX_CONTACTS];
+    let mut stats = StreamStats::default();
+    let mut done = 0;
+    while done < n {
+        let len = STREAM_CHUNK.min(n - done);
+        match trace.as_deref_mut() {
+            None => st.process_block(compiled, &mut l[..len], &mut r[..len]),
+            Some(sink) => {
+                for q in 0..len {
+                    st.decide(compiled);
+                    let o = st.observe(compiled);
+                    for (j, m) in motions[..k].iter_mut().enumerate() {
+                        *m = contact_motion(&o, j);
+                    }
+                    sink.record_several(done + q, &motions[..k], Some(o.energy))?;
+                    [l[q], r[q]] = st.tick(compiled);
+                }
+            }
+        }
+        for x in l[..len].iter().chain(&r[..len]) {
+            if x.is_finite() {
+                stats.peak = stats.peak.max(x.abs());
+            } else {
+                stats.nonfinite += 1;
+            }
+        }
+        audio(&l[..len], &r[..len])?;
+        done += len;
+    }
+    stats.samples = n;
+    stats.contacts = st.stats.contacts_started[..k].iter().sum();
+    stats.several = Some(st.stats);
+    Ok(stats)
+}
+
+/// Contact `j`'s motion in a several-contact observation.
+fn contact_motion(o: &MultiObservation, j: usize) -> Motion {
+    Motion {
+        x_hammer: o.x_hammer[j],
+        v_hammer: o.v_hammer[j],
+        x_contact: o.x_contact[j],
+        v_contact: o.v_contact[j],
+        in_contact: o.active & (1 << j) != 0,
+    }
+}
+
 /// Every trace row in memory (tests, the report).
 #[derive(Debug, Clone, Default)]
 pub struct TraceRows {
     /// Sample rate \[Hz\] (row `i` is time `i / rate_hz`).
     pub rate_hz: f64,
-    /// The rows.
+    /// The rows (of a several-contact render: contact 0's motion and the
+    /// total energy).
     pub rows: Vec<TraceRow>,
+    /// The further contacts' motion of a several-contact render,
+    /// `contacts - 1` per row (contact 1 first).
+    pub further: Vec<Motion>,
+    /// Contacts per row (1 for one contact).
+    pub contacts: usize,
 }
 
 /// One chunk on the block path with the motion, the energy taken where
@@ -382,6 +605,29 @@ impl TraceSink for TraceRows {
         });
         Ok(())
     }
+    fn record_several(
+        &mut self,
+        i: usize,
+        motions: &[Motion],
+        e: Option<f64>,
+    ) -> std::io::Result<()> {
+        check_contacts(motions, self.contacts)?;
+        self.further.extend_from_slice(&motions[1..]);
+        self.record(i, &motions[0], e)
+    }
+}
+
+/// An error unless a sample holds the `contacts` motions a sink was made
+/// for.
+fn check_contacts(motions: &[Motion], contacts: usize) -> std::io::Result<()> {
+    if motions.len() == contacts {
+        Ok(())
+    } else {
+        Err(std::io::Error::other(format!(
+            "a trace of {contacts} contacts was handed {} motions",
+            motions.len()
+        )))
+    }
 }
 
 /// Two sinks fed the same samples (e.g. the CSV file and the plot).
@@ -400,6 +646,17 @@ impl<A: TraceSink, B: TraceSink> TraceSink for (A, B) {
         let e1 = if self.1.wants_energy(i) { e } else { None };
         self.0.record(i, m, e0)?;
         self.1.record(i, m, e1)
+    }
+    fn record_several(
+        &mut self,
+        i: usize,
+        motions: &[Motion],
+        e: Option<f64>,
+    ) -> std::io::Result<()> {
+        let e0 = if self.0.wants_energy(i) { e } else { None };
+        let e1 = if self.1.wants_energy(i) { e } else { None };
+        self.0.record_several(i, motions, e0)?;
+        self.1.record_several(i, motions, e1)
     }
     fn record_run(
         &mut self,
@@ -510,6 +767,9 @@ impl<T> ChunkQueue<T> {
 /// one thread.
 pub struct CsvTrace<W: Write + Send + 'static> {
     rate_hz: f64,
+    /// Contacts per sample: a sample is this many consecutive entries of
+    /// `rows` (contact 0's with the energy, then the further contacts').
+    contacts: usize,
     rows: Vec<TraceRow>,
     queue: ChunkQueue<TraceRow>,
     formatters: Vec<std::thread::JoinHandle<()>>,
@@ -525,9 +785,26 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
     }
 
     /// [`new`](Self::new) with `formatters` formatting threads (at least 1).
-    pub fn with_formatters(rate_hz: f64, mut out: W, formatters: usize) -> std::io::Result<Self> {
+    pub fn with_formatters(rate_hz: f64, out: W, formatters: usize) -> std::io::Result<Self> {
+        Self::start(rate_hz, out, formatters, 1)
+    }
+
+    /// The trace of a render of `contacts` contacts (columns
+    /// [`trace_header`]), fed by [`TraceSink::record_several`].
+    pub fn with_contacts(rate_hz: f64, out: W, contacts: usize) -> std::io::Result<Self> {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        Self::start(rate_hz, out, cores.min(CSV_MAX_FORMATTERS), contacts)
+    }
+
+    fn start(
+        rate_hz: f64,
+        mut out: W,
+        formatters: usize,
+        contacts: usize,
+    ) -> std::io::Result<Self> {
         use crossbeam::channel::bounded;
-        writeln!(out, "{TRACE_HEADER}")?;
+        let contacts = contacts.clamp(1, MAX_CONTACTS);
+        writeln!(out, "{}", trace_header(contacts))?;
         let formatters = formatters.max(1);
         let (to_format, chunks) = bounded::<Chunk>(CSV_CHUNKS_IN_FLIGHT);
         let (to_writer, texts) = bounded::<(u64, Vec<u8>)>(CSV_CHUNKS_IN_FLIGHT);
@@ -547,8 +824,14 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
                             let mut text = spare_text.try_recv().unwrap_or_default();
                             text.resize(rows.len() * ROW_ROOM, 0);
                             let mut end = 0;
-                            for r in &rows {
-                                end = put_row(&mut text, end, r);
+                            if contacts == 1 {
+                                for r in &rows {
+                                    end = put_row(&mut text, end, r);
+                                }
+                            } else {
+                                for sample in rows.chunks(contacts) {
+                                    end = put_sample(&mut text, end, sample);
+                                }
                             }
                             text.truncate(end);
                             rows.clear();
@@ -566,7 +849,8 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
         let writer = spawn_ordered_writer("trace-csv-write", out, texts, give_text)?;
         Ok(Self {
             rate_hz,
-            rows: Vec::with_capacity(CSV_CHUNK_ROWS),
+            contacts,
+            rows: Vec::with_capacity(CSV_CHUNK_ROWS * contacts),
             queue: ChunkQueue {
                 seq: 0,
                 to: Some(to_format),
@@ -581,7 +865,8 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
     /// writer has stopped (a failed write: [`finish`](Self::finish) returns
     /// it).
     fn send(&mut self) -> std::io::Result<()> {
-        self.queue.send(&mut self.rows, CSV_CHUNK_ROWS)
+        self.queue
+            .send(&mut self.rows, CSV_CHUNK_ROWS * self.contacts)
     }
 
     /// Stop the threads and wait for them: the writer's result, or an error
@@ -630,6 +915,7 @@ impl<W: Write + Send + 'static> TraceSink for CsvTrace<W> {
         false
     }
     fn record(&mut self, i: usize, m: &Motion, e: Option<f64>) -> std::io::Result<()> {
+        check_contacts(std::slice::from_ref(m), self.contacts)?;
         self.rows.push(TraceRow {
             t: i as f64 / self.rate_hz,
             obs: m.with_energy(e.expect("every energy was asked for")),
@@ -639,18 +925,32 @@ impl<W: Write + Send + 'static> TraceSink for CsvTrace<W> {
         }
         Ok(())
     }
-}
-
-/// The trace's columns in the NPY file's structured type: the CSV's
-/// header, every field a little-endian f64 (`in_contact` 0 or 1).
-fn npy_header(rows: usize) -> Vec<u8> {
-    npy_header_with(TRACE_HEADER, rows)
+    fn record_several(
+        &mut self,
+        i: usize,
+        motions: &[Motion],
+        e: Option<f64>,
+    ) -> std::io::Result<()> {
+        check_contacts(motions, self.contacts)?;
+        let t = i as f64 / self.rate_hz;
+        let e = e.expect("every energy was asked for");
+        // the further contacts ride in rows of their own (their energy
+        // unused): a sample is `contacts` consecutive rows
+        self.rows.extend(motions.iter().map(|m| TraceRow {
+            t,
+            obs: m.with_energy(e),
+        }));
+        if self.rows.len() >= CSV_CHUNK_ROWS * self.contacts {
+            self.send()?;
+        }
+        Ok(())
+    }
 }
 
 /// The NPY header (format 1.0) of `rows` records whose fields are the
-/// comma-separated `columns`, each a little-endian f64 (also the
-/// several-contact trace's, `crate::multi`).
-pub(crate) fn npy_header_with(columns: &str, rows: usize) -> Vec<u8> {
+/// comma-separated `columns` (the CSV's header), each a little-endian f64
+/// (`in_contact` 0 or 1).
+fn npy_header_with(columns: &str, rows: usize) -> Vec<u8> {
     let fields: Vec<String> = columns
         .split(',')
         .map(|name| format!("('{name}', '<f8')"))
@@ -674,6 +974,8 @@ pub(crate) fn npy_header_with(columns: &str, rows: usize) -> Vec<u8> {
 
 /// Bytes of one NPY trace record (7 f64 fields).
 const NPY_RECORD: usize = 56;
+/// Bytes a further contact adds to a record (5 f64 fields).
+const NPY_FURTHER: usize = 40;
 
 /// Writes the trace as a NumPy `.npy` file (docs/design.md, "The render
 /// command and the trace CSV"): one record per sample with the CSV's
@@ -685,6 +987,10 @@ const NPY_RECORD: usize = 56;
 /// system's copy runs beside the engine).
 pub struct NpyTrace<W: Write + Send + 'static> {
     rate_hz: f64,
+    /// Contacts per record ([`trace_header`]).
+    contacts: usize,
+    /// Bytes handed to the writer at a time (whole records).
+    chunk: usize,
     rows: usize,
     written: usize,
     buf: Vec<u8>,
@@ -693,22 +999,37 @@ pub struct NpyTrace<W: Write + Send + 'static> {
 }
 
 impl<W: Write + Send + 'static> NpyTrace<W> {
-    /// Bytes per record (7 f64 fields).
+    /// Bytes per record of one contact (7 f64 fields).
     pub const RECORD: usize = NPY_RECORD;
-    const CHUNK: usize = CSV_CHUNK_ROWS * NPY_RECORD;
 
     /// Write the header for `rows` records to `out` and start the writer.
-    pub fn new(rate_hz: f64, rows: usize, mut out: W) -> std::io::Result<Self> {
+    pub fn new(rate_hz: f64, rows: usize, out: W) -> std::io::Result<Self> {
+        Self::with_contacts(rate_hz, rows, 1, out)
+    }
+
+    /// The trace of a render of `contacts` contacts: the fields of
+    /// [`trace_header`], [`Self::RECORD`] bytes for contact 0 and 40 more
+    /// per further contact; fed by [`TraceSink::record_several`].
+    pub fn with_contacts(
+        rate_hz: f64,
+        rows: usize,
+        contacts: usize,
+        mut out: W,
+    ) -> std::io::Result<Self> {
         use crossbeam::channel::bounded;
-        out.write_all(&npy_header(rows))?;
+        let contacts = contacts.clamp(1, MAX_CONTACTS);
+        out.write_all(&npy_header_with(&trace_header(contacts), rows))?;
+        let chunk = CSV_CHUNK_ROWS * (NPY_RECORD + NPY_FURTHER * (contacts - 1));
         let (to_writer, chunks) = bounded(CSV_CHUNKS_IN_FLIGHT);
         let (give, spare) = bounded(CSV_CHUNKS_IN_FLIGHT + 1);
         let writer = spawn_ordered_writer("trace-npy-write", out, chunks, give)?;
         Ok(Self {
             rate_hz,
+            contacts,
+            chunk,
             rows,
             written: 0,
-            buf: Vec::with_capacity(Self::CHUNK),
+            buf: Vec::with_capacity(chunk),
             queue: ChunkQueue {
                 seq: 0,
                 to: Some(to_writer),
@@ -721,7 +1042,7 @@ impl<W: Write + Send + 'static> NpyTrace<W> {
     /// Hand the records so far to the writer; an error if it has stopped
     /// (a failed write: [`finish`](Self::finish) returns it).
     fn send(&mut self) -> std::io::Result<()> {
-        self.queue.send(&mut self.buf, Self::CHUNK)
+        self.queue.send(&mut self.buf, self.chunk)
     }
 
     /// Stop the writer and wait for it: its result, or an error if it
@@ -782,9 +1103,30 @@ impl<W: Write + Send + 'static> TraceSink for NpyTrace<W> {
         false
     }
     fn record(&mut self, i: usize, m: &Motion, e: Option<f64>) -> std::io::Result<()> {
+        check_contacts(std::slice::from_ref(m), self.contacts)?;
         self.push(i, m, e.expect("every energy was asked for"));
         self.written += 1;
-        if self.buf.len() >= Self::CHUNK {
+        if self.buf.len() >= self.chunk {
+            self.send()?;
+        }
+        Ok(())
+    }
+    fn record_several(
+        &mut self,
+        i: usize,
+        motions: &[Motion],
+        e: Option<f64>,
+    ) -> std::io::Result<()> {
+        check_contacts(motions, self.contacts)?;
+        self.push(i, &motions[0], e.expect("every energy was asked for"));
+        for m in &motions[1..] {
+            let flag = f64::from(u8::from(m.in_contact));
+            for x in [m.x_hammer, m.v_hammer, m.x_contact, m.v_contact, flag] {
+                self.buf.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+        self.written += 1;
+        if self.buf.len() >= self.chunk {
             self.send()?;
         }
         Ok(())
@@ -795,9 +1137,10 @@ impl<W: Write + Send + 'static> TraceSink for NpyTrace<W> {
         motion: &[Motion],
         energy: &[f64],
     ) -> std::io::Result<()> {
+        check_contacts(&[Motion::default()], self.contacts)?;
         for (k, (m, &e)) in motion.iter().zip(energy).enumerate() {
             self.push(first + k, m, e);
-            if self.buf.len() >= Self::CHUNK {
+            if self.buf.len() >= self.chunk {
                 self.send()?;
             }
         }
@@ -902,6 +1245,19 @@ impl TraceSink for TraceEnvelope {
         }
         Ok(())
     }
+    /// Contact 0's hammer and point, shaded where any contact is closed.
+    fn record_several(
+        &mut self,
+        i: usize,
+        motions: &[Motion],
+        e: Option<f64>,
+    ) -> std::io::Result<()> {
+        let m = Motion {
+            in_contact: motions.iter().any(|m| m.in_contact),
+            ..motions[0]
+        };
+        self.record(i, &m, e)
+    }
     /// [`record`](Self::record) for a run of samples, a bucket's share at
     /// a time (the same min/max in the same order).
     fn record_run(
@@ -949,6 +1305,20 @@ impl TraceSink for TraceEnvelope {
 /// The trace CSV header (docs/design.md, "The render command and the trace CSV").
 pub const TRACE_HEADER: &str = "t,x_hammer,v_hammer,x_contact,v_contact,in_contact,energy";
 
+/// The trace's header for `contacts` contacts (docs/design.md, "Several
+/// contacts"): [`TRACE_HEADER`] for contact 0 (`energy` the total), then
+/// `x_hammer_j, v_hammer_j, x_contact_j, v_contact_j, in_contact_j` for
+/// each further contact `j`.
+pub fn trace_header(contacts: usize) -> String {
+    let mut h = String::from(TRACE_HEADER);
+    for j in 1..contacts {
+        h.push_str(&format!(
+            ",x_hammer_{j},v_hammer_{j},x_contact_{j},v_contact_{j},in_contact_{j}"
+        ));
+    }
+    h
+}
+
 /// Write trace rows as CSV (each number's shortest round-trip digits,
 /// [`put_numbers`]).
 pub fn write_trace_csv<W: Write>(rows: &[TraceRow], mut w: W) -> std::io::Result<()> {
@@ -991,6 +1361,41 @@ fn put_row(out: &mut [u8], at: usize, r: &TraceRow) -> usize {
         5 => b"\n",
         _ => b",",
     })
+}
+
+/// Write one sample of a several-contact trace to `out[at..]` (room for
+/// [`ROW_ROOM`] bytes per entry of `sample`): contact 0's row as
+/// [`put_row`] writes it (its `energy` the total), then each further
+/// contact's `x_hammer, v_hammer, x_contact, v_contact, in_contact`
+/// ([`trace_header`]); the end.
+fn put_sample(out: &mut [u8], at: usize, sample: &[TraceRow]) -> usize {
+    let (r, further) = (&sample[0], &sample[1..]);
+    let o = &r.obs;
+    let xs = [
+        r.t,
+        o.x_hammer,
+        o.v_hammer,
+        o.x_contact,
+        o.v_contact,
+        o.energy,
+    ];
+    let mut at = put_numbers(out, at, &xs, |k| match k {
+        4 if o.in_contact => b",1,",
+        4 => b",0,",
+        _ => b",",
+    });
+    for (j, f) in further.iter().enumerate() {
+        let (m, last) = (&f.obs, j + 1 == further.len());
+        let xs = [m.x_hammer, m.v_hammer, m.x_contact, m.v_contact];
+        at = put_numbers(out, at, &xs, |k| match (k, m.in_contact, last) {
+            (3, true, true) => b",1\n",
+            (3, false, true) => b",0\n",
+            (3, true, false) => b",1,",
+            (3, false, false) => b",0,",
+            _ => b",",
+        });
+    }
+    at
 }
 
 /// Room for one number and its separator in [`put_numbers`]: a number is
@@ -1587,5 +1992,125 @@ mod tests {
                 assert!(worst <= 1e-12, "{name} {sw:?}: {worst:e}");
             }
         }
+    }
+
+    /// A sink that keeps one contact (the default `record_several`).
+    struct OneContactOnly(usize);
+
+    impl TraceSink for OneContactOnly {
+        fn wants_energy(&self, _: usize) -> bool {
+            false
+        }
+        fn record(&mut self, _: usize, _: &Motion, _: Option<f64>) -> std::io::Result<()> {
+            self.0 += 1;
+            Ok(())
+        }
+    }
+
+    /// A several-contact scene renders through [`render()`] as through
+    /// the several-contact engine's own loop (each sample's decision,
+    /// observation and tick), bit for bit: the audio, every contact's
+    /// motion in the rows in memory, and the CSV and NumPy traces, whose
+    /// header names each contact's columns and whose numbers read back to
+    /// the rows' exactly. A sink that keeps one contact refuses the
+    /// render instead of dropping columns.
+    #[test]
+    fn a_several_contact_scene_renders_through_the_one_render() {
+        let scene = crate::presets::scene(crate::presets::index_of("ball-between-plates").unwrap())
+            .unwrap();
+        let rate = 44_100.0;
+        let n = 3000;
+        let opts = RenderOptions {
+            rate_hz: rate,
+            seconds: Some(n as f64 / rate),
+            switching: None,
+            trace: true,
+        };
+        let out = render(&scene, &opts).unwrap();
+        let Ok(Compiled::Several(c)) = Compiled::new(&scene, rate, None) else {
+            panic!("a several-contact scene compiles for the several-contact engine");
+        };
+        let k = c.contacts();
+        assert_eq!(k, 2);
+        // the engine's own loop
+        let mut st = MultiState::new(&c);
+        let rows = out.trace.as_ref().unwrap();
+        assert_eq!(rows.len(), n);
+        assert_eq!(out.trace_further.len(), n * (k - 1));
+        for i in 0..n {
+            st.decide(&c);
+            let o = st.observe(&c);
+            assert_eq!(
+                rows[i].obs,
+                contact_motion(&o, 0).with_energy(o.energy),
+                "row {i}"
+            );
+            for j in 1..k {
+                assert_eq!(
+                    out.trace_further[i * (k - 1) + j - 1],
+                    contact_motion(&o, j)
+                );
+            }
+            let [l, r] = st.tick(&c);
+            assert_eq!((out.left[i], out.right[i]), (l, r), "sample {i}");
+        }
+        // the block path (no trace) makes the same samples
+        let plain = Compiled::Several(c.clone()).render(n, false);
+        assert!(plain.left == out.left && plain.right == out.right);
+        let started: u64 = st.stats.contacts_started[..k].iter().sum();
+        assert!(started >= 2, "the ball touches: {started} contacts");
+        assert_eq!(out.contacts, started);
+        assert_eq!(out.several, Some(st.stats));
+        // the CSV: the header, and every number of every row
+        let mut csv = CsvTrace::with_contacts(rate, Vec::new(), k).unwrap();
+        let stats = render_stream_several(&c, n, |_, _| Ok(()), Some(&mut csv)).unwrap();
+        assert_eq!(stats.several, out.several);
+        let text = String::from_utf8(csv.finish().unwrap()).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next().unwrap(), trace_header(k));
+        let flag = |b: bool| f64::from(u8::from(b));
+        let mut expect = Vec::new();
+        for (i, line) in lines.enumerate() {
+            let got: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+            let mut want = rows[i].columns().to_vec();
+            for m in &out.trace_further[i * (k - 1)..(i + 1) * (k - 1)] {
+                want.extend([
+                    m.x_hammer,
+                    m.v_hammer,
+                    m.x_contact,
+                    m.v_contact,
+                    flag(m.in_contact),
+                ]);
+            }
+            assert_eq!(got.len(), 7 + 5 * (k - 1));
+            for (a, b) in got.iter().zip(&want) {
+                assert_eq!(a.to_bits(), b.to_bits(), "CSV row {i}: {line}");
+            }
+            expect.extend(want);
+        }
+        assert_eq!(expect.len(), n * (7 + 5 * (k - 1)));
+        // the NumPy trace: the same numbers' own bits after its header
+        let mut npy = NpyTrace::with_contacts(rate, n, k, Vec::new()).unwrap();
+        render_stream_several(&c, n, |_, _| Ok(()), Some(&mut npy)).unwrap();
+        let bytes = npy.finish().unwrap();
+        let body = &bytes[bytes.len() - 8 * expect.len()..];
+        for (q, x) in expect.iter().enumerate() {
+            let b: [u8; 8] = body[8 * q..8 * q + 8].try_into().unwrap();
+            assert_eq!(
+                f64::from_le_bytes(b).to_bits(),
+                x.to_bits(),
+                "NPY field {q}"
+            );
+        }
+        assert!(String::from_utf8_lossy(&bytes[..bytes.len() - body.len()])
+            .contains("'x_hammer_1', '<f8'"));
+        // a one-contact sink refuses
+        let mut one = OneContactOnly(0);
+        let refused = render_stream_several(&c, n, |_, _| Ok(()), Some(&mut one)).unwrap_err();
+        assert!(
+            refused.to_string().contains("takes one contact"),
+            "{refused}"
+        );
+        assert_eq!(one.0, 0);
     }
 }

@@ -4,12 +4,10 @@
 //! several-contact engine and through the instrument; out of range it is
 //! refused naming the field.
 
-use modal_contact::compile::compile;
 use modal_contact::instrument::{
     prepare_scene, root_note, Event, Instrument, InstrumentParams, TimedEvent,
 };
-use modal_contact::multi::{render_multi, CompiledMulti, MultiModel};
-use modal_contact::render::render_compiled;
+use modal_contact::render::Compiled;
 use modal_contact::scene::Scene;
 use modal_testkit::scenes::preset;
 
@@ -29,26 +27,8 @@ fn at_level(name: &str, level_db: f64) -> Scene {
 
 /// Both channels of the scene as written, on the engine that runs it.
 fn engine_output(s: &Scene, n: usize) -> Vec<f64> {
-    if s.several_contacts() {
-        let model = MultiModel::from_scene(s, RATE).unwrap();
-        let sc = CompiledMulti::new(&model, RATE).unwrap();
-        let mut out = Vec::new();
-        render_multi(
-            &sc,
-            n,
-            |l, r| {
-                out.extend_from_slice(l);
-                out.extend_from_slice(r);
-                Ok(())
-            },
-            None,
-        )
-        .unwrap();
-        out
-    } else {
-        let r = render_compiled(&compile(s, RATE).unwrap(), n, false);
-        r.left.into_iter().chain(r.right).collect()
-    }
+    let r = Compiled::new(s, RATE, None).unwrap().render(n, false);
+    r.left.into_iter().chain(r.right).collect()
 }
 
 /// Both channels of one note at the scene's root through the instrument.

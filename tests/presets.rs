@@ -173,16 +173,15 @@ fn every_preset_compiles_and_renders_finite_audio() {
         assert_eq!(sc.name, stem, "preset name must equal the file stem");
         if sc.several_contacts() {
             // a kit: the several-contact engine, as `cargo xtask render`
-            use modal_contact::multi::{render_multi, CompiledMulti, MultiModel};
+            use modal_contact::render::Compiled;
             let rate = 44_100.0;
-            let m = MultiModel::from_scene(&sc, rate).unwrap_or_else(|e| panic!("{stem}: {e}"));
-            let c = CompiledMulti::new(&m, rate).unwrap_or_else(|e| panic!("{stem}: {e}"));
-            let out = render_multi(&c, (0.5 * rate) as usize, |_, _| Ok(()), None).unwrap();
-            let started: u64 = out.stats.contacts_started.iter().sum();
-            println!(
-                "{stem}: peak {:.3e}, contacts {:?}",
-                out.peak, out.stats.contacts_started
-            );
+            let c = Compiled::new(&sc, rate, None).unwrap_or_else(|e| panic!("{stem}: {e}"));
+            let out = c
+                .stream((0.5 * rate) as usize, |_, _| Ok(()), None)
+                .unwrap();
+            let per_contact = out.several.expect("several contacts").contacts_started;
+            let started = out.contacts;
+            println!("{stem}: peak {:.3e}, contacts {:?}", out.peak, per_contact);
             assert_eq!(out.nonfinite, 0, "{stem}: non-finite samples");
             assert!(out.peak > 1e-6, "{stem} is silent");
             assert!(started >= 1);

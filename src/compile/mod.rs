@@ -475,9 +475,10 @@ pub fn compile_opts(
         };
         return Err(CompileError::Scene(SceneError::new(
             key,
-            "a scene of several contacts runs on the several-contact engine (`cargo xtask \
-             render`, and the instrument plays it as a kit: docs/design.md \
-             \"Several contacts\"); this compiler and the report take one contact",
+            "a scene of several contacts runs on the several-contact engine \
+             (`render::Compiled::new` compiles either kind, `cargo xtask render` renders it, \
+             and the instrument plays it as a kit: docs/design.md \"Several contacts\"); \
+             this compiler and the report take one contact",
         )));
     }
     // 0. objects described by geometry and material become their modes at

@@ -8,10 +8,12 @@ use crate::plot;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use modal_contact::compile::{compile_with, CompiledScene};
+use modal_contact::compile::CompiledScene;
 use modal_contact::instrument::InstrumentParams;
+use modal_contact::multi::CompiledMulti;
 use modal_contact::render::{
-    render_length, render_stream, CsvTrace, NpyTrace, StreamStats, TraceEnvelope, TraceSink,
+    render_length, render_stream, Compiled, CsvTrace, NpyTrace, StreamStats, TraceEnvelope,
+    TraceSink,
 };
 use modal_contact::scene::{Scene, Switching};
 use rayon::prelude::*;
@@ -423,11 +425,49 @@ pub fn render_scene_to(
     out: &SceneOutputs,
     progress: &dyn Fn(u64),
 ) -> Result<StreamStats> {
+    render_outputs(compiled.rate_hz, 1, n, out, progress, |audio, trace| {
+        render_stream(compiled, n, audio, trace)
+    })
+}
+
+/// [`render_scene_to`] for a scene of any number of contacts: the trace
+/// gains a group of columns per further contact
+/// ([`modal_contact::render::trace_header`]), the plot shows contact 0's
+/// hammer and point with the total energy, shaded where any contact is
+/// closed.
+pub fn render_compiled_to(
+    compiled: &Compiled,
+    n: usize,
+    out: &SceneOutputs,
+    progress: &dyn Fn(u64),
+) -> Result<StreamStats> {
+    render_outputs(
+        compiled.rate_hz(),
+        compiled.contacts(),
+        n,
+        out,
+        progress,
+        |audio, trace| compiled.stream(n, audio, trace),
+    )
+}
+
+/// The outputs of a render of `contacts` contacts that `stream` runs.
+fn render_outputs(
+    rate_hz: f64,
+    contacts: usize,
+    n: usize,
+    out: &SceneOutputs,
+    progress: &dyn Fn(u64),
+    stream: impl FnOnce(
+        &mut dyn FnMut(&[f64], &[f64]) -> std::io::Result<()>,
+        Option<&mut dyn TraceSink>,
+    ) -> std::io::Result<StreamStats>,
+) -> Result<StreamStats> {
     let mut wav = match out.wav {
-        Some(p) => Some(FloatWav::create(p, compiled.rate_hz, n)?),
+        Some(p) => Some(FloatWav::create(p, rate_hz, n)?),
         None => None,
     };
-    let audio = |l: &[f64], r: &[f64]| -> std::io::Result<()> {
+    let mut audio = |l: &[f64], r: &[f64]| -> std::io::Result<()> {
         progress(l.len() as u64);
         match wav.as_mut() {
             Some(w) => w.write(l, r),
@@ -438,27 +478,30 @@ pub fn render_scene_to(
         Some(p) => {
             let f = create_trace_file(p)?;
             Some(match TraceFormat::of(p) {
-                TraceFormat::Csv => TraceFile::Csv(CsvTrace::new(compiled.rate_hz, f)?),
-                TraceFormat::Npy => TraceFile::Npy(NpyTrace::new(compiled.rate_hz, n, f)?),
+                TraceFormat::Csv if contacts == 1 => TraceFile::Csv(CsvTrace::new(rate_hz, f)?),
+                TraceFormat::Csv => TraceFile::Csv(CsvTrace::with_contacts(rate_hz, f, contacts)?),
+                TraceFormat::Npy => {
+                    TraceFile::Npy(NpyTrace::with_contacts(rate_hz, n, contacts, f)?)
+                }
             })
         }
         None => None,
     };
-    let env = out.plot.map(|_| TraceEnvelope::new(compiled.rate_hz, n));
+    let env = out.plot.map(|_| TraceEnvelope::new(rate_hz, n));
     let (stats, env) = match (trace, env) {
-        (None, None) => (render_stream(compiled, n, audio, None)?, None),
+        (None, None) => (stream(&mut audio, None)?, None),
         (Some(mut c), None) => {
-            let s = render_stream(compiled, n, audio, Some(&mut c as &mut dyn TraceSink))?;
+            let s = stream(&mut audio, Some(&mut c as &mut dyn TraceSink))?;
             c.finish()?;
             (s, None)
         }
         (None, Some(mut e)) => {
-            let s = render_stream(compiled, n, audio, Some(&mut e as &mut dyn TraceSink))?;
+            let s = stream(&mut audio, Some(&mut e as &mut dyn TraceSink))?;
             (s, Some(e))
         }
         (Some(c), Some(e)) => {
             let mut both = (c, e);
-            let s = render_stream(compiled, n, audio, Some(&mut both as &mut dyn TraceSink))?;
+            let s = stream(&mut audio, Some(&mut both as &mut dyn TraceSink))?;
             both.0.finish()?;
             (s, Some(both.1))
         }
@@ -519,19 +562,24 @@ impl TraceSink for TraceFile {
     ) -> std::io::Result<()> {
         self.sink_mut().record(i, m, e)
     }
+    fn record_several(
+        &mut self,
+        i: usize,
+        motions: &[modal_contact::engine::Motion],
+        e: Option<f64>,
+    ) -> std::io::Result<()> {
+        self.sink_mut().record_several(i, motions, e)
+    }
 }
 
 fn scene_job(job: &Job, a: &RenderArgs, progress: &dyn Fn(u64)) -> Result<JobReport> {
     let scene = load_scene(&job.scene_path)?;
-    if scene.several_contacts() {
-        return multi_scene_job(job, a, &scene, progress);
-    }
     let n = render_length(a.seconds.unwrap_or(scene.duration_s), a.rate)?;
     let t0 = Instant::now();
-    let compiled = compile_with(&scene, a.rate, a.switching.map(Switching::from))?;
+    let compiled = Compiled::new(&scene, a.rate, a.switching.map(Switching::from))?;
     let compile_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let stats = render_scene_to(
+    let stats = render_compiled_to(
         &compiled,
         n,
         &SceneOutputs {
@@ -545,8 +593,42 @@ fn scene_job(job: &Job, a: &RenderArgs, progress: &dyn Fn(u64)) -> Result<JobRep
     if stats.nonfinite > 0 {
         bail!("{} samples were not finite", stats.nonfinite);
     }
+    let run = Run {
+        n,
+        seconds: n as f64 / a.rate,
+        compile_s,
+        render_s,
+    };
+    Ok(match &compiled {
+        Compiled::One(c) => one_contact_report(job, a, &scene, c, &stats, &run),
+        Compiled::Several(c) => several_contacts_report(job, a, &scene, c, &stats, &run),
+    })
+}
+
+/// How long a scene job's compile and render took, and what it rendered.
+struct Run {
+    n: usize,
+    seconds: f64,
+    compile_s: f64,
+    render_s: f64,
+}
+
+/// The sidecar, the line and the summary of a one-contact render.
+fn one_contact_report(
+    job: &Job,
+    a: &RenderArgs,
+    scene: &Scene,
+    compiled: &CompiledScene,
+    stats: &StreamStats,
+    run: &Run,
+) -> JobReport {
+    let Run {
+        n,
+        seconds,
+        compile_s,
+        render_s,
+    } = *run;
     let x = &stats.exact_stats;
-    let seconds = n as f64 / a.rate;
     let json = json!({
         "scene": job.scene_path.display().to_string(),
         "scene_name": scene.name,
@@ -555,7 +637,7 @@ fn scene_job(job: &Job, a: &RenderArgs, progress: &dyn Fn(u64)) -> Result<JobRep
         "seconds": seconds,
         "samples": n,
         "switching": format!("{:?}", compiled.switching),
-        "compile": compile_json(&compiled, compile_s),
+        "compile": compile_json(compiled, compile_s),
         "contacts": stats.contacts,
         "exact_switching": {
             "located": x.located, "grazing": x.grazing, "capped": x.capped,
@@ -574,102 +656,34 @@ fn scene_job(job: &Job, a: &RenderArgs, progress: &dyn Fn(u64)) -> Result<JobRep
     );
     let switching_line = (stats.exact_stats != Default::default())
         .then(|| modal_contact::render::switching_line(&stats.exact_stats));
-    Ok(JobReport {
+    JobReport {
         json,
         line,
         switching_line,
         summary: compiled.summary.clone(),
-    })
+    }
 }
 
-/// A scene of several contacts (`[[striker]]`, docs/design.md "Several
-/// contacts"): compiled and run by the several-contact engine; the WAV, the
-/// trace CSV with a group of columns per further contact, the plot of
-/// contact 0's hammer and point with the total energy (shaded where any
-/// contact is closed), and the sidecar with each contact's count.
-fn multi_scene_job(
+/// The sidecar (each contact's count), the line and the summary of a
+/// several-contact render (docs/design.md "Several contacts").
+fn several_contacts_report(
     job: &Job,
     a: &RenderArgs,
     scene: &Scene,
-    progress: &dyn Fn(u64),
-) -> Result<JobReport> {
-    use modal_contact::multi::{
-        render_multi, CompiledMulti, MultiModel, MultiTraceCsv, MultiTraceNpy,
-    };
-    enum Trace {
-        Csv(MultiTraceCsv<BufWriter<std::fs::File>>),
-        Npy(MultiTraceNpy<BufWriter<std::fs::File>>),
-    }
-    let n = render_length(a.seconds.unwrap_or(scene.duration_s), a.rate)?;
-    let t0 = Instant::now();
-    let model = MultiModel::from_scene(scene, a.rate)?;
-    let switching = a
-        .switching
-        .map(Switching::from)
-        .or(scene.contact.switching)
-        .unwrap_or_default();
-    let compiled =
-        CompiledMulti::with_switching(&model, a.rate, switching).map_err(|e| e.in_scene(scene))?;
-    let compile_s = t0.elapsed().as_secs_f64();
-    let k = compiled.contacts();
-    let mut wav = FloatWav::create(&job.wav, a.rate, n)?;
-    let mut csv = match job.trace.as_deref() {
-        Some(p) => {
-            let f = create_trace_file(p)?;
-            Some(match TraceFormat::of(p) {
-                TraceFormat::Csv => Trace::Csv(MultiTraceCsv::new(f, a.rate, k)?),
-                TraceFormat::Npy => Trace::Npy(MultiTraceNpy::new(f, a.rate, k, n)?),
-            })
-        }
-        None => None,
-    };
-    let mut env = job.plot.as_ref().map(|_| TraceEnvelope::new(a.rate, n));
-    let t1 = Instant::now();
-    let watching = csv.is_some() || env.is_some();
-    let audio = |l: &[f64], r: &[f64]| {
-        progress(l.len() as u64);
-        wav.write(l, r)
-    };
-    let mut observe =
-        |i: usize, o: &modal_contact::multi::MultiObservation| -> std::io::Result<()> {
-            match csv.as_mut() {
-                Some(Trace::Csv(c)) => c.row(i, o)?,
-                Some(Trace::Npy(c)) => c.row(i, o)?,
-                None => {}
-            }
-            if let Some(e) = env.as_mut() {
-                let m = modal_contact::engine::Motion {
-                    x_hammer: o.x_hammer[0],
-                    v_hammer: o.v_hammer[0],
-                    x_contact: o.x_contact[0],
-                    v_contact: o.v_contact[0],
-                    in_contact: o.active != 0,
-                };
-                e.record(i, &m, Some(o.energy))?;
-            }
-            Ok(())
-        };
-    let stats = render_multi(
-        &compiled,
+    compiled: &CompiledMulti,
+    stats: &StreamStats,
+    run: &Run,
+) -> JobReport {
+    let Run {
         n,
-        audio,
-        watching.then_some(&mut observe as &mut dyn FnMut(usize, &_) -> std::io::Result<()>),
-    )?;
-    let render_s = t1.elapsed().as_secs_f64();
-    wav.finish()?;
-    match csv {
-        Some(Trace::Csv(c)) => c.finish()?,
-        Some(Trace::Npy(c)) => c.finish()?,
-        None => {}
-    }
-    if let (Some(e), Some(path)) = (env, job.plot.as_deref()) {
-        plot::plot_envelope(&e, &scene.name, path)?;
-    }
-    if stats.nonfinite > 0 {
-        bail!("{} samples were not finite", stats.nonfinite);
-    }
-    let x = &stats.stats;
-    let seconds = n as f64 / a.rate;
+        seconds,
+        compile_s,
+        render_s,
+    } = *run;
+    let k = compiled.contacts();
+    let model = &compiled.model;
+    let x = &stats.several.expect("a several-contact render");
+
     let starts = &x.contacts_started[..k];
     let json = json!({
         "scene": job.scene_path.display().to_string(),
@@ -714,7 +728,7 @@ fn multi_scene_job(
         compiled.max_dim(),
         compiled.kappa()
     );
-    Ok(JobReport {
+    JobReport {
         json,
         line,
         switching_line: Some(format!(
@@ -722,7 +736,7 @@ fn multi_scene_job(
             x.switches, x.grazing, x.evaluations, x.capped, x.uncertified
         )),
         summary,
-    })
+    }
 }
 
 fn compile_json(c: &CompiledScene, seconds: f64) -> serde_json::Value {

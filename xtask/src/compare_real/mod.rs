@@ -283,31 +283,10 @@ fn file_name(p: &Path) -> String {
 /// scene as written, one or several contacts), the two channels mixed to
 /// mono.
 fn render_mono(scene: &Scene, seconds: f64) -> Result<Vec<f64>> {
-    use modal_contact::render::{render_compiled, render_length};
+    use modal_contact::render::{render_length, Compiled};
     let n = render_length(seconds, RATE_HZ)?;
-    let (l, r) = if scene.several_contacts() {
-        use modal_contact::multi::{render_multi, CompiledMulti, MultiModel};
-        let model = MultiModel::from_scene(scene, RATE_HZ)?;
-        let switching = scene.contact.switching.unwrap_or_default();
-        let compiled = CompiledMulti::with_switching(&model, RATE_HZ, switching)
-            .map_err(|e| e.in_scene(scene))?;
-        let (mut l, mut r) = (Vec::with_capacity(n), Vec::with_capacity(n));
-        render_multi(
-            &compiled,
-            n,
-            |a, b| {
-                l.extend_from_slice(a);
-                r.extend_from_slice(b);
-                Ok(())
-            },
-            None,
-        )?;
-        (l, r)
-    } else {
-        let compiled = modal_contact::compile::compile_with(scene, RATE_HZ, None)?;
-        let out = render_compiled(&compiled, n, false);
-        (out.left, out.right)
-    };
+    let out = Compiled::new(scene, RATE_HZ, None)?.render(n, false);
+    let (l, r) = (out.left, out.right);
     let mono: Vec<f64> = l.iter().zip(&r).map(|(a, b)| 0.5 * (a + b)).collect();
     if mono.iter().any(|x| !x.is_finite()) {
         bail!("the render is not finite");
