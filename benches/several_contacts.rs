@@ -1,4 +1,4 @@
-//! Criterion benchmark of the several-contact engine (`src/multi.rs`,
+//! Criterion benchmark of the several-contact engine (`src/multi/`,
 //! docs/numerics.md section 14): the cost of one switch with 2, 3 and 4
 //! contacts on a 100-mode object, as the difference between a sample in
 //! which a hammer meets the object (the event search and the change of
