@@ -668,6 +668,44 @@ fn multi_scene_job(
     if stats.nonfinite > 0 {
         bail!("{} samples were not finite", stats.nonfinite);
     }
+    let run = MultiRun {
+        n,
+        compile_s,
+        render_s,
+        stats,
+    };
+    Ok(multi_job_report(job, a, scene, &model, &compiled, &run))
+}
+
+/// What a several-contact render measured, for its report.
+struct MultiRun {
+    /// Samples rendered.
+    n: usize,
+    /// Compile time \[s\].
+    compile_s: f64,
+    /// Render time \[s\].
+    render_s: f64,
+    /// The engine's counters and the output's peak.
+    stats: modal_contact::multi::MultiRenderStats,
+}
+
+/// The sidecar, the line and the summary of the several-contact render
+/// `run` of `scene` (its model `model`, compiled as `compiled`).
+fn multi_job_report(
+    job: &Job,
+    a: &RenderArgs,
+    scene: &Scene,
+    model: &modal_contact::multi::MultiModel,
+    compiled: &modal_contact::multi::CompiledMulti,
+    run: &MultiRun,
+) -> JobReport {
+    let MultiRun {
+        n,
+        compile_s,
+        render_s,
+        ref stats,
+    } = *run;
+    let k = compiled.contacts();
     let x = &stats.stats;
     let seconds = n as f64 / a.rate;
     let starts = &x.contacts_started[..k];
@@ -714,7 +752,7 @@ fn multi_scene_job(
         compiled.max_dim(),
         compiled.kappa()
     );
-    Ok(JobReport {
+    JobReport {
         json,
         line,
         switching_line: Some(format!(
@@ -722,7 +760,7 @@ fn multi_scene_job(
             x.switches, x.grazing, x.evaluations, x.capped, x.uncertified
         )),
         summary,
-    })
+    }
 }
 
 fn compile_json(c: &CompiledScene, seconds: f64) -> serde_json::Value {
