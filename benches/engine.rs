@@ -442,6 +442,20 @@ fn summary(_c: &mut Criterion) {
         path
     );
     let n_samp = 44100;
+    summary_kernels(n_samp);
+    summary_switch();
+    summary_event_search();
+    presets_at_every_hardness();
+    summary_renders();
+    let sc = compile_with(&modal_scene(200, false), RATE, Some(Switching::Exact)).unwrap();
+    summary_voices(&sc);
+    summary_compile();
+    summary_subnormal(&sc, n_samp);
+}
+
+/// The engine's time per mode and sample against the naive dense
+/// baseline's, in flight and in contact, over `n_samp` samples.
+fn summary_kernels(n_samp: usize) {
     for contact in [false, true] {
         for n in [10usize, 100, 1000] {
             let sc = compile_with(&modal_scene(n, contact), RATE, Some(Switching::Exact)).unwrap();
@@ -471,6 +485,11 @@ fn summary(_c: &mut Criterion) {
             );
         }
     }
+}
+
+/// The cost of a switch at 100 modes: the change of basis alone, and a
+/// whole sample with a located impact.
+fn summary_switch() {
     let sc = compile_with(&modal_scene(100, false), RATE, Some(Switching::Exact)).unwrap();
     let mut st = engine_in(&sc, false);
     let ts = median_time(5, || {
@@ -505,6 +524,11 @@ fn summary(_c: &mut Criterion) {
         times[1000] * 1e6,
         t_plain * 1e6
     );
+}
+
+/// The exact event search's worst sample in 50 ms of rattling, at 10 and
+/// 100 modes and three contact stiffnesses.
+fn summary_event_search() {
     println!("exact event search, worst sample of 50 ms of rattling (a 10 g hammer dropped 1 mm, critically damped contact):");
     for n in [10usize, 100] {
         for ratio in [10.0, 100.0, 1000.0] {
@@ -532,7 +556,10 @@ fn summary(_c: &mut Criterion) {
             );
         }
     }
-    presets_at_every_hardness();
+}
+
+/// The paper's two presets rendered whole, against real time.
+fn summary_renders() {
     for name in ["paper-bounce", "paper-string"] {
         let scene = preset(name);
         let sc = compile_with(&scene, RATE, None).unwrap();
@@ -548,15 +575,24 @@ fn summary(_c: &mut Criterion) {
             secs / t
         );
     }
-    let sc = compile_with(&modal_scene(200, false), RATE, Some(Switching::Exact)).unwrap();
-    let mut vs = sixteen_voices(&sc);
+}
+
+/// Sixteen voices of the 200-mode scene `sc`: the share of one core they
+/// take in real time.
+fn summary_voices(sc: &CompiledScene) {
+    let mut vs = sixteen_voices(sc);
     let t = median_time(5, || {
-        black_box(run_voices(&mut vs, &sc, 44100));
+        black_box(run_voices(&mut vs, sc, 44100));
     });
     println!(
         "16 voices x 200 modes: {:.1} % of one core for real time",
         t * 100.0
     );
+}
+
+/// The compile time of a modal object and its contact system, at 100, 400
+/// and 1000 modes.
+fn summary_compile() {
     for (n, runs) in [(100usize, 5usize), (400, 3), (1000, 1)] {
         let scene = modal_scene(n, false);
         let t = median_time(runs, || {
@@ -567,10 +603,15 @@ fn summary(_c: &mut Criterion) {
             if runs == 1 { " (one run)" } else { "" }
         );
     }
+}
+
+/// The 200-mode scene `sc` decaying in the subnormal range, with and
+/// without the flush, over `n_samp` samples.
+fn summary_subnormal(sc: &CompiledScene, n_samp: usize) {
     let per_mode = |flush: bool| {
-        let mut st = subnormal_tail(&sc, flush);
+        let mut st = subnormal_tail(sc, flush);
         median_time(5, || {
-            black_box(run_engine(&mut st, &sc, n_samp));
+            black_box(run_engine(&mut st, sc, n_samp));
         }) / (n_samp * 200) as f64
             * 1e9
     };

@@ -347,8 +347,25 @@ fn check_scene_text(
     stats: &RefCell<Stats>,
 ) -> Result<(), TestCaseError> {
     stats.borrow_mut().cases += 1;
+    let Some(scene) = parse_scene_text(text, stats)? else {
+        return Ok(());
+    };
+    stats.borrow_mut().accepted_scenes += 1;
+    check_round_trip(text, &scene)?;
+    for (rate, scale) in [(44100.0, 1.0), (other_rate, 0.5)] {
+        let Some(compiled) = compile_scene_text(text, &scene, rate, stats)? else {
+            continue;
+        };
+        run_compiled(text, &compiled, rate, scale, samples_scale, stats)?;
+    }
+    Ok(())
+}
+
+/// Parse `text`: the scene, or `None` when it is refused with a message
+/// that names its field and gives a reason (counted in `stats`).
+fn parse_scene_text(text: &str, stats: &RefCell<Stats>) -> Result<Option<Scene>, TestCaseError> {
     let parsed = guard("Scene::from_toml_str", text, || Scene::from_toml_str(text))?;
-    let scene = match parsed {
+    match parsed {
         Err(e) => {
             let shown = e.to_string();
             if e.reason.trim().is_empty() || shown.trim().is_empty() {
@@ -369,95 +386,114 @@ fn check_scene_text(
                 category(&shown)
             };
             *stats.borrow_mut().parse_refused.entry(key).or_default() += 1;
-            return Ok(());
+            Ok(None)
         }
-        Ok(s) => s,
-    };
-    stats.borrow_mut().accepted_scenes += 1;
+        Ok(s) => Ok(Some(s)),
+    }
+}
 
-    // a validated scene serialises and reads back as the same scene
+/// A validated scene serialises and reads back as the same scene.
+fn check_round_trip(text: &str, scene: &Scene) -> Result<(), TestCaseError> {
     let back = guard("Scene::to_toml_string", text, || scene.to_toml_string())?;
     match guard("re-parse", &back, || Scene::from_toml_str(&back))? {
-        Ok(s2) if s2 == scene => {}
-        Ok(_) => return Err(fail(text, format!("round trip changed the scene:\n{back}"))),
-        Err(e) => return Err(fail(text, format!("round trip refused: {e}\n{back}"))),
+        Ok(s2) if s2 == *scene => Ok(()),
+        Ok(_) => Err(fail(text, format!("round trip changed the scene:\n{back}"))),
+        Err(e) => Err(fail(text, format!("round trip refused: {e}\n{back}"))),
     }
+}
 
-    for (rate, scale) in [(44100.0, 1.0), (other_rate, 0.5)] {
-        let t0 = Instant::now();
-        let compiled = guard(&format!("compile at {rate} Hz"), text, || {
-            compile_opts(
-                &scene,
-                rate,
-                Some(Switching::Exact),
-                &CompileOptions::default(),
+/// Compile `scene` at `rate` \[Hz\]: the compiled scene, or `None` when it
+/// is refused quickly with a reason (counted in `stats`, with an example).
+fn compile_scene_text(
+    text: &str,
+    scene: &Scene,
+    rate: f64,
+    stats: &RefCell<Stats>,
+) -> Result<Option<CompiledScene>, TestCaseError> {
+    let t0 = Instant::now();
+    let compiled = guard(&format!("compile at {rate} Hz"), text, || {
+        compile_opts(
+            scene,
+            rate,
+            Some(Switching::Exact),
+            &CompileOptions::default(),
+        )
+    })?;
+    let compiled = match compiled {
+        Err(e) => {
+            let msg = e.to_string();
+            let reason = msg.trim_start_matches("cannot compile scene: ");
+            if reason.trim().len() < 8 {
+                return Err(fail(
+                    text,
+                    format!("compile error without a reason: {msg:?}"),
+                ));
+            }
+            let elapsed = t0.elapsed().as_secs_f64();
+            if elapsed > 5.0 {
+                return Err(fail(
+                    text,
+                    format!("refusing took {elapsed:.1} s (must be quick): {msg}"),
+                ));
+            }
+            let mut st = stats.borrow_mut();
+            let cat = format!("{} ({})", category(reason), e.kind());
+            *st.compile_refused.entry(cat.clone()).or_default() += 1;
+            st.compile_examples
+                .entry(cat)
+                .or_insert_with(|| format!("{msg}\n{}", show(text)));
+            return Ok(None);
+        }
+        Ok(c) => c,
+    };
+    let mut s = stats.borrow_mut();
+    s.compiled += 1;
+    s.dense_phases +=
+        compiled.free.dense.is_some() as usize + compiled.contact.dense.is_some() as usize;
+    Ok(Some(compiled))
+}
+
+/// Run `compiled` (at `rate` \[Hz\]) with each switching method it allows,
+/// for the run lengths scaled by `scale` and `samples_scale`.
+fn run_compiled(
+    text: &str,
+    compiled: &CompiledScene,
+    rate: f64,
+    scale: f64,
+    samples_scale: f64,
+    stats: &RefCell<Stats>,
+) -> Result<(), TestCaseError> {
+    let switchings = if compiled.switching == Switching::Exact {
+        vec![Switching::Exact, Switching::OffsetRod]
+    } else {
+        // the compiler chose the rod (large dense fallback phase)
+        vec![Switching::OffsetRod]
+    };
+    for sw in switchings {
+        let mut c = compiled.clone();
+        c.switching = sw;
+        let pre = (PRE_SAMPLES as f64 * scale * samples_scale) as usize;
+        let post = (POST_SAMPLES as f64 * scale * samples_scale) as usize;
+        let r = guard(
+            &format!("engine at {rate} Hz, {}", sw.as_str()),
+            text,
+            || run_engine(&c, pre, post),
+        )?
+        .map_err(|e| {
+            fail(
+                text,
+                format!(
+                    "engine run at {rate} Hz, switching {}: {e}\n--- compile summary ---\n{}",
+                    sw.as_str(),
+                    c.summary
+                ),
             )
         })?;
-        let compiled = match compiled {
-            Err(e) => {
-                let msg = e.to_string();
-                let reason = msg.trim_start_matches("cannot compile scene: ");
-                if reason.trim().len() < 8 {
-                    return Err(fail(
-                        text,
-                        format!("compile error without a reason: {msg:?}"),
-                    ));
-                }
-                let elapsed = t0.elapsed().as_secs_f64();
-                if elapsed > 5.0 {
-                    return Err(fail(
-                        text,
-                        format!("refusing took {elapsed:.1} s (must be quick): {msg}"),
-                    ));
-                }
-                let mut st = stats.borrow_mut();
-                let cat = format!("{} ({})", category(reason), e.kind());
-                *st.compile_refused.entry(cat.clone()).or_default() += 1;
-                st.compile_examples
-                    .entry(cat)
-                    .or_insert_with(|| format!("{msg}\n{}", show(text)));
-                continue;
-            }
-            Ok(c) => c,
-        };
-        {
-            let mut s = stats.borrow_mut();
-            s.compiled += 1;
-            s.dense_phases +=
-                compiled.free.dense.is_some() as usize + compiled.contact.dense.is_some() as usize;
-        }
-        let switchings = if compiled.switching == Switching::Exact {
-            vec![Switching::Exact, Switching::OffsetRod]
-        } else {
-            // the compiler chose the rod (large dense fallback phase)
-            vec![Switching::OffsetRod]
-        };
-        for sw in switchings {
-            let mut c = compiled.clone();
-            c.switching = sw;
-            let pre = (PRE_SAMPLES as f64 * scale * samples_scale) as usize;
-            let post = (POST_SAMPLES as f64 * scale * samples_scale) as usize;
-            let r = guard(
-                &format!("engine at {rate} Hz, {}", sw.as_str()),
-                text,
-                || run_engine(&c, pre, post),
-            )?
-            .map_err(|e| {
-                fail(
-                    text,
-                    format!(
-                        "engine run at {rate} Hz, switching {}: {e}\n--- compile summary ---\n{}",
-                        sw.as_str(),
-                        c.summary
-                    ),
-                )
-            })?;
-            let mut s = stats.borrow_mut();
-            s.runs += 1;
-            s.samples += r.samples;
-            s.contacts += r.contacts;
-            s.worst_rise_over_bound = s.worst_rise_over_bound.max(r.worst);
-        }
+        let mut s = stats.borrow_mut();
+        s.runs += 1;
+        s.samples += r.samples;
+        s.contacts += r.contacts;
+        s.worst_rise_over_bound = s.worst_rise_over_bound.max(r.worst);
     }
     Ok(())
 }
@@ -567,15 +603,23 @@ struct GenScene {
     hammer: (f64, f64, Option<f64>, Option<f64>),
     /// object index, point index, fault (0 none, 1 unknown object,
     /// 2 missing point, 3 unknown point), k, c, switching.
-    contact: (usize, usize, u8, f64, Option<f64>, Option<&'static str>),
+    contact: GenContact,
     /// object index, point index, quantity, gain, pan.
     pickups: Vec<GenPickup>,
-    approx: Option<(Option<f64>, Option<f64>, Option<f64>)>,
+    approx: Option<GenApprox>,
     other_rate: f64,
     extra_key: bool,
     /// The scene's `level_db` (omitted: 0 dB).
     level_db: Option<f64>,
 }
+
+/// The contact: object index, point index, fault (0 none, 1 unknown
+/// object, 2 missing point, 3 unknown point), k, c, switching.
+type GenContact = (usize, usize, u8, f64, Option<f64>, Option<&'static str>);
+
+/// The `[approximate]` table: max_freq_hz, nyquist_fraction,
+/// quiet_below_db.
+type GenApprox = (Option<f64>, Option<f64>, Option<f64>);
 
 /// A pickup: object index, point index, quantity, gain, pan.
 type GenPickup = (usize, usize, Option<&'static str>, Option<f64>, Option<f64>);
@@ -674,8 +718,9 @@ fn object_strategy() -> BoxedStrategy<GenObj> {
     .boxed()
 }
 
-fn scene_strategy() -> BoxedStrategy<GenScene> {
-    let hammer = (
+/// The hammer: mass \[kg\], height \[m\], velocity [m/s], gravity [m/s^2].
+fn hammer_strategy() -> impl Strategy<Value = (f64, f64, Option<f64>, Option<f64>)> {
+    (
         num(
             logu(1e-4, 1.0),
             &[MIN_MASS_KG, MAX_MASS_KG, 0.5e-12, 1e-9, 1e4],
@@ -698,8 +743,12 @@ fn scene_strategy() -> BoxedStrategy<GenScene> {
             ),
             60,
         ),
-    );
-    let contact = (
+    )
+}
+
+/// The contact, as [`GenScene::contact`].
+fn contact_strategy() -> impl Strategy<Value = GenContact> {
+    (
         0usize..3,
         0usize..3,
         prop_oneof![40 => Just(0u8), 1 => Just(1u8), 1 => Just(2u8), 1 => Just(3u8)],
@@ -719,8 +768,12 @@ fn scene_strategy() -> BoxedStrategy<GenScene> {
             prop_oneof![20 => Just("exact"), 20 => Just("offset-rod"), 1 => Just("bogus")].boxed(),
             50,
         ),
-    );
-    let pickup = (
+    )
+}
+
+/// A pickup, as [`GenPickup`].
+fn pickup_strategy() -> impl Strategy<Value = GenPickup> {
+    (
         0usize..3,
         0usize..3,
         opt(
@@ -730,8 +783,12 @@ fn scene_strategy() -> BoxedStrategy<GenScene> {
         ),
         opt(num(uni(-2.0, 2.0), &[MAX_GAIN, -MAX_GAIN]), 70),
         opt(num(uni(-1.0, 1.0), &[1.0, -1.0, 1.0000001]), 50),
-    );
-    let approx = opt(
+    )
+}
+
+/// The `[approximate]` table, as [`GenScene::approx`].
+fn approx_strategy() -> BoxedStrategy<Option<GenApprox>> {
+    opt(
         (
             opt(num(logu(100.0, 20_000.0), &[1e-9]), 50),
             opt(num(uni(0.1, 1.5), &[1e-9, 1e9]), 50),
@@ -739,8 +796,12 @@ fn scene_strategy() -> BoxedStrategy<GenScene> {
         )
             .boxed(),
         12,
-    );
-    let head = (
+    )
+}
+
+/// Version, duration, objects and name fault of a [`GenScene`].
+fn head_strategy() -> impl Strategy<Value = (i64, Option<f64>, Vec<GenObj>, u8)> {
+    (
         prop_oneof![60 => Just(1i64), 1 => select(&[0i64, 2, -1][..])],
         opt(num(uni(0.1, 3.0), &[1e-9, MAX_DURATION_S]), 30),
         prop_oneof![
@@ -748,13 +809,16 @@ fn scene_strategy() -> BoxedStrategy<GenScene> {
             60 => prop::collection::vec(object_strategy(), 1..=3),
         ],
         prop_oneof![40 => Just(0u8), 1 => Just(1u8), 1 => Just(2u8)],
-    );
+    )
+}
+
+fn scene_strategy() -> BoxedStrategy<GenScene> {
     (
-        head,
-        hammer,
-        contact,
-        prop::collection::vec(pickup, 0..=3),
-        approx,
+        head_strategy(),
+        hammer_strategy(),
+        contact_strategy(),
+        prop::collection::vec(pickup_strategy(), 0..=3),
+        approx_strategy(),
         select(&[8000.0, 192_000.0][..]),
         prop_oneof![100 => Just(false), 1 => Just(true)],
         opt(
@@ -802,6 +866,15 @@ fn points_of(o: &GenObj) -> Vec<&'static str> {
     }
 }
 
+/// The name of object `i` (with the scene's name fault).
+fn object_name(g: &GenScene, i: usize) -> String {
+    match (g.name_fault, i) {
+        (1, 1) => "o0".into(),
+        (2, 0) => String::new(),
+        _ => format!("o{i}"),
+    }
+}
+
 fn render(g: &GenScene) -> String {
     use std::fmt::Write;
     let mut t = String::new();
@@ -812,96 +885,104 @@ fn render(g: &GenScene) -> String {
     if let Some(l) = g.level_db {
         let _ = writeln!(t, "level_db = {}", tf(l));
     }
-    let name = |i: usize| -> String {
-        match (g.name_fault, i) {
-            (1, 1) => "o0".into(),
-            (2, 0) => String::new(),
-            _ => format!("o{i}"),
-        }
-    };
-    let huge = g.objects.iter().any(|o| matches!(o, GenObj::HugeModal(_)));
     for (i, o) in g.objects.iter().enumerate() {
-        let _ = writeln!(t, "\n[[object]]\nname = {:?}", name(i));
-        match o {
-            GenObj::Wall => {
-                let _ = writeln!(t, "kind = \"wall\"");
-            }
-            GenObj::Modal {
-                n_points,
-                weight_len_delta,
-                modes,
-            } => {
-                let pts: Vec<String> = POINT_NAMES[..*n_points]
-                    .iter()
-                    .map(|p| format!("{p:?}"))
-                    .collect();
-                let _ = writeln!(t, "kind = \"modal\"\npoints = [{}]", pts.join(", "));
-                let nw = (*n_points as i64 + weight_len_delta).clamp(0, 4) as usize;
-                for m in modes {
-                    let _ = writeln!(t, "[[object.mode]]\nfreq_hz = {}", tf(m.freq));
-                    if let Some(x) = m.t60 {
-                        let _ = writeln!(t, "t60_s = {}", tf(x));
-                    }
-                    let w: Vec<String> = m.weights[..nw].iter().map(|x| tf(*x)).collect();
-                    let _ = writeln!(t, "weights = [{}]", w.join(", "));
+        let _ = writeln!(t, "\n[[object]]\nname = {:?}", object_name(g, i));
+        render_object(&mut t, o);
+    }
+    render_hammer(&mut t, g);
+    render_contact(&mut t, g);
+    render_pickups(&mut t, g);
+    render_approx(&mut t, g);
+    t
+}
+
+/// The `[[object]]` table's lines after its name.
+fn render_object(t: &mut String, o: &GenObj) {
+    use std::fmt::Write;
+    match o {
+        GenObj::Wall => {
+            let _ = writeln!(t, "kind = \"wall\"");
+        }
+        GenObj::Modal {
+            n_points,
+            weight_len_delta,
+            modes,
+        } => {
+            let pts: Vec<String> = POINT_NAMES[..*n_points]
+                .iter()
+                .map(|p| format!("{p:?}"))
+                .collect();
+            let _ = writeln!(t, "kind = \"modal\"\npoints = [{}]", pts.join(", "));
+            let nw = (*n_points as i64 + weight_len_delta).clamp(0, 4) as usize;
+            for m in modes {
+                let _ = writeln!(t, "[[object.mode]]\nfreq_hz = {}", tf(m.freq));
+                if let Some(x) = m.t60 {
+                    let _ = writeln!(t, "t60_s = {}", tf(x));
                 }
+                let w: Vec<String> = m.weights[..nw].iter().map(|x| tf(*x)).collect();
+                let _ = writeln!(t, "weights = [{}]", w.join(", "));
             }
-            GenObj::HugeModal(n) => {
-                let _ = writeln!(t, "kind = \"modal\"\npoints = [\"c\", \"p\"]");
-                for k in 0..*n {
-                    let f = 100.0 * (1.0 + (k % 997) as f64);
-                    let _ = writeln!(
-                        t,
-                        "[[object.mode]]\nfreq_hz = {f}\nt60_s = 1.0\nweights = [1.0, -0.5]"
-                    );
-                }
-            }
-            GenObj::Str {
-                masses,
-                mass_kg,
-                spring,
-                alpha,
-                beta,
-                dashpots,
-                points,
-            } => {
+        }
+        GenObj::HugeModal(n) => {
+            let _ = writeln!(t, "kind = \"modal\"\npoints = [\"c\", \"p\"]");
+            for k in 0..*n {
+                let f = 100.0 * (1.0 + (k % 997) as f64);
                 let _ = writeln!(
                     t,
-                    "kind = \"string\"\nmasses = {masses}\nmass_kg = {}\nspring_n_per_m = {}",
-                    tf(*mass_kg),
-                    tf(*spring)
+                    "[[object.mode]]\nfreq_hz = {f}\nt60_s = 1.0\nweights = [1.0, -0.5]"
                 );
-                if let Some(a) = alpha {
-                    let _ = writeln!(t, "rayleigh_alpha_per_s = {}", tf(*a));
-                }
-                if let Some(b) = beta {
-                    let _ = writeln!(t, "rayleigh_beta_s = {}", tf(*b));
-                }
-                // indices are drawn in 0..40; fold them into the string
-                // (-1 and the occasional too-large index stay faults)
-                let fold = |j: i64| -> i64 {
-                    if j < 0 || *masses <= 0 {
-                        j
-                    } else if j >= 38 {
-                        *masses // one past the end
-                    } else {
-                        j % *masses
-                    }
-                };
-                let d: Vec<String> = dashpots
-                    .iter()
-                    .map(|(m, c)| format!("{{ mass = {}, n_s_per_m = {} }}", fold(*m), tf(*c)))
-                    .collect();
-                let _ = writeln!(t, "dashpots = [{}]", d.join(", "));
-                let p: Vec<String> = points
-                    .iter()
-                    .enumerate()
-                    .map(|(k, j)| format!("{} = {}", POINT_NAMES[k], fold(*j)))
-                    .collect();
-                let _ = writeln!(t, "points = {{ {} }}", p.join(", "));
             }
         }
+        GenObj::Str {
+            masses,
+            mass_kg,
+            spring,
+            alpha,
+            beta,
+            dashpots,
+            points,
+        } => {
+            let _ = writeln!(
+                t,
+                "kind = \"string\"\nmasses = {masses}\nmass_kg = {}\nspring_n_per_m = {}",
+                tf(*mass_kg),
+                tf(*spring)
+            );
+            if let Some(a) = alpha {
+                let _ = writeln!(t, "rayleigh_alpha_per_s = {}", tf(*a));
+            }
+            if let Some(b) = beta {
+                let _ = writeln!(t, "rayleigh_beta_s = {}", tf(*b));
+            }
+            // indices are drawn in 0..40; fold them into the string
+            // (-1 and the occasional too-large index stay faults)
+            let fold = |j: i64| -> i64 {
+                if j < 0 || *masses <= 0 {
+                    j
+                } else if j >= 38 {
+                    *masses // one past the end
+                } else {
+                    j % *masses
+                }
+            };
+            let d: Vec<String> = dashpots
+                .iter()
+                .map(|(m, c)| format!("{{ mass = {}, n_s_per_m = {} }}", fold(*m), tf(*c)))
+                .collect();
+            let _ = writeln!(t, "dashpots = [{}]", d.join(", "));
+            let p: Vec<String> = points
+                .iter()
+                .enumerate()
+                .map(|(k, j)| format!("{} = {}", POINT_NAMES[k], fold(*j)))
+                .collect();
+            let _ = writeln!(t, "points = {{ {} }}", p.join(", "));
+        }
     }
+}
+
+/// The `[hammer]` table.
+fn render_hammer(t: &mut String, g: &GenScene) {
+    use std::fmt::Write;
     let (m, h, v, gr) = g.hammer;
     let _ = writeln!(t, "\n[hammer]\nmass_kg = {}\nheight_m = {}", tf(m), tf(h));
     if let Some(v) = v {
@@ -913,6 +994,12 @@ fn render(g: &GenScene) -> String {
     if g.extra_key {
         let _ = writeln!(t, "colour = \"red\"");
     }
+}
+
+/// The `[contact]` table.
+fn render_contact(t: &mut String, g: &GenScene) {
+    use std::fmt::Write;
+    let m = g.hammer.0;
     let (oi, pi, fault, k, c, sw) = g.contact;
     let n_obj = g.objects.len().max(1);
     let cobj = g.objects.get(oi % n_obj);
@@ -922,7 +1009,7 @@ fn render(g: &GenScene) -> String {
         if fault == 1 || cobj.is_none() {
             "nowhere".to_string()
         } else {
-            name(oi % n_obj)
+            object_name(g, oi % n_obj)
         }
     );
     let cpts = cobj.map(points_of).unwrap_or_default();
@@ -949,6 +1036,12 @@ fn render(g: &GenScene) -> String {
     if let Some(sw) = sw {
         let _ = writeln!(t, "switching = {sw:?}");
     }
+}
+
+/// The `[[pickup]]` tables.
+fn render_pickups(t: &mut String, g: &GenScene) {
+    use std::fmt::Write;
+    let n_obj = g.objects.len().max(1);
     for (oi, pi, q, gain, pan) in &g.pickups {
         let Some(o) = g.objects.get(oi % n_obj) else {
             continue;
@@ -962,7 +1055,7 @@ fn render(g: &GenScene) -> String {
         let _ = writeln!(
             t,
             "\n[[pickup]]\nobject = {:?}\npoint = {point:?}",
-            name(oi % n_obj)
+            object_name(g, oi % n_obj)
         );
         if let Some(q) = q {
             let _ = writeln!(t, "quantity = {q:?}");
@@ -974,6 +1067,12 @@ fn render(g: &GenScene) -> String {
             let _ = writeln!(t, "pan = {}", tf(*x));
         }
     }
+}
+
+/// The `[approximate]` table, if any.
+fn render_approx(t: &mut String, g: &GenScene) {
+    use std::fmt::Write;
+    let huge = g.objects.iter().any(|o| matches!(o, GenObj::HugeModal(_)));
     // (no approximations next to a huge object: they could prune it down to
     // a size that compiles, for a long time)
     if let (Some((f, nf, q)), false) = (g.approx, huge) {
@@ -988,7 +1087,6 @@ fn render(g: &GenScene) -> String {
             let _ = writeln!(t, "quiet_below_db = {}", tf(x));
         }
     }
-    t
 }
 
 fn runner(cases: u32, seed: u64) -> TestRunner {
@@ -1231,7 +1329,14 @@ fn string_text(masses: usize) -> String {
 /// scene-file limits are refused by validation.
 #[test]
 fn too_big_scenes_are_refused_fast_with_a_message() {
-    // over the scene-file limits: validation refuses (after parsing the text)
+    over_the_file_limits_is_refused_by_validation();
+    over_the_compile_budget_is_refused_before_any_work();
+    the_budget_is_an_option();
+    equal_modes_over_the_general_budget_are_refused_saying_both();
+}
+
+/// Over the scene-file limits: validation refuses (after parsing the text).
+fn over_the_file_limits_is_refused_by_validation() {
     for (label, text, want) in [
         (
             "1e5 modes",
@@ -1254,8 +1359,11 @@ fn too_big_scenes_are_refused_fast_with_a_message() {
         assert_eq!(e, want);
         assert!(dt < 5.0, "{label}: refusing took {dt} s");
     }
-    // valid scene files, over the compile budget: refused before any O(d^3)
-    // work (each of these would take minutes and gigabytes)
+}
+
+/// Valid scene files, over the compile budget: refused before any O(d^3)
+/// work (each of these would take minutes and gigabytes).
+fn over_the_compile_budget_is_refused_before_any_work() {
     for (label, text, want) in [
         (
             "2000-mass string",
@@ -1293,8 +1401,11 @@ fn too_big_scenes_are_refused_fast_with_a_message() {
         assert!(e.contains(want), "{label}: {e}");
         assert!(dt < 5.0, "{label}: refusing took {dt} s");
     }
-    // the budget is an option: a tiny one refuses a small scene, which the
-    // default compiles, and the message says how to raise it
+}
+
+/// The budget is an option: a tiny one refuses a small scene, which the
+/// default compiles, and the message says how to raise it.
+fn the_budget_is_an_option() {
     let small = Scene::from_toml_str(&modal_text(20, 1)).unwrap();
     let tiny = CompileOptions {
         budget: CompileBudget {
@@ -1313,11 +1424,13 @@ fn too_big_scenes_are_refused_fast_with_a_message() {
     );
     assert!(e.contains("CompileOptions::budget"), "{e}");
     compile_opts(&small, 44100.0, None, &CompileOptions::default()).unwrap();
+}
 
-    // The budget admits a modal object for the rank-one secular route. If
-    // that route fails (two equal modes), the general eigensolver takes
-    // over only if it fits the budget too; otherwise the scene is refused,
-    // saying both.
+/// The budget admits a modal object for the rank-one secular route. If
+/// that route fails (two equal modes), the general eigensolver takes over
+/// only if it fits the budget too; otherwise the scene is refused, saying
+/// both.
+fn equal_modes_over_the_general_budget_are_refused_saying_both() {
     let mut freq_lines = 0;
     let twins: String = modal_text(20, 1)
         .lines()
@@ -1393,7 +1506,20 @@ fn regressions_found_by_the_fuzzer() {
     let check = |text: &str, rate: f64| {
         check_scene_text(text, rate, 1.0, &stats).unwrap_or_else(|e| panic!("{e}"));
     };
+    stiff_undamped_wall_keeps_its_exact_blocks(&check);
+    object_pruned_to_a_wall_compiles(&check);
+    stiff_damper_on_a_tiny_mass(&check);
+    stiff_critical_wall_avoids_slow_partial_steps(&check);
+    hammer_at_rest_on_a_stiff_wall_under_gravity(&check);
+    presets_pass_the_compile_checks_at_common_rates();
+    overflowing_products_are_refused_by_validation();
+}
 
+/// Runs a scene text through [`check_scene_text`] at a rate \[Hz\], panicking
+/// on a failure.
+type Check<'a> = dyn Fn(&str, f64) + 'a;
+
+fn stiff_undamped_wall_keeps_its_exact_blocks(check: &Check) {
     // 1. A stiff undamped hammer on a wall (|A| h = 4.7e3 at 192 kHz): the
     // decomposition's cross-check against the Pade exp (itself off by ~|A h| u)
     // rejected the exact closed-form blocks and took a non-passive dense
@@ -1406,7 +1532,9 @@ fn regressions_found_by_the_fuzzer() {
     );
     assert!(c.contact.dense.is_none(), "{}", c.summary);
     check(&t, 192_000.0);
+}
 
+fn object_pruned_to_a_wall_compiles(check: &Check) {
     // 2. `[approximate] max_freq_hz` below every mode prunes the object to a
     // rigid wall; compiling then failed with "no point c".
     let t = one_mode_scene(
@@ -1425,7 +1553,9 @@ fn regressions_found_by_the_fuzzer() {
         c.summary
     );
     check(&t, 8000.0);
+}
 
+fn stiff_damper_on_a_tiny_mass(check: &Check) {
     // 3. A non-passive dense propagator (effective mass 1e-12 kg at the
     // contact with a 13 N s/m damper at 8 kHz: |A| h = 1.6e9, sigma_max - 1 =
     // 4.5e-8) was accepted and gained energy. Then refused as not passive
@@ -1472,7 +1602,9 @@ fn regressions_found_by_the_fuzzer() {
         "{e}"
     );
     check(t, 8000.0);
+}
 
+fn stiff_critical_wall_avoids_slow_partial_steps(check: &Check) {
     // 4. A dense-fallback phase (critically damped stiff wall contact) with
     // |A| h in the hundreds: exact switching's Taylor partial steps made a
     // sample take minutes. Now the compiler either uses the offset rod for it
@@ -1492,7 +1624,9 @@ fn regressions_found_by_the_fuzzer() {
         }
     }
     check(&t, 192_000.0);
+}
 
+fn hammer_at_rest_on_a_stiff_wall_under_gravity(check: &Check) {
     // 6. A 1 kg hammer released at rest on the surface of a stiff wall (8e11
     // N/m, static sag 1.2e-11 m) under gravity: its energy starts at exactly
     // 0 and after one free-fall sample is 0.5 v^2 + g x, two terms of 7.5e-7 J
@@ -1504,15 +1638,19 @@ fn regressions_found_by_the_fuzzer() {
         "velocity_m_per_s = 0.0\ngravity_m_per_s2 = 9.81",
     );
     check(&t, 8000.0);
+}
 
-    // The new compile checks (budget, passivity) refuse no preset at any
-    // common host rate.
+/// The new compile checks (budget, passivity) refuse no preset at any
+/// common host rate.
+fn presets_pass_the_compile_checks_at_common_rates() {
     for (name, text) in presets() {
         for rate in [8000.0, 22050.0, 44100.0, 48000.0, 96000.0, 192_000.0] {
             compile_at(&text, rate).unwrap_or_else(|e| panic!("{name} at {rate} Hz: {e}"));
         }
     }
+}
 
+fn overflowing_products_are_refused_by_validation() {
     // 5. Values whose products overflow are refused by validation, naming
     // the field: a subnormal contact stiffness under gravity (static
     // equilibrium m g / k = inf), a 1e-300 kg hammer (c / m = inf), gravity

@@ -24,6 +24,12 @@ static LAST: AtomicUsize = AtomicUsize::new(0);
 /// `KIT_ALLOC_TRACE=1`: print where an armed allocation comes from.
 static TRACE: AtomicBool = AtomicBool::new(false);
 
+// SAFETY: every method passes its arguments unchanged to the system
+// allocator and returns its result, so the memory handed out is `System`'s
+// and meets the `GlobalAlloc` contract exactly as `System` does. The counting
+// around the calls only updates atomics; a traced allocation disarms the
+// counter before capturing its backtrace, whose own allocations therefore
+// go straight to `System`.
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
         if ARMED.load(Ordering::Relaxed) {
@@ -36,9 +42,13 @@ unsafe impl GlobalAlloc for Counting {
                 let _ = std::io::stderr().write_all(bt.as_bytes());
             }
         }
+        // SAFETY: our caller upholds `alloc`'s contract for `layout`, the
+        // same contract `System.alloc` asks for.
         unsafe { System.alloc(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: `ptr` came from this allocator with `layout`, so from
+        // `System` (every block of ours is `System`'s), as `dealloc` requires.
         unsafe { System.dealloc(ptr, layout) }
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
@@ -52,6 +62,9 @@ unsafe impl GlobalAlloc for Counting {
                 let _ = std::io::stderr().write_all(bt.as_bytes());
             }
         }
+        // SAFETY: `ptr` came from this allocator, so from `System`, with
+        // `layout`, and our caller upholds `realloc`'s contract for
+        // `new_size`: what `System.realloc` asks for.
         unsafe { System.realloc(ptr, layout, new_size) }
     }
 }

@@ -504,6 +504,21 @@ fn the_mallet_rings_and_a_stiff_one_is_a_point_mass() {
 #[test]
 fn bad_mallets_are_refused_by_name() {
     let good = cases()[0].scene();
+    bad_hammer_keys_are_refused(&good);
+    bad_chain_mallets_are_refused(&good);
+
+    // the scene file keys
+    let text = good.to_toml_string();
+    assert!(
+        text.contains("object = \"mallet\"") && text.contains("point = \"face\""),
+        "{text}"
+    );
+    assert_eq!(Scene::from_toml_str(&text).unwrap(), good);
+}
+
+/// The hammer's object and point keys of the mallet scene `good`, a
+/// string as mallet, and a point name the join would produce.
+fn bad_hammer_keys_are_refused(good: &Scene) {
     let check = |f: &dyn Fn(&mut Scene), path: &str, words: &str| {
         let mut s = good.clone();
         f(&mut s);
@@ -560,8 +575,11 @@ fn bad_mallets_are_refused_by_name() {
         matches!(&e, CompileError::Scene(s) if s.to_string().starts_with("hammer.point")),
         "{e}"
     );
-    // a chain: the hammer's mass must be the chain's; springs between the
-    // masses; points on masses; never struck
+}
+
+/// A chain as the mallet of the scene `good`: the hammer's mass must be the
+/// chain's; springs between the masses; points on masses; never struck.
+fn bad_chain_mallets_are_refused(good: &Scene) {
     let chain = |masses: Vec<f64>, springs: Vec<f64>, point: usize| {
         let mut s = good.clone();
         let mi = s.object_index("mallet").unwrap();
@@ -613,14 +631,6 @@ fn bad_mallets_are_refused_by_name() {
         e.starts_with("contact.object") && e.contains("free chain"),
         "{e}"
     );
-
-    // the scene file keys
-    let text = good.to_toml_string();
-    assert!(
-        text.contains("object = \"mallet\"") && text.contains("point = \"face\""),
-        "{text}"
-    );
-    assert_eq!(Scene::from_toml_str(&text).unwrap(), good);
 }
 
 /// The rubber-mallet preset's chain (`kind = "chain"`: cap 6 g, head 14 g,

@@ -19,16 +19,27 @@ struct Counting;
 
 static ALLOCS: AtomicUsize = AtomicUsize::new(0);
 
+// SAFETY: every method passes its arguments unchanged to the system
+// allocator and returns its result, so the memory handed out is `System`'s
+// and meets the `GlobalAlloc` contract exactly as `System` does. The counting
+// around the calls only updates an atomic counter.
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
         ALLOCS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: our caller upholds `alloc`'s contract for `layout`, the
+        // same contract `System.alloc` asks for.
         unsafe { System.alloc(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: `ptr` came from this allocator with `layout`, so from
+        // `System` (every block of ours is `System`'s), as `dealloc` requires.
         unsafe { System.dealloc(ptr, layout) }
     }
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
         ALLOCS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: `ptr` came from this allocator, so from `System`, with
+        // `layout`, and our caller upholds `realloc`'s contract for
+        // `new_size`: what `System.realloc` asks for.
         unsafe { System.realloc(ptr, layout, new_size) }
     }
 }

@@ -266,161 +266,17 @@ fn networks(sw: Switching) {
     let mut worst_obs = 0.0f64;
     let mut kinds = [0usize; 4];
     for case in 0..150 {
-        let objects = 1 + rng.below(3);
-        let mut freq = vec![];
-        let mut owner = vec![];
-        for o in 0..objects {
-            for _ in 0..1 + rng.below(5) {
-                freq.push(60.0 * 200f64.powf(rng.unit()));
-                owner.push(o);
-            }
-        }
-        let n = freq.len();
-        let point = |rng: &mut TestRng, o: usize| {
-            MultiEnd::Point(
-                (0..n)
-                    .map(|i| {
-                        if owner[i] == o {
-                            rng.uniform(-1.0, 1.0)
-                        } else {
-                            0.0
-                        }
-                    })
-                    .collect(),
-            )
-        };
-        let nm = 1 + rng.below(3);
-        let gravity = if rng.below(2) == 0 { 0.0 } else { 9.81 };
-        let mut masses = vec![];
-        for j in 0..nm {
-            masses.push(mass(
-                10f64.powf(rng.uniform(-3.0, 0.0)),
-                0.002 * (j + 1) as f64,
-                rng.uniform(-1.5, 0.5),
-            ));
-        }
-        let k_contacts = 2 + rng.below(3);
-        // mass 0 falls on an object's point or a wall: energy to pass on
-        masses[0].velocity_m_per_s = -rng.uniform(0.2, 2.0);
-        let first = if rng.below(4) == 0 {
-            MultiEnd::Wall(-0.01)
-        } else {
-            point(&mut rng, 0)
-        };
-        let first = contact(first, MultiEnd::Mass(0), 1e6, 5.0);
-        let mut contacts: Vec<MultiContact> = vec![first];
-        let mut tries = 0;
-        while contacts.len() < k_contacts && tries < 100 {
-            tries += 1;
-            let side = |rng: &mut TestRng| match rng.below(5) {
-                0 | 1 => MultiEnd::Mass(rng.below(nm)),
-                2 => MultiEnd::Wall(-0.01),
-                _ => {
-                    let o = rng.below(objects);
-                    point(rng, o)
-                }
-            };
-            let (lower, upper) = (side(&mut rng), side(&mut rng));
-            let fc = 10f64.powf(rng.uniform(2.0, 5.5));
-            let k = (2.0 * PI * fc).powi(2) * 0.01;
-            let zeta = [0.0, 0.05, 1.0, 3.0][rng.below(4)];
-            let mut ct = contact(lower, upper, k, 2.0 * zeta * (k * 0.01).sqrt());
-            // a gap so both sides start apart (masses sit at 2, 4, 6 mm)
-            let lo = match &ct.lower {
-                MultiEnd::Mass(j) => masses[*j].height_m,
-                MultiEnd::Wall(h) => *h,
-                MultiEnd::Point(_) => 0.0,
-            };
-            let up = match &ct.upper {
-                MultiEnd::Mass(j) => masses[*j].height_m,
-                MultiEnd::Wall(h) => *h,
-                MultiEnd::Point(_) => 0.0,
-            };
-            ct.gap_m = (lo - up).max(0.0) + rng.uniform(0.0, 1e-4);
-            let mut m = masses_only(masses.clone(), contacts.clone(), gravity);
-            m.freq_hz = freq.clone();
-            m.sigma = vec![0.0; n];
-            m.pickups = [(vec![1.0; n], vec![0.0; n]), (vec![0.0; n], vec![1.0; n])];
-            m.contacts.push(ct.clone());
-            if m.validate().is_ok() {
-                contacts.push(ct);
-            }
-        }
-        let mut m = masses_only(masses, contacts, gravity);
-        m.freq_hz = freq;
-        m.sigma = (0..n).map(|_| rng.uniform(0.0, 20.0)).collect();
-        m.pickups = [(vec![1.0; n], vec![0.0; n]), (vec![0.0; n], vec![1.0; n])];
-        for ct in &m.contacts {
-            let kind = match (&ct.lower, &ct.upper) {
-                (MultiEnd::Point(_), MultiEnd::Point(_)) => 0,
-                (MultiEnd::Mass(_), MultiEnd::Mass(_)) => 1,
-                (MultiEnd::Wall(_), _) | (_, MultiEnd::Wall(_)) => 2,
-                _ => 3,
-            };
-            kinds[kind] += 1;
-        }
+        let (m, gravity) = random_network(&mut rng);
+        count_kinds(&m, &mut kinds);
         let sc = match CompiledMulti::with_switching(&m, RATE, sw) {
             Ok(sc) => sc,
             Err(e) => panic!("case {case}: {e}\n{m:?}"),
         };
         compiled += 1;
-        let mut st = MultiState::new(&sc);
-        let bound = 64.0 * sc.max_dim().max(2) as f64 * sc.kappa() * f64::EPSILON / 2.0;
-        let scale = |o: &modal_contact::multi::MultiObservation| {
-            o.energy.abs()
-                + m.masses
-                    .iter()
-                    .map(|ms| ms.mass_kg * gravity * 0.02 + 0.5 * ms.mass_kg * 4.0)
-                    .sum::<f64>()
-        };
-        let mut prev = st.observe(&sc);
-        let e0 = scale(&prev);
-        assert!(e0 > 0.0);
-        for i in 0..4800 {
-            // with the rod: every other look after the decision
-            if i % 2 == 1 {
-                st.decide(&sc);
-            } else {
-                let y = st.tick(&sc);
-                assert!(y.iter().all(|v| v.is_finite()), "case {case}");
-            }
-            let o = st.observe(&sc);
-            assert!(o.energy.is_finite(), "case {case}");
-            // the trace's O(N) observation against the physical state's
-            let q = st.observe_physical(&sc);
-            let de = (o.energy - q.energy).abs() / e0.max(scale(&o));
-            let size = |x: &[f64; 4]| x.iter().map(|v| v.abs()).fold(1e-3, f64::max);
-            let dx = (0..4)
-                .map(|j| {
-                    let a = (o.x_hammer[j] - q.x_hammer[j]).abs() / size(&q.x_hammer);
-                    let b = (o.x_contact[j] - q.x_contact[j]).abs() / size(&q.x_contact);
-                    let c = (o.v_hammer[j] - q.v_hammer[j]).abs() / size(&q.v_hammer);
-                    let d = (o.v_contact[j] - q.v_contact[j]).abs() / size(&q.v_contact);
-                    a.max(b).max(c).max(d)
-                })
-                .fold(0.0, f64::max);
-            // with rods, both ways apply rows to the equilibrium the rods
-            // shift (`sqrt(k) d` in energy coordinates against the state's
-            // `sqrt(2 E)`), and round relative to it
-            let e = o.energy.abs().max(1e-12);
-            let shifted = 1.0 + rod_energy_scale(&m, &st, e) / (2.0 * e);
-            worst_obs = worst_obs.max(de / shifted).max(dx / shifted);
-            assert!(
-                de < 1e-10 * shifted && dx < 1e-10 * shifted,
-                "case {case}: energy {de:e}, sides {dx:e}, rods' shift {shifted:.1}"
-            );
-            let rods = rod_energy_scale(&m, &st, prev.energy.abs().max(o.energy.abs()));
-            let rise = (o.energy - prev.energy) / (e0.max(scale(&o)) + rods);
-            worst = worst.max(rise / bound);
-            assert!(
-                rise <= bound,
-                "{} case {case}: energy rose {rise:e} > {bound:e}\n{m:?}",
-                sw.as_str()
-            );
-            prev = o;
-        }
-        assert_eq!(st.stats.capped, 0, "case {case}");
-        switches += st.stats.switches;
+        let run = run_network(case, &m, &sc, gravity, sw);
+        worst = worst.max(run.worst);
+        worst_obs = worst_obs.max(run.worst_obs);
+        switches += run.switches;
     }
     println!(
         "{}: {compiled} random networks (contacts object-object {}, mass-mass {}, with a wall {}, \
@@ -437,6 +293,196 @@ fn networks(sw: Switching) {
     );
     assert!(switches > 60);
     assert!(kinds.iter().all(|&k| k > 5), "{kinds:?}");
+}
+
+/// A random network of 1 to 3 objects (1 to 5 modes each), 1 to 3 point
+/// masses and 2 to 4 contacts of any kind, the first one under mass 0
+/// falling on it; and its gravity [m/s^2].
+fn random_network(rng: &mut TestRng) -> (MultiModel, f64) {
+    let objects = 1 + rng.below(3);
+    let mut freq = vec![];
+    let mut owner = vec![];
+    for o in 0..objects {
+        for _ in 0..1 + rng.below(5) {
+            freq.push(60.0 * 200f64.powf(rng.unit()));
+            owner.push(o);
+        }
+    }
+    let n = freq.len();
+    let point = |rng: &mut TestRng, o: usize| {
+        MultiEnd::Point(
+            (0..n)
+                .map(|i| {
+                    if owner[i] == o {
+                        rng.uniform(-1.0, 1.0)
+                    } else {
+                        0.0
+                    }
+                })
+                .collect(),
+        )
+    };
+    let nm = 1 + rng.below(3);
+    let gravity = if rng.below(2) == 0 { 0.0 } else { 9.81 };
+    let mut masses = vec![];
+    for j in 0..nm {
+        masses.push(mass(
+            10f64.powf(rng.uniform(-3.0, 0.0)),
+            0.002 * (j + 1) as f64,
+            rng.uniform(-1.5, 0.5),
+        ));
+    }
+    let k_contacts = 2 + rng.below(3);
+    // mass 0 falls on an object's point or a wall: energy to pass on
+    masses[0].velocity_m_per_s = -rng.uniform(0.2, 2.0);
+    let first = if rng.below(4) == 0 {
+        MultiEnd::Wall(-0.01)
+    } else {
+        point(rng, 0)
+    };
+    let first = contact(first, MultiEnd::Mass(0), 1e6, 5.0);
+    let mut contacts: Vec<MultiContact> = vec![first];
+    let mut tries = 0;
+    while contacts.len() < k_contacts && tries < 100 {
+        tries += 1;
+        let side = |rng: &mut TestRng| match rng.below(5) {
+            0 | 1 => MultiEnd::Mass(rng.below(nm)),
+            2 => MultiEnd::Wall(-0.01),
+            _ => {
+                let o = rng.below(objects);
+                point(rng, o)
+            }
+        };
+        let (lower, upper) = (side(rng), side(rng));
+        let fc = 10f64.powf(rng.uniform(2.0, 5.5));
+        let k = (2.0 * PI * fc).powi(2) * 0.01;
+        let zeta = [0.0, 0.05, 1.0, 3.0][rng.below(4)];
+        let mut ct = contact(lower, upper, k, 2.0 * zeta * (k * 0.01).sqrt());
+        // a gap so both sides start apart (masses sit at 2, 4, 6 mm)
+        let lo = match &ct.lower {
+            MultiEnd::Mass(j) => masses[*j].height_m,
+            MultiEnd::Wall(h) => *h,
+            MultiEnd::Point(_) => 0.0,
+        };
+        let up = match &ct.upper {
+            MultiEnd::Mass(j) => masses[*j].height_m,
+            MultiEnd::Wall(h) => *h,
+            MultiEnd::Point(_) => 0.0,
+        };
+        ct.gap_m = (lo - up).max(0.0) + rng.uniform(0.0, 1e-4);
+        let mut m = masses_only(masses.clone(), contacts.clone(), gravity);
+        m.freq_hz = freq.clone();
+        m.sigma = vec![0.0; n];
+        m.pickups = [(vec![1.0; n], vec![0.0; n]), (vec![0.0; n], vec![1.0; n])];
+        m.contacts.push(ct.clone());
+        if m.validate().is_ok() {
+            contacts.push(ct);
+        }
+    }
+    let mut m = masses_only(masses, contacts, gravity);
+    m.freq_hz = freq;
+    m.sigma = (0..n).map(|_| rng.uniform(0.0, 20.0)).collect();
+    m.pickups = [(vec![1.0; n], vec![0.0; n]), (vec![0.0; n], vec![1.0; n])];
+    (m, gravity)
+}
+
+/// Count `m`'s contacts by kind: object-object, mass-mass, with a wall,
+/// object-mass.
+fn count_kinds(m: &MultiModel, kinds: &mut [usize; 4]) {
+    for ct in &m.contacts {
+        let kind = match (&ct.lower, &ct.upper) {
+            (MultiEnd::Point(_), MultiEnd::Point(_)) => 0,
+            (MultiEnd::Mass(_), MultiEnd::Mass(_)) => 1,
+            (MultiEnd::Wall(_), _) | (_, MultiEnd::Wall(_)) => 2,
+            _ => 3,
+        };
+        kinds[kind] += 1;
+    }
+}
+
+/// What one network's run came to.
+struct NetworkRun {
+    /// Switches in the run.
+    switches: u64,
+    /// Largest energy rise, over its rounding bound.
+    worst: f64,
+    /// Largest difference of the trace's observation from the physical
+    /// state's, over the rods' shift.
+    worst_obs: f64,
+}
+
+/// Run network `case` (model `m`, compiled `sc`, gravity [m/s^2]) for
+/// 4800 looks, asserting that its energy never rises beyond rounding and
+/// that its observations agree.
+fn run_network(
+    case: usize,
+    m: &MultiModel,
+    sc: &CompiledMulti,
+    gravity: f64,
+    sw: Switching,
+) -> NetworkRun {
+    let (mut worst, mut worst_obs) = (0.0f64, 0.0f64);
+    let mut st = MultiState::new(sc);
+    let bound = 64.0 * sc.max_dim().max(2) as f64 * sc.kappa() * f64::EPSILON / 2.0;
+    let scale = |o: &modal_contact::multi::MultiObservation| {
+        o.energy.abs()
+            + m.masses
+                .iter()
+                .map(|ms| ms.mass_kg * gravity * 0.02 + 0.5 * ms.mass_kg * 4.0)
+                .sum::<f64>()
+    };
+    let mut prev = st.observe(sc);
+    let e0 = scale(&prev);
+    assert!(e0 > 0.0);
+    for i in 0..4800 {
+        // with the rod: every other look after the decision
+        if i % 2 == 1 {
+            st.decide(sc);
+        } else {
+            let y = st.tick(sc);
+            assert!(y.iter().all(|v| v.is_finite()), "case {case}");
+        }
+        let o = st.observe(sc);
+        assert!(o.energy.is_finite(), "case {case}");
+        // the trace's O(N) observation against the physical state's
+        let q = st.observe_physical(sc);
+        let de = (o.energy - q.energy).abs() / e0.max(scale(&o));
+        let size = |x: &[f64; 4]| x.iter().map(|v| v.abs()).fold(1e-3, f64::max);
+        let dx = (0..4)
+            .map(|j| {
+                let a = (o.x_hammer[j] - q.x_hammer[j]).abs() / size(&q.x_hammer);
+                let b = (o.x_contact[j] - q.x_contact[j]).abs() / size(&q.x_contact);
+                let c = (o.v_hammer[j] - q.v_hammer[j]).abs() / size(&q.v_hammer);
+                let d = (o.v_contact[j] - q.v_contact[j]).abs() / size(&q.v_contact);
+                a.max(b).max(c).max(d)
+            })
+            .fold(0.0, f64::max);
+        // with rods, both ways apply rows to the equilibrium the rods
+        // shift (`sqrt(k) d` in energy coordinates against the state's
+        // `sqrt(2 E)`), and round relative to it
+        let e = o.energy.abs().max(1e-12);
+        let shifted = 1.0 + rod_energy_scale(m, &st, e) / (2.0 * e);
+        worst_obs = worst_obs.max(de / shifted).max(dx / shifted);
+        assert!(
+            de < 1e-10 * shifted && dx < 1e-10 * shifted,
+            "case {case}: energy {de:e}, sides {dx:e}, rods' shift {shifted:.1}"
+        );
+        let rods = rod_energy_scale(m, &st, prev.energy.abs().max(o.energy.abs()));
+        let rise = (o.energy - prev.energy) / (e0.max(scale(&o)) + rods);
+        worst = worst.max(rise / bound);
+        assert!(
+            rise <= bound,
+            "{} case {case}: energy rose {rise:e} > {bound:e}\n{m:?}",
+            sw.as_str()
+        );
+        prev = o;
+    }
+    assert_eq!(st.stats.capped, 0, "case {case}");
+    NetworkRun {
+        switches: st.stats.switches,
+        worst,
+        worst_obs,
+    }
 }
 
 /// Mutated scene files of several contacts (the four examples, each line

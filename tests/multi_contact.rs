@@ -273,7 +273,33 @@ fn compare(name: &str, m: &MultiModel, rm: &reference::Model) -> Outcome {
         .min()
         .unwrap();
     let window = hz_trace.min(hz_instants);
-    // traces of every hammer on the window
+    let (ex, ev, ec) = trace_errors(&obs, &sol, window, k);
+    let (dt, counts, count_mismatch) = instant_errors(&st.switches, &ref_iv, window, k);
+    let de = largest_energy_rise(m, &obs);
+    let bound = 64.0 * sc.max_dim() as f64 * sc.kappa() * U;
+    Outcome {
+        window,
+        count_mismatch,
+        contacts: counts,
+        err_x: ex,
+        err_v: ev,
+        err_c: ec,
+        dt,
+        de,
+        bound,
+        evaluations_per_switch: st.stats.evaluations as f64 / st.stats.switches.max(1) as f64,
+    }
+}
+
+/// The largest relative L2 errors of the hammers' heights, velocities and
+/// contact points' displacements in `obs` against the reference `sol`, on
+/// the first `window` samples of its `k` contacts.
+fn trace_errors(
+    obs: &[modal_contact::multi::MultiObservation],
+    sol: &reference::Solution,
+    window: usize,
+    k: usize,
+) -> (f64, f64, f64) {
     let (mut ex, mut ev, mut ec) = (0.0f64, 0.0f64, 0.0f64);
     for j in 0..k {
         let x: Vec<f64> = obs[..window].iter().map(|o| o.x_hammer[j]).collect();
@@ -293,8 +319,20 @@ fn compare(name: &str, m: &MultiModel, rm: &reference::Model) -> Outcome {
             &r.iter().map(|s| pick(s, j, 2)).collect::<Vec<_>>(),
         ));
     }
-    // contact instants on the window, per contact
-    let mine = intervals_of(&st.switches, k);
+    (ex, ev, ec)
+}
+
+/// The contact instants of the engine's `switches` against the
+/// reference's intervals `ref_iv` on the first `window` samples, per
+/// contact: the largest difference \[samples\], each contact's count of
+/// contacts in the whole run, and a count that differs within the window.
+fn instant_errors(
+    switches: &[MultiSwitch],
+    ref_iv: &[Vec<Interval>],
+    window: usize,
+    k: usize,
+) -> (f64, Vec<usize>, Option<String>) {
+    let mine = intervals_of(switches, k);
     let mut dt = 0.0f64;
     let mut counts = Vec::new();
     let mut count_mismatch = None;
@@ -322,7 +360,13 @@ fn compare(name: &str, m: &MultiModel, rm: &reference::Model) -> Outcome {
             }
         }
     }
-    // energy never rises
+    (dt, counts, count_mismatch)
+}
+
+/// The largest rise of the energy from one observation to the next in
+/// `obs`, relative to its scale (the energy, and the hammers' fall).
+fn largest_energy_rise(m: &MultiModel, obs: &[modal_contact::multi::MultiObservation]) -> f64 {
+    let k = m.contacts.len();
     let g = m.gravity_m_per_s2;
     let scale = |o: &modal_contact::multi::MultiObservation| {
         o.energy.abs()
@@ -337,19 +381,7 @@ fn compare(name: &str, m: &MultiModel, rm: &reference::Model) -> Outcome {
         let s = scale(&w[0]).max(scale(&w[1]));
         de = de.max((w[1].energy - w[0].energy) / s);
     }
-    let bound = 64.0 * sc.max_dim() as f64 * sc.kappa() * U;
-    Outcome {
-        window,
-        count_mismatch,
-        contacts: counts,
-        err_x: ex,
-        err_v: ev,
-        err_c: ec,
-        dt,
-        de,
-        bound,
-        evaluations_per_switch: st.stats.evaluations as f64 / st.stats.switches.max(1) as f64,
-    }
+    de
 }
 
 fn strike(mass_ratio: f64, height: f64, velocity: f64, fc_ratio: f64, zeta: f64) -> Striker {
@@ -364,14 +396,27 @@ fn strike(mass_ratio: f64, height: f64, velocity: f64, fc_ratio: f64, zeta: f64)
 
 fn cases() -> Vec<Case> {
     let mut v = Vec::new();
-    let mut add = |name: &str, t60: Option<f64>, gravity: f64, strikers: Vec<Striker>| {
+    two_hammer_cases(&mut v);
+    heavy_dropped_and_more_hammer_cases(&mut v);
+    v
+}
+
+/// A closure that pushes a case (name, T60 \[s\], gravity [m/s^2],
+/// strikers) to `v`.
+fn adder(v: &mut Vec<Case>) -> impl FnMut(&str, Option<f64>, f64, Vec<Striker>) + '_ {
+    |name: &str, t60: Option<f64>, gravity: f64, strikers: Vec<Striker>| {
         v.push(Case {
             name: name.into(),
             t60,
             gravity,
             strikers,
         })
-    };
+    }
+}
+
+/// Two light hammers, a few samples apart or at the same instant.
+fn two_hammer_cases(v: &mut Vec<Case>) {
+    let mut add = adder(v);
     // two hammers a few samples apart, light, elastic and damped
     for (fc, zeta) in [(3.17, 0.0), (31.3, 0.05), (101.7, 1.0), (317.3, 5.0)] {
         add(
@@ -413,6 +458,11 @@ fn cases() -> Vec<Case> {
             strike(1.0, 0.0, -0.5, 101.7, 1.0),
         ],
     );
+}
+
+/// Heavy hammers, hammers dropped under gravity, three and four hammers.
+fn heavy_dropped_and_more_hammer_cases(v: &mut Vec<Case>) {
+    let mut add = adder(v);
     add(
         "2 apart 1013.7x zeta 5 mass 1e3",
         Some(0.25),
@@ -473,7 +523,6 @@ fn cases() -> Vec<Case> {
             strike(1.0, 6e-4, -0.5, 317.3, 5.0),
         ],
     );
-    v
 }
 
 #[test]
@@ -919,6 +968,16 @@ fn touches_in_a_scene_file() {
         assert!(e.contains("touch: a scene of several contacts"), "{e}");
     }
     let text = load("ball-between-plates");
+    bad_touch_keys_are_refused_by_field(&text);
+    impossible_touches_are_refused(&text);
+}
+
+/// The upper side of the ball-between-plates preset's first touch.
+const BALL_UPPER: &str = "upper = { object = \"lid\", point = \"ball\" }";
+
+/// Each of the touch keys of the ball-between-plates preset's text `text`,
+/// made wrong, is refused with an error naming the key.
+fn bad_touch_keys_are_refused_by_field(text: &str) {
     let bad = |from: &str, to: &str| {
         assert!(text.contains(from), "{from}");
         let t = text.replacen(from, to, 1);
@@ -929,7 +988,7 @@ fn touches_in_a_scene_file() {
                 .map_or_else(|e| e.to_string(), |_| "valid".into()),
         }
     };
-    let upper = "upper = { object = \"lid\", point = \"ball\" }";
+    let upper = BALL_UPPER;
     let cases = [
         (
             upper,
@@ -998,6 +1057,12 @@ fn touches_in_a_scene_file() {
         println!("refused: {e}");
         assert!(e.contains(field) && e.contains(why), "{to}: {e}");
     }
+}
+
+/// In the ball-between-plates preset's text `text`: a wall against a
+/// wall, more than four contacts, and a lumped string are refused.
+fn impossible_touches_are_refused(text: &str) {
+    let upper = BALL_UPPER;
     // a wall against a wall, and more than four contacts
     let walls = text
         .replacen(
@@ -1014,7 +1079,7 @@ fn touches_in_a_scene_file() {
     );
     let touch =
         &text[text.find("\n[[touch]]").unwrap() + 1..text.find("\n[[pickup]]").unwrap() + 1];
-    let mut many = text.clone();
+    let mut many = text.to_string();
     for gap in ["0.006", "0.007", "0.008", "0.009"] {
         let t = touch.replace("gap_m = 0.005", &format!("gap_m = {gap}"));
         many = many.replacen("[[pickup]]", &format!("{t}[[pickup]]"), 1);
@@ -1035,49 +1100,59 @@ fn touches_in_a_scene_file() {
     );
 }
 
-/// Contacts between two objects, a mass between two objects, a mass on a
-/// mass, an object on a wall, against the reference solver's links (its
-/// own model of the same numbers: physical coordinates, double-double
-/// exponentials, bisection): every contact's two sides and instants on the
-/// window where the reference and its twin agree, and the energy.
-#[test]
-fn networks_match_the_reference_solver() {
-    // object A: FREQS with WEIGHTS[0] (struck) and WEIGHTS[1]; object B:
-    // three modes of its own
-    let freq_b = [310.0, 1400.0, 5200.0];
-    let n = FREQS.len() + freq_b.len();
-    let on_a = |w: &[f64; 4]| {
-        let mut v = w.to_vec();
-        v.extend([0.0; 3]);
-        v
-    };
-    let on_b = |w: [f64; 3]| {
-        let mut v = vec![0.0; 4];
-        v.extend(w);
-        v
-    };
-    let m_eff = |w: &[f64]| 1.0 / w.iter().map(|x| x * x).sum::<f64>();
-    // a contact law at `fc` times Nyquist and damping ratio `zeta` for two
-    // sides of effective masses `ma`, `mb`
-    let law = |fc: f64, zeta: f64, ma: f64, mb: f64| {
-        let mr = 1.0 / (1.0 / ma + 1.0 / mb);
-        let k = (2.0 * PI * fc * NYQUIST).powi(2) * mr;
-        (k, 2.0 * zeta * (k * mr).sqrt())
-    };
-    let wa0 = on_a(&WEIGHTS[0]);
+/// Object B's modes \[Hz\] in the networks (object A's are [`FREQS`]).
+const FREQ_B: [f64; 3] = [310.0, 1400.0, 5200.0];
+
+/// Weights on object A's modes, none on object B's.
+fn on_a(w: &[f64; 4]) -> Vec<f64> {
+    let mut v = w.to_vec();
+    v.extend([0.0; 3]);
+    v
+}
+
+/// Weights on object B's modes, none on object A's.
+fn on_b(w: [f64; 3]) -> Vec<f64> {
+    let mut v = vec![0.0; 4];
+    v.extend(w);
+    v
+}
+
+/// Effective mass \[kg\] of a point of weights `w` on unit modal masses.
+fn effective_mass(w: &[f64]) -> f64 {
+    1.0 / w.iter().map(|x| x * x).sum::<f64>()
+}
+
+/// A contact law (stiffness [N/m], damping [N s/m]) at `fc` times Nyquist
+/// and damping ratio `zeta` for two sides of effective masses `ma`, `mb`
+/// \[kg\].
+fn contact_law(fc: f64, zeta: f64, ma: f64, mb: f64) -> (f64, f64) {
+    let mr = 1.0 / (1.0 / ma + 1.0 / mb);
+    let k = (2.0 * PI * fc * NYQUIST).powi(2) * mr;
+    (k, 2.0 * zeta * (k * mr).sqrt())
+}
+
+/// A network of [`networks_match_the_reference_solver`]: object A (struck
+/// at its point 0 by mass 0) and object B, more masses and links.
+struct Net {
+    name: &'static str,
+    /// The modes' T60 \[s\] (`None`: undamped).
+    t60: Option<f64>,
+    /// Gravity on the masses [m/s^2].
+    gravity: f64,
+    /// Each mass's (mass \[kg\], height \[m\], velocity [m/s]).
+    masses: Vec<(f64, f64, f64)>,
+    /// (lower, upper, gap, fc, zeta); contact 0 is mass 0 on A's point 0
+    links: Vec<(MultiEnd, MultiEnd, f64, f64, f64)>,
+    /// Contact 0's frequency, in times Nyquist.
+    fc0: f64,
+}
+
+/// The networks compared with the reference.
+fn networks() -> Vec<Net> {
     let wa1 = on_a(&WEIGHTS[1]);
     let wb = on_b([0.9, -0.6, 0.45]);
-    struct Net {
-        name: &'static str,
-        t60: Option<f64>,
-        gravity: f64,
-        masses: Vec<(f64, f64, f64)>,
-        // (lower, upper, gap, fc, zeta); contact 0 is mass 0 on A's point 0
-        links: Vec<(MultiEnd, MultiEnd, f64, f64, f64)>,
-        fc0: f64,
-    }
-    let me_a = m_eff(&wa0);
-    let nets = vec![
+    let me_a = effective_mass(&on_a(&WEIGHTS[0]));
+    vec![
         Net {
             name: "object on object 31.3x",
             t60: Some(0.5),
@@ -1142,126 +1217,146 @@ fn networks_match_the_reference_solver() {
             )],
             fc0: 3.17,
         },
-    ];
+    ]
+}
+
+/// The network `net` as a model of the engine and as the reference's.
+fn network_models(net: &Net) -> (MultiModel, reference::Model) {
+    let n = FREQS.len() + FREQ_B.len();
+    let wa0 = on_a(&WEIGHTS[0]);
+    let me_a = effective_mass(&wa0);
+    let side_mass = |e: &MultiEnd| match e {
+        MultiEnd::Point(w) => effective_mass(w),
+        MultiEnd::Mass(j) => net.masses[*j].0,
+        MultiEnd::Wall(_) => f64::INFINITY,
+    };
+    let (k0, c0) = contact_law(net.fc0, 0.05, net.masses[0].0, me_a);
+    let mut contacts = vec![modal_contact::multi::MultiContact {
+        lower: MultiEnd::Point(wa0.clone()),
+        upper: MultiEnd::Mass(0),
+        gap_m: 0.0,
+        stiffness_n_per_m: k0,
+        damping_n_s_per_m: c0,
+    }];
+    for (lo, up, gap, fc, zeta) in &net.links {
+        let (k, c) = contact_law(*fc, *zeta, side_mass(lo), side_mass(up));
+        contacts.push(modal_contact::multi::MultiContact {
+            lower: lo.clone(),
+            upper: up.clone(),
+            gap_m: *gap,
+            stiffness_n_per_m: k,
+            damping_n_s_per_m: c,
+        });
+    }
+    let sigma = net.t60.map_or(0.0, |t| 1000f64.ln() / t);
+    let mut freq = FREQS.to_vec();
+    freq.extend(FREQ_B);
+    let m = MultiModel {
+        freq_hz: freq.clone(),
+        sigma: vec![sigma; n],
+        masses: net
+            .masses
+            .iter()
+            .map(
+                |&(mass_kg, height_m, velocity_m_per_s)| modal_contact::multi::MultiMass {
+                    mass_kg,
+                    height_m,
+                    velocity_m_per_s,
+                },
+            )
+            .collect(),
+        contacts: contacts.clone(),
+        gravity_m_per_s2: net.gravity,
+        pickups: [(vec![1.0; n], vec![0.0; n]), (vec![0.0; n], vec![1e-3; n])],
+    };
+    let rh = |&(mass_kg, height_m, velocity_m_per_s): &(f64, f64, f64)| reference::Hammer {
+        mass_kg,
+        height_m,
+        velocity_m_per_s,
+        gravity_m_per_s2: net.gravity,
+    };
+    let end = |e: &MultiEnd| match e {
+        MultiEnd::Point(w) => reference::End::Point(w.clone()),
+        MultiEnd::Mass(j) => reference::End::Mass(*j),
+        MultiEnd::Wall(h) => reference::End::Wall(*h),
+    };
+    let rm = reference::Model {
+        modes: freq
+            .iter()
+            .zip(&wa0)
+            .map(|(&freq_hz, &weight)| reference::Mode {
+                freq_hz,
+                t60_s: net.t60,
+                weight,
+            })
+            .collect(),
+        hammer: rh(&net.masses[0]),
+        contact: reference::Contact {
+            stiffness_n_per_m: k0,
+            damping_n_s_per_m: c0,
+        },
+        back: None,
+        extra: vec![],
+        masses: net.masses[1..].iter().map(rh).collect(),
+        links: contacts[1..]
+            .iter()
+            .map(|c| reference::Link {
+                lower: end(&c.lower),
+                upper: end(&c.upper),
+                gap_m: c.gap_m,
+                contact: reference::Contact {
+                    stiffness_n_per_m: c.stiffness_n_per_m,
+                    damping_n_s_per_m: c.damping_n_s_per_m,
+                },
+            })
+            .collect(),
+    };
+    (m, rm)
+}
+
+/// Push to `failures` what the outcome `o` of network `name` fails.
+fn network_failures(name: &str, o: &Outcome, failures: &mut Vec<String>) {
+    if o.window < MIN_WINDOW {
+        failures.push(format!("{}: window {}", name, o.window));
+    }
+    if let Some(e) = &o.count_mismatch {
+        failures.push(format!("{}: {e}", name));
+    }
+    if o.err_x.max(o.err_v).max(o.err_c) > TOL_TRACE {
+        failures.push(format!(
+            "{}: traces {:e} {:e} {:e}",
+            name, o.err_x, o.err_v, o.err_c
+        ));
+    }
+    if o.dt > TOL_INSTANT {
+        failures.push(format!("{}: instants {:e} samples", name, o.dt));
+    }
+    if o.de > o.bound {
+        failures.push(format!("{}: energy rose {:e}", name, o.de));
+    }
+    if o.contacts.contains(&0) {
+        failures.push(format!("{}: a contact never closed {:?}", name, o.contacts));
+    }
+}
+
+/// Contacts between two objects, a mass between two objects, a mass on a
+/// mass, an object on a wall, against the reference solver's links (its
+/// own model of the same numbers: physical coordinates, double-double
+/// exponentials, bisection): every contact's two sides and instants on the
+/// window where the reference and its twin agree, and the energy.
+#[test]
+fn networks_match_the_reference_solver() {
     let mut failures = vec![];
     println!("| network | contacts | window | x upper | v upper | x lower | instants [samples] | energy rise / bound |");
     println!("|---|---|---|---|---|---|---|---|");
-    for net in &nets {
-        let side_mass = |e: &MultiEnd| match e {
-            MultiEnd::Point(w) => m_eff(w),
-            MultiEnd::Mass(j) => net.masses[*j].0,
-            MultiEnd::Wall(_) => f64::INFINITY,
-        };
-        let (k0, c0) = law(net.fc0, 0.05, net.masses[0].0, me_a);
-        let mut contacts = vec![modal_contact::multi::MultiContact {
-            lower: MultiEnd::Point(wa0.clone()),
-            upper: MultiEnd::Mass(0),
-            gap_m: 0.0,
-            stiffness_n_per_m: k0,
-            damping_n_s_per_m: c0,
-        }];
-        for (lo, up, gap, fc, zeta) in &net.links {
-            let (k, c) = law(*fc, *zeta, side_mass(lo), side_mass(up));
-            contacts.push(modal_contact::multi::MultiContact {
-                lower: lo.clone(),
-                upper: up.clone(),
-                gap_m: *gap,
-                stiffness_n_per_m: k,
-                damping_n_s_per_m: c,
-            });
-        }
-        let sigma = net.t60.map_or(0.0, |t| 1000f64.ln() / t);
-        let mut freq = FREQS.to_vec();
-        freq.extend(freq_b);
-        let m = MultiModel {
-            freq_hz: freq.clone(),
-            sigma: vec![sigma; n],
-            masses: net
-                .masses
-                .iter()
-                .map(
-                    |&(mass_kg, height_m, velocity_m_per_s)| modal_contact::multi::MultiMass {
-                        mass_kg,
-                        height_m,
-                        velocity_m_per_s,
-                    },
-                )
-                .collect(),
-            contacts: contacts.clone(),
-            gravity_m_per_s2: net.gravity,
-            pickups: [(vec![1.0; n], vec![0.0; n]), (vec![0.0; n], vec![1e-3; n])],
-        };
-        let rh = |&(mass_kg, height_m, velocity_m_per_s): &(f64, f64, f64)| reference::Hammer {
-            mass_kg,
-            height_m,
-            velocity_m_per_s,
-            gravity_m_per_s2: net.gravity,
-        };
-        let end = |e: &MultiEnd| match e {
-            MultiEnd::Point(w) => reference::End::Point(w.clone()),
-            MultiEnd::Mass(j) => reference::End::Mass(*j),
-            MultiEnd::Wall(h) => reference::End::Wall(*h),
-        };
-        let rm = reference::Model {
-            modes: freq
-                .iter()
-                .zip(&wa0)
-                .map(|(&freq_hz, &weight)| reference::Mode {
-                    freq_hz,
-                    t60_s: net.t60,
-                    weight,
-                })
-                .collect(),
-            hammer: rh(&net.masses[0]),
-            contact: reference::Contact {
-                stiffness_n_per_m: k0,
-                damping_n_s_per_m: c0,
-            },
-            back: None,
-            extra: vec![],
-            masses: net.masses[1..].iter().map(rh).collect(),
-            links: contacts[1..]
-                .iter()
-                .map(|c| reference::Link {
-                    lower: end(&c.lower),
-                    upper: end(&c.upper),
-                    gap_m: c.gap_m,
-                    contact: reference::Contact {
-                        stiffness_n_per_m: c.stiffness_n_per_m,
-                        damping_n_s_per_m: c.damping_n_s_per_m,
-                    },
-                })
-                .collect(),
-        };
+    for net in &networks() {
+        let (m, rm) = network_models(net);
         let o = compare(net.name, &m, &rm);
         println!(
             "| {} | {:?} | {} | {:.1e} | {:.1e} | {:.1e} | {:.1e} | {:.1e} / {:.1e} |",
             net.name, o.contacts, o.window, o.err_x, o.err_v, o.err_c, o.dt, o.de, o.bound
         );
-        if o.window < MIN_WINDOW {
-            failures.push(format!("{}: window {}", net.name, o.window));
-        }
-        if let Some(e) = &o.count_mismatch {
-            failures.push(format!("{}: {e}", net.name));
-        }
-        if o.err_x.max(o.err_v).max(o.err_c) > TOL_TRACE {
-            failures.push(format!(
-                "{}: traces {:e} {:e} {:e}",
-                net.name, o.err_x, o.err_v, o.err_c
-            ));
-        }
-        if o.dt > TOL_INSTANT {
-            failures.push(format!("{}: instants {:e} samples", net.name, o.dt));
-        }
-        if o.de > o.bound {
-            failures.push(format!("{}: energy rose {:e}", net.name, o.de));
-        }
-        if o.contacts.contains(&0) {
-            failures.push(format!(
-                "{}: a contact never closed {:?}",
-                net.name, o.contacts
-            ));
-        }
+        network_failures(net.name, &o, &mut failures);
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
@@ -1520,8 +1615,6 @@ fn mirror(text: &str, point: Option<&str>) {
 /// known to `omega h u`, which the flight's velocity carries on.
 #[test]
 fn offset_rods_follow_the_closed_form() {
-    use modal_contact::multi::{MultiContact, MultiMass};
-    let h = 1.0 / RATE;
     // (mass, height, velocity, stiffness, damping ratio)
     let cases = [
         (0.01, 1.03e-3, -1.0, 1e6, 0.1),
@@ -1533,76 +1626,11 @@ fn offset_rods_follow_the_closed_form() {
             0.0,
         ),
     ];
-    let m = MultiModel {
-        freq_hz: vec![440.0],
-        sigma: vec![0.0],
-        masses: cases
-            .iter()
-            .map(|c| MultiMass {
-                mass_kg: c.0,
-                height_m: c.1,
-                velocity_m_per_s: c.2,
-            })
-            .collect(),
-        contacts: cases
-            .iter()
-            .enumerate()
-            .map(|(j, c)| MultiContact {
-                lower: MultiEnd::Wall(0.0),
-                upper: MultiEnd::Mass(j),
-                gap_m: 0.0,
-                stiffness_n_per_m: c.3,
-                damping_n_s_per_m: 2.0 * c.4 * (c.3 * c.0).sqrt(),
-            })
-            .collect(),
-        gravity_m_per_s2: 0.0,
-        pickups: [(vec![1.0], vec![0.0]), (vec![0.0], vec![1.0])],
-    };
+    let m = masses_on_walls(&cases);
     let sc = CompiledMulti::with_switching(&m, RATE, Switching::OffsetRod).unwrap();
     let mut st = MultiState::new(&sc);
     let n = 400;
-    // the closed form, sample by sample: each piece from where it began
-    let expect = |(mass, x0, v0, k, zeta): (f64, f64, f64, f64, f64)| {
-        let wn = (k / mass).sqrt();
-        let wd = wn * (1.0 - zeta * zeta).sqrt();
-        let osc = |t: f64| {
-            let e = (-zeta * wn * t).exp();
-            let (s, c) = (wd * t).sin_cos();
-            // unit initial velocity
-            (e * s / wd, e * (c - zeta * wn / wd * s))
-        };
-        // piece: (start sample, start height, start velocity, in contact)
-        let (mut start, mut xs0, mut vs0, mut inside) = (0usize, x0, v0, false);
-        let (mut xs, mut rods) = (Vec::with_capacity(n + 1), Vec::new());
-        let at = |i: usize, start: usize, xs0: f64, vs0: f64, inside: bool| -> (f64, f64) {
-            let t = (i - start) as f64 * h;
-            if inside {
-                let (y, yv) = osc(t);
-                (xs0 + vs0 * y, vs0 * yv)
-            } else {
-                (xs0 + vs0 * t, vs0)
-            }
-        };
-        for i in 0..=n {
-            let (x, v) = at(i, start, xs0, vs0, inside);
-            xs.push(x);
-            // the decision at sample i
-            if inside && x - xs0 >= 0.0 {
-                (start, xs0, vs0, inside) = (i, x, v, false);
-            } else if !inside && x < 0.0 {
-                rods.push(-x);
-                (start, xs0, vs0, inside) = (i, x, v, true);
-            }
-        }
-        println!(
-            "mass {mass} kg, {:.3e} Hz contact: {} rods, the first {:.3e} m",
-            wn / (2.0 * PI),
-            rods.len(),
-            rods[0]
-        );
-        (xs, rods)
-    };
-    let want: Vec<(Vec<f64>, Vec<f64>)> = cases.iter().map(|&c| expect(c)).collect();
+    let want: Vec<(Vec<f64>, Vec<f64>)> = cases.iter().map(|&c| rod_closed_form(c, n)).collect();
     let o = st.observe(&sc);
     let mut got = [vec![o.x_hammer[0]], vec![o.x_hammer[1]]];
     let mut rods = [Vec::new(), Vec::new()];
@@ -1641,6 +1669,85 @@ fn offset_rods_follow_the_closed_form() {
         assert!(rod_err < 1e-12, "mass {j}: {rod_err:e}");
         assert_eq!(st.stats.contacts_started[j], rods[j].len() as u64);
     }
+}
+
+/// One mass per case `(mass, height, velocity, stiffness, damping ratio)`
+/// above a wall at 0 of its own, no gravity, next to one 440 Hz mode.
+fn masses_on_walls(cases: &[(f64, f64, f64, f64, f64)]) -> MultiModel {
+    use modal_contact::multi::{MultiContact, MultiMass};
+    MultiModel {
+        freq_hz: vec![440.0],
+        sigma: vec![0.0],
+        masses: cases
+            .iter()
+            .map(|c| MultiMass {
+                mass_kg: c.0,
+                height_m: c.1,
+                velocity_m_per_s: c.2,
+            })
+            .collect(),
+        contacts: cases
+            .iter()
+            .enumerate()
+            .map(|(j, c)| MultiContact {
+                lower: MultiEnd::Wall(0.0),
+                upper: MultiEnd::Mass(j),
+                gap_m: 0.0,
+                stiffness_n_per_m: c.3,
+                damping_n_s_per_m: 2.0 * c.4 * (c.3 * c.0).sqrt(),
+            })
+            .collect(),
+        gravity_m_per_s2: 0.0,
+        pickups: [(vec![1.0], vec![0.0]), (vec![0.0], vec![1.0])],
+    }
+}
+
+/// The offset rods' closed form for one mass `(mass, height, velocity,
+/// stiffness, damping ratio)` on a wall, sample by sample for `n` samples,
+/// each piece from where it began: the heights, and the rods' lengths.
+fn rod_closed_form(
+    (mass, x0, v0, k, zeta): (f64, f64, f64, f64, f64),
+    n: usize,
+) -> (Vec<f64>, Vec<f64>) {
+    let h = 1.0 / RATE;
+    let wn = (k / mass).sqrt();
+    let wd = wn * (1.0 - zeta * zeta).sqrt();
+    let osc = |t: f64| {
+        let e = (-zeta * wn * t).exp();
+        let (s, c) = (wd * t).sin_cos();
+        // unit initial velocity
+        (e * s / wd, e * (c - zeta * wn / wd * s))
+    };
+    // piece: (start sample, start height, start velocity, in contact)
+    let (mut start, mut xs0, mut vs0, mut inside) = (0usize, x0, v0, false);
+    let (mut xs, mut rods) = (Vec::with_capacity(n + 1), Vec::new());
+    let at = |i: usize, start: usize, xs0: f64, vs0: f64, inside: bool| -> (f64, f64) {
+        let t = (i - start) as f64 * h;
+        if inside {
+            let (y, yv) = osc(t);
+            (xs0 + vs0 * y, vs0 * yv)
+        } else {
+            (xs0 + vs0 * t, vs0)
+        }
+    };
+    for i in 0..=n {
+        let (x, v) = at(i, start, xs0, vs0, inside);
+        xs.push(x);
+        // the decision at sample i
+        if inside && x - xs0 >= 0.0 {
+            (start, xs0, vs0, inside) = (i, x, v, false);
+        } else if !inside && x < 0.0 {
+            rods.push(-x);
+            (start, xs0, vs0, inside) = (i, x, v, true);
+        }
+    }
+    println!(
+        "mass {mass} kg, {:.3e} Hz contact: {} rods, the first {:.3e} m",
+        wn / (2.0 * PI),
+        rods.len(),
+        rods[0]
+    );
+    (xs, rods)
 }
 
 /// A striker may be a modal mallet (`[[striker]] mallet = { object, point
@@ -1715,9 +1822,14 @@ fn a_striker_may_be_a_modal_mallet() {
     assert_eq!(a.stats.contacts_started[1], in_b);
     assert!(in_b >= 3, "the shaft brings the head back: {in_b}");
     assert!(eo < 1e-9 && ex < 1e-9 && ec < 1e-9, "{eo:e} {ex:e} {ec:e}");
+    hammer_mass_scales_the_striker_chain(&scene);
+    bad_striker_mallets_are_refused(&moved);
+}
 
-    // the instrument's Hammer mass scales the chain with its striker (the
-    // chain's mass is the striker's rigid mass: a mismatch is refused)
+/// The instrument's Hammer mass scales the chain with its striker in
+/// `scene` (the chain's mass is the striker's rigid mass: a mismatch is
+/// refused).
+fn hammer_mass_scales_the_striker_chain(scene: &Scene) {
     let params = modal_contact::instrument::InstrumentParams {
         scene: modal_contact::instrument::SceneParams {
             hammer_mass_factor: 1.7,
@@ -1725,10 +1837,14 @@ fn a_striker_may_be_a_modal_mallet() {
         },
         ..Default::default()
     };
-    let heavier = modal_contact::instrument::scene_for(&scene, &params);
+    let heavier = modal_contact::instrument::scene_for(scene, &params);
     heavier.validate().unwrap();
     assert!((heavier.striker[0].mass_kg - 1.7 * 0.034).abs() < 1e-15);
+}
 
+/// In `moved` (the rubber-mallet preset with its mallet on a striker), a
+/// bad striker mallet is refused with the field named.
+fn bad_striker_mallets_are_refused(moved: &str) {
     let bad = |from: &str, to: &str| -> String {
         let t = moved.replacen(from, to, 1);
         assert_ne!(t, moved, "{from}");

@@ -4,7 +4,7 @@
 use modal_contact::compile::compile;
 use modal_contact::engine::EngineState;
 use modal_contact::render::{render, RenderOptions};
-use modal_contact::scene::{ObjectSpec, Quantity, Switching};
+use modal_contact::scene::{ModalSpec, ModeSpec, ObjectSpec, Quantity, Scene, Switching};
 use modal_testkit::scenes::preset;
 
 #[test]
@@ -219,66 +219,7 @@ fn every_preset_compiles_and_renders_finite_audio() {
 /// counterpart (estimates the new description replaces) are listed too.
 #[test]
 fn rewritten_presets_keep_their_sound() {
-    use modal_contact::scene::{ModeSpec, Scene};
-    struct Case {
-        name: &'static str,
-        /// old mode index, allowed relative frequency difference (the
-        /// modes whose model changed; all others: 1e-5)
-        changed: &'static [(usize, f64)],
-        /// old modes with no counterpart in the new description
-        replaced: &'static [usize],
-        /// relative L2 of the first second of both renders, when the
-        /// whole model is the same
-        render: Option<f64>,
-        /// the preset's `points` line when the fixture was tabulated, for
-        /// a preset whose strike point has moved since (the fixture checks
-        /// the object's model, so it is read at the points it was made at)
-        points: Option<&'static str>,
-        /// the bar's resonator tube, added since the fixture: left out (it
-        /// damps and moves the modes on purpose: tests/radiation.rs)
-        resonator: bool,
-    }
-    let cases = [
-        Case {
-            name: "steel-plate",
-            changed: &[],
-            replaced: &[],
-            render: Some(1e-3),
-            points: None,
-            resonator: false,
-        },
-        // the torsional modes at the uniform bar's frequencies instead of
-        // an arch estimate
-        Case {
-            name: "marimba-bar",
-            changed: &[],
-            replaced: &[1, 3],
-            render: None,
-            points: None,
-            resonator: true,
-        },
-        // the exact Timoshenko root instead of its first-order expansion
-        Case {
-            name: "glockenspiel-bar",
-            changed: &[(0, 3e-4), (2, 2e-3), (3, 7e-3), (6, 1.7e-2)],
-            replaced: &[],
-            render: None,
-            // the fixture was made struck at 0.45 L; the preset strikes the centre
-            points: Some(
-                "points = { contact = [0.06903556710181151, 0.006], \
-                 pickup = [0.006136494853494357, -0.0075] }",
-            ),
-            resonator: false,
-        },
-        Case {
-            name: "wood-block",
-            changed: &[(0, 1e-3), (3, 7e-3), (4, 2.5e-2)],
-            replaced: &[],
-            render: None,
-            points: None,
-            resonator: false,
-        },
-    ];
+    let cases = rewritten_cases();
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let dir = root.join("tests/data/modal-presets");
     assert_eq!(
@@ -289,85 +230,13 @@ fn rewritten_presets_keep_their_sound() {
     for case in cases {
         let name = case.name;
         let old = Scene::from_file(&dir.join(format!("{name}.toml"))).unwrap();
-        let path = root.join(format!("presets/{name}.toml"));
-        let mut text = std::fs::read_to_string(&path).unwrap();
-        if let Some(line) = case.points {
-            let at = text.find("\npoints = {").expect("a points line") + 1;
-            let end = at + text[at..].find('\n').unwrap();
-            text = format!("{}{line}{}", &text[..at], &text[end..]);
-        }
-        if case.resonator {
-            let at = text.find("\nresonator = {").expect("a resonator line") + 1;
-            let end = at + text[at..].find('\n').unwrap() + 1;
-            text = format!("{}{}", &text[..at], &text[end..]);
-        }
-        let mut new = Scene::from_toml_str(&text).unwrap();
-        // the fixture was tabulated at unit output level (tests/level.rs
-        // checks the level's gain)
-        new.level_db = 0.0;
+        let new = rewritten_scene(root, &case);
         assert!(new.object[0].physical().is_some(), "{name} is physical");
         let ex = new.expanded(48000.0).unwrap();
         let (ObjectSpec::Modal(a), ObjectSpec::Modal(b)) = (&old.object[0], &ex.object[0]) else {
             panic!("{name}: not modal");
         };
-        let wmax = a
-            .mode
-            .iter()
-            .flat_map(|m| m.weights.iter())
-            .fold(0.0f64, |x, w| x.max(w.abs()));
-        let weights = |m: &ModeSpec, pts: &[String]| -> Vec<f64> {
-            a.points
-                .iter()
-                .map(|p| m.weights[pts.iter().position(|q| q == p).unwrap()] / wmax)
-                .collect()
-        };
-        println!("{name}: {} old modes, {} new", a.mode.len(), b.mode.len());
-        let (mut dt, mut dw) = (0.0f64, 0.0f64);
-        for (i, x) in a.mode.iter().enumerate() {
-            let wx = weights(x, &a.points);
-            let cost = |y: &ModeSpec| {
-                let wy = weights(y, &b.points);
-                (y.freq_hz / x.freq_hz - 1.0).abs()
-                    + wx.iter().zip(&wy).map(|(p, q)| (p - q).abs()).sum::<f64>()
-            };
-            let y = b
-                .mode
-                .iter()
-                .min_by(|p, q| cost(p).total_cmp(&cost(q)))
-                .unwrap();
-            let df = (y.freq_hz / x.freq_hz - 1.0).abs();
-            let wy = weights(y, &b.points);
-            let dwi = wx
-                .iter()
-                .zip(&wy)
-                .map(|(p, q)| (p - q).abs())
-                .fold(0.0, f64::max);
-            println!(
-                "  old mode {i}: {:.2} Hz -> {:.2} Hz ({:+.2e}), weights {dwi:.1e}",
-                x.freq_hz,
-                y.freq_hz,
-                y.freq_hz / x.freq_hz - 1.0
-            );
-            if case.replaced.contains(&i) {
-                continue;
-            }
-            let tol = case.changed.iter().find(|c| c.0 == i).map_or(1e-5, |c| c.1);
-            assert!(
-                df <= tol,
-                "{name}: old mode {i} moved by {df:e} (allowed {tol:e})"
-            );
-            assert!(df <= 1e-2 || case.changed.iter().any(|c| c.0 == i));
-            assert!(
-                dwi <= 1e-5,
-                "{name}: old mode {i} weights differ by {dwi:e}"
-            );
-            // T60 = ln(1000) / sigma(f): a moved mode decays at its new frequency
-            let dti = (y.t60_s.unwrap() / x.t60_s.unwrap() - 1.0).abs();
-            assert!(dti <= 1e-4 + tol, "{name}: old mode {i} T60 {dti:e}");
-            dt = dt.max(dti);
-            dw = dw.max(dwi);
-        }
-        println!("  worst T60 {dt:.2e}, worst weight {dw:.2e} of the largest");
+        old_modes_are_kept(&case, a, b);
         if let Some(tr) = case.render {
             let opts = RenderOptions {
                 rate_hz: 48000.0,
@@ -383,4 +252,158 @@ fn rewritten_presets_keep_their_sound() {
             assert!(dr <= tr, "{name}: render {dr:e}");
         }
     }
+}
+
+/// A preset of [`rewritten_presets_keep_their_sound`] and what changed in it.
+struct Rewritten {
+    /// The preset's (and its fixture's) file stem.
+    name: &'static str,
+    /// old mode index, allowed relative frequency difference (the
+    /// modes whose model changed; all others: 1e-5)
+    changed: &'static [(usize, f64)],
+    /// old modes with no counterpart in the new description
+    replaced: &'static [usize],
+    /// relative L2 of the first second of both renders, when the
+    /// whole model is the same
+    render: Option<f64>,
+    /// the preset's `points` line when the fixture was tabulated, for
+    /// a preset whose strike point has moved since (the fixture checks
+    /// the object's model, so it is read at the points it was made at)
+    points: Option<&'static str>,
+    /// the bar's resonator tube, added since the fixture: left out (it
+    /// damps and moves the modes on purpose: tests/radiation.rs)
+    resonator: bool,
+}
+
+/// The rewritten presets, each with what changed.
+fn rewritten_cases() -> [Rewritten; 4] {
+    [
+        Rewritten {
+            name: "steel-plate",
+            changed: &[],
+            replaced: &[],
+            render: Some(1e-3),
+            points: None,
+            resonator: false,
+        },
+        // the torsional modes at the uniform bar's frequencies instead of
+        // an arch estimate
+        Rewritten {
+            name: "marimba-bar",
+            changed: &[],
+            replaced: &[1, 3],
+            render: None,
+            points: None,
+            resonator: true,
+        },
+        // the exact Timoshenko root instead of its first-order expansion
+        Rewritten {
+            name: "glockenspiel-bar",
+            changed: &[(0, 3e-4), (2, 2e-3), (3, 7e-3), (6, 1.7e-2)],
+            replaced: &[],
+            render: None,
+            // the fixture was made struck at 0.45 L; the preset strikes the centre
+            points: Some(
+                "points = { contact = [0.06903556710181151, 0.006], \
+                 pickup = [0.006136494853494357, -0.0075] }",
+            ),
+            resonator: false,
+        },
+        Rewritten {
+            name: "wood-block",
+            changed: &[(0, 1e-3), (3, 7e-3), (4, 2.5e-2)],
+            replaced: &[],
+            render: None,
+            points: None,
+            resonator: false,
+        },
+    ]
+}
+
+/// The preset of `case` as its fixture was tabulated: at the fixture's
+/// points, without a resonator added since, at unit output level.
+fn rewritten_scene(root: &std::path::Path, case: &Rewritten) -> Scene {
+    let name = case.name;
+    let path = root.join(format!("presets/{name}.toml"));
+    let mut text = std::fs::read_to_string(&path).unwrap();
+    if let Some(line) = case.points {
+        let at = text.find("\npoints = {").expect("a points line") + 1;
+        let end = at + text[at..].find('\n').unwrap();
+        text = format!("{}{line}{}", &text[..at], &text[end..]);
+    }
+    if case.resonator {
+        let at = text.find("\nresonator = {").expect("a resonator line") + 1;
+        let end = at + text[at..].find('\n').unwrap() + 1;
+        text = format!("{}{}", &text[..at], &text[end..]);
+    }
+    let mut new = Scene::from_toml_str(&text).unwrap();
+    // the fixture was tabulated at unit output level (tests/level.rs
+    // checks the level's gain)
+    new.level_db = 0.0;
+    new
+}
+
+/// Each mode of the fixture's object `a` matched to the nearest mode of
+/// the preset's expanded object `b`: frequency, weights and T60 agree
+/// unless `case` says the mode changed or was replaced.
+fn old_modes_are_kept(case: &Rewritten, a: &ModalSpec, b: &ModalSpec) {
+    let name = case.name;
+    let wmax = a
+        .mode
+        .iter()
+        .flat_map(|m| m.weights.iter())
+        .fold(0.0f64, |x, w| x.max(w.abs()));
+    let weights = |m: &ModeSpec, pts: &[String]| -> Vec<f64> {
+        a.points
+            .iter()
+            .map(|p| m.weights[pts.iter().position(|q| q == p).unwrap()] / wmax)
+            .collect()
+    };
+    println!("{name}: {} old modes, {} new", a.mode.len(), b.mode.len());
+    let (mut dt, mut dw) = (0.0f64, 0.0f64);
+    for (i, x) in a.mode.iter().enumerate() {
+        let wx = weights(x, &a.points);
+        let cost = |y: &ModeSpec| {
+            let wy = weights(y, &b.points);
+            (y.freq_hz / x.freq_hz - 1.0).abs()
+                + wx.iter().zip(&wy).map(|(p, q)| (p - q).abs()).sum::<f64>()
+        };
+        let y = b
+            .mode
+            .iter()
+            .min_by(|p, q| cost(p).total_cmp(&cost(q)))
+            .unwrap();
+        let df = (y.freq_hz / x.freq_hz - 1.0).abs();
+        let wy = weights(y, &b.points);
+        let dwi = wx
+            .iter()
+            .zip(&wy)
+            .map(|(p, q)| (p - q).abs())
+            .fold(0.0, f64::max);
+        println!(
+            "  old mode {i}: {:.2} Hz -> {:.2} Hz ({:+.2e}), weights {dwi:.1e}",
+            x.freq_hz,
+            y.freq_hz,
+            y.freq_hz / x.freq_hz - 1.0
+        );
+        if case.replaced.contains(&i) {
+            continue;
+        }
+        let tol = case.changed.iter().find(|c| c.0 == i).map_or(1e-5, |c| c.1);
+        assert!(
+            df <= tol,
+            "{name}: old mode {i} moved by {df:e} (allowed {tol:e})"
+        );
+        assert!(df <= 1e-2 || case.changed.iter().any(|c| c.0 == i));
+        assert!(
+            dwi <= 1e-5,
+            "{name}: old mode {i} weights differ by {dwi:e}"
+        );
+        // T60 = ln(1000) / sigma(f): a moved mode decays at its new frequency
+        let dti = (y.t60_s.unwrap() / x.t60_s.unwrap() - 1.0).abs();
+        assert!(dti <= 1e-4 + tol, "{name}: old mode {i} T60 {dti:e}");
+        dt = dt.max(dti);
+        dw = dw.max(dwi);
+    }
+    println!("  worst T60 {dt:.2e}, worst weight {dw:.2e} of the largest");
 }

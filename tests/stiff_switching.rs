@@ -88,8 +88,8 @@
 //! --nocapture`;
 //! the cases run on all cores.
 
-use modal_contact::compile::compile_with;
-use modal_contact::engine::EngineState;
+use modal_contact::compile::{compile_with, CompiledScene};
+use modal_contact::engine::{EngineState, Observation};
 use modal_contact::scene::{Scene, SceneError, Switching};
 use modal_testkit::metrics::{
     energy_rounding_bound, energy_scale, instant_horizon, match_contacts, rel_l2, ContactLog, Ends,
@@ -493,7 +493,28 @@ fn run_case(case: &Case) -> Outcome {
         ..Outcome::default()
     };
     let model = num.model();
-    let sol = reference::solve(&model, RATE, SAMPLES);
+    let (sol, ref_contacts) = reference_runs(&model, &mut out);
+    let hz = out.horizon;
+    let Some(compiled) = compile_case(&num, &mut out) else {
+        return out;
+    };
+    out.summary = compiled.summary.clone();
+    let (obs, eng_contacts, st) = run_engine(&compiled, &mut out);
+    check_traces(&obs, &sol, hz, &mut out);
+    check_instants(&eng_contacts, &ref_contacts, hz, &mut out);
+    check_energy(&obs, &compiled, &num, &mut out);
+    check_counters(&st, &mut out);
+    out
+}
+
+/// The reference's run of `model` and its twin's (inputs moved by
+/// [`DISTURBANCE`]): the horizons of `out` and the reference's contacts
+/// \[samples\], a failure if the comparison window is too short.
+fn reference_runs(
+    model: &reference::Model,
+    out: &mut Outcome,
+) -> (reference::Solution, Vec<Interval>) {
+    let sol = reference::solve(model, RATE, SAMPLES);
     let twin = reference::solve(&model.perturbed(DISTURBANCE), RATE, SAMPLES);
     let ref_contacts = reference_intervals(&sol);
     out.horizon_twin = reference::horizon(&sol, &twin, HORIZON_TOL);
@@ -522,13 +543,17 @@ fn run_case(case: &Case) -> Outcome {
             out.horizon_twin, out.horizon_instants
         ));
     }
+    (sol, ref_contacts)
+}
 
+/// The case's scene compiled, or `None` with the failure in `out`.
+fn compile_case(num: &Numbers, out: &mut Outcome) -> Option<CompiledScene> {
     let scene = match num.scene() {
         Ok(s) => s,
         Err(e) => {
             out.failed.push("scene");
             out.failures.push(format!("scene refused: {e}\n{num:?}"));
-            return out;
+            return None;
         }
     };
     let compiled = match compile_with(&scene, RATE, Some(Switching::Exact)) {
@@ -536,27 +561,36 @@ fn run_case(case: &Case) -> Outcome {
         Err(e) => {
             out.failed.push("compile");
             out.failures.push(format!("compile failed: {e}\n{num:?}"));
-            return out;
+            return None;
         }
     };
-    out.summary = compiled.summary.clone();
+    Some(compiled)
+}
+
+/// Run the engine [`TIMING_RUNS`] times: the first run's observations and
+/// contacts \[samples\], the last run's state; the worst tick's time and
+/// the switch log's anomalies in `out`.
+fn run_engine(
+    compiled: &CompiledScene,
+    out: &mut Outcome,
+) -> (Vec<Observation>, Vec<Interval>, EngineState) {
     let mut obs = Vec::with_capacity(SAMPLES + 1);
     let mut eng_contacts: Vec<Interval> = Vec::new();
     let mut tick_s = vec![f64::INFINITY; SAMPLES];
-    let mut st = EngineState::new(&compiled);
+    let mut st = EngineState::new(compiled);
     for run in 0..TIMING_RUNS {
         // the first run records, the others only time
         let record = run == 0;
         if !record {
-            st = EngineState::new(&compiled);
+            st = EngineState::new(compiled);
         }
         if record {
-            obs.push(st.observe(&compiled));
+            obs.push(st.observe(compiled));
         }
         let mut log = ContactLog::default();
         for (i, best) in tick_s.iter_mut().enumerate() {
             let t0 = Instant::now();
-            st.tick(&compiled);
+            st.tick(compiled);
             *best = best.min(t0.elapsed().as_secs_f64());
             if !record {
                 continue;
@@ -573,7 +607,7 @@ fn run_case(case: &Case) -> Outcome {
                     )),
                 }
             }
-            obs.push(st.observe(&compiled));
+            obs.push(st.observe(compiled));
         }
         if record {
             eng_contacts = log.finish(None);
@@ -585,7 +619,11 @@ fn run_case(case: &Case) -> Outcome {
     let worst = tick_s.iter().copied().fold(0.0, f64::max);
     out.worst_us = worst * 1e6;
     out.contacts_eng = eng_contacts.len();
+    (obs, eng_contacts, st)
+}
 
+/// The engine's traces against the reference's on the horizon `hz`.
+fn check_traces(obs: &[Observation], sol: &reference::Solution, hz: usize, out: &mut Outcome) {
     // traces on the horizon
     let w = hz + 1;
     let eng_x: Vec<f64> = obs[..w].iter().map(|o| o.x_hammer).collect();
@@ -608,11 +646,20 @@ fn run_case(case: &Case) -> Outcome {
             ));
         }
     }
+}
 
+/// The engine's contact instants against the reference's on the horizon
+/// `hz` \[samples\].
+fn check_instants(
+    eng_contacts: &[Interval],
+    ref_contacts: &[Interval],
+    hz: usize,
+    out: &mut Outcome,
+) {
     // contact instants on the horizon
     let m = match_contacts(
-        &eng_contacts,
-        &ref_contacts,
+        eng_contacts,
+        ref_contacts,
         hz as f64,
         1.0,
         Ends::EitherEnded,
@@ -633,9 +680,12 @@ fn run_case(case: &Case) -> Outcome {
             fmt_interval(&eng_contacts[i])
         ));
     }
+}
 
+/// The energy never rises beyond rounding over the whole run.
+fn check_energy(obs: &[Observation], compiled: &CompiledScene, num: &Numbers, out: &mut Outcome) {
     // energy over the whole run
-    let bound = energy_rounding_bound(&compiled);
+    let bound = energy_rounding_bound(compiled);
     let mg = num.m_h * num.g;
     let mut de = f64::NEG_INFINITY;
     let mut first_rise = None;
@@ -659,7 +709,10 @@ fn run_case(case: &Case) -> Outcome {
             "energy rose at sample {i}: {a:.12e} -> {b:.12e} J (relative {rel:.3e} > {bound:.3e}; worst {de:.3e})"
         ));
     }
+}
 
+/// The exact switching's failure counters are 0.
+fn check_counters(st: &EngineState, out: &mut Outcome) {
     let s = &st.exact_stats;
     (out.rest_later, out.rest_misses) = (s.rest_later, s.rest_misses);
     if s.capped != 0 || s.rod_fallbacks != 0 || s.uncertified != 0 {
@@ -669,7 +722,6 @@ fn run_case(case: &Case) -> Outcome {
             s.capped, s.rod_fallbacks, s.uncertified, s.located, s.grazing
         ));
     }
-    out
 }
 
 /// Run a case, turning a panic into a failure (so the table still prints).

@@ -294,76 +294,8 @@ fn the_instrument_sounds_the_same_with_its_stored_strikes() {
         let with = prepare_scene(&scene, &params.scene, RATE, 0).unwrap();
         let mut without = with.clone();
         without.forget_stored_strikes();
-        let on = |key: u8, at: usize, vel: f64| TimedEvent {
-            offset: at,
-            event: Event::NoteOn {
-                key,
-                velocity_norm: vel,
-            },
-        };
-        let mut evs = Vec::new();
-        for c in 0..6usize {
-            let at = c * 3000 + 5;
-            for j in 0..12u8 {
-                evs.push(on(
-                    40 + (j * 7 + c as u8 * 3) % 40,
-                    at,
-                    0.2 + 0.06 * f64::from(j),
-                ));
-            }
-            // inside the strikes just made
-            evs.push(TimedEvent {
-                offset: at + 9,
-                event: Event::NoteOff {
-                    key: 40 + (c as u8 * 3) % 40,
-                },
-            });
-            evs.push(TimedEvent {
-                offset: at + 11,
-                event: Event::NotePressure {
-                    key: Some(40 + (14 + c as u8 * 3) % 40),
-                    value: 0.7,
-                },
-            });
-            evs.push(TimedEvent {
-                offset: at + 13,
-                event: Event::NoteBrightness {
-                    key: Some(40 + (21 + c as u8 * 3) % 40),
-                    value: 0.9,
-                },
-            });
-            evs.push(on(40 + (7 + c as u8 * 3) % 40, at + 17, 0.9));
-            evs.push(TimedEvent {
-                offset: at + 23,
-                event: Event::PitchBend {
-                    value: 0.1 * c as f64 - 0.2,
-                },
-            });
-        }
-        let render = |p: Box<modal_contact::instrument::Prepared>| {
-            let mut inst = Instrument::new(p, params.play);
-            let total = 20000;
-            let (mut l, mut r) = (vec![0.0f32; total], vec![0.0f32; total]);
-            let mut start = 0;
-            while start < total {
-                let len = 64.min(total - start);
-                let local: Vec<TimedEvent> = evs
-                    .iter()
-                    .filter(|e| e.offset >= start && e.offset < start + len)
-                    .map(|e| TimedEvent {
-                        offset: e.offset - start,
-                        event: e.event,
-                    })
-                    .collect();
-                inst.process(
-                    &local,
-                    &mut l[start..start + len],
-                    &mut r[start..start + len],
-                );
-                start += len;
-            }
-            (l, r, inst.stats)
-        };
+        let evs = strike_events();
+        let render = |p| render_events(p, params.play, &evs);
         let (la, ra, sa) = render(with);
         let (lb, rb, sb) = render(without);
         let peak = lb.iter().chain(&rb).fold(0.0f32, |m, x| m.max(x.abs()));
@@ -384,4 +316,88 @@ fn the_instrument_sounds_the_same_with_its_stored_strikes() {
             "{name}: {diff:e} of {peak:e}"
         );
     }
+}
+
+/// Six chords of twelve notes, 3000 samples apart, each with a release,
+/// pressure, brightness, a repeated note and a bend landing inside its
+/// strikes.
+fn strike_events() -> Vec<TimedEvent> {
+    let on = |key: u8, at: usize, vel: f64| TimedEvent {
+        offset: at,
+        event: Event::NoteOn {
+            key,
+            velocity_norm: vel,
+        },
+    };
+    let mut evs = Vec::new();
+    for c in 0..6usize {
+        let at = c * 3000 + 5;
+        for j in 0..12u8 {
+            evs.push(on(
+                40 + (j * 7 + c as u8 * 3) % 40,
+                at,
+                0.2 + 0.06 * f64::from(j),
+            ));
+        }
+        // inside the strikes just made
+        evs.push(TimedEvent {
+            offset: at + 9,
+            event: Event::NoteOff {
+                key: 40 + (c as u8 * 3) % 40,
+            },
+        });
+        evs.push(TimedEvent {
+            offset: at + 11,
+            event: Event::NotePressure {
+                key: Some(40 + (14 + c as u8 * 3) % 40),
+                value: 0.7,
+            },
+        });
+        evs.push(TimedEvent {
+            offset: at + 13,
+            event: Event::NoteBrightness {
+                key: Some(40 + (21 + c as u8 * 3) % 40),
+                value: 0.9,
+            },
+        });
+        evs.push(on(40 + (7 + c as u8 * 3) % 40, at + 17, 0.9));
+        evs.push(TimedEvent {
+            offset: at + 23,
+            event: Event::PitchBend {
+                value: 0.1 * c as f64 - 0.2,
+            },
+        });
+    }
+    evs
+}
+
+/// 20000 samples of the instrument `p` plays with `play`, in blocks of 64
+/// with the events `evs`: left, right and the instrument's statistics.
+fn render_events(
+    p: Box<modal_contact::instrument::Prepared>,
+    play: modal_contact::instrument::PlayParams,
+    evs: &[TimedEvent],
+) -> (Vec<f32>, Vec<f32>, modal_contact::instrument::Stats) {
+    let mut inst = Instrument::new(p, play);
+    let total = 20000;
+    let (mut l, mut r) = (vec![0.0f32; total], vec![0.0f32; total]);
+    let mut start = 0;
+    while start < total {
+        let len = 64.min(total - start);
+        let local: Vec<TimedEvent> = evs
+            .iter()
+            .filter(|e| e.offset >= start && e.offset < start + len)
+            .map(|e| TimedEvent {
+                offset: e.offset - start,
+                event: e.event,
+            })
+            .collect();
+        inst.process(
+            &local,
+            &mut l[start..start + len],
+            &mut r[start..start + len],
+        );
+        start += len;
+    }
+    (l, r, inst.stats)
 }

@@ -1007,6 +1007,35 @@ impl Audio {
         );
         self.in_events.clear();
         self.out_events.clear();
+        self.queue_events(block_start, events);
+        let (left, right) = (&mut self.left[..frames], &mut self.right[..frames]);
+        left.fill(f32::NAN);
+        right.fill(f32::NAN);
+        let input_audio = InputAudioBuffers::empty();
+        let mut output_audio = self.out_ports.with_output_buffers([AudioPortBuffer {
+            latency: 0,
+            channels: AudioPortBufferType::f32_output_only([left, right].into_iter()),
+        }]);
+        self.processor
+            .as_mut()
+            .expect("processing")
+            .process(
+                &input_audio,
+                &mut output_audio,
+                &self.in_events.as_input(),
+                &mut self.out_events.as_output(),
+                Some(self.steady),
+                None,
+            )
+            .expect("process");
+        self.record_note_ends(block_start);
+        self.steady += frames as u64;
+        [&self.left[..frames], &self.right[..frames]]
+    }
+
+    /// Queue `events` (their `at` absolute, `block_start` subtracted) as
+    /// the block's CLAP input events.
+    fn queue_events(&mut self, block_start: usize, events: &[HostEvent]) {
         for e in events {
             let t = (e.at() - block_start) as u32;
             match *e {
@@ -1068,26 +1097,11 @@ impl Audio {
                 )),
             }
         }
-        let (left, right) = (&mut self.left[..frames], &mut self.right[..frames]);
-        left.fill(f32::NAN);
-        right.fill(f32::NAN);
-        let input_audio = InputAudioBuffers::empty();
-        let mut output_audio = self.out_ports.with_output_buffers([AudioPortBuffer {
-            latency: 0,
-            channels: AudioPortBufferType::f32_output_only([left, right].into_iter()),
-        }]);
-        self.processor
-            .as_mut()
-            .expect("processing")
-            .process(
-                &input_audio,
-                &mut output_audio,
-                &self.in_events.as_input(),
-                &mut self.out_events.as_output(),
-                Some(self.steady),
-                None,
-            )
-            .expect("process");
+    }
+
+    /// Record the note-end events the plugin sent in this block, their
+    /// times made absolute by `block_start`.
+    fn record_note_ends(&mut self, block_start: usize) {
         for e in self.out_events.iter() {
             if let Some(end) = e.as_event::<NoteEndEvent>() {
                 let id = match end.note_id() {
@@ -1105,8 +1119,6 @@ impl Audio {
                 });
             }
         }
-        self.steady += frames as u64;
-        [&self.left[..frames], &self.right[..frames]]
     }
 
     /// The host's reset (e.g. on transport jumps).
@@ -1182,118 +1194,127 @@ pub fn library_render_prepared(
     let mut inst = Instrument::new(prepared, params.play);
     let mut sorted: Vec<LibEvent> = events
         .iter()
-        .filter_map(|e| match *e {
-            HostEvent::NoteOn { at, key, velocity } => Some(LibEvent {
-                offset: at,
-                event: Event::NoteOn {
-                    key,
-                    velocity_norm: velocity as f32 as f64,
-                },
-            }),
-            HostEvent::NoteOff { at, key } => Some(LibEvent {
-                offset: at,
-                event: Event::NoteOff { key },
-            }),
-            HostEvent::Midi {
-                at,
-                data: [0xB0, c @ (64 | 66), v],
-            } => Some(LibEvent {
-                offset: at,
-                event: if c == 64 {
-                    Event::Sustain { down: v >= 64 }
-                } else {
-                    Event::Sostenuto { down: v >= 64 }
-                },
-            }),
-            HostEvent::Midi {
-                at,
-                data: [0xE0, lsb, msb],
-            } => {
-                // the 14-bit wheel, centre 8192 (the plugin's own mapping)
-                let m = f64::from(u16::from(lsb & 0x7f) | (u16::from(msb & 0x7f) << 7)) - 8192.0;
-                Some(LibEvent {
-                    offset: at,
-                    event: Event::PitchBend {
-                        value: if m >= 0.0 { m / 8191.0 } else { m / 8192.0 },
-                    },
-                })
-            }
-            HostEvent::Tuning { at, key, semitones } => Some(LibEvent {
-                offset: at,
-                event: Event::NoteTuning {
-                    key: Some(key),
-                    semitones,
-                },
-            }),
-            // the mod wheel and channel aftertouch as nice-plug gives them
-            // (value / 127 in f32)
-            HostEvent::Midi {
-                at,
-                data: [0xB0, 1, v],
-            } => Some(LibEvent {
-                offset: at,
-                event: Event::ModWheel {
-                    value: f64::from(f32::from(v) / 127.0),
-                },
-            }),
-            HostEvent::Midi {
-                at,
-                data: [0xD0, v, _],
-            } => Some(LibEvent {
-                offset: at,
-                event: Event::ChannelPressure {
-                    value: f64::from(f32::from(v) / 127.0),
-                },
-            }),
-            HostEvent::Pressure { at, key, value } => Some(LibEvent {
-                offset: at,
-                event: Event::NotePressure {
-                    key: Some(key),
-                    value: f64::from(value as f32),
-                },
-            }),
-            HostEvent::Brightness { at, key, value } => Some(LibEvent {
-                offset: at,
-                event: Event::NoteBrightness {
-                    key: Some(key),
-                    value: f64::from(value as f32),
-                },
-            }),
-            HostEvent::NoteOnId {
-                at, key, velocity, ..
-            } => Some(LibEvent {
-                offset: at,
-                event: Event::NoteOn {
-                    key,
-                    velocity_norm: velocity as f32 as f64,
-                },
-            }),
-            HostEvent::PolyMod {
-                at,
-                id,
-                target,
-                amount,
-            } => {
-                // the key of the note id (the last note-on with it before)
-                let key = events.iter().rev().find_map(|e| match *e {
-                    HostEvent::NoteOnId {
-                        at: a, key, id: i, ..
-                    } if i == id && a <= at => Some(key),
-                    _ => None,
-                })?;
-                Some(LibEvent {
-                    offset: at,
-                    event: target.event(&params.scene, key, amount),
-                })
-            }
-            HostEvent::Midi { .. } | HostEvent::Param { .. } => None,
-        })
+        .filter_map(|e| library_event(e, events, params))
         .collect();
     sorted.sort_by_key(|e| e.offset);
     let mut l = vec![0.0; total];
     let mut r = vec![0.0; total];
     inst.process(&sorted, &mut l, &mut r);
     [l, r]
+}
+
+/// The instrument library's event for the host event `e` of `events`, as
+/// the plugin turns it into one (`None`: the plugin hears it otherwise, or
+/// not at all).
+fn library_event(
+    e: &HostEvent,
+    events: &[HostEvent],
+    params: &InstrumentParams,
+) -> Option<LibEvent> {
+    match *e {
+        HostEvent::NoteOn { at, key, velocity } => Some(LibEvent {
+            offset: at,
+            event: Event::NoteOn {
+                key,
+                velocity_norm: velocity as f32 as f64,
+            },
+        }),
+        HostEvent::NoteOff { at, key } => Some(LibEvent {
+            offset: at,
+            event: Event::NoteOff { key },
+        }),
+        HostEvent::Midi { at, data } => library_midi_event(at, data),
+        HostEvent::Tuning { at, key, semitones } => Some(LibEvent {
+            offset: at,
+            event: Event::NoteTuning {
+                key: Some(key),
+                semitones,
+            },
+        }),
+        HostEvent::Pressure { at, key, value } => Some(LibEvent {
+            offset: at,
+            event: Event::NotePressure {
+                key: Some(key),
+                value: f64::from(value as f32),
+            },
+        }),
+        HostEvent::Brightness { at, key, value } => Some(LibEvent {
+            offset: at,
+            event: Event::NoteBrightness {
+                key: Some(key),
+                value: f64::from(value as f32),
+            },
+        }),
+        HostEvent::NoteOnId {
+            at, key, velocity, ..
+        } => Some(LibEvent {
+            offset: at,
+            event: Event::NoteOn {
+                key,
+                velocity_norm: velocity as f32 as f64,
+            },
+        }),
+        HostEvent::PolyMod {
+            at,
+            id,
+            target,
+            amount,
+        } => {
+            // the key of the note id (the last note-on with it before)
+            let key = events.iter().rev().find_map(|e| match *e {
+                HostEvent::NoteOnId {
+                    at: a, key, id: i, ..
+                } if i == id && a <= at => Some(key),
+                _ => None,
+            })?;
+            Some(LibEvent {
+                offset: at,
+                event: target.event(&params.scene, key, amount),
+            })
+        }
+        HostEvent::Param { .. } => None,
+    }
+}
+
+/// The instrument library's event for the MIDI message `data` at sample
+/// `at`, as the plugin turns it into one (`None`: the plugin hears it
+/// otherwise, or not at all).
+fn library_midi_event(at: usize, data: [u8; 3]) -> Option<LibEvent> {
+    match data {
+        [0xB0, c @ (64 | 66), v] => Some(LibEvent {
+            offset: at,
+            event: if c == 64 {
+                Event::Sustain { down: v >= 64 }
+            } else {
+                Event::Sostenuto { down: v >= 64 }
+            },
+        }),
+        [0xE0, lsb, msb] => {
+            // the 14-bit wheel, centre 8192 (the plugin's own mapping)
+            let m = f64::from(u16::from(lsb & 0x7f) | (u16::from(msb & 0x7f) << 7)) - 8192.0;
+            Some(LibEvent {
+                offset: at,
+                event: Event::PitchBend {
+                    value: if m >= 0.0 { m / 8191.0 } else { m / 8192.0 },
+                },
+            })
+        }
+        // the mod wheel and channel aftertouch as nice-plug gives them
+        // (value / 127 in f32)
+        [0xB0, 1, v] => Some(LibEvent {
+            offset: at,
+            event: Event::ModWheel {
+                value: f64::from(f32::from(v) / 127.0),
+            },
+        }),
+        [0xD0, v, _] => Some(LibEvent {
+            offset: at,
+            event: Event::ChannelPressure {
+                value: f64::from(f32::from(v) / 127.0),
+            },
+        }),
+        _ => None,
+    }
 }
 
 // ---------------------------------------------------------------------------

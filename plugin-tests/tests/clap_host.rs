@@ -389,7 +389,10 @@ fn latency_changes_only_inside_activate_under_rt_checks() {
     check_latency_protocol(Variant::RtChecks);
 }
 
-pub fn check_param_swap(variant: Variant) {
+/// A decay and hardness change mid-render through the `variant` bundle:
+/// nothing changes before it, the recompiled scene is swapped in within
+/// 0.3 s without a jump, and its shorter decay is heard.
+fn check_param_swap(variant: Variant) {
     let rate = 44_100.0;
     let total = (rate * 2.5) as usize;
     let notes = vec![on(100, 57, 0.9), on(130, 64, 0.7), on(5000, 69, 0.8)];

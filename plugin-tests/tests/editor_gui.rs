@@ -273,102 +273,22 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
     let out = workspace_root().join("target/plugin-tests/editor");
     let _ = std::fs::remove_dir_all(&out);
     std::fs::create_dir_all(&out).unwrap();
-    // the user data directory: a short path, as the browser shows it in
-    // README's picture
-    let data = std::env::temp_dir().join("modal-contact-editor");
-    let _ = std::fs::remove_dir_all(&data);
-    let scenes = data.join("modalcontact/scenes");
-    std::fs::create_dir_all(&scenes).unwrap();
-    std::fs::write(
-        scenes.join("my-block.toml"),
-        USER_SCENE.replace("name = \"wood-block\"", "name = \"my-block\""),
-    )
-    .unwrap();
-    std::fs::write(scenes.join("typo.toml"), invalid_scene()).unwrap();
+    let (data, scenes) = user_scene_folder();
 
     let display = free_display();
-    let xvfb = Killed(
-        Command::new("Xvfb")
-            .args([
-                display.as_str(),
-                "-screen",
-                "0",
-                "1280x1024x24",
-                "-nolisten",
-                "tcp",
-            ])
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("Xvfb (Debian: xvfb)"),
-    );
+    let xvfb = spawn_xvfb(&display);
     let t0 = Instant::now();
-    while !Command::new("xdpyinfo")
-        .env("DISPLAY", &display)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
-    {
-        assert!(t0.elapsed() < Duration::from_secs(20), "Xvfb did not start");
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    let log = std::fs::File::create(out.join("standalone.log")).unwrap();
-    let mut app = Killed(
-        Command::new(&bin)
-            .args([
-                "--backend",
-                "dummy",
-                "--sample-rate",
-                "48000",
-                "--period-size",
-                "256",
-            ])
-            .env("DISPLAY", &display)
-            .env("LIBGL_ALWAYS_SOFTWARE", "1")
-            .env("XDG_DATA_HOME", &data)
-            .stdout(log.try_clone().unwrap())
-            .stderr(log)
-            .spawn()
-            .expect("the standalone"),
-    );
-    let found = Command::new("timeout")
-        .args([
-            "60",
-            "xdotool",
-            "search",
-            "--sync",
-            "--name",
-            "^Modal Contact$",
-        ])
-        .env("DISPLAY", &display)
-        .output()
-        .expect("xdotool (Debian: xdotool)");
-    let wid = String::from_utf8_lossy(&found.stdout)
-        .lines()
-        .next()
-        .unwrap_or("")
-        .trim()
-        .to_string();
-    assert!(
-        !wid.is_empty(),
-        "no window; the application's log:\n{}",
-        std::fs::read_to_string(out.join("standalone.log")).unwrap_or_default()
-    );
+    wait_for_display(&display, t0);
+    let mut app = spawn_standalone(&bin, &display, &data, &out);
+    let wid = find_window(&display, &out);
     println!("window {wid} after {:.2} s", t0.elapsed().as_secs_f64());
-
-    // the first painted frame: more than a handful of colours
-    let t1 = Instant::now();
-    let first = loop {
-        let s = shot(&display, &wid, None);
-        if s.colours(0, 0, s.w, s.h) > 20 {
-            break s;
-        }
-        assert!(
-            t1.elapsed() < Duration::from_secs(30),
-            "the window stays blank"
-        );
-        std::thread::sleep(Duration::from_millis(100));
+    let ed = Editor {
+        display: &display,
+        wid: &wid,
+        out: &out,
     };
+
+    let first = first_frame(&ed);
     assert_eq!(
         (first.w as u32, first.h as u32),
         SIZE,
@@ -376,7 +296,7 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
     );
     // let the folder listing arrive, then the reference picture
     std::thread::sleep(Duration::from_millis(1500));
-    let before = shot(&display, &wid, Some(&out.join("editor-idle.png")));
+    let before = shot(ed.display, ed.wid, Some(&ed.out.join("editor-idle.png")));
     let (w, h) = (before.w, before.h);
     println!("idle: {} colours", before.colours(0, 0, w, h));
     // the folder's entries (below the built-in list: one 23-pixel row per
@@ -390,10 +310,145 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
         "the invalid file's error is not shown ({listed_red} red pixels)"
     );
 
-    // nothing moves: the window is not redrawn, the application idles
-    // (the audio thread's dummy backend and the worker's poll remain;
-    // redrawing at the display rate took about 40 % of a core here)
-    let idle = cpu_share(app.0.id(), Duration::from_secs(3));
+    editor_idles(&app.0);
+    let view = (280, 60, w.min(700), h.min(500));
+    let struck = pad_moves_the_view(&ed, &mut app.0, &before, view);
+    let user_struck = user_scene_loads_and_plays(&ed, &mut app.0, &struck, w, user_row_y, view);
+    let file = scenes.join("my-block.toml");
+    let button_x = changed_file_offers_a_reload_that_fails(&ed, &mut app.0, &file, &user_struck, w);
+    slow_compile_is_labelled(&ed, &mut app.0, &file, w, button_x);
+    let _ = Command::new("kill")
+        .args(["-TERM", &app.0.id().to_string()])
+        .status();
+    drop(xvfb);
+}
+
+/// The editor under test: the X display, its window's id, and the folder
+/// of the screenshots and the application's log.
+struct Editor<'a> {
+    display: &'a str,
+    wid: &'a str,
+    out: &'a Path,
+}
+
+/// The user data directory with its scene folder (a valid scene and an
+/// invalid one): `(data directory, scene folder)`.
+fn user_scene_folder() -> (PathBuf, PathBuf) {
+    // the user data directory: a short path, as the browser shows it in
+    // README's picture
+    let data = std::env::temp_dir().join("modal-contact-editor");
+    let _ = std::fs::remove_dir_all(&data);
+    let scenes = data.join("modalcontact/scenes");
+    std::fs::create_dir_all(&scenes).unwrap();
+    std::fs::write(
+        scenes.join("my-block.toml"),
+        USER_SCENE.replace("name = \"wood-block\"", "name = \"my-block\""),
+    )
+    .unwrap();
+    std::fs::write(scenes.join("typo.toml"), invalid_scene()).unwrap();
+    (data, scenes)
+}
+
+/// Xvfb on `display`, killed on drop.
+fn spawn_xvfb(display: &str) -> Killed {
+    Killed(
+        Command::new("Xvfb")
+            .args([display, "-screen", "0", "1280x1024x24", "-nolisten", "tcp"])
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("Xvfb (Debian: xvfb)"),
+    )
+}
+
+/// Wait (at most 20 s from `t0`) until the X server on `display` answers.
+fn wait_for_display(display: &str, t0: Instant) {
+    while !Command::new("xdpyinfo")
+        .env("DISPLAY", display)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+    {
+        assert!(t0.elapsed() < Duration::from_secs(20), "Xvfb did not start");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// The standalone `bin` on `display`, its user data in `data`, its log in
+/// `out`; killed on drop.
+fn spawn_standalone(bin: &Path, display: &str, data: &Path, out: &Path) -> Killed {
+    let log = std::fs::File::create(out.join("standalone.log")).unwrap();
+    Killed(
+        Command::new(bin)
+            .args([
+                "--backend",
+                "dummy",
+                "--sample-rate",
+                "48000",
+                "--period-size",
+                "256",
+            ])
+            .env("DISPLAY", display)
+            .env("LIBGL_ALWAYS_SOFTWARE", "1")
+            .env("XDG_DATA_HOME", data)
+            .stdout(log.try_clone().unwrap())
+            .stderr(log)
+            .spawn()
+            .expect("the standalone"),
+    )
+}
+
+/// The id of the application's window on `display` (waiting up to 60 s),
+/// or a failure with the application's log in `out`.
+fn find_window(display: &str, out: &Path) -> String {
+    let found = Command::new("timeout")
+        .args([
+            "60",
+            "xdotool",
+            "search",
+            "--sync",
+            "--name",
+            "^Modal Contact$",
+        ])
+        .env("DISPLAY", display)
+        .output()
+        .expect("xdotool (Debian: xdotool)");
+    let wid = String::from_utf8_lossy(&found.stdout)
+        .lines()
+        .next()
+        .unwrap_or("")
+        .trim()
+        .to_string();
+    assert!(
+        !wid.is_empty(),
+        "no window; the application's log:\n{}",
+        std::fs::read_to_string(out.join("standalone.log")).unwrap_or_default()
+    );
+    wid
+}
+
+/// The first painted frame: more than a handful of colours (within 30 s).
+fn first_frame(ed: &Editor) -> Shot {
+    // the first painted frame: more than a handful of colours
+    let t1 = Instant::now();
+    loop {
+        let s = shot(ed.display, ed.wid, None);
+        if s.colours(0, 0, s.w, s.h) > 20 {
+            break s;
+        }
+        assert!(
+            t1.elapsed() < Duration::from_secs(30),
+            "the window stays blank"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// Nothing moves: the window is not redrawn, the application `app` idles
+/// (the audio thread's dummy backend and the worker's poll remain;
+/// redrawing at the display rate took about 40 % of a core here).
+fn editor_idles(app: &Child) {
+    let idle = cpu_share(app.id(), Duration::from_secs(3));
     println!(
         "idle: the application takes {:.1} % of one core",
         idle * 100.0
@@ -403,65 +458,103 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
         "the idle editor takes {:.1} % of one core: is it redrawn when nothing changed?",
         idle * 100.0
     );
+}
 
-    // an audition pad (the second, "root", in the bottom row between the
-    // side panels), struck high: the live view must move
-    click(&display, &wid, 390, SIZE.1 - 40);
+/// An audition pad (the second, "root", in the bottom row between the side
+/// panels), struck high: the live view `view` (x0, y0, x1, y1) must move
+/// from `before`. Returns the struck picture.
+fn pad_moves_the_view(
+    ed: &Editor,
+    app: &mut Child,
+    before: &Shot,
+    view: (usize, usize, usize, usize),
+) -> Shot {
+    click(ed.display, ed.wid, 390, SIZE.1 - 40);
     std::thread::sleep(Duration::from_millis(400));
-    assert_alive(&mut app.0, &out);
-    let struck = shot(&display, &wid, Some(&out.join("editor-struck.png")));
-    let view = (280, 60, w.min(700), h.min(500));
-    let changed = struck.diff(&before, view.0, view.1, view.2, view.3);
+    assert_alive(app, ed.out);
+    let struck = shot(ed.display, ed.wid, Some(&ed.out.join("editor-struck.png")));
+    let changed = struck.diff(before, view.0, view.1, view.2, view.3);
     println!("live view: {changed} pixels changed after the pad");
     assert!(
         changed > 2000,
         "the live view did not change after a pad ({changed} pixels)"
     );
     assert!(
-        app.0.try_wait().unwrap().is_none(),
+        app.try_wait().unwrap().is_none(),
         "the application died (allocation in process?)"
     );
+    struck
+}
 
-    // the user scene (the first entry of the folder list): the top bar
-    // names it once the worker compiled it
-    let listing = std::fs::read_to_string(out.join("standalone.log")).unwrap_or_default();
-    click(&display, &wid, 56, user_row_y);
+/// The user scene (the first entry of the folder list, at `user_row_y`):
+/// the top bar (the window's width `w`) names it once the worker compiled
+/// it; struck, the live view `view` moves again. Returns the struck
+/// picture.
+fn user_scene_loads_and_plays(
+    ed: &Editor,
+    app: &mut Child,
+    struck: &Shot,
+    w: usize,
+    user_row_y: u32,
+    view: (usize, usize, usize, usize),
+) -> Shot {
+    let listing = std::fs::read_to_string(ed.out.join("standalone.log")).unwrap_or_default();
+    click(ed.display, ed.wid, 56, user_row_y);
     std::thread::sleep(Duration::from_millis(1500));
-    let loaded = shot(&display, &wid, Some(&out.join("editor-user-scene.png")));
-    let top = loaded.diff(&struck, 0, 0, w, 50);
+    let loaded = shot(
+        ed.display,
+        ed.wid,
+        Some(&ed.out.join("editor-user-scene.png")),
+    );
+    let top = loaded.diff(struck, 0, 0, w, 50);
     println!("top bar: {top} pixels changed after loading the user scene");
     assert!(
         top > 100,
         "the top bar did not change after loading a user scene\n{listing}"
     );
     // strike it: the view moves again
-    click(&display, &wid, 390, SIZE.1 - 40);
+    click(ed.display, ed.wid, 390, SIZE.1 - 40);
     std::thread::sleep(Duration::from_millis(400));
-    let user_struck = shot(&display, &wid, Some(&out.join("editor-user-struck.png")));
+    let user_struck = shot(
+        ed.display,
+        ed.wid,
+        Some(&ed.out.join("editor-user-struck.png")),
+    );
     assert!(user_struck.diff(&loaded, view.0, view.1, view.2, view.3) > 2000);
-    assert_alive(&mut app.0, &out);
+    assert_alive(app, ed.out);
+    user_struck
+}
 
-    // the file changes on disk (into an invalid scene): the top bar offers
-    // a reload (checked once a second), the scene is not swapped silently
-    let file = scenes.join("my-block.toml");
+/// The scene's `file` changes on disk (into an invalid scene): the top bar
+/// offers a reload (checked once a second), the scene is not swapped
+/// silently; reloaded, the compile fails and the top bar says why in red
+/// (the last good scene plays on); `w`: the window's width. Returns the
+/// reload button's x.
+fn changed_file_offers_a_reload_that_fails(
+    ed: &Editor,
+    app: &mut Child,
+    file: &Path,
+    user_struck: &Shot,
+    w: usize,
+) -> usize {
     std::fs::write(
-        &file,
+        file,
         invalid_scene().replace("name = \"wood-block\"", "name = \"my-block\""),
     )
     .unwrap();
     std::thread::sleep(Duration::from_millis(2500));
     let offered = shot(
-        &display,
-        &wid,
-        Some(&out.join("editor-changed-on-disk.png")),
+        ed.display,
+        ed.wid,
+        Some(&ed.out.join("editor-changed-on-disk.png")),
     );
-    let top = offered.diff(&user_struck, 0, 0, w, 30);
+    let top = offered.diff(user_struck, 0, 0, w, 30);
     println!("top bar: {top} pixels changed after the file changed on disk");
     assert!(
         top > 100,
         "no reload offered after the file changed on disk"
     );
-    assert_alive(&mut app.0, &out);
+    assert_alive(app, ed.out);
 
     // reload it: the compile fails, the top bar says why in red (the last
     // good scene plays on)
@@ -469,25 +562,37 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
         .filter(|&x| (0..30).any(|y| offered.px(x, y) != user_struck.px(x, y)))
         .collect();
     let button_x = (changed_x[0] + changed_x[changed_x.len() - 1]) / 2;
-    click(&display, &wid, button_x as u32, 14);
+    click(ed.display, ed.wid, button_x as u32, 14);
     std::thread::sleep(Duration::from_millis(1500));
-    let failed = shot(&display, &wid, Some(&out.join("editor-reload-failed.png")));
+    let failed = shot(
+        ed.display,
+        ed.wid,
+        Some(&ed.out.join("editor-reload-failed.png")),
+    );
     let red = red_pixels(&failed, 0, 24, w, 44);
     println!("top bar: {red} red pixels after reloading the invalid file");
     assert!(
         red > 100,
         "the failed compile's error is not shown in the top bar ({red} red pixels)"
     );
-    assert_alive(&mut app.0, &out);
+    assert_alive(app, ed.out);
+    button_x
+}
 
-    // a valid scene that takes seconds to compile: while it does, the top
-    // bar says "compiling…" (and no longer the error); once it plays, the
-    // label is gone
-    std::fs::write(&file, slow_scene()).unwrap();
+/// A valid scene that takes seconds to compile, written to `file` and
+/// reloaded with the button at `button_x`: while it compiles, the top bar
+/// (the window's width `w`) says "compiling…" (and no longer the error);
+/// once it plays, the label is gone.
+fn slow_compile_is_labelled(ed: &Editor, app: &mut Child, file: &Path, w: usize, button_x: usize) {
+    std::fs::write(file, slow_scene()).unwrap();
     std::thread::sleep(Duration::from_millis(2500));
-    click(&display, &wid, button_x as u32, 14);
+    click(ed.display, ed.wid, button_x as u32, 14);
     std::thread::sleep(Duration::from_millis(400));
-    let compiling = shot(&display, &wid, Some(&out.join("editor-compiling.png")));
+    let compiling = shot(
+        ed.display,
+        ed.wid,
+        Some(&ed.out.join("editor-compiling.png")),
+    );
     let red = red_pixels(&compiling, 0, 24, w, 44);
     assert_eq!(
         red, 0,
@@ -496,7 +601,7 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
     let t2 = Instant::now();
     let compiled = loop {
         std::thread::sleep(Duration::from_millis(500));
-        let s = shot(&display, &wid, None);
+        let s = shot(ed.display, ed.wid, None);
         // the summary line names the new scene's 600 modes once it plays
         if s.diff(&compiling, 0, 24, w, 44) > 100 {
             break s;
@@ -516,9 +621,5 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
         label > 100,
         "no \"compiling…\" in the top bar while the scene compiled"
     );
-    assert_alive(&mut app.0, &out);
-    let _ = Command::new("kill")
-        .args(["-TERM", &app.0.id().to_string()])
-        .status();
-    drop(xvfb);
+    assert_alive(app, ed.out);
 }

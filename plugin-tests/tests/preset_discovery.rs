@@ -12,6 +12,7 @@
 
 use clack_extensions::preset_discovery::prelude::*;
 use clack_host::prelude::HostError;
+use clack_host::prelude::PluginEntry;
 use modal_contact::instrument::InstrumentParams;
 use modal_contact::plugin::clap_entry::{BUILT_IN_LOCATION, PROVIDER_ID, USER_LOCATION};
 use modal_contact::plugin::params::{ids, keys};
@@ -19,7 +20,7 @@ use modal_contact::presets::{self, PRESETS};
 use modal_contact::scene::Scene;
 use plugin_tests::*;
 use std::ffi::{CStr, CString};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(Default)]
 struct Indexer {
@@ -176,7 +177,26 @@ fn hosts_list_the_built_in_and_user_scenes_and_load_them() {
 
     let bundle = clap_bundle(Variant::Release);
     let entry = load_entry(&bundle);
+    discovery_lists_the_scenes(&entry, &folder, &good, &broken);
 
+    // --- loading
+    let mut p = LoadedPlugin::load(&bundle);
+    let default_sound = strike(&mut p);
+    let bell_lib = library_strike("bell");
+    assert!(
+        max_abs_diff(&default_sound[0], &bell_lib[0]) > 0.01,
+        "bell is not the default"
+    );
+
+    built_in_and_user_scenes_load(&mut p, &good, &bell_lib, &default_sound);
+    refused_presets_change_nothing(&mut p, &folder, &broken, &default_sound);
+}
+
+/// The preset-discovery factory of `entry` lists one provider, the plugin
+/// vendor's, with the built-in scenes and the user folder `folder`: every
+/// built-in scene, the good user file `good` and the broken one `broken`
+/// with an error naming it and its field.
+fn discovery_lists_the_scenes(entry: &PluginEntry, folder: &Path, good: &Path, broken: &Path) {
     // --- discovery
     let factory: PresetDiscoveryFactory = entry.get_factory().expect("preset-discovery factory");
     assert_eq!(factory.provider_count(), 1);
@@ -194,7 +214,7 @@ fn hosts_list_the_built_in_and_user_scenes_and_load_them() {
         Some(vendor),
         "the plugin's vendor"
     );
-    let mut provider = Provider::instantiate(Indexer::default(), &entry, PROVIDER_ID, &host_info())
+    let mut provider = Provider::instantiate(Indexer::default(), entry, PROVIDER_ID, &host_info())
         .expect("provider");
     let idx = provider.indexer();
     println!(
@@ -208,7 +228,7 @@ fn hosts_list_the_built_in_and_user_scenes_and_load_them() {
             (
                 text(USER_LOCATION),
                 Flags::IS_USER_CONTENT,
-                Some(folder.clone())
+                Some(folder.to_path_buf())
             ),
         ]
     );
@@ -232,7 +252,7 @@ fn hosts_list_the_built_in_and_user_scenes_and_load_them() {
     let mine = metadata(
         &mut provider,
         Location::File {
-            path: &c_path(&good),
+            path: &c_path(good),
         },
     );
     assert!(mine.errors.is_empty(), "{:?}", mine.errors);
@@ -245,7 +265,7 @@ fn hosts_list_the_built_in_and_user_scenes_and_load_them() {
     let bad = metadata(
         &mut provider,
         Location::File {
-            path: &c_path(&broken),
+            path: &c_path(broken),
         },
     );
     println!("broken file: {:?}", bad.errors);
@@ -257,17 +277,18 @@ fn hosts_list_the_built_in_and_user_scenes_and_load_them() {
         bad.errors
     );
     drop(provider);
+}
 
-    // --- loading
+/// The built-in bell, then the user file `good` (the bell's text), load and
+/// play as the library's bell `bell_lib`; a built-in scene then replaces
+/// the user scene (the marimba bar, `default_sound` bit for bit).
+fn built_in_and_user_scenes_load(
+    p: &mut LoadedPlugin,
+    good: &Path,
+    bell_lib: &[Vec<f32>; 2],
+    default_sound: &[Vec<f32>; 2],
+) {
     let scene_id = param_id(ids::SCENE);
-    let mut p = LoadedPlugin::load(&bundle);
-    let default_sound = strike(&mut p);
-    let bell_lib = library_strike("bell");
-    assert!(
-        max_abs_diff(&default_sound[0], &bell_lib[0]) > 0.01,
-        "bell is not the default"
-    );
-
     let (ok, events) = p.load_preset(Location::Plugin, Some(c"bell"));
     assert!(ok);
     assert_eq!(events, vec!["loaded bell".to_string()]);
@@ -275,23 +296,23 @@ fn hosts_list_the_built_in_and_user_scenes_and_load_them() {
         p.param_value(scene_id),
         presets::index_of("bell").unwrap() as f64
     );
-    let heard = strike(&mut p);
+    let heard = strike(p);
     let d = max_abs_diff(&heard[0], &bell_lib[0]).max(max_abs_diff(&heard[1], &bell_lib[1]));
     println!("built-in bell after preset-load vs the library's bell: max diff {d:.3e}");
     assert!(d < 1e-6, "{d}");
 
     let (ok, events) = p.load_preset(
         Location::File {
-            path: &c_path(&good),
+            path: &c_path(good),
         },
         None,
     );
     assert!(ok);
     assert_eq!(events, vec![format!("loaded {}", good.display())]);
     let user: serde_json::Value =
-        serde_json::from_str(saved_fields(&mut p)[keys::USER_SCENE].as_str().unwrap()).unwrap();
+        serde_json::from_str(saved_fields(p)[keys::USER_SCENE].as_str().unwrap()).unwrap();
     assert_eq!(user["name"], "my-bell");
-    let heard_file = strike(&mut p);
+    let heard_file = strike(p);
     let d =
         max_abs_diff(&heard_file[0], &bell_lib[0]).max(max_abs_diff(&heard_file[1], &bell_lib[1]));
     println!(
@@ -302,13 +323,22 @@ fn hosts_list_the_built_in_and_user_scenes_and_load_them() {
     // a built-in scene replaces the user scene
     let (ok, _) = p.load_preset(Location::Plugin, Some(c"marimba-bar"));
     assert!(ok);
-    assert!(saved_fields(&mut p).get(keys::USER_SCENE).is_none());
+    assert!(saved_fields(p).get(keys::USER_SCENE).is_none());
     assert_eq!(
-        strike(&mut p),
-        default_sound,
+        strike(p),
+        *default_sound,
         "the marimba bar again, bit for bit"
     );
+}
 
+/// Refused loads (an unknown built-in key, the broken file `broken`, a
+/// missing file in `folder`) change nothing and tell the host why.
+fn refused_presets_change_nothing(
+    p: &mut LoadedPlugin,
+    folder: &Path,
+    broken: &Path,
+    default_sound: &[Vec<f32>; 2],
+) {
     // refused: nothing changes, the host hears why
     let before = p.save_state();
     let (ok, events) = p.load_preset(Location::Plugin, Some(c"no-such-scene"));
@@ -320,7 +350,7 @@ fn hosts_list_the_built_in_and_user_scenes_and_load_them() {
     );
     let (ok, events) = p.load_preset(
         Location::File {
-            path: &c_path(&broken),
+            path: &c_path(broken),
         },
         None,
     );
@@ -339,5 +369,5 @@ fn hosts_list_the_built_in_and_user_scenes_and_load_them() {
         "{events:?}"
     );
     assert_eq!(p.save_state(), before, "a refused preset changes nothing");
-    assert_eq!(strike(&mut p), default_sound);
+    assert_eq!(strike(p), *default_sound);
 }

@@ -35,6 +35,55 @@ const SCRIPT_ENV: &str = "MODAL_CONTACT_CHILD_SCRIPT";
 fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2], usize) {
     let rate = 44_100.0;
     let total = (rate * 3.0) as usize;
+    let notes = stress_notes();
+    let first_change = 30_000;
+    let mut events = notes.clone();
+    // the largest polyphony for the bad-input chords (CLAP value: the step)
+    events.push(param(9_000, ids::POLYPHONY, 63.0));
+    if let Some(key) = fault_note {
+        events.push(HostEvent::NoteOn {
+            at: 25_000,
+            key,
+            velocity: 0.123,
+        });
+    }
+    push_bends_and_mpe(&mut events);
+    push_brightness_and_modulation(&mut events);
+    push_pressure(&mut events);
+    push_notes_ended_at_once(&mut events);
+    events.push(param(first_change, ids::HARDNESS, 0.6));
+    events.push(param(first_change, ids::DECAY, 0.4));
+    events.push(param(45_000, ids::STRIKE_CUSTOM, 1.0));
+    events.push(param(45_000, ids::STRIKE_POS, 0.8));
+    events.push(param(60_000, ids::SWITCHING, 0.0));
+    events.push(param(75_000, ids::DAMPER, 1.0));
+    events.push(param(
+        90_000,
+        ids::SCENE,
+        presets::index_of("paper-string").unwrap() as f64,
+    ));
+    events.push(param(
+        105_000,
+        ids::SCENE,
+        presets::index_of("steel-plate").unwrap() as f64,
+    ));
+    let mut spec = RenderSpec::new(rate, 256, total, events);
+    spec.settle_after = vec![first_change, 45_000, 60_000, 75_000, 90_000, 105_000];
+    spec.settle_ms = 300;
+    let with = LoadedPlugin::load(bundle).render(&spec);
+    let without = LoadedPlugin::load(bundle).render(&RenderSpec::new(rate, 256, total, notes));
+    (with, without, first_change)
+}
+
+/// A raw MIDI message at sample `at`.
+fn midi(at: usize, data: [u8; 3]) -> HostEvent {
+    HostEvent::Midi { at, data }
+}
+
+/// The script's notes: 48 notes (a third released), then bad input (all
+/// 128 keys at once, a note on every sample for a block) and repeated
+/// notes on one key.
+fn stress_notes() -> Vec<HostEvent> {
     let mut notes = Vec::new();
     for i in 0..48usize {
         let at = 50 + i * 1500;
@@ -73,17 +122,12 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
             velocity: 0.7,
         });
     }
-    let first_change = 30_000;
-    let mut events = notes.clone();
-    // the largest polyphony for the bad-input chords (CLAP value: the step)
-    events.push(param(9_000, ids::POLYPHONY, 63.0));
-    if let Some(key) = fault_note {
-        events.push(HostEvent::NoteOn {
-            at: 25_000,
-            key,
-            velocity: 0.123,
-        });
-    }
+    notes
+}
+
+/// The pitch-bend wheel over the repeated notes; an MPE zone with notes,
+/// bends, pressure and timbre on every member channel.
+fn push_bends_and_mpe(events: &mut Vec<HostEvent>) {
     // the pitch-bend wheel over the repeated notes: full up, full down
     // within a glide, back to the centre
     events.push(plugin_tests::pitch_bend(20_100, 16383));
@@ -92,7 +136,6 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
     // MPE: the zone's configuration message, then notes on every member
     // channel (two per channel) and a bend on each, which retunes every
     // note of its channel; then the zone is turned off again
-    let midi = |at: usize, data: [u8; 3]| HostEvent::Midi { at, data };
     events.extend([
         midi(24_000, [0xB0, 101, 0]),
         midi(24_000, [0xB0, 100, 6]),
@@ -108,6 +151,11 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
         events.push(midi(24_400, [0xD0 | ch, 8 * ch, 0]));
         events.push(midi(24_450, [0xB0 | ch, 74, (ch * 9) & 0x7f]));
     }
+}
+
+/// Brightness per note, and CLAP polyphonic modulation of every modulated
+/// parameter.
+fn push_brightness_and_modulation(events: &mut Vec<HostEvent>) {
     // brightness: per note (CLAP note expressions), at the onset (a new
     // level for the strike), during contacts and while ringing, NaN-free
     // extremes
@@ -141,6 +189,11 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
         events.push(poly_mod(26_200, 501, target, f64::NAN));
         events.push(poly_mod(26_210, 502, target, f64::INFINITY));
     }
+}
+
+/// Pressure per note, channel aftertouch and the mod wheel; the MPE zone
+/// turned off.
+fn push_pressure(events: &mut Vec<HostEvent>) {
     // pressure: per note (CLAP note expressions, polyphonic aftertouch),
     // channel aftertouch and the mod wheel, up and back to 0
     for (k, key) in [60u8, 64, 67].into_iter().enumerate() {
@@ -154,6 +207,11 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
         midi(23_600, [0xB0, 1, 0]),
     ]);
     events.push(midi(24_600, [0xB0, 6, 0]));
+}
+
+/// Notes ended at once by the channel-mode messages and by a lower
+/// polyphony.
+fn push_notes_ended_at_once(events: &mut Vec<HostEvent>) {
     // notes ended at once: All Notes Off under the sustain pedal, Reset
     // All Controllers (the pedal up, the wheel back), All Sound Off fading
     // every voice, then 24 notes and the Polyphony lowered to 4 under them
@@ -175,28 +233,6 @@ fn stress(bundle: &Path, fault_note: Option<u8>) -> ([Vec<f32>; 2], [Vec<f32>; 2
     }
     events.push(param(28_000, ids::POLYPHONY, 3.0));
     events.push(midi(28_100, [0xB0, 120, 0]));
-    events.push(param(first_change, ids::HARDNESS, 0.6));
-    events.push(param(first_change, ids::DECAY, 0.4));
-    events.push(param(45_000, ids::STRIKE_CUSTOM, 1.0));
-    events.push(param(45_000, ids::STRIKE_POS, 0.8));
-    events.push(param(60_000, ids::SWITCHING, 0.0));
-    events.push(param(75_000, ids::DAMPER, 1.0));
-    events.push(param(
-        90_000,
-        ids::SCENE,
-        presets::index_of("paper-string").unwrap() as f64,
-    ));
-    events.push(param(
-        105_000,
-        ids::SCENE,
-        presets::index_of("steel-plate").unwrap() as f64,
-    ));
-    let mut spec = RenderSpec::new(rate, 256, total, events);
-    spec.settle_after = vec![first_change, 45_000, 60_000, 75_000, 90_000, 105_000];
-    spec.settle_ms = 300;
-    let with = LoadedPlugin::load(bundle).render(&spec);
-    let without = LoadedPlugin::load(bundle).render(&RenderSpec::new(rate, 256, total, notes));
-    (with, without, first_change)
 }
 
 /// The panic script: a note, note 1 (panics in the `panic-bug` build) in the

@@ -193,9 +193,9 @@ fn broken_states_are_refused_and_change_nothing() {
 /// Minimal JSON surgery on nice-plug's state object (no JSON dependency in
 /// the tests: the state's layout is flat and known).
 mod serde_like {
-    pub struct Obj(String);
+    pub(super) struct Obj(String);
 
-    pub fn parse(json: &str) -> Obj {
+    pub(super) fn parse(json: &str) -> Obj {
         assert!(
             json.starts_with('{') && json.contains("\"params\":{"),
             "{json}"
@@ -205,7 +205,7 @@ mod serde_like {
 
     impl Obj {
         /// Remove `"id":value,` (or `,"id":value`) from the params object.
-        pub fn remove_param(&mut self, id: &str) {
+        pub(super) fn remove_param(&mut self, id: &str) {
             let key = format!("\"{id}\":");
             let start = self
                 .0
@@ -224,7 +224,7 @@ mod serde_like {
             self.0.replace_range(begin..end, "");
         }
 
-        pub fn set_version(&mut self, v: &str) {
+        pub(super) fn set_version(&mut self, v: &str) {
             let key = "\"version\":\"";
             if let Some(s) = self.0.find(key) {
                 let e = self.0[s + key.len()..].find('"').unwrap() + s + key.len();
@@ -232,7 +232,7 @@ mod serde_like {
             }
         }
 
-        pub fn to_json(&self) -> String {
+        pub(super) fn to_json(&self) -> String {
             self.0.clone()
         }
     }

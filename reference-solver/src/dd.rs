@@ -19,9 +19,9 @@ use std::ops::{Add, Mul, Neg, Sub};
 
 /// `hi + lo` with `|lo| <= ulp(hi) / 2`.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Dd {
-    pub hi: f64,
-    pub lo: f64,
+pub(crate) struct Dd {
+    pub(crate) hi: f64,
+    pub(crate) lo: f64,
 }
 
 #[inline]
@@ -44,23 +44,23 @@ fn two_prod(a: f64, b: f64) -> (f64, f64) {
 }
 
 impl Dd {
-    pub const ZERO: Dd = Dd { hi: 0.0, lo: 0.0 };
-    pub const ONE: Dd = Dd { hi: 1.0, lo: 0.0 };
+    pub(crate) const ZERO: Dd = Dd { hi: 0.0, lo: 0.0 };
+    pub(crate) const ONE: Dd = Dd { hi: 1.0, lo: 0.0 };
 
     #[inline]
-    pub fn from_f64(x: f64) -> Dd {
+    pub(crate) fn from_f64(x: f64) -> Dd {
         Dd { hi: x, lo: 0.0 }
     }
 
     /// Nearest f64.
     #[inline]
-    pub fn to_f64(self) -> f64 {
+    pub(crate) fn to_f64(self) -> f64 {
         self.hi + self.lo
     }
 
     /// `self * b` for an f64 `b`.
     #[inline]
-    pub fn mul_f64(self, b: f64) -> Dd {
+    pub(crate) fn mul_f64(self, b: f64) -> Dd {
         let (p, e) = two_prod(self.hi, b);
         let (hi, lo) = quick_two_sum(p, e + self.lo * b);
         Dd { hi, lo }
@@ -68,7 +68,7 @@ impl Dd {
 
     /// `self / b` for an f64 `b`.
     #[inline]
-    pub fn div_f64(self, b: f64) -> Dd {
+    pub(crate) fn div_f64(self, b: f64) -> Dd {
         let q1 = self.hi / b;
         let (p, e) = two_prod(q1, b);
         let (s, f) = two_sum(self.hi, -p);
@@ -78,7 +78,7 @@ impl Dd {
     }
 
     #[inline]
-    pub fn abs(self) -> f64 {
+    pub(crate) fn abs(self) -> f64 {
         self.to_f64().abs()
     }
 }
@@ -126,13 +126,13 @@ impl Mul for Dd {
 
 /// A square matrix of [`Dd`], row-major.
 #[derive(Debug, Clone, PartialEq)]
-pub struct DdMat {
-    pub n: usize,
-    pub a: Vec<Dd>,
+pub(crate) struct DdMat {
+    pub(crate) n: usize,
+    pub(crate) a: Vec<Dd>,
 }
 
 impl DdMat {
-    pub fn identity(n: usize) -> DdMat {
+    pub(crate) fn identity(n: usize) -> DdMat {
         let mut a = vec![Dd::ZERO; n * n];
         for i in 0..n {
             a[i * n + i] = Dd::ONE;
@@ -141,7 +141,7 @@ impl DdMat {
     }
 
     /// `self * o`.
-    pub fn mul(&self, o: &DdMat) -> DdMat {
+    pub(crate) fn mul(&self, o: &DdMat) -> DdMat {
         let n = self.n;
         let mut a = vec![Dd::ZERO; n * n];
         for i in 0..n {
@@ -159,7 +159,7 @@ impl DdMat {
     }
 
     /// `self * y`.
-    pub fn apply(&self, y: &[Dd]) -> Vec<Dd> {
+    pub(crate) fn apply(&self, y: &[Dd]) -> Vec<Dd> {
         let n = self.n;
         (0..n)
             .map(|i| {
@@ -173,12 +173,12 @@ impl DdMat {
     }
 
     /// Largest entry magnitude.
-    pub fn max_abs(&self) -> f64 {
+    pub(crate) fn max_abs(&self) -> f64 {
         self.a.iter().map(|x| x.abs()).fold(0.0, f64::max)
     }
 
     /// Nearest f64 matrix, row-major.
-    pub fn to_f64(&self) -> Vec<f64> {
+    pub(crate) fn to_f64(&self) -> Vec<f64> {
         self.a.iter().map(|x| x.to_f64()).collect()
     }
 }
@@ -191,7 +191,7 @@ const TAYLOR_TOL: f64 = 1e-34;
 /// ~0.5` (then 25 terms reach 1e-34). `b` is double-double, row-major, `n x
 /// n` (the phase matrices' entries are exact sums and products of the
 /// model's numbers, see [`crate::phase::augmented_matrix`]).
-pub fn exp_taylor(b: &[Dd], n: usize, tau: f64) -> DdMat {
+pub(crate) fn exp_taylor(b: &[Dd], n: usize, tau: f64) -> DdMat {
     let x = DdMat {
         n,
         a: b.iter().map(|v| v.mul_f64(tau)).collect(),
@@ -215,7 +215,7 @@ pub fn exp_taylor(b: &[Dd], n: usize, tau: f64) -> DdMat {
 
 /// `exp(B tau) y` by the Taylor series applied to the vector (no matrix
 /// products: for one-off partial steps), same range as [`exp_taylor`].
-pub fn exp_taylor_apply(b: &[Dd], tau: f64, y: &[Dd]) -> Vec<Dd> {
+pub(crate) fn exp_taylor_apply(b: &[Dd], tau: f64, y: &[Dd]) -> Vec<Dd> {
     let n = y.len();
     let mut sum = y.to_vec();
     let mut term = y.to_vec();

@@ -332,18 +332,9 @@ fn inv_mass(model: &Model, e: &End) -> f64 {
     }
 }
 
-/// Solve `model` for `n` samples at `rate_hz` with DOP853 at relative
-/// tolerance `rtol` (absolute tolerances: `rtol` times each component's
-/// scale, from the initial energy; see the body). Any number of contacts:
-/// the first switch of any contact in a step is taken, and every contact
-/// switched at that point changes side together, as in the expm solver.
-pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
-    model.check();
-    let h = 1.0 / rate_hz;
-    let nm = model.n_modes();
-    let dim = model.state_dim();
-    let links: Vec<Link> = (0..model.n_contacts()).map(|c| model.link(c)).collect();
-    // energy scale: what the point masses bring (kinetic + fall to 0)
+/// Energy scale of the tolerances \[J\]: what the point masses bring
+/// (kinetic plus the fall to height 0).
+fn energy_scale(model: &Model) -> f64 {
     let e_s: f64 = (0..model.n_masses())
         .map(|i| {
             let x = model.mass_of(i);
@@ -352,16 +343,27 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
         })
         .sum();
     assert!(e_s > 0.0, "DOP853: no energy to scale the tolerances with");
-    // the fastest contact's frequency (for one contact of a hammer on an
-    // object: 1/m = 1/m_h + sum w^2)
-    let w_c = links
+    e_s
+}
+
+/// The fastest contact's angular frequency \[rad/s\] (for one contact of a
+/// hammer on an object: `1/m = 1/m_h + sum w^2`).
+fn contact_frequency(model: &Model, links: &[Link]) -> f64 {
+    links
         .iter()
         .map(|l| {
             (l.contact.stiffness_n_per_m * (inv_mass(model, &l.lower) + inv_mass(model, &l.upper)))
                 .sqrt()
         })
-        .fold(0.0, f64::max);
-    let mut atol = vec![0.0; dim];
+        .fold(0.0, f64::max)
+}
+
+/// Absolute tolerance of each state component: `rtol` times the
+/// component's scale when one body holds all the energy `e_s`, `w_c` the
+/// fastest contact's frequency.
+fn abs_tolerances(model: &Model, rtol: f64, e_s: f64, w_c: f64) -> Vec<f64> {
+    let nm = model.n_modes();
+    let mut atol = vec![0.0; model.state_dim()];
     for (i, md) in model.modes.iter().enumerate() {
         // a mode holding all the energy: q' ~ sqrt(2E), q ~ sqrt(2E)/omega
         atol[i] = rtol * (2.0 * e_s).sqrt() / md.omega();
@@ -379,9 +381,14 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
         atol[2 * nm + 2] = atol[2 * nm];
         atol[2 * nm + 3] = atol[2 * nm + 1];
     }
+    atol
+}
+
+/// A first step length \[s\] per phase (`2^n_links` of them), from the
+/// flight's and the contacts' scales, at most the sample period `h`.
+fn initial_step_lengths(model: &Model, n_links: usize, w_c: f64, h: f64) -> Vec<f64> {
     let w_max = model.modes.iter().map(|m| m.omega()).fold(0.0, f64::max);
-    // a step length per phase, from the flight's and the contacts' scales
-    let mut h_try: Vec<f64> = (0..1u32 << links.len())
+    (0..1u32 << n_links)
         .map(|active| {
             if active == 0 {
                 if w_max > 0.0 {
@@ -393,7 +400,24 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
                 (0.1 / (w_c + w_max)).min(h)
             }
         })
-        .collect();
+        .collect()
+}
+
+/// Solve `model` for `n` samples at `rate_hz` with DOP853 at relative
+/// tolerance `rtol` (absolute tolerances: `rtol` times each component's
+/// scale, from the initial energy; see [`abs_tolerances`]). Any number of
+/// contacts: the first switch of any contact in a step is taken, and every
+/// contact switched at that point changes side together, as in the expm
+/// solver.
+pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
+    model.check();
+    let h = 1.0 / rate_hz;
+    let dim = model.state_dim();
+    let links: Vec<Link> = (0..model.n_contacts()).map(|c| model.link(c)).collect();
+    let e_s = energy_scale(model);
+    let w_c = contact_frequency(model, &links);
+    let atol = abs_tolerances(model, rtol, e_s, w_c);
+    let mut h_try = initial_step_lengths(model, links.len(), w_c, h);
     let mut dop = Dop {
         model,
         links,

@@ -209,12 +209,11 @@ pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step:
     let phases: Vec<Phase> = (0..1u32 << model.n_contacts())
         .map(|active| Phase::new(model, active, h, max_norm_step))
         .collect();
-    let mut stats = Stats {
+    let stats = Stats {
         substeps_per_sample: [phases[0].m, phases[1].m],
         norms: [phases[0].norm, phases[1].norm],
         ..Stats::default()
     };
-    let mut active = 0u32;
     let z0: Vec<Dd> = model
         .initial_state()
         .into_iter()
@@ -222,125 +221,230 @@ pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step:
         .collect();
     // the exact state at the current sample instant
     let mut y = phases[0].to_balanced(&z0);
+    let mut run = Run {
+        model,
+        phases,
+        h,
+        active: 0,
+        stats,
+        contacts: Vec::new(),
+    };
     let observe =
         |ph: &Phase, y: &[Dd], active: u32| model.observe_of(&to_f64(&ph.to_physical(y)), active);
     let mut samples = Vec::with_capacity(n + 1);
-    samples.push(observe(&phases[0], &y, 0));
-    let mut contacts: Vec<ContactInterval> = Vec::new();
+    samples.push(observe(&run.phases[0], &y, 0));
     for i in 0..n {
-        let t_n = i as f64 * h;
-        // On the grid: at sub-step `j` of the current phase, exact anchor
-        // `(anchor_j, anchor)` and marched copy `yf`. Off the grid: exact
-        // state `y` at `t` seconds into the sample, after a switch.
-        let mut on_grid = true;
-        let mut j = 0usize;
-        let mut anchor_j = 0usize;
-        let mut anchor = y.clone();
-        let mut yf = to_f64(&y);
-        let mut yf1 = vec![0.0; yf.len()];
-        let mut t = 0.0;
-        let mut switches = 0usize;
-        loop {
-            let ph = &phases[active as usize];
-            let found;
-            let (flow, t_start);
-            if on_grid {
-                if j == ph.m {
-                    debug_assert_eq!(anchor_j, j);
-                    y = anchor;
-                    break;
-                }
-                matvec(&ph.e1, &yf, &mut yf1);
-                stats.steps += 1;
-                if !may_switch(ph, &yf, &yf1) {
-                    std::mem::swap(&mut yf, &mut yf1);
-                    j += 1;
-                    if j == ph.m || (j - anchor_j).is_multiple_of(RESYNC) {
-                        anchor = ph.advance_grid(&anchor, j - anchor_j);
-                        anchor_j = j;
-                        yf = to_f64(&anchor);
-                    }
-                    continue;
-                }
-                // search this sub-step on exact states
-                let y0 = ph.advance_grid(&anchor, j - anchor_j);
-                let y1 = ph.advance_grid(&y0, 1);
-                flow = Flow::Grid(ph);
-                t_start = j as f64 * ph.h_sub;
-                found = search(&flow, &y0, &y1, &mut stats);
-                if found.is_none() {
-                    j += 1;
-                    anchor = y1;
-                    anchor_j = j;
-                    yf = to_f64(&anchor);
-                    continue;
-                }
-            } else {
-                // partial step to the next grid point of this phase
-                let mut jn = (t / ph.h_sub).floor() as usize + 1;
-                while jn < ph.m && jn as f64 * ph.h_sub <= t {
-                    jn += 1;
-                }
-                let end = if jn >= ph.m { h } else { jn as f64 * ph.h_sub };
-                let tau = end - t;
-                let levels =
-                    ((tau / (crate::TIME_RESOLUTION * h)).log2().ceil() as u32).clamp(1, 62);
-                let y1 = ph.exp_apply(tau, &y);
-                stats.steps += 1;
-                flow = Flow::Partial {
-                    phase: ph,
-                    unit: tau / 2f64.powi(levels as i32),
-                    levels,
-                };
-                t_start = t;
-                found = search(&flow, &y, &y1, &mut stats);
-                if found.is_none() {
-                    on_grid = true;
-                    j = jn.min(ph.m);
-                    anchor = y1;
-                    anchor_j = j;
-                    yf = to_f64(&anchor);
-                    continue;
-                }
-            }
-            // a switch inside the step
-            let (units, ys) = found.expect("a switch");
-            let frac = units as f64 / 2f64.powi(flow.levels() as i32);
-            t = (t_start + frac * flow.length()).min(h);
-            let z = ph.to_physical(&ys);
-            // every contact switched at this point changes side (the one
-            // found first, and any that switched at the same instant)
-            for c in 0..model.n_contacts() {
-                if !switched(ph.in_contact(c), ph.event_dd(c, &ys).0) {
-                    continue;
-                }
-                active ^= 1 << c;
-                record_switch(&mut contacts, c, active & (1 << c) != 0, t_n + t);
-            }
-            let ph_new = &phases[active as usize];
-            y = ph_new.to_balanced(&z);
-            stats.switches += 1;
-            switches += 1;
-            assert!(
-                switches <= MAX_SWITCHES_PER_SAMPLE,
-                "reference solver: more than {MAX_SWITCHES_PER_SAMPLE} switches in sample {i}"
-            );
-            if t >= h {
-                on_grid = true;
-                j = ph_new.m;
-                anchor = y.clone();
-                anchor_j = j;
-            } else {
-                on_grid = false;
-            }
-        }
-        let ph = &phases[active as usize];
-        samples.push(observe(ph, &y, active));
+        y = run.sample(y, i);
+        let ph = &run.phases[run.active as usize];
+        samples.push(observe(ph, &y, run.active));
     }
     Solution {
         rate_hz,
         samples,
-        contacts,
-        stats,
+        contacts: run.contacts,
+        stats: run.stats,
+    }
+}
+
+/// A run in progress: the model's phases and what the run has recorded.
+struct Run<'a> {
+    model: &'a Model,
+    /// Every subset of contacts in contact, by its bit set.
+    phases: Vec<Phase>,
+    /// Sample period \[s\].
+    h: f64,
+    /// The contacts in contact (bit `c` for contact `c`).
+    active: u32,
+    stats: Stats,
+    contacts: Vec<ContactInterval>,
+}
+
+impl Run<'_> {
+    /// Advance the exact state `y` (balanced coordinates of the current
+    /// phase) over sample `i`, switching phase at every switch inside it.
+    /// Returns the exact state at the sample's end.
+    fn sample(&mut self, y: Vec<Dd>, i: usize) -> Vec<Dd> {
+        let h = self.h;
+        let t_n = i as f64 * h;
+        let mut march = March::new(y);
+        loop {
+            let ph = &self.phases[self.active as usize];
+            let next = if march.on_grid {
+                march.grid_step(ph, &mut self.stats)
+            } else {
+                march.partial_step(ph, h, &mut self.stats)
+            };
+            let (flow, t_start, units, ys) = match next {
+                Next::SampleEnd => return march.anchor,
+                Next::NoSwitch => continue,
+                Next::Switch {
+                    flow,
+                    t_start,
+                    units,
+                    ys,
+                } => (flow, t_start, units, ys),
+            };
+            // a switch inside the step
+            let frac = units as f64 / 2f64.powi(flow.levels() as i32);
+            march.t = (t_start + frac * flow.length()).min(h);
+            let z = ph.to_physical(&ys);
+            // every contact switched at this point changes side (the one
+            // found first, and any that switched at the same instant)
+            for c in 0..self.model.n_contacts() {
+                if !switched(ph.in_contact(c), ph.event_dd(c, &ys).0) {
+                    continue;
+                }
+                self.active ^= 1 << c;
+                let inc = self.active & (1 << c) != 0;
+                record_switch(&mut self.contacts, c, inc, t_n + march.t);
+            }
+            let ph_new = &self.phases[self.active as usize];
+            march.y = ph_new.to_balanced(&z);
+            self.stats.switches += 1;
+            march.switches += 1;
+            assert!(
+                march.switches <= MAX_SWITCHES_PER_SAMPLE,
+                "reference solver: more than {MAX_SWITCHES_PER_SAMPLE} switches in sample {i}"
+            );
+            if march.t >= h {
+                march.on_grid = true;
+                march.j = ph_new.m;
+                march.anchor = march.y.clone();
+                march.anchor_j = march.j;
+            } else {
+                march.on_grid = false;
+            }
+        }
+    }
+}
+
+/// The march through one sample. On the grid: at sub-step `j` of the
+/// current phase, exact anchor `(anchor_j, anchor)` and marched copy `yf`.
+/// Off the grid: exact state `y` at `t` seconds into the sample, after a
+/// switch.
+struct March {
+    on_grid: bool,
+    j: usize,
+    anchor_j: usize,
+    anchor: Vec<Dd>,
+    yf: Vec<f64>,
+    /// The marched copy's next sub-step (a buffer).
+    yf1: Vec<f64>,
+    y: Vec<Dd>,
+    t: f64,
+    /// Switches so far in this sample.
+    switches: usize,
+}
+
+/// What one step of a [`March`] came to.
+enum Next<'p> {
+    /// The sample instant is reached: the state is the anchor.
+    SampleEnd,
+    /// The step held no switch; the march moved past it.
+    NoSwitch,
+    /// A switch inside the step `flow` starting `t_start` seconds into the
+    /// sample: `units` time units into it, exact state `ys` there.
+    Switch {
+        flow: Flow<'p>,
+        t_start: f64,
+        units: u64,
+        ys: Vec<Dd>,
+    },
+}
+
+impl March {
+    /// On the grid at sub-step 0, anchored at the exact state `y`.
+    fn new(y: Vec<Dd>) -> Self {
+        let yf = to_f64(&y);
+        March {
+            on_grid: true,
+            j: 0,
+            anchor_j: 0,
+            anchor: y.clone(),
+            yf1: vec![0.0; yf.len()],
+            yf,
+            y,
+            t: 0.0,
+            switches: 0,
+        }
+    }
+
+    /// On the grid at sub-step `j`, anchored there at the exact state
+    /// `anchor`.
+    fn reanchor(&mut self, j: usize, anchor: Vec<Dd>) {
+        self.j = j;
+        self.anchor_j = j;
+        self.yf = to_f64(&anchor);
+        self.anchor = anchor;
+    }
+
+    /// One whole sub-step of the phase `ph` on its grid: marched in f64,
+    /// and searched on exact states when the marched step may hold a
+    /// switch.
+    fn grid_step<'p>(&mut self, ph: &'p Phase, stats: &mut Stats) -> Next<'p> {
+        if self.j == ph.m {
+            debug_assert_eq!(self.anchor_j, self.j);
+            return Next::SampleEnd;
+        }
+        matvec(&ph.e1, &self.yf, &mut self.yf1);
+        stats.steps += 1;
+        if !may_switch(ph, &self.yf, &self.yf1) {
+            std::mem::swap(&mut self.yf, &mut self.yf1);
+            self.j += 1;
+            if self.j == ph.m || (self.j - self.anchor_j).is_multiple_of(RESYNC) {
+                let anchor = ph.advance_grid(&self.anchor, self.j - self.anchor_j);
+                self.reanchor(self.j, anchor);
+            }
+            return Next::NoSwitch;
+        }
+        // search this sub-step on exact states
+        let y0 = ph.advance_grid(&self.anchor, self.j - self.anchor_j);
+        let y1 = ph.advance_grid(&y0, 1);
+        let flow = Flow::Grid(ph);
+        let t_start = self.j as f64 * ph.h_sub;
+        match search(&flow, &y0, &y1, stats) {
+            None => {
+                self.reanchor(self.j + 1, y1);
+                Next::NoSwitch
+            }
+            Some((units, ys)) => Next::Switch {
+                flow,
+                t_start,
+                units,
+                ys,
+            },
+        }
+    }
+
+    /// The partial step of the phase `ph` from `t` to its next grid point
+    /// (or the sample's end, `h` seconds), searched on exact states.
+    fn partial_step<'p>(&mut self, ph: &'p Phase, h: f64, stats: &mut Stats) -> Next<'p> {
+        let mut jn = (self.t / ph.h_sub).floor() as usize + 1;
+        while jn < ph.m && jn as f64 * ph.h_sub <= self.t {
+            jn += 1;
+        }
+        let end = if jn >= ph.m { h } else { jn as f64 * ph.h_sub };
+        let tau = end - self.t;
+        let levels = ((tau / (crate::TIME_RESOLUTION * h)).log2().ceil() as u32).clamp(1, 62);
+        let y1 = ph.exp_apply(tau, &self.y);
+        stats.steps += 1;
+        let flow = Flow::Partial {
+            phase: ph,
+            unit: tau / 2f64.powi(levels as i32),
+            levels,
+        };
+        match search(&flow, &self.y, &y1, stats) {
+            None => {
+                self.on_grid = true;
+                self.reanchor(jn.min(ph.m), y1);
+                Next::NoSwitch
+            }
+            Some((units, ys)) => Next::Switch {
+                flow,
+                t_start: self.t,
+                units,
+                ys,
+            },
+        }
     }
 }

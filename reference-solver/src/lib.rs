@@ -575,8 +575,9 @@ pub struct Sample {
     pub in_contact: bool,
     /// Total energy \[J\].
     pub energy: f64,
-    /// Back mass position \[m\] and velocity \[m/s\] (0 without one).
+    /// Back mass position \[m\] (0 without one).
     pub x_back: f64,
+    /// Back mass velocity \[m/s\] (0 without one).
     pub v_back: f64,
     /// The contacts in contact (bit `c` for contact `c`).
     pub active: u32,

@@ -37,65 +37,65 @@ use nalgebra::DMatrix;
 /// Largest `|B|_1 h_sub` of a sub-step: over a sub-step the fastest component
 /// turns by at most half a radian, so the penetration has at most one
 /// interior extremum (the event search relies on it).
-pub const MAX_NORM_STEP: f64 = 0.5;
+pub(crate) const MAX_NORM_STEP: f64 = 0.5;
 
 /// Whole sub-steps between two re-anchorings of the f64 marched state on the
 /// exact one (it only decides where to look for switches; 256 f64 products
 /// drift by ~1e-14).
-pub const RESYNC: usize = 256;
+pub(crate) const RESYNC: usize = 256;
 
 /// A phase ready to step.
 #[derive(Debug, Clone)]
-pub struct Phase {
+pub(crate) struct Phase {
     /// The contacts in contact (bit `c` for contact `c`; flight: 0).
-    pub active: u32,
+    pub(crate) active: u32,
     /// Augmented dimension: [`Model::state_dim`] `+ 1` (`2 N + 3` for the
     /// paper's scene).
-    pub dim: usize,
+    pub(crate) dim: usize,
     /// Balancing scales: `z_i = d_i y_i` (the last entry scales the constant
     /// coordinate: `y_last = 1 / d_last`).
-    pub d: Vec<f64>,
+    pub(crate) d: Vec<f64>,
     /// `|B|_1` [1/s].
-    pub norm: f64,
+    pub(crate) norm: f64,
     /// Sub-steps per sample and their length `h / m` [s].
-    pub m: usize,
-    pub h_sub: f64,
+    pub(crate) m: usize,
+    pub(crate) h_sub: f64,
     /// Dyadic levels: a sub-step is `2^levels` time units, each unit at most
     /// [`crate::TIME_RESOLUTION`] of a sample.
-    pub levels: u32,
+    pub(crate) levels: u32,
     /// `exp(B h_sub)` in f64 (nalgebra's Pade), row-major: marches the
     /// state that decides where to search.
-    pub e1: Vec<f64>,
+    pub(crate) e1: Vec<f64>,
     /// `fine[j] = exp(B h_sub 2^-j)`, `j = 0..=levels`, double-double: the
     /// bisection reaches `k` time units after a point with one product per
     /// set bit of `k`.
-    pub fine: Vec<DdMat>,
+    pub(crate) fine: Vec<DdMat>,
     /// `big[l] = exp(B h_sub 2^l)`, `2^l <= m`, double-double: a grid point
     /// `j` sub-steps after an exact anchor is reached with one product per
     /// set bit of `j`, not `j` chained products.
-    pub big: Vec<DdMat>,
+    pub(crate) big: Vec<DdMat>,
     /// Balanced augmented matrix `B = D^-1 [[A, b], [0, 0]] D`, row-major,
     /// double-double (see [`augmented_matrix`]; `e1` and the balancing use
     /// its rounding to f64).
-    pub b_dd: Vec<Dd>,
+    pub(crate) b_dd: Vec<Dd>,
     /// Rows giving each contact's `p` and `p'` from the balanced state `y`
     /// (`row_p`'s last entry: the constant of `p`, gap and walls, rounded to
     /// f64 and scaled to the constant coordinate).
-    pub row_p: Vec<Vec<f64>>,
-    pub row_v: Vec<Vec<f64>>,
+    pub(crate) row_p: Vec<Vec<f64>>,
+    pub(crate) row_v: Vec<Vec<f64>>,
     /// Each contact's constant of `p` (`-gap`, plus the lower wall's
     /// height, less the upper wall's) in double-double, as the phase
     /// matrices' force rows have it: [`Phase::event_dd`] takes it instead of
     /// `row_p`'s rounded last entry, so that the exact states switch where
     /// the exact force vanishes.
-    pub p_const: Vec<Dd>,
+    pub(crate) p_const: Vec<Dd>,
 }
 
 impl Phase {
     /// Build the phase of `model` with the contacts `active` (bit `c` for
     /// contact `c`) for sample period `h`, with sub-steps of `|B|_1 h_sub
     /// <= max_norm_step`.
-    pub fn new(model: &Model, active: u32, h: f64, max_norm_step: f64) -> Self {
+    pub(crate) fn new(model: &Model, active: u32, h: f64, max_norm_step: f64) -> Self {
         let n = model.n_modes();
         let dim = model.state_dim() + 1;
         let a_dd = augmented_matrix(model, active);
@@ -189,12 +189,12 @@ impl Phase {
 
     /// `exp(B tau) y` in double-double (Taylor series on the vector; `|B
     /// tau| <= 0.5`).
-    pub fn exp_apply(&self, tau: f64, y: &[Dd]) -> Vec<Dd> {
+    pub(crate) fn exp_apply(&self, tau: f64, y: &[Dd]) -> Vec<Dd> {
         exp_taylor_apply(&self.b_dd, tau, y)
     }
 
     /// The state `count` whole sub-steps after `y` (dyadic products).
-    pub fn advance_grid(&self, y: &[Dd], count: usize) -> Vec<Dd> {
+    pub(crate) fn advance_grid(&self, y: &[Dd], count: usize) -> Vec<Dd> {
         assert!(count >> self.big.len() == 0, "advance_grid: {count} > m");
         let mut cur = y.to_vec();
         for (l, g) in self.big.iter().enumerate() {
@@ -207,7 +207,7 @@ impl Phase {
 
     /// The state `units` time units (`h_sub 2^-levels`) after `y`, `units
     /// <= 2^levels`.
-    pub fn advance_fine(&self, y: &[Dd], units: u64) -> Vec<Dd> {
+    pub(crate) fn advance_fine(&self, y: &[Dd], units: u64) -> Vec<Dd> {
         let mut cur = y.to_vec();
         for l in 0..=self.levels {
             if units & (1u64 << l) != 0 {
@@ -219,7 +219,7 @@ impl Phase {
 
     /// Contact `c`'s `(p, p')` of the exact state `y` (the constant of `p`
     /// in double-double, times the constant coordinate `d_last y_last = 1`).
-    pub fn event_dd(&self, c: usize, y: &[Dd]) -> (f64, f64) {
+    pub(crate) fn event_dd(&self, c: usize, y: &[Dd]) -> (f64, f64) {
         let one = self.dim - 1;
         let dot = |row: &[f64], c0: Dd| {
             row[..one]
@@ -241,7 +241,7 @@ impl Phase {
 
     /// Balanced state of the physical state `z` (exact: the scales are
     /// powers of two).
-    pub fn to_balanced(&self, z: &[Dd]) -> Vec<Dd> {
+    pub(crate) fn to_balanced(&self, z: &[Dd]) -> Vec<Dd> {
         let mut y: Vec<Dd> = z
             .iter()
             .zip(&self.d)
@@ -252,7 +252,7 @@ impl Phase {
     }
 
     /// Physical state of the balanced state `y` (without the constant).
-    pub fn to_physical(&self, y: &[Dd]) -> Vec<Dd> {
+    pub(crate) fn to_physical(&self, y: &[Dd]) -> Vec<Dd> {
         y[..self.dim - 1]
             .iter()
             .zip(&self.d)
@@ -262,13 +262,13 @@ impl Phase {
 
     /// Contact `c`'s `(p, p')` of the balanced state `y`.
     #[inline]
-    pub fn event(&self, c: usize, y: &[f64]) -> (f64, f64) {
+    pub(crate) fn event(&self, c: usize, y: &[f64]) -> (f64, f64) {
         (dot(&self.row_p[c], y), dot(&self.row_v[c], y))
     }
 
     /// Whether contact `c` is in contact in this phase.
     #[inline]
-    pub fn in_contact(&self, c: usize) -> bool {
+    pub(crate) fn in_contact(&self, c: usize) -> bool {
         self.active & (1 << c) != 0
     }
 }
@@ -292,7 +292,7 @@ impl Phase {
 /// forms `p` first; a one-ulp change of three entries moved them by 9e-9.
 /// Here each entry is the exact sum and product of the model's f64 numbers
 /// to ~1e-32 relative, so `F` keeps `~1e-32 |k x|` of error.
-pub fn augmented_matrix(model: &Model, active: u32) -> Vec<Dd> {
+pub(crate) fn augmented_matrix(model: &Model, active: u32) -> Vec<Dd> {
     let n = model.n_modes();
     let dim = model.state_dim() + 1;
     let (xh, vh, one) = (2 * n, 2 * n + 1, dim - 1);
@@ -385,7 +385,7 @@ pub fn augmented_matrix(model: &Model, active: u32) -> Vec<Dd> {
 /// scale 1. The constant coordinate (last) is then scaled so that the affine
 /// column adds nothing to `|B|_1` (its scale is free: it only fixes the value
 /// `1 / d` the constant coordinate carries).
-pub fn balance(a: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
+pub(crate) fn balance(a: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
     let dim = a.nrows();
     let core = dim - 1;
     let mut b = a.clone();
@@ -444,7 +444,7 @@ pub fn balance(a: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
 }
 
 /// Induced 1-norm (largest column sum).
-pub fn norm1(b: &DMatrix<f64>) -> f64 {
+pub(crate) fn norm1(b: &DMatrix<f64>) -> f64 {
     (0..b.ncols())
         .map(|j| b.column(j).iter().map(|x| x.abs()).sum::<f64>())
         .fold(0.0, f64::max)
@@ -462,13 +462,13 @@ fn flat(m: &DMatrix<f64>) -> Vec<f64> {
 }
 
 #[inline]
-pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 /// `out = M y` for a row-major square `M`.
 #[inline]
-pub fn matvec(m: &[f64], y: &[f64], out: &mut [f64]) {
+pub(crate) fn matvec(m: &[f64], y: &[f64], out: &mut [f64]) {
     let n = y.len();
     for (i, o) in out.iter_mut().enumerate() {
         *o = dot(&m[i * n..(i + 1) * n], y);

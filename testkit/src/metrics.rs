@@ -69,7 +69,10 @@ pub type Interval = (f64, Option<f64>);
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum LogAnomaly {
     /// Entered again while in contact since `since`.
-    EnteredWhileInContact { since: f64 },
+    EnteredWhileInContact {
+        /// When the open contact started (the caller's unit).
+        since: f64,
+    },
     /// Left contact without having entered.
     LeftWithoutEntering,
 }
@@ -114,12 +117,14 @@ impl ContactLog {
 /// k-th of the other), on the contacts that start by a time limit.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ContactMatch {
-    /// Contacts of the run and of the reference that start by the limit.
+    /// Contacts of the run that start by the limit.
     pub n_run: usize,
+    /// Contacts of the reference that start by the limit.
     pub n_ref: usize,
-    /// Largest start and end difference over the matched pairs (end:
-    /// infinite when only one of the two ended by the limit).
+    /// Largest start difference over the matched pairs.
     pub max_start: f64,
+    /// Largest end difference over the matched pairs (infinite when only
+    /// one of the two ended by the limit).
     pub max_end: f64,
     /// Mean start difference over the matched pairs.
     pub mean_start: f64,

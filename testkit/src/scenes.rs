@@ -433,21 +433,27 @@ pub enum T60Law {
 /// builds it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModalStrike {
-    /// Number of modes, geometric from `f_lo` to `f_hi` \[Hz\].
+    /// Number of modes, geometric from `f_lo` to `f_hi`.
     pub modes: usize,
+    /// Frequency of the lowest mode \[Hz\].
     pub f_lo: f64,
+    /// Frequency of the highest mode \[Hz\].
     pub f_hi: f64,
-    /// Whether the modes decay, and how.
+    /// Whether the modes decay.
     pub damped: bool,
+    /// How the modes decay, when they do.
     pub t60_law: T60Law,
     /// Hammer mass \[kg\].
     pub m_h: f64,
-    /// Contact stiffness [N/m] and damping [N s/m].
+    /// Contact stiffness [N/m].
     pub k: f64,
+    /// Contact damping [N s/m].
     pub c: f64,
-    /// Gravity [m/s^2], initial height \[m\] and velocity [m/s] of the hammer.
+    /// Gravity on the hammer [m/s^2].
     pub gravity: f64,
+    /// Initial height of the hammer's contact face above the surface \[m\].
     pub height: f64,
+    /// Initial velocity of the hammer [m/s], positive up.
     pub velocity: f64,
 }
 

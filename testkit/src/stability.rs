@@ -24,6 +24,7 @@ pub struct Case {
     pub description: String,
     /// Length of a run [samples at [`RATE`]].
     pub samples: usize,
+    /// The scene the case runs.
     pub scene: Scene,
 }
 
@@ -141,6 +142,16 @@ pub fn settling() -> ModalStrike {
 /// The catalogue, in the report's order.
 pub fn cases() -> Vec<Case> {
     let mut v = Vec::new();
+    push_stiffness_cases(&mut v);
+    push_damping_cases(&mut v);
+    push_size_cases(&mut v);
+    push_grazing_and_resting_cases(&mut v);
+    v
+}
+
+/// X3, X2, X6: the contact's stiffness against the sample rate, and a
+/// chattering contact with and without damping.
+fn push_stiffness_cases(v: &mut Vec<Case>) {
     let modal = |label: &str, s: ModalStrike| s.scene(label);
     for ratio in [1.0, 10.0, 100.0, 1000.0] {
         let label = format!("X3 f_c = {ratio}x f_Nyq");
@@ -166,6 +177,11 @@ pub fn cases() -> Vec<Case> {
         20_000,
         modal("X6 zero damping", stiff_chattering(false)),
     ));
+}
+
+/// X4, X5: critically damped and overdamped contacts.
+fn push_damping_cases(v: &mut Vec<Case>) {
+    let modal = |label: &str, s: ModalStrike| s.scene(label);
     v.push(Case::new(
         "critical damping against a wall".into(),
         "X4 critical damping, wall".into(),
@@ -195,6 +211,12 @@ pub fn cases() -> Vec<Case> {
             modal(&label, overdamped(zeta)),
         ));
     }
+}
+
+/// X8, X7, X9: modes above Nyquist, the hammer's mass against the
+/// object's, and the number of modes.
+fn push_size_cases(v: &mut Vec<Case>) {
+    let modal = |label: &str, s: ModalStrike| s.scene(label);
     v.push(Case::new(
         "modes up to 2.7x Nyquist".into(),
         "X8 modes above Nyquist".into(),
@@ -234,6 +256,12 @@ pub fn cases() -> Vec<Case> {
             modal(&label, many_modes(n)),
         ));
     }
+}
+
+/// X11, X12/X13: a grazing impact, and a ball settling into continuous
+/// contact.
+fn push_grazing_and_resting_cases(v: &mut Vec<Case>) {
+    let modal = |label: &str, s: ModalStrike| s.scene(label);
     v.push(Case::new(
         "grazing impact at 1e-9 m/s".into(),
         "X11 grazing v = 1e-9".into(),
@@ -248,7 +276,6 @@ pub fn cases() -> Vec<Case> {
         (3.0 * RATE) as usize,
         modal("X12/X13 long contact", settling()),
     ));
-    v
 }
 
 #[cfg(test)]

@@ -284,12 +284,12 @@ fn capitalised(s: &str) -> String {
         .unwrap_or_default()
 }
 
-/// The first line a command prints, or a note that it could not run.
 /// `rustc --version`, or a note that it is unknown.
 pub fn rustc_version() -> String {
     command_line("rustc", &["--version"])
 }
 
+/// The first line a command prints, or a note that it could not run.
 pub fn command_line(cmd: &str, args: &[&str]) -> String {
     Command::new(cmd)
         .args(args)

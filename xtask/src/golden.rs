@@ -26,7 +26,7 @@ use std::path::Path;
 
 /// `cargo xtask golden [--write]`.
 #[derive(Args, Debug)]
-pub struct GoldenArgs {
+pub(crate) struct GoldenArgs {
     /// Record the hashes in tests/golden-hashes.txt instead of checking
     /// them (only when a change of the renders is intended).
     #[arg(long)]
@@ -34,7 +34,7 @@ pub struct GoldenArgs {
 }
 
 /// Where the recorded hashes live (relative to the workspace root).
-pub const HASH_FILE: &str = "tests/golden-hashes.txt";
+pub(crate) const HASH_FILE: &str = "tests/golden-hashes.txt";
 
 /// 64-bit FNV-1a.
 fn fnv1a(bytes: &[u8]) -> u64 {
@@ -176,7 +176,7 @@ fn compute(root: &Path) -> Result<BTreeMap<String, String>> {
 }
 
 /// Run `cargo xtask golden`.
-pub fn run(args: GoldenArgs) -> Result<()> {
+pub(crate) fn run(args: GoldenArgs) -> Result<()> {
     let write = args.write;
     nice_plug_xtask::chdir_workspace_root()?;
     let root = Path::new(".");

@@ -570,56 +570,11 @@ pub fn run(a: &LevelsArgs) -> Result<()> {
     let out = a.out.clone().unwrap_or_else(|| root.join("docs/levels.md"));
     let files = scene_files(&presets)?;
     let mut rows = measure_all(&files)?;
-    let mut written = String::new();
-    if a.write {
-        let mut passes = 0;
-        let mut files_written = 0;
-        while passes < MAX_WRITE_PASSES {
-            // every level first, so that a refusal writes no file
-            let mut levels = Vec::new();
-            for (r, f) in rows.iter().zip(&files) {
-                let Ok(m) = r else { continue };
-                let level = m.level_for_target();
-                if format_level(level) == format_level(m.level_db) {
-                    continue;
-                }
-                if !(MIN_LEVEL_DB..=MAX_LEVEL_DB).contains(&level) {
-                    bail!(
-                        "{}: the level for the target, {level:.1} dB, is outside {MIN_LEVEL_DB} ..= \
-                         {MAX_LEVEL_DB}: not written",
-                        f.display()
-                    );
-                }
-                levels.push((f, m, level));
-            }
-            if levels.is_empty() {
-                break;
-            }
-            passes += 1;
-            let mut moved = Vec::new();
-            for (f, m, level) in levels {
-                write_level(f, level)?;
-                moved.push(format!(
-                    "{}: level_db {} -> {}",
-                    m.stem,
-                    format_level(m.level_db),
-                    format_level(level)
-                ));
-            }
-            files_written += moved.len();
-            eprintln!(
-                "pass {passes}: wrote {} files:\n  {}",
-                moved.len(),
-                moved.join("\n  ")
-            );
-            rows = measure_all(&files)?;
-        }
-        let _ = writeln!(
-            written,
-            "`--write` wrote {files_written} levels in {passes} pass{} and measured again (this table).\n",
-            if passes == 1 { "" } else { "es" }
-        );
-    }
+    let written = if a.write {
+        write_levels(&files, &mut rows)?
+    } else {
+        String::new()
+    };
     let mut md = String::new();
     let _ = writeln!(md, "# Preset levels\n");
     let _ = writeln!(
@@ -631,25 +586,7 @@ pub fn run(a: &LevelsArgs) -> Result<()> {
         machine()
     );
     let body = table(&rows, &files);
-    let finite: Vec<&Measured> = rows.iter().flatten().collect();
-    let spread = |f: &dyn Fn(&Measured) -> f64| {
-        let lo = finite.iter().map(|m| f(m)).fold(f64::INFINITY, f64::min);
-        let hi = finite
-            .iter()
-            .map(|m| f(m))
-            .fold(f64::NEG_INFINITY, f64::max);
-        hi - lo
-    };
-    let summary = format!(
-        "Over {} presets: loudness spread {:.1} LU, peak spread {:.1} dB; {} outside {TARGET_LUFS} +-{TOLERANCE_LU} \
-         LUFS or clipping a chord.",
-        finite.len(),
-        spread(&|m| m.lufs),
-        spread(&|m| m.peak_dbfs),
-        rows.iter()
-            .filter(|r| !r.as_ref().is_ok_and(|m| m.problems().is_empty()))
-            .count()
-    );
+    let summary = summary_line(&rows);
     let _ = writeln!(md, "## Method\n\n{}\n", method_text());
     let _ = writeln!(md, "## Levels\n\n{written}{body}\n{summary}");
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -664,24 +601,110 @@ pub fn run(a: &LevelsArgs) -> Result<()> {
         t0.elapsed().as_secs_f64()
     );
     if a.check {
-        let failures: Vec<String> = rows
-            .iter()
-            .zip(&files)
-            .filter_map(|(r, f)| match r {
-                Ok(m) => {
-                    let p = m.problems();
-                    (!p.is_empty()).then(|| format!("{}: {}", m.stem, p.join("; ")))
-                }
-                Err(e) => Some(format!("{}: {e:#}", f.display())),
-            })
-            .collect();
-        if !failures.is_empty() {
-            bail!(
-                "{} presets off their level (`cargo xtask levels --write` sets them):\n  {}",
-                failures.len(),
-                failures.join("\n  ")
-            );
+        check_levels(&rows, &files)?;
+    }
+    Ok(())
+}
+
+/// `--write`: set each scene file's level to its target's and measure
+/// `rows` again, until none moves (at most [`MAX_WRITE_PASSES`] passes).
+/// Returns the line the report says it with.
+fn write_levels(files: &[PathBuf], rows: &mut Vec<Result<Measured>>) -> Result<String> {
+    let mut written = String::new();
+    let mut passes = 0;
+    let mut files_written = 0;
+    while passes < MAX_WRITE_PASSES {
+        // every level first, so that a refusal writes no file
+        let mut levels = Vec::new();
+        for (r, f) in rows.iter().zip(files) {
+            let Ok(m) = r else { continue };
+            let level = m.level_for_target();
+            if format_level(level) == format_level(m.level_db) {
+                continue;
+            }
+            if !(MIN_LEVEL_DB..=MAX_LEVEL_DB).contains(&level) {
+                bail!(
+                    "{}: the level for the target, {level:.1} dB, is outside {MIN_LEVEL_DB} ..= \
+                     {MAX_LEVEL_DB}: not written",
+                    f.display()
+                );
+            }
+            levels.push((f, m, level));
         }
+        if levels.is_empty() {
+            break;
+        }
+        passes += 1;
+        let mut moved = Vec::new();
+        for (f, m, level) in levels {
+            write_level(f, level)?;
+            moved.push(format!(
+                "{}: level_db {} -> {}",
+                m.stem,
+                format_level(m.level_db),
+                format_level(level)
+            ));
+        }
+        files_written += moved.len();
+        eprintln!(
+            "pass {passes}: wrote {} files:\n  {}",
+            moved.len(),
+            moved.join("\n  ")
+        );
+        *rows = measure_all(files)?;
+    }
+    let _ = writeln!(
+        written,
+        "`--write` wrote {files_written} levels in {passes} pass{} and measured again (this table).\n",
+        if passes == 1 { "" } else { "es" }
+    );
+    Ok(written)
+}
+
+/// The table's last line: the loudness and peak spreads, and the presets
+/// off their level.
+fn summary_line(rows: &[Result<Measured>]) -> String {
+    let finite: Vec<&Measured> = rows.iter().flatten().collect();
+    let spread = |f: &dyn Fn(&Measured) -> f64| {
+        let lo = finite.iter().map(|m| f(m)).fold(f64::INFINITY, f64::min);
+        let hi = finite
+            .iter()
+            .map(|m| f(m))
+            .fold(f64::NEG_INFINITY, f64::max);
+        hi - lo
+    };
+    format!(
+        "Over {} presets: loudness spread {:.1} LU, peak spread {:.1} dB; {} outside {TARGET_LUFS} +-{TOLERANCE_LU} \
+         LUFS or clipping a chord.",
+        finite.len(),
+        spread(&|m| m.lufs),
+        spread(&|m| m.peak_dbfs),
+        rows.iter()
+            .filter(|r| !r.as_ref().is_ok_and(|m| m.problems().is_empty()))
+            .count()
+    )
+}
+
+/// `--check`: every preset at its level, or an error listing those that
+/// are not.
+fn check_levels(rows: &[Result<Measured>], files: &[PathBuf]) -> Result<()> {
+    let failures: Vec<String> = rows
+        .iter()
+        .zip(files)
+        .filter_map(|(r, f)| match r {
+            Ok(m) => {
+                let p = m.problems();
+                (!p.is_empty()).then(|| format!("{}: {}", m.stem, p.join("; ")))
+            }
+            Err(e) => Some(format!("{}: {e:#}", f.display())),
+        })
+        .collect();
+    if !failures.is_empty() {
+        bail!(
+            "{} presets off their level (`cargo xtask levels --write` sets them):\n  {}",
+            failures.len(),
+            failures.join("\n  ")
+        );
     }
     Ok(())
 }

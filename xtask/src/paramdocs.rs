@@ -22,7 +22,7 @@ src/plugin/params.rs and src/presets.rs: edit those, not these tables. -->";
 const END: &str = "<!-- param-docs: end -->";
 
 /// Write the tables into docs/plugin.md, or with `check` only compare.
-pub fn run(check: bool) -> Result<()> {
+pub(crate) fn run(check: bool) -> Result<()> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
         .context("xtask/ has a parent")?;

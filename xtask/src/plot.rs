@@ -229,40 +229,8 @@ impl Series {
 /// Write the work-precision diagram of one accuracy scene of the report.
 pub fn plot_work_precision(res: &SceneResult, path: &Path) -> Result<()> {
     let e = |e: DrawingAreaErrorKind<_>| anyhow!("plot {}: {e:?}", path.display());
-    let mut methods: Vec<String> = Vec::new();
-    for r in &res.rows {
-        if !methods.contains(&r.method) {
-            methods.push(r.method.clone());
-        }
-    }
-    // points per method: (cpu s/s, error), finite and positive only
-    let mut series: Vec<Series> = methods
-        .iter()
-        .map(|m| {
-            let rows = res.rows.iter().filter(|r| &r.method == m);
-            Series::new(res, m, Style::Method, rows.map(|r| (r, r.os.to_string())))
-        })
-        .collect();
-    if !res.approx.is_empty() {
-        let rows = res.approx.iter().map(|a| (&a.row, a.label.clone()));
-        series.push(Series::new(res, APPROX_SERIES, Style::Settings, rows));
-    }
-    let all: Vec<(f64, f64)> = series
-        .iter()
-        .flat_map(|s| s.pts.iter().map(|(x, y, _)| (*x, *y)))
-        .collect();
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for (x, y) in &all {
-        x0 = x0.min(*x);
-        x1 = x1.max(*x);
-        y0 = y0.min(*y);
-        y1 = y1.max(*y);
-    }
-    if all.is_empty() {
-        (x0, x1, y0, y1) = (1e-4, 1.0, 1e-12, 1.0);
-    }
-    let (x0, x1) = (x0 / 2.0, x1 * 2.0);
-    let (y0, y1) = (y0 / 5.0, (y1 * 5.0).max(2.0));
+    let series = work_precision_series(res);
+    let (x0, x1, y0, y1) = axis_ranges(&series);
 
     let root = SVGBackend::new(path, (1000, 700)).into_drawing_area();
     root.fill(&WHITE).map_err(e)?;
@@ -356,6 +324,52 @@ pub fn plot_work_precision(res: &SceneResult, path: &Path) -> Result<()> {
         .map_err(e)?;
     root.present().map_err(e)?;
     Ok(())
+}
+
+/// The work-precision diagram's series: one per method (a point per
+/// oversampling), and the approximation settings if any.
+fn work_precision_series(res: &SceneResult) -> Vec<Series> {
+    let mut methods: Vec<String> = Vec::new();
+    for r in &res.rows {
+        if !methods.contains(&r.method) {
+            methods.push(r.method.clone());
+        }
+    }
+    // points per method: (cpu s/s, error), finite and positive only
+    let mut series: Vec<Series> = methods
+        .iter()
+        .map(|m| {
+            let rows = res.rows.iter().filter(|r| &r.method == m);
+            Series::new(res, m, Style::Method, rows.map(|r| (r, r.os.to_string())))
+        })
+        .collect();
+    if !res.approx.is_empty() {
+        let rows = res.approx.iter().map(|a| (&a.row, a.label.clone()));
+        series.push(Series::new(res, APPROX_SERIES, Style::Settings, rows));
+    }
+    series
+}
+
+/// The axes' ranges `(x0, x1, y0, y1)` of the work-precision diagram: the
+/// points' with a margin (log scale), or a default without a point.
+fn axis_ranges(series: &[Series]) -> (f64, f64, f64, f64) {
+    let all: Vec<(f64, f64)> = series
+        .iter()
+        .flat_map(|s| s.pts.iter().map(|(x, y, _)| (*x, *y)))
+        .collect();
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for (x, y) in &all {
+        x0 = x0.min(*x);
+        x1 = x1.max(*x);
+        y0 = y0.min(*y);
+        y1 = y1.max(*y);
+    }
+    if all.is_empty() {
+        (x0, x1, y0, y1) = (1e-4, 1.0, 1e-12, 1.0);
+    }
+    let (x0, x1) = (x0 / 2.0, x1 * 2.0);
+    let (y0, y1) = (y0 / 5.0, (y1 * 5.0).max(2.0));
+    (x0, x1, y0, y1)
 }
 
 /// Offsets (pixels, top-left corner of the text) for labels of `chars`

@@ -546,32 +546,7 @@ fn compare(
     let render_peaks = partials(render, RENDER_RANGE_DB);
     let real_frames = analysis::stft(&real.x);
     let render_frames = analysis::stft(&render.x);
-    let strongest: Vec<Peak> = real_peaks.iter().copied().take(PARTIALS).collect();
-    let lowest = strongest
-        .iter()
-        .map(|p| p.freq_hz)
-        .fold(f64::INFINITY, f64::min);
-    let rows = strongest
-        .iter()
-        .map(|&rp| {
-            let near = render_peaks
-                .iter()
-                .map(|q| (*q, analysis::cents(rp.freq_hz, q.freq_hz)))
-                .min_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
-            let t60_render = near
-                .filter(|(_, c)| c.abs() <= T60_MATCH_CENTS)
-                .map(|(q, _)| {
-                    analysis::fit_t60(&analysis::track(&render_frames, RATE_HZ, q.freq_hz))
-                });
-            PartialRow {
-                real: rp,
-                ratio: rp.freq_hz / lowest,
-                render: near,
-                t60_real: analysis::fit_t60(&analysis::track(&real_frames, RATE_HZ, rp.freq_hz)),
-                t60_render,
-            }
-        })
-        .collect::<Vec<_>>();
+    let rows = partial_rows(&real_peaks, &render_peaks, &real_frames, &render_frames);
 
     // attack
     let ra = analysis::attack_spectrum(&real.x, RATE_HZ, ATTACK_S);
@@ -591,19 +566,104 @@ fn compare(
         &analysis::band_levels(&spectra.0),
         &analysis::band_levels(&spectra.1),
     );
-    let confusion: Vec<(GmSound, Option<f64>, u8)> = set
+    let confusion = confusion_distances(render, p.key, recs, keys, set);
+
+    let real_top: Vec<Peak> = real_peaks.iter().copied().take(PLOT_PARTIALS).collect();
+    let render_top: Vec<Peak> = render_peaks.iter().copied().take(PLOT_PARTIALS).collect();
+    let mut c = Comparison {
+        stem: p.stem.clone(),
+        sound,
+        key: p.key,
+        recording: if own_key == sound.key_for(p.key) {
+            own.describe()
+        } else {
+            format!(
+                "{}. Played at key {own_key}, not at the preset's key {}: there the recording would be \
+                 transposed by more than an octave (see the method)",
+                own.describe(),
+                p.key
+            )
+        },
+        render_onset_s: render.onset_s,
+        window_s,
+        rows,
+        centroid,
+        hf_db,
+        distance: dist,
+        confusion,
+        targets: Vec::new(),
+        decays: (
+            decays(real, &real_frames, &real_top),
+            decays(render, &render_frames, &render_top),
+        ),
+        spectra,
+        signals: (real.x.clone(), render.x.clone()),
+    };
+    c.targets = targets(&c, real.band_limit_hz, own_key);
+    Ok(c)
+}
+
+/// The recording's strongest [`PARTIALS`] partials, each with the
+/// render's nearest partial and both decays (`*_frames`: the two STFTs).
+fn partial_rows(
+    real_peaks: &[Peak],
+    render_peaks: &[Peak],
+    real_frames: &[Vec<f64>],
+    render_frames: &[Vec<f64>],
+) -> Vec<PartialRow> {
+    let strongest: Vec<Peak> = real_peaks.iter().copied().take(PARTIALS).collect();
+    let lowest = strongest
         .iter()
+        .map(|p| p.freq_hz)
+        .fold(f64::INFINITY, f64::min);
+    strongest
+        .iter()
+        .map(|&rp| {
+            let near = render_peaks
+                .iter()
+                .map(|q| (*q, analysis::cents(rp.freq_hz, q.freq_hz)))
+                .min_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
+            let t60_render = near
+                .filter(|(_, c)| c.abs() <= T60_MATCH_CENTS)
+                .map(|(q, _)| {
+                    analysis::fit_t60(&analysis::track(render_frames, RATE_HZ, q.freq_hz))
+                });
+            PartialRow {
+                real: rp,
+                ratio: rp.freq_hz / lowest,
+                render: near,
+                t60_real: analysis::fit_t60(&analysis::track(real_frames, RATE_HZ, rp.freq_hz)),
+                t60_render,
+            }
+        })
+        .collect::<Vec<_>>()
+}
+
+/// The render's distance to the recording of every sound of the set
+/// `set` at `key` (`None`: no zone), and the key each was played at.
+fn confusion_distances(
+    render: &Sound,
+    key: u8,
+    recs: &BTreeMap<RecordingKey, std::result::Result<Recording, String>>,
+    keys: &BTreeMap<RecordingKey, u8>,
+    set: &[GmSound],
+) -> Vec<(GmSound, Option<f64>, u8)> {
+    set.iter()
         .map(|&s| {
-            let k = keys[&(s, p.key)];
+            let k = keys[&(s, key)];
             let d = recs[&(s, k)]
                 .as_ref()
                 .ok()
                 .map(|r| distance(render, &r.played));
             (s, d, k)
         })
-        .collect();
+        .collect()
+}
 
-    // targets
+/// The targets of the comparison `c` (its `targets` not yet set), the
+/// recording's band limit \[Hz\] and the key it was played at.
+fn targets(c: &Comparison, band_limit_hz: f64, own_key: u8) -> Vec<Target> {
+    let (dist, centroid, hf_db, rows, sound) = (c.distance, c.centroid, c.hf_db, &c.rows, c.sound);
     let mut targets = Vec::new();
     targets.push(Target {
         name: "1/3-octave distance <= 6 dB",
@@ -617,12 +677,12 @@ fn compare(
         detail: format!("{cr:.2}x"),
     });
     let hd = hf_db.1 - hf_db.0;
-    let (hf_verdict, hf_detail) = if real.band_limit_hz < HF_HZ * 1.1 {
+    let (hf_verdict, hf_detail) = if band_limit_hz < HF_HZ * 1.1 {
         (
             Verdict::NotApplicable,
             format!(
                 "{hd:+.1} dB, but the recording stops at {:.1} kHz",
-                real.band_limit_hz / 1000.0
+                band_limit_hz / 1000.0
             ),
         )
     } else {
@@ -637,7 +697,7 @@ fn compare(
         detail: hf_detail,
     });
     let present = rows.iter().filter(|r| r.present()).count();
-    let elsewhere = if own_key == sound.key_for(p.key) {
+    let elsewhere = if own_key == sound.key_for(c.key) {
         String::new()
     } else {
         format!(", the recording at key {own_key}")
@@ -665,7 +725,8 @@ fn compare(
             detail: format!("{ok} of {} fitted", ratios.len()),
         }
     });
-    let nearest = confusion
+    let nearest = c
+        .confusion
         .iter()
         .filter_map(|(s, d, _)| d.map(|d| (*s, d)))
         .min_by(|a, b| a.1.total_cmp(&b.1));
@@ -674,38 +735,7 @@ fn compare(
         verdict: Verdict::of(nearest.is_some_and(|(s, _)| s == sound)),
         detail: nearest.map_or("none".into(), |(s, d)| format!("{} ({d:.1} dB)", s.name())),
     });
-
-    let real_top: Vec<Peak> = real_peaks.iter().copied().take(PLOT_PARTIALS).collect();
-    let render_top: Vec<Peak> = render_peaks.iter().copied().take(PLOT_PARTIALS).collect();
-    Ok(Comparison {
-        stem: p.stem.clone(),
-        sound,
-        key: p.key,
-        recording: if own_key == sound.key_for(p.key) {
-            own.describe()
-        } else {
-            format!(
-                "{}. Played at key {own_key}, not at the preset's key {}: there the recording would be \
-                 transposed by more than an octave (see the method)",
-                own.describe(),
-                p.key
-            )
-        },
-        render_onset_s: render.onset_s,
-        window_s,
-        rows,
-        centroid,
-        hf_db,
-        distance: dist,
-        confusion,
-        targets,
-        decays: (
-            decays(real, &real_frames, &real_top),
-            decays(render, &render_frames, &render_top),
-        ),
-        spectra,
-        signals: (real.x.clone(), render.x.clone()),
-    })
+    targets
 }
 
 fn fmt_t60(t: &T60) -> String {
@@ -871,76 +901,11 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
         .collect::<Result<_>>()?;
 
     // every recording needed, once: own, confusion set, scale pairs
-    let mut set: Vec<GmSound> = Vec::new();
-    for p in &all {
-        if let Ok(Some(s)) = p.real {
-            if !set.contains(&s) {
-                set.push(s);
-            }
-        }
-    }
-    for n in CONFUSION_EXTRA {
-        let s = GmSound::parse(n).expect("a GM name");
-        if !set.contains(&s) {
-            set.push(s);
-        }
-    }
-    let key_of = |s: GmSound| -> u8 {
-        all.iter()
-            .find(|p| matches!(p.real, Ok(Some(x)) if x == s))
-            .map_or(60, |p| p.key)
-    };
-    // the key each recording is played at, for each preset's key
-    let mut keys: BTreeMap<RecordingKey, u8> = BTreeMap::new();
-    let mut wanted: Vec<RecordingKey> = Vec::new();
-    for (p, _) in &compared {
-        for &o in &set {
-            let k = playable_key(&sf, o, p.key);
-            keys.insert((o, p.key), k);
-            if !wanted.contains(&(o, k)) {
-                wanted.push((o, k));
-            }
-        }
-    }
-    let pairs: Vec<(GmSound, GmSound, u8)> = SCALE_PAIRS
-        .iter()
-        .map(|(x, y)| {
-            let (x, y) = (
-                GmSound::parse(x).expect("GM"),
-                GmSound::parse(y).expect("GM"),
-            );
-            (x, y, common_key(&sf, x, y, key_of(x)))
-        })
-        .collect();
-    for &(x, y, k) in &pairs {
-        for s in [x, y] {
-            if !wanted.contains(&(s, s.key_for(k))) {
-                wanted.push((s, s.key_for(k)));
-            }
-        }
-    }
-    // the same instruments, another recording each, at the first preset's key
-    let mut own_sounds: Vec<(GmSound, u8)> = Vec::new();
-    for (p, s) in &compared {
-        if !own_sounds.iter().any(|(x, _)| x == s) {
-            own_sounds.push((*s, playable_key(&sf, *s, p.key)));
-        }
-    }
-    let others: Vec<(GmSound, u8, Option<Played>)> = own_sounds
-        .par_iter()
-        .map(|&(s, k)| (s, k, another_recording(&sf, s, k).map(Recording::new)))
-        .collect();
-    let recs: BTreeMap<RecordingKey, std::result::Result<Recording, String>> = wanted
-        .par_iter()
-        .map(|&(s, key)| {
-            let (bank, program) = s.bank_program();
-            let r = sf
-                .key_region(bank, program, key, VELOCITY)
-                .map_err(|e| format!("{e:#}"))
-                .and_then(Recording::new);
-            ((s, key), r)
-        })
-        .collect();
+    let set = confusion_set(&all);
+    let (keys, mut wanted) = recording_keys(&sf, &compared, &set);
+    let pairs = scale_pairs(&sf, &all, &mut wanted);
+    let others = other_recordings(&sf, &compared);
+    let recs = play_recordings(&sf, &wanted);
 
     let comparisons: Vec<Result<Comparison>> = compared
         .par_iter()
@@ -952,6 +917,54 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
         .collect();
 
     // the report
+    let mut md = report_header(a);
+    let mut body = String::new();
+    let _ = writeln!(body, "## Method\n\n{}\n", method_text(a.seconds));
+    let tally = write_summary(&mut body, &comparisons, &chosen);
+    write_scale_pairs(&mut body, &pairs, &recs);
+    write_other_recordings(&mut body, &others, &recs);
+    write_confusion(&mut body, &set, &comparisons);
+
+    // per preset
+    let plot_dir = a.out.join("compare-real");
+    let wav_dir = root.join("target/compare-real");
+    std::fs::create_dir_all(&plot_dir)
+        .with_context(|| format!("cannot create {}", plot_dir.display()))?;
+    std::fs::create_dir_all(&wav_dir).context("cannot create target/compare-real")?;
+    for c in comparisons.iter().flatten() {
+        write_preset_table(&mut body, c, a.seconds);
+        write_preset_plots(&mut body, c, &plot_dir, &wav_dir)?;
+    }
+
+    let _ = writeln!(
+        body,
+        "## What FluidR3 offers for bells and plates\n\nPreset headers whose names say bell, chime, gong, plate, \
+         cymbal, triangle, agogo or steel (the samples they play at key 72), and the standard kit's metal keys:\n\n{}",
+        bells_and_plates(&sf)
+    );
+    md.push_str(&body);
+    let md_path = a.out.join("compare-real.md");
+    std::fs::write(&md_path, &md).with_context(|| format!("cannot write {}", md_path.display()))?;
+    print!("{body}");
+    println!("{}", tally.summary);
+    eprintln!(
+        "wrote {} and {}/*.svg; WAV pairs in target/compare-real/ ({:.1} s)",
+        md_path.display(),
+        plot_dir.display(),
+        t0.elapsed().as_secs_f64()
+    );
+    if a.check && tally.failed > 0 {
+        bail!(
+            "{} targets failed ({})",
+            tally.failed,
+            tally.failures.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// The report's title and the line that says how it was made.
+fn report_header(a: &CompareRealArgs) -> String {
     let sf_size = std::fs::metadata(&a.sf2).map(|m| m.len()).unwrap_or(0);
     let mut md = String::new();
     let _ = writeln!(md, "# Presets against real recordings\n");
@@ -968,10 +981,135 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
         rustc_version(),
         file_name(&a.sf2)
     );
-    let mut body = String::new();
-    let _ = writeln!(body, "## Method\n\n{}\n", method_text(a.seconds));
+    md
+}
 
-    // summary
+/// The confusion set: every instrument a preset names, then
+/// [`CONFUSION_EXTRA`], each once.
+fn confusion_set(all: &[PresetFile]) -> Vec<GmSound> {
+    let mut set: Vec<GmSound> = Vec::new();
+    for p in all {
+        if let Ok(Some(s)) = p.real {
+            if !set.contains(&s) {
+                set.push(s);
+            }
+        }
+    }
+    for n in CONFUSION_EXTRA {
+        let s = GmSound::parse(n).expect("a GM name");
+        if !set.contains(&s) {
+            set.push(s);
+        }
+    }
+    set
+}
+
+/// The key each recording of the set is played at, for each compared
+/// preset's key; and the recordings that takes, each once.
+fn recording_keys(
+    sf: &SoundFont,
+    compared: &[(&PresetFile, GmSound)],
+    set: &[GmSound],
+) -> (BTreeMap<RecordingKey, u8>, Vec<RecordingKey>) {
+    let mut keys: BTreeMap<RecordingKey, u8> = BTreeMap::new();
+    let mut wanted: Vec<RecordingKey> = Vec::new();
+    for (p, _) in compared {
+        for &o in set {
+            let k = playable_key(sf, o, p.key);
+            keys.insert((o, p.key), k);
+            if !wanted.contains(&(o, k)) {
+                wanted.push((o, k));
+            }
+        }
+    }
+    (keys, wanted)
+}
+
+/// The [`SCALE_PAIRS`] with the key both are played at (the first's
+/// preset's key, or middle C), their recordings added to `wanted`.
+fn scale_pairs(
+    sf: &SoundFont,
+    all: &[PresetFile],
+    wanted: &mut Vec<RecordingKey>,
+) -> Vec<(GmSound, GmSound, u8)> {
+    let key_of = |s: GmSound| -> u8 {
+        all.iter()
+            .find(|p| matches!(p.real, Ok(Some(x)) if x == s))
+            .map_or(60, |p| p.key)
+    };
+    let pairs: Vec<(GmSound, GmSound, u8)> = SCALE_PAIRS
+        .iter()
+        .map(|(x, y)| {
+            let (x, y) = (
+                GmSound::parse(x).expect("GM"),
+                GmSound::parse(y).expect("GM"),
+            );
+            (x, y, common_key(sf, x, y, key_of(x)))
+        })
+        .collect();
+    for &(x, y, k) in &pairs {
+        for s in [x, y] {
+            if !wanted.contains(&(s, s.key_for(k))) {
+                wanted.push((s, s.key_for(k)));
+            }
+        }
+    }
+    pairs
+}
+
+/// The same instruments, another recording each, at the first preset's
+/// key.
+fn other_recordings(
+    sf: &SoundFont,
+    compared: &[(&PresetFile, GmSound)],
+) -> Vec<(GmSound, u8, Option<Played>)> {
+    let mut own_sounds: Vec<(GmSound, u8)> = Vec::new();
+    for (p, s) in compared {
+        if !own_sounds.iter().any(|(x, _)| x == s) {
+            own_sounds.push((*s, playable_key(sf, *s, p.key)));
+        }
+    }
+    own_sounds
+        .par_iter()
+        .map(|&(s, k)| (s, k, another_recording(sf, s, k).map(Recording::new)))
+        .collect()
+}
+
+/// Every recording of `wanted`, played.
+fn play_recordings(
+    sf: &SoundFont,
+    wanted: &[RecordingKey],
+) -> BTreeMap<RecordingKey, std::result::Result<Recording, String>> {
+    wanted
+        .par_iter()
+        .map(|&(s, key)| {
+            let (bank, program) = s.bank_program();
+            let r = sf
+                .key_region(bank, program, key, VELOCITY)
+                .map_err(|e| format!("{e:#}"))
+                .and_then(Recording::new);
+            ((s, key), r)
+        })
+        .collect()
+}
+
+/// The targets' count over the report.
+struct Tally {
+    /// The summary's last line.
+    summary: String,
+    /// Targets failed (an error or an unknown instrument counts one).
+    failed: usize,
+    /// What failed: the presets, or the errors.
+    failures: Vec<String>,
+}
+
+/// The summary section: a line per comparison, the presets not compared,
+/// and the targets' count.
+fn write_summary(
+    body: &mut String,
+    comparisons: &[Result<Comparison>],
+    chosen: &[&PresetFile],
+) -> Tally {
     let _ = writeln!(body, "## Summary\n");
     let _ = writeln!(
         body,
@@ -979,7 +1117,7 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
     );
     let _ = writeln!(body, "|---|---|---|---|---|---|---|---|---|---|");
     let (mut passed, mut failed, mut failures) = (0, 0, Vec::new());
-    for c in &comparisons {
+    for c in comparisons {
         match c {
             Ok(c) => {
                 let t =
@@ -1025,7 +1163,7 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
         }
     }
     let mut not_compared = Vec::new();
-    for p in &chosen {
+    for p in chosen {
         match &p.real {
             Ok(Some(_)) => {}
             Ok(None) => {
@@ -1056,15 +1194,26 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
     if !not_compared.is_empty() {
         let _ = writeln!(body, "{}\n", not_compared.join("\n"));
     }
+    Tally {
+        summary,
+        failed,
+        failures,
+    }
+}
 
-    // scale of close
+/// The scale of close: recordings of related instruments, pair by pair.
+fn write_scale_pairs(
+    body: &mut String,
+    pairs: &[(GmSound, GmSound, u8)],
+    recs: &BTreeMap<RecordingKey, Played>,
+) {
     let _ = writeln!(
         body,
         "## The scale of \"close\": recordings of related instruments\n"
     );
     let _ = writeln!(body, "| recording | recording | key | distance [dB] |");
     let _ = writeln!(body, "|---|---|---|---|");
-    for &(x, y, k) in &pairs {
+    for &(x, y, k) in pairs {
         let (rx, ry) = (&recs[&(x, x.key_for(k))], &recs[&(y, y.key_for(k))]);
         let key = match (x.is_drum(), y.is_drum()) {
             (true, true) => "kit keys".to_string(),
@@ -1078,6 +1227,15 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
         let _ = writeln!(body, "| {} | {} | {key} | {d} |", x.label(), y.label());
     }
     let _ = writeln!(body);
+}
+
+/// The scale of close: each instrument's recording against another
+/// recording of it.
+fn write_other_recordings(
+    body: &mut String,
+    others: &[(GmSound, u8, Option<Played>)],
+    recs: &BTreeMap<RecordingKey, Played>,
+) {
     let _ = writeln!(
         body,
         "## The scale of \"close\": the same instrument, another recording\n\n\
@@ -1104,7 +1262,7 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
             .collect::<Vec<_>>()
             .join(" + ")
     };
-    for (s, k, other) in &others {
+    for (s, k, other) in others {
         let own = &recs.get(&(*s, s.key_for(*k)));
         let (own_desc, d) = match (own, other) {
             (Some(Ok(a)), Some(Ok(b))) => (
@@ -1141,8 +1299,11 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
         );
     }
     let _ = writeln!(body);
+}
 
-    // confusion
+/// The confusion table: each preset's render against every recording of
+/// the set.
+fn write_confusion(body: &mut String, set: &[GmSound], comparisons: &[Result<Comparison>]) {
     let _ = writeln!(
         body,
         "## Confusion table\n\nThe 1/3-octave distance [dB] of each preset's render (its key in brackets) to every \
@@ -1151,7 +1312,7 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
     );
     let mut head = "| preset |".to_string();
     let mut rule = "|---|".to_string();
-    for s in &set {
+    for s in set {
         let _ = write!(head, " {} |", s.name());
         rule.push_str("---|");
     }
@@ -1191,127 +1352,110 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
         );
     }
     let _ = writeln!(body);
+}
 
-    // per preset
-    let plot_dir = a.out.join("compare-real");
-    let wav_dir = root.join("target/compare-real");
-    std::fs::create_dir_all(&plot_dir)
-        .with_context(|| format!("cannot create {}", plot_dir.display()))?;
-    std::fs::create_dir_all(&wav_dir).context("cannot create target/compare-real")?;
-    for c in comparisons.iter().flatten() {
-        let _ = writeln!(body, "## {} ({})\n", c.stem, c.sound.label());
-        let _ = writeln!(body, "Recording: {}.\n", c.recording);
-        let _ = writeln!(
-            body,
-            "Render: {} s at {RATE_HZ} Hz, onset at {:.1} ms. Spectra over the first {:.2} s.\n",
-            a.seconds,
-            c.render_onset_s * 1000.0,
-            c.window_s
-        );
-        let _ = writeln!(
-            body,
-            "| # | real [Hz] | ratio | real level [dB] | render nearest [Hz] | render level [dB] | error [cents] | within 15 cents | T60 real [s] | T60 render [s] | render/real |"
-        );
-        let _ = writeln!(body, "|---|---|---|---|---|---|---|---|---|---|---|");
-        for (i, r) in c.rows.iter().enumerate() {
-            let (rf, rl, rc) = match r.render {
-                Some((q, cents)) => (
-                    fmt_hz(q.freq_hz),
-                    format!("{:.1}", q.level_db),
-                    format!("{cents:+.1}"),
-                ),
-                None => ("none".into(), String::new(), String::new()),
-            };
-            let _ = writeln!(
-                body,
-                "| {} | {} | {:.3} | {:.1} | {rf} | {rl} | {rc} | {} | {} | {} | {} |",
-                i + 1,
-                fmt_hz(r.real.freq_hz),
-                r.ratio,
-                r.real.level_db,
-                if r.present() { "yes" } else { "no" },
-                fmt_t60(&r.t60_real),
-                r.t60_render
-                    .as_ref()
-                    .map_or("no partial within 50 cents".into(), fmt_t60),
-                r.t60_ratio().map_or(String::new(), |x| format!("{x:.2}")),
-            );
-        }
-        let _ = writeln!(body);
-        let _ = writeln!(body, "| measure | real | render | render vs real |");
-        let _ = writeln!(body, "|---|---|---|---|");
-        let _ = writeln!(
-            body,
-            "| attack centroid ({} ms) | {:.0} Hz | {:.0} Hz | {:.2}x |",
-            ATTACK_S * 1000.0,
-            c.centroid.0,
-            c.centroid.1,
-            c.centroid.1 / c.centroid.0
-        );
-        let _ = writeln!(
-            body,
-            "| energy above 5 kHz ({} ms) | {:.1} dB | {:.1} dB | {:+.1} dB |",
-            ATTACK_S * 1000.0,
-            c.hf_db.0,
-            c.hf_db.1,
-            c.hf_db.1 - c.hf_db.0
-        );
-        let _ = writeln!(body, "| 1/3-octave distance | | | {:.1} dB |\n", c.distance);
-        let line: Vec<String> = c
-            .targets
-            .iter()
-            .map(|t| format!("{}: {} ({})", t.name, t.verdict.word(), t.detail))
-            .collect();
-        let _ = writeln!(body, "Targets: {}.\n", line.join("; "));
-        let spec_svg = plot_dir.join(format!("{}-spectrum.svg", c.stem));
-        let t60_svg = plot_dir.join(format!("{}-t60.svg", c.stem));
-        plots::spectra(
-            &c.spectra.0,
-            &c.spectra.1,
-            &c.rows.iter().map(|r| r.real.freq_hz).collect::<Vec<_>>(),
-            &format!(
-                "{} against {}: first {:.2} s",
-                c.stem,
-                c.sound.name(),
-                c.window_s
-            ),
-            &spec_svg,
-        )?;
-        plots::decays(
-            &c.decays.0,
-            &c.decays.1,
-            &format!("{} against {}: T60 per partial", c.stem, c.sound.name()),
-            &t60_svg,
-        )?;
-        let _ = writeln!(
-            body,
-            "![{0} spectra](compare-real/{0}-spectrum.svg)\n![{0} T60](compare-real/{0}-t60.svg)\n",
-            c.stem
-        );
-        write_pair(&wav_dir, &c.stem, &c.signals.0, &c.signals.1)?;
-    }
-
+/// A preset's section: its recording, its partials and measures, its
+/// targets (`seconds`: the render's length).
+fn write_preset_table(body: &mut String, c: &Comparison, seconds: f64) {
+    let _ = writeln!(body, "## {} ({})\n", c.stem, c.sound.label());
+    let _ = writeln!(body, "Recording: {}.\n", c.recording);
     let _ = writeln!(
         body,
-        "## What FluidR3 offers for bells and plates\n\nPreset headers whose names say bell, chime, gong, plate, \
-         cymbal, triangle, agogo or steel (the samples they play at key 72), and the standard kit's metal keys:\n\n{}",
-        bells_and_plates(&sf)
+        "Render: {} s at {RATE_HZ} Hz, onset at {:.1} ms. Spectra over the first {:.2} s.\n",
+        seconds,
+        c.render_onset_s * 1000.0,
+        c.window_s
     );
-    md.push_str(&body);
-    let md_path = a.out.join("compare-real.md");
-    std::fs::write(&md_path, &md).with_context(|| format!("cannot write {}", md_path.display()))?;
-    print!("{body}");
-    println!("{summary}");
-    eprintln!(
-        "wrote {} and {}/*.svg; WAV pairs in target/compare-real/ ({:.1} s)",
-        md_path.display(),
-        plot_dir.display(),
-        t0.elapsed().as_secs_f64()
+    let _ = writeln!(
+        body,
+        "| # | real [Hz] | ratio | real level [dB] | render nearest [Hz] | render level [dB] | error [cents] | within 15 cents | T60 real [s] | T60 render [s] | render/real |"
     );
-    if a.check && failed > 0 {
-        bail!("{failed} targets failed ({})", failures.join(", "));
+    let _ = writeln!(body, "|---|---|---|---|---|---|---|---|---|---|---|");
+    for (i, r) in c.rows.iter().enumerate() {
+        let (rf, rl, rc) = match r.render {
+            Some((q, cents)) => (
+                fmt_hz(q.freq_hz),
+                format!("{:.1}", q.level_db),
+                format!("{cents:+.1}"),
+            ),
+            None => ("none".into(), String::new(), String::new()),
+        };
+        let _ = writeln!(
+            body,
+            "| {} | {} | {:.3} | {:.1} | {rf} | {rl} | {rc} | {} | {} | {} | {} |",
+            i + 1,
+            fmt_hz(r.real.freq_hz),
+            r.ratio,
+            r.real.level_db,
+            if r.present() { "yes" } else { "no" },
+            fmt_t60(&r.t60_real),
+            r.t60_render
+                .as_ref()
+                .map_or("no partial within 50 cents".into(), fmt_t60),
+            r.t60_ratio().map_or(String::new(), |x| format!("{x:.2}")),
+        );
     }
-    Ok(())
+    let _ = writeln!(body);
+    let _ = writeln!(body, "| measure | real | render | render vs real |");
+    let _ = writeln!(body, "|---|---|---|---|");
+    let _ = writeln!(
+        body,
+        "| attack centroid ({} ms) | {:.0} Hz | {:.0} Hz | {:.2}x |",
+        ATTACK_S * 1000.0,
+        c.centroid.0,
+        c.centroid.1,
+        c.centroid.1 / c.centroid.0
+    );
+    let _ = writeln!(
+        body,
+        "| energy above 5 kHz ({} ms) | {:.1} dB | {:.1} dB | {:+.1} dB |",
+        ATTACK_S * 1000.0,
+        c.hf_db.0,
+        c.hf_db.1,
+        c.hf_db.1 - c.hf_db.0
+    );
+    let _ = writeln!(body, "| 1/3-octave distance | | | {:.1} dB |\n", c.distance);
+    let line: Vec<String> = c
+        .targets
+        .iter()
+        .map(|t| format!("{}: {} ({})", t.name, t.verdict.word(), t.detail))
+        .collect();
+    let _ = writeln!(body, "Targets: {}.\n", line.join("; "));
+}
+
+/// A preset's plots, linked from its section, and its WAV pair.
+fn write_preset_plots(
+    body: &mut String,
+    c: &Comparison,
+    plot_dir: &Path,
+    wav_dir: &Path,
+) -> Result<()> {
+    let spec_svg = plot_dir.join(format!("{}-spectrum.svg", c.stem));
+    let t60_svg = plot_dir.join(format!("{}-t60.svg", c.stem));
+    plots::spectra(
+        &c.spectra.0,
+        &c.spectra.1,
+        &c.rows.iter().map(|r| r.real.freq_hz).collect::<Vec<_>>(),
+        &format!(
+            "{} against {}: first {:.2} s",
+            c.stem,
+            c.sound.name(),
+            c.window_s
+        ),
+        &spec_svg,
+    )?;
+    plots::decays(
+        &c.decays.0,
+        &c.decays.1,
+        &format!("{} against {}: T60 per partial", c.stem, c.sound.name()),
+        &t60_svg,
+    )?;
+    let _ = writeln!(
+        body,
+        "![{0} spectra](compare-real/{0}-spectrum.svg)\n![{0} T60](compare-real/{0}-t60.svg)\n",
+        c.stem
+    );
+    write_pair(wav_dir, &c.stem, &c.signals.0, &c.signals.1)
 }
 
 /// For `cargo xtask demo`: beside each `DIR/NAME.wav` the demo rendered

@@ -46,7 +46,7 @@ fn log_cells(s: &Spectrum, cells: usize) -> Vec<(f64, f64)> {
 
 /// The recording's (`real`) and the render's spectra overlaid, the
 /// recording's compared partials marked.
-pub fn spectra(
+pub(crate) fn spectra(
     real: &Spectrum,
     render: &Spectrum,
     marks: &[f64],
@@ -108,7 +108,12 @@ pub fn spectra(
 /// T60 against frequency of the recording's (`real`) and the render's
 /// strongest partials; partials without a fit are left out (counted in
 /// the legend).
-pub fn decays(real: &[(f64, T60)], render: &[(f64, T60)], title: &str, path: &Path) -> Result<()> {
+pub(crate) fn decays(
+    real: &[(f64, T60)],
+    render: &[(f64, T60)],
+    title: &str,
+    path: &Path,
+) -> Result<()> {
     let e = |e: DrawingAreaErrorKind<_>| anyhow!("plot {}: {e:?}", path.display());
     let pts = |d: &[(f64, T60)]| -> Vec<(f64, f64)> {
         d.iter()

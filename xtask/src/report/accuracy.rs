@@ -22,9 +22,13 @@ pub const SHORT_S: f64 = 0.05;
 
 /// One accuracy scene.
 pub struct Case {
+    /// The scene's name in the report.
     pub name: String,
+    /// The scene every method runs.
     pub scene: Scene,
+    /// Length of the runs \[s\].
     pub seconds: f64,
+    /// What the scene is, in a sentence of the report.
     pub what: String,
     /// Opt-in approximation settings (the scene's `[approximate]` table) to
     /// measure with the exact engine, each against the exact reference.
@@ -39,14 +43,18 @@ pub const APPROX_SERIES: &str = "exact + approximations";
 /// One method at one oversampling on one scene.
 #[derive(Debug, Clone)]
 pub struct Row {
+    /// The method's name (`exact`, `offset-rod`, a competitor's).
     pub method: String,
+    /// Oversampling factor of the method's run.
     pub os: usize,
     /// Median CPU seconds per second of audio (stepping loop only).
     pub cpu_per_s: f64,
+    /// Repetitions the timing took its median of.
     pub reps: usize,
     /// Relative L2 of the pickup (velocity) over the 50 ms from the first
-    /// reference contact / over the whole window.
+    /// reference contact.
     pub pick_short: Option<f64>,
+    /// Relative L2 of the pickup (velocity) over the whole window.
     pub pick_full: Option<f64>,
     /// Relative L2 of the hammer height over the window.
     pub hammer: Option<f64>,
@@ -54,6 +62,8 @@ pub struct Row {
     pub contacts: ContactMatch,
     /// Largest energy increase between two output samples / E0.
     pub max_gain: f64,
+    /// Whether the run diverged (a non-finite state or an energy above 1e6
+    /// E0).
     pub diverged: bool,
 }
 
@@ -88,10 +98,15 @@ pub struct ApproxRow {
 
 /// Results of one scene.
 pub struct SceneResult {
+    /// The scene's name, as [`Case::name`].
     pub name: String,
+    /// What the scene is, as [`Case::what`].
     pub what: String,
+    /// Length of the runs \[s\].
     pub seconds: f64,
+    /// Length of the runs [samples].
     pub n: usize,
+    /// Every method at every oversampling.
     pub rows: Vec<Row>,
     /// Reference contacts.
     pub ref_contacts: usize,
@@ -101,8 +116,9 @@ pub struct SceneResult {
     pub check: (Option<f64>, Option<f64>, Option<f64>, f64),
     /// Whether the pickup is identically zero (wall: no pickup).
     pub has_pickup: bool,
-    /// Modes of the struck object in the exact run, and its compile time \[s\].
+    /// Modes of the struck object in the exact run.
     pub modes: usize,
+    /// The exact run's compile time \[s\].
     pub compile_s: f64,
     /// The exact engine with each approximation setting of the case.
     pub approx: Vec<ApproxRow>,

@@ -230,9 +230,36 @@ pub fn run(a: ReportArgs) -> Result<()> {
         md += "\n**Quick mode: shortened renders; not the report's numbers.**\n";
     }
 
+    let results = accuracy_section(&a, &plan, &mut md)?;
+    stability_section(&a, &mut md)?;
+    sustain_section(&a, &mut md);
+
+    let _ = writeln!(
+        md,
+        "\nTotal report time: {:.0} s.",
+        t_start.elapsed().as_secs_f64()
+    );
+    let path = a.out.join("report.md");
+    std::fs::write(&path, &md).with_context(|| format!("{}", path.display()))?;
+    eprintln!(
+        "wrote {} and {} plots in {:.0} s",
+        path.display(),
+        results.len(),
+        t_start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// Section 1, error against run time: every accuracy scene (its table and
+/// plot), then the reference's cross-check. Returns the scenes' results.
+fn accuracy_section(
+    a: &ReportArgs,
+    plan: &TimingPlan,
+    md: &mut String,
+) -> Result<Vec<SceneResult>> {
     // --- accuracy
-    md += "\n## 1. Error against run time\n\n";
-    md += "Columns: CPU seconds per second of audio (repetitions); relative L2 error of the pickup velocity over the 50 ms from the reference's first contact onset (a dropped ball is silent before it lands) and over the whole window; relative L2 of the hammer height; contacts matched by order (missed = reference contacts without a partner, extra = the opposite); largest onset/end time error over matched contacts in samples; largest energy increase between two output samples relative to E0 = |E(0)| + m_h g |x_h(0)|. \
+    *md += "\n## 1. Error against run time\n\n";
+    *md += "Columns: CPU seconds per second of audio (repetitions); relative L2 error of the pickup velocity over the 50 ms from the reference's first contact onset (a dropped ball is silent before it lands) and over the whole window; relative L2 of the hammer height; contacts matched by order (missed = reference contacts without a partner, extra = the opposite); largest onset/end time error over matched contacts in samples; largest energy increase between two output samples relative to E0 = |E(0)| + m_h g |x_h(0)|. \
            The `exact` row is the reference itself: its errors are against the engine at 16x the rate (its own error is 0 by construction).\n\n";
     let mut results = Vec::new();
     let mut acc_cases = if a.wants(Section::Accuracy) {
@@ -246,12 +273,12 @@ pub fn run(a: ReportArgs) -> Result<()> {
     for case in acc_cases {
         eprintln!("accuracy: {} ({} s)", case.name, case.seconds);
         let t0 = Instant::now();
-        let res = accuracy::run_case(&case, &plan)?;
+        let res = accuracy::run_case(&case, plan)?;
         let table = accuracy::markdown(&res);
         println!("{table}");
         let svg = a.out.join(format!("pareto-{}.svg", res.name));
         crate::plot::plot_work_precision(&res, &svg)?;
-        md += &table;
+        *md += &table;
         let _ = writeln!(
             md,
             "\nPlot: [`{0}`]({0}). Pareto front (cheapest first): {1}.\n\n(measured in {2:.1} s)\n",
@@ -261,8 +288,8 @@ pub fn run(a: ReportArgs) -> Result<()> {
         );
         results.push(res);
     }
-    md += "### Reference cross-check (exact engine at 44.1 kHz vs at 705.6 kHz, every 16th sample)\n\n";
-    md += "| scene | pickup 50 ms from 1st contact | pickup full | hammer | max contact time diff [samples] |\n|---|---|---|---|---|\n";
+    *md += "### Reference cross-check (exact engine at 44.1 kHz vs at 705.6 kHz, every 16th sample)\n\n";
+    *md += "| scene | pickup 50 ms from 1st contact | pickup full | hammer | max contact time diff [samples] |\n|---|---|---|---|---|\n";
     for r in &results {
         let _ = writeln!(
             md,
@@ -275,9 +302,14 @@ pub fn run(a: ReportArgs) -> Result<()> {
         );
     }
 
+    Ok(results)
+}
+
+/// Section 2, stability: the stability catalogue's table.
+fn stability_section(a: &ReportArgs, md: &mut String) -> Result<()> {
     // --- stability
     eprintln!("stability table");
-    md += "\n## 2. Stability (docs/numerics.md, \"The stability cases\")\n\n";
+    *md += "\n## 2. Stability (docs/numerics.md, \"The stability cases\")\n\n";
     let _ = writeln!(
         md,
         "Each cell: **diverges** (non-finite or energy > 1e6 E0; time of the first bad sample), \
@@ -309,11 +341,16 @@ pub fn run(a: ReportArgs) -> Result<()> {
     }
     let stab_md = stability::markdown(&stab);
     println!("{stab_md}");
-    md += &stab_md;
+    *md += &stab_md;
 
+    Ok(())
+}
+
+/// Section 3, f32 against f64 state on a long sustain.
+fn sustain_section(a: &ReportArgs, md: &mut String) {
     // --- f32
     eprintln!("f32 vs f64 sustain");
-    md += "\n## 3. f32 versus f64 state on a long sustain\n\n";
+    *md += "\n## 3. f32 versus f64 state on a long sustain\n\n";
     let _ = writeln!(
         md,
         "One free mode advanced by the engine's exact 2x2 block propagator (`physics::block::exp2` in f64; \
@@ -331,25 +368,10 @@ pub fn run(a: ReportArgs) -> Result<()> {
     };
     let sus_md = sustain::markdown(&sus);
     println!("{sus_md}");
-    md += &sus_md;
+    *md += &sus_md;
     if !sus.is_empty() {
-        md += &sustain_summary(&sus);
+        *md += &sustain_summary(&sus);
     }
-
-    let _ = writeln!(
-        md,
-        "\nTotal report time: {:.0} s.",
-        t_start.elapsed().as_secs_f64()
-    );
-    let path = a.out.join("report.md");
-    std::fs::write(&path, &md).with_context(|| format!("{}", path.display()))?;
-    eprintln!(
-        "wrote {} and {} plots in {:.0} s",
-        path.display(),
-        results.len(),
-        t_start.elapsed().as_secs_f64()
-    );
-    Ok(())
 }
 
 /// `"139 modes 365 Hz .. 33.1 kHz (48 above f_Nyq), T60 6.2 s .. 0.61 s"` for

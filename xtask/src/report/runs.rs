@@ -11,7 +11,7 @@ use std::time::Instant;
 
 /// Everything a run produces on the output grid (row `j` = time `j / rate`).
 #[derive(Debug, Clone, Default)]
-pub struct Trajectory {
+pub(crate) struct Trajectory {
     /// Pickup signal (engine: left channel; competitors: gain-weighted sum).
     pub pickup: Vec<f64>,
     /// Hammer contact-face height \[m\].
@@ -35,7 +35,7 @@ pub struct Trajectory {
 
 impl Trajectory {
     /// Largest increase of the energy between two output samples / E0.
-    pub fn max_sample_gain(&self) -> f64 {
+    pub(crate) fn max_sample_gain(&self) -> f64 {
         self.energy
             .windows(2)
             .map(|w| (w[1] - w[0]) / self.e0)
@@ -44,7 +44,7 @@ impl Trajectory {
     }
 
     /// Last finite energy.
-    pub fn e_end(&self) -> f64 {
+    pub(crate) fn e_end(&self) -> f64 {
         self.energy
             .iter()
             .rev()
@@ -67,7 +67,7 @@ fn e_scale(e0: f64, m_h: f64, g: f64, x_h0: f64) -> f64 {
 /// Run the engine for `n` samples with per-sample observation (O(N^2) per
 /// sample: offline only). Contact times come from the switch log after each
 /// tick (`t_n + after_s`).
-pub fn run_engine(sc: &CompiledScene, n: usize) -> Trajectory {
+pub(crate) fn run_engine(sc: &CompiledScene, n: usize) -> Trajectory {
     let t_run = Instant::now();
     let mut st = EngineState::new(sc);
     let first = st.observe(sc);
@@ -131,7 +131,11 @@ pub fn run_engine(sc: &CompiledScene, n: usize) -> Trajectory {
 
 /// The engine at `factor` times the rate, sampled every `factor`-th output
 /// (contacts keep their located times).
-pub fn run_engine_subsampled(sc_fine: &CompiledScene, n: usize, factor: usize) -> Trajectory {
+pub(crate) fn run_engine_subsampled(
+    sc_fine: &CompiledScene,
+    n: usize,
+    factor: usize,
+) -> Trajectory {
     let mut tr = run_engine(sc_fine, n * factor);
     for v in [&mut tr.pickup, &mut tr.x_hammer, &mut tr.energy] {
         *v = v.iter().step_by(factor).copied().collect();
@@ -140,7 +144,7 @@ pub fn run_engine_subsampled(sc_fine: &CompiledScene, n: usize, factor: usize) -
 }
 
 /// A competitor's output as a [`Trajectory`].
-pub fn from_sim(sys: &PwlSystem, out: SimOutput) -> Trajectory {
+pub(crate) fn from_sim(sys: &PwlSystem, out: SimOutput) -> Trajectory {
     let e_first = out.energy.first().copied().unwrap_or(f64::NAN);
     Trajectory {
         e0: e_scale(e_first, sys.m_h, sys.g, sys.x_h0),
@@ -159,7 +163,7 @@ pub fn from_sim(sys: &PwlSystem, out: SimOutput) -> Trajectory {
 }
 
 /// Median of a small sample.
-pub fn median(mut v: Vec<f64>) -> f64 {
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     if n == 0 {
@@ -217,7 +221,7 @@ fn time_engine_once(sc: &CompiledScene, n: usize) -> f64 {
 
 /// Median seconds of the engine's stepping loop ([`time_engine_once`]) and
 /// the repetitions.
-pub fn time_engine(sc: &CompiledScene, n: usize, plan: &TimingPlan) -> (f64, usize) {
+pub(crate) fn time_engine(sc: &CompiledScene, n: usize, plan: &TimingPlan) -> (f64, usize) {
     let mut times = Vec::new();
     while times.len() < plan.reps {
         times.push(time_engine_once(sc, n));
@@ -233,7 +237,7 @@ pub fn time_engine(sc: &CompiledScene, n: usize, plan: &TimingPlan) -> (f64, usi
 /// [`time_engine`]), so both see the same load of a shared machine: (median
 /// seconds of `a`, of `b`, median of the per-pair ratios `a / b`,
 /// repetitions).
-pub fn time_engine_pair(
+pub(crate) fn time_engine_pair(
     a: &CompiledScene,
     b: &CompiledScene,
     n: usize,
@@ -259,7 +263,7 @@ pub fn time_engine_pair(
 /// repetitions). The timed loop still includes `simulate`'s per-fine-step
 /// energy evaluation and contact bookkeeping (O(nnz) like a step; there is no
 /// public step-only API).
-pub fn time_competitor(
+pub(crate) fn time_competitor(
     sys: &PwlSystem,
     m: Method,
     rate: f64,

@@ -14,22 +14,22 @@ use modal_testkit::stability::Case;
 use std::time::Instant;
 
 /// Oversampling factors of the competitors in the stability table.
-pub const STAB_OS: [usize; 2] = [1, 8];
+pub(crate) const STAB_OS: [usize; 2] = [1, 8];
 /// Per-step energy increase (relative to E0) above which a run "gains energy".
-pub const GAIN_TOL: f64 = 1e-9;
+pub(crate) const GAIN_TOL: f64 = 1e-9;
 /// Final-energy deficit against the exact run (relative to E0) above which a
 /// run "loses energy".
-pub const LOSS_TOL: f64 = 1e-3;
+pub(crate) const LOSS_TOL: f64 = 1e-3;
 
 /// One cell of the table.
 #[derive(Debug, Clone)]
-pub struct Cell {
+pub(crate) struct Cell {
     pub label: String,
     pub text: String,
 }
 
 /// Results of one case.
-pub struct StabResult {
+pub(crate) struct StabResult {
     /// The case's name and its numerics label.
     pub name: String,
     pub label: String,
@@ -43,7 +43,7 @@ pub struct StabResult {
 }
 
 /// Column labels, in table order.
-pub fn labels() -> Vec<String> {
+pub(crate) fn labels() -> Vec<String> {
     let mut v = vec!["exact".to_string(), "offset-rod".to_string()];
     for m in Method::ALL {
         for os in STAB_OS {
@@ -102,7 +102,7 @@ fn cell(tr: &Trajectory, reference: Option<&Trajectory>, has_pickup: bool) -> St
 }
 
 /// Run one case.
-pub fn run_case(case: &Case) -> Result<StabResult> {
+pub(crate) fn run_case(case: &Case) -> Result<StabResult> {
     let t0 = Instant::now();
     let exact = compile_with(&case.scene, RATE, Some(Switching::Exact))
         .map_err(|e| anyhow!("{}: {e}", case.name))?;
@@ -170,7 +170,7 @@ pub fn run_case(case: &Case) -> Result<StabResult> {
 }
 
 /// Markdown: one row per case, one column per method.
-pub fn markdown(results: &[StabResult]) -> String {
+pub(crate) fn markdown(results: &[StabResult]) -> String {
     let labels = labels();
     let mut s = String::from("| case | samples | contacts (exact) |");
     for l in &labels {

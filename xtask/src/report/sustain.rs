@@ -9,17 +9,17 @@ use modal_contact::physics::model::LN_1000;
 use std::f64::consts::PI;
 
 /// Samples of every sustain run (22.7 s at 44.1 kHz).
-pub const SUSTAIN_N: usize = 1_000_000;
+pub(crate) const SUSTAIN_N: usize = 1_000_000;
 /// Mode frequencies \[Hz\].
-pub const FREQS: [f64; 5] = [20.0, 200.0, 1000.0, 5000.0, 15_000.0];
+pub(crate) const FREQS: [f64; 5] = [20.0, 200.0, 1000.0, 5000.0, 15_000.0];
 /// T60 \[s\] (infinity: undamped).
-pub const T60S: [f64; 4] = [1.0, 10.0, 100.0, f64::INFINITY];
+pub(crate) const T60S: [f64; 4] = [1.0, 10.0, 100.0, f64::INFINITY];
 /// f32 unit roundoff.
 const U32: f64 = 5.960_464_477_539_063e-8;
 
 /// Results of one mode.
 #[derive(Debug, Clone)]
-pub struct SustainRow {
+pub(crate) struct SustainRow {
     pub f: f64,
     pub t60: f64,
     /// Instant the comparison is taken at \[s\]: the end, or when the f64
@@ -141,7 +141,7 @@ fn eig_angle(p: &[f64; 4]) -> f64 {
 }
 
 /// One mode.
-pub fn run_mode(f: f64, t60: f64) -> SustainRow {
+pub(crate) fn run_mode(f: f64, t60: f64) -> SustainRow {
     let h = 1.0 / RATE;
     let w = 2.0 * PI * f;
     let sigma = if t60.is_finite() { LN_1000 / t60 } else { 0.0 };
@@ -205,7 +205,7 @@ pub fn run_mode(f: f64, t60: f64) -> SustainRow {
 }
 
 /// Every mode and T60.
-pub fn run_all() -> Vec<SustainRow> {
+pub(crate) fn run_all() -> Vec<SustainRow> {
     let mut v = Vec::new();
     for t60 in T60S {
         for f in FREQS {
@@ -216,7 +216,7 @@ pub fn run_all() -> Vec<SustainRow> {
 }
 
 /// Markdown table.
-pub fn markdown(rows: &[SustainRow]) -> String {
+pub(crate) fn markdown(rows: &[SustainRow]) -> String {
     let mut s = String::from(
         "| f [Hz] | T60 [s] | t_eval [s] | f32 amplitude err | f32 energy err | f32 phase err [rad] | f32 pitch err [cent] (coeff. only) | steps with E up: f32 all (before subnormals) / f32 pole -4u before subnormals / f64 | max rel. step gain f32 / f64 | f32 energy err, pole -4u | f32 subnormal from |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
