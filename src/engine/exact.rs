@@ -70,8 +70,9 @@
 //! (the spring starts unstretched: the residual of rounding at the root is
 //! taken up by the rod offset, which adds no energy) and rises.
 
+use super::dot::dot;
 use super::kernel::BlockProps;
-use super::{dot, EngineState, Phase};
+use super::{current_phase, EngineState, Phase};
 use super::{kernel, vmath, SimdPath};
 use crate::compile::event::{THETA_RESOLVED, THETA_SLOW};
 use crate::compile::{CompiledPhase, CompiledScene};
@@ -1659,12 +1660,6 @@ fn whole_bounds(ph: &CompiledPhase, s: &[f64], tau: f64, w: f64, all: bool, nb: 
     }
 }
 
-/// The current phase of `st` in `scene` (a plain shared borrow; split out so
-/// the borrow checker sees it does not alias the state vectors).
-pub(super) fn current_phase<'a>(st: &EngineState, scene: &'a CompiledScene) -> &'a CompiledPhase {
-    scene.phase(st.phase)
-}
-
 /// `out = exp(A tau) s` for a dense phase: the precomputed propagator for a
 /// full step, else a Taylor series in sub-steps with `|A| tau_sub <= 0.5`.
 fn dense_apply(
@@ -1835,7 +1830,7 @@ mod tests {
 
     #[test]
     fn dot3_is_three_dots_bit_for_bit() {
-        use super::super::dot3;
+        use super::super::dot::dot3;
         for n in [0usize, 1, 2, 7, 400, 2002] {
             let row = |m: f64| -> Vec<f64> {
                 (0..n)
