@@ -10,7 +10,7 @@ use super::kernel::{
 };
 use super::observe::{obs_rows, ObsOut};
 use super::{current_phase, EngineState, Phase, SlopeScratch};
-use crate::compile::CompiledScene;
+use crate::compile::{CompiledPhase, CompiledScene};
 use crate::scene::Switching;
 
 /// Samples the fast path tries after a sample failed its check. A kernel
@@ -52,20 +52,88 @@ impl EngineState {
         decided: bool,
         obs: Option<ObsOut>,
     ) -> (usize, bool) {
-        let phase = self.phase;
-        let in_contact = phase == Phase::Contact;
+        let in_contact = self.phase == Phase::Contact;
         let ph = current_phase(self, scene);
         if ph.dense.is_some() || ph.gens.is_none() {
             return (0, true);
         }
         let exact = scene.switching == Switching::Exact;
+        let energy = obs.as_ref().is_some_and(|o| o.e.is_some());
+        let (k_max, slow) = self.run_length(scene, left.len().min(right.len()), energy, exact);
+        if k_max == 0 {
+            return (0, slow);
+        }
+        let hermite = self.refresh_margins(scene, exact);
+        if exact && !self.first_sample_may_pass(scene, hermite) {
+            self.restart_speculation(self.clock / EPOCH as u64 + 1);
+            return (0, true);
+        }
+        let observe = match &obs {
+            None => Observe::No,
+            Some(o) if o.e.is_some() && self.quad_energy_ok(scene) => Observe::MotionEnergy,
+            Some(_) => Observe::Motion,
+        };
+        self.run_kernel_rows(scene, k_max, hermite, observe);
+        let (k_ok, (x_h, v_h)) = self.check_run(
+            scene,
+            &mut left[..k_max],
+            &mut right[..k_max],
+            decided,
+            hermite,
+        );
+        if k_ok < k_max {
+            self.exact_stats.kernel_discarded += (k_max - k_ok) as u64;
+            self.restart_speculation((self.clock + k_ok as u64) / EPOCH as u64 + 1);
+            if k_ok == 0 {
+                return (0, true);
+            }
+            // Re-run only the certified samples (bit-identical: the kernel's
+            // per-sample sums do not depend on the number of samples).
+            self.run_kernel(scene, k_ok);
+        } else {
+            self.spec_len = (2 * self.spec_len).min(EPOCH);
+        }
+        if let Some(ObsOut { m, e }) = obs {
+            self.observe_run(
+                scene,
+                k_ok,
+                ObsOut {
+                    m: &mut m[..k_ok],
+                    e: e.map(|e| &mut e[..k_ok]),
+                },
+            );
+        }
+        self.commit_kernel(k_ok);
+        if !in_contact {
+            self.x_h = x_h;
+            self.v_h = v_h;
+        }
+        self.clock += k_ok as u64;
+        // The events of the last sample: none in a fast sample, unless the
+        // offset rod's decision for it was already taken (and logged) by
+        // `tick_observed`.
+        if !(decided && k_ok == 1) {
+            self.n_events = 0;
+        }
+        (k_ok, k_ok < k_max)
+    }
+
+    /// How many of the `n` samples asked for the coming run takes: no more
+    /// than the rest of the epoch and the speculation length, one where the
+    /// trace's `energy` must come from the state itself, and (`exact`) none
+    /// past the start of the sample that holds a strike from rest's next
+    /// stored switch. With none, whether the next sample needs the slow
+    /// path.
+    fn run_length(
+        &mut self,
+        scene: &CompiledScene,
+        n: usize,
+        energy: bool,
+        exact: bool,
+    ) -> (usize, bool) {
         let epoch_left = EPOCH - (self.clock % EPOCH as u64) as usize;
-        let mut k_max = left
-            .len()
-            .min(right.len())
-            .min(epoch_left)
-            .min(self.spec_len);
-        if obs.as_ref().is_some_and(|o| o.e.is_some()) && !self.quad_energy_ok(scene) {
+        let mut k_max = n.min(epoch_left).min(self.spec_len);
+        if energy && !self.quad_energy_ok(scene) {
             // energy from the state itself, one sample at a time
             k_max = k_max.min(1);
         }
@@ -80,14 +148,29 @@ impl EngineState {
             // failed test would throw away. Same samples bit for bit.
             match self.rest_due_in(scene) {
                 Some(0) => {
-                    self.spec_len = SPEC_RESTART;
-                    self.herm_until = Some(self.clock / EPOCH as u64 + 1);
+                    self.restart_speculation(self.clock / EPOCH as u64 + 1);
                     return (0, true);
                 }
                 Some(k) => k_max = k_max.min(k),
                 None => {}
             }
         }
+        (k_max, false)
+    }
+
+    /// A sample failed its test, or will: the next runs start at
+    /// `SPEC_RESTART` samples again, and the fast path tries the Hermite
+    /// certificate up to the epoch `until` of the clock.
+    fn restart_speculation(&mut self, until: u64) {
+        self.spec_len = SPEC_RESTART;
+        self.herm_until = Some(until);
+    }
+
+    /// Make the cached rows and the margins the coming run is checked with
+    /// current: the interpolation margin of this epoch (`exact`), and the
+    /// Hermite certificate's where the fast path tries it. Returns whether
+    /// it does.
+    fn refresh_margins(&mut self, scene: &CompiledScene, exact: bool) -> bool {
         if !self.cache_ok {
             self.refresh_cache(scene);
         }
@@ -109,39 +192,54 @@ impl EngineState {
             self.herm_epoch = epoch;
             self.herm_dt = dt;
         }
-        let nb = ph.dim / 2;
-        let herm_units = (2 * nb + 16) as f64 * f64::EPSILON;
-        if exact {
-            // The first sample's test below needs `phi0 - margin > 0` (or
-            // the Hermite certificate, whose lower bound is at most
-            // `phi0`), and `phi0` is known now. Where it fails (the
-            // samples before a slow release, the sample a strike starts
-            // in) every sample of the run would be thrown away: the same
-            // decision, without the O(N k) run.
-            let phi0 = self.cache[0]
-                + if in_contact {
-                    scene.offsets.pi / scene.sk
-                } else {
-                    self.x_h
-                };
-            let herm_ok = hermite && phi0 - self.herm_rem - herm_units * self.herm_mag > 0.0;
-            if !(phi0 - self.bound > 0.0) && !herm_ok {
-                self.spec_len = SPEC_RESTART;
-                self.herm_until = Some(epoch + 1);
-                return (0, true);
-            }
-        }
+        hermite
+    }
+
+    /// Whether the run's first sample can pass its test (exact switching).
+    /// The test needs `phi0 - margin > 0` (or the Hermite certificate,
+    /// whose lower bound is at most `phi0`), and `phi0` is known before the
+    /// run. Where it fails (the samples before a slow release, the sample a
+    /// strike starts in) every sample of the run would be thrown away: the
+    /// same decision, without the O(N k) run.
+    fn first_sample_may_pass(&self, scene: &CompiledScene, hermite: bool) -> bool {
+        let in_contact = self.phase == Phase::Contact;
+        let herm_units = herm_units(current_phase(self, scene));
+        let phi0 = self.cache[0]
+            + if in_contact {
+                scene.offsets.pi / scene.sk
+            } else {
+                self.x_h
+            };
+        let herm_ok = hermite && phi0 - self.herm_rem - herm_units * self.herm_mag > 0.0;
+        phi0 - self.bound > 0.0 || herm_ok
+    }
+
+    /// Check the `left.len()` samples the kernel just ran, in order, and
+    /// write the output of each that passes: exact switching's chord test
+    /// against the interpolation margin, or (`hermite`) the Hermite
+    /// certificate; the offset rod's sign test (`decided`: the first
+    /// sample's decision was already taken). The hammer in flight follows
+    /// its exact parabola. Returns how many pass before the first that
+    /// fails, and the hammer's height and reference velocity after them.
+    fn check_run(
+        &self,
+        scene: &CompiledScene,
+        left: &mut [f64],
+        right: &mut [f64],
+        decided: bool,
+        hermite: bool,
+    ) -> (usize, (f64, f64)) {
+        let phase = self.phase;
+        let in_contact = phase == Phase::Contact;
+        let ph = current_phase(self, scene);
+        let exact = scene.switching == Switching::Exact;
+        let herm_units = herm_units(ph);
+        let dt = self.step_s;
+        let k_max = left.len();
         // The slope at the run's first state, `phi'`: an O(N) sequential
         // sum, needed only where the first sample's chord test fails (later
         // samples take the kernel's slope row), so it is summed there.
         let mut d_j: Option<f64> = None;
-        let observe = match &obs {
-            None => Observe::No,
-            Some(o) if o.e.is_some() && self.quad_energy_ok(scene) => Observe::MotionEnergy,
-            Some(_) => Observe::Motion,
-        };
-        self.run_kernel_rows(scene, k_max, hermite, observe);
-        // Check the samples in order (hammer in flight: its exact parabola).
         let g = self.g;
         let margin = self.bound;
         let (off, out_off) = if in_contact {
@@ -205,42 +303,7 @@ impl EngineState {
             x_h = x_h1;
             v_h = v_h1;
         }
-        if k_ok < k_max {
-            self.exact_stats.kernel_discarded += (k_max - k_ok) as u64;
-            self.spec_len = SPEC_RESTART;
-            self.herm_until = Some((self.clock + k_ok as u64) / EPOCH as u64 + 1);
-            if k_ok == 0 {
-                return (0, true);
-            }
-            // Re-run only the certified samples (bit-identical: the kernel's
-            // per-sample sums do not depend on the number of samples).
-            self.run_kernel(scene, k_ok);
-        } else {
-            self.spec_len = (2 * self.spec_len).min(EPOCH);
-        }
-        if let Some(ObsOut { m, e }) = obs {
-            self.observe_run(
-                scene,
-                k_ok,
-                ObsOut {
-                    m: &mut m[..k_ok],
-                    e: e.map(|e| &mut e[..k_ok]),
-                },
-            );
-        }
-        self.commit_kernel(k_ok);
-        if !in_contact {
-            self.x_h = x_h;
-            self.v_h = v_h;
-        }
-        self.clock += k_ok as u64;
-        // The events of the last sample: none in a fast sample, unless the
-        // offset rod's decision for it was already taken (and logged) by
-        // `tick_observed`.
-        if !(decided && k_ok == 1) {
-            self.n_events = 0;
-        }
-        (k_ok, k_ok < k_max)
+        (k_ok, (x_h, v_h))
     }
 
     /// Run the block kernel `k` samples from the current block phase's
@@ -378,4 +441,12 @@ impl EngineState {
         self.cache = rows_of(self.simd, s, &rows);
         self.cache_ok = true;
     }
+}
+
+/// The Hermite certificate's rounding allowance per unit of the magnitudes
+/// it sums, for a phase of `nb` blocks: `(2 nb + 16) u` (as the slow
+/// path's, `hermite_step`).
+fn herm_units(ph: &CompiledPhase) -> f64 {
+    let nb = ph.dim / 2;
+    (2 * nb + 16) as f64 * f64::EPSILON
 }
