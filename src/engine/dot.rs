@@ -26,3 +26,32 @@ pub(crate) fn dot3(rows: [&[f64]; 3], s: &[f64]) -> [f64; 3] {
     }
     acc
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dot3_is_three_dots_bit_for_bit() {
+        for n in [0usize, 1, 2, 7, 400, 2002] {
+            let row = |m: f64| -> Vec<f64> {
+                (0..n)
+                    .map(|k| (m * k as f64 + 0.3).sin() * 1e3f64.powf((k % 7) as f64 - 3.0))
+                    .collect()
+            };
+            let s: Vec<f64> = (0..n).map(|k| (k as f64 * 0.77).cos()).collect();
+            let (a, b, c) = (row(1.3), row(-0.4), row(2.9));
+            // a row of negative zeros: the sums' starting value shows
+            let z = vec![-0.0; n];
+            let pos = vec![1.0; n];
+            for rows in [[&a[..], &b[..], &c[..]], [&z[..], &a[..], &z[..]]] {
+                for s in [&s[..], &pos[..]] {
+                    let got = dot3(rows, s);
+                    for q in 0..3 {
+                        assert_eq!(got[q].to_bits(), dot(rows[q], s).to_bits(), "n {n} row {q}");
+                    }
+                }
+            }
+        }
+    }
+}
