@@ -94,7 +94,7 @@ use crate::compile::event::THETA_SLOW;
 use crate::compile::CompiledPhase;
 
 /// Highest degree of the slow blocks' polynomial (`2^25 / 25! = 2e-18`).
-pub const MAX_DEGREE: usize = 24;
+const MAX_DEGREE: usize = 24;
 /// Resolution of a located switch instant, in ulps of the sample period
 /// (3.6e-15 of a sample): below it the rounding of `phi` itself (`u |x_h| /
 /// |phi'|`, ~1e-14 of a sample for a hammer at millimetres and 1 m/s)

@@ -43,9 +43,9 @@ use super::vmath::SimdPath;
 
 /// Most samples one [`run_block_with`] call advances (the engine's epoch: the
 /// curvature bound of exact switching is refreshed at least this often).
-pub const EPOCH: usize = 64;
+pub(crate) const EPOCH: usize = 64;
 /// Blocks (modes) processed together in registers: two 4-lane vectors.
-pub const GROUP: usize = 8;
+pub(crate) const GROUP: usize = 8;
 const LANES: usize = 4;
 
 /// Clear the upper halves of the vector registers (`vzeroupper`) on the
@@ -54,7 +54,7 @@ const LANES: usize = 4;
 /// every non-VEX SSE instruction that follows pay a merge penalty on some
 /// CPUs; the engine calls this once per block. \[audio-thread\]
 #[inline]
-pub fn clean_upper_state(path: SimdPath) {
+pub(crate) fn clean_upper_state(path: SimdPath) {
     #[cfg(target_arch = "x86_64")]
     if matches!(path, SimdPath::Avx2Fma(_)) {
         // SAFETY: `Avx2Fma` is only produced by `detect()` after checking AVX2.
@@ -71,7 +71,7 @@ fn zeroupper() {
 
 /// Block propagators of one phase for one time step, structure of arrays.
 #[derive(Debug, Clone, Default)]
-pub struct BlockProps {
+pub(crate) struct BlockProps {
     /// `P[0][0]` of each block.
     pub p00: Vec<f64>,
     /// `P[0][1]`.
@@ -84,7 +84,7 @@ pub struct BlockProps {
 
 impl BlockProps {
     /// Zeroed storage for `nb` blocks.
-    pub fn new(nb: usize) -> Self {
+    pub(crate) fn new(nb: usize) -> Self {
         Self {
             p00: vec![0.0; nb],
             p01: vec![0.0; nb],
@@ -93,13 +93,13 @@ impl BlockProps {
         }
     }
     /// Number of blocks.
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.p00.len()
     }
     /// Blocks `0..src.len()` from `src` (the rest, if any, as they are).
     /// Panics if `src` has more blocks; callers check the counts.
     /// \[audio-thread\]
-    pub fn copy_from(&mut self, src: &BlockProps) {
+    pub(crate) fn copy_from(&mut self, src: &BlockProps) {
         let n = src.len();
         self.p00[..n].copy_from_slice(&src.p00);
         self.p01[..n].copy_from_slice(&src.p01);
@@ -108,7 +108,7 @@ impl BlockProps {
     }
     /// Store block `k`.
     #[inline]
-    pub fn set(&mut self, k: usize, p: &[f64; 4]) {
+    pub(crate) fn set(&mut self, k: usize, p: &[f64; 4]) {
         self.p00[k] = p[0];
         self.p01[k] = p[1];
         self.p10[k] = p[2];
@@ -116,13 +116,13 @@ impl BlockProps {
     }
     /// Block `k` (the engine steps whole arrays with [`step_blocks`]).
     #[inline]
-    pub fn get(&self, k: usize) -> [f64; 4] {
+    pub(crate) fn get(&self, k: usize) -> [f64; 4] {
         [self.p00[k], self.p01[k], self.p10[k], self.p11[k]]
     }
 }
 
 /// Rows evaluated on the stepped state: the event row and the two outputs.
-pub struct Rows<'a> {
+pub(crate) struct Rows<'a> {
     /// Event row (penetration-like).
     pub ev: &'a [f64],
     /// Left output row.
@@ -134,12 +134,12 @@ pub struct Rows<'a> {
 /// Per-sample lane accumulators of [`run_block_with`] (`[sample][row][lane]`):
 /// 6 KiB of scratch kept by the caller so a call neither allocates nor
 /// zeroes it (the first group of blocks writes each sample's sums).
-pub type BlockAcc = [[[f64; LANES]; 3]; EPOCH];
+pub(crate) type BlockAcc = [[[f64; LANES]; 3]; EPOCH];
 
 /// What [`run_block_with`] returns per sample `j`: the rows of the state after
 /// step `j` (the state at the start of sample `j + 1`).
 #[derive(Debug, Clone)]
-pub struct BlockRows {
+pub(crate) struct BlockRows {
     /// Event row.
     pub ev: [f64; EPOCH],
     /// Left output row.

@@ -214,7 +214,7 @@ fn rows_into<const FMA: bool, const N: usize>(
 }
 
 /// The operands of one [`run_block_with`] call.
-pub struct BlockIo<'a> {
+pub(crate) struct BlockIo<'a> {
     /// Block propagators of the phase.
     pub p: &'a BlockProps,
     /// State at the start (read only).
@@ -231,7 +231,7 @@ pub struct BlockIo<'a> {
 
 /// The quadratic form of [`run_block_with`]: its weights, the caller's lane
 /// scratch and the per-sample values it writes.
-pub struct QuadIo<'a> {
+pub(crate) struct QuadIo<'a> {
     /// The weights.
     pub quad: &'a EnergyQuad,
     /// Scratch for the per-sample lane sums.
@@ -241,11 +241,11 @@ pub struct QuadIo<'a> {
 }
 
 /// Lane scratch of a [`QuadIo`].
-pub type QuadAcc = [[f64; LANES]; EPOCH];
+pub(crate) type QuadAcc = [[f64; LANES]; EPOCH];
 
 /// The slope row of [`run_block_with`]: the row, the caller's lane
 /// scratch and the per-sample values it writes.
-pub struct SlopeIo<'a> {
+pub(crate) struct SlopeIo<'a> {
     /// The row (`ev G`, over the phase's block coordinates).
     pub row: &'a [f64],
     /// Scratch for the per-sample lane sums.
@@ -257,7 +257,7 @@ pub struct SlopeIo<'a> {
 /// The observation rows of [`run_block_with`]: the rows (`x_c, v_c, eta`
 /// in the fields `ev, l, r`; only `ev` unless `all`), the caller's lane
 /// scratch and the per-sample values it writes.
-pub struct ObsIo<'a> {
+pub(crate) struct ObsIo<'a> {
     /// The rows.
     pub rows: Rows<'a>,
     /// All three rows, or only `rows.ev` (`out.l`, `out.r` not written).
@@ -271,7 +271,7 @@ pub struct ObsIo<'a> {
 /// What a kernel run sums beside the state's rows: each `None` costs
 /// nothing.
 #[derive(Default)]
-pub struct Extras<'a> {
+pub(crate) struct Extras<'a> {
     /// A block-diagonal quadratic form (the trace's energy).
     pub quad: Option<QuadIo<'a>>,
     /// The slope row (the Hermite certificate).
@@ -418,7 +418,7 @@ fn check_io(io: &BlockIo) {
 /// motion). The state and rows are bit-identical whatever the extras, and
 /// each extra row is summed in the same order as the rows. O(N k),
 /// allocation-free. \[audio-thread\]
-pub fn run_block_with(path: SimdPath, io: BlockIo, extras: Extras, k: usize) {
+pub(crate) fn run_block_with(path: SimdPath, io: BlockIo, extras: Extras, k: usize) {
     check_io(&io);
     let n = io.s.len();
     if let Some(q) = &extras.quad {
@@ -479,6 +479,6 @@ pub fn run_block_with(path: SimdPath, io: BlockIo, extras: Extras, k: usize) {
 /// \[audio-thread\]
 #[cfg(test)]
 #[inline]
-pub fn run_block(path: SimdPath, io: BlockIo, k: usize) {
+pub(crate) fn run_block(path: SimdPath, io: BlockIo, k: usize) {
     run_block_with(path, io, Extras::default(), k);
 }

@@ -52,7 +52,7 @@ fn mat_vec_avx2(m: &[f64], nrows: usize, x: &[f64], y: &mut [f64]) {
 /// skipped).
 /// The change of basis at a phase switch. O(rows cols), allocation-free.
 /// \[audio-thread\]
-pub fn mat_vec_add(path: SimdPath, m: &[f64], nrows: usize, x: &[f64], y: &mut [f64]) {
+pub(crate) fn mat_vec_add(path: SimdPath, m: &[f64], nrows: usize, x: &[f64], y: &mut [f64]) {
     assert!(
         m.len() == nrows * x.len() && y.len() >= nrows,
         "mat_vec_add: shapes"
@@ -69,7 +69,7 @@ pub fn mat_vec_add(path: SimdPath, m: &[f64], nrows: usize, x: &[f64], y: &mut [
 /// form `h` when there is one (and `structured`), else through the dense
 /// row-major `w` of `nrows` rows. `tmp`: scratch for [`hodlr_mat_vec_add`].
 /// \[audio-thread\]
-pub fn change_of_basis_add(
+pub(crate) fn change_of_basis_add(
     path: SimdPath,
     structured: Option<&Hodlr>,
     w: &[f64],
@@ -92,7 +92,7 @@ pub fn change_of_basis_add(
 /// [`mat_vec_add`] (a dense leaf, or `V^T` then `U` of a low-rank block).
 /// O(stored entries), allocation-free: `xp`, `yp` and `t` are scratch of at
 /// least `cols`, `rows` and `max_rank` entries. \[audio-thread\]
-pub fn hodlr_mat_vec_add(
+pub(crate) fn hodlr_mat_vec_add(
     path: SimdPath,
     h: &Hodlr,
     x: &[f64],

@@ -13,7 +13,7 @@ use crate::engine::vmath::{madd, SimdPath};
 /// `path`: the AVX2 copy vectorises the same lane sums, without fused
 /// multiply-adds). O(N). \[audio-thread\]
 #[inline]
-pub fn rows_of(path: SimdPath, s: &[f64], rows: &Rows) -> [f64; 3] {
+pub(crate) fn rows_of(path: SimdPath, s: &[f64], rows: &Rows) -> [f64; 3] {
     match path {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as in `run_block`.
@@ -73,7 +73,13 @@ fn lanes(v: &[f64], k: usize) -> [f64; LANES] {
 /// about a third of the two scalar passes' time at 1000 modes (1.7 against
 /// 5.0 us). \[audio-thread\]
 #[inline]
-pub fn margin_sums(path: SimdPath, s: &[f64], c: &[f64], e: &[f64], h: f64) -> (f64, f64, f64) {
+pub(crate) fn margin_sums(
+    path: SimdPath,
+    s: &[f64],
+    c: &[f64],
+    e: &[f64],
+    h: f64,
+) -> (f64, f64, f64) {
     match path {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as in `run_block`.
@@ -122,7 +128,7 @@ fn margin_sums_body(s: &[f64], c: &[f64], e: &[f64], h: f64) -> (f64, f64, f64) 
 /// multiply-add), so bit for bit the same on either `path`. O(N).
 /// \[audio-thread\]
 #[inline]
-pub fn step_blocks(path: SimdPath, p: &BlockProps, s: &mut [f64]) {
+pub(crate) fn step_blocks(path: SimdPath, p: &BlockProps, s: &mut [f64]) {
     match path {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as in `run_block`.
@@ -152,7 +158,7 @@ fn step_blocks_body(p: &BlockProps, s: &mut [f64]) {
 
 /// The rows a Hermite step reads, each per block (`ev`, `ev_d`: `2 nb`
 /// entries; the bound weights `c1, c2, c4, e`: `nb`).
-pub struct HermiteRows<'a> {
+pub(crate) struct HermiteRows<'a> {
     /// The event row.
     pub ev: &'a [f64],
     /// Its slope row.
@@ -178,7 +184,7 @@ pub struct HermiteRows<'a> {
 /// fixed order: the same bits on either `path`. `k = [dt4, tail, tau]`.
 /// O(N). \[audio-thread\]
 #[inline]
-pub fn hermite_step_sums(
+pub(crate) fn hermite_step_sums(
     path: SimdPath,
     p: &BlockProps,
     s: &[f64],
@@ -292,7 +298,7 @@ fn hermite_step_body(
 /// are the sequential ones, bit for bit on either `path`). O(N).
 /// \[audio-thread\]
 #[inline]
-pub fn hermite_sums(path: SimdPath, s: &[f64], w: [&[f64]; 3], k: [f64; 3]) -> (f64, f64) {
+pub(crate) fn hermite_sums(path: SimdPath, s: &[f64], w: [&[f64]; 3], k: [f64; 3]) -> (f64, f64) {
     match path {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as in `run_block`.
@@ -424,7 +430,7 @@ fn event_avx2(p: Option<&BlockProps>, s: &[f64], rows: [&[f64]; 3]) -> [f64; 3] 
 /// without writing the stepped state. Lane sums in a fixed order.
 /// O(N), allocation-free. \[audio-thread\]
 #[inline]
-pub fn event_rows(
+pub(crate) fn event_rows(
     path: SimdPath,
     p: Option<&BlockProps>,
     s: &[f64],
@@ -451,7 +457,7 @@ pub fn event_rows(
 /// [`margin_sums`] (the same sums); this scalar loop is the tests'
 /// reference.
 #[cfg(test)]
-pub fn block_measures(s: &[f64], c: &[f64]) -> (f64, f64) {
+pub(crate) fn block_measures(s: &[f64], c: &[f64]) -> (f64, f64) {
     let nb = c.len();
     let (sa, sb) = s.split_at(nb);
     let sb = &sb[..nb];
@@ -471,7 +477,7 @@ pub fn block_measures(s: &[f64], c: &[f64]) -> (f64, f64) {
 /// O(N). The fast path takes it from [`margin_sums`] (the same sum); this
 /// scalar loop is the tests' reference.
 #[cfg(test)]
-pub fn block_margin(s: &[f64], c: &[f64], e: &[f64], h: f64) -> f64 {
+pub(crate) fn block_margin(s: &[f64], c: &[f64], e: &[f64], h: f64) -> f64 {
     let nb = c.len();
     let (sa, sb) = s.split_at(nb);
     let (sb, e) = (&sb[..nb], &e[..nb]);
