@@ -142,6 +142,144 @@ fn both_paths_match_a_plain_reference() {
     }
 }
 
+/// The extras' inputs over `nb` blocks: a quadratic form, a slope row and
+/// three observation rows.
+struct ExtraRows {
+    quad: EnergyQuad,
+    drow: Vec<f64>,
+    orows: [Vec<f64>; 3],
+}
+
+fn extra_rows(nb: usize) -> ExtraRows {
+    ExtraRows {
+        quad: EnergyQuad {
+            aa: (0..nb).map(|k| 1.0 + 0.1 * k as f64).collect(),
+            ab: (0..nb).map(|k| 0.3 - 0.01 * k as f64).collect(),
+            bb: (0..nb).map(|k| 2.0 - 0.005 * k as f64).collect(),
+        },
+        drow: (0..2 * nb)
+            .map(|i| ((i * 37 % 11) as f64 - 5.0) * 0.7)
+            .collect(),
+        orows: [0, 1, 2].map(|i| {
+            (0..2 * nb)
+                .map(|k| ((k * (i + 3)) % 7) as f64 * 0.21 - 0.5)
+                .collect::<Vec<f64>>()
+        }),
+    }
+}
+
+/// What a kernel run wrote beside its state and rows: the quadratic form,
+/// the slope row and the observation rows of every stepped state (NaN
+/// where not written).
+struct ExtrasOut {
+    qout: Box<[f64; EPOCH]>,
+    dout: Box<[f64; EPOCH]>,
+    oout: BlockRows,
+}
+
+/// Run `EPOCH` samples from `s` on `path` with the extras `which` (the
+/// quadratic form, the slope row, 0, 1 or 3 observation rows), check that
+/// the state and rows are `run_block`'s, and return what the extras wrote.
+fn run_with_extras(
+    path: SimdPath,
+    (p, s, rows): (&BlockProps, &[f64], &[Vec<f64>; 3]),
+    x: &ExtraRows,
+    (with_q, with_d, n_obs): (bool, bool, usize),
+) -> ExtrasOut {
+    let mut next = vec![0.0; s.len()];
+    let mut acc = Box::new([[[0.0; LANES]; 3]; EPOCH]);
+    let mut out = BlockRows::default();
+    let mut qacc = Box::new([[0.0; LANES]; EPOCH]);
+    let mut qout = Box::new([f64::NAN; EPOCH]);
+    let mut dacc = Box::new([[0.0; LANES]; EPOCH]);
+    let mut dout = Box::new([f64::NAN; EPOCH]);
+    let mut oacc = Box::new([[[0.0; LANES]; 3]; EPOCH]);
+    let mut oout = BlockRows {
+        ev: [f64::NAN; EPOCH],
+        l: [f64::NAN; EPOCH],
+        r: [f64::NAN; EPOCH],
+    };
+    let extras = Extras {
+        quad: with_q.then_some(QuadIo {
+            quad: &x.quad,
+            acc: &mut qacc,
+            out: &mut qout,
+        }),
+        slope: with_d.then_some(SlopeIo {
+            row: &x.drow,
+            acc: &mut dacc,
+            out: &mut dout,
+        }),
+        obs: (n_obs > 0).then_some(ObsIo {
+            rows: Rows {
+                ev: &x.orows[0],
+                l: &x.orows[1],
+                r: &x.orows[2],
+            },
+            all: n_obs == 3,
+            acc: &mut oacc,
+            out: &mut oout,
+        }),
+    };
+    let io = io(p, s, &mut next, rows, &mut acc, &mut out);
+    run_block_with(path, io, extras, EPOCH);
+    assert_plain_rows(path, p, s, rows, &next, &out);
+    ExtrasOut { qout, dout, oout }
+}
+
+/// The `n_obs` observation rows asked for are bit for bit those rows
+/// summed as the rows of `run_block` (`as_rows`); the others are left
+/// alone.
+fn assert_obs_rows(n_obs: usize, oout: &BlockRows, as_rows: &BlockRows, case: &str) {
+    let bits = |x: &[f64; EPOCH]| x.map(f64::to_bits);
+    match n_obs {
+        0 => assert!(oout.ev.iter().all(|x| x.is_nan()), "{case}"),
+        1 => {
+            assert_eq!(bits(&oout.ev), bits(&as_rows.ev), "{case}");
+            assert!(oout.l.iter().chain(&oout.r).all(|x| x.is_nan()), "{case}");
+        }
+        _ => {
+            assert_eq!(bits(&oout.ev), bits(&as_rows.ev), "{case}");
+            assert_eq!(bits(&oout.l), bits(&as_rows.l), "{case}");
+            assert_eq!(bits(&oout.r), bits(&as_rows.r), "{case}");
+        }
+    }
+}
+
+/// The worst relative deviations, over the `EPOCH` stepped states from
+/// `s`, of the quadratic form (`with_q`) and the slope row (`with_d`) a
+/// run wrote from a plain reference (0 for an extra not run).
+fn extras_deviation(
+    (p, s): (&BlockProps, &[f64]),
+    inputs: &ExtraRows,
+    out: &ExtrasOut,
+    (with_q, with_d): (bool, bool),
+) -> (f64, f64) {
+    let nb = p.len();
+    let (quad, drow) = (&inputs.quad, &inputs.drow);
+    let (mut worst_q, mut worst_d) = (0.0f64, 0.0f64);
+    let mut st = s.to_vec();
+    for j in 0..EPOCH {
+        let x = plain_step(p, &st);
+        if with_q {
+            let (mut want, mut scale) = (0.0, 0.0);
+            for b in 0..nb {
+                let (a, c) = (x[b], x[nb + b]);
+                want += quad.aa[b] * a * a + quad.ab[b] * a * c + quad.bb[b] * c * c;
+                scale += quad.aa[b] * a * a + quad.ab[b].abs() * (a * c).abs() + quad.bb[b] * c * c;
+            }
+            worst_q = worst_q.max((out.qout[j] - want).abs() / scale);
+        }
+        if with_d {
+            let want: f64 = drow.iter().zip(&x).map(|(a, b)| a * b).sum();
+            let scale: f64 = drow.iter().zip(&x).map(|(a, b)| (a * b).abs()).sum();
+            worst_d = worst_d.max((out.dout[j] - want).abs() / scale);
+        }
+        st = x;
+    }
+    (worst_q, worst_d)
+}
+
 /// Every choice of extras (quadratic form, slope row, 0, 1 or 3
 /// observation rows; each of the 12 kernels on both paths): the same
 /// state and rows as `run_block` bit for bit, each observation row
@@ -153,100 +291,21 @@ fn both_paths_match_a_plain_reference() {
 fn extras_match_a_plain_reference_and_leave_the_rows_alone() {
     for nb in [1, 3, 8, 37, 100] {
         let (p, s, rows) = setup(nb);
-        let quad = EnergyQuad {
-            aa: (0..nb).map(|k| 1.0 + 0.1 * k as f64).collect(),
-            ab: (0..nb).map(|k| 0.3 - 0.01 * k as f64).collect(),
-            bb: (0..nb).map(|k| 2.0 - 0.005 * k as f64).collect(),
-        };
-        let drow: Vec<f64> = (0..2 * nb)
-            .map(|i| ((i * 37 % 11) as f64 - 5.0) * 0.7)
-            .collect();
-        let orows = [0, 1, 2].map(|i| {
-            (0..2 * nb)
-                .map(|k| ((k * (i + 3)) % 7) as f64 * 0.21 - 0.5)
-                .collect::<Vec<f64>>()
-        });
+        let x = extra_rows(nb);
         for path in [SimdPath::detect(), SimdPath::Generic] {
-            let (_, as_rows) = run(path, &p, &s, &orows, EPOCH);
+            let (_, as_rows) = run(path, &p, &s, &x.orows, EPOCH);
             let (mut worst_q, mut worst_d) = (0.0f64, 0.0f64);
             for (with_q, with_d, n_obs) in
                 (0..12).map(|c| (c % 2 == 1, c / 2 % 2 == 1, [0, 1, 3][c / 4]))
             {
-                let mut next = vec![0.0; s.len()];
-                let mut acc = Box::new([[[0.0; LANES]; 3]; EPOCH]);
-                let mut out = BlockRows::default();
-                let mut qacc = Box::new([[0.0; LANES]; EPOCH]);
-                let mut qout = Box::new([f64::NAN; EPOCH]);
-                let mut dacc = Box::new([[0.0; LANES]; EPOCH]);
-                let mut dout = Box::new([f64::NAN; EPOCH]);
-                let mut oacc = Box::new([[[0.0; LANES]; 3]; EPOCH]);
-                let mut oout = BlockRows {
-                    ev: [f64::NAN; EPOCH],
-                    l: [f64::NAN; EPOCH],
-                    r: [f64::NAN; EPOCH],
-                };
-                let extras = Extras {
-                    quad: with_q.then_some(QuadIo {
-                        quad: &quad,
-                        acc: &mut qacc,
-                        out: &mut qout,
-                    }),
-                    slope: with_d.then_some(SlopeIo {
-                        row: &drow,
-                        acc: &mut dacc,
-                        out: &mut dout,
-                    }),
-                    obs: (n_obs > 0).then_some(ObsIo {
-                        rows: Rows {
-                            ev: &orows[0],
-                            l: &orows[1],
-                            r: &orows[2],
-                        },
-                        all: n_obs == 3,
-                        acc: &mut oacc,
-                        out: &mut oout,
-                    }),
-                };
-                let io = io(&p, &s, &mut next, &rows, &mut acc, &mut out);
-                run_block_with(path, io, extras, EPOCH);
-                assert_plain_rows(path, &p, &s, &rows, &next, &out);
+                let out = run_with_extras(path, (&p, &s, &rows), &x, (with_q, with_d, n_obs));
                 let case = format!("{nb} blocks {path:?} quad {with_q} slope {with_d} obs {n_obs}");
-                let bits = |x: &[f64; EPOCH]| x.map(f64::to_bits);
-                match n_obs {
-                    0 => assert!(oout.ev.iter().all(|x| x.is_nan()), "{case}"),
-                    1 => {
-                        assert_eq!(bits(&oout.ev), bits(&as_rows.ev), "{case}");
-                        assert!(oout.l.iter().chain(&oout.r).all(|x| x.is_nan()), "{case}");
-                    }
-                    _ => {
-                        assert_eq!(bits(&oout.ev), bits(&as_rows.ev), "{case}");
-                        assert_eq!(bits(&oout.l), bits(&as_rows.l), "{case}");
-                        assert_eq!(bits(&oout.r), bits(&as_rows.r), "{case}");
-                    }
-                }
-                assert_eq!(qout.iter().all(|x| x.is_nan()), !with_q, "{case}");
-                assert_eq!(dout.iter().all(|x| x.is_nan()), !with_d, "{case}");
-                let mut st = s.clone();
-                for j in 0..EPOCH {
-                    let x = plain_step(&p, &st);
-                    if with_q {
-                        let (mut want, mut scale) = (0.0, 0.0);
-                        for b in 0..nb {
-                            let (a, c) = (x[b], x[nb + b]);
-                            want += quad.aa[b] * a * a + quad.ab[b] * a * c + quad.bb[b] * c * c;
-                            scale += quad.aa[b] * a * a
-                                + quad.ab[b].abs() * (a * c).abs()
-                                + quad.bb[b] * c * c;
-                        }
-                        worst_q = worst_q.max((qout[j] - want).abs() / scale);
-                    }
-                    if with_d {
-                        let want: f64 = drow.iter().zip(&x).map(|(a, b)| a * b).sum();
-                        let scale: f64 = drow.iter().zip(&x).map(|(a, b)| (a * b).abs()).sum();
-                        worst_d = worst_d.max((dout[j] - want).abs() / scale);
-                    }
-                    st = x;
-                }
+                assert_obs_rows(n_obs, &out.oout, &as_rows, &case);
+                assert_eq!(out.qout.iter().all(|x| x.is_nan()), !with_q, "{case}");
+                assert_eq!(out.dout.iter().all(|x| x.is_nan()), !with_d, "{case}");
+                let (q, d) = extras_deviation((&p, &s), &x, &out, (with_q, with_d));
+                worst_q = worst_q.max(q);
+                worst_d = worst_d.max(d);
             }
             println!(
                 "{nb} blocks, {path:?}: quadratic form worst rel. deviation {worst_q:.1e}, slope row {worst_d:.1e}"
