@@ -100,7 +100,7 @@ pub(crate) fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
 /// Largest `r` the vector path reduces itself (`q = round(r 2/pi) < 2^20`
 /// keeps the products `q pio2_k` exact); larger arguments fall back to
 /// `f64::sin_cos`.
-pub const R_FAST: f64 = 1.0e6;
+pub(crate) const R_FAST: f64 = 1.0e6;
 
 /// Lanes per chunk: two AVX2 vectors (or four SSE2 ones) per step.
 const LANES: usize = 8;
@@ -330,7 +330,7 @@ fn body_avx2(m: &[f64], r: &[f64], e: &mut [f64], s: &mut [f64], c: &mut [f64]) 
 ///
 /// No allocation, no locks, no I/O. \[audio-thread\]
 #[inline]
-pub fn exp_sincos(
+pub(crate) fn exp_sincos(
     path: SimdPath,
     m: &[f64],
     r: &[f64],
@@ -371,7 +371,7 @@ fn sincos_beyond_fast(r: &[f64], s: &mut [f64], c: &mut [f64]) {
 /// (the same lanes on the same path). Panics on unequal lengths.
 /// \[audio-thread\]
 #[inline]
-pub fn exp_only(path: SimdPath, m: &[f64], e: &mut [f64]) {
+pub(crate) fn exp_only(path: SimdPath, m: &[f64], e: &mut [f64]) {
     assert!(m.len() == e.len(), "exp_only: mismatched lengths");
     #[inline(always)]
     fn body<const FMA: bool>(m: &[f64], e: &mut [f64]) {
@@ -405,7 +405,7 @@ pub fn exp_only(path: SimdPath, m: &[f64], e: &mut [f64]) {
 /// scalar pass above [`R_FAST`]). Panics on unequal lengths.
 /// \[audio-thread\]
 #[inline]
-pub fn sincos_only(path: SimdPath, r: &[f64], s: &mut [f64], c: &mut [f64]) {
+pub(crate) fn sincos_only(path: SimdPath, r: &[f64], s: &mut [f64], c: &mut [f64]) {
     let n = r.len();
     assert!(
         s.len() == n && c.len() == n,
