@@ -20,11 +20,12 @@
 //! mallet's elastic modes (they are orthogonal to the rigid motion), so it
 //! stays on `x_h` alone.
 
-use super::{
-    check_max, check_min, check_non_negative, check_positive, ModalSpec, ModeSpec, ObjectSpec,
-    Scene, SceneError, MAX_FREQ_HZ, MAX_MASS_KG, MAX_MODES_PER_OBJECT, MAX_RAYLEIGH_ALPHA_PER_S,
-    MAX_RAYLEIGH_BETA_S, MAX_STIFFNESS_N_PER_M, MIN_FREQ_HZ, MIN_MASS_KG,
+use super::error::{check_max, check_min, check_non_negative, check_positive, SceneError};
+use super::limits::{
+    MAX_FREQ_HZ, MAX_MASS_KG, MAX_MODES_PER_OBJECT, MAX_RAYLEIGH_ALPHA_PER_S, MAX_RAYLEIGH_BETA_S,
+    MAX_STIFFNESS_N_PER_M, MIN_FREQ_HZ, MIN_MASS_KG,
 };
+use super::{ModalSpec, ModeSpec, ObjectSpec, Scene};
 use crate::bodies::chain::free_chain_modes;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;

@@ -11,10 +11,10 @@
 //! only the modal object, so a physical object and its hand-expanded modal
 //! equivalent compile to the same thing.
 
+use super::error::{check_finite, check_non_negative, check_positive, SceneError};
+use super::limits::{MAX_FREQ_HZ, MAX_MODES_PER_OBJECT, MAX_WEIGHT, MIN_FREQ_HZ, MIN_T60_S};
 use super::{
-    check_finite, check_non_negative, check_positive, pressure_point, ListenerSpec, ModalSpec,
-    ModeSpec, SceneError, MAX_FREQ_HZ, MAX_MODES_PER_OBJECT, MAX_WEIGHT, MIN_FREQ_HZ, MIN_T60_S,
-    PRESSURE_REF_AREA_M2, PRESSURE_REF_OMEGA,
+    pressure_point, ListenerSpec, ModalSpec, ModeSpec, PRESSURE_REF_AREA_M2, PRESSURE_REF_OMEGA,
 };
 use crate::bodies::materials::{self, Material};
 use crate::bodies::radiation::{far_field, Direction, SOUND_SPEED_M_PER_S};
