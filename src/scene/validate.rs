@@ -14,7 +14,7 @@ use super::limits::{
 };
 use super::{
     ApproxSpec, End, HammerSpec, ModalSpec, ObjectSpec, PlaySpec, Quantity, Scene, SceneError,
-    StringSpec, HAMMER_SIDE,
+    StrikerSpec, StringSpec, TouchSpec, HAMMER_SIDE,
 };
 
 impl Scene {
@@ -116,91 +116,118 @@ impl Scene {
         }
         let names = obj.point_names();
         for (i, st) in self.striker.iter().enumerate() {
-            let base = format!("striker[{i}]");
-            let f = |k: &str| format!("{base}.{k}");
-            if !names.contains(&st.point) {
-                return Err(SceneError::new(
-                    f("point"),
-                    format!(
-                        "object {:?} has no point {:?}",
-                        self.contact.object, st.point
-                    ),
-                ));
-            }
-            let taken = self.contact.point.as_ref() == Some(&st.point)
-                || self.striker[..i].iter().any(|o| o.point == st.point);
-            if taken {
-                return Err(SceneError::new(
-                    f("point"),
-                    format!(
-                        "another contact already hits {:?}: two contacts on one point pair",
-                        st.point
-                    ),
-                ));
-            }
-            check_positive(&f("mass_kg"), st.mass_kg)?;
-            check_min(&f("mass_kg"), st.mass_kg, MIN_MASS_KG)?;
-            check_max(&f("mass_kg"), st.mass_kg, MAX_MASS_KG)?;
-            check_non_negative(&f("height_m"), st.height_m)?;
-            check_max(&f("height_m"), st.height_m, MAX_HEIGHT_M)?;
-            check_finite(&f("velocity_m_per_s"), st.velocity_m_per_s)?;
-            check_abs_max(
-                &f("velocity_m_per_s"),
-                st.velocity_m_per_s,
-                MAX_SPEED_M_PER_S,
-            )?;
-            check_positive(&f("stiffness_n_per_m"), st.stiffness_n_per_m)?;
-            check_min(
-                &f("stiffness_n_per_m"),
-                st.stiffness_n_per_m,
-                MIN_STIFFNESS_N_PER_M,
-            )?;
-            check_max(
-                &f("stiffness_n_per_m"),
-                st.stiffness_n_per_m,
-                MAX_STIFFNESS_N_PER_M,
-            )?;
-            check_non_negative(&f("damping_n_s_per_m"), st.damping_n_s_per_m)?;
-            check_max(
-                &f("damping_n_s_per_m"),
-                st.damping_n_s_per_m,
-                MAX_DAMPING_N_S_PER_M,
-            )?;
-            if let Some(m) = &st.mallet {
-                let used = self.hammer.object.as_ref() == Some(&m.object)
-                    || self.striker[..i]
-                        .iter()
-                        .any(|o| o.mallet.as_ref().is_some_and(|x| x.object == m.object));
-                if used {
-                    return Err(SceneError::new(
-                        f("mallet.object"),
-                        format!(
-                            "{:?} is another mallet already: each mallet is an object of its own",
-                            m.object
-                        ),
-                    ));
-                }
-                let touched = self
-                    .touch
-                    .iter()
-                    .any(|t| t.lower.object == m.object || t.upper.object == m.object);
-                if touched {
-                    return Err(SceneError::new(
-                        f("mallet.object"),
-                        format!(
-                            "a touch names {:?}: a striker's mallet is struck only through its striker",
-                            m.object
-                        ),
-                    ));
-                }
-                self.check_mallet(
-                    [&f("mallet.object"), &f("mallet.point"), &f("mass_kg")],
-                    &m.object,
-                    m.point.as_ref(),
-                    st.mass_kg,
-                )?;
-            }
+            self.validate_striker(i, st, &names)?;
         }
+        Ok(())
+    }
+
+    /// Striker `i`: its point is one of the struck object's `names` that
+    /// no other contact hits, its values those of a hammer and a contact,
+    /// and its mallet, if it names one, valid.
+    fn validate_striker(
+        &self,
+        i: usize,
+        st: &StrikerSpec,
+        names: &[String],
+    ) -> Result<(), SceneError> {
+        let base = format!("striker[{i}]");
+        let f = |k: &str| format!("{base}.{k}");
+        if !names.contains(&st.point) {
+            return Err(SceneError::new(
+                f("point"),
+                format!(
+                    "object {:?} has no point {:?}",
+                    self.contact.object, st.point
+                ),
+            ));
+        }
+        let taken = self.contact.point.as_ref() == Some(&st.point)
+            || self.striker[..i].iter().any(|o| o.point == st.point);
+        if taken {
+            return Err(SceneError::new(
+                f("point"),
+                format!(
+                    "another contact already hits {:?}: two contacts on one point pair",
+                    st.point
+                ),
+            ));
+        }
+        check_positive(&f("mass_kg"), st.mass_kg)?;
+        check_min(&f("mass_kg"), st.mass_kg, MIN_MASS_KG)?;
+        check_max(&f("mass_kg"), st.mass_kg, MAX_MASS_KG)?;
+        check_non_negative(&f("height_m"), st.height_m)?;
+        check_max(&f("height_m"), st.height_m, MAX_HEIGHT_M)?;
+        check_finite(&f("velocity_m_per_s"), st.velocity_m_per_s)?;
+        check_abs_max(
+            &f("velocity_m_per_s"),
+            st.velocity_m_per_s,
+            MAX_SPEED_M_PER_S,
+        )?;
+        check_positive(&f("stiffness_n_per_m"), st.stiffness_n_per_m)?;
+        check_min(
+            &f("stiffness_n_per_m"),
+            st.stiffness_n_per_m,
+            MIN_STIFFNESS_N_PER_M,
+        )?;
+        check_max(
+            &f("stiffness_n_per_m"),
+            st.stiffness_n_per_m,
+            MAX_STIFFNESS_N_PER_M,
+        )?;
+        check_non_negative(&f("damping_n_s_per_m"), st.damping_n_s_per_m)?;
+        check_max(
+            &f("damping_n_s_per_m"),
+            st.damping_n_s_per_m,
+            MAX_DAMPING_N_S_PER_M,
+        )?;
+        if let Some(m) = &st.mallet {
+            self.validate_striker_mallet(i, st, m)?;
+        }
+        Ok(())
+    }
+
+    /// Striker `i`'s mallet `m`: an object of its own (no other mallet, no
+    /// touch names it) and a valid modal mallet.
+    fn validate_striker_mallet(
+        &self,
+        i: usize,
+        st: &StrikerSpec,
+        m: &End,
+    ) -> Result<(), SceneError> {
+        let base = format!("striker[{i}]");
+        let f = |k: &str| format!("{base}.{k}");
+        let used = self.hammer.object.as_ref() == Some(&m.object)
+            || self.striker[..i]
+                .iter()
+                .any(|o| o.mallet.as_ref().is_some_and(|x| x.object == m.object));
+        if used {
+            return Err(SceneError::new(
+                f("mallet.object"),
+                format!(
+                    "{:?} is another mallet already: each mallet is an object of its own",
+                    m.object
+                ),
+            ));
+        }
+        let touched = self
+            .touch
+            .iter()
+            .any(|t| t.lower.object == m.object || t.upper.object == m.object);
+        if touched {
+            return Err(SceneError::new(
+                f("mallet.object"),
+                format!(
+                    "a touch names {:?}: a striker's mallet is struck only through its striker",
+                    m.object
+                ),
+            ));
+        }
+        self.check_mallet(
+            [&f("mallet.object"), &f("mallet.point"), &f("mass_kg")],
+            &m.object,
+            m.point.as_ref(),
+            st.mass_kg,
+        )?;
         Ok(())
     }
 
@@ -240,89 +267,11 @@ impl Scene {
             let mut walls = 0;
             for (name, e) in [("lower", &t.lower), ("upper", &t.upper)] {
                 if e.object == HAMMER_SIDE {
-                    if self.object_index(HAMMER_SIDE).is_some() {
-                        return Err(SceneError::new(
-                            f(&format!("{name}.object")),
-                            "\"hammer\" names both an object and the hammer: rename the object",
-                        ));
-                    }
-                    // a point of the hammer's modal mallet (its face when
-                    // none is named)
-                    if let Some(p) = &e.point {
-                        let Some(m) = &self.hammer.object else {
-                            return Err(SceneError::new(
-                                f(&format!("{name}.point")),
-                                "a point-mass hammer has no points; omit the key",
-                            ));
-                        };
-                        let points = self
-                            .object_index(m)
-                            .map(|o| self.object[o].point_names())
-                            .unwrap_or_default();
-                        if !points.contains(p) {
-                            return Err(SceneError::new(
-                                f(&format!("{name}.point")),
-                                format!(
-                                    "the hammer's mallet {m:?} has no point {p:?}: one of {points:?}"
-                                ),
-                            ));
-                        }
-                    }
+                    self.validate_touch_hammer(i, name, e)?;
                     continue;
                 }
-                let Some(o) = self.object_index(&e.object) else {
-                    return Err(SceneError::new(
-                        f(&format!("{name}.object")),
-                        format!("no object named {:?}", e.object),
-                    ));
-                };
-                if self.hammer.object.as_ref() == Some(&e.object) {
-                    return Err(SceneError::new(
-                        f(&format!("{name}.object")),
-                        format!(
-                            "{:?} is the modal mallet: its face (hammer.point) is the side \
-                             \"hammer\"",
-                            e.object
-                        ),
-                    ));
-                }
-                let obj = &self.object[o];
-                match (obj, &e.point) {
-                    (ObjectSpec::Wall(_), None) => walls += 1,
-                    (ObjectSpec::Wall(_), Some(_)) => {
-                        return Err(SceneError::new(
-                            f(&format!("{name}.point")),
-                            "a wall has no points; omit the key",
-                        ))
-                    }
-                    (ObjectSpec::String(_) | ObjectSpec::Chain(_), _) => {
-                        return Err(SceneError::new(
-                            f(&format!("{name}.object")),
-                            format!(
-                                "{:?} is a lumped {}: several contacts touch objects with modes \
-                                 (kind \"modal\" or one from geometry and material) and walls",
-                                e.object,
-                                obj.kind()
-                            ),
-                        ))
-                    }
-                    (_, None) => {
-                        return Err(SceneError::new(
-                            f(&format!("{name}.point")),
-                            format!(
-                                "missing: name one of {:?}'s points {:?}",
-                                e.object,
-                                obj.point_names()
-                            ),
-                        ))
-                    }
-                    (_, Some(p)) if !obj.point_names().contains(p) => {
-                        return Err(SceneError::new(
-                            f(&format!("{name}.point")),
-                            format!("object {:?} has no point {p:?}", e.object),
-                        ))
-                    }
-                    _ => {}
+                if self.validate_touch_object(i, name, e)? {
+                    walls += 1;
                 }
             }
             if walls == 2 {
@@ -345,38 +294,142 @@ impl Scene {
                 ));
             }
             pairs.push((a, b));
-            check_non_negative(&f("gap_m"), t.gap_m)?;
-            check_max(&f("gap_m"), t.gap_m, MAX_HEIGHT_M)?;
-            check_positive(&f("stiffness_n_per_m"), t.stiffness_n_per_m)?;
-            check_min(
-                &f("stiffness_n_per_m"),
-                t.stiffness_n_per_m,
-                MIN_STIFFNESS_N_PER_M,
-            )?;
-            check_max(
-                &f("stiffness_n_per_m"),
-                t.stiffness_n_per_m,
-                MAX_STIFFNESS_N_PER_M,
-            )?;
-            check_non_negative(&f("damping_n_s_per_m"), t.damping_n_s_per_m)?;
-            check_max(
-                &f("damping_n_s_per_m"),
-                t.damping_n_s_per_m,
-                MAX_DAMPING_N_S_PER_M,
-            )?;
-            // the hammer starts at its height: below an upper side resting
-            // `gap` above the struck object's rest, it must not start inside
-            let hammer_side = |e: &End| e.object == HAMMER_SIDE;
-            if hammer_side(&t.lower) && self.hammer.height_m > t.gap_m {
+            self.validate_touch_values(i, t)?;
+        }
+        Ok(())
+    }
+
+    /// Side `name` of touch `i` is the hammer: no object is also called
+    /// `"hammer"`, and a point named is one of the hammer's modal mallet
+    /// (its face when none is named).
+    fn validate_touch_hammer(&self, i: usize, name: &str, e: &End) -> Result<(), SceneError> {
+        let f = |k: &str| format!("touch[{i}].{k}");
+        if self.object_index(HAMMER_SIDE).is_some() {
+            return Err(SceneError::new(
+                f(&format!("{name}.object")),
+                "\"hammer\" names both an object and the hammer: rename the object",
+            ));
+        }
+        // a point of the hammer's modal mallet (its face when
+        // none is named)
+        if let Some(p) = &e.point {
+            let Some(m) = &self.hammer.object else {
                 return Err(SceneError::new(
-                    f("gap_m"),
-                    format!(
-                        "the hammer starts at {} m, inside {:?} resting {} m up: raise gap_m or \
-                         lower hammer.height_m",
-                        self.hammer.height_m, t.upper.object, t.gap_m
-                    ),
+                    f(&format!("{name}.point")),
+                    "a point-mass hammer has no points; omit the key",
+                ));
+            };
+            let points = self
+                .object_index(m)
+                .map(|o| self.object[o].point_names())
+                .unwrap_or_default();
+            if !points.contains(p) {
+                return Err(SceneError::new(
+                    f(&format!("{name}.point")),
+                    format!("the hammer's mallet {m:?} has no point {p:?}: one of {points:?}"),
                 ));
             }
+        }
+        Ok(())
+    }
+
+    /// Side `name` of touch `i` is an object: one of the scene's, not the
+    /// modal mallet, a wall without a point or an object with modes at one
+    /// of its points. Whether it is a wall.
+    fn validate_touch_object(&self, i: usize, name: &str, e: &End) -> Result<bool, SceneError> {
+        let f = |k: &str| format!("touch[{i}].{k}");
+        let Some(o) = self.object_index(&e.object) else {
+            return Err(SceneError::new(
+                f(&format!("{name}.object")),
+                format!("no object named {:?}", e.object),
+            ));
+        };
+        if self.hammer.object.as_ref() == Some(&e.object) {
+            return Err(SceneError::new(
+                f(&format!("{name}.object")),
+                format!(
+                    "{:?} is the modal mallet: its face (hammer.point) is the side \
+                     \"hammer\"",
+                    e.object
+                ),
+            ));
+        }
+        let obj = &self.object[o];
+        match (obj, &e.point) {
+            (ObjectSpec::Wall(_), None) => return Ok(true),
+            (ObjectSpec::Wall(_), Some(_)) => {
+                return Err(SceneError::new(
+                    f(&format!("{name}.point")),
+                    "a wall has no points; omit the key",
+                ))
+            }
+            (ObjectSpec::String(_) | ObjectSpec::Chain(_), _) => {
+                return Err(SceneError::new(
+                    f(&format!("{name}.object")),
+                    format!(
+                        "{:?} is a lumped {}: several contacts touch objects with modes \
+                         (kind \"modal\" or one from geometry and material) and walls",
+                        e.object,
+                        obj.kind()
+                    ),
+                ))
+            }
+            (_, None) => {
+                return Err(SceneError::new(
+                    f(&format!("{name}.point")),
+                    format!(
+                        "missing: name one of {:?}'s points {:?}",
+                        e.object,
+                        obj.point_names()
+                    ),
+                ))
+            }
+            (_, Some(p)) if !obj.point_names().contains(p) => {
+                return Err(SceneError::new(
+                    f(&format!("{name}.point")),
+                    format!("object {:?} has no point {p:?}", e.object),
+                ))
+            }
+            _ => {}
+        }
+        Ok(false)
+    }
+
+    /// Touch `i`'s gap, stiffness and damping in their ranges, and the
+    /// hammer not starting inside an upper side that rests on it.
+    fn validate_touch_values(&self, i: usize, t: &TouchSpec) -> Result<(), SceneError> {
+        let f = |k: &str| format!("touch[{i}].{k}");
+        check_non_negative(&f("gap_m"), t.gap_m)?;
+        check_max(&f("gap_m"), t.gap_m, MAX_HEIGHT_M)?;
+        check_positive(&f("stiffness_n_per_m"), t.stiffness_n_per_m)?;
+        check_min(
+            &f("stiffness_n_per_m"),
+            t.stiffness_n_per_m,
+            MIN_STIFFNESS_N_PER_M,
+        )?;
+        check_max(
+            &f("stiffness_n_per_m"),
+            t.stiffness_n_per_m,
+            MAX_STIFFNESS_N_PER_M,
+        )?;
+        check_non_negative(&f("damping_n_s_per_m"), t.damping_n_s_per_m)?;
+        check_max(
+            &f("damping_n_s_per_m"),
+            t.damping_n_s_per_m,
+            MAX_DAMPING_N_S_PER_M,
+        )?;
+        // the hammer starts at its height: below an upper side resting
+        // `gap` above the struck object's rest, it must not start inside
+        let hammer_side = |e: &End| e.object == HAMMER_SIDE;
+        if hammer_side(&t.lower) && self.hammer.height_m > t.gap_m {
+            return Err(SceneError::new(
+                f("gap_m"),
+                format!(
+                    "the hammer starts at {} m, inside {:?} resting {} m up: raise gap_m or \
+                     lower hammer.height_m",
+                    self.hammer.height_m, t.upper.object, t.gap_m
+                ),
+            ));
         }
         Ok(())
     }
