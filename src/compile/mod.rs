@@ -463,6 +463,72 @@ pub fn compile_opts(
     switching: Option<Switching>,
     opts: &CompileOptions,
 ) -> Result<CompiledScene, CompileError> {
+    check_request(scene, rate_hz)?;
+    // 0. objects described by geometry and material become their modes at
+    // this rate (docs/design.md, "Objects from geometry and material")
+    let original = scene;
+    let expanded = scene.expanded(rate_hz)?;
+    let scene = &expanded;
+    scene.validate()?;
+    let asked = switching.or(scene.contact.switching).unwrap_or_default();
+    let h = 1.0 / rate_hz;
+    let ci = scene
+        .object_index(&scene.contact.object)
+        .ok_or_else(|| CompileError::MissingObject(scene.contact.object.clone()))?;
+    // 1. leave out what is not needed; refuse before any O(d^2) allocation
+    // or O(d^3) work when too big
+    let (spec, dropped_modes) = prune::prune_object(scene, ci, rate_hz, opts);
+    let cost = checked_cost(scene, &spec, ci, opts)?;
+    // 2. to 5.
+    let ph = phases(scene, &spec, ci, rate_hz, &cost, asked, opts)?;
+    // 5b. a strike on the object at rest
+    let rest = rest_strike(&ph, h);
+    cancel::check().map_err(|_| CompileError::Cancelled)?;
+    // 6. summary
+    let (mut summary, search_nodes_estimate) =
+        describe(original, scene, ci, rate_hz, &spec, &dropped_modes, &ph);
+    summary.push_str(&summary::rest_line(rest.as_ref(), h));
+    let [w_cf_h, w_fc_h] = basis::structured(&ph.free, &ph.contact, &ph.basis);
+    summary.push_str(&summary::structured_line(
+        [&w_cf_h, &w_fc_h],
+        ph.free.dim * ph.contact.dim,
+    ));
+    let (w_cf_h, w_fc_h) = (w_cf_h.ok(), w_fc_h.ok());
+    let p = ph.object.params;
+    Ok(CompiledScene {
+        name: scene.name.clone(),
+        rate_hz,
+        h,
+        switching: ph.switching,
+        m_h: p.m_h,
+        g: p.g,
+        hammer_x0: scene.hammer.height_m,
+        hammer_v0: scene.hammer.velocity_m_per_s,
+        k: p.k,
+        sk: p.k.sqrt(),
+        c: p.c,
+        sm: p.m_h.sqrt(),
+        free: ph.free,
+        contact: ph.contact,
+        w_cf: ph.basis.w_cf,
+        col_pi: ph.basis.col_pi,
+        col_eta: ph.basis.col_eta,
+        s_star: ph.basis.s_star,
+        w_fc: ph.basis.w_fc,
+        s_f_star: ph.basis.s_f_star,
+        w_cf_h,
+        w_fc_h,
+        offsets: ph.offsets,
+        rest,
+        summary,
+        search_nodes_estimate,
+    })
+}
+
+/// The checks before any work: a valid scene, a sample rate in
+/// [`RATE_RANGE_HZ`], and one contact (a scene of several runs on the
+/// several-contact engine).
+fn check_request(scene: &Scene, rate_hz: f64) -> Result<(), CompileError> {
     scene.validate()?;
     if !(rate_hz.is_finite() && (RATE_RANGE_HZ.0..=RATE_RANGE_HZ.1).contains(&rate_hz)) {
         return Err(CompileError::SampleRate(rate_hz));
@@ -481,22 +547,20 @@ pub fn compile_opts(
              this compiler and the report take one contact",
         )));
     }
-    // 0. objects described by geometry and material become their modes at
-    // this rate (docs/design.md, "Objects from geometry and material")
-    let original = scene;
-    let expanded = scene.expanded(rate_hz)?;
-    let scene = &expanded;
-    scene.validate()?;
-    let asked = switching.or(scene.contact.switching).unwrap_or_default();
-    let h = 1.0 / rate_hz;
-    let ci = scene
-        .object_index(&scene.contact.object)
-        .ok_or_else(|| CompileError::MissingObject(scene.contact.object.clone()))?;
-    // 1. leave out what is not needed; refuse before any O(d^2) allocation
-    // or O(d^3) work when too big
-    let (spec, dropped_modes) = prune::prune_object(scene, ci, rate_hz, opts);
+    Ok(())
+}
+
+/// Stage 1's refusal: the estimated cost of compiling the pruned struck
+/// object `spec`, refused when its contact system is beyond
+/// [`MAX_CONTACT_DIM`] or the compile beyond `opts.budget`.
+fn checked_cost(
+    scene: &Scene,
+    spec: &ObjectSpec,
+    ci: usize,
+    opts: &CompileOptions,
+) -> Result<CompileCost, CompileError> {
     let mut cost = CompileCost::estimate(
-        &spec,
+        spec,
         scene.contact.point.as_deref(),
         scene.hammer.gravity_m_per_s2 != 0.0,
         opts.exact_savings,
@@ -504,7 +568,7 @@ pub fn compile_opts(
     // a lumped string with a modal mallet: the general eigensolver takes
     // the string's masses and the mallet's modes together
     if let (ObjectSpec::String(st), Some(ObjectSpec::Modal(m))) = (
-        &spec,
+        spec,
         scene
             .hammer
             .object
@@ -524,10 +588,50 @@ pub fn compile_opts(
     }
     cost.check(&opts.budget, scene, ci)
         .map_err(CompileError::OverBudget)?;
+    Ok(cost)
+}
+
+/// The two phases of the struck object and what joins them: stages 2 to 5
+/// of the module doc.
+struct Phases {
+    /// The struck object's model and the contact's parameters.
+    object: routes::Object,
+    /// The changes of basis between the phases.
+    basis: basis::Basis,
+    /// Offsets of the contact rows.
+    offsets: RowOffsets,
+    /// Pickups left out, with why.
+    dropped_pickups: Vec<String>,
+    /// Modes the contact leaves uncoupled.
+    uncoupled: usize,
+    /// The free phase, with its event row.
+    free: CompiledPhase,
+    /// The contact phase, with its event row.
+    contact: CompiledPhase,
+    /// The switching method the phases allow.
+    switching: Switching,
+    /// Why it is not the one asked for, if it is not.
+    switching_note: Option<String>,
+}
+
+/// Stages 2 to 5: the model and the decompositions, the equilibrium, the
+/// rows and the changes of basis, then the event rows, the switching
+/// method (`asked` if the phases allow it) and the checks of finiteness
+/// and passivity.
+fn phases(
+    scene: &Scene,
+    spec: &ObjectSpec,
+    ci: usize,
+    rate_hz: f64,
+    cost: &CompileCost,
+    asked: Switching,
+    opts: &CompileOptions,
+) -> Result<Phases, CompileError> {
+    let h = 1.0 / rate_hz;
     // 2. model and decompositions
-    let object = routes::object(scene, &spec, ci)?;
+    let object = routes::object(scene, spec, ci)?;
     cancel::check().map_err(|_| CompileError::Cancelled)?;
-    let dec = routes::decompose(scene, ci, &object, rate_hz, &cost, opts)?;
+    let dec = routes::decompose(scene, ci, &object, rate_hz, cost, opts)?;
     cancel::check().map_err(|_| CompileError::Cancelled)?;
     // 3. equilibrium, 4. rows, and the changes of basis
     let y_star = basis::equilibrium(&dec, object.params.g != 0.0)?;
@@ -548,82 +652,72 @@ pub fn compile_opts(
         ci,
     )?;
     cancel::check().map_err(|_| CompileError::Cancelled)?;
-    // 5b. a strike on the object at rest
-    let rest = rest::rest_strike(&rest::RestInputs {
-        free: &free,
-        contact: &contact,
-        col_eta: &basis.col_eta,
-        w_cf: &basis.w_cf,
-        w_fc: &basis.w_fc,
-        s_f_star: &basis.s_f_star,
-        offsets_x_eta: (rows.offsets.x_c, rows.offsets.eta),
-        sm: object.params.m_h.sqrt(),
-        s_star: &basis.s_star,
-        offset_pi: rows.offsets.pi,
+    Ok(Phases {
+        object,
+        basis,
+        offsets: rows.offsets,
+        dropped_pickups: rows.dropped_pickups,
+        uncoupled,
+        free,
+        contact,
+        switching,
+        switching_note,
+    })
+}
+
+/// Stage 5b: a strike on the object at rest, for a step `h`.
+fn rest_strike(ph: &Phases, h: f64) -> Option<rest::RestStrike> {
+    rest::rest_strike(&rest::RestInputs {
+        free: &ph.free,
+        contact: &ph.contact,
+        col_eta: &ph.basis.col_eta,
+        w_cf: &ph.basis.w_cf,
+        w_fc: &ph.basis.w_fc,
+        s_f_star: &ph.basis.s_f_star,
+        offsets_x_eta: (ph.offsets.x_c, ph.offsets.eta),
+        sm: ph.object.params.m_h.sqrt(),
+        s_star: &ph.basis.s_star,
+        offset_pi: ph.offsets.pi,
         h,
         t_max: REST_T_MAX_S,
-    });
-    cancel::check().map_err(|_| CompileError::Cancelled)?;
-    // 6. summary
-    let (mut summary, search_nodes_estimate) = summary::write(&summary::Facts {
+    })
+}
+
+/// Stage 6: what was built, in words, and the estimated search nodes.
+/// `original`: the scene as written (for the struck object's kind and the
+/// mallet), `scene` as compiled.
+fn describe(
+    original: &Scene,
+    scene: &Scene,
+    ci: usize,
+    rate_hz: f64,
+    spec: &ObjectSpec,
+    dropped_modes: &[String],
+    ph: &Phases,
+) -> (String, f64) {
+    summary::write(&summary::Facts {
         scene,
         ci,
         rate_hz,
-        switching,
-        switching_note: switching_note.as_deref(),
-        object_name: &object.obj.name,
-        n: object.obj.n,
-        kind: match &spec {
+        switching: ph.switching,
+        switching_note: ph.switching_note.as_deref(),
+        object_name: &ph.object.obj.name,
+        n: ph.object.obj.n,
+        kind: match spec {
             ObjectSpec::Wall(_) => "wall",
             _ => original.object[ci].kind(),
         },
-        params: &object.params,
-        free: &free,
-        contact: &contact,
-        uncoupled,
-        dropped_modes: &dropped_modes,
-        dropped_pickups: &rows.dropped_pickups,
+        params: &ph.object.params,
+        free: &ph.free,
+        contact: &ph.contact,
+        uncoupled: ph.uncoupled,
+        dropped_modes,
+        dropped_pickups: &ph.dropped_pickups,
         mallet: original.hammer.object.as_deref().and_then(|m| {
             match scene.object_index(m).map(|mi| &scene.object[mi]) {
                 Some(ObjectSpec::Modal(mm)) => Some((m, mm.mode.len())),
                 _ => None,
             }
         }),
-    });
-    summary.push_str(&summary::rest_line(rest.as_ref(), h));
-    let [w_cf_h, w_fc_h] = basis::structured(&free, &contact, &basis);
-    summary.push_str(&summary::structured_line(
-        [&w_cf_h, &w_fc_h],
-        free.dim * contact.dim,
-    ));
-    let (w_cf_h, w_fc_h) = (w_cf_h.ok(), w_fc_h.ok());
-    let p = object.params;
-    Ok(CompiledScene {
-        name: scene.name.clone(),
-        rate_hz,
-        h,
-        switching,
-        m_h: p.m_h,
-        g: p.g,
-        hammer_x0: scene.hammer.height_m,
-        hammer_v0: scene.hammer.velocity_m_per_s,
-        k: p.k,
-        sk: p.k.sqrt(),
-        c: p.c,
-        sm: p.m_h.sqrt(),
-        free,
-        contact,
-        w_cf: basis.w_cf,
-        col_pi: basis.col_pi,
-        col_eta: basis.col_eta,
-        s_star: basis.s_star,
-        w_fc: basis.w_fc,
-        s_f_star: basis.s_f_star,
-        w_cf_h,
-        w_fc_h,
-        offsets: rows.offsets,
-        rest,
-        summary,
-        search_nodes_estimate,
     })
 }

@@ -665,83 +665,19 @@ pub fn prepare_scene_staged(
             return Err(PrepareError::DampedLayoutDiffers);
         }
     }
-    let small = scene.contact.dim <= TIMBRE_MAX_STATES;
-    // the played variants: every hardness level, and with the position
-    // levels every (hardness, position) pair; a variant that does not
-    // compile (a stiffness beyond the scene's limits) or lays its states
-    // out otherwise is left out (its voices play the nearest that exists)
-    let positions = params.variants.position && params.strike_pos_norm.is_some();
-    let same_layout =
-        |t: &CompiledScene| t.free.dim == scene.free.dim && t.contact.dim == scene.contact.dim;
-    let levels = -TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX;
-    let mut pairs: Vec<(i8, i8)> = levels
-        .clone()
-        .flat_map(|h| levels.clone().map(move |pl| (h, pl)))
-        .filter(|&(h, pl)| small && (h, pl) != (0, 0) && (pl == 0 || positions))
-        .collect();
-    // what a playable stage leaves out
-    let mut left_out = false;
-    if stage == Stage::Playable {
-        left_out |= !pairs.is_empty();
-        pairs.clear();
-    }
-    // compiled side by side (each is a compile of its own)
-    let compiled: Vec<Option<VariantScene>> = side_by_side(&pairs, |&(h, pl)| {
-        let mut p = *params;
-        p.stiffness_factor *= TIMBRE_STIFFNESS_STEP.powi(i32::from(h));
-        p.strike_pos_norm = p
-            .strike_pos_norm
-            .map(|x| (x + f64::from(pl) * POSITION_STEP).clamp(0.0, 1.0));
-        let ip = InstrumentParams {
-            scene: p,
-            play: PlayParams::default(),
-        };
-        compile_with(&scene_for(base, &ip), rate_hz, Some(switching_used))
-            .ok()
-            .filter(same_layout)
-            .map(|t| VariantScene {
-                same_free: t.free.v == scene.free.v
-                    && t.free.vinv == scene.free.vinv
-                    && t.free.gens == scene.free.gens
-                    && t.free.dense == scene.free.dense
-                    && t.h == scene.h,
-                scene: t,
-            })
-    });
-    cancel::check()?;
-    let mut played: Vec<Option<VariantScene>> = (0..LEVELS * LEVELS).map(|_| None).collect();
-    for (&(h, pl), v) in pairs.iter().zip(compiled) {
-        played[cell(h, pl)] = v;
-    }
-    // the damper levels: `Some(None)` where the level's damper is 0
-    let mut dampers: Vec<i8> = if small && params.variants.damper {
-        levels.filter(|&d| d != 0).collect()
-    } else {
-        Vec::new()
+    let variants = Variants {
+        base,
+        played_scene: &played_scene,
+        params,
+        rate_hz,
+        switching_used,
+        scene: &scene,
+        small: scene.contact.dim <= TIMBRE_MAX_STATES,
+        stage,
     };
-    if stage == Stage::Playable {
-        left_out |= !dampers.is_empty();
-        dampers.clear();
-    }
-    let compiled: Vec<Option<Option<CompiledScene>>> = side_by_side(&dampers, |&d| {
-        let value = (params.damper_norm + f64::from(d) * DAMPER_STEP).clamp(0.0, 1.0);
-        if value > 0.0 {
-            compile_with(
-                &damped_scene(&played_scene, value),
-                rate_hz,
-                Some(switching_used),
-            )
-            .ok()
-            .filter(same_layout)
-            .map(Some)
-        } else {
-            Some(None)
-        }
-    });
-    let mut damped_at: Vec<Option<Option<CompiledScene>>> = (0..LEVELS).map(|_| None).collect();
-    for (&d, v) in dampers.iter().zip(compiled) {
-        damped_at[slot(d)] = v;
-    }
+    let (played, played_left_out) = variants.played()?;
+    let (damped_at, dampers_left_out) = variants.damped_at();
+    let left_out = played_left_out | dampers_left_out;
     cancel::check()?;
     let scenes = Scenes {
         scene,
@@ -756,6 +692,131 @@ pub fn prepare_scene_staged(
         None,
         (stage, left_out),
     )
+}
+
+/// What the variants of one prepared scene are compiled from: the scene
+/// as the instrument plays it, its parameters, and the played scene they
+/// must lay their states out as.
+struct Variants<'a> {
+    /// The scene given (a preset or a user's file).
+    base: &'a Scene,
+    /// `base` with the parameters applied.
+    played_scene: &'a Scene,
+    /// The resolved parameters.
+    params: &'a SceneParams,
+    /// Sample rate \[Hz\].
+    rate_hz: f64,
+    /// The switching method the played scene compiled with.
+    switching_used: Switching,
+    /// The played scene, compiled.
+    scene: &'a CompiledScene,
+    /// Its contact system is small enough for variants
+    /// ([`TIMBRE_MAX_STATES`]).
+    small: bool,
+    /// What is compiled now.
+    stage: Stage,
+}
+
+impl Variants<'_> {
+    /// Whether `t` lays its states out as the played scene does.
+    fn same_layout(&self, t: &CompiledScene) -> bool {
+        t.free.dim == self.scene.free.dim && t.contact.dim == self.scene.contact.dim
+    }
+
+    /// The played variants: every hardness level, and with the position
+    /// levels every (hardness, position) pair; a variant that does not
+    /// compile (a stiffness beyond the scene's limits) or lays its states
+    /// out otherwise is left out (its voices play the nearest that
+    /// exists). By [`cell`], and whether a playable stage left them out.
+    /// \[worker\] \[main-thread\]
+    fn played(&self) -> Result<(Vec<Option<VariantScene>>, bool), PrepareError> {
+        let (params, scene) = (self.params, self.scene);
+        let positions = params.variants.position && params.strike_pos_norm.is_some();
+        let levels = -TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX;
+        let small = self.small;
+        let mut pairs: Vec<(i8, i8)> = levels
+            .clone()
+            .flat_map(|h| levels.clone().map(move |pl| (h, pl)))
+            .filter(|&(h, pl)| small && (h, pl) != (0, 0) && (pl == 0 || positions))
+            .collect();
+        // what a playable stage leaves out
+        let mut left_out = false;
+        if self.stage == Stage::Playable {
+            left_out |= !pairs.is_empty();
+            pairs.clear();
+        }
+        // compiled side by side (each is a compile of its own)
+        let compiled: Vec<Option<VariantScene>> = side_by_side(&pairs, |&(h, pl)| {
+            let mut p = *params;
+            p.stiffness_factor *= TIMBRE_STIFFNESS_STEP.powi(i32::from(h));
+            p.strike_pos_norm = p
+                .strike_pos_norm
+                .map(|x| (x + f64::from(pl) * POSITION_STEP).clamp(0.0, 1.0));
+            let ip = InstrumentParams {
+                scene: p,
+                play: PlayParams::default(),
+            };
+            compile_with(
+                &scene_for(self.base, &ip),
+                self.rate_hz,
+                Some(self.switching_used),
+            )
+            .ok()
+            .filter(|t| self.same_layout(t))
+            .map(|t| VariantScene {
+                same_free: t.free.v == scene.free.v
+                    && t.free.vinv == scene.free.vinv
+                    && t.free.gens == scene.free.gens
+                    && t.free.dense == scene.free.dense
+                    && t.h == scene.h,
+                scene: t,
+            })
+        });
+        cancel::check()?;
+        let mut played: Vec<Option<VariantScene>> = (0..LEVELS * LEVELS).map(|_| None).collect();
+        for (&(h, pl), v) in pairs.iter().zip(compiled) {
+            played[cell(h, pl)] = v;
+        }
+        Ok((played, left_out))
+    }
+
+    /// The damped scene at the other damper levels: `Some(None)` where the
+    /// level's damper is 0. By [`slot`], and whether a playable stage left
+    /// them out. \[worker\] \[main-thread\]
+    fn damped_at(&self) -> (Vec<Option<Option<CompiledScene>>>, bool) {
+        let params = self.params;
+        let levels = -TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX;
+        let mut left_out = false;
+        let mut dampers: Vec<i8> = if self.small && params.variants.damper {
+            levels.filter(|&d| d != 0).collect()
+        } else {
+            Vec::new()
+        };
+        if self.stage == Stage::Playable {
+            left_out |= !dampers.is_empty();
+            dampers.clear();
+        }
+        let compiled: Vec<Option<Option<CompiledScene>>> = side_by_side(&dampers, |&d| {
+            let value = (params.damper_norm + f64::from(d) * DAMPER_STEP).clamp(0.0, 1.0);
+            if value > 0.0 {
+                compile_with(
+                    &damped_scene(self.played_scene, value),
+                    self.rate_hz,
+                    Some(self.switching_used),
+                )
+                .ok()
+                .filter(|t| self.same_layout(t))
+                .map(Some)
+            } else {
+                Some(None)
+            }
+        });
+        let mut damped_at: Vec<Option<Option<CompiledScene>>> = (0..LEVELS).map(|_| None).collect();
+        for (&d, v) in dampers.iter().zip(compiled) {
+            damped_at[slot(d)] = v;
+        }
+        (damped_at, left_out)
+    }
 }
 
 /// A [`Prepared`] of compiled scenes (and a kit), with a fresh engine

@@ -85,114 +85,141 @@ impl Instrument {
         let idx = if let Some(i) = self.voices.iter().position(|v| v.active && v.key == key) {
             // Same key still ringing: strike the moving object again (what
             // its damper took so far goes into its state first).
-            self.press_flush(i);
-            let p = &mut *self.cur;
-            let v = &mut self.voices[i];
-            if v.on_damped || v.at != Variant::default() {
-                // back to the played scene: a new note starts at level 0
-                let from = p.scenes.bound(v.at, v.on_damped);
-                if !std::ptr::eq(from, &p.scenes.scene)
-                    && !p.states[i].rebind(from, &p.scenes.scene)
-                {
-                    p.states[i].reset(&p.scenes.scene);
-                }
-                v.on_damped = false;
-                v.at = Variant::default();
-            }
-            v.want = Variant::default();
-            v.bright_level = 0;
-            v.hard_level = 0;
-            v.released = false;
-            v.fresh = false;
-            v.pressure = 0.0;
-            // a new note starts untuned (from where it is, gliding)
-            v.tuning_target = 0.0;
-            if v.tuning_now != 0.0 {
-                self.tuning_moving = true;
-            }
+            self.restrike(i);
             i
         } else {
-            // a free voice while fewer than the Polyphony sound, else the
-            // quietest is stolen (the voices that sound may be any of the
-            // 64: a lowered Polyphony ends the quietest, wherever they are)
-            let poly = self.play.polyphony.clamp(1, MAX_VOICES);
-            let sounding = self.voices.iter().filter(|v| v.active).count();
-            let free = self.voices.iter().position(|v| !v.active);
-            let i = match free.filter(|_| sounding < poly) {
-                Some(i) => {
-                    // its lane sounds again from now
-                    self.lanes.begin(i, self.sample_pos);
-                    i
-                }
-                None => {
-                    self.stats.steals += 1;
-                    let mut among = [false; MAX_VOICES];
-                    (0..MAX_VOICES).for_each(|i| among[i] = self.voices[i].active);
-                    let i = self.quietest(&among).unwrap_or(0);
-                    if self.fade_voice(i, false) {
-                        self.stats.steals_faded += 1;
-                    }
-                    i
-                }
-            };
-            let p = &mut *self.cur;
-            let st = &mut p.states[i];
-            st.reset(&p.scenes.scene);
-            let base = if self.play.pitch_tracking {
-                key_scale(key, p.root_note)
-            } else {
-                1.0
-            };
-            let s = if p.bouncing || self.bend_now == 0.0 {
-                base
-            } else {
-                base * 2f64.powf(self.bend_now / 12.0)
-            };
-            // the propagators made ahead for the key's scale (the root's,
-            // scale 1, without pitch tracking) when no bend moves it, else
-            // computed here
-            let slot = if self.play.pitch_tracking {
-                usize::from(key)
-            } else {
-                p.root_note as usize
-            };
-            let made = p.key_props.get(slot).filter(|k| k.scale() == s);
-            let set = match made {
-                Some(k) => {
-                    self.stats.key_props_copied += 1;
-                    st.set_time_scale_from(&p.scenes.scene, k)
-                }
-                None => st.set_time_scale(&p.scenes.scene, s),
-            };
-            match set {
-                Ok(()) => {}
-                Err(_) => {
-                    self.stats.dense_pitch_fallbacks += u64::from(s != 1.0);
-                    let _ = st.set_time_scale(&p.scenes.scene, 1.0);
-                }
-            }
-            st.reset(&p.scenes.scene);
-            stored = made.map(|_| slot);
-            self.voices[i] = Voice {
-                active: true,
-                key,
-                released: false,
-                on_damped: false,
-                strike_energy: 0.0,
-                base_scale: base,
-                tuning_target: 0.0,
-                tuning_now: 0.0,
-                onset_pos: 0,
-                fresh: true,
-                pressure: 0.0,
-                at: Variant::default(),
-                want: Variant::default(),
-                bright_level: 0,
-                hard_level: 0,
-                pressing: None,
-            };
+            let i = self.voice_for_note();
+            stored = self.start_voice(i, key);
             i
         };
+        self.strike_voice(idx, speed, stored);
+    }
+
+    /// Voice `i`, still ringing, takes a new note on its key: back to the
+    /// played scene, its note's levels, pressure and tuning reset.
+    /// \[audio-thread\]
+    fn restrike(&mut self, i: usize) {
+        self.press_flush(i);
+        let p = &mut *self.cur;
+        let v = &mut self.voices[i];
+        if v.on_damped || v.at != Variant::default() {
+            // back to the played scene: a new note starts at level 0
+            let from = p.scenes.bound(v.at, v.on_damped);
+            if !std::ptr::eq(from, &p.scenes.scene) && !p.states[i].rebind(from, &p.scenes.scene) {
+                p.states[i].reset(&p.scenes.scene);
+            }
+            v.on_damped = false;
+            v.at = Variant::default();
+        }
+        v.want = Variant::default();
+        v.bright_level = 0;
+        v.hard_level = 0;
+        v.released = false;
+        v.fresh = false;
+        v.pressure = 0.0;
+        // a new note starts untuned (from where it is, gliding)
+        v.tuning_target = 0.0;
+        if v.tuning_now != 0.0 {
+            self.tuning_moving = true;
+        }
+    }
+
+    /// The voice a note on a key that is not ringing takes.
+    /// \[audio-thread\]
+    fn voice_for_note(&mut self) -> usize {
+        // a free voice while fewer than the Polyphony sound, else the
+        // quietest is stolen (the voices that sound may be any of the
+        // 64: a lowered Polyphony ends the quietest, wherever they are)
+        let poly = self.play.polyphony.clamp(1, MAX_VOICES);
+        let sounding = self.voices.iter().filter(|v| v.active).count();
+        let free = self.voices.iter().position(|v| !v.active);
+        match free.filter(|_| sounding < poly) {
+            Some(i) => {
+                // its lane sounds again from now
+                self.lanes.begin(i, self.sample_pos);
+                i
+            }
+            None => {
+                self.stats.steals += 1;
+                let mut among = [false; MAX_VOICES];
+                (0..MAX_VOICES).for_each(|i| among[i] = self.voices[i].active);
+                let i = self.quietest(&among).unwrap_or(0);
+                if self.fade_voice(i, false) {
+                    self.stats.steals_faded += 1;
+                }
+                i
+            }
+        }
+    }
+
+    /// Voice `i` starts over for `key` at rest: its time scale (the key's,
+    /// with the bend) and a fresh [`Voice`]. The slot of the key's
+    /// propagators when they were copied (its stored strike from rest may
+    /// then be replayed). \[audio-thread\]
+    fn start_voice(&mut self, i: usize, key: u8) -> Option<usize> {
+        let p = &mut *self.cur;
+        let st = &mut p.states[i];
+        st.reset(&p.scenes.scene);
+        let base = if self.play.pitch_tracking {
+            key_scale(key, p.root_note)
+        } else {
+            1.0
+        };
+        let s = if p.bouncing || self.bend_now == 0.0 {
+            base
+        } else {
+            base * 2f64.powf(self.bend_now / 12.0)
+        };
+        // the propagators made ahead for the key's scale (the root's,
+        // scale 1, without pitch tracking) when no bend moves it, else
+        // computed here
+        let slot = if self.play.pitch_tracking {
+            usize::from(key)
+        } else {
+            p.root_note as usize
+        };
+        let made = p.key_props.get(slot).filter(|k| k.scale() == s);
+        let set = match made {
+            Some(k) => {
+                self.stats.key_props_copied += 1;
+                st.set_time_scale_from(&p.scenes.scene, k)
+            }
+            None => st.set_time_scale(&p.scenes.scene, s),
+        };
+        match set {
+            Ok(()) => {}
+            Err(_) => {
+                self.stats.dense_pitch_fallbacks += u64::from(s != 1.0);
+                let _ = st.set_time_scale(&p.scenes.scene, 1.0);
+            }
+        }
+        st.reset(&p.scenes.scene);
+        let stored = made.map(|_| slot);
+        self.voices[i] = Voice {
+            active: true,
+            key,
+            released: false,
+            on_damped: false,
+            strike_energy: 0.0,
+            base_scale: base,
+            tuning_target: 0.0,
+            tuning_now: 0.0,
+            onset_pos: 0,
+            fresh: true,
+            pressure: 0.0,
+            at: Variant::default(),
+            want: Variant::default(),
+            bright_level: 0,
+            hard_level: 0,
+            pressing: None,
+        };
+        stored
+    }
+
+    /// Voice `idx` struck at `speed` (from its drop height when the hammer
+    /// bounces; the key's stored strike `stored` where it has one), and its
+    /// strike's energy. \[audio-thread\]
+    fn strike_voice(&mut self, idx: usize, speed: f64, stored: Option<usize>) {
         let p = &mut *self.cur;
         let st = &mut p.states[idx];
         let s = st.time_scale();

@@ -48,14 +48,19 @@ const UNIT_ROUNDOFF: f64 = f64::EPSILON / 2.0;
 /// the permuted order (rows `r0..r0 + nr`, columns `c0..c0 + nc`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Piece {
+    /// First row of the piece (permuted order).
     pub r0: usize,
+    /// Number of rows.
     pub nr: usize,
+    /// First column of the piece (permuted order).
     pub c0: usize,
+    /// Number of columns.
     pub nc: usize,
     /// `None`: a dense `nr x nc` block at `off` (column-major). `Some(r)`:
     /// `V^T` (`r x nc`, column-major) at `off`, then `U` (`nr x r`,
     /// column-major) at `off + r nc`.
     pub rank: Option<usize>,
+    /// Where the piece's numbers start in [`Hodlr::data`].
     pub off: usize,
 }
 
@@ -63,13 +68,17 @@ pub struct Piece {
 /// frequency order, `H` is the hierarchy of pieces.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Hodlr {
+    /// Number of rows of `W`.
     pub rows: usize,
+    /// Number of columns of `W`.
     pub cols: usize,
     /// Permuted row `i` is row `row_perm[i]` of `W`.
     pub row_perm: Vec<usize>,
     /// Permuted column `j` is column `col_perm[j]` of `W`.
     pub col_perm: Vec<usize>,
+    /// The dense leaves and low-rank blocks that tile `H`.
     pub pieces: Vec<Piece>,
+    /// Every piece's numbers, one after the other (see [`Piece::off`]).
     pub data: Vec<f64>,
     /// Largest rank of an off-diagonal block.
     pub max_rank: usize,

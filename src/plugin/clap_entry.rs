@@ -266,8 +266,12 @@ unsafe extern "C" fn from_location(
     if plugin.is_null() {
         return false;
     }
-    // SAFETY: `plugin` is our shim; its plugin_data is the live wrapper.
+    // SAFETY: `plugin` is not null and is the `clap_plugin` of a shim made
+    // by `create_plugin` (the host passes back the plugin it was given),
+    // alive until `shim_destroy`.
     let shim = unsafe { &*(plugin as *const PluginShim) };
+    // SAFETY: the shim's `plugin_data` is the wrapper `create_plugin`
+    // stored there, which lives as long as the shim.
     let wrapper = unsafe { &*(shim.plugin.plugin_data as *const Wrapper<ModalContact>) };
     // SAFETY: C strings or null, per the CLAP contract.
     let result = unsafe { location_of(kind, location, load_key) }.and_then(|loc| {
@@ -349,9 +353,10 @@ unsafe extern "C" fn create_provider(
     indexer: *const clap_preset_discovery_indexer,
     provider_id: *const c_char,
 ) -> *const clap_preset_discovery_provider {
-    // SAFETY: NUL-terminated per the CLAP contract.
     if indexer.is_null()
         || provider_id.is_null()
+        // SAFETY: not null (checked just above) and NUL-terminated per the
+        // CLAP contract.
         || unsafe { CStr::from_ptr(provider_id) } != PROVIDER_ID
     {
         return std::ptr::null();

@@ -112,6 +112,9 @@ pub struct LiveRing {
 // of tail after the write and the Acquire load before the read order the
 // two, and likewise head for the slot's reuse.
 unsafe impl Sync for LiveRing {}
+// SAFETY: the ring owns its frames (plain numbers, no references or
+// thread-bound handles), so moving it to another thread moves only data;
+// the concurrent access that follows is the `Sync` case above.
 unsafe impl Send for LiveRing {}
 
 impl LiveRing {

@@ -400,6 +400,42 @@ fn for_note_id(event: &NoteEvent<()>, e: Event, ids: &voice_ids::VoiceIds) -> Op
     })
 }
 
+/// The host's note event `event`, as the instrument's `e`, into `out`: its
+/// voice id kept for polyphonic modulation, an MPE member channel's
+/// bend, pressure and controllers made its notes'. \[audio-thread\]
+fn translate(
+    event: NoteEvent<()>,
+    e: Event,
+    ids: &mut voice_ids::VoiceIds,
+    mpe: &mut mpe::Mpe,
+    out: &mut mpe::Out,
+) {
+    match (event, e) {
+        (
+            NoteEvent::NoteOn {
+                channel, voice_id, ..
+            },
+            Event::NoteOn { key, .. },
+        ) => {
+            let channel = channel.number().unwrap_or(0);
+            ids.note_on(key, voice_id.id(), channel);
+            mpe.note_on(channel, e, out)
+        }
+        (NoteEvent::NoteOn { channel, .. }, _) => {
+            mpe.note_on(channel.number().unwrap_or(0), e, out)
+        }
+        (NoteEvent::MidiPitchBend { channel, .. }, Event::PitchBend { value })
+            if mpe.pitch_bend(channel, value, out) => {}
+        (NoteEvent::MidiChannelPressure { channel, .. }, Event::ChannelPressure { value })
+            if mpe.pressure(channel, value, out) => {}
+        // Reset All Controllers on an MPE member channel: its
+        // notes' bend and pressure (the channel's controllers)
+        (NoteEvent::MidiCC { channel, .. }, Event::ResetControllers)
+            if mpe.reset_controllers(channel, out) => {}
+        _ => out.set_one(e),
+    }
+}
+
 /// The parameter of polyphonic modulation id `poly`.
 fn poly_param(params: &ModalContactParams, poly: u32) -> &FloatParam {
     match poly {
@@ -417,6 +453,68 @@ struct Modulated<'a> {
 }
 
 impl Modulated<'_> {
+    /// A host event that is no note's (`event`): polyphonic modulation
+    /// (docs/plugin.md, "Polyphonic modulation": a voice's offset, or the
+    /// parameter moved under every modulated voice), an MPE member
+    /// channel's timbre (the brightness of its notes) or another
+    /// controller. Whether it put events in `out` to play at its time.
+    /// \[audio-thread\]
+    fn control(
+        &self,
+        event: NoteEvent<()>,
+        ids: &mut voice_ids::VoiceIds,
+        mpe: &mut mpe::Mpe,
+        out: &mut mpe::Out,
+    ) -> bool {
+        // polyphonic modulation (docs/plugin.md, "Polyphonic
+        // modulation"): a voice's offset, or the parameter moved
+        // under every modulated voice
+        match event {
+            NoteEvent::PolyModulation {
+                voice_id,
+                poly_modulation_id: poly,
+                normalized_offset,
+                ..
+            } => {
+                self.params.variants_wanted.want(poly);
+                if let Some(key) = ids.modulate(voice_id, poly, normalized_offset) {
+                    let base = poly_param(self.params, poly).unmodulated_normalized_value();
+                    out.set_one(self.event(poly, key, base, normalized_offset));
+                    return true;
+                }
+                return false;
+            }
+            NoteEvent::MonoAutomation {
+                poly_modulation_id: poly,
+                normalized_value,
+                ..
+            } => {
+                out.clear();
+                for (key, off) in ids.modulated(poly) {
+                    out.push(self.event(poly, key, normalized_value, off));
+                }
+                return true;
+            }
+            _ => {}
+        }
+        if let NoteEvent::MidiCC {
+            channel, cc, value, ..
+        } = event
+        {
+            let placeholder = value == VST3_CC_PLACEHOLDER;
+            let value = (value.clamp(0.0, 1.0) * 127.0).round() as u8;
+            // (exactly 0.5 is the VST3 wrapper's placeholder, see
+            // `note_event`: a restored session's, not a timbre)
+            if cc == TIMBRE_CC && !placeholder && mpe.timbre(channel, f64::from(value) / 127.0, out)
+            {
+                // the brightness of the member channel's notes
+                return true;
+            }
+            mpe.controller(channel, cc, value);
+        }
+        false
+    }
+
     /// The instrument's event for a voice's modulation of parameter `poly`:
     /// the parameter at knob position `base + offset` against the played
     /// scene's value (docs/plugin.md, "Polyphonic modulation"). With Custom
@@ -678,13 +776,11 @@ impl Plugin for ModalContact {
 }
 
 impl ModalContact {
-    /// The body of `process` (see there). \[audio-thread\]
-    fn process_guarded(
-        &mut self,
-        buffer: &mut Buffer,
-        context: &mut impl ProcessContext<Self>,
-    ) -> ProcessStatus {
-        let mut play = self.params.play_params();
+    /// The Lookahead parameter's latency: with CLAP the instance plays
+    /// (in `play`) the lookahead it was activated with and asks the host
+    /// for a restart when the knob moved; else it reports the new latency.
+    /// \[audio-thread\]
+    fn follow_lookahead(&mut self, play: &mut PlayParams, context: &mut impl ProcessContext<Self>) {
         let wanted_lookahead = lookahead_samples(play.lookahead_s, self.rate_hz);
         if context.plugin_api() == PluginApi::Clap {
             // CLAP: the latency changes only in activate; the instance
@@ -702,6 +798,16 @@ impl ModalContact {
             // host only when it changed)
             context.set_latency_samples(wanted_lookahead as u32);
         }
+    }
+
+    /// The body of `process` (see there). \[audio-thread\]
+    fn process_guarded(
+        &mut self,
+        buffer: &mut Buffer,
+        context: &mut impl ProcessContext<Self>,
+    ) -> ProcessStatus {
+        let mut play = self.params.play_params();
+        self.follow_lookahead(&mut play, context);
         self.maybe_swap_and_request(play);
         let out = buffer.as_slice();
         let Some(inst) = self.instrument.as_mut() else {
@@ -747,55 +853,8 @@ impl ModalContact {
             }
             let event = context.next_event()?;
             let Some(e) = note_event(&event).and_then(|e| for_note_id(&event, e, ids)) else {
-                // polyphonic modulation (docs/plugin.md, "Polyphonic
-                // modulation"): a voice's offset, or the parameter moved
-                // under every modulated voice
-                match event {
-                    NoteEvent::PolyModulation {
-                        voice_id,
-                        poly_modulation_id: poly,
-                        normalized_offset,
-                        ..
-                    } => {
-                        params.variants_wanted.want(poly);
-                        if let Some(key) = ids.modulate(voice_id, poly, normalized_offset) {
-                            let base = poly_param(params, poly).unmodulated_normalized_value();
-                            out.set_one(modulated.event(poly, key, base, normalized_offset));
-                            (next, at) = (0, event.timing() as usize);
-                        }
-                        continue;
-                    }
-                    NoteEvent::MonoAutomation {
-                        poly_modulation_id: poly,
-                        normalized_value,
-                        ..
-                    } => {
-                        out.clear();
-                        for (key, off) in ids.modulated(poly) {
-                            out.push(modulated.event(poly, key, normalized_value, off));
-                        }
-                        (next, at) = (0, event.timing() as usize);
-                        continue;
-                    }
-                    _ => {}
-                }
-                if let NoteEvent::MidiCC {
-                    channel, cc, value, ..
-                } = event
-                {
-                    let placeholder = value == VST3_CC_PLACEHOLDER;
-                    let value = (value.clamp(0.0, 1.0) * 127.0).round() as u8;
-                    // (exactly 0.5 is the VST3 wrapper's placeholder, see
-                    // `note_event`: a restored session's, not a timbre)
-                    if cc == TIMBRE_CC
-                        && !placeholder
-                        && mpe.timbre(channel, f64::from(value) / 127.0, out)
-                    {
-                        // the brightness of the member channel's notes
-                        (next, at) = (0, event.timing() as usize);
-                        continue;
-                    }
-                    mpe.controller(channel, cc, value);
+                if modulated.control(event, ids, mpe, out) {
+                    (next, at) = (0, event.timing() as usize);
                 }
                 continue;
             };
@@ -812,32 +871,7 @@ impl ModalContact {
             if matches!(e, Event::NoteOn { key: 1, .. }) {
                 panic!("panic-bug: deliberate panic on note 1");
             }
-            match (event, e) {
-                (
-                    NoteEvent::NoteOn {
-                        channel, voice_id, ..
-                    },
-                    Event::NoteOn { key, .. },
-                ) => {
-                    let channel = channel.number().unwrap_or(0);
-                    ids.note_on(key, voice_id.id(), channel);
-                    mpe.note_on(channel, e, out)
-                }
-                (NoteEvent::NoteOn { channel, .. }, _) => {
-                    mpe.note_on(channel.number().unwrap_or(0), e, out)
-                }
-                (NoteEvent::MidiPitchBend { channel, .. }, Event::PitchBend { value })
-                    if mpe.pitch_bend(channel, value, out) => {}
-                (
-                    NoteEvent::MidiChannelPressure { channel, .. },
-                    Event::ChannelPressure { value },
-                ) if mpe.pressure(channel, value, out) => {}
-                // Reset All Controllers on an MPE member channel: its
-                // notes' bend and pressure (the channel's controllers)
-                (NoteEvent::MidiCC { channel, .. }, Event::ResetControllers)
-                    if mpe.reset_controllers(channel, out) => {}
-                _ => out.set_one(e),
-            }
+            translate(event, e, ids, mpe, out);
             (next, at) = (0, event.timing() as usize);
         });
         inst.process_events(pad_events.chain(events), left, right);

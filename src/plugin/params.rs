@@ -932,8 +932,8 @@ mod tests {
         let p = ModalContactParams::default();
         for s in PARAMS {
             let q = ptr(&p, s.id);
-            // SAFETY (all the unsafe calls of these tests): `q` points into
-            // `p`, which outlives it.
+            // SAFETY: `q` points at a parameter of `p`, which lives to the
+            // end of the loop body and is not moved meanwhile.
             unsafe {
                 assert_eq!(q.name(), s.name);
                 match s.kind {
@@ -999,6 +999,8 @@ mod tests {
             let last = (names.len() - 1) as f32;
             for (i, name) in names.iter().enumerate() {
                 let norm = i as f32 / last;
+                // SAFETY: `q` points at a parameter of `p`, which outlives
+                // the loop and is not moved.
                 unsafe {
                     assert_eq!(q.normalized_value_to_string(norm, true), *name);
                     assert_eq!(q.string_to_normalized_value(name), Some(norm), "{name}");
@@ -1010,6 +1012,8 @@ mod tests {
         let q = ptr(&p, ids::SCENE);
         let last = (presets::PRESETS.len() - 1) as f32;
         for (i, (_, title)) in presets::SHIPPED.iter().enumerate() {
+            // SAFETY: `q` points at the scene parameter of `p`, which
+            // outlives the loop and is not moved.
             unsafe {
                 assert_eq!(q.normalized_value_to_string(i as f32 / last, false), *title);
             }
@@ -1045,11 +1049,14 @@ mod tests {
             let ParamValue::String(stored) = &state.params[ids::SCENE] else {
                 panic!("stored as a string");
             };
+            // SAFETY: `e` points at the scene parameter of `p`, alive and
+            // not moved until the end of this iteration.
             assert!(unsafe { (*e).set_from_id(stored) }, "{id}");
             assert_eq!(p.scene_params().preset, index, "{id}");
             assert_eq!(presets::PRESETS[index].name, *id);
             assert_eq!(p.scene.to_string(), *title);
             // and saving it again stores the same string
+            // SAFETY: as above, `e` points into `p`, still alive.
             assert_eq!(unsafe { (*e).unmodulated_plain_id() }, Some(*id));
         }
         let mut state = full_state();
@@ -1181,6 +1188,8 @@ mod tests {
             let p = ModalContactParams::default();
             // with a custom strike position and damper, so that Strike
             // position and Damper count
+            // SAFETY: both pointers point at parameters of `p`, alive and
+            // not moved while they are used.
             unsafe {
                 ptr(&p, ids::STRIKE_CUSTOM)._internal_set_normalized_value(1.0);
                 ptr(&p, ids::DAMPER_CUSTOM)._internal_set_normalized_value(1.0);
@@ -1191,6 +1200,8 @@ mod tests {
         for s in PARAMS {
             let p = base();
             let q = ptr(&p, s.id);
+            // SAFETY: `q` points at a parameter of `p`, which lives to the
+            // end of the loop body and is not moved meanwhile.
             unsafe {
                 let now = q.unmodulated_normalized_value();
                 q._internal_set_normalized_value(if now < 0.5 { 1.0 } else { 0.0 });
@@ -1218,12 +1229,15 @@ mod tests {
         assert!(!p.damper_custom.value(), "a new instance plays the scene's");
         let before = p.scene_params();
         assert!(!before.damper_custom);
+        // SAFETY: the pointer points at a parameter of `p`, which outlives
+        // this statement.
         unsafe { ptr(&p, ids::DAMPER)._internal_set_normalized_value(0.9) };
         assert_eq!(
             p.scene_params(),
             before,
             "the knob moved, nothing to compile"
         );
+        // SAFETY: as above, a parameter of the living `p`.
         unsafe { ptr(&p, ids::DAMPER_CUSTOM)._internal_set_normalized_value(1.0) };
         let on = p.scene_params();
         assert!(on.damper_custom);
@@ -1247,6 +1261,8 @@ mod tests {
         same!(old.params[ids::DAMPER], ParamValue::F32(0.25));
         // what the plugin then plays: the saved damper
         let p = ModalContactParams::default();
+        // SAFETY: both pointers point at parameters of `p`, alive and not
+        // moved while they are used.
         unsafe {
             ptr(&p, ids::DAMPER)._internal_set_normalized_value(0.25);
             ptr(&p, ids::DAMPER_CUSTOM)._internal_set_normalized_value(1.0);

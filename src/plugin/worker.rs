@@ -34,7 +34,7 @@ use crate::instrument::{Instrument, PlayParams, Prepared, SceneParams, Stage};
 use atomic_float::AtomicF64;
 use crossbeam::queue::ArrayQueue;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -281,19 +281,7 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
         while let Some(old) = h.returned.pop() {
             drop(old);
         }
-        let mut newest: Option<CompileRequest> = None;
-        while let Some(r) = h.requests.pop() {
-            // an activation's first request is never dropped for a later
-            // parameter change: the later one follows it
-            if newest.is_some_and(|n| n.first.is_some() && r.first.is_none()) {
-                let _ = h.requests.push(r);
-                break;
-            }
-            if newest.is_none_or(|n| r.revision >= n.revision) {
-                newest = Some(r);
-            }
-        }
-        let Some(req) = newest else {
+        let Some(req) = newest_request(h) else {
             std::thread::park_timeout(Duration::from_millis(POLL_INTERVAL_MS));
             continue;
         };
@@ -318,24 +306,7 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         // an activation's first scene comes with its instrument, built
         // here (building one allocates)
-        let done = done.map(|(p, warnings)| {
-            let variants = p.scenes.variant_count();
-            // the whole scene follows a playable one, compiled with what
-            // that one used (a fallback's parameters, the generation of
-            // the user scene)
-            let upgrade = (!p.complete).then_some(CompileRequest {
-                params: p.params,
-                first: None,
-                stage: Stage::Full,
-                upgrade: true,
-                ..req
-            });
-            let delivery = match req.first {
-                Some(play) => Delivery::First(Box::new(Instrument::new(p, play))),
-                None => Delivery::Ready(p),
-            };
-            (delivery, warnings, variants, upgrade)
-        });
+        let done = done.map(|(p, warnings)| deliverable(p, warnings, &req));
         h.busy.store(false, Ordering::Release);
         let mut running = h.running.get();
         *running = None;
@@ -346,54 +317,111 @@ fn run(h: &Handoff, lib: &SceneLibrary) {
             drop(done);
             continue;
         }
-        match done {
-            Ok((delivery, warnings, variants, upgrade)) => {
-                // delivered under the lock: `cancel_through` drains after
-                // it, so nothing of a cancelled revision stays queued
-                match delivery {
-                    Delivery::First(inst) => publish(&h.first, inst),
-                    Delivery::Ready(p) => publish(&h.ready, p),
-                }
-                h.published_revision
-                    .fetch_max(req.revision, Ordering::AcqRel);
-                // queued behind any newer request: coalescing drops it
-                // when a parameter moved meanwhile (a full queue holds
-                // newer requests: it is dropped then too)
-                if let Some(u) = upgrade {
-                    let _ = h.requests.push(u);
-                }
-                drop(running);
-                for w in warnings {
-                    nice_plug::nice_log!("modal_contact: {w}");
-                }
-                if req.params.variants != Default::default() {
-                    nice_plug::nice_log!(
-                        "modal_contact: {variants} per-voice variant scenes (hardness, strike \
-                         position, damper levels for polyphonic modulation) compiled with the \
-                         scene in {ms:.0} ms",
-                    );
-                }
-                h.last_compile_ms.store(ms, Ordering::Relaxed);
-                h.compiles.fetch_add(1, Ordering::Relaxed);
+        answer(h, &req, done, running, ms);
+    }
+}
+
+/// The request to compile next: the newest queued, but never past an
+/// activation's first request (a later parameter change follows it).
+/// \[worker\]
+fn newest_request(h: &Handoff) -> Option<CompileRequest> {
+    let mut newest: Option<CompileRequest> = None;
+    while let Some(r) = h.requests.pop() {
+        // an activation's first request is never dropped for a later
+        // parameter change: the later one follows it
+        if newest.is_some_and(|n| n.first.is_some() && r.first.is_none()) {
+            let _ = h.requests.push(r);
+            break;
+        }
+        if newest.is_none_or(|n| r.revision >= n.revision) {
+            newest = Some(r);
+        }
+    }
+    newest
+}
+
+/// What a compile of `req` hands on: its delivery, its warnings, how many
+/// variant scenes it holds, and the request for the whole scene when it
+/// is only playable. \[worker\]
+type Outcome = (Delivery, Vec<String>, usize, Option<CompileRequest>);
+
+/// The [`Outcome`] of `p`, compiled for `req`. \[worker\]
+fn deliverable(p: Box<Prepared>, warnings: Vec<String>, req: &CompileRequest) -> Outcome {
+    let variants = p.scenes.variant_count();
+    // the whole scene follows a playable one, compiled with what
+    // that one used (a fallback's parameters, the generation of
+    // the user scene)
+    let upgrade = (!p.complete).then_some(CompileRequest {
+        params: p.params,
+        first: None,
+        stage: Stage::Full,
+        upgrade: true,
+        ..*req
+    });
+    let delivery = match req.first {
+        Some(play) => Delivery::First(Box::new(Instrument::new(p, play))),
+        None => Delivery::Ready(p),
+    };
+    (delivery, warnings, variants, upgrade)
+}
+
+/// Publish what the compile of `req` delivered (under the `running` lock,
+/// released here), or count and log its failure; `ms`: the compile's wall
+/// time. \[worker\]
+fn answer(
+    h: &Handoff,
+    req: &CompileRequest,
+    done: Result<Outcome, String>,
+    running: MutexGuard<'_, Option<(u64, Cancel)>>,
+    ms: f64,
+) {
+    match done {
+        Ok((delivery, warnings, variants, upgrade)) => {
+            // delivered under the lock: `cancel_through` drains after
+            // it, so nothing of a cancelled revision stays queued
+            match delivery {
+                Delivery::First(inst) => publish(&h.first, inst),
+                Delivery::Ready(p) => publish(&h.ready, p),
             }
-            Err(e) if req.upgrade => {
-                drop(running);
+            h.published_revision
+                .fetch_max(req.revision, Ordering::AcqRel);
+            // queued behind any newer request: coalescing drops it
+            // when a parameter moved meanwhile (a full queue holds
+            // newer requests: it is dropped then too)
+            if let Some(u) = upgrade {
+                let _ = h.requests.push(u);
+            }
+            drop(running);
+            for w in warnings {
+                nice_plug::nice_log!("modal_contact: {w}");
+            }
+            if req.params.variants != Default::default() {
                 nice_plug::nice_log!(
-                    "modal_contact: the variants of revision {} did not compile, the scene \
-                     plays without them: {e}",
-                    req.revision
+                    "modal_contact: {variants} per-voice variant scenes (hardness, strike \
+                     position, damper levels for polyphonic modulation) compiled with the \
+                     scene in {ms:.0} ms",
                 );
             }
-            Err(e) => {
-                drop(running);
-                h.failures.fetch_add(1, Ordering::Relaxed);
-                nice_plug::nice_log!(
-                    "modal_contact: compile of revision {} failed, keeping the last scene: {e}",
-                    req.revision
-                );
-                *h.last_error.get() = Some(e);
-                h.failed_revision.fetch_max(req.revision, Ordering::AcqRel);
-            }
+            h.last_compile_ms.store(ms, Ordering::Relaxed);
+            h.compiles.fetch_add(1, Ordering::Relaxed);
+        }
+        Err(e) if req.upgrade => {
+            drop(running);
+            nice_plug::nice_log!(
+                "modal_contact: the variants of revision {} did not compile, the scene \
+                 plays without them: {e}",
+                req.revision
+            );
+        }
+        Err(e) => {
+            drop(running);
+            h.failures.fetch_add(1, Ordering::Relaxed);
+            nice_plug::nice_log!(
+                "modal_contact: compile of revision {} failed, keeping the last scene: {e}",
+                req.revision
+            );
+            *h.last_error.get() = Some(e);
+            h.failed_revision.fetch_max(req.revision, Ordering::AcqRel);
         }
     }
 }

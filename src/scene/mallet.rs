@@ -20,11 +20,12 @@
 //! mallet's elastic modes (they are orthogonal to the rigid motion), so it
 //! stays on `x_h` alone.
 
-use super::{
-    check_max, check_min, check_non_negative, check_positive, ModalSpec, ModeSpec, ObjectSpec,
-    Scene, SceneError, MAX_FREQ_HZ, MAX_MASS_KG, MAX_MODES_PER_OBJECT, MAX_RAYLEIGH_ALPHA_PER_S,
-    MAX_RAYLEIGH_BETA_S, MAX_STIFFNESS_N_PER_M, MIN_FREQ_HZ, MIN_MASS_KG,
+use super::error::{check_max, check_min, check_non_negative, check_positive, SceneError};
+use super::limits::{
+    MAX_FREQ_HZ, MAX_MASS_KG, MAX_MODES_PER_OBJECT, MAX_RAYLEIGH_ALPHA_PER_S, MAX_RAYLEIGH_BETA_S,
+    MAX_STIFFNESS_N_PER_M, MIN_FREQ_HZ, MIN_MASS_KG,
 };
+use super::{ModalSpec, ModeSpec, ObjectSpec, Scene};
 use crate::bodies::chain::free_chain_modes;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -320,45 +321,8 @@ impl Scene {
         let (Some(c_idx), Some(t_idx)) = (c_idx, t_idx) else {
             return Err(SceneError::new("hammer.point", "not validated"));
         };
-        let renamed: Vec<String> = mallet
-            .points
-            .iter()
-            .map(|p| format!("{mname}.{p}"))
-            .collect();
-        let contact_point = format!("{cp} against {mname}.{tip}");
-        let mut points = struck.points.clone();
-        for p in renamed.iter().chain(std::iter::once(&contact_point)) {
-            if points.contains(p) {
-                return Err(SceneError::new(
-                    "hammer.point",
-                    format!(
-                        "the struck object {:?} already has a point {p:?}, the name the mallet's point takes when joined; rename one",
-                        struck.name
-                    ),
-                ));
-            }
-            points.push(p.clone());
-        }
-        let (np, nq) = (struck.points.len(), mallet.points.len());
-        let mut modes: Vec<ModeSpec> = Vec::with_capacity(total);
-        for m in &struck.mode {
-            let mut w = m.weights.clone();
-            w.resize(np + nq, 0.0);
-            w.push(m.weights[c_idx]);
-            modes.push(ModeSpec {
-                weights: w,
-                ..m.clone()
-            });
-        }
-        for m in &mallet.mode {
-            let mut w = vec![0.0; np];
-            w.extend_from_slice(&m.weights);
-            w.push(-m.weights[t_idx]);
-            modes.push(ModeSpec {
-                weights: w,
-                ..m.clone()
-            });
-        }
+        let (points, contact_point) = joined_points(&struck, &mallet, &mname, &cp, &tip)?;
+        let modes = joined_modes(&struck, &mallet, c_idx, t_idx);
         self.object[ci] = ObjectSpec::Modal(ModalSpec {
             name: struck.name.clone(),
             points,
@@ -375,4 +339,73 @@ impl Scene {
         self.hammer.point = None;
         Ok(())
     }
+}
+
+/// The points of the struck object (struck at `cp`) joined with the
+/// modal mallet `mname` (touching with `tip`): its own, the mallet's as
+/// `"<mallet>.<point>"`, then the contact point `"<cp> against
+/// <mallet>.<tip>"`, which is returned too; an error when one of the new
+/// names is taken.
+fn joined_points(
+    struck: &ModalSpec,
+    mallet: &ModalSpec,
+    mname: &str,
+    cp: &str,
+    tip: &str,
+) -> Result<(Vec<String>, String), SceneError> {
+    let renamed: Vec<String> = mallet
+        .points
+        .iter()
+        .map(|p| format!("{mname}.{p}"))
+        .collect();
+    let contact_point = format!("{cp} against {mname}.{tip}");
+    let mut points = struck.points.clone();
+    for p in renamed.iter().chain(std::iter::once(&contact_point)) {
+        if points.contains(p) {
+            return Err(SceneError::new(
+                "hammer.point",
+                format!(
+                    "the struck object {:?} already has a point {p:?}, the name the mallet's point takes when joined; rename one",
+                    struck.name
+                ),
+            ));
+        }
+        points.push(p.clone());
+    }
+    Ok((points, contact_point))
+}
+
+/// The modes of the struck object joined with a modal mallet, over the
+/// points of [`joined_points`]: the struck object's modes (zero on the
+/// mallet's points, the struck point's weight `c_idx` at the contact
+/// point), then the mallet's (zero on the struck object's points, minus
+/// its touching point's weight `t_idx` at the contact point).
+fn joined_modes(
+    struck: &ModalSpec,
+    mallet: &ModalSpec,
+    c_idx: usize,
+    t_idx: usize,
+) -> Vec<ModeSpec> {
+    let total = struck.mode.len() + mallet.mode.len();
+    let (np, nq) = (struck.points.len(), mallet.points.len());
+    let mut modes: Vec<ModeSpec> = Vec::with_capacity(total);
+    for m in &struck.mode {
+        let mut w = m.weights.clone();
+        w.resize(np + nq, 0.0);
+        w.push(m.weights[c_idx]);
+        modes.push(ModeSpec {
+            weights: w,
+            ..m.clone()
+        });
+    }
+    for m in &mallet.mode {
+        let mut w = vec![0.0; np];
+        w.extend_from_slice(&m.weights);
+        w.push(-m.weights[t_idx]);
+        modes.push(ModeSpec {
+            weights: w,
+            ..m.clone()
+        });
+    }
+    modes
 }

@@ -11,14 +11,14 @@
 //! only the modal object, so a physical object and its hand-expanded modal
 //! equivalent compile to the same thing.
 
+use super::error::{check_finite, check_non_negative, check_positive, SceneError};
+use super::limits::{MAX_FREQ_HZ, MAX_MODES_PER_OBJECT, MAX_WEIGHT, MIN_FREQ_HZ, MIN_T60_S};
 use super::{
-    check_finite, check_non_negative, check_positive, pressure_point, ListenerSpec, ModalSpec,
-    ModeSpec, SceneError, MAX_FREQ_HZ, MAX_MODES_PER_OBJECT, MAX_WEIGHT, MIN_FREQ_HZ, MIN_T60_S,
-    PRESSURE_REF_AREA_M2, PRESSURE_REF_OMEGA,
+    pressure_point, ListenerSpec, ModalSpec, ModeSpec, PRESSURE_REF_AREA_M2, PRESSURE_REF_OMEGA,
 };
 use crate::bodies::materials::{self, Material};
 use crate::bodies::radiation::{far_field, Direction, SOUND_SPEED_M_PER_S};
-use crate::bodies::resonator::Resonator;
+use crate::bodies::resonator::{ModeEffect, Resonator};
 use crate::bodies::shapes::{
     Bar, BeamSupport, LossModel, Membrane, Plate, PlateEdges, Point, Shape, ShapeMode, StiffString,
     Tube,
@@ -118,9 +118,9 @@ pub struct LossSpec {
 }
 
 /// Density of air \[kg/m^3\] (20 C) for [`plate_radiation_rate`].
-pub const RHO_AIR: f64 = 1.204;
+const RHO_AIR: f64 = 1.204;
 /// Speed of sound in air \[m/s\] (20 C) for [`plate_radiation_rate`].
-pub const C_AIR: f64 = 343.0;
+const C_AIR: f64 = 343.0;
 
 /// Decay rate \[1/s\] of a mode at `f` of a thin rectangular plate (sides
 /// `a`, `b`, areal density `rho_h`, flexural rigidity `d`) radiating into
@@ -808,75 +808,15 @@ impl<'a> PhysicalSpec<'a> {
         let loss = self.loss().model(eta);
         loss.validate().map_err(|e| shape_error(base, e))?;
         let limits = self.limits();
-        let max_freq = match limits.max_freq_hz {
-            Some(f) => {
-                check_positive(&format!("{base}.max_freq_hz"), f)?;
-                f.min(MAX_FREQ_HZ)
-            }
-            None => 0.5 * rate_hz,
-        };
-        let max_count = limits.max_modes.unwrap_or(MAX_MODES_PER_OBJECT);
-        if max_count == 0 || max_count > MAX_MODES_PER_OBJECT {
-            return Err(SceneError::new(
-                format!("{base}.max_modes"),
-                format!("must be in 1..={MAX_MODES_PER_OBJECT}, got {max_count}"),
-            ));
-        }
-        let points: Vec<(String, Point)> = self
-            .points()
-            .iter()
-            .map(|(n, p)| Ok((n.clone(), self.point(base, n, *p)?)))
-            .collect::<Result<_, SceneError>>()?;
-        if points.is_empty() {
-            return Err(SceneError::new(
-                format!("{base}.points"),
-                "name at least one point (the struck one)",
-            ));
-        }
-        // refuse before any work when the limits would list too many modes
-        if limits.max_modes.is_none() {
-            let estimate = mode_count_estimate(&shape, max_freq);
-            if estimate > 2.0 * MAX_MODES_PER_OBJECT as f64 {
-                return Err(SceneError::new(
-                    base.to_string(),
-                    format!(
-                        "about {estimate:.0} modes below {max_freq:.0} Hz, more than the limit of \
-                         {MAX_MODES_PER_OBJECT}: set `max_freq_hz` or `max_modes`"
-                    ),
-                ));
-            }
-        }
-        let modes = shape
-            .modes(max_freq, max_count + 1)
-            .map_err(|e| shape_error(base, e))?;
-        if modes.len() > max_count && limits.max_modes.is_none() {
-            return Err(SceneError::new(
-                base.to_string(),
-                format!(
-                    "more than {MAX_MODES_PER_OBJECT} modes below {max_freq:.0} Hz (about {:.0}): \
-                     set `max_freq_hz` or `max_modes`",
-                    mode_count_estimate(&shape, max_freq)
-                ),
-            ));
-        }
-        let modes: Vec<ShapeMode> = modes
-            .into_iter()
-            .take(max_count)
-            .filter(|m| m.freq_hz >= MIN_FREQ_HZ)
-            .collect();
-        if modes.is_empty() {
-            return Err(SceneError::new(
-                format!("{base}.max_freq_hz"),
-                format!(
-                    "no mode at or below {max_freq} Hz (the lowest is at {:.6e} Hz)",
-                    shape
-                        .modes(f64::INFINITY, 1)
-                        .ok()
-                        .and_then(|m| m.first().map(|m| m.freq_hz))
-                        .unwrap_or(f64::NAN)
-                ),
-            ));
-        }
+        let (max_freq, max_count) = mode_limits(base, &limits, rate_hz)?;
+        let points = self.named_points(base)?;
+        let modes = listed_modes(
+            base,
+            &shape,
+            max_freq,
+            max_count,
+            limits.max_modes.is_none(),
+        )?;
         let weight_scale = self.weight_scale(base, &shape)?;
         let mut mode = Vec::with_capacity(modes.len());
         let radiation = self.plate_radiation(base, &shape)?;
@@ -885,6 +825,13 @@ impl<'a> PhysicalSpec<'a> {
             .map(|m| m.freq_hz)
             .fold(f64::INFINITY, f64::min);
         let resonator = self.resonator(base, &shape, lowest)?;
+        let weighing = Weighing {
+            base,
+            shape: &shape,
+            weight_scale,
+            points: &points,
+            listeners,
+        };
         for (k, m) in modes.iter().enumerate() {
             // what the tube does to this mode ringing at its frequency
             let tube = match &resonator {
@@ -906,52 +853,8 @@ impl<'a> PhysicalSpec<'a> {
             // the tube's frequency shift (under 0.1 cent on the presets) is
             // not applied: the bar keeps the tuning its maker gave it
             let freq_hz = m.freq_hz;
-            let mut weights = Vec::with_capacity(points.len());
-            for (name, p) in &points {
-                let w = weight_scale
-                    * m.shape_at(*p).map_err(|e| {
-                        SceneError::new(format!("{base}.points.{name}"), e.to_string())
-                    })?;
-                if !(w.abs() <= MAX_WEIGHT) {
-                    return Err(SceneError::new(
-                        base.to_string(),
-                        format!(
-                            "mode {k} ({}) has weight {w:e} at point {name:?}: the object is too \
-                             light (an effective mass below 1e-12 kg)",
-                            m.label
-                        ),
-                    ));
-                }
-                weights.push(w);
-            }
-            for l in listeners {
-                let dir = Direction {
-                    polar_deg: l.polar_deg,
-                    azimuth_deg: l.azimuth_deg,
-                };
-                let (re, im) = far_field(&shape, m, dir, SOUND_SPEED_M_PER_S).map_err(|e| {
-                    SceneError::new(format!("{base}: listener {:?}", l.name), e.to_string())
-                })?;
-                // the tube's monopole beside the bar's own far field
-                let (re, im) = tube.map_or((re, im), |t| (re + t.far_field.0, im + t.far_field.1));
-                let r = m.omega() / PRESSURE_REF_OMEGA;
-                for w in [
-                    weight_scale * r * r * re / PRESSURE_REF_AREA_M2,
-                    weight_scale * r * im / PRESSURE_REF_AREA_M2,
-                ] {
-                    if !(w.abs() <= MAX_WEIGHT) {
-                        return Err(SceneError::new(
-                            base.to_string(),
-                            format!(
-                                "mode {k} ({}) radiates with weight {w:e} toward listener {:?}, \
-                                 beyond {MAX_WEIGHT:e}",
-                                m.label, l.name
-                            ),
-                        ));
-                    }
-                    weights.push(w);
-                }
-            }
+            let mut weights = weighing.at_points(k, m)?;
+            weighing.toward_listeners(k, m, tube, &mut weights)?;
             mode.push(ModeSpec {
                 freq_hz,
                 t60_s,
@@ -968,6 +871,22 @@ impl<'a> PhysicalSpec<'a> {
             points: names,
             mode,
         })
+    }
+
+    /// The object's named points as points of its shape (at least one).
+    fn named_points(&self, base: &str) -> Result<Vec<(String, Point)>, SceneError> {
+        let points: Vec<(String, Point)> = self
+            .points()
+            .iter()
+            .map(|(n, p)| Ok((n.clone(), self.point(base, n, *p)?)))
+            .collect::<Result<_, SceneError>>()?;
+        if points.is_empty() {
+            return Err(SceneError::new(
+                format!("{base}.points"),
+                "name at least one point (the struck one)",
+            ));
+        }
+        Ok(points)
     }
 
     /// A bar's resonator tube and the point over its axis; `lowest_hz`
@@ -1113,6 +1032,171 @@ impl<'a> PhysicalSpec<'a> {
             .ok()?
             .first()
             .map(|m| m.freq_hz)
+    }
+}
+
+/// The highest frequency and the most modes `limits` let an object list:
+/// `max_freq_hz` (at most [`MAX_FREQ_HZ`]) or the Nyquist frequency of
+/// `rate_hz`, and `max_modes` (1 ..= [`MAX_MODES_PER_OBJECT`]) or that
+/// limit. Errors name the field.
+fn mode_limits(base: &str, limits: &ModeLimits, rate_hz: f64) -> Result<(f64, usize), SceneError> {
+    let max_freq = match limits.max_freq_hz {
+        Some(f) => {
+            check_positive(&format!("{base}.max_freq_hz"), f)?;
+            f.min(MAX_FREQ_HZ)
+        }
+        None => 0.5 * rate_hz,
+    };
+    let max_count = limits.max_modes.unwrap_or(MAX_MODES_PER_OBJECT);
+    if max_count == 0 || max_count > MAX_MODES_PER_OBJECT {
+        return Err(SceneError::new(
+            format!("{base}.max_modes"),
+            format!("must be in 1..={MAX_MODES_PER_OBJECT}, got {max_count}"),
+        ));
+    }
+    Ok((max_freq, max_count))
+}
+
+/// The modes of `shape` up to `max_freq` Hz, at most `max_count`, without
+/// those below [`MIN_FREQ_HZ`]; `unlimited` (no `max_modes` given): an
+/// error before any work when the estimate is far above the limit, and
+/// when more than `max_count` modes lie below `max_freq`.
+fn listed_modes(
+    base: &str,
+    shape: &Shape,
+    max_freq: f64,
+    max_count: usize,
+    unlimited: bool,
+) -> Result<Vec<ShapeMode>, SceneError> {
+    // refuse before any work when the limits would list too many modes
+    if unlimited {
+        let estimate = mode_count_estimate(shape, max_freq);
+        if estimate > 2.0 * MAX_MODES_PER_OBJECT as f64 {
+            return Err(SceneError::new(
+                base.to_string(),
+                format!(
+                    "about {estimate:.0} modes below {max_freq:.0} Hz, more than the limit of \
+                     {MAX_MODES_PER_OBJECT}: set `max_freq_hz` or `max_modes`"
+                ),
+            ));
+        }
+    }
+    let modes = shape
+        .modes(max_freq, max_count + 1)
+        .map_err(|e| shape_error(base, e))?;
+    if modes.len() > max_count && unlimited {
+        return Err(SceneError::new(
+            base.to_string(),
+            format!(
+                "more than {MAX_MODES_PER_OBJECT} modes below {max_freq:.0} Hz (about {:.0}): \
+                 set `max_freq_hz` or `max_modes`",
+                mode_count_estimate(shape, max_freq)
+            ),
+        ));
+    }
+    let modes: Vec<ShapeMode> = modes
+        .into_iter()
+        .take(max_count)
+        .filter(|m| m.freq_hz >= MIN_FREQ_HZ)
+        .collect();
+    if modes.is_empty() {
+        return Err(SceneError::new(
+            format!("{base}.max_freq_hz"),
+            format!(
+                "no mode at or below {max_freq} Hz (the lowest is at {:.6e} Hz)",
+                shape
+                    .modes(f64::INFINITY, 1)
+                    .ok()
+                    .and_then(|m| m.first().map(|m| m.freq_hz))
+                    .unwrap_or(f64::NAN)
+            ),
+        ));
+    }
+    Ok(modes)
+}
+
+/// What each mode of one object is weighed at: its named points, and the
+/// listeners its pressure pickups name.
+struct Weighing<'a> {
+    /// The object's path in the scene, for errors.
+    base: &'a str,
+    /// The object's kind and geometry.
+    shape: &'a Shape,
+    /// What multiplies every mass-normalised shape (a tuned bar's
+    /// renormalisation, else 1).
+    weight_scale: f64,
+    /// The named points.
+    points: &'a [(String, Point)],
+    /// The listeners heard.
+    listeners: &'a [&'a ListenerSpec],
+}
+
+impl Weighing<'_> {
+    /// Mode `k`'s weight at each point, each within [`MAX_WEIGHT`].
+    fn at_points(&self, k: usize, m: &ShapeMode) -> Result<Vec<f64>, SceneError> {
+        let mut weights = Vec::with_capacity(self.points.len());
+        for (name, p) in self.points {
+            let w = self.weight_scale
+                * m.shape_at(*p).map_err(|e| {
+                    SceneError::new(format!("{}.points.{name}", self.base), e.to_string())
+                })?;
+            if !(w.abs() <= MAX_WEIGHT) {
+                return Err(SceneError::new(
+                    self.base.to_string(),
+                    format!(
+                        "mode {k} ({}) has weight {w:e} at point {name:?}: the object is too \
+                         light (an effective mass below 1e-12 kg)",
+                        m.label
+                    ),
+                ));
+            }
+            weights.push(w);
+        }
+        Ok(weights)
+    }
+
+    /// Mode `k`'s two weights toward each listener (its far field and the
+    /// tube's monopole, `tube`), appended to `weights`, each within
+    /// [`MAX_WEIGHT`].
+    fn toward_listeners(
+        &self,
+        k: usize,
+        m: &ShapeMode,
+        tube: Option<ModeEffect>,
+        weights: &mut Vec<f64>,
+    ) -> Result<(), SceneError> {
+        for l in self.listeners {
+            let dir = Direction {
+                polar_deg: l.polar_deg,
+                azimuth_deg: l.azimuth_deg,
+            };
+            let (re, im) = far_field(self.shape, m, dir, SOUND_SPEED_M_PER_S).map_err(|e| {
+                SceneError::new(
+                    format!("{}: listener {:?}", self.base, l.name),
+                    e.to_string(),
+                )
+            })?;
+            // the tube's monopole beside the bar's own far field
+            let (re, im) = tube.map_or((re, im), |t| (re + t.far_field.0, im + t.far_field.1));
+            let r = m.omega() / PRESSURE_REF_OMEGA;
+            for w in [
+                self.weight_scale * r * r * re / PRESSURE_REF_AREA_M2,
+                self.weight_scale * r * im / PRESSURE_REF_AREA_M2,
+            ] {
+                if !(w.abs() <= MAX_WEIGHT) {
+                    return Err(SceneError::new(
+                        self.base.to_string(),
+                        format!(
+                            "mode {k} ({}) radiates with weight {w:e} toward listener {:?}, \
+                             beyond {MAX_WEIGHT:e}",
+                            m.label, l.name
+                        ),
+                    ));
+                }
+                weights.push(w);
+            }
+        }
+        Ok(())
     }
 }
 

@@ -1,6 +1,6 @@
 //! Drawing the live view and the spectrum with egui's painter.
 
-use super::super::live::{LiveHistory, DECIMATION};
+use super::super::live::{LiveHistory, VoiceHistory, DECIMATION};
 use super::super::user_scene::{CompileReport, NoSpectrum};
 use egui::{self, pos2, Color32, Rect, Sense, Shape, Stroke};
 
@@ -21,7 +21,7 @@ fn voice_colour(v: usize) -> Color32 {
 }
 
 /// `C4` for 60.
-pub fn note_name(key: u8) -> String {
+pub(super) fn note_name(key: u8) -> String {
     const N: [&str; 12] = [
         "C", "C#", "D", "D#", "E", "F", "F#", "G", "G#", "A", "A#", "B",
     ];
@@ -39,15 +39,27 @@ fn frame(ui: &mut egui::Ui, height: f32, title: &str) -> (Rect, egui::Painter) {
 /// Hammer height and contact-point displacement of every sounding voice
 /// over the last 100 ms (contact intervals shaded), and the energy on a log
 /// scale.
-pub fn live_view(ui: &mut egui::Ui, h: &LiveHistory, rate_hz: f64, dropped: u64) {
+pub(super) fn live_view(ui: &mut egui::Ui, h: &LiveHistory, rate_hz: f64, dropped: u64) {
     let span = LiveHistory::span_groups(rate_hz) as f64;
     let now = h.now_group as f64;
     let x_of = |g: u64, r: &Rect| r.right() - ((now - g as f64) / span) as f32 * r.width();
     let voices: Vec<_> = h.sounding().collect();
+    motion_view(ui, &voices, &x_of, dropped);
+    energy_view(ui, &voices, &x_of);
+}
+
+/// The hammer and contact-point traces of `voices` (`x_of`: a group's
+/// abscissa in a rectangle), their contact intervals shaded.
+fn motion_view(
+    ui: &mut egui::Ui,
+    voices: &[(usize, &VoiceHistory)],
+    x_of: &impl Fn(u64, &Rect) -> f32,
+    dropped: u64,
+) {
     // common vertical scale: the contact points' largest excursion (a
     // hammer that flies off after its bounce leaves the picture)
     let mut m: f32 = 1e-9;
-    for (_, v) in &voices {
+    for (_, v) in voices {
         for p in &v.points {
             m = m.max(p.2.abs());
         }
@@ -64,31 +76,9 @@ pub fn live_view(ui: &mut egui::Ui, h: &LiveHistory, rate_hz: f64, dropped: u64)
         [pos2(r.left(), y_of(0.0)), pos2(r.right(), y_of(0.0))],
         Stroke::new(1.0, Color32::from_gray(70)),
     );
-    for (vi, v) in &voices {
+    for (vi, v) in voices {
         let c = voice_colour(*vi);
-        // contact intervals: one band per run of points in contact
-        let mut run: Option<u64> = None;
-        let mut last = 0;
-        for p in v
-            .points
-            .iter()
-            .chain(std::iter::once(&(u64::MAX, 0.0, 0.0, false)))
-        {
-            match (run, p.3) {
-                (None, true) => run = Some(p.0),
-                (Some(a), false) => {
-                    let b = last + 1;
-                    let band = Rect::from_x_y_ranges(
-                        x_of(a, &r)..=x_of(b, &r).min(r.right()),
-                        r.y_range(),
-                    );
-                    painter.rect_filled(band, 0.0, c.gamma_multiply(0.25));
-                    run = None;
-                }
-                _ => {}
-            }
-            last = p.0;
-        }
+        contact_bands(&painter, v, x_of, r, c);
         let hammer: Vec<_> = v
             .points
             .iter()
@@ -127,8 +117,45 @@ pub fn live_view(ui: &mut egui::Ui, h: &LiveHistory, rate_hz: f64, dropped: u64)
         egui::FontId::proportional(11.0),
         Color32::from_gray(160),
     );
+}
 
-    // energy, log scale: 90 dB below the largest shown
+/// Voice `v`'s contact intervals in `r`: one band of colour `c` per run
+/// of points in contact.
+fn contact_bands(
+    painter: &egui::Painter,
+    v: &VoiceHistory,
+    x_of: &impl Fn(u64, &Rect) -> f32,
+    r: Rect,
+    c: Color32,
+) {
+    let mut run: Option<u64> = None;
+    let mut last = 0;
+    for p in v
+        .points
+        .iter()
+        .chain(std::iter::once(&(u64::MAX, 0.0, 0.0, false)))
+    {
+        match (run, p.3) {
+            (None, true) => run = Some(p.0),
+            (Some(a), false) => {
+                let b = last + 1;
+                let band =
+                    Rect::from_x_y_ranges(x_of(a, &r)..=x_of(b, &r).min(r.right()), r.y_range());
+                painter.rect_filled(band, 0.0, c.gamma_multiply(0.25));
+                run = None;
+            }
+            _ => {}
+        }
+        last = p.0;
+    }
+}
+
+/// The energy of `voices`, log scale: 90 dB below the largest shown.
+fn energy_view(
+    ui: &mut egui::Ui,
+    voices: &[(usize, &VoiceHistory)],
+    x_of: &impl Fn(u64, &Rect) -> f32,
+) {
     let (r, painter) = frame(ui, 110.0, "Energy (log scale, 90 dB)");
     let e_max = voices
         .iter()
@@ -140,7 +167,7 @@ pub fn live_view(ui: &mut egui::Ui, h: &LiveHistory, rate_hz: f64, dropped: u64)
         let d = ((top - e.max(1e-300).log10()) / 9.0).clamp(0.0, 1.0);
         r.top() + d as f32 * r.height()
     };
-    for (vi, v) in &voices {
+    for (vi, v) in voices {
         let pts: Vec<_> = v
             .energy
             .iter()
@@ -165,7 +192,7 @@ pub fn live_view(ui: &mut egui::Ui, h: &LiveHistory, rate_hz: f64, dropped: u64)
 /// (log axes); kept modes in colour (a modal mallet's in orange), modes the
 /// compiler leaves out in grey, modes above the output band in red. Without
 /// modes, why: plainly for a lumped string or a wall, in red for an error.
-pub fn spectrum(ui: &mut egui::Ui, report: &CompileReport) {
+pub(super) fn spectrum(ui: &mut egui::Ui, report: &CompileReport) {
     let (r, painter) = frame(
         ui,
         120.0,
