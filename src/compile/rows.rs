@@ -193,7 +193,7 @@ mod tests {
 
     /// The free phase's event row is `-x_c` entry for entry, on every
     /// preset (the observed block path takes the contact point's motion in
-    /// flight from the engine's own event sums: src/engine/mod.rs,
+    /// flight from the engine's own event sums: src/engine/fast_path.rs,
     /// `run_kernel_rows`).
     #[test]
     fn free_event_row_is_minus_the_contact_row() {

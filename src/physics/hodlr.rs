@@ -10,7 +10,7 @@
 //! band is numerically of low rank: at 200 and 1000 modes every off-diagonal
 //! block of the bisection has rank 26-48 at the working precision. This
 //! module finds those ranks and stores the factors; the engine applies them
-//! with its SIMD kernels (`src/engine/kernel.rs`, `hodlr_mat_vec_add`).
+//! with its SIMD kernels (`src/engine/kernel/matvec.rs`, `hodlr_mat_vec_add`).
 //!
 //! Built on the compile worker (allocates); the truncation is controlled
 //! and measured: each block's discarded singular values are within
