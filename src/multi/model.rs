@@ -197,26 +197,40 @@ impl MultiModel {
 
     /// Check every field (a clear error naming it, never a panic).
     pub fn validate(&self) -> Result<(), MultiError> {
-        let n = self.n();
         let k = self.contacts.len();
         if k == 0 || k > MAX_CONTACTS {
             return Err(MultiError::ContactCount(k));
         }
-        let len = |field: &str, got: usize| {
-            if got == n {
-                Ok(())
-            } else {
-                Err(MultiError::Length {
-                    field: field.into(),
-                    got,
-                    want: n,
-                })
-            }
-        };
-        len("sigma", self.sigma.len())?;
+        self.validate_modes_and_pickups()?;
+        self.validate_masses()?;
+        for (j, c) in self.contacts.iter().enumerate() {
+            self.validate_contact(j, c)?;
+        }
+        Ok(())
+    }
+
+    /// `got` entries in `field`, one per mode, or a length error.
+    fn check_len(&self, field: &str, got: usize) -> Result<(), MultiError> {
+        let n = self.n();
+        if got == n {
+            Ok(())
+        } else {
+            Err(MultiError::Length {
+                field: field.into(),
+                got,
+                want: n,
+            })
+        }
+    }
+
+    /// The per-mode lists (frequencies, decay rates, pickup rows) and
+    /// gravity.
+    fn validate_modes_and_pickups(&self) -> Result<(), MultiError> {
+        let n = self.n();
+        self.check_len("sigma", self.sigma.len())?;
         for (c, (d, v)) in self.pickups.iter().enumerate() {
-            len(&format!("pickups[{c}].displacement"), d.len())?;
-            len(&format!("pickups[{c}].velocity"), v.len())?;
+            self.check_len(&format!("pickups[{c}].displacement"), d.len())?;
+            self.check_len(&format!("pickups[{c}].velocity"), v.len())?;
             for (i, x) in d.iter().chain(v).enumerate() {
                 check_value(&format!("pickups[{c}][{i}]"), *x, true)?;
             }
@@ -233,7 +247,12 @@ impl MultiModel {
             "gravity_m_per_s2",
             self.gravity_m_per_s2,
             self.gravity_m_per_s2 >= 0.0,
-        )?;
+        )
+    }
+
+    /// The point masses: how many, and each one's mass, height and
+    /// velocity.
+    fn validate_masses(&self) -> Result<(), MultiError> {
         // every mass can be in a contact: at most two per contact
         if self.masses.len() > 2 * MAX_CONTACTS {
             return Err(MultiError::Value {
@@ -247,61 +266,74 @@ impl MultiModel {
             check_value(&f("height_m"), m.height_m, true)?;
             check_value(&f("velocity_m_per_s"), m.velocity_m_per_s, true)?;
         }
-        for (j, c) in self.contacts.iter().enumerate() {
-            let f = |name: &str| format!("contacts[{j}].{name}");
-            let sides = |part: &'static str, why: String| MultiError::Sides {
-                contact: j,
-                part,
-                why,
-            };
-            check_value(
-                &f("stiffness_n_per_m"),
-                c.stiffness_n_per_m,
-                c.stiffness_n_per_m > 0.0,
-            )?;
-            check_value(
-                &f("damping_n_s_per_m"),
-                c.damping_n_s_per_m,
-                c.damping_n_s_per_m >= 0.0,
-            )?;
-            check_value(&f("gap_m"), c.gap_m, true)?;
-            for (name, e) in [("lower", &c.lower), ("upper", &c.upper)] {
-                match e {
-                    MultiEnd::Point(w) => {
-                        len(&f(&format!("{name}.weights")), w.len())?;
-                        for (i, x) in w.iter().enumerate() {
-                            check_value(&f(&format!("{name}.weights[{i}]")), *x, true)?;
-                        }
-                    }
-                    MultiEnd::Mass(m) if *m >= self.masses.len() => {
-                        return Err(sides(
-                            name,
-                            format!("{name} is mass {m}, there are {}", self.masses.len()),
-                        ));
-                    }
-                    MultiEnd::Mass(_) => {}
-                    MultiEnd::Wall(h) => check_value(&f(&format!("{name}.wall")), *h, true)?,
+        Ok(())
+    }
+
+    /// Contact `j`: its spring and damper, its two sides, its start apart
+    /// or touching, and no earlier contact on the same penetration.
+    fn validate_contact(&self, j: usize, c: &MultiContact) -> Result<(), MultiError> {
+        let f = |name: &str| format!("contacts[{j}].{name}");
+        let sides = |part: &'static str, why: String| MultiError::Sides {
+            contact: j,
+            part,
+            why,
+        };
+        check_value(
+            &f("stiffness_n_per_m"),
+            c.stiffness_n_per_m,
+            c.stiffness_n_per_m > 0.0,
+        )?;
+        check_value(
+            &f("damping_n_s_per_m"),
+            c.damping_n_s_per_m,
+            c.damping_n_s_per_m >= 0.0,
+        )?;
+        check_value(&f("gap_m"), c.gap_m, true)?;
+        for (name, e) in [("lower", &c.lower), ("upper", &c.upper)] {
+            self.validate_side(j, name, e)?;
+        }
+        if matches!((&c.lower, &c.upper), (MultiEnd::Wall(_), MultiEnd::Wall(_))) {
+            return Err(sides("upper", "two walls cannot touch".into()));
+        }
+        if c.lower == c.upper {
+            return Err(sides("upper", "a side in contact with itself".into()));
+        }
+        let p0 = self.rest_height(&c.lower) - self.rest_height(&c.upper) - c.gap_m;
+        if p0 > 0.0 {
+            return Err(sides(
+                "gap_m",
+                format!("starts {p0:e} m pressed in: its sides must start apart or touching"),
+            ));
+        }
+        if let Some(l) = self.contacts[..j]
+            .iter()
+            .position(|other| same_penetration(other, c))
+        {
+            return Err(MultiError::SamePoint(l, j));
+        }
+        Ok(())
+    }
+
+    /// Side `name` (`"lower"` or `"upper"`) of contact `j`: a point's
+    /// weights, a mass that exists, or a wall's height.
+    fn validate_side(&self, j: usize, name: &'static str, e: &MultiEnd) -> Result<(), MultiError> {
+        let f = |field: &str| format!("contacts[{j}].{field}");
+        match e {
+            MultiEnd::Point(w) => {
+                self.check_len(&f(&format!("{name}.weights")), w.len())?;
+                for (i, x) in w.iter().enumerate() {
+                    check_value(&f(&format!("{name}.weights[{i}]")), *x, true)?;
                 }
             }
-            if matches!((&c.lower, &c.upper), (MultiEnd::Wall(_), MultiEnd::Wall(_))) {
-                return Err(sides("upper", "two walls cannot touch".into()));
+            MultiEnd::Mass(m) if *m >= self.masses.len() => {
+                return Err(MultiError::Sides {
+                    contact: j,
+                    part: name,
+                    why: format!("{name} is mass {m}, there are {}", self.masses.len()),
+                });
             }
-            if c.lower == c.upper {
-                return Err(sides("upper", "a side in contact with itself".into()));
-            }
-            let p0 = self.rest_height(&c.lower) - self.rest_height(&c.upper) - c.gap_m;
-            if p0 > 0.0 {
-                return Err(sides(
-                    "gap_m",
-                    format!("starts {p0:e} m pressed in: its sides must start apart or touching"),
-                ));
-            }
-            if let Some(l) = self.contacts[..j]
-                .iter()
-                .position(|other| same_penetration(other, c))
-            {
-                return Err(MultiError::SamePoint(l, j));
-            }
+            MultiEnd::Mass(_) => {}
+            MultiEnd::Wall(h) => check_value(&f(&format!("{name}.wall")), *h, true)?,
         }
         Ok(())
     }
