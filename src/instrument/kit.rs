@@ -279,6 +279,55 @@ impl Kit {
     }
 }
 
+impl Kit {
+    /// The mallets a note on `key` throws on kit voice `idx`, one bit
+    /// each: on a pitched kit the voice's next mallet in turn (from the
+    /// first unless `same`, the voice already sounding this key), else the
+    /// key's mallets. \[audio-thread\]
+    fn mallets_for(&mut self, idx: usize, key: u8, same: bool) -> u8 {
+        if self.pitched {
+            let kv = &mut self.voices[idx];
+            if !same {
+                kv.next = 0;
+            }
+            let i = kv.next;
+            kv.next = (kv.next + 1) % self.mallets;
+            1u8 << i
+        } else {
+            self.keys[usize::from(key.min(127))]
+        }
+    }
+
+    /// Kit voice `idx`'s mallets in `which` thrown down at `speed` (m/s)
+    /// from `height` (m) for a note on `key`; a throw the state refuses is
+    /// counted. A throw restarts the silence test's references.
+    /// \[audio-thread\]
+    fn throw(&mut self, idx: usize, which: u8, key: u8, speed: f64, height: f64) {
+        let kv = &mut self.voices[idx];
+        let g = self.sc.model.gravity_m_per_s2;
+        // the model's units: a physical speed is `scale` times the model's
+        let v_model = speed / kv.st.time_scale();
+        let mut energy = 0.0;
+        for i in 0..self.mallets {
+            if which & (1 << i) == 0 {
+                continue;
+            }
+            if kv.st.strike(&self.sc, i, height, -v_model).is_ok() {
+                let m = self.sc.model.masses[i].mass_kg;
+                energy += 0.5 * m * v_model * v_model + m * g * height;
+                kv.last_key[i] = key;
+            } else {
+                self.refused += 1;
+            }
+        }
+        if energy > 0.0 {
+            // a new throw: the silence test's references start again
+            kv.strike_energy = energy;
+            kv.peak = 0.0;
+        }
+    }
+}
+
 /// Tick `st` `len` samples into `buf` with a linear gain ramp
 /// `g0 - k dg`, calling `look` on the state before each sample; false if a
 /// sample was not a number (the state then rests). \[audio-thread\]
@@ -341,22 +390,7 @@ impl Instrument {
         let idx = if !pitched {
             0
         } else {
-            // its key's voice, a free one while fewer than the limit
-            // sound, else the quietest (the voices that sound may be any:
-            // a lowered Polyphony ends the quietest, wherever they are)
-            let voices = &self.voices[..kits];
-            let own = voices.iter().position(|v| v.active && v.key == key);
-            let sounding = voices.iter().filter(|v| v.active).count();
-            let free = voices.iter().position(|v| !v.active);
-            match own.or(free.filter(|_| sounding < kits.min(poly))) {
-                Some(i) => i,
-                None => {
-                    self.stats.steals += 1;
-                    let mut among = [false; super::MAX_VOICES];
-                    (0..kits).for_each(|i| among[i] = self.voices[i].active);
-                    self.quietest(&among).unwrap_or(0)
-                }
-            }
+            self.pitched_kit_voice(key, kits, poly)
         };
         let v = self.voices[idx];
         let wake = !v.active || v.key != key && pitched;
@@ -368,83 +402,95 @@ impl Instrument {
         let Some(kit) = self.cur.kit.as_deref_mut() else {
             return;
         };
-        let which = if kit.pitched {
-            let kv = &mut kit.voices[idx];
-            let same = self.voices[idx].active && self.voices[idx].key == key;
-            if !same {
-                kv.next = 0;
-            }
-            let i = kv.next;
-            kv.next = (kv.next + 1) % kit.mallets;
-            1u8 << i
-        } else {
-            kit.keys[usize::from(key.min(127))]
-        };
+        let same = self.voices[idx].active && self.voices[idx].key == key;
+        let which = kit.mallets_for(idx, key, same);
         if which == 0 {
             return;
         }
-        let v = &mut self.voices[idx];
-        let kv = &mut kit.voices[idx];
         if wake {
-            // woken (or stolen) at rest, at the key's pitch and the bend
-            let base = if kit.pitched && tracking {
-                super::mapping::key_scale(key, root)
-            } else {
-                1.0
-            };
-            let scale = if kit.bouncing {
-                base
-            } else {
-                base * 2f64.powf(self.bend_now / 12.0)
-            };
-            if kv.st.set_time_scale(&kit.sc, scale).is_err() {
-                // (a key's scale and the bend are finite and positive; were
-                // they not, the voice would play at the scene's pitch)
-                let _ = kv.st.set_time_scale(&kit.sc, 1.0);
-            }
-            kv.st.rest(&kit.sc);
-            kv.peak = 0.0;
-            kv.interval_peak = 0.0;
-            if !v.active {
-                self.lanes.begin(idx, self.sample_pos);
-            }
-            v.active = true;
-            v.fresh = true;
-            v.base_scale = base;
-            v.tuning_now = 0.0;
-            v.tuning_target = 0.0;
+            self.wake_kit_voice(idx, key, tracking, root);
         } else {
-            // a new note on its ringing voice
-            v.fresh = false;
-            if v.tuning_target != 0.0 || v.tuning_now != 0.0 {
-                // a new note starts untuned (from where it is, gliding)
-                v.tuning_target = 0.0;
-                self.tuning_moving = true;
-            }
+            self.renote_kit_voice(idx);
         }
+        let v = &mut self.voices[idx];
         v.key = key;
         v.onset_pos = self.sample_pos;
+        let Some(kit) = self.cur.kit.as_deref_mut() else {
+            return;
+        };
         let height = if kit.bouncing { drop } else { 0.0 };
-        let g = kit.sc.model.gravity_m_per_s2;
-        // the model's units: a physical speed is `scale` times the model's
-        let v_model = speed / kv.st.time_scale();
-        let mut energy = 0.0;
-        for i in 0..kit.mallets {
-            if which & (1 << i) == 0 {
-                continue;
-            }
-            if kv.st.strike(&kit.sc, i, height, -v_model).is_ok() {
-                let m = kit.sc.model.masses[i].mass_kg;
-                energy += 0.5 * m * v_model * v_model + m * g * height;
-                kv.last_key[i] = key;
-            } else {
-                kit.refused += 1;
+        kit.throw(idx, which, key, speed, height);
+    }
+
+    /// The kit voice a note on `key` plays on a pitched kit of `kits`
+    /// voices: its key's voice, a free one while fewer than `poly` sound,
+    /// else the quietest (a steal, counted). \[audio-thread\]
+    fn pitched_kit_voice(&mut self, key: u8, kits: usize, poly: usize) -> usize {
+        // its key's voice, a free one while fewer than the limit
+        // sound, else the quietest (the voices that sound may be any:
+        // a lowered Polyphony ends the quietest, wherever they are)
+        let voices = &self.voices[..kits];
+        let own = voices.iter().position(|v| v.active && v.key == key);
+        let sounding = voices.iter().filter(|v| v.active).count();
+        let free = voices.iter().position(|v| !v.active);
+        match own.or(free.filter(|_| sounding < kits.min(poly))) {
+            Some(i) => i,
+            None => {
+                self.stats.steals += 1;
+                let mut among = [false; super::MAX_VOICES];
+                (0..kits).for_each(|i| among[i] = self.voices[i].active);
+                self.quietest(&among).unwrap_or(0)
             }
         }
-        if energy > 0.0 {
-            // a new throw: the silence test's references start again
-            kv.strike_energy = energy;
-            kv.peak = 0.0;
+    }
+
+    /// Kit voice `idx` woken (or stolen) at rest for a note on `key`, at
+    /// the key's pitch (with `tracking`, about `root`) and the bend.
+    /// \[audio-thread\]
+    fn wake_kit_voice(&mut self, idx: usize, key: u8, tracking: bool, root: f64) {
+        let Some(kit) = self.cur.kit.as_deref_mut() else {
+            return;
+        };
+        let v = &mut self.voices[idx];
+        let kv = &mut kit.voices[idx];
+        // woken (or stolen) at rest, at the key's pitch and the bend
+        let base = if kit.pitched && tracking {
+            super::mapping::key_scale(key, root)
+        } else {
+            1.0
+        };
+        let scale = if kit.bouncing {
+            base
+        } else {
+            base * 2f64.powf(self.bend_now / 12.0)
+        };
+        if kv.st.set_time_scale(&kit.sc, scale).is_err() {
+            // (a key's scale and the bend are finite and positive; were
+            // they not, the voice would play at the scene's pitch)
+            let _ = kv.st.set_time_scale(&kit.sc, 1.0);
+        }
+        kv.st.rest(&kit.sc);
+        kv.peak = 0.0;
+        kv.interval_peak = 0.0;
+        if !v.active {
+            self.lanes.begin(idx, self.sample_pos);
+        }
+        v.active = true;
+        v.fresh = true;
+        v.base_scale = base;
+        v.tuning_now = 0.0;
+        v.tuning_target = 0.0;
+    }
+
+    /// A new note on kit voice `idx` while it rings: it starts untuned.
+    fn renote_kit_voice(&mut self, idx: usize) {
+        let v = &mut self.voices[idx];
+        // a new note on its ringing voice
+        v.fresh = false;
+        if v.tuning_target != 0.0 || v.tuning_now != 0.0 {
+            // a new note starts untuned (from where it is, gliding)
+            v.tuning_target = 0.0;
+            self.tuning_moving = true;
         }
     }
 

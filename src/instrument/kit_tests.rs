@@ -770,51 +770,87 @@ fn a_stolen_kit_voice_fades_out_while_the_new_key_starts() {
 /// kit voice follows the wheel and its note's tuning while it fades.
 #[test]
 fn kit_voices_end_and_bend_as_voices_do() {
-    let fade = (FADE_S * RATE).round() as usize;
-    let n = 16_800;
-    let f = |x: &[Vec<f32>; 2], ch: usize, k: usize| f64::from(x[ch][k]);
-    let run = |scene: &Scene, poly: usize, events: &[TimedEvent]| {
-        let p = prepare_scene(scene, &SceneParams::default(), RATE, 0).unwrap();
-        let play = PlayParams {
-            gain_db: 0.0,
-            polyphony: poly,
-            ..PlayParams::default()
-        };
-        let mut inst = Instrument::new(p, play);
-        let mut ev = events.to_vec();
-        ev.sort_by_key(|e| e.offset);
-        let out = render(&mut inst, &ev, n);
-        (out, inst)
-    };
-    let check = |what: &str, y: &[Vec<f32>; 2], expect: &dyn Fn(usize, usize) -> f64, miss: f64| {
-        let (worst, tol) = worst_and_tol(y, expect);
-        println!("{what}: {worst:.2e} from the faded sum (tolerance {tol:.1e}), without the fade it would miss by {miss:.2e}");
-        assert!(
-            worst <= tol && miss > 100.0 * tol,
-            "{what}: {worst:e}, {miss:e}"
-        );
-    };
     let scene = two_mallets();
-    let t0 = 14_400;
-    let gain = |k: usize| steal_fade_gain(k, t0, fade);
     let notes = [on(0, 57, 0.9), on(500, 64, 0.3)];
-    let (both, _) = run(&scene, 4, &notes);
-    let (a, _) = run(&scene, 4, &notes[..1]);
-    let (b, _) = run(&scene, 4, &notes[1..]);
-    let ringing = |x: &[Vec<f32>; 2]| largest(x, t0 + fade..n, |_| 1.0);
+    let (both, _) = run_ending(&scene, 4, &notes);
+    let (a, _) = run_ending(&scene, 4, &notes[..1]);
+    let (b, _) = run_ending(&scene, 4, &notes[1..]);
+    kit_choke_and_all_sound_off_fade(&scene, &notes, [&a, &b, &both]);
+    kit_lowered_polyphony_fades(&scene, &notes, [&a, &b]);
+    stolen_kit_voice_bends(&scene, &notes, &a);
+    listed_kit_ends_by_choke_and_all_sound_off();
+}
 
-    let (y, inst) = run(
-        &scene,
+/// The samples rendered in [`kit_voices_end_and_bend_as_voices_do`].
+const ENDING_N: usize = 16_800;
+
+/// A kit voice's steal fade, in samples.
+fn ending_fade() -> usize {
+    (FADE_S * RATE).round() as usize
+}
+
+/// The moment the notes of the two-mallet kit are ended.
+const ENDING_T0: usize = 14_400;
+
+/// Sample `k` of channel `ch` of `x`.
+fn sample(x: &[Vec<f32>; 2], ch: usize, k: usize) -> f64 {
+    f64::from(x[ch][k])
+}
+
+/// `scene` played with Polyphony `poly` through `events` for
+/// [`ENDING_N`] samples: its output and the instrument.
+fn run_ending(scene: &Scene, poly: usize, events: &[TimedEvent]) -> ([Vec<f32>; 2], Instrument) {
+    let p = prepare_scene(scene, &SceneParams::default(), RATE, 0).unwrap();
+    let play = PlayParams {
+        gain_db: 0.0,
+        polyphony: poly,
+        ..PlayParams::default()
+    };
+    let mut inst = Instrument::new(p, play);
+    let mut ev = events.to_vec();
+    ev.sort_by_key(|e| e.offset);
+    let out = render(&mut inst, &ev, ENDING_N);
+    (out, inst)
+}
+
+/// `y` is `expect` within its tolerance, and without the fade it would
+/// miss by `miss`, far more.
+fn check_faded(what: &str, y: &[Vec<f32>; 2], expect: &dyn Fn(usize, usize) -> f64, miss: f64) {
+    let (worst, tol) = worst_and_tol(y, expect);
+    println!("{what}: {worst:.2e} from the faded sum (tolerance {tol:.1e}), without the fade it would miss by {miss:.2e}");
+    assert!(
+        worst <= tol && miss > 100.0 * tol,
+        "{what}: {worst:e}, {miss:e}"
+    );
+}
+
+/// How loud `x` still is after `t0` and a fade.
+fn ringing_after(x: &[Vec<f32>; 2], t0: usize) -> f64 {
+    largest(x, t0 + ending_fade()..ENDING_N, |_| 1.0)
+}
+
+/// A choke of a pitched kit's key fades that key's voice, All Sound Off
+/// fades both (`[a, b, both]`: the first note alone, the second alone,
+/// both).
+fn kit_choke_and_all_sound_off_fade(
+    scene: &Scene,
+    notes: &[TimedEvent; 2],
+    [a, b, both]: [&[Vec<f32>; 2]; 3],
+) {
+    let t0 = ENDING_T0;
+    let gain = |k: usize| steal_fade_gain(k, t0, ending_fade());
+    let (y, inst) = run_ending(
+        scene,
         4,
         &[&notes[..], &[at(t0, Event::Choke { key: Some(57) })]].concat(),
     );
     assert_eq!(inst.voice_keys()[..2], [None, Some(64)]);
     assert_eq!(inst.stats.voices_ended_faded, 1);
-    let expect = |ch, k| f(&b, ch, k) + gain(k) * f(&a, ch, k);
-    check("kit choke", &y, &expect, ringing(&a));
+    let expect = |ch, k| sample(b, ch, k) + gain(k) * sample(a, ch, k);
+    check_faded("kit choke", &y, &expect, ringing_after(a, t0));
 
-    let (y, inst) = run(
-        &scene,
+    let (y, inst) = run_ending(
+        scene,
         4,
         &[&notes[..], &[at(t0, Event::AllSoundOff)]].concat(),
     );
@@ -822,33 +858,48 @@ fn kit_voices_end_and_bend_as_voices_do() {
         (inst.active_voices(), inst.stats.voices_ended_faded),
         (0, 2)
     );
-    check(
+    check_faded(
         "kit all sound off",
         &y,
-        &|ch, k| gain(k) * f(&both, ch, k),
-        ringing(&both),
+        &|ch, k| gain(k) * sample(both, ch, k),
+        ringing_after(both, t0),
     );
+}
 
-    // Polyphony 4 -> 1: the quieter key (64) fades
-    let p = prepare_scene(&scene, &SceneParams::default(), RATE, 0).unwrap();
+/// Polyphony 4 -> 1: the quieter key (64) fades (`[a, b]`: each note
+/// alone).
+fn kit_lowered_polyphony_fades(
+    scene: &Scene,
+    notes: &[TimedEvent; 2],
+    [a, b]: [&[Vec<f32>; 2]; 2],
+) {
+    let t0 = ENDING_T0;
+    let gain = |k: usize| steal_fade_gain(k, t0, ending_fade());
+    let p = prepare_scene(scene, &SceneParams::default(), RATE, 0).unwrap();
     let play = PlayParams {
         gain_db: 0.0,
         polyphony: 4,
         ..PlayParams::default()
     };
     let mut inst = Instrument::new(p, play);
-    let [l0, r0] = render(&mut inst, &notes, t0);
+    let [l0, r0] = render(&mut inst, notes, t0);
     inst.set_play(PlayParams {
         polyphony: 1,
         ..play
     });
-    let [l1, r1] = render(&mut inst, &[], n - t0);
+    let [l1, r1] = render(&mut inst, &[], ENDING_N - t0);
     let y = [[l0, l1].concat(), [r0, r1].concat()];
     assert_eq!(inst.voice_keys()[..2], [Some(57), None]);
-    let expect = |ch, k| f(&a, ch, k) + gain(k) * f(&b, ch, k);
-    check("kit polyphony lowered", &y, &expect, ringing(&b));
+    let expect = |ch, k| sample(a, ch, k) + gain(k) * sample(b, ch, k);
+    check_faded("kit polyphony lowered", &y, &expect, ringing_after(b, t0));
+}
 
-    // a stolen kit voice bends and glides with its note's tuning
+/// A stolen kit voice bends and glides with its note's tuning (`a`: the
+/// first note alone).
+fn stolen_kit_voice_bends(scene: &Scene, notes: &[TimedEvent; 2], a: &[Vec<f32>; 2]) {
+    let t0 = ENDING_T0;
+    let fade = ending_fade();
+    let gain = |k: usize| steal_fade_gain(k, t0, fade);
     let moves = [
         at(t0, Event::PitchBend { value: -1.0 }),
         at(
@@ -859,50 +910,58 @@ fn kit_voices_end_and_bend_as_voices_do() {
             },
         ),
     ];
-    let (y, _) = run(
-        &scene,
+    let (y, _) = run_ending(
+        scene,
         1,
         &[&notes[..1], &[on(t0, 64, 0.3)], &moves[..]].concat(),
     );
-    let (a_moved, _) = run(&scene, 1, &[&notes[..1], &moves[..]].concat());
-    let (b_moved, _) = run(&scene, 1, &[&[on(t0, 64, 0.3)], &moves[..]].concat());
+    let (a_moved, _) = run_ending(scene, 1, &[&notes[..1], &moves[..]].concat());
+    let (b_moved, _) = run_ending(scene, 1, &[&[on(t0, 64, 0.3)], &moves[..]].concat());
     let deaf = (0..2)
         .flat_map(|ch| (t0..t0 + fade).map(move |k| (ch, k)))
-        .map(|(ch, k)| (gain(k) * (f(&a_moved, ch, k) - f(&a, ch, k))).abs())
+        .map(|(ch, k)| (gain(k) * (sample(&a_moved, ch, k) - sample(a, ch, k))).abs())
         .fold(0.0, f64::max);
-    let expect = |ch, k| gain(k) * f(&a_moved, ch, k) + f(&b_moved, ch, k);
-    check("stolen kit voice bent", &y, &expect, deaf);
+    let expect = |ch, k| gain(k) * sample(&a_moved, ch, k) + sample(&b_moved, ch, k);
+    check_faded("stolen kit voice bent", &y, &expect, deaf);
+}
 
-    // a kit of listed notes (its modes die in 0.15 s: end it early)
+/// A kit of listed notes (its modes die in 0.15 s: end it early) fades
+/// when its last note's key or every note is choked; a choke of another
+/// key leaves it.
+fn listed_kit_ends_by_choke_and_all_sound_off() {
     let listed = small_kit("notes = [60]", "notes = [62, 60]");
     let t0 = 2_400;
-    let gain = |k: usize| steal_fade_gain(k, t0, fade);
-    let ringing = |x: &[Vec<f32>; 2]| largest(x, t0 + fade..n, |_| 1.0);
-    let (a, _) = run(&listed, 16, &[on(0, 62, 0.8), on(100, 60, 0.8)]);
+    let gain = |k: usize| steal_fade_gain(k, t0, ending_fade());
+    let (a, _) = run_ending(&listed, 16, &[on(0, 62, 0.8), on(100, 60, 0.8)]);
     for key in [Some(60), None] {
         let ev = [
             on(0, 62, 0.8),
             on(100, 60, 0.8),
             at(t0, Event::Choke { key }),
         ];
-        let (y, inst) = run(&listed, 16, &ev);
+        let (y, inst) = run_ending(&listed, 16, &ev);
         assert_eq!(inst.active_voices(), 0);
         let what = format!("listed kit, choke of {key:?}");
-        check(&what, &y, &|ch, k| gain(k) * f(&a, ch, k), ringing(&a));
+        check_faded(
+            &what,
+            &y,
+            &|ch, k| gain(k) * sample(&a, ch, k),
+            ringing_after(&a, t0),
+        );
     }
     let ev = [
         on(0, 62, 0.8),
         on(100, 60, 0.8),
         at(t0, Event::Choke { key: Some(62) }),
     ];
-    let (y, _) = run(&listed, 16, &ev);
+    let (y, _) = run_ending(&listed, 16, &ev);
     assert!(y == a, "a choke of a key that is not its last note's");
     let ev = [on(0, 62, 0.8), on(100, 60, 0.8), at(t0, Event::AllSoundOff)];
-    let (y, _) = run(&listed, 16, &ev);
-    check(
+    let (y, _) = run_ending(&listed, 16, &ev);
+    check_faded(
         "listed kit, all sound off",
         &y,
-        &|ch, k| gain(k) * f(&a, ch, k),
-        ringing(&a),
+        &|ch, k| gain(k) * sample(&a, ch, k),
+        ringing_after(&a, t0),
     );
 }

@@ -73,44 +73,152 @@ impl Layout {
 
 impl MultiPhase {
     fn new(m: &MultiModel, mask: u32, h: f64) -> Result<Self, MultiError> {
-        let n = m.n();
-        let g = m.gravity_m_per_s2;
         let members: Vec<usize> = (0..m.contacts.len())
             .filter(|j| mask & (1 << j) != 0)
             .collect();
-        let bad = |why: String| MultiError::Phase { mask, why };
         let lay = Layout::new(m, &members);
-        let nz = n + lay.bound.len();
-        let sqm = |j: usize| m.masses[j].mass_kg.sqrt();
-        // each closed contact's row over z and constant: p = g . z + p0
-        let row_z = |e: &MultiEnd| -> (Vec<f64>, f64) {
-            let mut r = vec![0.0; nz];
-            match e {
-                MultiEnd::Point(w) => {
-                    r[..n].copy_from_slice(w);
-                    (r, 0.0)
-                }
-                MultiEnd::Mass(j) => {
-                    if let Some(b) = lay.place[*j] {
-                        r[n + b] = 1.0 / sqm(*j);
-                    }
-                    (r, 0.0)
-                }
-                MultiEnd::Wall(hw) => (r, *hw),
-            }
-        };
-        let contact_z = |c: usize| {
-            let ct = &m.contacts[c];
-            let (rl, cl) = row_z(&ct.lower);
-            let (ru, cu) = row_z(&ct.upper);
-            let r: Vec<f64> = rl.iter().zip(&ru).map(|(a, b)| a - b).collect();
-            (r, cl - cu - ct.gap_m)
-        };
-        let rows: Vec<(Vec<f64>, f64)> = members.iter().map(|&c| contact_z(c)).collect();
+        let rows = contact_rows_z(m, &lay, &members);
         let p0: Vec<f64> = rows.iter().map(|r| r.1).collect();
-        // the modes no closed contact touches keep their free 2x2 blocks
-        // (exactly, and degenerate modes need no eigenvectors); the others
-        // and the held masses are the coupled part, `zc`
+        let cp = CoupledPart::new(m, &lay, &rows);
+        let cf = CoupledForces::new(m, &lay, &members, &rows, &p0, &cp);
+        let cs = CoupledSystem::new(&cp, &cf, mask)?;
+        let blocks = CoupledBlocks::new(&cs.a, h, mask)?;
+        let kappa = blocks.kappa;
+        let eq = cs.equilibrium(&cp, &cf.rod_force, mask)?;
+        let w = WholePhase::new(m, &lay, &members, &cp, &cs, blocks, &eq);
+        let growth: Vec<f64> = w.gens.iter().map(|g| (sym_growth(g) * h).exp()).collect();
+        let growth_max = growth.iter().copied().fold(1.0, f64::max);
+        let phase_rows = PhaseRows {
+            m,
+            lay: &lay,
+            w: &w,
+        };
+        let er = phase_rows.events(&members, &p0);
+        let sides = phase_rows.sides();
+        let out = phase_rows.outputs();
+        // the entries of s the coupled part moves (the free modes' blocks
+        // are their own (omega q, q'))
+        let coupled: Vec<usize> = (0..cs.dimc).map(|c| w.smap(c)).collect();
+        let sp = SwitchProducts::new(m.n(), &lay, &members, &cp.cm, &w, &coupled);
+        let mut flyers: Vec<usize> = (0..m.masses.len())
+            .filter(|&j| lay.place[j].is_none())
+            .collect();
+        flyers.extend(lay.groups.iter().map(|grp| grp[0]));
+        let free_blocks: Vec<(usize, usize, usize)> = cp
+            .fm
+            .iter()
+            .enumerate()
+            .map(|(j, &i)| (i, w.nbc + j, w.nb + w.nbc + j))
+            .collect();
+        let forms = w.gens.iter().map(OscForm::of).collect();
+        Ok(Self {
+            members,
+            dim: w.dim,
+            forms,
+            ev_blocks: er.ev_blocks,
+            ev_nz: er.ev_nz,
+            evd_nz: er.evd_nz,
+            gens: w.gens,
+            qv0: sp.qv0,
+            pv0: sp.pv0,
+            zv0: sp.zv0,
+            qv: sp.qv,
+            pv: sp.pv,
+            zv: sp.zv,
+            qv_c: sp.qv_c,
+            qv_rows: sp.qv_rows,
+            pv_c: sp.pv_c,
+            pv_rows: sp.pv_rows,
+            zv_c: sp.zv_c,
+            bound_rows: (0..lay.bound.len()).collect(),
+            vq_c: sp.vq_c,
+            vp_c: sp.vp_c,
+            free_blocks,
+            s_star: sp.s_star,
+            bound: lay.bound,
+            place: lay.place,
+            groups: lay.groups,
+            fly_of: lay.fly_of,
+            flyers,
+            p0,
+            rod_s: w.rod_s,
+            ev: er.ev,
+            ev0: er.ev0,
+            ev_d: er.ev_d,
+            ev_c2: er.ev_c2,
+            ev_e: er.ev_e,
+            ev_fly: er.ev_fly,
+            sides,
+            coupled,
+            coupled_modes: cp.cm,
+            out_d: out.out_d,
+            out_d0: out.out_d0,
+            out_v: out.out_v,
+            out_v0: out.out_v0,
+            kappa,
+            growth: growth_max,
+        })
+    }
+}
+
+/// A phase that cannot be compiled, and why.
+fn phase_error(mask: u32, why: String) -> MultiError {
+    MultiError::Phase { mask, why }
+}
+
+/// Each closed contact's row over z and constant: `p = g . z + p0`.
+fn contact_rows_z(m: &MultiModel, lay: &Layout, members: &[usize]) -> Vec<(Vec<f64>, f64)> {
+    let n = m.n();
+    let nz = n + lay.bound.len();
+    let sqm = |j: usize| m.masses[j].mass_kg.sqrt();
+    let row_z = |e: &MultiEnd| -> (Vec<f64>, f64) {
+        let mut r = vec![0.0; nz];
+        match e {
+            MultiEnd::Point(w) => {
+                r[..n].copy_from_slice(w);
+                (r, 0.0)
+            }
+            MultiEnd::Mass(j) => {
+                if let Some(b) = lay.place[*j] {
+                    r[n + b] = 1.0 / sqm(*j);
+                }
+                (r, 0.0)
+            }
+            MultiEnd::Wall(hw) => (r, *hw),
+        }
+    };
+    let contact_z = |c: usize| {
+        let ct = &m.contacts[c];
+        let (rl, cl) = row_z(&ct.lower);
+        let (ru, cu) = row_z(&ct.upper);
+        let r: Vec<f64> = rl.iter().zip(&ru).map(|(a, b)| a - b).collect();
+        (r, cl - cu - ct.gap_m)
+    };
+    members.iter().map(|&c| contact_z(c)).collect()
+}
+
+/// The coupled part of a phase, `zc`: the modes a closed contact touches
+/// and the held masses; the modes no closed contact touches keep their
+/// free 2x2 blocks (exactly, and degenerate modes need no eigenvectors).
+struct CoupledPart {
+    /// The coupled modes.
+    cm: Vec<usize>,
+    /// The free modes.
+    fm: Vec<usize>,
+    /// Each coordinate of `zc` as a coordinate of z.
+    zc_of: Vec<usize>,
+    /// `zc`'s dimension.
+    nzc: usize,
+    /// The coupled part's dimension once each free group's centre is
+    /// taken out (P_c's columns).
+    nrc: usize,
+    /// P_c (`nzc` x `nrc`).
+    pc: DMatrix<f64>,
+}
+
+impl CoupledPart {
+    fn new(m: &MultiModel, lay: &Layout, rows: &[(Vec<f64>, f64)]) -> Self {
+        let n = m.n();
         let (cm, fm): (Vec<usize>, Vec<usize>) =
             (0..n).partition(|&i| rows.iter().any(|r| r.0[i] != 0.0));
         let zc_of: Vec<usize> = cm
@@ -119,50 +227,92 @@ impl MultiPhase {
             .chain((0..lay.bound.len()).map(|b| n + b))
             .collect();
         let nzc = zc_of.len();
-        // P_c: the identity but on each free group, where it is an
-        // orthonormal basis of the complement of the group's centre
-        // direction e (sqrt(m_j) / sqrt(M)): the columns of the Householder
-        // reflection that takes e to the group's first axis, but the first
         let nrc = nzc - lay.groups.len();
-        let mut pc = DMatrix::zeros(nzc, nrc);
-        let mut col = 0;
-        let at_zc = |zi: usize| zc_of.iter().position(|&x| x == zi).expect("coupled");
-        let mut in_group = vec![false; nzc];
-        for grp in &lay.groups {
-            for &j in grp {
-                in_group[at_zc(n + lay.place[j].expect("grouped masses are bound"))] = true;
-            }
+        let pc = coupled_basis(m, lay, &zc_of);
+        Self {
+            cm,
+            fm,
+            zc_of,
+            nzc,
+            nrc,
+            pc,
         }
-        for r in 0..nzc {
-            if !in_group[r] {
-                pc[(r, col)] = 1.0;
-                col += 1;
-            }
+    }
+}
+
+/// P_c: the identity but on each free group, where it is an orthonormal
+/// basis of the complement of the group's centre direction e (sqrt(m_j) /
+/// sqrt(M)): the columns of the Householder reflection that takes e to
+/// the group's first axis, but the first.
+fn coupled_basis(m: &MultiModel, lay: &Layout, zc_of: &[usize]) -> DMatrix<f64> {
+    let n = m.n();
+    let nzc = zc_of.len();
+    let nrc = nzc - lay.groups.len();
+    let mut pc = DMatrix::zeros(nzc, nrc);
+    let mut col = 0;
+    let at_zc = |zi: usize| zc_of.iter().position(|&x| x == zi).expect("coupled");
+    let mut in_group = vec![false; nzc];
+    for grp in &lay.groups {
+        for &j in grp {
+            in_group[at_zc(n + lay.place[j].expect("grouped masses are bound"))] = true;
         }
-        for grp in &lay.groups {
-            let total: f64 = grp.iter().map(|&j| m.masses[j].mass_kg).sum();
-            let idx: Vec<usize> = grp
-                .iter()
-                .map(|&j| at_zc(n + lay.place[j].expect("bound")))
-                .collect();
-            let e: Vec<f64> = grp
-                .iter()
-                .map(|&j| (m.masses[j].mass_kg / total).sqrt())
-                .collect();
-            // v = e + e_0 (e_0 > 0, no cancellation); H = I - 2 v v^T / |v|^2
-            let mut v = e.clone();
-            v[0] += 1.0;
-            let vv = dot(&v, &v);
-            for c in 1..grp.len() {
-                for (a, &ra) in idx.iter().enumerate() {
-                    let delta = if a == c { 1.0 } else { 0.0 };
-                    pc[(ra, col)] = delta - 2.0 * v[a] * v[c] / vv;
-                }
-                col += 1;
-            }
+    }
+    for r in 0..nzc {
+        if !in_group[r] {
+            pc[(r, col)] = 1.0;
+            col += 1;
         }
-        // F_c P_c with F_c = [diag(omega); sqrt(k_c) g_c^T] on zc, its QR;
-        // the damping and the constant forces on zc
+    }
+    for grp in &lay.groups {
+        let total: f64 = grp.iter().map(|&j| m.masses[j].mass_kg).sum();
+        let idx: Vec<usize> = grp
+            .iter()
+            .map(|&j| at_zc(n + lay.place[j].expect("bound")))
+            .collect();
+        let e: Vec<f64> = grp
+            .iter()
+            .map(|&j| (m.masses[j].mass_kg / total).sqrt())
+            .collect();
+        // v = e + e_0 (e_0 > 0, no cancellation); H = I - 2 v v^T / |v|^2
+        let mut v = e.clone();
+        v[0] += 1.0;
+        let vv = dot(&v, &v);
+        for c in 1..grp.len() {
+            for (a, &ra) in idx.iter().enumerate() {
+                let delta = if a == c { 1.0 } else { 0.0 };
+                pc[(ra, col)] = delta - 2.0 * v[a] * v[c] / vv;
+            }
+            col += 1;
+        }
+    }
+    pc
+}
+
+/// F_c = [diag(omega); sqrt(k_c) g_c^T] on zc, the damping and the
+/// constant forces on zc.
+struct CoupledForces {
+    /// F_c.
+    fc: DMatrix<f64>,
+    /// The damping on zc.
+    damping: DMatrix<f64>,
+    /// The constant forces on zc (the closed contacts' offsets, gravity).
+    force: Vec<f64>,
+    /// Per closed contact: the force per metre of a rod in it (on zc).
+    rod_force: Vec<Vec<f64>>,
+}
+
+impl CoupledForces {
+    fn new(
+        m: &MultiModel,
+        lay: &Layout,
+        members: &[usize],
+        rows: &[(Vec<f64>, f64)],
+        p0: &[f64],
+        cp: &CoupledPart,
+    ) -> Self {
+        let g = m.gravity_m_per_s2;
+        let sqm = |j: usize| m.masses[j].mass_kg.sqrt();
+        let (cm, zc_of, nzc) = (&cp.cm, &cp.zc_of, cp.nzc);
         let ncm = cm.len();
         let mut fc = DMatrix::zeros(ncm + members.len(), nzc);
         let mut damping = DMatrix::zeros(nzc, nzc);
@@ -171,7 +321,6 @@ impl MultiPhase {
             damping[(a, a)] = 2.0 * m.sigma[i];
         }
         let mut force = vec![0.0; nzc];
-        // per closed contact: the force per metre of a rod in it (on zc)
         let mut rod_force = vec![vec![0.0; nzc]; members.len()];
         for (pos, &c) in members.iter().enumerate() {
             let ct = &m.contacts[c];
@@ -191,10 +340,38 @@ impl MultiPhase {
         for (b, &j) in lay.bound.iter().enumerate() {
             force[ncm + b] -= g * sqm(j);
         }
+        Self {
+            fc,
+            damping,
+            force,
+            rod_force,
+        }
+    }
+}
+
+/// The coupled part's first-order system `y_c' = A y_c + f_y` in
+/// `y_c = [u_c; w_c]` (`u_c = R_c P_c^T zc`), from the QR of `F_c P_c`.
+struct CoupledSystem {
+    /// Q of the QR of `F_c P_c`.
+    qc: DMatrix<f64>,
+    /// `P_c R_c^-1`: zc per `u_c`.
+    zc: DMatrix<f64>,
+    /// A.
+    a: DMatrix<f64>,
+    /// f_y.
+    fy: Vec<f64>,
+    /// `y_c`'s dimension, `2 nrc`.
+    dimc: usize,
+}
+
+impl CoupledSystem {
+    fn new(cp: &CoupledPart, cf: &CoupledForces, mask: u32) -> Result<Self, MultiError> {
+        let bad = |why: String| phase_error(mask, why);
+        let (nrc, nzc, pc) = (cp.nrc, cp.nzc, &cp.pc);
         let (qc, rc) = if nrc == 0 {
-            (DMatrix::zeros(fc.nrows(), 0), DMatrix::zeros(0, 0))
+            (DMatrix::zeros(cf.fc.nrows(), 0), DMatrix::zeros(0, 0))
         } else {
-            let qr = (&fc * &pc).qr();
+            let qr = (&cf.fc * pc).qr();
             let (q, r) = (qr.q(), qr.r());
             let rmax = (0..nrc).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
             if (0..nrc).any(|i| !(r[(i, i)].abs() > rmax * 1e-15)) {
@@ -206,8 +383,8 @@ impl MultiPhase {
             .clone()
             .solve_upper_triangular(&DMatrix::identity(nrc, nrc))
             .ok_or_else(|| bad("its stiffness is singular".into()))?;
-        let zc = &pc * &rinv;
-        let dt = pc.transpose() * &damping * &pc;
+        let zc = pc * &rinv;
+        let dt = pc.transpose() * &cf.damping * pc;
         let dimc = 2 * nrc;
         let mut a = DMatrix::zeros(dimc, dimc);
         for i in 0..nrc {
@@ -219,23 +396,28 @@ impl MultiPhase {
         }
         let mut fy = vec![0.0; dimc];
         for i in 0..nrc {
-            fy[nrc + i] = (0..nzc).map(|a| pc[(a, i)] * force[a]).sum();
+            fy[nrc + i] = (0..nzc).map(|a| pc[(a, i)] * cf.force[a]).sum();
         }
-        let (gens_c, vc, vinvc, kappa) = if dimc == 0 {
-            (vec![], DMatrix::zeros(0, 0), DMatrix::zeros(0, 0), 1.0)
-        } else {
-            let d = decompose_via(&a, h, None, true).map_err(|e| bad(e.to_string()))?;
-            let Form::Blocks { gens } = d.form else {
-                return Err(bad(format!(
-                    "no block form ({})",
-                    d.diag.fallback_reason.unwrap_or_default()
-                )));
-            };
-            (gens, d.v, d.vinv, d.diag.kappa)
-        };
-        // the equilibrium `A y* + f = 0`, and per closed contact its move
-        // per metre of a rod
-        let lu = (dimc > 0).then(|| a.clone().lu());
+        Ok(Self {
+            qc,
+            zc,
+            a,
+            fy,
+            dimc,
+        })
+    }
+
+    /// The equilibrium `A y* + f = 0`, and per closed contact its move
+    /// per metre of a rod (`rod_force`).
+    fn equilibrium(
+        &self,
+        cp: &CoupledPart,
+        rod_force: &[Vec<f64>],
+        mask: u32,
+    ) -> Result<Equilibrium, MultiError> {
+        let bad = |why: String| phase_error(mask, why);
+        let (dimc, nrc, nzc, pc) = (self.dimc, cp.nrc, cp.nzc, &cp.pc);
+        let lu = (dimc > 0).then(|| self.a.clone().lu());
         let solve = |f: &[f64], why: &str| -> Result<Vec<f64>, MultiError> {
             if f.iter().all(|x| *x == 0.0) {
                 return Ok(vec![0.0; dimc]);
@@ -247,133 +429,363 @@ impl MultiPhase {
                 .ok_or_else(|| bad(why.into()))?;
             Ok(y.iter().copied().collect())
         };
-        let yc_star = solve(&fy, "no equilibrium under gravity")?;
-        let mut rod_yc = Vec::with_capacity(members.len());
-        for rf in &rod_force {
+        let yc_star = solve(&self.fy, "no equilibrium under gravity")?;
+        let mut rod_yc = Vec::with_capacity(rod_force.len());
+        for rf in rod_force {
             let mut f = vec![0.0; dimc];
             for i in 0..nrc {
                 f[nrc + i] = (0..nzc).map(|a| pc[(a, i)] * rf[a]).sum();
             }
             rod_yc.push(solve(&f, "no equilibrium with an offset rod")?);
         }
-        // the whole phase: y = [u_c, u_free; w_c, w_free], the free modes'
-        // u = omega q and w = q'; s = [first components of the coupled
-        // blocks, of the free blocks; second components of each]
-        let nr = nrc + fm.len();
+        Ok(Equilibrium { yc_star, rod_yc })
+    }
+}
+
+/// The coupled part's equilibrium and its moves.
+struct Equilibrium {
+    /// y_c* (`A y_c* + f_y = 0`).
+    yc_star: Vec<f64>,
+    /// Per closed contact: y_c*'s move per metre of a rod in it.
+    rod_yc: Vec<Vec<f64>>,
+}
+
+/// The coupled part's block decomposition `A = V blocks V^-1`.
+struct CoupledBlocks {
+    /// The blocks' generators.
+    gens: Vec<Mat2>,
+    /// V.
+    v: DMatrix<f64>,
+    /// V^-1.
+    vinv: DMatrix<f64>,
+    /// V's condition number.
+    kappa: f64,
+}
+
+impl CoupledBlocks {
+    fn new(a: &DMatrix<f64>, h: f64, mask: u32) -> Result<Self, MultiError> {
+        let bad = |why: String| phase_error(mask, why);
+        if a.nrows() == 0 {
+            return Ok(Self {
+                gens: vec![],
+                v: DMatrix::zeros(0, 0),
+                vinv: DMatrix::zeros(0, 0),
+                kappa: 1.0,
+            });
+        }
+        let d = decompose_via(a, h, None, true).map_err(|e| bad(e.to_string()))?;
+        let Form::Blocks { gens } = d.form else {
+            return Err(bad(format!(
+                "no block form ({})",
+                d.diag.fallback_reason.unwrap_or_default()
+            )));
+        };
+        Ok(Self {
+            gens,
+            v: d.v,
+            vinv: d.vinv,
+            kappa: d.diag.kappa,
+        })
+    }
+}
+
+/// The whole phase: `y = [u_c, u_free; w_c, w_free]`, the free modes'
+/// `u = omega q` and `w = q'`; `s = [first components of the coupled
+/// blocks, of the free blocks; second components of each]`.
+struct WholePhase {
+    /// `u`'s dimension.
+    nr: usize,
+    /// The state's dimension, `2 nr`.
+    dim: usize,
+    /// The coupled part's `u` dimension.
+    nrc: usize,
+    /// The coupled blocks.
+    nbc: usize,
+    /// All blocks.
+    nb: usize,
+    /// Every block's generator, the coupled ones first.
+    gens: Vec<Mat2>,
+    /// V.
+    v: DMatrix<f64>,
+    /// V^-1.
+    vinv: DMatrix<f64>,
+    /// The equilibrium y*.
+    y_star: Vec<f64>,
+    /// Per closed contact: the equilibrium's move per metre of a rod, in s.
+    rod_s: Vec<Vec<f64>>,
+    /// z per `w` (z' = P w).
+    p: DMatrix<f64>,
+    /// z per `u`.
+    z_of_u: DMatrix<f64>,
+    /// The modes' and closed contacts' rows per `u` (Q).
+    q: DMatrix<f64>,
+}
+
+impl WholePhase {
+    fn new(
+        m: &MultiModel,
+        lay: &Layout,
+        members: &[usize],
+        cp: &CoupledPart,
+        cs: &CoupledSystem,
+        blocks: CoupledBlocks,
+        eq: &Equilibrium,
+    ) -> Self {
+        let (nrc, dimc) = (cp.nrc, cs.dimc);
+        let nr = nrc + cp.fm.len();
         let dim = 2 * nr;
-        let nbc = gens_c.len();
-        let nb = nbc + fm.len();
-        let ymap = |r: usize| if r < nrc { r } else { nr + r - nrc };
-        let smap = |c: usize| if c < nbc { c } else { nb + c - nbc };
-        let mut gens = gens_c;
-        let (mut v, mut vinv) = (DMatrix::zeros(dim, dim), DMatrix::zeros(dim, dim));
+        let nbc = blocks.gens.len();
+        let nb = nbc + cp.fm.len();
+        let mut w = Self {
+            nr,
+            dim,
+            nrc,
+            nbc,
+            nb,
+            gens: blocks.gens,
+            v: DMatrix::zeros(dim, dim),
+            vinv: DMatrix::zeros(dim, dim),
+            y_star: vec![0.0; dim],
+            rod_s: vec![],
+            p: DMatrix::zeros(0, 0),
+            z_of_u: DMatrix::zeros(0, 0),
+            q: DMatrix::zeros(0, 0),
+        };
         for r in 0..dimc {
             for c in 0..dimc {
-                v[(ymap(r), smap(c))] = vc[(r, c)];
-                vinv[(smap(r), ymap(c))] = vinvc[(r, c)];
+                let (yr, sc) = (w.ymap(r), w.smap(c));
+                let (sr, yc) = (w.smap(r), w.ymap(c));
+                w.v[(yr, sc)] = blocks.v[(r, c)];
+                w.vinv[(sr, yc)] = blocks.vinv[(r, c)];
             }
         }
-        let mut y_star = vec![0.0; dim];
-        for (r, y) in yc_star.iter().enumerate() {
-            y_star[ymap(r)] = *y;
+        for (r, y) in eq.yc_star.iter().enumerate() {
+            let yr = w.ymap(r);
+            w.y_star[yr] = *y;
         }
         // V^-1 on the coupled part only (a constant force leaves the free
         // modes alone)
-        let rod_s: Vec<Vec<f64>> = rod_yc
+        w.rod_s = eq
+            .rod_yc
             .iter()
             .map(|yc| {
                 let mut rs = vec![0.0; dim];
                 for r in 0..dimc {
-                    rs[smap(r)] = (0..dimc).map(|c| vinvc[(r, c)] * yc[c]).sum();
+                    rs[w.smap(r)] = (0..dimc).map(|c| blocks.vinv[(r, c)] * yc[c]).sum();
                 }
                 rs
             })
             .collect();
+        w.place_coordinates(m, lay, members, cp, cs);
+        w.add_free_blocks(m, cp);
+        w
+    }
+
+    /// `y`'s index of the coupled part's `y_c[r]`.
+    fn ymap(&self, r: usize) -> usize {
+        if r < self.nrc {
+            r
+        } else {
+            self.nr + r - self.nrc
+        }
+    }
+
+    /// `s`'s index of the coupled part's `s_c[c]`.
+    fn smap(&self, c: usize) -> usize {
+        if c < self.nbc {
+            c
+        } else {
+            self.nb + c - self.nbc
+        }
+    }
+
+    /// P, z per `u` and Q: the coupled part's, and the free modes' own.
+    fn place_coordinates(
+        &mut self,
+        m: &MultiModel,
+        lay: &Layout,
+        members: &[usize],
+        cp: &CoupledPart,
+        cs: &CoupledSystem,
+    ) {
+        let (n, nr, nrc) = (m.n(), self.nr, cp.nrc);
+        let nz = n + lay.bound.len();
+        let ncm = cp.cm.len();
         let mut p = DMatrix::zeros(nz, nr);
         let mut z_of_u = DMatrix::zeros(nz, nr);
         let mut q = DMatrix::zeros(n + members.len(), nr);
-        for (r, &zi) in zc_of.iter().enumerate() {
+        for (r, &zi) in cp.zc_of.iter().enumerate() {
             for c in 0..nrc {
-                p[(zi, c)] = pc[(r, c)];
-                z_of_u[(zi, c)] = zc[(r, c)];
+                p[(zi, c)] = cp.pc[(r, c)];
+                z_of_u[(zi, c)] = cs.zc[(r, c)];
             }
         }
-        for r in 0..qc.nrows() {
-            let row = if r < ncm { cm[r] } else { n + r - ncm };
+        for r in 0..cs.qc.nrows() {
+            let row = if r < ncm { cp.cm[r] } else { n + r - ncm };
             for c in 0..nrc {
-                q[(row, c)] = qc[(r, c)];
+                q[(row, c)] = cs.qc[(r, c)];
             }
         }
-        for (j, &i) in fm.iter().enumerate() {
+        for (j, &i) in cp.fm.iter().enumerate() {
             let w = two_pi() * m.freq_hz[i];
-            gens.push([0.0, w, -w, -2.0 * m.sigma[i]]);
-            v[(nrc + j, nbc + j)] = 1.0;
-            v[(nr + nrc + j, nb + nbc + j)] = 1.0;
-            vinv[(nbc + j, nrc + j)] = 1.0;
-            vinv[(nb + nbc + j, nr + nrc + j)] = 1.0;
             p[(i, nrc + j)] = 1.0;
             z_of_u[(i, nrc + j)] = 1.0 / w;
             q[(i, nrc + j)] = 1.0;
         }
-        let growth: Vec<f64> = gens.iter().map(|g| (sym_growth(g) * h).exp()).collect();
-        let growth_max = growth.iter().copied().fold(1.0, f64::max);
-        let nb = gens.len();
-        // a side's position: a row over y, a constant and a flight; a
-        // point's modes through Q's rows (`q_i = (Q u)_i / omega_i`, an
-        // orthonormal basis), a held mass through `Z`
-        let side_y = |e: &MultiEnd| -> (Vec<f64>, f64, Option<usize>) {
-            let mut pos = vec![0.0; dim];
-            match e {
-                MultiEnd::Point(w) => {
-                    for (c, x) in pos.iter_mut().enumerate().take(nr) {
-                        *x = (0..n)
-                            .map(|i| w[i] * q[(i, c)] / (two_pi() * m.freq_hz[i]))
-                            .sum();
-                    }
-                    (pos, 0.0, None)
+        (self.p, self.z_of_u, self.q) = (p, z_of_u, q);
+    }
+
+    /// The free modes' blocks, generators and (unit) columns of V and
+    /// V^-1.
+    fn add_free_blocks(&mut self, m: &MultiModel, cp: &CoupledPart) {
+        let (nr, nrc, nbc, nb) = (self.nr, self.nrc, self.nbc, self.nb);
+        for (j, &i) in cp.fm.iter().enumerate() {
+            let w = two_pi() * m.freq_hz[i];
+            self.gens.push([0.0, w, -w, -2.0 * m.sigma[i]]);
+            self.v[(nrc + j, nbc + j)] = 1.0;
+            self.v[(nr + nrc + j, nb + nbc + j)] = 1.0;
+            self.vinv[(nbc + j, nrc + j)] = 1.0;
+            self.vinv[(nb + nbc + j, nr + nrc + j)] = 1.0;
+        }
+    }
+}
+
+/// The event rows of a phase's contacts (every contact, closed or open).
+struct EventRows {
+    ev: Vec<Vec<f64>>,
+    ev0: Vec<f64>,
+    ev_d: Vec<Vec<f64>>,
+    ev_c2: Vec<Vec<f64>>,
+    ev_e: Vec<Vec<f64>>,
+    ev_fly: Vec<(Option<usize>, Option<usize>)>,
+    ev_blocks: Vec<Vec<usize>>,
+    ev_nz: Vec<Vec<usize>>,
+    evd_nz: Vec<Vec<usize>>,
+}
+
+/// The two channels' output rows over s and constants.
+struct OutputRows {
+    out_d: [Vec<f64>; 2],
+    out_d0: [f64; 2],
+    out_v: [Vec<f64>; 2],
+    out_v0: [f64; 2],
+}
+
+/// What a phase's rows over s are made from: the model, the phase's
+/// layout and its whole coordinates.
+struct PhaseRows<'a> {
+    m: &'a MultiModel,
+    lay: &'a Layout,
+    w: &'a WholePhase,
+}
+
+impl PhaseRows<'_> {
+    /// A side's position: a row over y, a constant and a flight; a point's
+    /// modes through Q's rows (`q_i = (Q u)_i / omega_i`, an orthonormal
+    /// basis), a held mass through `Z`.
+    fn side_y(&self, e: &MultiEnd) -> (Vec<f64>, f64, Option<usize>) {
+        let (m, lay, n, nr) = (self.m, self.lay, self.m.n(), self.w.nr);
+        let sqm = |j: usize| m.masses[j].mass_kg.sqrt();
+        let (q, z_of_u) = (&self.w.q, &self.w.z_of_u);
+        let mut pos = vec![0.0; self.w.dim];
+        match e {
+            MultiEnd::Point(w) => {
+                for (c, x) in pos.iter_mut().enumerate().take(nr) {
+                    *x = (0..n)
+                        .map(|i| w[i] * q[(i, c)] / (two_pi() * m.freq_hz[i]))
+                        .sum();
                 }
-                MultiEnd::Mass(j) => match lay.place[*j] {
-                    Some(b) => {
-                        for (c, x) in pos.iter_mut().enumerate().take(nr) {
-                            *x = z_of_u[(n + b, c)] / sqm(*j);
-                        }
-                        (pos, 0.0, lay.fly_of[*j])
-                    }
-                    None => (pos, 0.0, Some(*j)),
-                },
-                MultiEnd::Wall(hw) => (pos, *hw, None),
+                (pos, 0.0, None)
             }
-        };
+            MultiEnd::Mass(j) => match lay.place[*j] {
+                Some(b) => {
+                    for (c, x) in pos.iter_mut().enumerate().take(nr) {
+                        *x = z_of_u[(n + b, c)] / sqm(*j);
+                    }
+                    (pos, 0.0, lay.fly_of[*j])
+                }
+                None => (pos, 0.0, Some(*j)),
+            },
+            MultiEnd::Wall(hw) => (pos, *hw, None),
+        }
+    }
+
+    /// A side's velocity straight from s (the trace): a row over y and a
+    /// flight.
+    fn side_v(&self, e: &MultiEnd) -> (Vec<f64>, Option<usize>) {
+        let (m, lay, n, nr) = (self.m, self.lay, self.m.n(), self.w.nr);
+        let sqm = |j: usize| m.masses[j].mass_kg.sqrt();
+        let p = &self.w.p;
+        let mut vel = vec![0.0; self.w.dim];
+        match e {
+            MultiEnd::Point(w) => {
+                for c in 0..nr {
+                    vel[nr + c] = (0..n).map(|i| w[i] * p[(i, c)]).sum();
+                }
+                (vel, None)
+            }
+            MultiEnd::Mass(j) => match lay.place[*j] {
+                Some(b) => {
+                    for c in 0..nr {
+                        vel[nr + c] = p[(n + b, c)] / sqm(*j);
+                    }
+                    (vel, lay.fly_of[*j])
+                }
+                None => (vel, Some(*j)),
+            },
+            MultiEnd::Wall(_) => (vel, None),
+        }
+    }
+
+    /// Contact `ct`'s penetration as a row over y, a constant and the
+    /// flights of its sides (when they differ); `closed`: its place among
+    /// the phase's members, with `p0` their constants.
+    fn contact_y(
+        &self,
+        ct: &MultiContact,
+        closed: Option<usize>,
+        p0: &[f64],
+    ) -> (Vec<f64>, f64, (Option<usize>, Option<usize>)) {
+        let (n, nr, q) = (self.m.n(), self.w.nr, &self.w.q);
+        match closed {
+            // closed: its penetration is a coordinate of Q u, exactly
+            // (`sqrt(k) (p - p0)`), not a difference of two sides
+            Some(pos) => {
+                let mut row = vec![0.0; self.w.dim];
+                let sk = ct.stiffness_n_per_m.sqrt();
+                for (c, x) in row.iter_mut().enumerate().take(nr) {
+                    *x = q[(n + pos, c)] / sk;
+                }
+                (row, p0[pos], (None, None))
+            }
+            None => {
+                let (lo, lo0, lo_fly) = self.side_y(&ct.lower);
+                let (up, up0, up_fly) = self.side_y(&ct.upper);
+                let row: Vec<f64> = lo.iter().zip(&up).map(|(a, b)| a - b).collect();
+                let fly = if lo_fly == up_fly {
+                    (None, None)
+                } else {
+                    (lo_fly, up_fly)
+                };
+                (row, lo0 - up0 - ct.gap_m, fly)
+            }
+        }
+    }
+
+    /// Every contact's event rows over s: its penetration, its rate and
+    /// the bounds on them, and which blocks and entries they touch.
+    fn events(&self, members: &[usize], p0: &[f64]) -> EventRows {
+        let (v, y_star, gens) = (&self.w.v, &self.w.y_star, &self.w.gens);
+        let nb = gens.len();
         let (mut ev, mut ev0, mut ev_d, mut ev_c2, mut ev_e, mut ev_fly) =
             (vec![], vec![], vec![], vec![], vec![], vec![]);
-        for (j, ct) in m.contacts.iter().enumerate() {
-            let (row_y, c0, fly) = match members.iter().position(|&c| c == j) {
-                // closed: its penetration is a coordinate of Q u, exactly
-                // (`sqrt(k) (p - p0)`), not a difference of two sides
-                Some(pos) => {
-                    let mut row = vec![0.0; dim];
-                    let sk = ct.stiffness_n_per_m.sqrt();
-                    for (c, x) in row.iter_mut().enumerate().take(nr) {
-                        *x = q[(n + pos, c)] / sk;
-                    }
-                    (row, p0[pos], (None, None))
-                }
-                None => {
-                    let (lo, lo0, lo_fly) = side_y(&ct.lower);
-                    let (up, up0, up_fly) = side_y(&ct.upper);
-                    let row: Vec<f64> = lo.iter().zip(&up).map(|(a, b)| a - b).collect();
-                    let fly = if lo_fly == up_fly {
-                        (None, None)
-                    } else {
-                        (lo_fly, up_fly)
-                    };
-                    (row, lo0 - up0 - ct.gap_m, fly)
-                }
-            };
-            let (r, r0) = in_phase(&row_y, &v, &y_star);
+        for (j, ct) in self.m.contacts.iter().enumerate() {
+            let closed = members.iter().position(|&c| c == j);
+            let (row_y, c0, fly) = self.contact_y(ct, closed, p0);
+            let (r, r0) = in_phase(&row_y, v, y_star);
             let r0 = r0 + c0;
-            let rd = row_times_gens(&r, &gens);
-            let rdd = row_times_gens(&rd, &gens);
+            let rd = row_times_gens(&r, gens);
+            let rdd = row_times_gens(&rd, gens);
             ev_c2.push((0..nb).map(|k| rdd[k].hypot(rdd[nb + k])).collect());
             ev_e.push((0..nb).map(|k| r[k].hypot(r[nb + k])).collect());
             ev.push(r);
@@ -381,37 +793,46 @@ impl MultiPhase {
             ev_d.push(rd);
             ev_fly.push(fly);
         }
-        // each side's position and velocity straight from s (the trace)
-        let side_v = |e: &MultiEnd| -> (Vec<f64>, Option<usize>) {
-            let mut vel = vec![0.0; dim];
-            match e {
-                MultiEnd::Point(w) => {
-                    for c in 0..nr {
-                        vel[nr + c] = (0..n).map(|i| w[i] * p[(i, c)]).sum();
-                    }
-                    (vel, None)
-                }
-                MultiEnd::Mass(j) => match lay.place[*j] {
-                    Some(b) => {
-                        for c in 0..nr {
-                            vel[nr + c] = p[(n + b, c)] / sqm(*j);
-                        }
-                        (vel, lay.fly_of[*j])
-                    }
-                    None => (vel, Some(*j)),
-                },
-                MultiEnd::Wall(_) => (vel, None),
-            }
+        let ev_blocks = ev
+            .iter()
+            .zip(&ev_d)
+            .map(|(r, d): (&Vec<f64>, &Vec<f64>)| {
+                (0..nb)
+                    .filter(|&k| r[k] != 0.0 || r[nb + k] != 0.0 || d[k] != 0.0 || d[nb + k] != 0.0)
+                    .collect()
+            })
+            .collect();
+        let nz_of = |rows: &[Vec<f64>]| -> Vec<Vec<usize>> {
+            rows.iter()
+                .map(|r| (0..r.len()).filter(|&i| r[i] != 0.0).collect())
+                .collect()
         };
-        let sides: Vec<[SideRows; 2]> = m
+        let (ev_nz, evd_nz) = (nz_of(&ev), nz_of(&ev_d));
+        EventRows {
+            ev,
+            ev0,
+            ev_d,
+            ev_c2,
+            ev_e,
+            ev_fly,
+            ev_blocks,
+            ev_nz,
+            evd_nz,
+        }
+    }
+
+    /// Each contact's two sides' position and velocity rows over s.
+    fn sides(&self) -> Vec<[SideRows; 2]> {
+        let (v, y_star) = (&self.w.v, &self.w.y_star);
+        self.m
             .contacts
             .iter()
             .map(|ct| {
                 [&ct.lower, &ct.upper].map(|e| {
-                    let (pos_y, c0, fly) = side_y(e);
-                    let (vel_y, _) = side_v(e);
-                    let (pos, pos0) = in_phase(&pos_y, &v, &y_star);
-                    let (vel, vel0) = in_phase(&vel_y, &v, &y_star);
+                    let (pos_y, c0, fly) = self.side_y(e);
+                    let (vel_y, _) = self.side_v(e);
+                    let (pos, pos0) = in_phase(&pos_y, v, y_star);
+                    let (vel, vel0) = in_phase(&vel_y, v, y_star);
                     SideRows {
                         pos,
                         pos0: pos0 + c0,
@@ -421,10 +842,13 @@ impl MultiPhase {
                     }
                 })
             })
-            .collect();
-        // the entries of s the coupled part moves (the free modes' blocks
-        // are their own (omega q, q'))
-        let coupled: Vec<usize> = (0..dimc).map(smap).collect();
+            .collect()
+    }
+
+    /// The two channels' pickup rows over s.
+    fn outputs(&self) -> OutputRows {
+        let (m, n, nr, dim) = (self.m, self.m.n(), self.w.nr, self.w.dim);
+        let (v, y_star, p, q) = (&self.w.v, &self.w.y_star, &self.w.p, &self.w.q);
         let (mut out_d, mut out_v): ([Vec<f64>; 2], [Vec<f64>; 2]) = Default::default();
         let (mut out_d0, mut out_v0) = ([0.0; 2], [0.0; 2]);
         for c in 0..2 {
@@ -436,22 +860,59 @@ impl MultiPhase {
                     .sum();
                 row_v[nr + col] = (0..n).map(|i| velo[i] * p[(i, col)]).sum();
             }
-            (out_d[c], out_d0[c]) = in_phase(&row_d, &v, &y_star);
-            (out_v[c], out_v0[c]) = in_phase(&row_v, &v, &y_star);
+            (out_d[c], out_d0[c]) = in_phase(&row_d, v, y_star);
+            (out_v[c], out_v0[c]) = in_phase(&row_v, v, y_star);
         }
-        let mut flyers: Vec<usize> = (0..m.masses.len())
-            .filter(|&j| lay.place[j].is_none())
-            .collect();
-        flyers.extend(lay.groups.iter().map(|grp| grp[0]));
+        OutputRows {
+            out_d,
+            out_d0,
+            out_v,
+            out_v0,
+        }
+    }
+}
+
+/// The products a switch of phase reads: the modes' and closed
+/// contacts' rows (Q), the velocities (P) and the bound masses' positions
+/// (Z) per s, V^-1 back, and their coupled parts.
+struct SwitchProducts {
+    s_star: Vec<f64>,
+    qv: DMatrix<f64>,
+    pv: DMatrix<f64>,
+    zv: DMatrix<f64>,
+    qv0: Vec<f64>,
+    pv0: Vec<f64>,
+    zv0: Vec<f64>,
+    qv_c: DMatrix<f64>,
+    qv_rows: Vec<usize>,
+    pv_c: DMatrix<f64>,
+    pv_rows: Vec<usize>,
+    zv_c: DMatrix<f64>,
+    vq_c: DMatrix<f64>,
+    vp_c: DMatrix<f64>,
+}
+
+impl SwitchProducts {
+    fn new(
+        n: usize,
+        lay: &Layout,
+        members: &[usize],
+        cm: &[usize],
+        w: &WholePhase,
+        coupled: &[usize],
+    ) -> Self {
+        let (nr, dim) = (w.nr, w.dim);
+        let (v, vinv, y_star) = (&w.v, &w.vinv, &w.y_star);
+        let (p, q) = (&w.p, &w.q);
         let (v_u, v_w) = (v.rows(0, nr), v.rows(nr, nr));
         let (u_star, w_star) = (
             DMatrix::from_column_slice(nr, 1, &y_star[..nr]),
             DMatrix::from_column_slice(nr, 1, &y_star[nr..]),
         );
-        let z_m = z_of_u.rows(n, lay.bound.len());
+        let z_m = w.z_of_u.rows(n, lay.bound.len());
         let col = |x: DMatrix<f64>| x.as_slice().to_vec();
-        let s_star = col(&vinv * DMatrix::from_column_slice(dim, 1, &y_star));
-        let (qv, pv, zv) = (&q * v_u, &p * v_w, z_m * v_u);
+        let s_star = col(vinv * DMatrix::from_column_slice(dim, 1, y_star));
+        let (qv, pv, zv) = (q * v_u, p * v_w, z_m * v_u);
         let vq = vinv.columns(0, nr) * q.transpose();
         let vp = vinv.columns(nr, nr) * p.transpose();
         let qv_rows: Vec<usize> = cm.iter().copied().chain(n..n + members.len()).collect();
@@ -470,37 +931,10 @@ impl MultiPhase {
         let vp_c = DMatrix::from_fn(coupled.len(), pv_rows.len(), |r, c| {
             vp[(coupled[r], pv_rows[c])]
         });
-        let free_blocks: Vec<(usize, usize, usize)> = fm
-            .iter()
-            .enumerate()
-            .map(|(j, &i)| (i, nbc + j, nb + nbc + j))
-            .collect();
-        let forms = gens.iter().map(OscForm::of).collect();
-        let ev_blocks = ev
-            .iter()
-            .zip(&ev_d)
-            .map(|(r, d): (&Vec<f64>, &Vec<f64>)| {
-                (0..nb)
-                    .filter(|&k| r[k] != 0.0 || r[nb + k] != 0.0 || d[k] != 0.0 || d[nb + k] != 0.0)
-                    .collect()
-            })
-            .collect();
-        let nz_of = |rows: &[Vec<f64>]| -> Vec<Vec<usize>> {
-            rows.iter()
-                .map(|r| (0..r.len()).filter(|&i| r[i] != 0.0).collect())
-                .collect()
-        };
-        let (ev_nz, evd_nz) = (nz_of(&ev), nz_of(&ev_d));
-        Ok(Self {
-            members,
-            dim,
-            forms,
-            ev_blocks,
-            ev_nz,
-            evd_nz,
-            gens,
-            qv0: col(&q * &u_star),
-            pv0: col(&p * &w_star),
+        Self {
+            s_star,
+            qv0: col(q * &u_star),
+            pv0: col(p * &w_star),
             zv0: col(z_m * &u_star),
             qv,
             pv,
@@ -510,34 +944,9 @@ impl MultiPhase {
             pv_c,
             pv_rows,
             zv_c,
-            bound_rows: (0..nbnd).collect(),
             vq_c,
             vp_c,
-            free_blocks,
-            s_star,
-            bound: lay.bound,
-            place: lay.place,
-            groups: lay.groups,
-            fly_of: lay.fly_of,
-            flyers,
-            p0,
-            rod_s,
-            ev,
-            ev0,
-            ev_d,
-            ev_c2,
-            ev_e,
-            ev_fly,
-            sides,
-            coupled,
-            coupled_modes: cm,
-            out_d,
-            out_d0,
-            out_v,
-            out_v0,
-            kappa,
-            growth: growth_max,
-        })
+        }
     }
 }
 
