@@ -405,7 +405,7 @@ fn initial_step_lengths(model: &Model, n_links: usize, w_c: f64, h: f64) -> Vec<
 
 /// Solve `model` for `n` samples at `rate_hz` with DOP853 at relative
 /// tolerance `rtol` (absolute tolerances: `rtol` times each component's
-/// scale, from the initial energy; see [`abs_tolerances`]). Any number of
+/// scale, from the initial energy; see `abs_tolerances`). Any number of
 /// contacts: the first switch of any contact in a step is taken, and every
 /// contact switched at that point changes side together, as in the expm
 /// solver.

@@ -104,7 +104,7 @@ pub struct SceneResult {
     pub what: String,
     /// Length of the runs \[s\].
     pub seconds: f64,
-    /// Length of the runs [samples].
+    /// Length of the runs \[samples\].
     pub n: usize,
     /// Every method at every oversampling.
     pub rows: Vec<Row>,
