@@ -9,6 +9,11 @@
 use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
+/// The access [`Shared::get`] gives: the value, held until it is dropped
+/// (the worker's compile hands it to the step that publishes the result).
+/// \[worker\] \[main-thread\]
+pub type Held<'a, T> = MutexGuard<'a, T>;
+
 /// A value the worker and the main or GUI thread share behind a lock the
 /// audio thread never takes. \[worker\] \[main-thread\]
 #[derive(Debug, Default)]
@@ -22,7 +27,7 @@ impl<T> Shared<T> {
 
     /// The value, even if a panicking thread poisoned the lock (plain
     /// values, always consistent).
-    pub fn get(&self) -> MutexGuard<'_, T> {
+    pub fn get(&self) -> Held<'_, T> {
         self.0.lock().unwrap_or_else(|e| e.into_inner())
     }
 }

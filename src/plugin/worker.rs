@@ -28,13 +28,13 @@
 //! used (one long eigensolve there would stall every other plugin instance).
 
 use super::user_scene::{HostBlocks, SceneLibrary};
-use super::waits::Shared;
+use super::waits::{Held, Shared};
 use crate::compile::cancel::{self, Cancel};
 use crate::instrument::{Instrument, PlayParams, Prepared, SceneParams, Stage};
 use atomic_float::AtomicF64;
 use crossbeam::queue::ArrayQueue;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, MutexGuard};
+use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -372,7 +372,7 @@ fn answer(
     h: &Handoff,
     req: &CompileRequest,
     done: Result<Outcome, String>,
-    running: MutexGuard<'_, Option<(u64, Cancel)>>,
+    running: Held<'_, Option<(u64, Cancel)>>,
     ms: f64,
 ) {
     match done {
