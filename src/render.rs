@@ -255,61 +255,61 @@ pub fn render_length(seconds: f64, rate_hz: f64) -> Result<usize, RenderError> {
 
 /// Render `n` samples of a compiled scene from its initial state, in memory.
 pub fn render_compiled(compiled: &CompiledScene, n: usize, trace: bool) -> RenderOutput {
-    let mut left = Vec::with_capacity(n);
-    let mut right = Vec::with_capacity(n);
-    let mut rows = TraceRows {
-        rate_hz: compiled.rate_hz,
-        rows: Vec::with_capacity(if trace { n } else { 0 }),
-        further: Vec::new(),
-        contacts: 1,
-    };
-    let audio = |l: &[f64], r: &[f64]| {
-        left.extend_from_slice(l);
-        right.extend_from_slice(r);
-        Ok(())
-    };
-    let sink: Option<&mut dyn TraceSink> = if trace { Some(&mut rows) } else { None };
-    let stats = render_stream(compiled, n, audio, sink).expect("in-memory sinks do not fail");
-    RenderOutput {
-        rate_hz: compiled.rate_hz,
-        left,
-        right,
-        trace: trace.then_some(rows.rows),
-        trace_further: Vec::new(),
-        summary: compiled.summary.clone(),
-        contacts: stats.contacts,
-        exact_stats: stats.exact_stats,
-        several: None,
-    }
+    let summary = compiled.summary.clone();
+    render_in_memory(compiled.rate_hz, 1, n, trace, summary, |audio, sink| {
+        render_stream(compiled, n, audio, sink)
+    })
 }
 
 /// Render `n` samples of a compiled several-contact scene from its initial
 /// state, in memory.
 pub fn render_several(compiled: &CompiledMulti, n: usize, trace: bool) -> RenderOutput {
-    let mut left = Vec::with_capacity(n);
-    let mut right = Vec::with_capacity(n);
     let k = compiled.contacts();
+    render_in_memory(
+        compiled.rate_hz,
+        k,
+        n,
+        trace,
+        String::new(),
+        |audio, sink| render_stream_several(compiled, n, audio, sink),
+    )
+}
+
+/// The audio and (if asked) the rows of a render of `contacts` contacts
+/// that `stream` runs, in memory.
+fn render_in_memory(
+    rate_hz: f64,
+    contacts: usize,
+    n: usize,
+    trace: bool,
+    summary: String,
+    stream: impl FnOnce(
+        &mut dyn FnMut(&[f64], &[f64]) -> std::io::Result<()>,
+        Option<&mut dyn TraceSink>,
+    ) -> std::io::Result<StreamStats>,
+) -> RenderOutput {
+    let (mut left, mut right) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let rows_kept = if trace { n } else { 0 };
     let mut rows = TraceRows {
-        rate_hz: compiled.rate_hz,
-        rows: Vec::with_capacity(if trace { n } else { 0 }),
-        further: Vec::with_capacity(if trace { n * (k - 1) } else { 0 }),
-        contacts: k,
+        rate_hz,
+        rows: Vec::with_capacity(rows_kept),
+        further: Vec::with_capacity(rows_kept * (contacts - 1)),
+        contacts,
     };
-    let audio = |l: &[f64], r: &[f64]| {
+    let mut audio = |l: &[f64], r: &[f64]| {
         left.extend_from_slice(l);
         right.extend_from_slice(r);
         Ok(())
     };
     let sink: Option<&mut dyn TraceSink> = if trace { Some(&mut rows) } else { None };
-    let stats =
-        render_stream_several(compiled, n, audio, sink).expect("in-memory sinks do not fail");
+    let stats = stream(&mut audio, sink).expect("in-memory sinks do not fail");
     RenderOutput {
-        rate_hz: compiled.rate_hz,
+        rate_hz,
         left,
         right,
         trace: trace.then_some(rows.rows),
         trace_further: rows.further,
-        summary: String::new(),
+        summary,
         contacts: stats.contacts,
         exact_stats: stats.exact_stats,
         several: stats.several,
@@ -915,15 +915,7 @@ impl<W: Write + Send + 'static> TraceSink for CsvTrace<W> {
         false
     }
     fn record(&mut self, i: usize, m: &Motion, e: Option<f64>) -> std::io::Result<()> {
-        check_contacts(std::slice::from_ref(m), self.contacts)?;
-        self.rows.push(TraceRow {
-            t: i as f64 / self.rate_hz,
-            obs: m.with_energy(e.expect("every energy was asked for")),
-        });
-        if self.rows.len() >= CSV_CHUNK_ROWS {
-            self.send()?;
-        }
-        Ok(())
+        self.record_several(i, std::slice::from_ref(m), e)
     }
     fn record_several(
         &mut self,
@@ -1103,13 +1095,7 @@ impl<W: Write + Send + 'static> TraceSink for NpyTrace<W> {
         false
     }
     fn record(&mut self, i: usize, m: &Motion, e: Option<f64>) -> std::io::Result<()> {
-        check_contacts(std::slice::from_ref(m), self.contacts)?;
-        self.push(i, m, e.expect("every energy was asked for"));
-        self.written += 1;
-        if self.buf.len() >= self.chunk {
-            self.send()?;
-        }
-        Ok(())
+        self.record_several(i, std::slice::from_ref(m), e)
     }
     fn record_several(
         &mut self,

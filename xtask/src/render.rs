@@ -629,25 +629,22 @@ fn one_contact_report(
         render_s,
     } = *run;
     let x = &stats.exact_stats;
-    let json = json!({
-        "scene": job.scene_path.display().to_string(),
-        "scene_name": scene.name,
-        "kind": "scene",
-        "rate_hz": a.rate,
-        "seconds": seconds,
-        "samples": n,
-        "switching": format!("{:?}", compiled.switching),
-        "compile": compile_json(compiled, compile_s),
-        "contacts": stats.contacts,
-        "exact_switching": {
-            "located": x.located, "grazing": x.grazing, "capped": x.capped,
-            "rod_fallbacks": x.rod_fallbacks, "uncertified": x.uncertified,
-        },
-        "peak": stats.peak,
-        "render_s": render_s,
-        "realtime_factor": seconds / render_s.max(1e-12),
-        "files": files_json(job),
-    });
+    let json = scene_json(
+        job,
+        a,
+        scene,
+        compiled.switching,
+        stats,
+        run,
+        json!({
+            "compile": compile_json(compiled, compile_s),
+            "contacts": stats.contacts,
+            "exact_switching": {
+                "located": x.located, "grazing": x.grazing, "capped": x.capped,
+                "rod_fallbacks": x.rod_fallbacks, "uncertified": x.uncertified,
+            },
+        }),
+    );
     let line = format!(
         "rendered {n} samples ({seconds:.3} s) in {render_s:.3} s ({:.0}x real time), compiled in {compile_s:.3} s; {} contacts; peak {:.3e}",
         seconds / render_s.max(1e-12),
@@ -685,32 +682,29 @@ fn several_contacts_report(
     let x = &stats.several.expect("a several-contact render");
 
     let starts = &x.contacts_started[..k];
-    let json = json!({
-        "scene": job.scene_path.display().to_string(),
-        "scene_name": scene.name,
-        "kind": "scene",
-        "rate_hz": a.rate,
-        "seconds": seconds,
-        "samples": n,
-        "switching": format!("{:?}", compiled.switching),
-        "compile": {
-            "seconds": compile_s,
-            "contacts": k,
-            "phases": compiled.phases.len(),
-            "largest_dim": compiled.max_dim(),
-            "kappa": compiled.kappa(),
-        },
-        "contacts": starts.iter().sum::<u64>(),
-        "contacts_per_contact": starts,
-        "exact_switching": {
-            "switches": x.switches, "grazing": x.grazing, "capped": x.capped, "uncertified": x.uncertified,
-            "evaluations": x.evaluations,
-        },
-        "peak": stats.peak,
-        "render_s": render_s,
-        "realtime_factor": seconds / render_s.max(1e-12),
-        "files": files_json(job),
-    });
+    let json = scene_json(
+        job,
+        a,
+        scene,
+        compiled.switching,
+        stats,
+        run,
+        json!({
+            "compile": {
+                "seconds": compile_s,
+                "contacts": k,
+                "phases": compiled.phases.len(),
+                "largest_dim": compiled.max_dim(),
+                "kappa": compiled.kappa(),
+            },
+            "contacts": starts.iter().sum::<u64>(),
+            "contacts_per_contact": starts,
+            "exact_switching": {
+                "switches": x.switches, "grazing": x.grazing, "capped": x.capped, "uncertified": x.uncertified,
+                "evaluations": x.evaluations,
+            },
+        }),
+    );
     let line = format!(
         "rendered {n} samples ({seconds:.3} s) in {render_s:.3} s ({:.0}x real time), compiled in {compile_s:.3} s; contacts {starts:?} (per contact); peak {:.3e}",
         seconds / render_s.max(1e-12),
@@ -737,6 +731,36 @@ fn several_contacts_report(
         )),
         summary,
     }
+}
+
+/// A scene job's sidecar: what every scene render reports, and the
+/// engine's own fields (`engine`, an object) merged in.
+fn scene_json(
+    job: &Job,
+    a: &RenderArgs,
+    scene: &Scene,
+    switching: Switching,
+    stats: &StreamStats,
+    run: &Run,
+    engine: serde_json::Value,
+) -> serde_json::Value {
+    let mut json = json!({
+        "scene": job.scene_path.display().to_string(),
+        "scene_name": scene.name,
+        "kind": "scene",
+        "rate_hz": a.rate,
+        "seconds": run.seconds,
+        "samples": run.n,
+        "switching": format!("{switching:?}"),
+        "peak": stats.peak,
+        "render_s": run.render_s,
+        "realtime_factor": run.seconds / run.render_s.max(1e-12),
+        "files": files_json(job),
+    });
+    if let (Some(all), serde_json::Value::Object(own)) = (json.as_object_mut(), engine) {
+        all.extend(own);
+    }
+    json
 }
 
 fn compile_json(c: &CompiledScene, seconds: f64) -> serde_json::Value {
