@@ -1,6 +1,6 @@
 //! Several contacts at once, in one test binary: the several-contact engine
 //! against the independent reference solver, closed forms and the
-//! one-contact engine; contacts between any two bodies; strikes into a
+//! one-contact engine; its block path against its search; contacts between any two bodies; strikes into a
 //! running state; two walls on one side.
 //!
 //! Each module is one file of `tests/`; a test is named `file::test`
@@ -8,6 +8,8 @@
 //! binaries and `tests/doc_references.rs` checks that every file of
 //! `tests/` is in exactly one of them.
 
+#[path = "multi_block.rs"]
+mod multi_block;
 #[path = "multi_bodies.rs"]
 mod multi_bodies;
 #[path = "multi_contact.rs"]

@@ -92,28 +92,16 @@ mod sample;
 
 use crate::compile::event::THETA_SLOW;
 use crate::compile::CompiledPhase;
+pub use crate::engine::search::ROOT_ULPS;
+use crate::engine::search::{NEUTRAL_TOL, ROUND_UNITS, STACK};
 
 /// Highest degree of the slow blocks' polynomial (`2^25 / 25! = 2e-18`).
 const MAX_DEGREE: usize = 24;
-/// Resolution of a located switch instant, in ulps of the sample period
-/// (3.6e-15 of a sample): below it the rounding of `phi` itself (`u |x_h| /
-/// |phi'|`, ~1e-14 of a sample for a hammer at millimetres and 1 m/s)
-/// decides, so resolving further only costs evaluations. It is also the
-/// least time between two switches.
-pub const ROOT_ULPS: f64 = 16.0;
 /// Most switches located within one sample (every engine, one or several
 /// contacts); beyond, the rest of the sample runs in its phase without a
 /// search ([`ExactStats::capped`]). Real contacts switch a few times per
 /// sample at most (a brass mallet's 3-sample contact: 2).
 pub const MAX_SWITCHES_PER_SAMPLE: u64 = 64;
-/// A node is neutral when `|phi| <= NEUTRAL_TOL` roundings on all of it.
-const NEUTRAL_TOL: f64 = 4.0;
-/// Rounding allowance of the model, in units of `u` times the magnitude of
-/// what is summed (each product and sum rounds once, with a margin).
-const ROUND_UNITS: f64 = 4.0;
-/// Deepest bisection: nodes never get narrower than the root resolution,
-/// `2^-48` of a sample; the stack holds one pending node per level.
-const STACK: usize = 64;
 /// Largest |A tau| per Taylor sub-step for dense partial steps, and the
 /// number of terms: 0.5^20 / 20! ~ 4e-25.
 const TAYLOR_MAX_NORM: f64 = 0.5;

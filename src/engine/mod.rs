@@ -19,9 +19,10 @@
 //! certified event search of `exact`, or the rod's decision and a change of
 //! basis).
 //!
-//! The SIMD kernels (`kernel`, `vmath`) are private: which ones run is
-//! chosen by run-time detection, and the AVX2 ones can only be reached with
-//! the token that detection makes (`vmath::SimdPath`).
+//! The SIMD kernels (`kernel`, `vmath`) are the crate's own (the
+//! several-contact engine's block path runs the block kernel too): which
+//! ones run is chosen by run-time detection, and the AVX2 ones can only be
+//! reached with the token that detection makes (`vmath::SimdPath`).
 //!
 //! Time scaling (pitch): a voice may run the scene with its time axis scaled by
 //! `s` (every frequency times `s`, every decay time over `s`, contact stiffness
@@ -60,7 +61,7 @@ mod dot;
 mod energy;
 mod exact;
 mod fast_path;
-mod kernel;
+pub(crate) mod kernel;
 mod knobs;
 mod observe;
 mod process;
@@ -68,9 +69,10 @@ mod rebind;
 mod replay;
 mod rest;
 mod scale;
+pub(crate) mod search;
 mod state;
 mod switch;
-mod vmath;
+pub(crate) mod vmath;
 
 pub use exact::{ExactStats, MAX_SWITCHES_PER_SAMPLE, ROOT_ULPS};
 use exact::{SearchScratch, TermSplit};

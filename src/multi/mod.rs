@@ -47,22 +47,18 @@
 //! ([`CompiledMulti::switching`]) each contact switches at sample instants
 //! instead, with a rod of its own ([`MultiState::decide`]).
 //!
-//! The search for the first crossing of a contact's event function `psi`
-//! (its penetration, signed to be positive on the current side) within a
-//! step is certified: over a piece `|psi''| <= M = sum_k |r_k G_k^2|
-//! e^(gamma_k h) |s_k| (+ g)` (`r` the function's row, `gamma_k` the
-//! block's growth rate, 0 for a contraction, `|s_k|` at the piece's left
-//! end), so a piece `[a, b]` whose ends are both above its margin (per
-//! block the smaller of the curvature's `M_k (b - a)^2 / 8` and `2 |r_k|
-//! |s_k|`) less the rounding band holds no crossing; a piece that crosses
-//! and on which `psi` falls all the way holds one, found by regula falsi;
-//! other pieces are halved, left first, down to a width of about one ulp
-//! of the sample (docs/numerics.md section 14). A contact that just
-//! switched starts at 0 on its new side: its Taylor bound `psi >= psi'(0)
-//! t - M t^2 / 2` clears `(0, 2 psi'(0) / M)` first (without it, the
-//! rounding of the change of basis could switch it straight back).
+//! The first crossing of a contact's event function `psi` (its
+//! penetration, signed to be positive on the current side) within a step
+//! is found by the one certified search of every engine
+//! (`engine/search.rs`, docs/numerics.md section 6.4) on this engine's
+//! model of `psi`: the contact's rows over the phase's 2x2 blocks, each
+//! block exact at a node's start, plus its free sides' exact parabolas
+//! (`multi/search.rs`, docs/numerics.md section 14). A whole sample whose
+//! two ends clear the chord's margin needs no search.
 
 use crate::compile::{pan_gains, CompileBudget};
+use crate::engine::kernel::BlockProps;
+use crate::engine::search::STACK;
 use crate::engine::TimeScaleError;
 use crate::physics::block::{exp2, mul2, sym_growth, Mat2, OscForm};
 use crate::physics::decomp::{decompose_via, Form};
@@ -70,9 +66,11 @@ use crate::physics::model::LN_1000;
 use crate::scene::{End as SceneEnd, ObjectSpec, Quantity, Scene, SceneError, Switching};
 use nalgebra::DMatrix;
 
+mod fast;
 mod model;
 mod observe;
 mod phase;
+mod search;
 mod state;
 mod step;
 
@@ -82,17 +80,6 @@ pub use crate::scene::MAX_CONTACTS;
 /// Most switches taken within one sample, the engine's; beyond, the rest of
 /// the sample runs in its phase without a search ([`MultiStats::capped`]).
 pub use crate::engine::MAX_SWITCHES_PER_SAMPLE;
-
-/// Halving stops at pieces narrower than this fraction of the sample.
-const LEAF: f64 = 1e-15;
-
-/// Norm slots made up front: the search's stack is one slot per level of
-/// halving (a leaf is about 50 levels below a sample) plus two.
-const NORM_SLOTS: usize = 72;
-
-/// Most halvings of one contact's search in one step; the pieces left
-/// are counted as `uncertified` (docs/numerics.md section 14).
-pub const SEARCH_BUDGET: u32 = 1 << 14;
 
 /// A point-mass hammer with a contact of its own on the struck object
 /// (the simple case, [`MultiModel::struck`]).
@@ -392,6 +379,8 @@ pub struct MultiPhase {
     ev_blocks: Vec<Vec<usize>>,
     ev_nz: Vec<Vec<usize>>,
     evd_nz: Vec<Vec<usize>>,
+    /// What the certified search's bounds take beyond those rows.
+    search: SearchRows,
     /// Per contact: where its lower and upper sides are (the trace).
     sides: Vec<[SideRows; 2]>,
     /// The entries of `s` the coupled part moves, and its modes.
@@ -411,6 +400,33 @@ pub struct MultiPhase {
     /// more): a bound taken from a state holds `n` samples later times its
     /// `n`-th power.
     pub growth: f64,
+}
+
+/// What the certified search (`engine/search.rs`, through
+/// `multi/search.rs`) needs of a phase beyond its event rows: per contact
+/// the curvature row `r G^2` (the model's `psi''`), and per block the
+/// slope and third-derivative weights `|r_k G_k|` and `|r_k G_k^3|` (times
+/// the block's growth they bound its share of `psi'` and `psi'''`); per
+/// block the spectral radius of its generator (how fast it turns: a node
+/// of width `w` resolves it when `rho w <= THETA_RESOLVED`).
+#[derive(Debug, Clone, Default)]
+struct SearchRows {
+    ev_dd: Vec<Vec<f64>>,
+    c1: Vec<Vec<f64>>,
+    c3: Vec<Vec<f64>>,
+    rho: Vec<f64>,
+}
+
+/// The largest eigenvalue magnitude of a 2x2 generator.
+fn spectral_radius(g: &Mat2) -> f64 {
+    let half_tr = 0.5 * (g[0] + g[3]);
+    let det = g[0] * g[3] - g[1] * g[2];
+    let disc = half_tr * half_tr - det;
+    if disc < 0.0 {
+        det.sqrt()
+    } else {
+        half_tr.abs() + disc.sqrt()
+    }
 }
 
 /// A compiled model: every phase, by its contact bit set.
@@ -440,19 +456,22 @@ pub struct MultiStats {
     pub contacts_started: [u64; MAX_CONTACTS],
     /// Samples that reached [`MAX_SWITCHES_PER_SAMPLE`].
     pub capped: u64,
-    /// Pieces of the leaf width (about an ulp of the sample) at zero or
-    /// within rounding of it without crossing: a touch at zero relative
-    /// speed, or the instant a crossing begins (the next piece takes it);
-    /// no switch.
+    /// Neutral and resolution-sized nodes of the certified search that
+    /// ended with `psi > 0`: a touch at zero relative speed within
+    /// rounding, no switch (the one-contact engine's
+    /// [`ExactStats::grazing`](crate::engine::ExactStats::grazing)).
     pub grazing: u64,
-    /// Pieces left undecided: a contact's search ran out of its
-    /// [`SEARCH_BUDGET`] halvings in a step (a penetration that dwells
-    /// within rounding of 0 while the object rings), or its Taylor bound
-    /// cleared the rest of the step while the step's end was across (a
-    /// contradiction only rounding can make). No switch is taken there.
+    /// Nodes the search left undecided (none can be: its stack is as deep
+    /// as the root resolution; kept as a diagnostic the tests assert is 0).
     pub uncertified: u64,
-    /// Evaluations of an event function inside a step.
+    /// Evaluations of an event function inside a step (a node's bounds or
+    /// a value).
     pub evaluations: u64,
+    /// Samples the block path stepped and certified.
+    pub kernel_samples: u64,
+    /// Samples the block path stepped past one that failed its
+    /// certificate, thrown away (stepped again by the search).
+    pub kernel_discarded: u64,
 }
 
 /// A located switch: contact `contact` entered (`entered`) or left
@@ -578,8 +597,10 @@ struct Layout {
 /// up front, brought to the state's scale when the phase is entered).
 #[derive(Debug, Clone)]
 struct PhaseTables {
-    /// Each block's propagator over one step.
+    /// Each block's propagator over one step, and the same as the block
+    /// kernel's arrays.
     props: Vec<Mat2>,
+    soa: BlockProps,
     /// Each block's growth over one step, `e^(gamma_k h_s)`, and the
     /// largest (at least 1).
     growth: Vec<f64>,
@@ -588,6 +609,10 @@ struct PhaseTables {
     /// magnitudes times the block's growth (the search's bounds).
     ev_c2: Vec<Vec<f64>>,
     ev_e: Vec<Vec<f64>>,
+    /// Per contact, per block: the phase's slope and third-derivative
+    /// weights ([`SearchRows`]) times the block's growth.
+    ev_c1: Vec<Vec<f64>>,
+    ev_c3: Vec<Vec<f64>>,
     /// Output rows and constants: displacement plus `scale` times
     /// velocity, less the modes above the output band.
     out: [Vec<f64>; 2],
@@ -616,10 +641,9 @@ pub struct MultiState {
     tables: Vec<PhaseTables>,
     s: Vec<f64>,
     end: Vec<f64>,
-    /// Per block of the current phase, `|s_k|` at points of the search:
-    /// slot 0 the step's start, the others the left ends of its pieces
-    /// (a stack, one slot per level).
-    norms: Vec<Vec<f64>>,
+    /// Per block of the current phase, `|s_k|` at the step's start (the
+    /// epoch's margin).
+    norms: Vec<f64>,
     /// Per flight slot (one per mass): the height and velocity of a free
     /// mass, or of the centre of a free group whose first mass it is (at
     /// the state's time).
@@ -636,8 +660,12 @@ pub struct MultiState {
     /// phase's growth over 64 samples, it holds for every later state of
     /// the epoch).
     cached: [(u64, f64); MAX_CONTACTS],
-    /// Halvings left to the current search.
-    budget: u32,
+    /// The certified search's pending nodes.
+    stack: [(f64, f64); STACK],
+    /// The block path's scratch, and whether it runs (a test knob: off,
+    /// every sample takes the search's way).
+    kern: Box<fast::Kern>,
+    block_path: bool,
     /// Offset rod: each contact's rod \[m\] (0 when open, and always with
     /// exact switching), the block state's equilibrium shift they make in
     /// the current phase (`shift = sum_c d_c rod_s_c`: with rods, `s` is
@@ -681,18 +709,16 @@ impl Clone for MultiState {
             tables: self.tables.clone(),
             s: with_room(&self.s, self.s.capacity()),
             end: self.end.clone(),
-            norms: self
-                .norms
-                .iter()
-                .map(|n| with_room(n, n.capacity()))
-                .collect(),
+            norms: self.norms.clone(),
             x_f: self.x_f.clone(),
             v_f: self.v_f.clone(),
             zq: self.zq.clone(),
             zv: self.zv.clone(),
             phys: self.phys.clone(),
             cached: self.cached,
-            budget: self.budget,
+            stack: self.stack,
+            kern: self.kern.clone(),
+            block_path: self.block_path,
             rod: self.rod,
             shift: self.shift.clone(),
             rods_on: self.rods_on,
@@ -727,16 +753,9 @@ struct EventFn {
     x0: f64,
     v0: f64,
     g: f64,
-    /// The rounding allowance of a hammer that just left (0 for the
-    /// others): `4 u` times the magnitudes summed into `psi` (each block's
-    /// `|r_k| |s_k|`, the constant, the hammer's height and travel). A
-    /// value within it of 0 is neutral: not across.
-    allow: f64,
-    /// The rounding of `psi` itself (`4 u` times the same magnitudes, for
-    /// every contact): a piece whose chord bound keeps `psi` above
-    /// `-neutral` holds no crossing beyond rounding (docs/numerics.md
-    /// section 14; the one-contact engine's neutral rule, section 6.6).
-    neutral: f64,
+    /// The flights' magnitudes: heights, speeds and gravities summed (the
+    /// rounding allowance's share of them).
+    scale: (f64, f64, f64),
 }
 
 impl EventFn {
@@ -749,22 +768,6 @@ impl EventFn {
     fn dpsi(&self, dq: f64, t: f64) -> f64 {
         self.sign * (dq + self.v0 - self.g * t)
     }
-
-    /// Across (contact ends at `p <= 0`, starts at `p > 0`), beyond the
-    /// rounding allowance: a `psi` within it of 0 is the rounding of a
-    /// touch, not a crossing (docs/numerics.md section 14).
-    fn crossed(&self, psi: f64) -> bool {
-        psi < -self.allow
-    }
-}
-
-/// A piece of the search: gravity's curvature, the norm slot of its left
-/// end and the first free slot.
-#[derive(Clone, Copy)]
-struct Piece {
-    g_curv: f64,
-    left: usize,
-    free: usize,
 }
 
 /// `out[rows[r]] += sum_c M[r, c] x[cols[c]]` for a column-major `M`, by

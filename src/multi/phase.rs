@@ -148,6 +148,7 @@ impl MultiPhase {
             ev_c2: er.ev_c2,
             ev_e: er.ev_e,
             ev_fly: er.ev_fly,
+            search: er.search,
             sides,
             coupled,
             coupled_modes: cp.cm,
@@ -661,6 +662,7 @@ struct EventRows {
     ev_blocks: Vec<Vec<usize>>,
     ev_nz: Vec<Vec<usize>>,
     evd_nz: Vec<Vec<usize>>,
+    search: SearchRows,
 }
 
 /// The two channels' output rows over s and constants.
@@ -779,6 +781,12 @@ impl PhaseRows<'_> {
         let nb = gens.len();
         let (mut ev, mut ev0, mut ev_d, mut ev_c2, mut ev_e, mut ev_fly) =
             (vec![], vec![], vec![], vec![], vec![], vec![]);
+        let mut search = SearchRows {
+            rho: gens.iter().map(spectral_radius).collect(),
+            ..SearchRows::default()
+        };
+        let norms =
+            |row: &[f64]| -> Vec<f64> { (0..nb).map(|k| row[k].hypot(row[nb + k])).collect() };
         for (j, ct) in self.m.contacts.iter().enumerate() {
             let closed = members.iter().position(|&c| c == j);
             let (row_y, c0, fly) = self.contact_y(ct, closed, p0);
@@ -786,8 +794,12 @@ impl PhaseRows<'_> {
             let r0 = r0 + c0;
             let rd = row_times_gens(&r, gens);
             let rdd = row_times_gens(&rd, gens);
-            ev_c2.push((0..nb).map(|k| rdd[k].hypot(rdd[nb + k])).collect());
-            ev_e.push((0..nb).map(|k| r[k].hypot(r[nb + k])).collect());
+            let rddd = row_times_gens(&rdd, gens);
+            ev_c2.push(norms(&rdd));
+            ev_e.push(norms(&r));
+            search.c1.push(norms(&rd));
+            search.c3.push(norms(&rddd));
+            search.ev_dd.push(rdd);
             ev.push(r);
             ev0.push(r0);
             ev_d.push(rd);
@@ -818,6 +830,7 @@ impl PhaseRows<'_> {
             ev_blocks,
             ev_nz,
             evd_nz,
+            search,
         }
     }
 
@@ -1019,10 +1032,13 @@ impl PhaseTables {
     pub(super) fn new(ph: &MultiPhase) -> Self {
         Self {
             props: vec![[0.0; 4]; ph.gens.len()],
+            soa: BlockProps::new(ph.gens.len()),
             growth: vec![1.0; ph.gens.len()],
             growth_max: 1.0,
             ev_c2: ph.ev_c2.clone(),
             ev_e: ph.ev_e.clone(),
+            ev_c1: ph.search.c1.clone(),
+            ev_c3: ph.search.c3.clone(),
             out: [vec![0.0; ph.dim], vec![0.0; ph.dim]],
             out0: [0.0; 2],
             at: f64::NAN,
@@ -1049,13 +1065,17 @@ impl PhaseTables {
         self.growth_max = 1.0;
         for (k, g) in ph.gens.iter().enumerate() {
             self.props[k] = exp2(g, h);
+            self.soa.set(k, &self.props[k]);
             self.growth[k] = (sym_growth(g) * h).exp();
             self.growth_max = self.growth_max.max(self.growth[k]);
         }
-        for (j, (c2, e)) in self.ev_c2.iter_mut().zip(&mut self.ev_e).enumerate() {
+        for j in 0..self.ev_e.len() {
             for k in 0..ph.gens.len() {
-                c2[k] = ph.ev_c2[j][k] * self.growth[k];
-                e[k] = ph.ev_e[j][k] * self.growth[k];
+                let g = self.growth[k];
+                self.ev_c2[j][k] = ph.ev_c2[j][k] * g;
+                self.ev_e[j][k] = ph.ev_e[j][k] * g;
+                self.ev_c1[j][k] = ph.search.c1[j][k] * g;
+                self.ev_c3[j][k] = ph.search.c3[j][k] * g;
             }
         }
         for c in 0..2 {

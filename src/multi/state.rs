@@ -29,14 +29,16 @@ impl MultiState {
                 s
             },
             end: vec![0.0; dim],
-            norms: vec![vec![0.0; dim / 2]; NORM_SLOTS],
+            norms: vec![0.0; dim / 2],
             x_f,
             v_f,
             zq: vec![0.0; nz + MAX_CONTACTS],
             zv: vec![0.0; nz],
             phys: Physical::new(&sc.model),
             cached: [(u64::MAX, 0.0); MAX_CONTACTS],
-            budget: SEARCH_BUDGET,
+            stack: [(0.0, 0.0); STACK],
+            kern: Box::new(fast::Kern::new(dim)),
+            block_path: true,
             rod: [0.0; MAX_CONTACTS],
             shift: vec![0.0; dim],
             rods_on: false,
@@ -282,19 +284,35 @@ impl MultiState {
     /// one-contact engine's convention: sample `n` is time `n / fs`), then
     /// advance one step.
     pub fn tick(&mut self, sc: &CompiledMulti) -> [f64; 2] {
-        self.decide(sc);
-        let out = self.output(sc);
-        self.step(sc);
-        out
+        let (mut l, mut r) = ([0.0], [0.0]);
+        self.process_block(sc, &mut l, &mut r);
+        [l[0], r[0]]
     }
 
-    /// `left.len().min(right.len())` samples ([`tick`](Self::tick) each),
-    /// the engine's block call for a several-contact scene: the same
-    /// samples bit for bit however the caller splits its blocks.
+    /// `left.len().min(right.len())` samples, the engine's block call for
+    /// a several-contact scene: runs of samples in the block kernel, each
+    /// certified to hold no crossing, and the search for a sample that is
+    /// not (`multi/fast.rs`); the same samples bit for bit however the
+    /// caller splits its blocks ([`tick`](Self::tick) is a block of one).
     /// \[audio-thread\]
     pub fn process_block(&mut self, sc: &CompiledMulti, left: &mut [f64], right: &mut [f64]) {
-        for (l, r) in left.iter_mut().zip(right.iter_mut()) {
-            [*l, *r] = self.tick(sc);
+        let n = left.len().min(right.len());
+        let mut i = 0;
+        while i < n {
+            if self.fast_ready(sc) {
+                let run = self.run_fast(sc, &mut left[i..n], &mut right[i..n]);
+                i += run.done;
+                if !run.failed {
+                    continue;
+                }
+            }
+            if i < n {
+                // a sample the block path could not certify: the search
+                self.decide(sc);
+                [left[i], right[i]] = self.output(sc);
+                self.step(sc);
+                i += 1;
+            }
         }
     }
 

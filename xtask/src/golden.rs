@@ -8,15 +8,17 @@
 //! hashes are compared with that file and any difference is an error.
 //!
 //! Why: a refactoring that must not change behaviour is shown to be one by
-//! bit-identical renders. The engine runs on the portable kernels (the
-//! baseline target, no FMA), whose rounding is the same on every x86-64, and
-//! on this CPU's detected kernels; each path has its own lines.
+//! bit-identical renders. The one-contact engine runs on the portable
+//! kernels (the baseline target, no FMA), whose rounding is the same on
+//! every x86-64, and on this CPU's detected kernels; each path has its own
+//! lines. A scene of several contacts runs on its engine's one scalar path
+//! (`scalar` lines; its trace's further contacts hashed after the rows).
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use modal_contact::compile::compile_with;
 use modal_contact::engine::{has_faster_kernels, EngineState};
-use modal_contact::render::{write_trace_csv, TraceRow};
+use modal_contact::render::{write_trace_csv, Compiled, TraceRow};
 use modal_contact::scene::{Scene, Switching};
 use modal_testkit::scenes::RATE;
 use modal_testkit::stability;
@@ -58,6 +60,47 @@ fn render_hashes(
     let sc = compile_with(scene, RATE, Some(switching))?;
     let mut st = EngineState::new(&sc);
     st.set_portable_kernels(portable);
+    let (mut left, mut right) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let mut rows = Vec::with_capacity(n);
+    for i in 0..n {
+        let (out, obs) = st.tick_observed(&sc);
+        rows.push(TraceRow {
+            t: i as f64 / RATE,
+            obs,
+        });
+        left.push(out[0]);
+        right.push(out[1]);
+    }
+    let mut csv = Vec::new();
+    write_trace_csv(&rows, &mut csv)?;
+    Ok((fnv1a(&wav_bytes(&left, &right)?), trace_hash(&rows, &csv)?))
+}
+
+/// A scene of several contacts rendered by the render's own path (its
+/// engine has one scalar path): the WAV hashed as above, and the trace's
+/// numbers bit for bit (every row's seven columns, then every further
+/// contact's motion, row by row).
+fn render_hashes_several(scene: &Scene, n: usize, switching: Switching) -> Result<(u64, u64)> {
+    let out = Compiled::new(scene, RATE, Some(switching))?.render(n, true);
+    let rows = out.trace.as_deref().context("no trace")?;
+    let mut bits = Vec::with_capacity(rows.len() * 7 * 8 * 4);
+    for r in rows {
+        for x in r.columns() {
+            bits.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    for m in &out.trace_further {
+        let in_contact = f64::from(u8::from(m.in_contact));
+        for x in [m.x_hammer, m.v_hammer, m.x_contact, m.v_contact, in_contact] {
+            bits.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    Ok((fnv1a(&wav_bytes(&out.left, &out.right)?), fnv1a(&bits)))
+}
+
+/// The WAV file `cargo xtask render` writes of these channels (32-bit
+/// float stereo).
+fn wav_bytes(left: &[f64], right: &[f64]) -> Result<Vec<u8>> {
     let mut wav = Cursor::new(Vec::new());
     let spec = hound::WavSpec {
         channels: 2,
@@ -65,23 +108,13 @@ fn render_hashes(
         bits_per_sample: 32,
         sample_format: hound::SampleFormat::Float,
     };
-    let mut rows = Vec::with_capacity(n);
-    {
-        let mut w = hound::WavWriter::new(&mut wav, spec)?;
-        for i in 0..n {
-            let (out, obs) = st.tick_observed(&sc);
-            rows.push(TraceRow {
-                t: i as f64 / RATE,
-                obs,
-            });
-            w.write_sample(out[0] as f32)?;
-            w.write_sample(out[1] as f32)?;
-        }
-        w.finalize()?;
+    let mut w = hound::WavWriter::new(&mut wav, spec)?;
+    for (l, r) in left.iter().zip(right) {
+        w.write_sample(*l as f32)?;
+        w.write_sample(*r as f32)?;
     }
-    let mut csv = Vec::new();
-    write_trace_csv(&rows, &mut csv)?;
-    Ok((fnv1a(&wav.into_inner()), trace_hash(&rows, &csv)?))
+    w.finalize()?;
+    Ok(wav.into_inner())
 }
 
 /// FNV-1a of the little-endian bits of every number of the CSV text `csv`
@@ -133,13 +166,6 @@ fn cases(root: &Path) -> Result<Vec<(String, Scene, usize)>> {
     presets.sort();
     for p in presets {
         let scene = Scene::from_file(&p).with_context(|| format!("{}", p.display()))?;
-        if scene.several_contacts() {
-            // the kits run on the several-contact engine, which
-            // `tests/multi_contact.rs` checks against the one-contact engine
-            // and the reference solver; these hashes cover the one-contact
-            // engine
-            continue;
-        }
         let n = (scene.duration_s.min(2.0) * RATE) as usize;
         let name = format!("preset {}", p.file_stem().unwrap().to_string_lossy());
         v.push((name, scene, n));
@@ -160,6 +186,15 @@ fn compute(root: &Path) -> Result<BTreeMap<String, String>> {
     let mut out = BTreeMap::new();
     for (name, scene, n) in cases(root)? {
         for sw in [Switching::Exact, Switching::OffsetRod] {
+            if scene.several_contacts() {
+                let (w, t) = render_hashes_several(&scene, n, sw)
+                    .with_context(|| format!("{name} ({})", sw.as_str()))?;
+                out.insert(
+                    format!("{name} | {} | scalar", sw.as_str()),
+                    format!("wav {w:016x} trace {t:016x}"),
+                );
+                continue;
+            }
             for &portable in &paths {
                 let (w, t) = render_hashes(&scene, n, sw, portable)
                     .with_context(|| format!("{name} ({})", sw.as_str()))?;
@@ -239,9 +274,9 @@ mod tests {
     use super::*;
 
     /// The renders `cargo xtask golden` hashes are the ones the file
-    /// records, and each case compiles in both switching modes (a preset
-    /// the one-contact compiler refuses, as the kits once did, would stop
-    /// the command before it hashed anything).
+    /// records, and each case compiles in both switching modes for the
+    /// engine that runs it (a preset its compiler refuses would stop the
+    /// command before it hashed anything).
     #[test]
     fn every_golden_case_is_recorded_and_compiles() {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -257,7 +292,7 @@ mod tests {
         assert_eq!(names, recorded);
         for (name, scene, _) in &cases {
             for sw in [Switching::Exact, Switching::OffsetRod] {
-                compile_with(scene, RATE, Some(sw))
+                Compiled::new(scene, RATE, Some(sw))
                     .unwrap_or_else(|e| panic!("{name} ({}): {e}", sw.as_str()));
             }
         }

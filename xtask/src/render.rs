@@ -702,6 +702,7 @@ fn several_contacts_report(
             "exact_switching": {
                 "switches": x.switches, "grazing": x.grazing, "capped": x.capped, "uncertified": x.uncertified,
                 "evaluations": x.evaluations,
+                "kernel_samples": x.kernel_samples, "kernel_discarded": x.kernel_discarded,
             },
         }),
     );
@@ -726,8 +727,9 @@ fn several_contacts_report(
         json,
         line,
         switching_line: Some(format!(
-            "several-contact switching: {} switches, {} grazing touches, {} event evaluations; capped {}, uncertified {}",
-            x.switches, x.grazing, x.evaluations, x.capped, x.uncertified
+            "several-contact switching: {} switches, {} grazing touches, {} event evaluations; capped {}, uncertified {}; \
+             {} samples on the block path ({} stepped past a failed certificate and discarded)",
+            x.switches, x.grazing, x.evaluations, x.capped, x.uncertified, x.kernel_samples, x.kernel_discarded
         )),
         summary,
     }

@@ -10,6 +10,7 @@ use super::{FastBounds, SearchScratch, TermSplit, MAX_DEGREE, ROUND_UNITS, TAYLO
 use crate::compile::event::THETA_RESOLVED;
 use crate::compile::{CompiledPhase, CompiledScene};
 use crate::engine::dot::dot;
+use crate::engine::search::NodeBounds;
 use crate::engine::vmath::{self, SimdPath};
 use crate::engine::{current_phase, EngineState, Phase};
 use crate::physics::block::{exp2, mul2};
@@ -302,17 +303,6 @@ impl SearchScratch {
             self.raise_poly(simd, self.deg + 1);
         }
     }
-}
-
-/// Bounds of `phi` on a node `[a, a + w]`: the resolved part's value, slope
-/// and curvature at `a` (`q`), the bound `c3` on its third derivative, and
-/// bounds on the unresolved part's value (`u`) and slope (`l`).
-#[derive(Debug, Clone, Copy)]
-pub(super) struct NodeBounds {
-    pub(super) q: [f64; 3],
-    pub(super) u: f64,
-    pub(super) l: f64,
-    pub(super) c3: f64,
 }
 
 /// Rounding allowance being summed while a model is built: computing each

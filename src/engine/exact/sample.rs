@@ -3,9 +3,9 @@
 //! the search for the first crossing in the rest of the sample, the switch
 //! there, and again until the sample is consumed.
 
-use super::roots::Found;
 use super::{MAX_SWITCHES_PER_SAMPLE, NEUTRAL_TOL};
 use crate::compile::CompiledScene;
+use crate::engine::search::Found;
 use crate::engine::EngineState;
 
 impl EngineState {

@@ -3,9 +3,9 @@
 //! fast path's margin and the Hermite certificate's remainder, the Hermite
 //! certificate against the search, and the search's model.
 
-use super::roots::Found;
 use super::ROUND_UNITS;
 use crate::compile::{compile, CompiledScene};
+use crate::engine::search::Found;
 use crate::engine::{current_phase, kernel, EngineState, Phase};
 use crate::physics::block::exp2;
 use crate::presets;

@@ -1,0 +1,235 @@
+//! The several-contact engine's block path: runs of samples stepped by the
+//! one-contact engine's block kernel (`engine/kernel`: mode-major, every
+//! contact's event row and both outputs summed per sample in registers),
+//! each sample then certified to hold no crossing by the epoch's margins
+//! (the same test the step's search starts with); the first sample that
+//! fails it, and the run's samples after it, are stepped again by the
+//! search (docs/numerics.md section 14, "The block path").
+//!
+//! The kernel runs on its portable path, whose state update and row sums
+//! are the step's and [`rows_of`]'s arithmetic bit for bit (no fused
+//! multiply-add): so a run of `k` samples, `k` runs of one and the traced
+//! render give the same samples, on every CPU.
+
+use super::*;
+use crate::engine::kernel::{rows_of, run_block_with, BlockIo, BlockRows, Extras, ObsIo, Rows};
+use crate::engine::kernel::{BlockAcc, EPOCH};
+use crate::engine::vmath::SimdPath;
+
+/// The kernel's scratch, one per state (about 30 KB: kept off the state's
+/// own size by a box).
+#[derive(Debug, Clone)]
+pub(super) struct Kern {
+    acc: BlockAcc,
+    acc_obs: BlockAcc,
+    rows: BlockRows,
+    obs: BlockRows,
+    next: Vec<f64>,
+    /// A row of zeros (a contact the scene does not have).
+    zero: Vec<f64>,
+}
+
+impl Kern {
+    /// Room for phases of `dim` coordinates.
+    pub(super) fn new(dim: usize) -> Self {
+        Self {
+            acc: [[[0.0; 4]; 3]; EPOCH],
+            acc_obs: [[[0.0; 4]; 3]; EPOCH],
+            rows: BlockRows::default(),
+            obs: BlockRows::default(),
+            next: vec![0.0; dim],
+            zero: vec![0.0; dim],
+        }
+    }
+}
+
+/// How a run ended.
+pub(super) struct Run {
+    /// Samples stepped and certified.
+    pub(super) done: usize,
+    /// A sample failed the certificate (it is the next one).
+    pub(super) failed: bool,
+}
+
+impl MultiState {
+    /// Whether the block path may run: exact switching (the offset rod
+    /// decides at every sample instant).
+    pub(super) fn fast_ready(&self, sc: &CompiledMulti) -> bool {
+        self.block_path && sc.switching == Switching::Exact && !self.rods_on
+    }
+
+    /// TEST ONLY: turn the block path off (`false`: every sample takes the
+    /// search's way, as a check of the block path against it) or on.
+    #[doc(hidden)]
+    pub fn set_block_path(&mut self, on: bool) {
+        self.block_path = on;
+    }
+
+    /// Up to `left.len()` samples (at most to the end of the clock's
+    /// epoch, and [`EPOCH`]) in the block kernel, each certified to hold
+    /// no crossing of any contact; the outputs of the certified samples
+    /// into `left` and `right`. \[audio-thread\]
+    pub(super) fn run_fast(
+        &mut self,
+        sc: &CompiledMulti,
+        left: &mut [f64],
+        right: &mut [f64],
+    ) -> Run {
+        let left_in_epoch = (64 - self.clock % 64) as usize;
+        let k = left.len().min(right.len()).min(EPOCH).min(left_in_epoch);
+        self.ensure_margins(sc);
+        let start = self.rows_now(sc);
+        self.kernel(sc, k, true);
+        let m = self.mask as usize;
+        let (out0, nc) = (self.tables[m].out0, sc.contacts());
+        let mut done = 0;
+        while done < k {
+            let i = done;
+            let end = self.kernel_rows(i);
+            let beg = if i == 0 {
+                start
+            } else {
+                self.kernel_rows(i - 1)
+            };
+            if !self.certified(sc, &beg, &end, nc) {
+                break;
+            }
+            left[i] = beg[4] + out0[0] + self.off_out[0];
+            right[i] = beg[5] + out0[1] + self.off_out[1];
+            self.fly(sc, self.step_h);
+            self.clock += 1;
+            done += 1;
+        }
+        if done < k && done > 0 {
+            // the run went past a sample that failed: step again to it
+            self.stats.kernel_discarded += (k - done) as u64;
+            self.kernel(sc, done, false);
+        }
+        if done > 0 {
+            let dim = self.s.len();
+            self.s.copy_from_slice(&self.kern.next[..dim]);
+            self.stats.kernel_samples += done as u64;
+        }
+        Run {
+            done,
+            failed: done < k,
+        }
+    }
+
+    /// Step `k` samples from `s` into the scratch's `next`, with every
+    /// contact's event row (`all`) or only the outputs.
+    fn kernel(&mut self, sc: &CompiledMulti, k: usize, all: bool) {
+        let m = self.mask as usize;
+        let ph = &sc.phases[m];
+        let tb = &self.tables[m];
+        let dim = ph.dim;
+        let kern = &mut *self.kern;
+        let row = |j: usize| {
+            if j < ph.ev.len() {
+                &ph.ev[j][..]
+            } else {
+                &kern.zero[..dim]
+            }
+        };
+        let rows = Rows {
+            ev: row(0),
+            l: &tb.out[0],
+            r: &tb.out[1],
+        };
+        let obs_rows = Rows {
+            ev: row(1),
+            l: row(2),
+            r: row(3),
+        };
+        let obs = (all && sc.contacts() > 1).then_some(ObsIo {
+            rows: obs_rows,
+            all: sc.contacts() > 2,
+            acc: &mut kern.acc_obs,
+            out: &mut kern.obs,
+        });
+        let io = BlockIo {
+            p: &tb.soa,
+            s: &self.s,
+            next: &mut kern.next[..dim],
+            rows,
+            acc: &mut kern.acc,
+            out: &mut kern.rows,
+        };
+        let extras = Extras {
+            obs,
+            ..Extras::default()
+        };
+        run_block_with(SimdPath::Generic, io, extras, k);
+    }
+
+    /// The rows of the state after the run's step `i`: every contact's
+    /// event row (without its constant), then the two outputs.
+    fn kernel_rows(&self, i: usize) -> [f64; 6] {
+        let (r, o) = (&self.kern.rows, &self.kern.obs);
+        [r.ev[i], o.ev[i], o.l[i], o.r[i], r.l[i], r.r[i]]
+    }
+
+    /// The same rows of the current state ([`rows_of`], the kernel's
+    /// sums).
+    fn rows_now(&self, sc: &CompiledMulti) -> [f64; 6] {
+        let m = self.mask as usize;
+        let ph = &sc.phases[m];
+        let tb = &self.tables[m];
+        let dim = ph.dim;
+        let row = |j: usize| {
+            if j < ph.ev.len() {
+                &ph.ev[j][..]
+            } else {
+                &self.kern.zero[..dim]
+            }
+        };
+        let [e0, l, r] = rows_of(
+            SimdPath::Generic,
+            &self.s,
+            &Rows {
+                ev: row(0),
+                l: &tb.out[0],
+                r: &tb.out[1],
+            },
+        );
+        let [e1, e2, e3] = if sc.contacts() > 1 {
+            rows_of(
+                SimdPath::Generic,
+                &self.s,
+                &Rows {
+                    ev: row(1),
+                    l: row(2),
+                    r: row(3),
+                },
+            )
+        } else {
+            [0.0; 3]
+        };
+        [e0, e1, e2, e3, l, r]
+    }
+
+    /// Whether no contact crosses in the sample from rows `beg` to rows
+    /// `end`: each contact's `psi` at both ends clears its epoch's margin
+    /// (the test [`first_crossing`](Self::first_crossing) starts with).
+    fn certified(&self, sc: &CompiledMulti, beg: &[f64; 6], end: &[f64; 6], nc: usize) -> bool {
+        let ph = &sc.phases[self.mask as usize];
+        (0..nc).all(|j| {
+            let f = self.event_fn(sc, j);
+            let (q0, q1) = (beg[j] + ph.ev0[j], end[j] + ph.ev0[j]);
+            let margin = self.cached[j].1;
+            f.psi(q0, 0.0).min(f.psi(q1, self.step_h)) > margin
+        })
+    }
+
+    /// Every contact's margin for the clock's epoch, taken now where it
+    /// is not yet ([`first_crossing`](Self::first_crossing) takes it the
+    /// same way).
+    fn ensure_margins(&mut self, sc: &CompiledMulti) {
+        let epoch = self.clock / 64;
+        for j in 0..sc.contacts() {
+            if self.cached[j].0 != epoch {
+                self.cache_margin(sc, j, epoch);
+            }
+        }
+    }
+}

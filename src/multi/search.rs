@@ -1,0 +1,218 @@
+//! A contact's event function as the certified search sees it: the one
+//! search of every engine (`engine/search.rs`; docs/numerics.md section
+//! 6.4, and section 14 for what is particular to several contacts) on the
+//! model this engine has of a contact's penetration over the rest of a
+//! step: a row over the phase's 2x2 blocks, each `exp(G_k t) s_k` exactly,
+//! plus the exact parabolas of the contact's free sides.
+
+use super::*;
+use crate::compile::event::THETA_RESOLVED;
+use crate::engine::search::{self, EventModel, Found, NodeBounds, Tally, ROUND_UNITS, STACK};
+
+/// Contact `j`'s event function `psi` in the current phase from the
+/// block state `s` at the search's origin.
+struct ContactModel<'a> {
+    ph: &'a MultiPhase,
+    tb: &'a PhaseTables,
+    j: usize,
+    s: &'a [f64],
+    f: EventFn,
+    tol: (f64, f64),
+    stack: &'a mut [(f64, f64); STACK],
+    evaluations: &'a mut u64,
+}
+
+impl ContactModel<'_> {
+    /// Bounds on `[a, a + w]` (`all`: every block resolved, the exact
+    /// value, slope and curvature at `a`). A block whose generator turns
+    /// by at most `THETA_RESOLVED` over the node adds its value, slope and
+    /// curvature at `a` and its third derivative's bound; any other, its
+    /// envelope and its slope's. O(blocks the row touches).
+    fn node(&mut self, a: f64, w: f64, all: bool) -> NodeBounds {
+        *self.evaluations += 1;
+        let (ph, tb, j) = (self.ph, self.tb, self.j);
+        let nb = ph.gens.len();
+        let (r, rd, rdd) = (&ph.ev[j], &ph.ev_d[j], &ph.search.ev_dd[j]);
+        let EventFn {
+            sign, x0, v0, g, ..
+        } = self.f;
+        let mut out = NodeBounds {
+            q: [ph.ev0[j] + x0 + a * (v0 - 0.5 * g * a), v0 - g * a, -g],
+            u: 0.0,
+            l: 0.0,
+            c3: 0.0,
+        };
+        for &k in &ph.ev_blocks[j] {
+            let (y0, y1) = mul2(&ph.exp_block(k, a), self.s[k], self.s[nb + k]);
+            if all || ph.search.rho[k] * w <= THETA_RESOLVED {
+                out.q[0] += r[k] * y0 + r[nb + k] * y1;
+                out.q[1] += rd[k] * y0 + rd[nb + k] * y1;
+                out.q[2] += rdd[k] * y0 + rdd[nb + k] * y1;
+                if !all {
+                    out.c3 += tb.ev_c3[j][k] * y0.hypot(y1);
+                }
+            } else {
+                let n = y0.hypot(y1);
+                out.u += tb.ev_e[j][k] * n;
+                out.l += tb.ev_c1[j][k] * n;
+            }
+        }
+        out.q = out.q.map(|x| sign * x);
+        out
+    }
+}
+
+impl EventModel for ContactModel<'_> {
+    fn bounds(&mut self, a: f64, w: f64) -> NodeBounds {
+        self.node(a, w, false)
+    }
+
+    fn eval(&mut self, t: f64) -> [f64; 3] {
+        self.node(t, 0.0, true).q
+    }
+
+    fn tolerances(&self) -> (f64, f64) {
+        self.tol
+    }
+
+    fn stack(&mut self) -> &mut [(f64, f64); STACK] {
+        self.stack
+    }
+}
+
+impl MultiState {
+    /// The first crossing of contact `j` in `(0, rem]` of the current step
+    /// (the state `s` at its origin, `end` at `rem`), or `None`: a whole
+    /// sample that clears its epoch's margin holds none; a contact on the
+    /// far side at the origin crosses there; otherwise the certified
+    /// search decides, from the origin as a switch instant (`open`) for a
+    /// contact that just switched.
+    pub(super) fn first_crossing(
+        &mut self,
+        sc: &CompiledMulti,
+        j: usize,
+        rem: f64,
+        start: Start,
+    ) -> Option<f64> {
+        let ph = &sc.phases[self.mask as usize];
+        let f = self.event_fn(sc, j);
+        let q0 = dot_at(&ph.ev[j], &self.s, &ph.ev_nz[j]) + ph.ev0[j];
+        let q_end = dot_at(&ph.ev[j], &self.end, &ph.ev_nz[j]) + ph.ev0[j];
+        let (psi0, psi_end) = (f.psi(q0, 0.0), f.psi(q_end, rem));
+        // a whole sample that clears the epoch's margin holds no crossing
+        let epoch = self.clock / 64;
+        let whole = matches!(start, Start::Value) && rem == self.step_h;
+        if whole && self.cached[j].0 == epoch && psi_end.min(psi0) > self.cached[j].1 {
+            return None;
+        }
+        if whole && self.cached[j].0 != epoch {
+            self.cache_margin(sc, j, epoch);
+        }
+        let tol = self.tolerances(ph, j, &f, rem);
+        let mut open = matches!(start, Start::Boundary);
+        if !open && psi0.min(psi_end) - self.margin(ph, j, rem, f.g.abs()) > tol.0 {
+            // both ends clear the chord's margin (section 6.2's
+            // certificate, before any search)
+            return None;
+        }
+        if !open {
+            // a step that starts on the far side (or at 0 moving across):
+            // the crossing is at its origin
+            let d0 = f.dpsi(dot_at(&ph.ev_d[j], &self.s, &ph.evd_nz[j]), 0.0);
+            if psi0 < 0.0 || (psi0 == 0.0 && d0 < 0.0) {
+                return Some(0.0);
+            }
+            open = psi0 == 0.0;
+        }
+        let mut model = ContactModel {
+            ph,
+            tb: &self.tables[self.mask as usize],
+            j,
+            s: &self.s,
+            f,
+            tol,
+            stack: &mut self.stack,
+            evaluations: &mut self.stats.evaluations,
+        };
+        let mut tally = Tally::default();
+        let found = search::first_root(&mut model, self.step_h, rem, open, &mut tally);
+        self.stats.grazing += tally.grazing;
+        self.stats.uncertified += tally.uncertified;
+        match found {
+            Found::At(t) => Some(t),
+            Found::None => None,
+        }
+    }
+
+    /// Contact `j`'s whole-sample margin for `epoch` from the current
+    /// state, times the phase's growth over 64 samples: it holds for
+    /// every later state of the epoch.
+    pub(super) fn cache_margin(&mut self, sc: &CompiledMulti, j: usize, epoch: u64) {
+        let ph = &sc.phases[self.mask as usize];
+        let f = self.event_fn(sc, j);
+        let _ = self.tolerances(ph, j, &f, self.step_h);
+        let later = self.tables[self.mask as usize].growth_max.powi(64);
+        self.cached[j] = (epoch, self.margin(ph, j, self.step_h, f.g.abs()) * later);
+    }
+
+    /// Contact `j`'s event function in the current phase: its sign and the
+    /// flights of its free sides (the lower side's less the upper's).
+    pub(super) fn event_fn(&self, sc: &CompiledMulti, j: usize) -> EventFn {
+        let ph = &sc.phases[self.mask as usize];
+        let inside = self.mask & (1 << j) != 0;
+        let g = sc.model.gravity_m_per_s2;
+        let (lo, up) = ph.ev_fly[j];
+        let flight =
+            |slot: Option<usize>| slot.map_or((0.0, 0.0, 0.0), |k| (self.x_f[k], self.v_f[k], g));
+        let ((xl, vl, gl), (xu, vu, gu)) = (flight(lo), flight(up));
+        EventFn {
+            sign: if inside { 1.0 } else { -1.0 },
+            x0: xl - xu,
+            v0: vl - vu,
+            g: gl - gu,
+            scale: (xl.abs() + xu.abs(), vl.abs() + vu.abs(), gl + gu),
+        }
+    }
+
+    /// The rounding allowances of contact `j`'s `psi` and `psi'` over
+    /// `rem` (`ROUND_UNITS` of `u` times the magnitudes summed into them:
+    /// each block's share bound from its norm at the origin, the constant,
+    /// the flights' heights, speeds and travel), and each block's norm at
+    /// the origin into `norms` (the epoch's margin). O(blocks the row
+    /// touches).
+    fn tolerances(&mut self, ph: &MultiPhase, j: usize, f: &EventFn, rem: f64) -> (f64, f64) {
+        let nb = ph.gens.len();
+        let tb = &self.tables[self.mask as usize];
+        let (xs, vs, gs) = f.scale;
+        let mut mag = ph.ev0[j].abs() + xs + vs * rem + gs * rem * rem;
+        let mut mag_d = vs + gs * rem;
+        self.norms[..nb].fill(0.0);
+        for &k in &ph.ev_blocks[j] {
+            let n = self.s[k].hypot(self.s[nb + k]);
+            self.norms[k] = n;
+            mag += tb.ev_e[j][k] * n;
+            mag_d += tb.ev_c1[j][k] * n;
+        }
+        let units = ROUND_UNITS * f64::EPSILON;
+        (units * mag, units * mag_d)
+    }
+
+    /// How far contact `j`'s event function may stray from the chord over
+    /// a piece of width `w` from the step's origin: per block the smaller
+    /// of its curvature's share `c_k |s_k| w^2 / 8` and `2 e_k |s_k|` (its
+    /// share of the function and of the chord both stay within `e_k
+    /// |s_k|`), plus the falling sides' exact `g w^2 / 8`; the one-contact
+    /// engine's margin (docs/numerics.md section 6.2), with `|s_k|` at the
+    /// origin (`norms`): every block is a contraction up to its growth
+    /// factor, so it bounds the piece.
+    fn margin(&self, ph: &MultiPhase, j: usize, w: f64, g_curv: f64) -> f64 {
+        let h = w * w / 8.0;
+        let mut acc = g_curv * h;
+        let tb = &self.tables[self.mask as usize];
+        let (c2, e) = (&tb.ev_c2[j], &tb.ev_e[j]);
+        for k in 0..ph.gens.len() {
+            acc += (c2[k] * h).min(2.0 * e[k]) * self.norms[k];
+        }
+        acc * (1.0 + 1e-12)
+    }
+}
