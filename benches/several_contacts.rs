@@ -6,7 +6,10 @@
 //! every contact's check), both measured in the same run; and, printed
 //! once, the time to compile every phase. Beside it, the worst block of
 //! the instrument playing each kit preset (docs/design.md, "Played as a
-//! kit"). Timing is reported, never asserted.
+//! kit"), and each several-contact preset's render in blocks on the block
+//! path against the same engine searching every sample (docs/numerics.md
+//! section 14, "The block path"), in the same run. Timing is reported,
+//! never asserted.
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use modal_contact::multi::{CompiledMulti, MultiHammer, MultiModel, MultiState};
@@ -176,5 +179,43 @@ fn kits(_: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench, kits);
+/// Each several-contact preset as written, 2 s at 48 kHz in blocks of 64
+/// (`MultiState::process_block`), on the block path and with every sample
+/// searched (`set_block_path(false)`), alternated five times; printed: the
+/// median time per sample of each and their ratio.
+fn block_path(_: &mut Criterion) {
+    use modal_contact::scene::Scene;
+    println!("\nblock path: several-contact presets, 2 s at 48 kHz in blocks of 64 (median of 5, alternated):");
+    println!("| preset | block path [ns/sample] | every sample searched [ns/sample] | ratio |");
+    println!("|---|---|---|---|");
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    for name in ["ball-between-plates", "marimba-two-mallets", "snare-pair", "wind-chimes"] {
+        let scene = Scene::from_file(&root.join(format!("presets/{name}.toml"))).unwrap();
+        let model = MultiModel::from_scene(&scene, RATE).unwrap();
+        let sw = scene.contact.switching.unwrap_or_default();
+        let sc = CompiledMulti::with_switching(&model, RATE, sw).unwrap();
+        let n = (2.0 * RATE) as usize;
+        let run = |block_path: bool| {
+            let mut st = MultiState::new(&sc);
+            st.set_block_path(block_path);
+            let (mut l, mut r) = ([0.0; 64], [0.0; 64]);
+            let t0 = Instant::now();
+            for _ in 0..n / 64 {
+                st.process_block(&sc, &mut l, &mut r);
+                black_box(&l);
+            }
+            t0.elapsed().as_secs_f64() * 1e9 / n as f64
+        };
+        let (mut on, mut off) = (Vec::new(), Vec::new());
+        for _ in 0..5 {
+            on.push(run(true));
+            off.push(run(false));
+        }
+        on.sort_by(f64::total_cmp);
+        off.sort_by(f64::total_cmp);
+        println!("| {name} | {:.0} | {:.0} | {:.2} |", on[2], off[2], off[2] / on[2]);
+    }
+}
+
+criterion_group!(benches, bench, kits, block_path);
 criterion_main!(benches);

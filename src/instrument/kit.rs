@@ -190,16 +190,16 @@ impl Kit {
     }
 
     /// Tick kit voice `i`'s `len` samples into `buf` with a linear gain
-    /// ramp `g0 - k dg`, calling `look` on the state before each sample
-    /// (the live view); false if a sample was not a number (the voice then
-    /// rests). \[audio-thread\]
+    /// ramp `g0 - k dg`, calling `look` (if any: the live view) on the
+    /// state before each sample, else as one block; false if a sample was
+    /// not a number (the voice then rests). \[audio-thread\]
     pub(super) fn tick_into(
         &mut self,
         i: usize,
         buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
         len: usize,
         (g0, dg): (f64, f64),
-        look: impl FnMut(usize, &MultiState, &CompiledMulti),
+        look: Option<impl FnMut(usize, &MultiState, &CompiledMulti)>,
     ) -> bool {
         tick_state(&mut self.voices[i].st, &self.sc, buf, len, (g0, dg), look)
     }
@@ -219,7 +219,7 @@ impl Kit {
             buf,
             len,
             (1.0, 0.0),
-            |_, _, _| {},
+            None::<fn(usize, &MultiState, &CompiledMulti)>,
         )
     }
 
@@ -329,24 +329,34 @@ impl Kit {
 }
 
 /// Tick `st` `len` samples into `buf` with a linear gain ramp
-/// `g0 - k dg`, calling `look` on the state before each sample; false if a
-/// sample was not a number (the state then rests). \[audio-thread\]
+/// `g0 - k dg`, calling `look` (if any) on the state before each sample;
+/// without one, the samples run as one block on the engine's block path
+/// (the same samples bit for bit). False if a sample was not a number (the
+/// state then rests). \[audio-thread\]
 fn tick_state(
     st: &mut MultiState,
     sc: &CompiledMulti,
     buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
     len: usize,
     (g0, dg): (f64, f64),
-    mut look: impl FnMut(usize, &MultiState, &CompiledMulti),
+    look: Option<impl FnMut(usize, &MultiState, &CompiledMulti)>,
 ) -> bool {
+    let [b0, b1] = buf;
+    match look {
+        Some(mut look) => {
+            for k in 0..len {
+                look(k, st, sc);
+                [b0[k], b1[k]] = st.tick(sc);
+            }
+        }
+        None => st.process_block(sc, &mut b0[..len], &mut b1[..len]),
+    }
     let mut finite = true;
     for k in 0..len {
-        look(k, st, sc);
-        let [l, r] = st.tick(sc);
-        finite &= l.is_finite() && r.is_finite();
+        finite &= b0[k].is_finite() && b1[k].is_finite();
         let g = (g0 - k as f64 * dg).max(0.0);
-        buf[0][k] = l * g;
-        buf[1][k] = r * g;
+        b0[k] *= g;
+        b1[k] *= g;
     }
     if !finite {
         st.rest(sc);
@@ -587,8 +597,8 @@ impl Instrument {
         let observe = self.probe_on && self.probe.is_some();
         let contacts = kit.sc.contacts();
         let motion = &mut self.kit_motion;
-        let finite = kit.tick_into(i, &mut self.vbuf, len, (1.0, 0.0), |k, st, sc| {
-            if observe {
+        let look = |k: usize, st: &MultiState, sc: &CompiledMulti| {
+            {
                 let o = st.observe(sc);
                 let s = st.time_scale();
                 for (j, m) in motion.iter_mut().enumerate().take(contacts) {
@@ -601,7 +611,8 @@ impl Instrument {
                     };
                 }
             }
-        });
+        };
+        let finite = kit.tick_into(i, &mut self.vbuf, len, (1.0, 0.0), observe.then_some(look));
         if !finite {
             self.voices[i].active = false;
             self.stats.nonfinite_resets += 1;

@@ -27,6 +27,7 @@ use super::{
 use crate::compile::CompiledScene;
 use crate::engine::denormal::FlushDenormals;
 use crate::engine::{EngineState, Motion};
+use crate::multi::{CompiledMulti, MultiState};
 
 /// Longest lookahead \[samples\] (85 ms at 48 kHz, 21 ms at 192 kHz; the
 /// plugin's parameter stops at [`MAX_LOOKAHEAD_S`] before).
@@ -349,7 +350,13 @@ impl Instrument {
                 let g0 = self.fade_left as f64 / self.fade_len as f64;
                 let dg = 1.0 / self.fade_len as f64;
                 if let Some(kit) = f.kit.as_deref_mut() {
-                    if kit.tick_into(i, &mut self.vbuf, len, (g0, dg), |_, _, _| {}) {
+                    if kit.tick_into(
+                        i,
+                        &mut self.vbuf,
+                        len,
+                        (g0, dg),
+                        None::<fn(usize, &MultiState, &CompiledMulti)>,
+                    ) {
                         add_into(&mut self.acc, &self.vbuf, len);
                     } else {
                         self.fade_voices[i] = None;
