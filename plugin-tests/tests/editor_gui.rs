@@ -28,7 +28,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// The editor's default size (src/plugin/params.rs, `EDITOR_SIZE`).
+/// The editor's default size (src/plugin/params/persisted.rs, `EDITOR_SIZE`).
 const SIZE: (u32, u32) = modal_contact::plugin::params::EDITOR_SIZE;
 
 fn standalone() -> PathBuf {

@@ -11,7 +11,7 @@
 //! and turns a scene into the one the compiler runs on
 //! ([`Scene::expanded`]); the rest of the room: `limits.rs` (the range of
 //! every value), `error.rs` ([`SceneError`] and the value checks),
-//! `validate.rs` ([`Scene::validate`]), `physical.rs` (objects from
+//! `validate.rs` ([`Scene::validate`]), `physical/` (objects from
 //! geometry and material) and `mallet.rs` (modal mallets and lumped
 //! chains).
 
