@@ -58,7 +58,7 @@ pub const PRESETS: &[Preset] = &[
     preset!("wood-block", "Wood block"),
     preset!("vibraphone-bar", "Vibraphone bar"),
     preset!("tubular-chime", "Tubular chime"),
-    preset!("frame-drum", "Floor tom"),
+    preset!("frame-drum", "Frame drum"),
     preset!("piano-string", "Piano string"),
     preset!("marimba-rubber-mallet", "Marimba, rubber mallet"),
     preset!("marimba-two-mallets", "Marimba, two mallets (kit)"),

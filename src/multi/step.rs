@@ -168,7 +168,7 @@ impl MultiState {
         );
         // each closed contact's penetration from its own coordinate
         // (exact); an entering one starts unstretched (its crossing, 0 to
-        // the search's leaf), so entering adds nothing
+        // the search's resolution), so entering adds nothing
         let mut pen = *enter;
         for (j, p) in pen.iter_mut().enumerate().take(sc.contacts()) {
             if self.mask & (1 << j) != 0 {

@@ -37,7 +37,7 @@ fn presets_need_no_realtime_warning_at_any_hardness() {
 
 /// The strike-cost warning: no shipped preset needs it at 64-sample
 /// blocks, and at 32 samples only the 50-mass paper string and the frame
-/// drum (39 axisymmetric head modes) do (a 16-note
+/// drum (37 coupled membrane modes) do (a 16-note
 /// chord on a 50-mode object takes about 70 % of such a block, measured by
 /// `cargo bench --bench worst_block`); a 400-mode object warns at 64-sample
 /// blocks (a 16-note chord would take several blocks' worth of CPU), and a
