@@ -189,7 +189,12 @@ fn block_path(_: &mut Criterion) {
     println!("| preset | block path [ns/sample] | every sample searched [ns/sample] | ratio |");
     println!("|---|---|---|---|");
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    for name in ["ball-between-plates", "marimba-two-mallets", "snare-pair", "wind-chimes"] {
+    for name in [
+        "ball-between-plates",
+        "marimba-two-mallets",
+        "snare-pair",
+        "wind-chimes",
+    ] {
         let scene = Scene::from_file(&root.join(format!("presets/{name}.toml"))).unwrap();
         let model = MultiModel::from_scene(&scene, RATE).unwrap();
         let sw = scene.contact.switching.unwrap_or_default();
@@ -213,7 +218,12 @@ fn block_path(_: &mut Criterion) {
         }
         on.sort_by(f64::total_cmp);
         off.sort_by(f64::total_cmp);
-        println!("| {name} | {:.0} | {:.0} | {:.2} |", on[2], off[2], off[2] / on[2]);
+        println!(
+            "| {name} | {:.0} | {:.0} | {:.2} |",
+            on[2],
+            off[2],
+            off[2] / on[2]
+        );
     }
 }
 

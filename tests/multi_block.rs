@@ -82,6 +82,9 @@ fn the_block_path_moves_as_the_search_does_bit_for_bit() {
         assert_eq!(a.contacts_started, b.contacts_started);
         assert_eq!(a.kernel_samples, 0);
         assert!(b.kernel_samples as f64 > 0.9 * n as f64, "{name}");
-        assert!(peak > 0.0 && worst <= 1e-15 * peak, "{name}: {worst:e} of {peak:e}");
+        assert!(
+            peak > 0.0 && worst <= 1e-15 * peak,
+            "{name}: {worst:e} of {peak:e}"
+        );
     }
 }

@@ -598,18 +598,16 @@ impl Instrument {
         let contacts = kit.sc.contacts();
         let motion = &mut self.kit_motion;
         let look = |k: usize, st: &MultiState, sc: &CompiledMulti| {
-            {
-                let o = st.observe(sc);
-                let s = st.time_scale();
-                for (j, m) in motion.iter_mut().enumerate().take(contacts) {
-                    m[k] = crate::engine::Motion {
-                        x_hammer: o.x_hammer[j],
-                        v_hammer: o.v_hammer[j] * s,
-                        x_contact: o.x_contact[j],
-                        v_contact: o.v_contact[j] * s,
-                        in_contact: o.active & (1 << j) != 0,
-                    };
-                }
+            let o = st.observe(sc);
+            let s = st.time_scale();
+            for (j, m) in motion.iter_mut().enumerate().take(contacts) {
+                m[k] = crate::engine::Motion {
+                    x_hammer: o.x_hammer[j],
+                    v_hammer: o.v_hammer[j] * s,
+                    x_contact: o.x_contact[j],
+                    v_contact: o.v_contact[j] * s,
+                    in_contact: o.active & (1 << j) != 0,
+                };
             }
         };
         let finite = kit.tick_into(i, &mut self.vbuf, len, (1.0, 0.0), observe.then_some(look));
