@@ -43,6 +43,25 @@ impl Kern {
     }
 }
 
+/// The rows the block path sums: contact 0's event row and the two
+/// outputs, then contacts 1 to 3's event rows (`zero` for a contact the
+/// scene does not have).
+fn kernel_rows_of<'a>(ph: &'a MultiPhase, tb: &'a PhaseTables, zero: &'a [f64]) -> [Rows<'a>; 2] {
+    let row = |j: usize| ph.ev.get(j).map_or(zero, |r| &r[..]);
+    [
+        Rows {
+            ev: row(0),
+            l: &tb.out[0],
+            r: &tb.out[1],
+        },
+        Rows {
+            ev: row(1),
+            l: row(2),
+            r: row(3),
+        },
+    ]
+}
+
 /// How a run ended.
 pub(super) struct Run {
     /// Samples stepped and certified.
@@ -124,23 +143,7 @@ impl MultiState {
         let tb = &self.tables[m];
         let dim = ph.dim;
         let kern = &mut *self.kern;
-        let row = |j: usize| {
-            if j < ph.ev.len() {
-                &ph.ev[j][..]
-            } else {
-                &kern.zero[..dim]
-            }
-        };
-        let rows = Rows {
-            ev: row(0),
-            l: &tb.out[0],
-            r: &tb.out[1],
-        };
-        let obs_rows = Rows {
-            ev: row(1),
-            l: row(2),
-            r: row(3),
-        };
+        let [rows, obs_rows] = kernel_rows_of(ph, tb, &kern.zero[..dim]);
         let obs = (all && sc.contacts() > 1).then_some(ObsIo {
             rows: obs_rows,
             all: sc.contacts() > 2,
@@ -175,33 +178,10 @@ impl MultiState {
         let m = self.mask as usize;
         let ph = &sc.phases[m];
         let tb = &self.tables[m];
-        let dim = ph.dim;
-        let row = |j: usize| {
-            if j < ph.ev.len() {
-                &ph.ev[j][..]
-            } else {
-                &self.kern.zero[..dim]
-            }
-        };
-        let [e0, l, r] = rows_of(
-            SimdPath::Generic,
-            &self.s,
-            &Rows {
-                ev: row(0),
-                l: &tb.out[0],
-                r: &tb.out[1],
-            },
-        );
+        let [rows, obs_rows] = kernel_rows_of(ph, tb, &self.kern.zero[..ph.dim]);
+        let [e0, l, r] = rows_of(SimdPath::Generic, &self.s, &rows);
         let [e1, e2, e3] = if sc.contacts() > 1 {
-            rows_of(
-                SimdPath::Generic,
-                &self.s,
-                &Rows {
-                    ev: row(1),
-                    l: row(2),
-                    r: row(3),
-                },
-            )
+            rows_of(SimdPath::Generic, &self.s, &obs_rows)
         } else {
             [0.0; 3]
         };

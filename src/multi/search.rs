@@ -105,8 +105,9 @@ impl MultiState {
         if whole && self.cached[j].0 == epoch && psi_end.min(psi0) > self.cached[j].1 {
             return None;
         }
+        self.take_norms(ph, j);
         if whole && self.cached[j].0 != epoch {
-            self.cache_margin(sc, j, epoch);
+            self.cached[j] = (epoch, self.whole_margin(ph, j, &f));
         }
         let tol = self.tolerances(ph, j, &f, rem);
         let mut open = matches!(start, Start::Boundary);
@@ -145,14 +146,31 @@ impl MultiState {
     }
 
     /// Contact `j`'s whole-sample margin for `epoch` from the current
-    /// state, times the phase's growth over 64 samples: it holds for
-    /// every later state of the epoch.
+    /// state ([`whole_margin`](Self::whole_margin)), kept for the epoch.
     pub(super) fn cache_margin(&mut self, sc: &CompiledMulti, j: usize, epoch: u64) {
         let ph = &sc.phases[self.mask as usize];
         let f = self.event_fn(sc, j);
-        let _ = self.tolerances(ph, j, &f, self.step_h);
+        self.take_norms(ph, j);
+        self.cached[j] = (epoch, self.whole_margin(ph, j, &f));
+    }
+
+    /// The margin of a whole sample from the norms taken now, times the
+    /// phase's growth over 64 samples: it holds for every later state of
+    /// the clock's 64-sample epoch.
+    fn whole_margin(&self, ph: &MultiPhase, j: usize, f: &EventFn) -> f64 {
         let later = self.tables[self.mask as usize].growth_max.powi(64);
-        self.cached[j] = (epoch, self.margin(ph, j, self.step_h, f.g.abs()) * later);
+        self.margin(ph, j, self.step_h, f.g.abs()) * later
+    }
+
+    /// Each block's `|s_k|` at the step's origin into `norms`, for the
+    /// blocks contact `j`'s rows touch (0 for the others, which weigh 0 in
+    /// its bounds). O(blocks the row touches).
+    fn take_norms(&mut self, ph: &MultiPhase, j: usize) {
+        let nb = ph.gens.len();
+        self.norms[..nb].fill(0.0);
+        for &k in &ph.ev_blocks[j] {
+            self.norms[k] = self.s[k].hypot(self.s[nb + k]);
+        }
     }
 
     /// Contact `j`'s event function in the current phase: its sign and the
@@ -176,22 +194,17 @@ impl MultiState {
 
     /// The rounding allowances of contact `j`'s `psi` and `psi'` over
     /// `rem` (`ROUND_UNITS` of `u` times the magnitudes summed into them:
-    /// each block's share bound from its norm at the origin, the constant,
-    /// the flights' heights, speeds and travel), and each block's norm at
-    /// the origin into `norms` (the epoch's margin). O(blocks the row
-    /// touches).
-    fn tolerances(&mut self, ph: &MultiPhase, j: usize, f: &EventFn, rem: f64) -> (f64, f64) {
-        let nb = ph.gens.len();
+    /// each block's share bound from its norm at the origin, taken by
+    /// [`take_norms`](Self::take_norms), the constant, the flights'
+    /// heights, speeds and travel). O(blocks the row touches).
+    fn tolerances(&self, ph: &MultiPhase, j: usize, f: &EventFn, rem: f64) -> (f64, f64) {
         let tb = &self.tables[self.mask as usize];
         let (xs, vs, gs) = f.scale;
         let mut mag = ph.ev0[j].abs() + xs + vs * rem + gs * rem * rem;
         let mut mag_d = vs + gs * rem;
-        self.norms[..nb].fill(0.0);
         for &k in &ph.ev_blocks[j] {
-            let n = self.s[k].hypot(self.s[nb + k]);
-            self.norms[k] = n;
-            mag += tb.ev_e[j][k] * n;
-            mag_d += tb.ev_c1[j][k] * n;
+            mag += tb.ev_e[j][k] * self.norms[k];
+            mag_d += tb.ev_c1[j][k] * self.norms[k];
         }
         let units = ROUND_UNITS * f64::EPSILON;
         (units * mag, units * mag_d)
