@@ -248,6 +248,7 @@ fn run_tests(extra: &[String]) -> Result<()> {
     );
     let cargo_tests = run(&mut cmd);
     let embed_test = run_embed();
+    let alloc_test = run_alloc_tests();
     // The VST3 test compares with the library through this binary.
     run(std::process::Command::new("cargo").args([
         "build",
@@ -283,6 +284,7 @@ fn run_tests(extra: &[String]) -> Result<()> {
     let ardour_test = host_test("plugin-tests/ardour/test_ardour.py");
     cargo_tests?;
     embed_test?;
+    alloc_test?;
     vst3_test?;
     ardour_test
 }
@@ -299,6 +301,17 @@ const CORE_ARGS: [&str; 5] = [
     "test-release",
     "--no-default-features",
 ];
+
+/// The allocation tests (`tests/kit_alloc.rs`, `tests/multi_alloc.rs`):
+/// each installs a counting global allocator, so both are empty in the
+/// workspace's build with `rt-checks` (whose allocation checker is that
+/// build's global allocator) and run here, in the core's build.
+fn run_alloc_tests() -> Result<()> {
+    run(std::process::Command::new("cargo")
+        .arg("test")
+        .args(CORE_ARGS)
+        .args(["--test", "kit_alloc", "--test", "multi_alloc"]))
+}
 
 /// The core without the plugin: its doctest (the README's embedding
 /// example), `examples/embed.rs` writing a WAV file that is read back
