@@ -1,6 +1,7 @@
 //! The core embedded in an application, without the plugin: load a scene
-//! file, compile it at 48 kHz, strike it, process 2 s in blocks of 64
-//! samples and write a 32-bit float stereo WAV file.
+//! file (one to four contacts), compile it at 48 kHz, throw each of its
+//! mallets at the object, process 2 s in blocks of 64 samples and write a
+//! 32-bit float stereo WAV file.
 //!
 //! ```sh
 //! cargo run -p modal_contact --release --no-default-features --example embed -- [SCENE.toml] [OUT.wav]
@@ -10,7 +11,7 @@
 //! `embed.wav`. A scene that cannot be read, parsed or compiled is
 //! reported with its error (naming the field) and exit code 1.
 
-use modal_contact::{compile, EngineState, Scene};
+use modal_contact::{compile, Scene, StrikeError, Voice};
 use std::error::Error;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -55,9 +56,15 @@ fn run(scene: &Path, out: &Path) -> Result<f64, Box<dyn Error>> {
     let parsed = Scene::from_toml_str(&text).map_err(|e| format!("{}: {e}", scene.display()))?;
     let compiled = compile(&parsed, f64::from(RATE_HZ))
         .map_err(|e| format!("{} does not compile: {e}", scene.display()))?;
-    let mut voice = EngineState::new(&compiled);
-    // the hammer put on the surface, moving down
-    voice.strike(&compiled, 0.0, -STRIKE_M_PER_S);
+    let mut voice = Voice::new(&compiled);
+    // every mallet put on the surface it strikes, moving down (a contact
+    // between two objects has no mallet to throw)
+    for contact in 0..compiled.contacts() {
+        match voice.strike(&compiled, contact, 0.0, -STRIKE_M_PER_S) {
+            Ok(()) | Err(StrikeError::NoMallet) => {}
+            Err(e) => return Err(format!("contact {contact}: {e}").into()),
+        }
+    }
 
     let spec = hound::WavSpec {
         channels: 2,

@@ -4,8 +4,9 @@
 //! Layers (docs/design.md, "Layers"): [`bodies`] (modes from geometry and
 //! material) -> [`scene`] (parse, validate) -> [`compile`](mod@compile)
 //! (off the audio thread: decompositions, propagators) -> [`CompiledScene`]
-//! -> [`engine`] (per sample, allocation-free); [`render`](mod@render)
-//! drives it offline, [`instrument`] plays notes through it, and `plugin`
+//! -> [`engine`] (per sample, allocation-free); [`multi`] runs scenes of
+//! several contacts and [`play`] is the one way in for both ([`compile()`]
+//! -> [`Compiled`] -> [`Voice`]); [`render`](mod@render) drives it offline, [`instrument`] plays notes through it, and `plugin`
 //! (feature `plugin`, on by default) puts the instrument in a CLAP or VST3
 //! host.
 //!
@@ -14,20 +15,20 @@
 //! Without the plugin (`default-features = false`) the crate is the core:
 //! scene, compiler, engine and offline render, with none of the plugin's
 //! dependencies (nice-plug, egui, rfd, directories, clap-sys). The names
-//! below are re-exported here; every module stays public for what goes
-//! further. A scene file, compiled at 48 kHz, struck once and played in
-//! blocks of 64 samples (`examples/embed.rs` does the same and writes a WAV
-//! file):
+//! below are re-exported here. A scene file of one to four contacts,
+//! compiled at 48 kHz, its mallet thrown at the object and played in
+//! blocks of 64 samples (`examples/embed.rs` does the same and writes a
+//! WAV file):
 //!
 //! ```
-//! use modal_contact::{compile, EngineState, Scene};
+//! use modal_contact::{compile, Scene, Voice};
 //! use std::path::Path;
 //!
 //! let scene = Scene::from_file(Path::new("presets/marimba-bar.toml"))?;
 //! let compiled = compile(&scene, 48_000.0)?;
-//! let mut voice = EngineState::new(&compiled);
-//! // the hammer put on the surface, moving down at 2 m/s
-//! voice.strike(&compiled, 0.0, -2.0);
+//! let mut voice = Voice::new(&compiled);
+//! // contact 0's mallet put on the surface, moving down at 2 m/s
+//! voice.strike(&compiled, 0, 0.0, -2.0)?;
 //! let (mut left, mut right) = ([0.0; 64], [0.0; 64]);
 //! let mut out = Vec::new();
 //! for _ in 0..2 * 48_000 / 64 {
@@ -39,11 +40,13 @@
 //! ```
 //!
 //! [`Scene::from_file`] and [`compile()`] refuse a bad scene with an error
-//! that names the field ([`SceneError`], [`CompileError`]);
-//! [`EngineState::strike`] and [`EngineState::process_block`] then neither
-//! fail nor allocate. [`render()`] renders a scene of one to four contacts
-//! offline in one call, with the per-sample trace if asked
-//! ([`RenderOptions`]); [`render::Compiled`] compiles either kind for it.
+//! that names the field ([`SceneError`], [`CompileError`]); [`Voice::strike`]
+//! refuses a strike it cannot take ([`StrikeError`]) and changes nothing,
+//! and [`Voice::process_block`] neither fails nor allocates. [`render()`]
+//! renders a scene offline in one call, with the per-sample trace if asked
+//! ([`RenderOptions`]). For what only one contact offers (played-back
+//! strikes, the energy and trace of each sample), [`compile_one`] gives the
+//! [`CompiledScene`] an [`EngineState`] runs.
 
 pub mod bodies;
 pub mod compile;
@@ -51,6 +54,7 @@ pub mod engine;
 pub mod instrument;
 pub mod multi;
 pub mod physics;
+pub mod play;
 #[cfg(feature = "plugin")]
 pub mod plugin;
 pub mod presets;
@@ -62,7 +66,8 @@ pub mod scene;
 #[doc(hidden)]
 pub mod test_rng;
 
-pub use compile::{compile, CompileError, CompiledScene};
+pub use compile::{compile_one, CompileError, CompiledScene};
 pub use engine::EngineState;
+pub use play::{compile, Compiled, StrikeError, Voice};
 pub use render::{render, RenderError, RenderOptions, RenderOutput};
 pub use scene::{Scene, SceneError};

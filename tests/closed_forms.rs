@@ -1,7 +1,7 @@
 //! The engine against closed forms: free damped sinusoids, and the linear
 //! spring-damper impact on a rigid wall.
 
-use modal_contact::compile::{compile, compile_with};
+use modal_contact::compile::{compile_one, compile_with};
 use modal_contact::engine::EngineState;
 use modal_testkit::metrics::rel_l2;
 use modal_testkit::scenes::{preset, wall_strike, Contact, Hammer, Modal, SceneBuilder};
@@ -28,7 +28,7 @@ fn free_modal_object_matches_damped_sinusoids() {
         .hammer(Hammer::new(0.01).height(1.0).velocity(1.0))
         .contact(Contact::new("o", 1e5).point("c"))
         .build();
-    let sc = compile(&scene, 44100.0).unwrap();
+    let sc = compile_one(&scene, 44100.0).unwrap();
     let mut st = EngineState::new(&sc);
     {
         let s = st.free_state_mut();
@@ -72,7 +72,7 @@ fn wall_impact(rate: f64, m: f64, k: f64, c: f64) -> (f64, f64) {
     let v0 = -1.0;
     let mut scene = wall_strike(m, k, c, 0.0, v0);
     scene.contact.switching = Some(modal_contact::scene::Switching::OffsetRod);
-    let sc = compile(&scene, rate).unwrap();
+    let sc = compile_one(&scene, rate).unwrap();
     let mut st = EngineState::new(&sc);
     let mut start = None;
     for i in 0..(rate as usize) {
@@ -163,7 +163,7 @@ fn exact_switching_hits_rigid_wall_closed_forms_at_44k() {
         let gap = 0.37 * h * -v0;
         sc.hammer.height_m = gap;
         sc.contact.switching = Some(Switching::Exact);
-        let compiled = compile(&sc, rate).unwrap();
+        let compiled = compile_one(&sc, rate).unwrap();
         let mut st = EngineState::new(&compiled);
         let t_in = gap / -v0;
         let mut was = false;

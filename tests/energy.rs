@@ -5,7 +5,7 @@
 //! spring's energy at each release. Damped case: never increasing from one
 //! sample to the next beyond a rounding bound.
 
-use modal_contact::compile::compile;
+use modal_contact::compile::compile_one;
 use modal_contact::engine::EngineState;
 use modal_contact::scene::Scene;
 use modal_testkit::scenes::{preset, Contact, Hammer, Modal, Pickup, SceneBuilder};
@@ -100,7 +100,7 @@ fn damped_energy_never_increases() {
         ("paper-string", preset("paper-string")),
         ("marimba-bar", preset("marimba-bar")),
     ] {
-        let sc = compile(&sc, 44100.0).unwrap();
+        let sc = compile_one(&sc, 44100.0).unwrap();
         let kappa = sc.free.diag.kappa.max(sc.contact.diag.kappa);
         let dim = sc.contact.dim as f64;
         // Rounding bound per step: each of the ~dim terms of a row is rounded
@@ -150,7 +150,7 @@ fn parameter_swaps_never_raise_energy() {
             let mut s = base.clone();
             s.contact.stiffness_n_per_m *= kf;
             s.contact.damping_n_s_per_m *= cf;
-            compile(&s, 44100.0).unwrap()
+            compile_one(&s, 44100.0).unwrap()
         })
         .collect();
     let mut cur = 0;

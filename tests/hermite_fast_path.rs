@@ -9,7 +9,7 @@
 //! within 1e-12 of its scale, in blocks of 64 and sample by sample (the
 //! output must not depend on how blocks are split).
 
-use modal_contact::compile::{compile, CompiledScene};
+use modal_contact::compile::{compile_one, CompiledScene};
 use modal_contact::engine::EngineState;
 use modal_contact::presets;
 use modal_contact::scene::Scene;
@@ -107,7 +107,7 @@ fn the_fast_paths_hermite_certificate_changes_only_rounding() {
     let cases = cases();
     let mut worst = 0.0f64;
     for (name, scene, n, every) in &cases {
-        let sc = compile(scene, RATE).unwrap();
+        let sc = compile_one(scene, RATE).unwrap();
         let (off, e_off, sw_off, slow_off) = run(&sc, *n, 64, *every, false);
         for block in [64, 1] {
             let (on, e_on, sw_on, slow_on) = run(&sc, *n, block, *every, true);
@@ -152,7 +152,7 @@ fn the_certificate_after_a_switch_changes_nothing() {
     let cases = cases();
     let (mut cleared, mut switches) = (0, 0);
     for (name, scene, n, every) in &cases {
-        let sc = compile(scene, RATE).unwrap();
+        let sc = compile_one(scene, RATE).unwrap();
         let render = |on: bool| {
             let mut st = EngineState::new(&sc);
             st.set_hermite_after_switch(on);
@@ -208,7 +208,7 @@ fn the_certificate_after_a_switch_changes_nothing() {
 #[test]
 fn a_strike_on_the_surface_enters_at_its_instant() {
     for (n, speed) in [(50, 1.0), (200, 1.0), (50, 1e-3), (200, 1e-3)] {
-        let sc = compile(&ringing(n), RATE).unwrap();
+        let sc = compile_one(&ringing(n), RATE).unwrap();
         let render = |on: bool| {
             let mut st = EngineState::new(&sc);
             st.set_strike_entry(on);
@@ -291,7 +291,7 @@ fn a_strike_on_the_surface_enters_at_its_instant() {
 fn roots_are_refined_in_a_few_model_evaluations() {
     let (mut roots, mut evals) = (0u64, 0u64);
     for (name, scene, n, every) in cases() {
-        let sc = compile(&scene, RATE).unwrap();
+        let sc = compile_one(&scene, RATE).unwrap();
         let mut scales = vec![1.0];
         if every > 0 {
             scales.extend([0.6, 1.9, 3.4, 4.5]);

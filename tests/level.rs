@@ -7,8 +7,8 @@
 use modal_contact::instrument::{
     prepare_scene, root_note, Event, Instrument, InstrumentParams, TimedEvent,
 };
-use modal_contact::render::Compiled;
 use modal_contact::scene::Scene;
+use modal_contact::Compiled;
 use modal_testkit::scenes::preset;
 
 const RATE: f64 = 48_000.0;

@@ -1,7 +1,7 @@
 //! The paper's two demos (bounce, string) and every preset: parse, compile,
 //! render finite output.
 
-use modal_contact::compile::compile;
+use modal_contact::compile::compile_one;
 use modal_contact::engine::EngineState;
 use modal_contact::render::{render, RenderOptions};
 use modal_contact::scene::{ModalSpec, ModeSpec, ObjectSpec, Quantity, Scene, Switching};
@@ -112,7 +112,7 @@ fn paper_string_wave_is_causal_and_energy_is_conserved() {
         _ => unreachable!(),
     };
     let rate = 44100.0;
-    let compiled = compile(&sc, rate).unwrap();
+    let compiled = compile_one(&sc, rate).unwrap();
     let mut st = EngineState::new(&compiled);
     let n = 4410;
     let mut x_far = Vec::with_capacity(n);
@@ -173,7 +173,7 @@ fn every_preset_compiles_and_renders_finite_audio() {
         assert_eq!(sc.name, stem, "preset name must equal the file stem");
         if sc.several_contacts() {
             // a kit: the several-contact engine, as `cargo xtask render`
-            use modal_contact::render::Compiled;
+            use modal_contact::Compiled;
             let rate = 44_100.0;
             let c = Compiled::new(&sc, rate, None).unwrap_or_else(|e| panic!("{stem}: {e}"));
             let out = c

@@ -24,7 +24,7 @@
 //! design gives.
 
 use modal_contact::bodies::radiation::AIR_DENSITY_KG_PER_M3;
-use modal_contact::compile::compile;
+use modal_contact::compile::compile_one;
 use modal_contact::engine::EngineState;
 use modal_contact::scene::{
     pressure_point, ObjectSpec, Quantity, Scene, PRESSURE_REF_AREA_M2, PRESSURE_REF_OMEGA,
@@ -79,7 +79,7 @@ azimuth_deg = 20.0
 }
 
 fn render(scene: &Scene, n: usize) -> Vec<f64> {
-    let c = compile(scene, RATE).unwrap();
+    let c = compile_one(scene, RATE).unwrap();
     let mut st = EngineState::new(&c);
     (0..n).map(|_| st.tick(&c)[0]).collect()
 }

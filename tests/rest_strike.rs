@@ -8,7 +8,7 @@
 //! solver's comparisons (`tests/stiff.rs`, `tests/closed_forms.rs`) run on
 //! the default engine, so they check this path too.
 
-use modal_contact::compile::{compile, compile_with, CompiledScene};
+use modal_contact::compile::{compile_one, compile_with, CompiledScene};
 use modal_contact::engine::{EngineState, ROOT_ULPS};
 use modal_contact::presets;
 use modal_contact::scene::{Scene, Switching};
@@ -24,7 +24,7 @@ fn the_release_of_a_hammer_on_a_wall_is_half_a_damped_period() {
         (1e-4, 1e9, 0.05),
     ] {
         let c = c_for(m, k, zeta);
-        let sc = compile(&wall_strike(m, k, c, 0.0, -1.0), RATE).unwrap();
+        let sc = compile_one(&wall_strike(m, k, c, 0.0, -1.0), RATE).unwrap();
         let r = sc.rest.as_ref().expect("a wall strike has a rest release");
         let sigma = c / (2.0 * m);
         let wd = (k / m - sigma * sigma).sqrt();
@@ -178,7 +178,7 @@ fn a_strike_from_rest_plays_as_the_dense_change_of_basis_does() {
 
 #[test]
 fn a_ringing_object_or_a_pitch_change_in_contact_takes_the_dense_product() {
-    let sc = compile(&ModalStrike::new(30, 200.0, 8000.0).scene("ring"), RATE).unwrap();
+    let sc = compile_one(&ModalStrike::new(30, 200.0, 8000.0).scene("ring"), RATE).unwrap();
     assert!(sc.rest.is_some());
     // a second strike while the object rings: its state is not zero
     let mut st = EngineState::new(&sc);
@@ -258,7 +258,7 @@ fn diff_and_peak(a: &[[f64; 2]], b: &[[f64; 2]]) -> (f64, f64) {
 fn the_later_contacts_of_a_strike_from_rest_take_the_stored_states() {
     println!("modes | pitch | stored later switches | contacts | later taken / misses | max |out diff| / peak (rounding alone) | max energy diff / E0");
     for n in [100, 200, 400] {
-        let sc = compile(&modal_testkit::scenes::struck_bar(n, 0.1), RATE).unwrap();
+        let sc = compile_one(&modal_testkit::scenes::struck_bar(n, 0.1), RATE).unwrap();
         let r = sc
             .rest
             .as_ref()
@@ -327,7 +327,7 @@ type Disturbance = fn(&CompiledScene, &mut EngineState);
 /// the dense path does (the same samples bit for bit), and count no miss.
 #[test]
 fn a_disturbed_strike_from_rest_takes_the_dense_products_after() {
-    let sc = compile(&modal_testkit::scenes::struck_bar(100, 0.1), RATE).unwrap();
+    let sc = compile_one(&modal_testkit::scenes::struck_bar(100, 0.1), RATE).unwrap();
     let r = sc.rest.as_ref().unwrap();
     assert!(r.later.len() >= 2);
     let disturbances: [(&str, Disturbance); 3] = [
@@ -386,12 +386,12 @@ fn stored_switch_instants_schedule_the_runs_without_changing_a_sample() {
     let mut cases: Vec<(String, CompiledScene)> = [100, 400]
         .into_iter()
         .map(|n| {
-            let sc = compile(&modal_testkit::scenes::struck_bar(n, 0.1), RATE).unwrap();
+            let sc = compile_one(&modal_testkit::scenes::struck_bar(n, 0.1), RATE).unwrap();
             (format!("bar of {n} modes"), sc)
         })
         .collect();
     for (name, s, _) in scenes() {
-        let sc = compile(&s, RATE).unwrap();
+        let sc = compile_one(&s, RATE).unwrap();
         if sc.rest.as_ref().is_some_and(|r| !r.later.is_empty()) {
             cases.push((name, sc));
         }
@@ -454,7 +454,7 @@ fn certified_stored_switches_play_as_the_search_locates_them() {
     let mut cases: Vec<(String, CompiledScene, usize)> = [100, 200, 1000]
         .into_iter()
         .map(|n| {
-            let sc = compile(&modal_testkit::scenes::struck_bar(n, 0.1), RATE).unwrap();
+            let sc = compile_one(&modal_testkit::scenes::struck_bar(n, 0.1), RATE).unwrap();
             (format!("bar of {n} modes"), sc, (0.03 * RATE) as usize)
         })
         .collect();
@@ -564,7 +564,7 @@ fn certified_stored_switches_play_as_the_search_locates_them() {
 /// the engine does with the search alone.
 #[test]
 fn a_stored_switch_the_engine_does_not_confirm_is_not_trusted() {
-    let mut sc = compile(&modal_testkit::scenes::struck_bar(100, 0.1), RATE).unwrap();
+    let mut sc = compile_one(&modal_testkit::scenes::struck_bar(100, 0.1), RATE).unwrap();
     let stored = sc.rest.as_ref().unwrap().later.len() + 1;
     assert!(stored >= 3, "{stored} stored switches");
     assert_eq!(modal_contact::engine::certify_rest_strike(&sc), stored);

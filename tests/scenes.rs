@@ -1,7 +1,7 @@
 //! Scene files: bad input gives the documented error (naming the field), and
 //! the compiled contact propagator agrees with an independent dense exp(A h).
 
-use modal_contact::compile::compile;
+use modal_contact::compile::compile_one;
 use modal_contact::physics::block::exp2;
 use modal_contact::physics::model::{contact_system, ContactParams, ObjectModel};
 use modal_contact::scene::Scene;
@@ -177,7 +177,7 @@ fn compiled_contact_propagator_matches_dense_expm() {
         let rate = 44100.0;
         // physical objects as the modes the compiler computes at this rate
         let sc = preset(name).expanded(rate).unwrap();
-        let compiled = compile(&sc, rate).unwrap();
+        let compiled = compile_one(&sc, rate).unwrap();
         let obj_idx = sc.object_index(&sc.contact.object).unwrap();
         let obj = ObjectModel::from_spec(&sc.object[obj_idx]).unwrap();
         let vel = obj

@@ -7,7 +7,7 @@
 //! report's stability table) runs as it is; the other tests check more on
 //! the same scene families, at lengths and variants of their own.
 
-use modal_contact::compile::{compile, compile_with, CompiledScene};
+use modal_contact::compile::{compile_one, compile_with, CompiledScene};
 use modal_contact::engine::EngineState;
 use modal_contact::scene::{Scene, Switching};
 use modal_testkit::metrics::{energy_rounding_bound, energy_scale};
@@ -211,7 +211,7 @@ fn critical_damping_is_exact_and_matches_closed_form() {
             "the closed form below is for this strike"
         );
         sc.contact.switching = Some(sw);
-        let compiled = compile(&sc, rate).unwrap();
+        let compiled = compile_one(&sc, rate).unwrap();
         assert!(
             compiled.contact.dense.is_none() && compiled.contact.diag.fallback_reason.is_none(),
             "the 2x2 contact phase should be one closed-form block: {}",

@@ -12,7 +12,7 @@
 //! strikes included. The engine's own strikes are checked against the
 //! independent solver in `tests/stiff_switching.rs`.
 
-use modal_contact::compile::{compile, CompiledScene};
+use modal_contact::compile::{compile_one, CompiledScene};
 use modal_contact::engine::{EngineState, ScaleProps, LINEAR_TOL};
 use modal_contact::instrument::{prepare_scene, Event, Instrument, InstrumentParams, TimedEvent};
 use modal_contact::presets;
@@ -130,7 +130,7 @@ fn a_replayed_strike_is_the_engine_strike_times_its_speed() {
     let mut recorded = 0;
     let mut worst: (f64, f64) = (0.0, 0.0);
     for (name, scene) in scenes() {
-        let sc = compile(&scene, RATE).unwrap();
+        let sc = compile_one(&scene, RATE).unwrap();
         let linear = sc.switching == Switching::Exact && sc.g == 0.0;
         for s in [0.5, 1.0, 1.37, 3.0] {
             let mut pre = ScaleProps::new(&sc, s, BAND);
@@ -184,7 +184,7 @@ fn a_replayed_strike_is_the_engine_strike_times_its_speed() {
 
 #[test]
 fn a_replay_interrupted_anywhere_goes_on_as_the_strike() {
-    let sc = compile(&struck_bar(200, 1.0), RATE).unwrap();
+    let sc = compile_one(&struck_bar(200, 1.0), RATE).unwrap();
     let mut pre = ScaleProps::new(&sc, 1.0, BAND);
     assert!(pre.store_strike(&sc, BAND, &SPEEDS));
     let len = pre.stored_strike().unwrap().len();
@@ -232,7 +232,7 @@ fn a_replay_interrupted_anywhere_goes_on_as_the_strike() {
 
 #[test]
 fn what_cannot_be_replayed_is_an_ordinary_strike() {
-    let sc = compile(&struck_bar(50, 1.0), RATE).unwrap();
+    let sc = compile_one(&struck_bar(50, 1.0), RATE).unwrap();
     let mut pre = ScaleProps::new(&sc, 1.0, BAND);
     assert!(pre.store_strike(&sc, BAND, &SPEEDS));
     let other = ScaleProps::new(&sc, 1.5, BAND);
@@ -269,7 +269,7 @@ fn what_cannot_be_replayed_is_an_ordinary_strike() {
     // gravity: nothing recorded
     let mut dropped = struck_bar(50, 1.0);
     dropped.hammer.gravity_m_per_s2 = 9.81;
-    let sc = compile(&dropped, RATE).unwrap();
+    let sc = compile_one(&dropped, RATE).unwrap();
     let mut pre = ScaleProps::new(&sc, 1.0, BAND);
     assert!(!pre.store_strike(&sc, BAND, &SPEEDS));
 }

@@ -9,7 +9,7 @@
 //!   matrices (to rounding), and no energy gained at any switch (lossless
 //!   objects: the energy stays constant through every contact) or step.
 
-use modal_contact::compile::{compile, CompiledScene};
+use modal_contact::compile::{compile_one, CompiledScene};
 use modal_contact::engine::EngineState;
 use modal_contact::physics::hodlr::Hodlr;
 use modal_testkit::metrics::energy_rounding_bound;
@@ -26,7 +26,7 @@ fn object(n: usize, damped: bool) -> CompiledScene {
     } else {
         s.contact(1e6, 0.0)
     };
-    compile(&s.scene("structured"), 48_000.0).unwrap()
+    compile_one(&s.scene("structured"), 48_000.0).unwrap()
 }
 
 /// `sum a_i b_i` to about `u` of the result: TwoProd (FMA) and TwoSum,

@@ -463,7 +463,7 @@ fn rt_checks_build_runs_the_stress_render_without_allocating() {
 #[test]
 fn rt_checks_build_switches_a_large_scene_without_allocating() {
     let scene = modal_contact::scene::Scene::from_toml_str(&large_scene(150)).expect("valid scene");
-    let sc = modal_contact::compile::compile(&scene, 48_000.0).unwrap();
+    let sc = modal_contact::compile::compile_one(&scene, 48_000.0).unwrap();
     assert!(sc.w_cf_h.is_some() && sc.w_fc_h.is_some(), "{}", sc.summary);
     let out = run_child(&clap_bundle(Variant::RtChecks), "large");
     let stdout = String::from_utf8_lossy(&out.stdout);

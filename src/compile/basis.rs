@@ -97,7 +97,7 @@ pub(super) fn structured(
 
 #[cfg(test)]
 mod tests {
-    use crate::compile::compile;
+    use crate::compile::compile_one;
     use crate::presets;
 
     /// Going free -> contact -> free returns the object's state: `W_fc W_cf`
@@ -108,7 +108,7 @@ mod tests {
     fn round_trip_of_the_changes_of_basis_is_the_identity() {
         let mut worst: f64 = 0.0;
         for i in presets::one_contact() {
-            let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
+            let sc = compile_one(&presets::scene(i).unwrap(), 44100.0).unwrap();
             let p = &sc.w_fc * &sc.w_cf;
             let n = p.nrows();
             let e = (p - nalgebra::DMatrix::<f64>::identity(n, n)).norm() / (n as f64).sqrt();
@@ -118,7 +118,7 @@ mod tests {
         println!("W_fc W_cf - I: worst {worst:.1e}");
         // gravity: the equilibrium is the contact state with zero
         // phase coordinates, i.e. s_star maps back to the offsets' hammer
-        let bounce = compile(
+        let bounce = compile_one(
             &presets::scene(presets::index_of("paper-bounce").unwrap()).unwrap(),
             44100.0,
         )

@@ -123,11 +123,13 @@ pub(super) fn finite_and_passive(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::compile::compile;
+    use crate::compile::compile_one;
     use crate::presets;
 
     fn any_phase() -> CompiledPhase {
-        compile(&presets::scene(0).unwrap(), 44100.0).unwrap().free
+        compile_one(&presets::scene(0).unwrap(), 44100.0)
+            .unwrap()
+            .free
     }
 
     /// A phase whose propagator's largest singular value exceeds 1 by more

@@ -352,8 +352,9 @@ pub const REALTIME_SEARCH_NODES: f64 = 32.0;
 /// \[s\] ([`rest`]).
 pub const REST_T_MAX_S: f64 = 1.0;
 
-/// Compile a scene for a sample rate.
-pub fn compile(scene: &Scene, rate_hz: f64) -> Result<CompiledScene, CompileError> {
+/// Compile a scene of one contact for a sample rate (a scene of several
+/// is refused: [`crate::play::compile`] takes every scene).
+pub fn compile_one(scene: &Scene, rate_hz: f64) -> Result<CompiledScene, CompileError> {
     compile_with(scene, rate_hz, None)
 }
 
@@ -542,9 +543,9 @@ fn check_request(scene: &Scene, rate_hz: f64) -> Result<(), CompileError> {
         return Err(CompileError::Scene(SceneError::new(
             key,
             "a scene of several contacts runs on the several-contact engine \
-             (`render::Compiled::new` compiles either kind, `cargo xtask render` renders it, \
+             (`modal_contact::compile` compiles either kind, `cargo xtask render` renders it, \
              and the instrument plays it as a kit: docs/design.md \"Several contacts\"); \
-             this compiler and the report take one contact",
+             `compile_one` and the report take one contact",
         )));
     }
     Ok(())

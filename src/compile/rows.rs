@@ -177,7 +177,7 @@ pub(super) fn build(scene: &Scene, o: &Object, d: &Decomposed, y_star: &DVector<
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::compile::compile;
+    use crate::compile::compile_one;
 
     fn scene(pickups: &str) -> Scene {
         Scene::from_toml_str(&format!(
@@ -198,7 +198,7 @@ mod tests {
     #[test]
     fn free_event_row_is_minus_the_contact_row() {
         for i in crate::presets::one_contact() {
-            let sc = compile(&crate::presets::scene(i).unwrap(), 44100.0).unwrap();
+            let sc = compile_one(&crate::presets::scene(i).unwrap(), 44100.0).unwrap();
             let (ev, xc) = (&sc.free.ev, &sc.free.rows.x_c);
             assert_eq!(ev.len(), xc.len());
             assert!(xc.iter().any(|&x| x != 0.0));
@@ -226,7 +226,7 @@ mod tests {
     /// is never struck is left out and said so.
     #[test]
     fn pickup_rows_read_the_point_and_unstruck_objects_are_dropped() {
-        let sc = compile(
+        let sc = compile_one(
             &scene(
                 "[[pickup]]\nobject = \"o\"\npoint = \"p\"\nquantity = \"displacement\"\ngain = 2.0\npan = -1.0\n\
                  [[pickup]]\nobject = \"other\"\npoint = \"p\"\n",

@@ -374,7 +374,7 @@ fn mix_rows(dst: &mut [f64], ph: &CompiledPhase, ch: usize, s: f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::compile::compile;
+    use crate::compile::compile_one;
     use crate::engine::Phase;
     use crate::presets;
 
@@ -428,7 +428,7 @@ mod tests {
         // `set_time_scale`'s bit for bit; one made for another scene
         // (other block counts or step) is not used, nor are band rows
         // made for another band
-        let other = compile(
+        let other = compile_one(
             &presets::scene(presets::one_contact().next().unwrap()).unwrap(),
             48000.0,
         )
@@ -438,7 +438,7 @@ mod tests {
         };
         let mut band_rows_used = 0;
         for i in presets::one_contact() {
-            let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
+            let sc = compile_one(&presets::scene(i).unwrap(), 44100.0).unwrap();
             if sc.free.gens.is_none() || sc.contact.gens.is_none() {
                 continue;
             }

@@ -10,9 +10,10 @@
 //! digits), `npy.rs` (the NumPy trace), `writer.rs` (the trace files'
 //! writer thread) and `envelope.rs` (the plot's envelope).
 
-use crate::compile::{compile_with, CompileError, CompiledScene, RATE_RANGE_HZ};
+use crate::compile::{CompileError, CompiledScene};
 use crate::engine::{ExactStats, Motion};
-use crate::multi::{CompiledMulti, MultiModel, MultiStats};
+use crate::multi::{CompiledMulti, MultiStats};
+use crate::play::Compiled;
 use crate::scene::{Scene, Switching, MAX_DURATION_S};
 
 mod csv;
@@ -160,66 +161,9 @@ pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<RenderOutput, Rende
     Ok(Compiled::new(scene, opts.rate_hz, opts.switching)?.render(n, opts.trace))
 }
 
-/// A scene compiled for a render: one contact runs on the engine
-/// ([`crate::engine`]), several on the several-contact engine
-/// ([`crate::multi`]); the render, its trace and its sinks are the same
-/// for both (docs/design.md, "Offline rendering").
-#[derive(Debug, Clone)]
-#[allow(clippy::large_enum_variant)]
-pub enum Compiled {
-    /// A scene of one contact.
-    One(CompiledScene),
-    /// A scene of several contacts (`[[striker]]`, `[[touch]]`).
-    Several(CompiledMulti),
-}
-
+/// The render of a scene of one or several contacts (the type is the
+/// embedder's, [`crate::play`]; its offline render is here).
 impl Compiled {
-    /// Compile `scene` at `rate_hz`, with `switching` overriding the
-    /// scene's switching method: through [`compile_with`] for one contact,
-    /// through [`MultiModel::from_scene`] and [`CompiledMulti`] for
-    /// several (their refusals name the scene's field).
-    pub fn new(
-        scene: &Scene,
-        rate_hz: f64,
-        switching: Option<Switching>,
-    ) -> Result<Self, CompileError> {
-        if !scene.several_contacts() {
-            return compile_with(scene, rate_hz, switching).map(Self::One);
-        }
-        if !(rate_hz.is_finite() && (RATE_RANGE_HZ.0..=RATE_RANGE_HZ.1).contains(&rate_hz)) {
-            return Err(CompileError::SampleRate(rate_hz));
-        }
-        let model = MultiModel::from_scene(scene, rate_hz)?;
-        let switching = switching.or(scene.contact.switching).unwrap_or_default();
-        CompiledMulti::with_switching(&model, rate_hz, switching)
-            .map(Self::Several)
-            .map_err(|e| CompileError::Scene(e.in_scene(scene)))
-    }
-
-    /// Sample rate \[Hz\].
-    pub fn rate_hz(&self) -> f64 {
-        match self {
-            Self::One(c) => c.rate_hz,
-            Self::Several(c) => c.rate_hz,
-        }
-    }
-
-    /// Number of contacts.
-    pub fn contacts(&self) -> usize {
-        match self {
-            Self::One(_) => 1,
-            Self::Several(c) => c.contacts(),
-        }
-    }
-
-    /// The switching method it runs with.
-    pub fn switching(&self) -> Switching {
-        match self {
-            Self::One(c) => c.switching,
-            Self::Several(c) => c.switching,
-        }
-    }
-
     /// Render `n` samples from the initial state in memory, with the
     /// trace if asked ([`render_compiled`], [`render_several`]).
     pub fn render(&self, n: usize, trace: bool) -> RenderOutput {

@@ -5,6 +5,7 @@
 use super::csv::CSV_CHUNK_ROWS;
 use super::stream::contact_motion;
 use super::*;
+use crate::compile::compile_with;
 use crate::engine::Observation;
 use crate::multi::MultiState;
 use crate::test_rng::TestRng;

@@ -17,7 +17,7 @@
 //! machine: shortest round-trip digits of six numbers per row).
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion, Throughput};
-use modal_contact::compile::{compile, CompiledScene};
+use modal_contact::compile::{compile_one, CompiledScene};
 use modal_contact::engine::{EngineState, Motion};
 use modal_contact::render::{render_stream, CsvTrace, TraceSink};
 use modal_contact::scene::Scene;
@@ -174,7 +174,7 @@ fn command(c: &mut Criterion) {
     g.sample_size(10);
     g.measurement_time(std::time::Duration::from_secs(3));
     for n_modes in [10, 100, 1000] {
-        let sc = compile(&struck(n_modes), RATE).expect("compile");
+        let sc = compile_one(&struck(n_modes), RATE).expect("compile");
         let n = samples(n_modes);
         g.throughput(Throughput::Elements(n as u64));
         for v in VARIANTS {
@@ -209,7 +209,7 @@ fn summary(_: &mut Criterion) {
     println!("| modes | engine ns/sample | WAV only | WAV + plot | WAV + trace CSV + plot | CSV text alone | WAV + trace NPY + plot | engine x real time | fixed ms per render (WAV / plot / CSV + plot / NPY + plot) |");
     println!("|---|---|---|---|---|---|---|---|---|");
     for n_modes in [10, 100, 1000] {
-        let sc = compile(&struck(n_modes), RATE).expect("compile");
+        let sc = compile_one(&struck(n_modes), RATE).expect("compile");
         let n = samples(n_modes);
         // [variant][round] of (time at L, time at 3 L)
         let mut short = [[0.0f64; 7]; 5];

@@ -315,7 +315,8 @@ fn run_alloc_tests() -> Result<()> {
 
 /// The core without the plugin: its doctest (the README's embedding
 /// example), `examples/embed.rs` writing a WAV file that is read back
-/// (stereo, 48 kHz, 2 s, finite, not silent), and the example refusing a
+/// (stereo, 48 kHz, 2 s, finite, not silent) for a scene of one contact
+/// and one of several, and the example refusing a
 /// missing scene file with exit code 1 and a message.
 fn run_embed() -> Result<()> {
     run(std::process::Command::new("cargo")
@@ -323,10 +324,6 @@ fn run_embed() -> Result<()> {
         .args(CORE_ARGS))?;
     let dir = Path::new("target/embed");
     std::fs::create_dir_all(dir)?;
-    let wav = dir.join("marimba-bar.wav");
-    if wav.exists() {
-        std::fs::remove_file(&wav)?;
-    }
     let example = |args: &[&Path]| {
         let mut cmd = std::process::Command::new("cargo");
         cmd.arg("run")
@@ -335,9 +332,37 @@ fn run_embed() -> Result<()> {
             .args(args);
         cmd
     };
-    run(&mut example(&[Path::new("presets/marimba-bar.toml"), &wav]))?;
+    // one contact, and several (the several-contact route)
+    for name in ["marimba-bar", "wind-chimes"] {
+        let wav = dir.join(format!("{name}.wav"));
+        if wav.exists() {
+            std::fs::remove_file(&wav)?;
+        }
+        let scene = PathBuf::from(format!("presets/{name}.toml"));
+        run(&mut example(&[&scene, &wav]))?;
+        check_embed_wav(&wav)?;
+    }
+    let missing = dir.join("no-such-scene.toml");
+    let mut cmd = example(&[&missing, &dir.join("missing.wav")]);
+    eprintln!("+ {cmd:?}");
+    let out = cmd
+        .output()
+        .with_context(|| format!("cannot run {cmd:?}"))?;
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if out.status.code() != Some(1) || !stderr.contains("embed: cannot read") {
+        bail!(
+            "the example should refuse a missing scene with exit code 1 and a message; {}:\n{stderr}",
+            out.status
+        );
+    }
+    Ok(())
+}
+
+/// The WAV file `examples/embed.rs` wrote: stereo, 48 kHz, 2 s, finite,
+/// not silent.
+fn check_embed_wav(wav: &Path) -> Result<()> {
     let mut reader =
-        hound::WavReader::open(&wav).with_context(|| format!("reading {}", wav.display()))?;
+        hound::WavReader::open(wav).with_context(|| format!("reading {}", wav.display()))?;
     let spec = reader.spec();
     let samples: Vec<f32> = reader.samples::<f32>().collect::<Result<_, _>>()?;
     let peak = samples.iter().fold(0.0_f32, |m, x| m.max(x.abs()));
@@ -353,19 +378,6 @@ fn run_embed() -> Result<()> {
     }
     if samples.iter().any(|x| !x.is_finite()) || !(peak > 1e-4) {
         bail!("{}: silent or not finite (peak {peak:e})", wav.display());
-    }
-    let missing = dir.join("no-such-scene.toml");
-    let mut cmd = example(&[&missing, &dir.join("missing.wav")]);
-    eprintln!("+ {cmd:?}");
-    let out = cmd
-        .output()
-        .with_context(|| format!("cannot run {cmd:?}"))?;
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    if out.status.code() != Some(1) || !stderr.contains("embed: cannot read") {
-        bail!(
-            "the example should refuse a missing scene with exit code 1 and a message; {}:\n{stderr}",
-            out.status
-        );
     }
     Ok(())
 }

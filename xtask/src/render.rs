@@ -12,10 +12,10 @@ use modal_contact::compile::CompiledScene;
 use modal_contact::instrument::InstrumentParams;
 use modal_contact::multi::CompiledMulti;
 use modal_contact::render::{
-    render_length, render_stream, Compiled, CsvTrace, NpyTrace, StreamStats, TraceEnvelope,
-    TraceSink,
+    render_length, render_stream, CsvTrace, NpyTrace, StreamStats, TraceEnvelope, TraceSink,
 };
 use modal_contact::scene::{Scene, Switching};
+use modal_contact::Compiled;
 use rayon::prelude::*;
 use serde_json::json;
 use std::io::{BufWriter, IsTerminal};

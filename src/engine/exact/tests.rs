@@ -4,7 +4,7 @@
 //! certificate against the search, and the search's model.
 
 use super::ROUND_UNITS;
-use crate::compile::{compile, CompiledScene};
+use crate::compile::{compile_one, CompiledScene};
 use crate::engine::search::Found;
 use crate::engine::{current_phase, kernel, EngineState, Phase};
 use crate::physics::block::exp2;
@@ -16,7 +16,7 @@ use crate::presets;
 fn batched_partial_propagators_match_exp2() {
     let mut worst: f64 = 0.0;
     for i in presets::one_contact() {
-        let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
+        let sc = compile_one(&presets::scene(i).unwrap(), 44100.0).unwrap();
         let mut st = EngineState::new(&sc);
         for contact in [false, true] {
             st.phase = if contact { Phase::Contact } else { Phase::Free };
@@ -85,7 +85,7 @@ fn ringing_state(
 fn fast_margin_bounds_the_chord_error() {
     let (mut tightest, mut used) = (f64::INFINITY, 0.0f64);
     for i in presets::one_contact() {
-        let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
+        let sc = compile_one(&presets::scene(i).unwrap(), 44100.0).unwrap();
         for contact in [false, true] {
             for (seed, mult) in [(7919usize, 0.5), (104_729, 1.0), (1299, 3.0)] {
                 let Some(mut st) = ringing_state(&sc, contact, seed, 1.0, 1e-3) else {
@@ -140,7 +140,7 @@ fn fast_margin_bounds_the_chord_error() {
 fn hermite_remainder_bounds_the_interpolation_error() {
     let mut used = 0.0f64;
     for i in presets::one_contact() {
-        let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
+        let sc = compile_one(&presets::scene(i).unwrap(), 44100.0).unwrap();
         for contact in [false, true] {
             for (seed, mult) in [(7919usize, 0.5), (104_729, 1.0), (1299, 3.0)] {
                 let Some(mut st) = ringing_state(&sc, contact, seed, 1.0, 1e-3) else {
@@ -202,7 +202,7 @@ fn hermite_remainder_bounds_the_interpolation_error() {
 fn hermite_clear_agrees_with_the_search() {
     let (mut cleared, mut refused) = (0usize, 0usize);
     for i in presets::one_contact() {
-        let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
+        let sc = compile_one(&presets::scene(i).unwrap(), 44100.0).unwrap();
         for contact in [false, true] {
             for (seed, scale) in [(7919usize, 1.0), (1299, 2.7)] {
                 for gap in [1e-3, 1e-5, 1e-7, 1e-9, 1e-12, -1e-9] {
@@ -273,7 +273,7 @@ fn hermite_clear_agrees_with_the_search() {
 fn model_matches_the_state_evaluation() {
     let mut worst = [0.0f64; 3];
     for i in presets::one_contact() {
-        let sc = compile(&presets::scene(i).unwrap(), 44100.0).unwrap();
+        let sc = compile_one(&presets::scene(i).unwrap(), 44100.0).unwrap();
         let mut st = EngineState::new(&sc);
         // ring the object: one strike's worth of state in every block
         for contact in [false, true] {

@@ -283,7 +283,8 @@ fn file_name(p: &Path) -> String {
 /// scene as written, one or several contacts), the two channels mixed to
 /// mono.
 fn render_mono(scene: &Scene, seconds: f64) -> Result<Vec<f64>> {
-    use modal_contact::render::{render_length, Compiled};
+    use modal_contact::render::render_length;
+    use modal_contact::Compiled;
     let n = render_length(seconds, RATE_HZ)?;
     let out = Compiled::new(scene, RATE_HZ, None)?.render(n, false);
     let (l, r) = (out.left, out.right);
