@@ -1,6 +1,6 @@
 //! Several contacts at once, in one test binary: the several-contact engine
 //! against the independent reference solver, closed forms and the
-//! one-contact engine; its block path against its search; contacts between any two bodies; strikes into a
+//! one-contact engine; contact laws of several pieces against closed forms; its block path against its search; contacts between any two bodies; strikes into a
 //! running state; two walls on one side.
 //!
 //! Each module is one file of `tests/`; a test is named `file::test`
@@ -8,6 +8,8 @@
 //! binaries and `tests/doc_references.rs` checks that every file of
 //! `tests/` is in exactly one of them.
 
+#[path = "contact_law.rs"]
+mod contact_law;
 #[path = "multi_block.rs"]
 mod multi_block;
 #[path = "multi_bodies.rs"]

@@ -241,6 +241,9 @@ pub fn scene_for(base: &Scene, p: &InstrumentParams) -> Scene {
         }
     }
     s.contact.stiffness_n_per_m *= positive_or(sp.stiffness_factor, 1.0);
+    if let Some(law) = &mut s.contact.law {
+        law.scale_force(positive_or(sp.stiffness_factor, 1.0));
+    }
     let cf = if sp.damping_factor.is_finite() && sp.damping_factor >= 0.0 {
         sp.damping_factor
     } else {

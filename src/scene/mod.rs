@@ -19,12 +19,14 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 mod error;
+mod law;
 mod limits;
 mod mallet;
 mod physical;
 mod validate;
 
 pub use error::SceneError;
+pub use law::{fit_power, LawSpec, Pieces, MAX_LAW_PIECES};
 pub use limits::{
     MAX_CONTACTS, MAX_DAMPING_N_S_PER_M, MAX_DURATION_S, MAX_FREQ_HZ, MAX_GAIN,
     MAX_GRAVITY_M_PER_S2, MAX_HEIGHT_M, MAX_LEVEL_DB, MAX_LISTENER_DISTANCE_M, MAX_MASS_KG,
@@ -460,14 +462,20 @@ pub struct ContactSpec {
     /// Name of the struck point (omit for a wall).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub point: Option<String>,
-    /// Contact stiffness k_c \[N/m\].
+    /// Contact stiffness k_c \[N/m\] (omitted, 0, with a `law`).
+    #[serde(default)]
     pub stiffness_n_per_m: f64,
-    /// Contact damping c_c \[N s/m\].
+    /// Contact damping c_c \[N s/m\] (with a `law`: the first piece's; each
+    /// further piece adds damping in proportion to the stiffness it adds).
     #[serde(default)]
     pub damping_n_s_per_m: f64,
     /// Switching method; omitted means the project default.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub switching: Option<Switching>,
+    /// A law of several pieces that stiffens instead of one stiffness
+    /// (docs/design.md, "Stiffening contacts").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub law: Option<LawSpec>,
 }
 
 /// What a pickup measures.
@@ -658,7 +666,43 @@ impl Scene {
         }
         out.listener.clear();
         out.merge_mallet()?;
+        out.expand_law()?;
         Ok(out)
+    }
+
+    /// `[contact]`'s law as springs side by side (src/scene/law.rs): the
+    /// contact takes the first piece's stiffness, and each further piece
+    /// becomes a `[[touch]]` between the same two sides, after the
+    /// scene's own, its gap the piece's breakpoint, its stiffness and
+    /// damping what the piece adds (damping in proportion to stiffness,
+    /// the first piece's ratio). Each added spring and damper is positive,
+    /// so each is passive, and so is their sum.
+    fn expand_law(&mut self) -> Result<(), SceneError> {
+        let Some(law) = self.contact.law.take() else {
+            return Ok(());
+        };
+        let pieces = law.pieces("contact.law")?;
+        let c = &mut self.contact;
+        let k1 = pieces.stiffness[0];
+        let ratio = c.damping_n_s_per_m / k1;
+        c.stiffness_n_per_m = k1;
+        for (i, &q) in pieces.breakpoints.iter().enumerate() {
+            let dk = pieces.stiffness[i + 1] - pieces.stiffness[i];
+            self.touch.push(TouchSpec {
+                lower: End {
+                    object: self.contact.object.clone(),
+                    point: self.contact.point.clone(),
+                },
+                upper: End {
+                    object: HAMMER_SIDE.to_string(),
+                    point: None,
+                },
+                gap_m: q,
+                stiffness_n_per_m: dk,
+                damping_n_s_per_m: ratio * dk,
+            });
+        }
+        Ok(())
     }
 
     /// The linear gain of `level_db`, `10^(level_db / 20)` (exactly 1 at
@@ -671,7 +715,17 @@ impl Scene {
     /// engine runs it, the one-contact compiler and the instrument refuse
     /// it.
     pub fn several_contacts(&self) -> bool {
-        !self.striker.is_empty() || !self.touch.is_empty()
+        !self.striker.is_empty() || !self.touch.is_empty() || self.law_contacts() > 1
+    }
+
+    /// Contacts `[contact]`'s law makes: one per piece (1 without a law,
+    /// or with one that is not valid: validation says why).
+    pub fn law_contacts(&self) -> usize {
+        self.contact
+            .law
+            .as_ref()
+            .and_then(|l| l.pieces("contact.law").ok())
+            .map_or(1, |p| p.stiffness.len())
     }
 
     /// Index of the object named `name`.
@@ -715,6 +769,65 @@ stiffness_n_per_m = 3e5
 object = "bar"
 point = "contact"
 "#;
+
+    /// `[contact] law`: read, checked, a round trip through TOML, and
+    /// expanded into springs side by side (one `[[touch]]` per further
+    /// piece, its gap the breakpoint, its stiffness and damping what the
+    /// piece adds); refusals name the field.
+    #[test]
+    fn a_contact_law_becomes_touches_and_bad_ones_name_their_field() {
+        let law = "law = { breakpoints_m = [1e-4, 3e-4], stiffness_n_per_m = [1e5, 3e5, 7e5] }";
+        let with = BAR.replace(
+            "stiffness_n_per_m = 3e5",
+            &format!("damping_n_s_per_m = 10.0\n{law}"),
+        );
+        let s = Scene::from_toml_str(&with).unwrap();
+        assert!(s.several_contacts());
+        assert_eq!(s.law_contacts(), 3);
+        let back = Scene::from_toml_str(&s.to_toml_string()).unwrap();
+        assert_eq!(back, s, "round trip");
+        let e = s.expanded(48_000.0).unwrap();
+        assert_eq!(e.contact.law, None);
+        assert_eq!(e.contact.stiffness_n_per_m, 1e5);
+        let touches: Vec<(f64, f64, f64)> = e
+            .touch
+            .iter()
+            .map(|t| (t.gap_m, t.stiffness_n_per_m, t.damping_n_s_per_m))
+            .collect();
+        assert_eq!(touches, vec![(1e-4, 2e5, 20.0), (3e-4, 4e5, 40.0)]);
+        assert!(e.touch.iter().all(|t| t.upper.object == HAMMER_SIDE
+            && t.lower.object == "bar"
+            && t.lower.point.as_deref() == Some("contact")));
+        let bad = |text: String, field: &str| {
+            let err = Scene::from_toml_str(&text).unwrap_err();
+            assert_eq!(err.path, field, "{err}");
+        };
+        bad(
+            BAR.replace("stiffness_n_per_m = 3e5", ""),
+            "contact.stiffness_n_per_m",
+        );
+        bad(
+            BAR.replace(
+                "stiffness_n_per_m = 3e5",
+                &format!("stiffness_n_per_m = 3e5\n{law}"),
+            ),
+            "contact.stiffness_n_per_m",
+        );
+        bad(
+            BAR.replace(
+                "stiffness_n_per_m = 3e5",
+                "law = { breakpoints_m = [1e-4, 2e-4, 3e-4, 4e-4], stiffness_n_per_m = [1, 2, 3, 4, 5] }",
+            ),
+            "contact.law.stiffness_n_per_m",
+        );
+        bad(
+            BAR.replace(
+                "stiffness_n_per_m = 3e5",
+                "law = { power = 2.5, pieces = 3 }",
+            ),
+            "contact.law.force_n_at",
+        );
+    }
 
     /// `[play] damper`: absent is today's 0.5, 0 ..= 1 is taken as
     /// written and survives a round trip through TOML; anything else is

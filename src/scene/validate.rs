@@ -86,6 +86,42 @@ impl Scene {
         Ok(())
     }
 
+    /// `[contact] law`: instead of `stiffness_n_per_m`, pieces that are a
+    /// law (src/scene/law.rs), one contact each within `MAX_CONTACTS` with
+    /// the strikers and touches, on a point-mass hammer.
+    fn validate_law(&self) -> Result<(), SceneError> {
+        let c = &self.contact;
+        let Some(law) = &c.law else {
+            return Ok(());
+        };
+        if c.stiffness_n_per_m != 0.0 {
+            return Err(SceneError::new(
+                "contact.stiffness_n_per_m",
+                "give either the stiffness or a law: remove one",
+            ));
+        }
+        let pieces = law.pieces("contact.law")?.stiffness.len();
+        if self.hammer.object.is_some() {
+            return Err(SceneError::new(
+                "contact.law",
+                "not with a modal mallet yet: a point-mass hammer only",
+            ));
+        }
+        let total = pieces + self.striker.len() + self.touch.len();
+        if total > MAX_CONTACTS {
+            return Err(SceneError::new(
+                "contact.law",
+                format!(
+                    "{pieces} pieces (one contact each), {} strikers and {} touches make {total} \
+                     contacts, at most {MAX_CONTACTS}",
+                    self.striker.len(),
+                    self.touch.len()
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// Strikers: at most `MAX_CONTACTS - 1`; each hits a point of the
     /// struck object that no other contact hits, with the values of a
     /// hammer and a contact, and a mallet of its own if it names one;
@@ -499,17 +535,27 @@ impl Scene {
                 }
             }
         }
-        check_positive("contact.stiffness_n_per_m", c.stiffness_n_per_m)?;
-        check_min(
-            "contact.stiffness_n_per_m",
-            c.stiffness_n_per_m,
-            MIN_STIFFNESS_N_PER_M,
-        )?;
-        check_max(
-            "contact.stiffness_n_per_m",
-            c.stiffness_n_per_m,
-            MAX_STIFFNESS_N_PER_M,
-        )?;
+        if c.law.is_some() {
+            self.validate_law()?;
+        } else {
+            if c.stiffness_n_per_m == 0.0 {
+                return Err(SceneError::new(
+                    "contact.stiffness_n_per_m",
+                    "missing: give the contact's stiffness, or a law of several pieces",
+                ));
+            }
+            check_positive("contact.stiffness_n_per_m", c.stiffness_n_per_m)?;
+            check_min(
+                "contact.stiffness_n_per_m",
+                c.stiffness_n_per_m,
+                MIN_STIFFNESS_N_PER_M,
+            )?;
+            check_max(
+                "contact.stiffness_n_per_m",
+                c.stiffness_n_per_m,
+                MAX_STIFFNESS_N_PER_M,
+            )?;
+        }
         check_non_negative("contact.damping_n_s_per_m", c.damping_n_s_per_m)?;
         check_max(
             "contact.damping_n_s_per_m",

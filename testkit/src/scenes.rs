@@ -303,6 +303,7 @@ impl Contact {
             stiffness_n_per_m,
             damping_n_s_per_m: 0.0,
             switching: None,
+            law: None,
         })
     }
 

@@ -1,0 +1,304 @@
+//! Contact laws of several pieces (docs/design.md, "Stiffening contacts"):
+//! a mass thrown at a wall through a law that stiffens, against closed
+//! forms written here (the motion in each piece is a harmonic arc about
+//! that piece's own rest point, and the power law's contact has a closed
+//! form through the Beta function), and energy on a ringing bar.
+
+use modal_contact::multi::{CompiledMulti, MultiState};
+use modal_contact::scene::Scene;
+use modal_contact::{compile, Compiled};
+
+const RATE: f64 = 48_000.0;
+const MASS: f64 = 0.01;
+/// The power law's reference point: 50 N at 1 mm.
+const P_REF: f64 = 1e-3;
+const F_REF: f64 = 50.0;
+const SPEEDS: [f64; 3] = [0.3, 1.0, 3.0];
+
+/// The Gamma function (Lanczos, g = 7, 9 terms: about 1e-15 relative for
+/// positive arguments).
+fn gamma(x: f64) -> f64 {
+    const G: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    if x < 0.5 {
+        return std::f64::consts::PI / ((std::f64::consts::PI * x).sin() * gamma(1.0 - x));
+    }
+    let x = x - 1.0;
+    let mut a = G[0];
+    let t = x + 7.5;
+    for (i, g) in G.iter().enumerate().skip(1) {
+        a += g / (x + i as f64);
+    }
+    (2.0 * std::f64::consts::PI).sqrt() * t.powf(x + 0.5) * (-t).exp() * a
+}
+
+/// The power law `F = a p^alpha`'s contact of a mass `m` at speed `v` on
+/// a rigid wall, undamped: deepest penetration and duration.
+fn power_contact(alpha: f64, m: f64, v: f64) -> (f64, f64) {
+    let a = F_REF / P_REF.powf(alpha);
+    let b = alpha + 1.0;
+    let p_max = (b * m * v * v / (2.0 * a)).powf(1.0 / b);
+    // T = 2 (p_max / v) int_0^1 du / sqrt(1 - u^b) = 2 (p_max / v) B(1/b, 1/2) / b
+    let beta = gamma(1.0 / b) * gamma(0.5) / gamma(1.0 / b + 0.5);
+    (p_max, 2.0 * p_max / v * beta / b)
+}
+
+/// The pieces' contact (breakpoints `q`, stiffnesses `k`) of a mass `m` at
+/// speed `v` on a rigid wall, undamped: the instants it passes each
+/// breakpoint on the way in (from the first touch), the deepest
+/// penetration and the duration. In piece `i` the force is `F_i + k_i (p -
+/// q_i)`, so `p` swings harmonically at `sqrt(k_i / m)` about `q_i - F_i /
+/// k_i`.
+fn pieces_contact(q: &[f64], k: &[f64], m: f64, v: f64) -> (Vec<f64>, f64, f64) {
+    let (mut t, mut f, mut at, mut speed) = (0.0, 0.0, 0.0, v);
+    let mut crossings = Vec::new();
+    for (i, &ki) in k.iter().enumerate() {
+        let w = (ki / m).sqrt();
+        let centre = at - f / ki;
+        let amp = ((at - centre).powi(2) + (speed / w).powi(2)).sqrt();
+        let start = ((at - centre) / amp).asin();
+        let end = q.get(i).copied().unwrap_or(f64::INFINITY);
+        if centre + amp <= end {
+            // turns inside this piece: a quarter swing to the deepest point
+            let quarter = (std::f64::consts::FRAC_PI_2 - start) / w;
+            return (crossings, centre + amp, 2.0 * (t + quarter));
+        }
+        t += (((end - centre) / amp).asin() - start) / w;
+        crossings.push(t);
+        speed = w * (amp * amp - (end - centre).powi(2)).sqrt();
+        f += ki * (end - at);
+        at = end;
+    }
+    unreachable!("the last piece always turns")
+}
+
+fn scene(law: &str, speed: f64, damping: f64) -> Scene {
+    Scene::from_toml_str(&format!(
+        r#"
+version = 1
+name = "law"
+duration_s = 0.05
+[[object]]
+name = "wall"
+kind = "wall"
+[hammer]
+mass_kg = {MASS}
+height_m = 0.0
+velocity_m_per_s = {v}
+[contact]
+object = "wall"
+damping_n_s_per_m = {damping}
+switching = "exact"
+law = {law}
+"#,
+        v = -speed
+    ))
+    .unwrap()
+}
+
+fn power_law(alpha: f64, pieces: usize, up_to: f64) -> String {
+    format!("{{ power = {alpha}, force_n_at = [{P_REF}, {F_REF}], pieces = {pieces}, up_to_m = {up_to} }}")
+}
+
+/// Run `sc` until every contact has opened after the first touch; the
+/// switches and the state.
+fn strike(sc: &CompiledMulti) -> MultiState {
+    let mut st = MultiState::new(sc);
+    st.record(true);
+    for _ in 0..(0.02 * RATE) as usize {
+        st.tick(sc);
+    }
+    st
+}
+
+fn several(s: &Scene) -> CompiledMulti {
+    match compile(s, RATE).unwrap() {
+        Compiled::Several(c) => c,
+        Compiled::One(_) => panic!("a law of several pieces is several contacts"),
+    }
+}
+
+#[test]
+fn a_law_on_a_wall_crosses_every_breakpoint_when_its_closed_form_does() {
+    let mut worst: f64 = 0.0;
+    for alpha in [1.5, 2.5, 3.5] {
+        let up_to = power_contact(alpha, MASS, SPEEDS[2]).0;
+        for pieces in 2..=4 {
+            let sc_scene = scene(&power_law(alpha, pieces, up_to), 1.0, 0.0);
+            let law = sc_scene.contact.law.clone().unwrap();
+            let p = law.pieces("contact.law").unwrap();
+            for v in SPEEDS {
+                let s = scene(&power_law(alpha, pieces, up_to), v, 0.0);
+                let sc = several(&s);
+                assert_eq!(sc.contacts(), pieces);
+                let st = strike(&sc);
+                let (cross, _, duration) = pieces_contact(&p.breakpoints, &p.stiffness, MASS, v);
+                // contact 0 closes at 0 and opens at the duration; contact
+                // j > 0 (breakpoint j) closes at cross[j-1] and opens at
+                // duration - cross[j-1], if the mass gets that deep
+                let mut want: Vec<(usize, bool, f64)> = vec![(0, true, 0.0), (0, false, duration)];
+                for (j, &t) in cross.iter().enumerate() {
+                    want.push((j + 1, true, t));
+                    want.push((j + 1, false, duration - t));
+                }
+                let mut got: Vec<(usize, bool, f64)> = st
+                    .switches
+                    .iter()
+                    .map(|w| (w.contact, w.entered, w.time_s))
+                    .collect();
+                want.sort_by(|a, b| a.2.total_cmp(&b.2));
+                got.sort_by(|a, b| a.2.total_cmp(&b.2));
+                assert_eq!(
+                    got.len(),
+                    want.len(),
+                    "alpha {alpha}, {pieces} pieces, {v} m/s: {got:?} vs {want:?}"
+                );
+                for (g, w) in got.iter().zip(&want) {
+                    assert_eq!((g.0, g.1), (w.0, w.1), "{got:?} vs {want:?}");
+                    let err = (g.2 - w.2).abs() / duration;
+                    worst = worst.max(err);
+                    assert!(
+                        err < 1e-9,
+                        "alpha {alpha}, {pieces} pieces, {v} m/s: {g:?} vs {w:?}"
+                    );
+                }
+                // no energy made or lost: it leaves at the speed it came
+                let o = st.observe(&sc);
+                let out = o.v_hammer[0];
+                assert!((out - v).abs() < 1e-10 * v, "rebound {out} vs {v}");
+            }
+        }
+    }
+    eprintln!("largest switch-instant error: {worst:.2e} of the contact's duration");
+}
+
+/// The largest over [`SPEEDS`] of the pieces' duration error against the
+/// power law's closed form, printing each speed's duration, peak force
+/// and rebound errors.
+fn worst_duration_error(alpha: f64, pieces: usize, up_to: f64) -> f64 {
+    let a = F_REF / P_REF.powf(alpha);
+    let mut worst: f64 = 0.0;
+    for v in SPEEDS {
+        let (p_max, t_power) = power_contact(alpha, MASS, v);
+        let s = scene(&power_law(alpha, pieces, up_to), v, 0.0);
+        let p = s
+            .contact
+            .law
+            .clone()
+            .unwrap()
+            .pieces("contact.law")
+            .unwrap();
+        let (_, deepest, t_pieces) = pieces_contact(&p.breakpoints, &p.stiffness, MASS, v);
+        let dt = (t_pieces - t_power) / t_power;
+        let df = (p.force(deepest) - a * p_max.powf(alpha)) / (a * p_max.powf(alpha));
+        eprintln!("{alpha:5} {pieces:6} {v:5}  {dt:+12.4e}  {df:+14.4e}  0 (undamped)");
+        worst = worst.max(dt.abs());
+    }
+    worst
+}
+
+#[test]
+fn the_pieces_converge_to_the_power_law_and_a_harder_strike_is_shorter() {
+    eprintln!("alpha pieces speed  duration err  peak force err  rebound err");
+    for (alpha, bound) in [(1.5, 0.02), (2.5, 0.05)] {
+        // the fit covers the penetrations of every speed
+        let up_to = power_contact(alpha, MASS, SPEEDS[2]).0;
+        let mut before = f64::INFINITY;
+        for pieces in 1..=4 {
+            let worst = worst_duration_error(alpha, pieces, up_to);
+            eprintln!("alpha {alpha}, {pieces} pieces: largest duration error {worst:.3e}");
+            assert!(worst < before, "alpha {alpha}: {pieces} pieces no closer");
+            before = worst;
+        }
+        assert!(before < bound, "alpha {alpha}: 4 pieces {before:e}");
+        // stiffening: the contact shortens as the speed rises (a linear
+        // spring's lasts the same at every speed)
+        let s = |v| scene(&power_law(alpha, 4, up_to), v, 0.0);
+        let d = |v: f64| {
+            let p = s(v)
+                .contact
+                .law
+                .clone()
+                .unwrap()
+                .pieces("contact.law")
+                .unwrap();
+            pieces_contact(&p.breakpoints, &p.stiffness, MASS, v).2
+        };
+        assert!(d(3.0) < 0.8 * d(0.3), "{} vs {}", d(3.0), d(0.3));
+    }
+}
+
+#[test]
+fn a_damped_law_on_a_ringing_bar_never_gains_energy() {
+    let law = power_law(2.5, 4, 1.5e-3);
+    let text = format!(
+        r#"
+version = 1
+name = "law-bar"
+duration_s = 0.05
+[[object]]
+name = "bar"
+kind = "modal"
+points = ["contact", "pickup"]
+[[object.mode]]
+freq_hz = 440.0
+t60_s = 1.0
+weights = [1.0, 0.7]
+[[object.mode]]
+freq_hz = 1760.0
+t60_s = 0.5
+weights = [0.8, -0.6]
+[[object.mode]]
+freq_hz = 3960.0
+t60_s = 0.3
+weights = [0.6, 0.5]
+[hammer]
+mass_kg = 0.02
+height_m = 0.0
+velocity_m_per_s = -2.0
+[contact]
+object = "bar"
+point = "contact"
+damping_n_s_per_m = 5.0
+law = {law}
+[[pickup]]
+object = "bar"
+point = "pickup"
+"#
+    );
+    let s = Scene::from_toml_str(&text).unwrap();
+    let sc = several(&s);
+    let mut st = MultiState::new(&sc);
+    let mut e = st.observe(&sc).energy;
+    let (mut rises, mut worst) = (0, 0.0_f64);
+    let e0 = e;
+    for _ in 0..(0.02 * RATE) as usize {
+        st.tick(&sc);
+        let now = st.observe(&sc).energy;
+        let up = (now - e) / e0;
+        worst = worst.max(up);
+        if up > 1e-13 {
+            rises += 1;
+        }
+        e = now;
+    }
+    let started = st.stats.contacts_started;
+    eprintln!(
+        "contacts started per piece {started:?}, energy {e0:.4e} -> {e:.4e} J, largest step up {worst:.1e} of the start"
+    );
+    assert!(
+        started[1] > 0 && started[2] > 0,
+        "the strike stiffens: {started:?}"
+    );
+    assert_eq!(rises, 0, "energy rose beyond rounding (largest {worst:e})");
+    assert!(e < 0.99 * e0);
+}
