@@ -141,10 +141,10 @@ fn damped_scene_divides_decay_times() {
 fn root_notes() {
     assert_eq!(root_note(&base("marimba-bar")), 57.0); // 220 Hz = A3
                                                        // scenes that name their pitch (`[play] pitch_hz`): the bell's prime
-                                                       // A5, not its hum (A4, its lowest mode); the chime's strike note B4,
-                                                       // not its lowest mode (117 Hz, A#2)
+                                                       // A5, not its hum (A4, its lowest mode); the chime's strike note C#5,
+                                                       // not its lowest mode (126 Hz, B2)
     assert_eq!(root_note(&base("bell")), 81.0);
-    assert_eq!(root_note(&base("tubular-chime")), 71.0);
+    assert_eq!(root_note(&base("tubular-chime")), 73.0);
     let mut unnamed = base("bell");
     unnamed.play = None;
     assert_eq!(root_note(&unnamed), 69.0); // the hum, 440 Hz
