@@ -1,5 +1,5 @@
 //! The instrument, in one test binary: the lookahead, the damper on
-//! release, and no subnormal f32 output.
+//! release, a stiffening mallet's brightness, and no subnormal f32 output.
 //!
 //! Each module is one file of `tests/`; a test is named `file::test`
 //! (`cargo test --test instrument lookahead::`). Cargo.toml lists the test
@@ -10,5 +10,7 @@
 mod lookahead;
 #[path = "release_damper.rs"]
 mod release_damper;
+#[path = "stiffening.rs"]
+mod stiffening;
 #[path = "subnormal_output.rs"]
 mod subnormal_output;

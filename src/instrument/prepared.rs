@@ -925,6 +925,11 @@ fn prepare_kit(
     alone.striker.clear();
     alone.touch.clear();
     alone.hammer.notes.clear();
+    // a law's first piece: the contact as it touches
+    if let Some(law) = alone.contact.law.take() {
+        let pieces = law.pieces("contact.law").map_err(PrepareError::Kit)?;
+        alone.contact.stiffness_n_per_m = pieces.stiffness[0];
+    }
     let used = kit.sc.switching;
     let scene = compile_with(&alone, rate_hz, Some(used))?;
     let scenes = Scenes {
