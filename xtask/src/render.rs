@@ -711,18 +711,20 @@ fn several_contacts_report(
         seconds / render_s.max(1e-12),
         stats.peak
     );
-    let summary = format!(
-        "several contacts: {k} contacts ({} strikers, {} touches) between {} modes and {} masses, \
-         {} phases compiled up front (every subset in contact), largest {} coordinates, \
-         condition of the bases at most {:.1}\n",
+    let mut summary = format!(
+        "several contacts: {k} contacts ({} strikers, {} touches, {} law pieces) between {} modes \
+         and {} masses, {} phases compiled up front (every subset in contact), largest {} \
+         coordinates, condition of the bases at most {:.1}\n",
         scene.striker.len(),
         scene.touch.len(),
+        scene.law_contacts(),
         model.freq_hz.len(),
         model.masses.len(),
         compiled.phases.len(),
         compiled.max_dim(),
         compiled.kappa()
     );
+    summary.push_str(&law_line(scene));
     JobReport {
         json,
         line,
@@ -732,6 +734,47 @@ fn several_contacts_report(
             x.switches, x.grazing, x.evaluations, x.capped, x.uncertified, x.kernel_samples, x.kernel_discarded
         )),
         summary,
+    }
+}
+
+/// The contact law's pieces and, for a fitted power law, its largest
+/// relative force error (empty without a law).
+fn law_line(scene: &Scene) -> String {
+    let Some(law) = &scene.contact.law else {
+        return String::new();
+    };
+    let Ok(p) = law.pieces("contact.law") else {
+        return String::new();
+    };
+    let fit = match (law.power, law.up_to_m) {
+        (Some(power), Some(up_to)) => format!(
+            ", fitted to F ~ p^{power}: largest force error {:.2} % from {:.3e} to {up_to:.3e} m",
+            100.0 * p.fit_error,
+            law.from_m.unwrap_or(0.1 * up_to)
+        ),
+        _ => String::new(),
+    };
+    format!(
+        "contact law: {} pieces, breakpoints {:.3e} m, stiffness {:.3e} N/m{fit}\n",
+        p.stiffness.len(),
+        DisplayList(&p.breakpoints),
+        DisplayList(&p.stiffness)
+    )
+}
+
+/// A list of numbers in scientific notation, `[a, b, ...]`.
+struct DisplayList<'a>(&'a [f64]);
+
+impl std::fmt::LowerExp for DisplayList<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("[")?;
+        for (i, x) in self.0.iter().enumerate() {
+            if i > 0 {
+                f.write_str(", ")?;
+            }
+            std::fmt::LowerExp::fmt(x, f)?;
+        }
+        f.write_str("]")
     }
 }
 
