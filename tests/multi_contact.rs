@@ -1203,6 +1203,32 @@ fn networks() -> Vec<Net> {
             links: vec![(MultiEnd::Mass(0), MultiEnd::Mass(1), 0.0, 31.3, 0.2)],
             fc0: 3.17,
         },
+        // a contact law of three pieces (docs/design.md, "Stiffening
+        // contacts"): two more springs between the hammer and its point,
+        // touching past their breakpoints (the mass reaches about 2.3 um)
+        Net {
+            name: "stiffening law, three pieces",
+            t60: Some(0.5),
+            gravity: 0.0,
+            masses: vec![(me_a, 0.0, -1.0)],
+            links: vec![
+                (
+                    MultiEnd::Point(on_a(&WEIGHTS[0])),
+                    MultiEnd::Mass(0),
+                    0.5e-6,
+                    4.0,
+                    0.02,
+                ),
+                (
+                    MultiEnd::Point(on_a(&WEIGHTS[0])),
+                    MultiEnd::Mass(0),
+                    1.0e-6,
+                    6.0,
+                    0.02,
+                ),
+            ],
+            fc0: 3.17,
+        },
         Net {
             name: "object bottoming on a wall 101.7x",
             t60: Some(0.5),
@@ -1340,7 +1366,7 @@ fn network_failures(name: &str, o: &Outcome, failures: &mut Vec<String>) {
 }
 
 /// Contacts between two objects, a mass between two objects, a mass on a
-/// mass, an object on a wall, against the reference solver's links (its
+/// mass, an object on a wall, a contact law of three pieces, against the reference solver's links (its
 /// own model of the same numbers: physical coordinates, double-double
 /// exponentials, bisection): every contact's two sides and instants on the
 /// window where the reference and its twin agree, and the energy.
