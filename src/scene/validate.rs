@@ -541,7 +541,8 @@ impl Scene {
             if c.stiffness_n_per_m == 0.0 {
                 return Err(SceneError::new(
                     "contact.stiffness_n_per_m",
-                    "missing: give the contact's stiffness, or a law of several pieces",
+                    "must be > 0, got 0 (missing: give the contact's stiffness, or a law of \
+                     several pieces)",
                 ));
             }
             check_positive("contact.stiffness_n_per_m", c.stiffness_n_per_m)?;
