@@ -99,6 +99,12 @@ impl Lowpass {
     }
 }
 
+/// The filter's half length for decimation `decim` at `rate_hz` \[s\]: the
+/// time from the start of the span analysed to the first decimated sample.
+pub(crate) fn half_length_s(decim: usize, rate_hz: f64) -> f64 {
+    (HALF_TAPS_PER_DECIMATION * decim.max(1)) as f64 / rate_hz
+}
+
 /// The bands: decimation, valid width and centres.
 #[derive(Debug, Clone)]
 pub(crate) struct Plan {

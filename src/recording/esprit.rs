@@ -22,7 +22,7 @@ const EDGE_MARGIN: f64 = 1.5;
 /// A pole is stable when the fit at the higher order has one within this
 /// distance, in `ln p` per decimated sample, divided by the number of
 /// samples (a tenth of the frequency resolution `2 pi / M`, over 2 pi).
-const STABLE_TOLERANCE: f64 = 0.1;
+const STABLE_TOLERANCE: f64 = 0.3;
 
 /// A band's fit.
 #[derive(Debug, Clone, Default)]
@@ -68,17 +68,22 @@ pub(crate) fn fit(y: &[c64], max_order: usize, floor_var: f64) -> Result<Fit, Re
     let u = svd.U();
     let poles = esprit(u, order)?;
     let higher = esprit(u, (order + (order / 4).max(2)).min(rows / 2))?;
-    let tol = STABLE_TOLERANCE / m as f64;
-    let stable = poles
-        .iter()
-        .map(|p| higher.iter().any(|q| (log(*p) - log(*q)).norm() < tol))
-        .collect();
     let amps = amplitudes(y, &poles)?;
-    let (sd, snr) = poles
+    let (sd, snr): (Vec<f64>, Vec<f64>) = poles
         .iter()
         .zip(&amps)
         .map(|(p, c)| bound(*p, *c, m, noise_var))
         .unzip();
+    // A pole moves between orders by about its own uncertainty: the
+    // tolerance is the larger of a tenth of the resolution and 5 of them.
+    let stable = poles
+        .iter()
+        .zip(&sd)
+        .map(|(p, sd)| {
+            let tol = (STABLE_TOLERANCE / m as f64).max(10.0 * sd);
+            higher.iter().any(|q| (log(*p) - log(*q)).norm() < tol)
+        })
+        .collect();
     Ok(Fit {
         poles,
         amps,

@@ -34,6 +34,7 @@ const MAX_T60_REL_SD: f64 = 0.5;
 #[derive(Debug, Clone)]
 pub(crate) struct Candidate {
     mode: Mode,
+    /// The band's index, plus `pass` times a million.
     band: usize,
     /// `|f - f_c|` over the valid half width.
     offset: f64,
@@ -48,6 +49,7 @@ pub(crate) struct Found {
 
 /// Where a band is and how its poles map back to the recording.
 struct BandCtx<'a> {
+    /// The band's index, plus the pass's number times a million.
     index: usize,
     centre: f64,
     rate_hz: f64,
@@ -58,12 +60,14 @@ struct BandCtx<'a> {
     min_snr_db: f64,
 }
 
-/// Fit every band of `plan` on `x` (scaled to peak 1) and sort the poles.
+/// Fit every band of `plan` on `x` (scaled to peak 1) and sort the
+/// poles; `pass` numbers the band plan (the merge keeps one of a mode
+/// found in two bands, never two of the same band).
 pub(crate) fn fit_bands(
     x: &[f64],
     rate_hz: f64,
     at: &Located,
-    plan: &Plan,
+    (plan, pass): (&Plan, usize),
     opts: &AnalysisOptions,
 ) -> Result<Found, RecordingError> {
     let lp = Lowpass::new(plan.decim);
@@ -89,7 +93,7 @@ pub(crate) fn fit_bands(
         fitted += 1;
         let fit = esprit::fit(&sig.y, usize::MAX, ALIAS_FLOOR * ALIAS_FLOOR)?;
         let ctx = BandCtx {
-            index,
+            index: index + 1_000_000 * pass,
             centre,
             rate_hz,
             lp: &lp,
@@ -136,7 +140,14 @@ fn classify(ctx: &BandCtx<'_>, fit: &Fit, sig: &BandSignal, peak: f64, found: &m
             freq_sd_hz: sd * ctx.rate_hz / (2.0 * PI * d),
             t60_rel_sd: sd * ctx.rate_hz / d / alpha.abs().max(1e-300),
         };
-        match reason(ctx, &mode, offset, alpha, fit.stable[k], span_s) {
+        let why = reason(ctx, &mode, offset, alpha, fit.stable[k], span_s);
+        if std::env::var("RECDBG").is_ok() && mode.freq_hz > 9000.0 && mode.freq_hz < 9700.0 {
+            eprintln!(
+                "DBG band {} f {:.3} t60 {:.4} snr {:.1} sd {:.3e} {:?}",
+                ctx.index, mode.freq_hz, mode.t60_s, mode.snr_db, mode.freq_sd_hz, why
+            );
+        }
+        match why {
             Some(reason) => found.dropped.push(DroppedPole {
                 freq_hz: mode.freq_hz,
                 t60_s: mode.t60_s,
@@ -176,6 +187,29 @@ fn reason(
     } else {
         None
     }
+}
+
+/// Put the fast pass's modes (wide bands, short filters) into the fine
+/// pass's: a fast mode of T60 under `t60_max` replaces the fine mode it
+/// matches when its uncertainty is lower, and joins the modes when no fine
+/// mode matches it (the fine pass's long filter saw too little of it).
+pub(crate) fn combine(fine: Found, fast: Found, t60_max: f64) -> Found {
+    let Found { mut kept, dropped } = fine;
+    for c in fast.kept {
+        if !(c.mode.t60_s < t60_max) {
+            continue;
+        }
+        let near = kept.iter_mut().find(|k| {
+            (k.mode.freq_hz - c.mode.freq_hz).abs()
+                < 10.0 * (k.mode.freq_sd_hz + c.mode.freq_sd_hz) + 1e-6 * c.mode.freq_hz
+        });
+        match near {
+            Some(k) if c.mode.freq_sd_hz < k.mode.freq_sd_hz => *k = c,
+            Some(_) => {}
+            None => kept.push(c),
+        }
+    }
+    Found { kept, dropped }
 }
 
 /// Merge the bands' modes: one of each pair found by two neighbouring
