@@ -39,6 +39,8 @@ pub enum RecordingError {
     /// object (or its modes are all below the noise). The counts of
     /// dropped poles by reason, as text.
     NoModes(String),
+    /// The scene written from the analysis does not load or compile.
+    Scene(String),
     /// A decomposition did not converge (should not happen on finite data).
     Numerics(String),
 }
@@ -83,6 +85,7 @@ impl std::fmt::Display for RecordingError {
                 f,
                 "no stable decaying modes found: this does not sound like the free decay of a struck object ({why})"
             ),
+            Self::Scene(e) => write!(f, "{e}"),
             Self::Numerics(e) => write!(f, "a decomposition failed: {e}"),
         }
     }

@@ -79,12 +79,14 @@ mod band;
 mod error;
 mod esprit;
 mod input;
+mod scene;
 mod select;
 #[cfg(test)]
 mod tests;
 mod wav;
 
 pub use error::RecordingError;
+pub use scene::{object_scene, MalletEstimate, DEFAULT_MALLET_KG};
 pub use wav::{read_wav, Channel, Recording};
 
 use std::f64::consts::PI;
