@@ -21,7 +21,8 @@ const EDGE_MARGIN: f64 = 1.5;
 
 /// A pole is stable when the fit at the higher order has one within this
 /// distance, in `ln p` per decimated sample, divided by the number of
-/// samples (a tenth of the frequency resolution `2 pi / M`, over 2 pi).
+/// samples `M` (0.3 / M is 5 % of the frequency resolution `2 pi / M`),
+/// or within 10 of its own standard deviations when that is more.
 const STABLE_TOLERANCE: f64 = 0.3;
 
 /// A band's fit.
@@ -75,7 +76,7 @@ pub(crate) fn fit(y: &[c64], max_order: usize, floor_var: f64) -> Result<Fit, Re
         .map(|(p, c)| bound(*p, *c, m, noise_var))
         .unzip();
     // A pole moves between orders by about its own uncertainty: the
-    // tolerance is the larger of a tenth of the resolution and 5 of them.
+    // tolerance is the larger of 5 % of the resolution and 10 of them.
     let stable = poles
         .iter()
         .zip(&sd)
