@@ -58,6 +58,8 @@ pub mod play;
 #[cfg(feature = "plugin")]
 pub mod plugin;
 pub mod presets;
+/// Modes of a struck object from a recording of its strike (ESPRIT on sub-bands), and its scene.
+pub mod recording;
 pub mod render;
 pub mod scene;
 // The one seeded generator of every test. It lives here, not in the dev-only

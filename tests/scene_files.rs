@@ -1,6 +1,7 @@
 //! Scene files and what they describe, in one test binary: parsing and
 //! refusals, the presets, objects from geometry and material, radiation to
-//! a listener, modal mallets, a scene's level; and the project's documents
+//! a listener, modal mallets, a scene's level, an object's scene from a
+//! recording; and the project's documents
 //! against its code (references, tolerances, the layer picture, the
 //! README's example, this list of test binaries).
 //!
@@ -21,5 +22,7 @@ mod physical_objects;
 mod presets;
 #[path = "radiation.rs"]
 mod radiation;
+#[path = "recording.rs"]
+mod recording;
 #[path = "scenes.rs"]
 mod scenes;

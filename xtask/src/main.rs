@@ -31,11 +31,17 @@
 //!   against its recorded samples in the FluidR3 General MIDI soundfont
 //!   (`docs/compare-real.md`, plots in `docs/compare-real/`, WAV pairs in
 //!   `target/compare-real/`)
+//! - `cargo xtask analyze STRIKE.wav --out OBJECT.toml [--channel N]
+//!   [--start S] [--end S] [--modes N] [--min-freq HZ] [--max-freq HZ]
+//!   [--mallet-kg KG] [--name NAME]`: the modes of a struck object from a
+//!   recording of one strike, as a scene file, with a report (modes, poles
+//!   dropped, the resynthesis's distance and residual)
 //! - `cargo xtask levels [--check] [--write] [--out docs/levels.md]
 //!   [--presets DIR]`: each preset's loudness and peaks at velocity 100,
 //!   and the `level_db` that puts it at the common target
 //!   (`docs/levels.md`; `--write` sets the presets' levels)
 
+mod analyze;
 mod golden;
 mod paramdocs;
 
@@ -104,6 +110,11 @@ enum Command {
     /// level_db, --check fails on a preset off its level or a clipping
     /// chord).
     Levels(levels::LevelsArgs),
+    /// The modes of a struck object from a recording of one strike (WAV),
+    /// written as a scene file with that object, a mallet and a pickup;
+    /// prints the modes, the poles dropped and why, and how near the
+    /// resynthesis and the scene's render come to the recording.
+    Analyze(analyze::AnalyzeArgs),
     /// Anything else: nice-plug's xtask (`bundle`, `bundle-universal`, ...).
     #[command(external_subcommand)]
     NicePlug(Vec<String>),
@@ -146,6 +157,7 @@ fn main() -> Result<()> {
         Some(Command::ParamDocs(a)) => paramdocs::run(a.check),
         Some(Command::CompareReal(a)) => compare_real::run(&a),
         Some(Command::Levels(a)) => levels::run(&a),
+        Some(Command::Analyze(a)) => analyze::run(&a),
         Some(Command::NicePlug(args)) => nice_plug_xtask::main_with_args("cargo xtask", args),
         None => nice_plug_xtask::main(),
     }

@@ -1,0 +1,286 @@
+//! The scene file of an analysed recording: one modal object with the
+//! modes found, a mallet whose contact lasts as long as the recording's
+//! attack suggests, and a velocity pickup, scaled so an offline render
+//! of the scene plays the recording's modes at the recording's level.
+//!
+//! # Weights
+//!
+//! A recording gives, per mode, the product of the mode's shape at the
+//! strike point and at the microphone, times the force pulse's spectrum
+//! at the mode's frequency, times unknown gains (the microphone's, the
+//! strike's strength): never the shapes alone. The scene therefore gives
+//! the contact and the pickup weights of one magnitude `|w_i|` for mode
+//! `i`, which is the one choice that needs nothing the recording does not
+//! say: the engine's velocity pickup then plays mode `i` at
+//! `gain J w_c,i w_p,i |F(f_i)|` (`J` the impulse of the contact, `F` its
+//! normalised force spectrum), so `|w_i|^2` is taken proportional to the
+//! recorded amplitude over `|F(f_i)|`.
+//!
+//! The sign of the product is in the recording: after a short pulse a
+//! mode's velocity starts as `+-cos(omega (t - t_c) + atan(alpha /
+//! omega))`, `t_c` the pulse's centre, so its phase at the onset is 0 or pi
+//! once the common delay `t_c` is taken out. The delay is the one (within
+//! 3 ms of the onset, in steps of 1 us) that brings the phases nearest 0
+//! or pi, weighted by amplitude (`sum A_i cos(2 (phase_i - expected_i))`
+//! largest); a mode whose phase is then nearer pi gets a negative product.
+//! The contact weights are positive (a mode's shape is signed so at the
+//! strike point, as the presets do) and the pickup weights carry the
+//! signs: at the strike point itself every product would be positive, and
+//! the onset's click (the jump of the modes' sum at the strike) would be
+//! wrong. With every sign positive the two points would be one.
+//!
+//! The weights are known up to one common scale, set by stating the
+//! object's mass at the contact point: `1 / sum w_i^2` (the mass an
+//! impulse sees there) is ten times the mallet's, so the mallet is light
+//! against the object, as a mallet on a bowl, a bell or a pot lid is, and
+//! the contact lasts `pi sqrt(m_eff / k)` with `m_eff` the mallet's mass
+//! in series with that point mass (`m / 1.1`). The pickup's gain then
+//! brings the render to the recording's level.
+//!
+//! # The mallet
+//!
+//! The mass is a stated default, [`DEFAULT_MALLET_KG`]. The contact time
+//! `tau` comes from the onset's steepest slope
+//! (during a half-sine force pulse the velocity rises by its jump `j` as
+//! `(1 - cos(pi t / tau)) / 2`, whose largest first difference at the
+//! sampling step `h` is `d = j sin(pi h / (2 tau))`; `d` is the largest
+//! first difference within 1 ms of the onset and `j` first the largest
+//! magnitude there, then the rise across the pulse that first estimate
+//! gives, centred on the steepest step; `tau = pi h / (2 asin(d / j))`);
+//! without a slope (a silent onset), `1 / f_top`, with `f_top` the highest
+//! mode within 40 dB of the strongest. `tau` is kept within 20 us and 5
+//! ms. The weights divide by `|F(f_i)|` down to -40 dB, no further. The
+//! stiffness is `m_eff (pi / tau)^2`; the contact has no damping.
+
+use super::{Analysis, RecordingError};
+use crate::compile::compile;
+use crate::scene::Scene;
+use std::f64::consts::PI;
+use std::fmt::Write as _;
+
+/// The mallet's mass when nothing says otherwise \[kg\]: a 50 g head.
+pub const DEFAULT_MALLET_KG: f64 = 0.05;
+
+/// The object's mass at the contact point over the mallet's.
+const POINT_MASS_RATIO: f64 = 10.0;
+
+/// The contact time's bounds \[s\].
+const CONTACT_S: (f64, f64) = (20e-6, 5e-3);
+
+/// The strike's speed in the scene \[m/s\] (offline renders).
+const STRIKE_M_PER_S: f64 = 1.0;
+
+/// The least normalised force spectrum a weight is divided by (-40 dB),
+/// so a mode near a zero of the pulse's spectrum is not blown up.
+const MIN_SPECTRUM: f64 = 0.01;
+
+/// The mallet estimated from the recording's attack.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MalletEstimate {
+    /// The mallet's mass \[kg\] ([`DEFAULT_MALLET_KG`]).
+    pub mass_kg: f64,
+    /// The contact time the onset's steepest slope gives \[s\].
+    pub rise_s: f64,
+    /// The highest mode within 40 dB of the strongest \[Hz\].
+    pub top_mode_hz: f64,
+    /// The contact time chosen \[s\].
+    pub contact_s: f64,
+    /// The contact stiffness \[N/m\].
+    pub stiffness_n_per_m: f64,
+}
+
+/// The normalised spectrum `|F(f)| / J` of a half-sine force pulse of
+/// duration `tau`: `|cos(pi f tau) / (1 - (2 f tau)^2)|` (1 at 0 Hz).
+fn half_sine_spectrum(f: f64, tau: f64) -> f64 {
+    let x = 2.0 * f * tau;
+    if (x - 1.0).abs() < 1e-9 {
+        return PI / 4.0;
+    }
+    ((PI * f * tau).cos() / (1.0 - x * x)).abs()
+}
+
+/// The mallet from the attack of `recording` and the modes found.
+fn mallet(a: &Analysis, recording: &[f64], mass_kg: f64) -> MalletEstimate {
+    let onset = a.onset.min(recording.len());
+    let guard = (0.001 * a.rate_hz).ceil() as usize;
+    let window = &recording[onset.saturating_sub(guard)..(onset + guard).min(recording.len())];
+    let jump = window.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let (at, step) = window
+        .windows(2)
+        .enumerate()
+        .fold((0, 0.0_f64), |(i, m), (j, w)| {
+            let d = (w[1] - w[0]).abs();
+            if d > m {
+                (j, d)
+            } else {
+                (i, m)
+            }
+        });
+    // A half-sine pulse of duration tau raises the velocity by `jump` as
+    // (1 - cos(pi t / tau)) / 2; sampled at h, its largest first difference
+    // is `jump sin(pi h / (2 tau))`. The jump is first the largest
+    // magnitude near the onset, then the rise across the pulse that
+    // estimate gives, centred on the steepest step (so the modes' own
+    // swing after the pulse does not count).
+    let tau = |jump: f64| {
+        if step > 0.0 && jump > 0.0 {
+            0.5 * PI / (a.rate_hz * (step / jump).min(1.0).asin())
+        } else {
+            0.0
+        }
+    };
+    let half = (0.5 * tau(jump) * a.rate_hz).round() as usize;
+    let across =
+        (window[(at + 1 + half).min(window.len() - 1)] - window[at.saturating_sub(half)]).abs();
+    let rise_s = tau(across.max(step));
+    let loudest = a.modes.iter().fold(0.0_f64, |m, x| m.max(x.amplitude));
+    let top_mode_hz = a
+        .modes
+        .iter()
+        .filter(|m| m.amplitude >= 0.01 * loudest)
+        .fold(0.0_f64, |f, m| f.max(m.freq_hz));
+    let by_rise = if rise_s > 0.0 { rise_s } else { CONTACT_S.1 };
+    let by_top = if top_mode_hz > 0.0 {
+        1.0 / top_mode_hz
+    } else {
+        CONTACT_S.1
+    };
+    let contact_s = if rise_s > 0.0 { by_rise } else { by_top }.clamp(CONTACT_S.0, CONTACT_S.1);
+    let m_eff = mass_kg * POINT_MASS_RATIO / (1.0 + POINT_MASS_RATIO);
+    MalletEstimate {
+        mass_kg,
+        rise_s,
+        top_mode_hz,
+        contact_s,
+        stiffness_n_per_m: m_eff * (PI / contact_s).powi(2),
+    }
+}
+
+/// The scene file (TOML) of the object in `a`, analysed from `recording`,
+/// named `name`, struck by a mallet of `mass_kg`; checked by parsing it
+/// and compiling it at the recording's rate. Returns the text and the
+/// mallet estimate.
+pub fn object_scene(
+    a: &Analysis,
+    recording: &[f64],
+    name: &str,
+    mass_kg: f64,
+) -> Result<(String, MalletEstimate), RecordingError> {
+    if !(mass_kg.is_finite() && mass_kg > 0.0) {
+        return Err(RecordingError::Option(format!(
+            "mallet mass {mass_kg} kg: need a positive mass"
+        )));
+    }
+    let m = mallet(a, recording, mass_kg);
+    // w_i^2 = s A_i / |F(f_i)|, with sum w_i^2 = 1 / (POINT_MASS_RATIO m).
+    let raw: Vec<f64> = a
+        .modes
+        .iter()
+        .map(|x| x.amplitude / half_sine_spectrum(x.freq_hz, m.contact_s).max(MIN_SPECTRUM))
+        .collect();
+    let total: f64 = raw.iter().sum();
+    if !(total > 0.0 && total.is_finite()) {
+        return Err(RecordingError::NoModes("no mode has an amplitude".into()));
+    }
+    let s = 1.0 / (POINT_MASS_RATIO * mass_kg * total);
+    let m_eff = mass_kg * POINT_MASS_RATIO / (1.0 + POINT_MASS_RATIO);
+    // Render amplitude of mode i: gain * J * w_i^2 * |F_i| * pan, with the
+    // impulse J = 2 m_eff v of an undamped contact and the centre pan's
+    // 1/sqrt(2) per channel; w_i^2 |F_i| = s A_i (above MIN_SPECTRUM).
+    let impulse = 2.0 * m_eff * STRIKE_M_PER_S;
+    let gain = std::f64::consts::SQRT_2 / (impulse * s);
+    let signs = product_signs(a);
+    let text = scene_text(a, name, &m, (&raw, &signs), s, gain, recording.len());
+    let scene = Scene::from_toml_str(&text)
+        .map_err(|e| RecordingError::Scene(format!("the scene written does not load: {e}")))?;
+    compile(&scene, a.rate_hz)
+        .map_err(|e| RecordingError::Scene(format!("the scene written does not compile: {e}")))?;
+    Ok((text, m))
+}
+
+/// The sign of each mode's product of weights (contact times pickup),
+/// from its phase at the onset and the common delay that brings the
+/// phases nearest 0 or pi.
+fn product_signs(a: &Analysis) -> Vec<f64> {
+    // The phase a mode would have at the onset with a positive product and
+    // a pulse centred `delay` after the onset.
+    let expected = |m: &super::Mode, delay: f64| {
+        let omega = 2.0 * PI * m.freq_hz;
+        (m.alpha() / omega).atan() - omega * delay
+    };
+    let score = |delay: f64| -> f64 {
+        a.modes
+            .iter()
+            .map(|m| m.amplitude * (2.0 * (m.phase_rad - expected(m, delay))).cos())
+            .sum()
+    };
+    let best = (-3000..=3000)
+        .map(|i| f64::from(i) * 1e-6)
+        .fold((0.0, f64::NEG_INFINITY), |(d, s), delay| {
+            let v = score(delay);
+            if v > s {
+                (delay, v)
+            } else {
+                (d, s)
+            }
+        })
+        .0;
+    a.modes
+        .iter()
+        .map(|m| {
+            if (m.phase_rad - expected(m, best)).cos() >= 0.0 {
+                1.0
+            } else {
+                -1.0
+            }
+        })
+        .collect()
+}
+
+/// The TOML text of the scene.
+fn scene_text(
+    a: &Analysis,
+    name: &str,
+    m: &MalletEstimate,
+    (raw, signs): (&[f64], &[f64]),
+    s: f64,
+    gain: f64,
+    len: usize,
+) -> String {
+    let name = name.replace(['"', '\\', '\n'], "_");
+    let duration = ((len.saturating_sub(a.onset)) as f64 / a.rate_hz).clamp(0.5, 60.0);
+    let mut t = String::new();
+    let _ = writeln!(
+        t,
+        "# An object analysed from a recording: {} modes (ESPRIT on sub-bands).\n\
+         # Contact and pickup at one point: the weights are sqrt(amplitude / pulse spectrum),\n\
+         # scaled so the object's mass at that point is {POINT_MASS_RATIO} times the mallet's.\n\
+         # Mallet: {:.0} g, contact {:.3} ms (from the onset's slope {:.3} ms, highest strong mode {:.0} Hz).\n\
+         version = 1\nname = \"{name}\"\nduration_s = {duration:.3}\n\n\
+         [[object]]\nname = \"object\"\nkind = \"modal\"\npoints = [\"contact\", \"pickup\"]\n",
+        a.modes.len(),
+        1e3 * m.mass_kg,
+        1e3 * m.contact_s,
+        1e3 * m.rise_s,
+        m.top_mode_hz
+    );
+    for ((x, r), sign) in a.modes.iter().zip(raw).zip(signs) {
+        let w = (s * r).sqrt();
+        let _ = writeln!(
+            t,
+            "[[object.mode]]\nfreq_hz = {}\nt60_s = {}\nweights = [{w}, {}]\n",
+            x.natural_freq_hz(),
+            x.t60_s,
+            sign * w
+        );
+    }
+    let _ = writeln!(
+        t,
+        "[hammer]\nmass_kg = {}\nheight_m = 0.0001\nvelocity_m_per_s = {}\n\n\
+         [contact]\nobject = \"object\"\npoint = \"contact\"\nstiffness_n_per_m = {}\n\
+         damping_n_s_per_m = 0.0\n\n\
+         [[pickup]]\nobject = \"object\"\npoint = \"pickup\"\nquantity = \"velocity\"\ngain = {gain}",
+        m.mass_kg, -STRIKE_M_PER_S, m.stiffness_n_per_m
+    );
+    t
+}

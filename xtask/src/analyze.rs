@@ -1,0 +1,220 @@
+//! `cargo xtask analyze STRIKE.wav --out my-object.toml`: the modes of a
+//! struck object from a recording of one strike (`modal_contact::recording`,
+//! whose module documentation has the method), written as a scene file
+//! with that object, a mallet and a pickup; and a report: the modes
+//! (frequency, T60, level), the poles dropped and why, the resynthesis's
+//! 1/3-octave distance to the recording over the first 0.5 s
+//! (`compare_real::analysis`, as `cargo xtask compare-real` measures it),
+//! the residual's energy, and the distance of the written scene's render.
+
+use anyhow::{Context, Result};
+use clap::Args;
+use modal_contact::recording::{
+    analyze, object_scene, read_wav, Analysis, AnalysisOptions, Channel, DropReason,
+    DEFAULT_MALLET_KG,
+};
+use modal_contact::render::{render, RenderOptions};
+use modal_contact::Scene;
+use std::path::PathBuf;
+use xtask::compare_real::analysis::{band_levels, third_octave_distance, welch};
+
+/// The stretch the 1/3-octave distances are measured over \[s\].
+const DISTANCE_S: f64 = 0.5;
+
+/// `cargo xtask analyze STRIKE.wav --out OBJECT.toml [options]`.
+#[derive(Args, Debug)]
+pub(crate) struct AnalyzeArgs {
+    /// The recorded strike: a WAV file (16/24/32-bit integer or 32-bit
+    /// float, 22.05 to 192 kHz), the strike near its start and its decay
+    /// after it.
+    wav: PathBuf,
+    /// The scene file to write.
+    #[arg(long)]
+    out: PathBuf,
+    /// The channel analysed (0 = the first, the left); default: the mean
+    /// of all channels.
+    #[arg(long)]
+    channel: Option<usize>,
+    /// Start of the span fitted, from the file's start [s]; default: 5 ms
+    /// after the onset (and after any clipping).
+    #[arg(long)]
+    start: Option<f64>,
+    /// End of the span fitted [s]; default: the file's end.
+    #[arg(long)]
+    end: Option<f64>,
+    /// Keep at most this many modes (the strongest).
+    #[arg(long)]
+    modes: Option<usize>,
+    /// Lowest mode frequency [Hz].
+    #[arg(long, default_value_t = 20.0)]
+    min_freq: f64,
+    /// Highest mode frequency [Hz] (capped at Nyquist).
+    #[arg(long, default_value_t = 20_000.0)]
+    max_freq: f64,
+    /// The mallet's mass in the scene [kg].
+    #[arg(long, default_value_t = DEFAULT_MALLET_KG)]
+    mallet_kg: f64,
+    /// The scene's name; default: the WAV file's name without extension.
+    #[arg(long)]
+    name: Option<String>,
+}
+
+/// Analyse, write the scene, print the report.
+pub(crate) fn run(a: &AnalyzeArgs) -> Result<()> {
+    let channel = a.channel.map_or(Channel::Mix, Channel::Index);
+    let rec = read_wav(&a.wav, channel)?;
+    let opts = AnalysisOptions {
+        freq_range_hz: (a.min_freq, a.max_freq),
+        start_s: a.start,
+        end_s: a.end,
+        max_modes: a.modes,
+        ..AnalysisOptions::default()
+    };
+    let x = &rec.samples;
+    let an = analyze(x, rec.rate_hz, &opts)?;
+    let name = a.name.clone().unwrap_or_else(|| {
+        a.wav
+            .file_stem()
+            .map_or("recording".into(), |s| s.to_string_lossy().into_owned())
+    });
+    let (text, mallet) = object_scene(&an, x, &name, a.mallet_kg)?;
+    std::fs::write(&a.out, &text).with_context(|| format!("writing {}", a.out.display()))?;
+    println!(
+        "{}: {} channel(s), {}, {} Hz, {:.3} s; analysed {}",
+        a.wav.display(),
+        rec.channels,
+        rec.format,
+        rec.rate_hz,
+        x.len() as f64 / rec.rate_hz,
+        match channel {
+            Channel::Mix => "the mean of the channels".to_string(),
+            Channel::Index(c) => format!("channel {c}"),
+        }
+    );
+    print_span(&an);
+    print_modes(&an);
+    print_dropped(&an);
+    print_fit(&an, x, &text)?;
+    println!(
+        "mallet: {:.0} g, contact {:.3} ms (onset slope {:.3} ms, highest strong mode {:.0} Hz), \
+         stiffness {:.4e} N/m",
+        1e3 * mallet.mass_kg,
+        1e3 * mallet.contact_s,
+        1e3 * mallet.rise_s,
+        mallet.top_mode_hz,
+        mallet.stiffness_n_per_m
+    );
+    println!("wrote {}", a.out.display());
+    Ok(())
+}
+
+/// Onset, span, clipping, noise, bands.
+fn print_span(an: &Analysis) {
+    let s = |i: usize| i as f64 / an.rate_hz;
+    println!(
+        "onset at {:.4} s; fitted {:.4} to {:.4} s; noise {:.1} dB under the peak; \
+         {} bands of {:.1} Hz (decimation {})",
+        s(an.onset),
+        s(an.span.0),
+        s(an.span.1),
+        -an.noise_db,
+        an.bands.0,
+        an.bands.1,
+        an.bands.2
+    );
+    if let Some(c) = &an.clipping {
+        println!(
+            "CLIPPED: {} run(s) of {} samples at full scale, the last ending at {:.4} s; \
+             the fit starts after it",
+            c.runs,
+            c.samples,
+            s(c.end)
+        );
+    }
+}
+
+/// The modes found.
+fn print_modes(an: &Analysis) {
+    println!("{} modes:", an.modes.len());
+    println!(
+        "  {:>12} {:>10} {:>9} {:>9} {:>8}   {:>10} {:>8}",
+        "freq [Hz]", "T60 [s]", "level dB", "phase", "SNR dB", "sd(f) Hz", "sd(T60)"
+    );
+    for m in &an.modes {
+        println!(
+            "  {:>12.4} {:>10.4} {:>9.1} {:>9.3} {:>8.1}   {:>10.2e} {:>7.2}%",
+            m.freq_hz,
+            m.t60_s,
+            m.level_db(),
+            m.phase_rad,
+            m.snr_db,
+            m.freq_sd_hz,
+            100.0 * m.t60_rel_sd
+        );
+    }
+}
+
+/// The poles dropped: counted by reason; listed, but for those outside a
+/// band's centre (each is the neighbouring band's to fit).
+fn print_dropped(an: &Analysis) {
+    let outside = an
+        .dropped
+        .iter()
+        .filter(|d| d.reason == DropReason::OutsideBandCentre)
+        .count();
+    println!(
+        "{} poles dropped ({} outside their band's centre, fitted by the neighbouring band):",
+        an.dropped.len(),
+        outside
+    );
+    for d in an
+        .dropped
+        .iter()
+        .filter(|d| d.reason != DropReason::OutsideBandCentre)
+    {
+        println!(
+            "  {:>12.4} Hz  T60 {:>10.4} s  {:>7.1} dB  {}",
+            d.freq_hz, d.t60_s, d.level_db, d.reason
+        );
+    }
+}
+
+/// The 1/3-octave distance of the first 0.5 s after the onset \[dB\].
+fn distance(a: &[f64], b: &[f64], rate_hz: f64) -> f64 {
+    third_octave_distance(
+        &band_levels(&welch(a, rate_hz, DISTANCE_S)),
+        &band_levels(&welch(b, rate_hz, DISTANCE_S)),
+    )
+}
+
+/// The resynthesis against the recording, and the written scene's render.
+fn print_fit(an: &Analysis, x: &[f64], text: &str) -> Result<()> {
+    let model = an.resynthesize(x.len());
+    let from = an.onset;
+    println!(
+        "resynthesis: 1/3-octave distance to the recording {:.2} dB over the first {DISTANCE_S} s; \
+         residual (recording - resynthesis) {:.1} dB of the recording's energy over the span fitted",
+        distance(&x[from..], &model[from..], an.rate_hz),
+        an.residual_db(x)
+    );
+    let scene = Scene::from_toml_str(text)?;
+    let out = render(
+        &scene,
+        &RenderOptions {
+            rate_hz: an.rate_hz,
+            seconds: Some(DISTANCE_S + 0.1),
+            ..RenderOptions::default()
+        },
+    )?;
+    let peak = out.left.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let start = out
+        .left
+        .iter()
+        .position(|v| v.abs() >= 0.1 * peak)
+        .unwrap_or(0);
+    println!(
+        "the scene's render: 1/3-octave distance to the recording {:.2} dB over the first {DISTANCE_S} s",
+        distance(&x[from..], &out.left[start..], an.rate_hz)
+    );
+    Ok(())
+}
