@@ -53,7 +53,7 @@
 //! stiffness is `m_eff (pi / tau)^2`; the contact has no damping.
 
 use super::{Analysis, RecordingError};
-use crate::compile::compile;
+use crate::compile::compile_one;
 use crate::scene::Scene;
 use std::f64::consts::PI;
 use std::fmt::Write as _;
@@ -193,7 +193,7 @@ pub fn object_scene(
     let text = scene_text(a, name, &m, (&raw, &signs), s, gain, recording.len());
     let scene = Scene::from_toml_str(&text)
         .map_err(|e| RecordingError::Scene(format!("the scene written does not load: {e}")))?;
-    compile(&scene, a.rate_hz)
+    compile_one(&scene, a.rate_hz)
         .map_err(|e| RecordingError::Scene(format!("the scene written does not compile: {e}")))?;
     Ok((text, m))
 }
