@@ -1229,6 +1229,31 @@ fn networks() -> Vec<Net> {
             ],
             fc0: 3.17,
         },
+        // the same law made stiff: its last piece at 317x Nyquist, damped
+        // (a hard core under a soft felt)
+        Net {
+            name: "stiffening law, last piece 317x",
+            t60: Some(0.5),
+            gravity: 0.0,
+            masses: vec![(me_a, 0.0, -1.0)],
+            links: vec![
+                (
+                    MultiEnd::Point(on_a(&WEIGHTS[0])),
+                    MultiEnd::Mass(0),
+                    0.5e-6,
+                    4.0,
+                    0.02,
+                ),
+                (
+                    MultiEnd::Point(on_a(&WEIGHTS[0])),
+                    MultiEnd::Mass(0),
+                    0.8e-6,
+                    317.3,
+                    0.3,
+                ),
+            ],
+            fc0: 3.17,
+        },
         Net {
             name: "object bottoming on a wall 101.7x",
             t60: Some(0.5),
