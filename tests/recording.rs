@@ -16,6 +16,7 @@ use modal_contact::recording::{
 use modal_contact::render::{render, RenderOptions};
 use modal_contact::test_rng::TestRng;
 use modal_contact::Scene;
+use modal_testkit::analysis::{band_levels, third_octave_distance, welch};
 use std::f64::consts::PI;
 
 const LN_1000: f64 = 6.907_755_278_982_137;
@@ -364,81 +365,6 @@ fn the_modes_of_a_rendered_scene_are_found() {
     assert_eq!(a.modes.len(), truth.len(), "{:?}", a.modes);
 }
 
-/// 1/3-octave band levels of the first `seconds` of `x` \[dB\], as
-/// `cargo xtask compare-real` measures them (xtask's
-/// `compare_real::analysis::{welch, band_levels}`): the energy spectrum of
-/// 8192-point Hann frames at hop 2048 over the stretch (a 10 ms fade-out
-/// at its end, zeros around it), summed over the 26 bands from 50 Hz to
-/// 16 kHz (edges at the centres times 10^(+-1/20)), each over the total,
-/// floored 60 dB under the loudest.
-fn third_octave_levels(x: &[f64], rate: f64, seconds: f64) -> [f64; 26] {
-    const LEN: usize = 8192;
-    let n = ((seconds * rate).round() as usize).min(x.len());
-    let fade = ((0.01 * rate) as usize).min(n);
-    let mut padded = vec![0.0; LEN + n + LEN];
-    for i in 0..n {
-        let j = n - 1 - i;
-        let g = if j < fade {
-            0.5 - 0.5 * (PI * j as f64 / fade as f64).cos()
-        } else {
-            1.0
-        };
-        padded[LEN + i] = x[i] * g;
-    }
-    let hann: Vec<f64> = (0..LEN)
-        .map(|i| 0.5 - 0.5 * (2.0 * PI * i as f64 / (LEN - 1) as f64).cos())
-        .collect();
-    let fft = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(LEN);
-    let mut power = vec![0.0; LEN / 2 + 1];
-    let mut s = LEN / 4;
-    while s + LEN <= padded.len() {
-        let mut buf: Vec<f64> = padded[s..s + LEN]
-            .iter()
-            .zip(&hann)
-            .map(|(a, b)| a * b)
-            .collect();
-        let mut out = fft.make_output_vec();
-        fft.process(&mut buf, &mut out).unwrap();
-        for (p, c) in power.iter_mut().zip(&out) {
-            *p += c.norm_sqr();
-        }
-        s += LEN / 4;
-    }
-    let df = rate / LEN as f64;
-    let band_power = |lo: f64, hi: f64| -> f64 {
-        (0..power.len())
-            .map(|k| {
-                let (a, b) = ((k as f64 - 0.5) * df, (k as f64 + 0.5) * df);
-                (b.min(hi) - a.max(lo)).max(0.0) / df * power[k]
-            })
-            .sum()
-    };
-    let edge = 10f64.powf(0.05);
-    let e: Vec<f64> = (0..26)
-        .map(|b| {
-            let c = 1000.0 * 10f64.powf((b as f64 - 13.0) / 10.0);
-            band_power(c / edge, c * edge)
-        })
-        .collect();
-    let total: f64 = e.iter().sum::<f64>().max(1e-300);
-    let db: Vec<f64> = e
-        .iter()
-        .map(|v| 10.0 * (v / total + 1e-300).log10())
-        .collect();
-    let top = db.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let mut out = [0.0; 26];
-    for (o, v) in out.iter_mut().zip(db) {
-        *o = v.max(top - 60.0);
-    }
-    out
-}
-
-/// The RMS of the band levels' differences \[dB\] (xtask's
-/// `third_octave_distance`).
-fn third_octave_distance(a: &[f64; 26], b: &[f64; 26]) -> f64 {
-    (a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / 26.0).sqrt()
-}
-
 /// The first sample at a tenth of the peak.
 fn onset(x: &[f64]) -> usize {
     let peak = x.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
@@ -469,9 +395,10 @@ fn the_scene_written_for_a_render_sounds_like_it() {
         let again = render(&copy, &opts).unwrap().left;
         let (o1, o2) = (onset(&original), onset(&again));
 
+        // the 1/3-octave distance as `cargo xtask compare-real` measures it
         let d = third_octave_distance(
-            &third_octave_levels(&original[o1..], rate, 0.5),
-            &third_octave_levels(&again[o2..], rate, 0.5),
+            &band_levels(&welch(&original[o1..], rate, 0.5)),
+            &band_levels(&welch(&again[o2..], rate, 0.5)),
         );
         let peak = |x: &[f64]| x.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
         eprintln!(

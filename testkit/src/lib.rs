@@ -14,7 +14,11 @@
 //!   rounding bound of the energy checks.
 //! - [`bundles`]: the plugin bundles the plugin tests load, and how they are
 //!   copied out of `target/bundled/`.
+//! - [`analysis`]: the measurements of `cargo xtask compare-real` (spectra,
+//!   partials, T60, attack, 1/3-octave bands and their distance), also the
+//!   recording tests' distance.
 
+pub mod analysis;
 pub mod bundles;
 pub mod competitors;
 pub mod metrics;

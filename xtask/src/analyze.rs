@@ -15,8 +15,8 @@ use modal_contact::recording::{
 };
 use modal_contact::render::{render, RenderOptions};
 use modal_contact::Scene;
+use modal_testkit::analysis::{band_levels, third_octave_distance, welch};
 use std::path::PathBuf;
-use xtask::compare_real::analysis::{band_levels, third_octave_distance, welch};
 
 /// The stretch the 1/3-octave distances are measured over \[s\].
 const DISTANCE_S: f64 = 0.5;

@@ -17,7 +17,7 @@
 //! `DIR/compare-real.md` and `DIR/compare-real/*.svg` (default `docs`),
 //! and WAV pairs (recording, render) into `target/compare-real/`.
 
-pub mod analysis;
+pub use modal_testkit::analysis;
 pub mod gm;
 mod plots;
 pub mod sf2;

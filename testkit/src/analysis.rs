@@ -1,4 +1,5 @@
-//! The measurements of `cargo xtask compare-real`, on mono signals at one
+//! The measurements of `cargo xtask compare-real` (and of the recording
+//! analysis's checks), on mono signals at one
 //! sample rate: onset, long-window spectrum and its peaks (partials),
 //! per-partial decay time (T60), the attack's spectral centroid and its
 //! energy above 5 kHz, 1/3-octave band levels and the distance between two
