@@ -1225,59 +1225,34 @@ fn networks() -> Vec<Net> {
 
 /// The networks of a contact law of three pieces (docs/design.md,
 /// "Stiffening contacts"): two more springs between the hammer and its
-/// point, touching past their breakpoints.
+/// point, each `(gap, fc, zeta)`, touching past its breakpoint.
 fn law_networks() -> Vec<Net> {
-    let me_a = effective_mass(&on_a(&WEIGHTS[0]));
+    let law = |name, pieces: [(f64, f64, f64); 2]| Net {
+        name,
+        t60: Some(0.5),
+        gravity: 0.0,
+        masses: vec![(effective_mass(&on_a(&WEIGHTS[0])), 0.0, -1.0)],
+        links: pieces
+            .iter()
+            .map(|&(gap, fc, zeta)| {
+                let point = MultiEnd::Point(on_a(&WEIGHTS[0]));
+                (point, MultiEnd::Mass(0), gap, fc, zeta)
+            })
+            .collect(),
+        fc0: 3.17,
+    };
     vec![
         // the mass reaches about 2.3 um
-        Net {
-            name: "stiffening law, three pieces",
-            t60: Some(0.5),
-            gravity: 0.0,
-            masses: vec![(me_a, 0.0, -1.0)],
-            links: vec![
-                (
-                    MultiEnd::Point(on_a(&WEIGHTS[0])),
-                    MultiEnd::Mass(0),
-                    0.5e-6,
-                    4.0,
-                    0.02,
-                ),
-                (
-                    MultiEnd::Point(on_a(&WEIGHTS[0])),
-                    MultiEnd::Mass(0),
-                    1.0e-6,
-                    6.0,
-                    0.02,
-                ),
-            ],
-            fc0: 3.17,
-        },
-        // the same law made stiff: its last piece at 317x Nyquist, damped
-        // (a hard core under a soft felt)
-        Net {
-            name: "stiffening law, last piece 317x",
-            t60: Some(0.5),
-            gravity: 0.0,
-            masses: vec![(me_a, 0.0, -1.0)],
-            links: vec![
-                (
-                    MultiEnd::Point(on_a(&WEIGHTS[0])),
-                    MultiEnd::Mass(0),
-                    0.5e-6,
-                    4.0,
-                    0.02,
-                ),
-                (
-                    MultiEnd::Point(on_a(&WEIGHTS[0])),
-                    MultiEnd::Mass(0),
-                    0.8e-6,
-                    317.3,
-                    0.3,
-                ),
-            ],
-            fc0: 3.17,
-        },
+        law(
+            "stiffening law, three pieces",
+            [(0.5e-6, 4.0, 0.02), (1.0e-6, 6.0, 0.02)],
+        ),
+        // its last piece made stiff, at 317x Nyquist and damped (a hard
+        // core under a soft felt)
+        law(
+            "stiffening law, last piece 317x",
+            [(0.5e-6, 4.0, 0.02), (0.8e-6, 317.3, 0.3)],
+        ),
     ]
 }
 
