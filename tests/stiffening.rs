@@ -9,31 +9,17 @@ use modal_contact::instrument::{
 };
 use modal_contact::presets;
 use modal_contact::scene::{LawSpec, Scene};
+use modal_testkit::analysis;
 
 const RATE: f64 = 44_100.0;
 /// The attack: the first 50 ms.
 const ATTACK: usize = 2_205;
 
-/// The power-weighted spectral centroid \[Hz\] of `x` (a plain DFT, 20 Hz
-/// bins up to 10 kHz).
+/// The attack's spectral centroid \[Hz\] over the first 50 ms, as `cargo
+/// xtask compare-real` measures it.
 fn centroid(x: &[f32]) -> f64 {
-    let n = x.len() as f64;
-    let (mut num, mut den) = (0.0, 0.0);
-    for b in 1..500 {
-        let f = 20.0 * f64::from(b);
-        let w = 2.0 * std::f64::consts::PI * f / RATE;
-        let (mut re, mut im) = (0.0, 0.0);
-        for (i, &v) in x.iter().enumerate() {
-            let hann = 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n).cos();
-            let v = f64::from(v) * hann;
-            re += v * (w * i as f64).cos();
-            im -= v * (w * i as f64).sin();
-        }
-        let p = re * re + im * im;
-        num += f * p;
-        den += p;
-    }
-    num / den
+    let x: Vec<f64> = x.iter().map(|&v| f64::from(v)).collect();
+    analysis::centroid(&analysis::attack_spectrum(&x, RATE, 0.05))
 }
 
 /// The attack of one note of `scene` at `velocity` (0 to 1).
