@@ -74,6 +74,22 @@ const A: [[f64; 12]; 12] = {
     a
 };
 
+/// Stage instants `c[s]` as fractions of the step: the rows' sums of [`A`]
+/// (the right-hand side depends on time through a moving surface).
+const C: [f64; 12] = {
+    let mut c = [0.0; 12];
+    let mut s = 0;
+    while s < 12 {
+        let mut j = 0;
+        while j < 12 {
+            c[s] += A[s][j];
+            j += 1;
+        }
+        s += 1;
+    }
+    c
+};
+
 /// 8th-order weights.
 const B: [f64; 12] = [
     0.054293734116568765,
@@ -118,7 +134,18 @@ const E5: [f64; 12] = [
 /// contact's force `F = k p + c p'` from its two sides, `-F` on the lower
 /// one and `+F` on the upper one (through its weights on a point of an
 /// object, divided by the mass on a point mass, nothing on a wall).
-fn rhs(model: &Model, links: &[Link], active: u32, z: &[f64], out: &mut [f64]) {
+///
+/// `surface`: the surface's height and rate `(s(t), s'(t))` under the
+/// hammer's contact at this instant, which then adds `k s + c s'` to its
+/// force, and the state carries the force's impulse `I' = F` after `z`.
+fn rhs(
+    model: &Model,
+    links: &[Link],
+    active: u32,
+    surface: Option<(f64, f64)>,
+    z: &[f64],
+    out: &mut [f64],
+) {
     let n = model.n_modes();
     for (i, md) in model.modes.iter().enumerate() {
         let w = md.omega();
@@ -137,13 +164,23 @@ fn rhs(model: &Model, links: &[Link], active: u32, z: &[f64], out: &mut [f64]) {
         out[j] = z[j + 1];
         out[j + 1] = -model.mass_of(i).gravity_m_per_s2;
     }
+    if surface.is_some() {
+        out[model.state_dim()] = 0.0;
+    }
     for (c, l) in links.iter().enumerate() {
         if active & (1 << c) == 0 {
             continue;
         }
         let ((x_l, v_l), (x_u, v_u)) = model.sides(l, z);
-        let f =
-            l.contact.stiffness_n_per_m * (x_l - x_u) + l.contact.damping_n_s_per_m * (v_l - v_u);
+        let (k, d) = (l.contact.stiffness_n_per_m, l.contact.damping_n_s_per_m);
+        let f = match surface {
+            Some((s, v)) if c == 0 => {
+                let f = k * (x_l + s - x_u) + d * (v_l + v - v_u);
+                out[model.state_dim()] = f;
+                f
+            }
+            _ => k * (x_l - x_u) + d * (v_l - v_u),
+        };
         for (end, s) in [(&l.lower, -1.0), (&l.upper, 1.0)] {
             match end {
                 End::Point(w) => {
@@ -165,11 +202,17 @@ struct Dop<'a> {
     model: &'a Model,
     /// Every contact as a link ([`Model::link`]), built once.
     links: Vec<Link>,
-    /// Absolute tolerance per component.
+    /// Absolute tolerance per component of `z` (not of the impulse after
+    /// it on a surface, which the error control leaves out).
     atol: Vec<f64>,
     rtol: f64,
     k: [Vec<f64>; 12],
     tmp: Vec<f64>,
+    /// The surface over the current sample, `(s_n, v_n)`: height at its
+    /// start and rate (`None` without a surface).
+    surface: Option<(f64, f64)>,
+    /// Time since the sample's start of the state steps start from \[s\].
+    t0: f64,
 }
 
 impl Dop<'_> {
@@ -178,7 +221,8 @@ impl Dop<'_> {
     /// accept when `<= 1`).
     fn step(&mut self, active: u32, z: &[f64], h: f64) -> (Vec<f64>, f64) {
         let dim = z.len();
-        rhs(self.model, &self.links, active, z, &mut self.k[0]);
+        let sf = self.surface_at(0.0);
+        rhs(self.model, &self.links, active, sf, z, &mut self.k[0]);
         for s in 1..12 {
             for i in 0..dim {
                 let mut acc = 0.0;
@@ -187,7 +231,15 @@ impl Dop<'_> {
                 }
                 self.tmp[i] = z[i] + h * acc;
             }
-            rhs(self.model, &self.links, active, &self.tmp, &mut self.k[s]);
+            let sf = self.surface_at(C[s] * h);
+            rhs(
+                self.model,
+                &self.links,
+                active,
+                sf,
+                &self.tmp,
+                &mut self.k[s],
+            );
         }
         let mut z1 = vec![0.0; dim];
         let (mut e5n, mut e3n) = (0.0, 0.0);
@@ -203,6 +255,11 @@ impl Dop<'_> {
                 e3 -= d * self.k[j][i];
             }
             z1[i] = z[i] + h * acc;
+            // the impulse (past the tolerances) rides along: a quadrature
+            // of the force, as accurate as the state it is of
+            if i >= self.atol.len() {
+                continue;
+            }
             let sc = self.atol[i] + self.rtol * z[i].abs().max(z1[i].abs());
             e5n += (e5 / sc).powi(2);
             e3n += (e3 / sc).powi(2);
@@ -210,15 +267,24 @@ impl Dop<'_> {
         let err = if e5n == 0.0 && e3n == 0.0 {
             0.0
         } else {
-            h.abs() * e5n / ((e5n + 0.01 * e3n) * dim as f64).sqrt()
+            h.abs() * e5n / ((e5n + 0.01 * e3n) * self.atol.len() as f64).sqrt()
         };
         (z1, err)
     }
 
-    /// Contact `c`'s `(p, p')` in `z`.
-    fn event(&self, c: usize, z: &[f64]) -> (f64, f64) {
+    /// The surface's height and rate `tau` seconds after [`Dop::t0`]
+    /// (linear inside the sample), if any.
+    fn surface_at(&self, tau: f64) -> Option<(f64, f64)> {
+        self.surface.map(|(s, v)| (s + v * (self.t0 + tau), v))
+    }
+
+    /// Contact `c`'s `(p, p')` in `z`, `tau` seconds after [`Dop::t0`].
+    fn event(&self, c: usize, z: &[f64], tau: f64) -> (f64, f64) {
         let ((x_l, v_l), (x_u, v_u)) = self.model.sides(&self.links[c], z);
-        (x_l - x_u, v_l - v_u)
+        match self.surface_at(tau) {
+            Some((s, v)) if c == 0 => (x_l + s - x_u, v_l + v - v_u),
+            _ => (x_l - x_u, v_l - v_u),
+        }
     }
 
     /// Bisection on `[a, b]` for contact `c` (`a` not switched, `b`
@@ -242,7 +308,7 @@ impl Dop<'_> {
                 return (b, zb);
             }
             let zm = self.step(active, z0, mid).0;
-            if switched(inc, self.event(c, &zm).0) {
+            if switched(inc, self.event(c, &zm, mid).0) {
                 b = mid;
                 zb = zm;
             } else {
@@ -287,11 +353,11 @@ impl Dop<'_> {
         stats: &mut Stats,
     ) -> Option<(f64, Vec<f64>)> {
         let inc = active & (1 << c) != 0;
-        let (p1, d1) = self.event(c, z1);
+        let (p1, d1) = self.event(c, z1, hs);
         if switched(inc, p1) {
             return Some(self.bisect(active, c, z0, 0.0, hs, z1.to_vec(), tol));
         }
-        let (_, d0) = self.event(c, z0);
+        let (_, d0) = self.event(c, z0, 0.0);
         if !(toward(inc, d0) > 0.0 && toward(inc, d1) <= 0.0) {
             return None;
         }
@@ -303,7 +369,7 @@ impl Dop<'_> {
                 break;
             }
             let zm = self.step(active, z0, mid).0;
-            let (pm, dm) = self.event(c, &zm);
+            let (pm, dm) = self.event(c, &zm, mid);
             if switched(inc, pm) {
                 return Some(self.bisect(active, c, z0, 0.0, mid, zm, tol));
             }
@@ -314,7 +380,7 @@ impl Dop<'_> {
             }
         }
         let zh = self.step(active, z0, hi).0;
-        if switched(inc, self.event(c, &zh).0) {
+        if switched(inc, self.event(c, &zh, hi).0) {
             return Some(self.bisect(active, c, z0, 0.0, hi, zh, tol));
         }
         None
@@ -410,14 +476,66 @@ fn initial_step_lengths(model: &Model, n_links: usize, w_c: f64, h: f64) -> Vec<
 /// contact switched at that point changes side together, as in the expm
 /// solver.
 pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
+    solve_driven(model, None, rate_hz, n, rtol)
+}
+
+/// [`solve`] with the hammer's contact on a moving surface (as
+/// [`crate::solve_on_surface`]): its height `s(t)` and rate `s'(t)`,
+/// linear between the sample instants, enter the contact's force and event
+/// function at the time of each stage and trial point, the integration
+/// restarts at every sample instant (the rate jumps there), and the force's
+/// impulse over each sample is integrated with the state, for the work
+/// [`crate::Sample::surface_work_j`].
+pub fn solve_on_surface(
+    model: &Model,
+    surface_m: &[f64],
+    rate_hz: f64,
+    n: usize,
+    rtol: f64,
+) -> Solution {
+    solve_driven(model, Some(surface_m), rate_hz, n, rtol)
+}
+
+/// The state of a run between steps.
+struct Walk {
+    /// The state (with the impulse after it on a surface).
+    z: Vec<f64>,
+    /// The contacts in contact.
+    active: u32,
+    /// The next step's length per phase \[s\].
+    h_try: Vec<f64>,
+    contacts: Vec<ContactInterval>,
+    stats: Stats,
+}
+
+/// [`solve`], on the moving surface `surface_m` if any.
+fn solve_driven(
+    model: &Model,
+    surface_m: Option<&[f64]>,
+    rate_hz: f64,
+    n: usize,
+    rtol: f64,
+) -> Solution {
     model.check();
     let h = 1.0 / rate_hz;
-    let dim = model.state_dim();
+    if let Some(s) = surface_m {
+        assert!(s.len() > n, "surface: {} heights for {n} samples", s.len());
+    }
     let links: Vec<Link> = (0..model.n_contacts()).map(|c| model.link(c)).collect();
-    let e_s = energy_scale(model);
+    let mut e_s = energy_scale(model);
+    let mut z = model.initial_state();
+    if let Some(s) = surface_m {
+        // the surface may give the hammer its own speed
+        let v_max = s[..=n]
+            .windows(2)
+            .map(|w| ((w[1] - w[0]) / h).abs())
+            .fold(0.0, f64::max);
+        e_s += 0.5 * model.hammer.mass_kg * v_max * v_max;
+        z.push(0.0);
+    }
+    let dim = z.len();
     let w_c = contact_frequency(model, &links);
     let atol = abs_tolerances(model, rtol, e_s, w_c);
-    let mut h_try = initial_step_lengths(model, links.len(), w_c, h);
     let mut dop = Dop {
         model,
         links,
@@ -425,60 +543,86 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize, rtol: f64) -> Solution {
         rtol,
         k: std::array::from_fn(|_| vec![0.0; dim]),
         tmp: vec![0.0; dim],
+        surface: None,
+        t0: 0.0,
     };
-    let tol = crate::TIME_RESOLUTION * h;
-    let mut stats = Stats::default();
-    let mut z = model.initial_state();
-    let mut active = 0u32;
+    let nz = model.state_dim();
+    let mut walk = Walk {
+        h_try: initial_step_lengths(model, dop.links.len(), w_c, h),
+        active: 0,
+        contacts: Vec::new(),
+        stats: Stats::default(),
+        z,
+    };
+    let mut work = 0.0;
     let mut samples = Vec::with_capacity(n + 1);
-    samples.push(model.observe_of(&z, active));
-    let mut contacts: Vec<ContactInterval> = Vec::new();
+    samples.push(model.observe_on(&walk.z[..nz], 0, surface_m.map_or(0.0, |s| s[0])));
     for i in 0..n {
-        let t_n = i as f64 * h;
-        let mut t = 0.0;
-        while t < h {
-            let a = active as usize;
-            let rest = h - t;
-            let clipped = h_try[a] >= rest;
-            let hs = if clipped { rest } else { h_try[a] };
-            let (z1, err) = dop.step(active, &z, hs);
-            let fac = 0.9 * err.powf(-1.0 / 8.0);
-            if !(err <= 1.0) {
-                stats.rejected += 1;
-                h_try[a] = hs * fac.clamp(0.2, 1.0);
-                continue;
-            }
-            stats.steps += 1;
-            if !clipped {
-                h_try[a] = hs * fac.clamp(0.2, 10.0);
-            }
-            match dop.search(active, &z, &z1, hs, tol, &mut stats) {
-                None => {
-                    z = z1;
-                    t = if clipped { h } else { t + hs };
-                }
-                Some((tau, zs)) => {
-                    t = if clipped && tau >= hs { h } else { t + tau };
-                    stats.switches += 1;
-                    // every contact switched at this point changes side
-                    for c in 0..dop.links.len() {
-                        let inc = active & (1 << c) != 0;
-                        if !switched(inc, dop.event(c, &zs).0) {
-                            continue;
-                        }
-                        active ^= 1 << c;
-                        record_switch(&mut contacts, c, !inc, t_n + t);
-                    }
-                    z = zs;
-                }
-            }
+        dop.surface = surface_m.map(|s| (s[i], (s[i + 1] - s[i]) / h));
+        if dop.surface.is_some() {
+            walk.z[nz] = 0.0;
         }
-        samples.push(model.observe_of(&z, active));
+        dop.sample(&mut walk, i, h);
+        let s_end = surface_m.map_or(0.0, |s| s[i + 1]);
+        let mut sample = model.observe_on(&walk.z[..nz], walk.active, s_end);
+        if let Some((_, v)) = dop.surface {
+            work += v * walk.z[nz];
+            sample.surface_work_j = work;
+        }
+        samples.push(sample);
     }
     Solution {
         rate_hz,
         samples,
-        contacts,
-        stats,
+        contacts: walk.contacts,
+        stats: walk.stats,
+    }
+}
+
+impl Dop<'_> {
+    /// Advance `walk` over sample `i` of period `h`, switching contacts at
+    /// every switch inside it.
+    fn sample(&mut self, walk: &mut Walk, i: usize, h: f64) {
+        let tol = crate::TIME_RESOLUTION * h;
+        let t_n = i as f64 * h;
+        let mut t = 0.0;
+        while t < h {
+            let a = walk.active as usize;
+            let rest = h - t;
+            let clipped = walk.h_try[a] >= rest;
+            let hs = if clipped { rest } else { walk.h_try[a] };
+            self.t0 = t;
+            let (z1, err) = self.step(walk.active, &walk.z, hs);
+            let fac = 0.9 * err.powf(-1.0 / 8.0);
+            if !(err <= 1.0) {
+                walk.stats.rejected += 1;
+                walk.h_try[a] = hs * fac.clamp(0.2, 1.0);
+                continue;
+            }
+            walk.stats.steps += 1;
+            if !clipped {
+                walk.h_try[a] = hs * fac.clamp(0.2, 10.0);
+            }
+            match self.search(walk.active, &walk.z, &z1, hs, tol, &mut walk.stats) {
+                None => {
+                    walk.z = z1;
+                    t = if clipped { h } else { t + hs };
+                }
+                Some((tau, zs)) => {
+                    t = if clipped && tau >= hs { h } else { t + tau };
+                    walk.stats.switches += 1;
+                    // every contact switched at this point changes side
+                    for c in 0..self.links.len() {
+                        let inc = walk.active & (1 << c) != 0;
+                        if !switched(inc, self.event(c, &zs, tau).0) {
+                            continue;
+                        }
+                        walk.active ^= 1 << c;
+                        record_switch(&mut walk.contacts, c, !inc, t_n + t);
+                    }
+                    walk.z = zs;
+                }
+            }
+        }
     }
 }

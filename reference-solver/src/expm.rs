@@ -203,12 +203,68 @@ pub fn solve(model: &Model, rate_hz: f64, n: usize) -> Solution {
 /// 0.5: the flows are exact, so the result must not depend on it beyond
 /// rounding (a convergence check of the reference itself).
 pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step: f64) -> Solution {
+    solve_driven(model, None, rate_hz, n, max_norm_step)
+}
+
+/// [`solve`] with the hammer's contact on a moving surface: `surface_m[i]`
+/// is its height \[m\] at the sample instant `i / rate_hz`, linear in
+/// between (at least `n + 1` heights for `n` samples; see the crate's
+/// documentation). [`Sample::surface_m`] and [`Sample::surface_work_j`]
+/// report it.
+///
+/// [`Sample::surface_m`]: crate::Sample::surface_m
+/// [`Sample::surface_work_j`]: crate::Sample::surface_work_j
+pub fn solve_on_surface(model: &Model, surface_m: &[f64], rate_hz: f64, n: usize) -> Solution {
+    solve_driven(model, Some(surface_m), rate_hz, n, MAX_NORM_STEP)
+}
+
+/// The surface over sample `i` of period `h`: its height at the sample's
+/// start and its rate, exact in double-double (the rate is the heights'
+/// difference over `h`, so that the flow reaches the next height at the
+/// sample's end), or `None` where it rests at 0 over the whole sample.
+fn drive_of(surface_m: &[f64], i: usize, h: f64) -> Option<(Dd, Dd)> {
+    let (s0, s1) = (surface_m[i], surface_m[i + 1]);
+    if s0 == 0.0 && s1 == 0.0 {
+        return None;
+    }
+    Some((
+        Dd::from_f64(s0),
+        (Dd::from_f64(s1) - Dd::from_f64(s0)).div_f64(h),
+    ))
+}
+
+/// [`solve_with_substeps`], on the moving surface `surface_m` if any (see
+/// [`solve_on_surface`]).
+pub(crate) fn solve_driven(
+    model: &Model,
+    surface_m: Option<&[f64]>,
+    rate_hz: f64,
+    n: usize,
+    max_norm_step: f64,
+) -> Solution {
     let h = 1.0 / rate_hz;
     model.check();
-    // every subset of contacts in contact, by its bit set
-    let phases: Vec<Phase> = (0..1u32 << model.n_contacts())
-        .map(|active| Phase::new(model, active, h, max_norm_step))
-        .collect();
+    if let Some(s) = surface_m {
+        assert!(
+            s.len() > n,
+            "surface: {} heights for {n} samples (n + 1 needed)",
+            s.len()
+        );
+        assert!(s[..=n].iter().all(|x| x.is_finite()), "surface: not finite");
+    }
+    // every subset of contacts in contact, by its bit set; the same on the
+    // surface
+    let build = |driven: bool| -> Vec<Phase> {
+        (0..1u32 << model.n_contacts())
+            .map(|active| Phase::new(model, active, h, max_norm_step, driven))
+            .collect()
+    };
+    let phases = build(false);
+    let driven_phases = if surface_m.is_some() {
+        build(true)
+    } else {
+        Vec::new()
+    };
     let stats = Stats {
         substeps_per_sample: [phases[0].m, phases[1].m],
         norms: [phases[0].norm, phases[1].norm],
@@ -223,20 +279,28 @@ pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step:
     let mut y = phases[0].to_balanced(&z0);
     let mut run = Run {
         model,
-        phases,
+        phases: [phases, driven_phases],
+        driven: false,
         h,
         active: 0,
         stats,
         contacts: Vec::new(),
     };
-    let observe =
-        |ph: &Phase, y: &[Dd], active: u32| model.observe_of(&to_f64(&ph.to_physical(y)), active);
+    let mut work = Dd::ZERO;
     let mut samples = Vec::with_capacity(n + 1);
-    samples.push(observe(&run.phases[0], &y, 0));
+    let mut first = run.observe(&y, work);
+    // (not in contact yet: the surface is in no energy)
+    first.surface_m = surface_m.map_or(0.0, |s| s[0]);
+    samples.push(first);
     for i in 0..n {
+        let drive = surface_m.and_then(|s| drive_of(s, i, h));
+        y = run.enter(y, drive);
         y = run.sample(y, i);
-        let ph = &run.phases[run.active as usize];
-        samples.push(observe(ph, &y, run.active));
+        if let Some((_, v)) = drive {
+            // the work of the surface over the sample: v times the impulse
+            work = work + v * run.impulse(&y);
+        }
+        samples.push(run.observe(&y, work));
     }
     Solution {
         rate_hz,
@@ -249,8 +313,11 @@ pub fn solve_with_substeps(model: &Model, rate_hz: f64, n: usize, max_norm_step:
 /// A run in progress: the model's phases and what the run has recorded.
 struct Run<'a> {
     model: &'a Model,
-    /// Every subset of contacts in contact, by its bit set.
-    phases: Vec<Phase>,
+    /// Every subset of contacts in contact, by its bit set: without the
+    /// surface, and on it (empty without one).
+    phases: [Vec<Phase>; 2],
+    /// Whether the current sample is on the surface (`phases[1]`).
+    driven: bool,
     /// Sample period \[s\].
     h: f64,
     /// The contacts in contact (bit `c` for contact `c`).
@@ -260,6 +327,45 @@ struct Run<'a> {
 }
 
 impl Run<'_> {
+    /// The phase the run is in.
+    fn phase(&self) -> &Phase {
+        &self.phases[self.driven as usize][self.active as usize]
+    }
+
+    /// The exact state `y` at a sample's start (balanced coordinates of
+    /// the current phase) in the phase of the sample to come: on the
+    /// surface with `drive = Some((s, v))`, its height and rate set (and
+    /// the impulse to 0), off it without.
+    fn enter(&mut self, y: Vec<Dd>, drive: Option<(Dd, Dd)>) -> Vec<Dd> {
+        if !self.driven && drive.is_none() {
+            return y;
+        }
+        let mut z = self.phase().to_physical(&y);
+        z.truncate(self.model.state_dim());
+        if let Some((s, v)) = drive {
+            z.extend([s, v, Dd::ZERO]);
+        }
+        self.driven = drive.is_some();
+        self.phase().to_balanced(&z)
+    }
+
+    /// The impulse of the hammer's contact force since the sample's start
+    /// in the exact driven state `y`.
+    fn impulse(&self, y: &[Dd]) -> Dd {
+        self.phase().to_physical(y)[self.model.state_dim() + 2]
+    }
+
+    /// The observation of the exact state `y`, the surface's work so far
+    /// `work`.
+    fn observe(&self, y: &[Dd], work: Dd) -> crate::Sample {
+        let z = to_f64(&self.phase().to_physical(y));
+        let nz = self.model.state_dim();
+        let s = if self.driven { z[nz] } else { 0.0 };
+        let mut sample = self.model.observe_on(&z[..nz], self.active, s);
+        sample.surface_work_j = work.to_f64();
+        sample
+    }
+
     /// Advance the exact state `y` (balanced coordinates of the current
     /// phase) over sample `i`, switching phase at every switch inside it.
     /// Returns the exact state at the sample's end.
@@ -267,8 +373,9 @@ impl Run<'_> {
         let h = self.h;
         let t_n = i as f64 * h;
         let mut march = March::new(y);
+        let set = &self.phases[self.driven as usize];
         loop {
-            let ph = &self.phases[self.active as usize];
+            let ph = &set[self.active as usize];
             let next = if march.on_grid {
                 march.grid_step(ph, &mut self.stats)
             } else {
@@ -298,7 +405,7 @@ impl Run<'_> {
                 let inc = self.active & (1 << c) != 0;
                 record_switch(&mut self.contacts, c, inc, t_n + march.t);
             }
-            let ph_new = &self.phases[self.active as usize];
+            let ph_new = &set[self.active as usize];
             march.y = ph_new.to_balanced(&z);
             self.stats.switches += 1;
             march.switches += 1;

@@ -82,7 +82,7 @@ mod phase;
 #[cfg(test)]
 mod tests;
 
-pub use expm::{solve, solve_with_substeps};
+pub use expm::{solve, solve_on_surface, solve_with_substeps};
 
 /// One mode of a modal object.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -396,7 +396,13 @@ impl Model {
     /// kinetic and gravitational energy, and each other active contact's
     /// `0.5 k p^2`.
     pub fn energy_of(&self, z: &[f64], active: u32) -> f64 {
-        let mut e = self.energy(z, active & 1 != 0);
+        self.energy_on(z, active, 0.0)
+    }
+
+    /// [`Model::energy_of`] with the surface at height `surface_m` under
+    /// the hammer's contact (its spring's `p` includes it).
+    pub(crate) fn energy_on(&self, z: &[f64], active: u32, surface_m: f64) -> f64 {
+        let mut e = self.energy_at(z, active & 1 != 0, surface_m);
         for i in 1..self.n_masses() {
             let j = self.mass_index(i);
             let (x, v) = (z[j], z[j + 1]);
@@ -432,6 +438,12 @@ impl Model {
     /// hammer's part only: [`Model::energy_of`] adds the other point
     /// masses and contacts).
     pub fn energy(&self, z: &[f64], in_contact: bool) -> f64 {
+        self.energy_at(z, in_contact, 0.0)
+    }
+
+    /// [`Model::energy`] with the surface at height `surface_m` under the
+    /// contact: the spring's `p = x_c + s - x_h`.
+    fn energy_at(&self, z: &[f64], in_contact: bool, surface_m: f64) -> f64 {
         let n = self.n_modes();
         let mut e = 0.0;
         for (i, md) in self.modes.iter().enumerate() {
@@ -449,7 +461,7 @@ impl Model {
                 + 0.5 * b.spring_n_per_m * s * s;
         }
         if in_contact {
-            let p = self.penetration(z);
+            let p = self.penetration(z) + surface_m;
             e += 0.5 * self.contact.stiffness_n_per_m * p * p;
         }
         e
@@ -528,8 +540,16 @@ impl Model {
     /// The observation of `z` with the contacts in `active` (see
     /// [`Sample`]).
     pub fn observe_of(&self, z: &[f64], active: u32) -> Sample {
+        self.observe_on(z, active, 0.0)
+    }
+
+    /// [`Model::observe_of`] with the surface at height `surface_m` under
+    /// the hammer's contact (in the energy, and in [`Sample::surface_m`];
+    /// the work is the solver's to fill in).
+    pub(crate) fn observe_on(&self, z: &[f64], active: u32, surface_m: f64) -> Sample {
         let mut s = self.observe(z, active & 1 != 0);
-        s.energy = self.energy_of(z, active);
+        s.energy = self.energy_on(z, active, surface_m);
+        s.surface_m = surface_m;
         s.active = active;
         for c in 1..self.n_contacts() {
             let l = self.link(c);
@@ -556,6 +576,8 @@ impl Model {
             v_contact: v_c,
             in_contact,
             energy: self.energy(z, in_contact),
+            surface_m: 0.0,
+            surface_work_j: 0.0,
         }
     }
 }
@@ -589,6 +611,13 @@ pub struct Sample {
     /// the "contact point" columns (a wall: its height, velocity 0). Zeros
     /// past the model's contacts.
     pub extra: [[f64; 4]; MAX_EXTRA],
+    /// Height of the moving surface under the hammer's contact \[m\] (0
+    /// without a surface; see [`solve_on_surface`]).
+    pub surface_m: f64,
+    /// Work done by the moving surface on the bodies since the start \[J\]:
+    /// `integral of F v dt`, `F` the hammer's contact force, `v` the
+    /// surface's rate (0 without a surface).
+    pub surface_work_j: f64,
 }
 
 /// One contact: from `start_s` to `end_s` \[s\], `end_s = None` if still in

@@ -44,6 +44,11 @@ pub(crate) const MAX_NORM_STEP: f64 = 0.5;
 /// drift by ~1e-14).
 pub(crate) const RESYNC: usize = 256;
 
+/// Coordinates a driven phase adds between `z` and the constant: the
+/// surface's height `s`, its rate `v` and the impulse `I` of the hammer's
+/// contact force since the sample's start.
+pub(crate) const DRIVE: usize = 3;
+
 /// A phase ready to step.
 #[derive(Debug, Clone)]
 pub(crate) struct Phase {
@@ -95,12 +100,23 @@ impl Phase {
     /// Build the phase of `model` with the contacts `active` (bit `c` for
     /// contact `c`) for sample period `h`, with sub-steps of `|B|_1 h_sub
     /// <= max_norm_step`.
-    pub(crate) fn new(model: &Model, active: u32, h: f64, max_norm_step: f64) -> Self {
+    ///
+    /// `driven`: the state carries the moving surface under the hammer's
+    /// contact, `[z; s; v; I; 1]` (see [`augmented_matrix`]).
+    pub(crate) fn new(
+        model: &Model,
+        active: u32,
+        h: f64,
+        max_norm_step: f64,
+        driven: bool,
+    ) -> Self {
         let n = model.n_modes();
-        let dim = model.state_dim() + 1;
-        let a_dd = augmented_matrix(model, active);
+        let nz = model.state_dim();
+        let dim = nz + 1 + if driven { DRIVE } else { 0 };
+        let a_dd = augmented_matrix(model, active, driven);
         let a = DMatrix::from_row_iterator(dim, dim, a_dd.iter().map(|v| v.to_f64()));
-        let (b, d) = balance(&a);
+        let hammer = (model.mass_index(0), model.mass_index(0) + 1);
+        let (b, d) = balance(&a, driven.then_some(hammer));
         // the same similarity on the exact entries (powers of two: exact)
         let b_dd: Vec<Dd> = a_dd
             .iter()
@@ -163,6 +179,11 @@ impl Phase {
                     }
                     End::Wall(h) => p0 = p0 + Dd::from_f64(s * h),
                 }
+            }
+            if driven && c == 0 {
+                // the hammer's contact sees the surface: p += s, p' += v
+                rp[nz] += d[nz];
+                rv[nz + 1] += d[nz + 1];
             }
             rp[one] = p0.to_f64() * d[one];
             row_p.push(rp);
@@ -278,6 +299,14 @@ impl Phase {
 /// gaps' and walls' forces `k (h_lower - h_upper - gap)`, are the affine
 /// column `b`.
 ///
+/// `driven`: the coordinates `[z; s; v; I; 1]` of a moving surface under
+/// the hammer's contact. Inside a sample the surface moves at a constant
+/// rate, `s' = v`, `v' = 0`; the hammer's contact force `F = k (x_c + s -
+/// x_h) + c (v_c + v - v_h)` takes the columns of `s` (`k`) and `v` (`c`)
+/// beside those of `z`, wherever it acts (the hammer's and the modes'
+/// rows), and its impulse `I' = F` is the row of `I` (no column: nothing
+/// depends on it).
+///
 /// Why double-double and not f64 entries: in physical coordinates the contact
 /// force `F = k (sum w_j q_j - x_h) + c (...)` is a difference of terms far
 /// larger than itself (a heavy hammer pressed on the object through a stiff
@@ -292,12 +321,16 @@ impl Phase {
 /// forms `p` first; a one-ulp change of three entries moved them by 9e-9.
 /// Here each entry is the exact sum and product of the model's f64 numbers
 /// to ~1e-32 relative, so `F` keeps `~1e-32 |k x|` of error.
-pub(crate) fn augmented_matrix(model: &Model, active: u32) -> Vec<Dd> {
+pub(crate) fn augmented_matrix(model: &Model, active: u32, driven: bool) -> Vec<Dd> {
     let n = model.n_modes();
-    let dim = model.state_dim() + 1;
+    let nz = model.state_dim();
+    let dim = nz + 1 + if driven { DRIVE } else { 0 };
     let (xh, vh, one) = (2 * n, 2 * n + 1, dim - 1);
     let mut a = vec![Dd::ZERO; dim * dim];
     let at = |i: usize, j: usize| i * dim + j;
+    if driven {
+        a[at(nz, nz + 1)] = Dd::ONE;
+    }
     for (i, md) in model.modes.iter().enumerate() {
         let w = md.omega();
         a[at(i, n + i)] = Dd::ONE;
@@ -337,6 +370,11 @@ pub(crate) fn augmented_matrix(model: &Model, active: u32) -> Vec<Dd> {
         // gap and the walls' heights on the constant column
         let mut f = vec![Dd::ZERO; dim];
         f[one] = -k.mul_f64(l.gap_m);
+        let surface = driven && cc == 0;
+        if surface {
+            f[nz] = k;
+            f[nz + 1] = c;
+        }
         for (end, s) in [(&l.lower, 1.0), (&l.upper, -1.0)] {
             match end {
                 End::Point(w) => {
@@ -376,6 +414,10 @@ pub(crate) fn augmented_matrix(model: &Model, active: u32) -> Vec<Dd> {
                 End::Wall(_) => {}
             }
         }
+        if surface {
+            // the impulse's row: I' = F
+            a[(nz + 2) * dim..(nz + 3) * dim].copy_from_slice(&f);
+        }
     }
     a
 }
@@ -385,9 +427,20 @@ pub(crate) fn augmented_matrix(model: &Model, active: u32) -> Vec<Dd> {
 /// scale 1. The constant coordinate (last) is then scaled so that the affine
 /// column adds nothing to `|B|_1` (its scale is free: it only fixes the value
 /// `1 / d` the constant coordinate carries).
-pub(crate) fn balance(a: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
+///
+/// `drive`: the hammer's height and velocity indices in a driven matrix
+/// (coordinates `[z; s; v; I; 1]`, see [`augmented_matrix`]). The surface's
+/// coordinates are inputs (`v` has no row, `I` no column), which the
+/// iteration cannot scale: `z` is balanced alone, then `s` and `v` take
+/// the scales of the hammer's height and velocity (their columns are parts
+/// of those columns: the contact force's), and `I` a scale that leaves its
+/// row (the force) at most 1/16 of the largest column sum.
+pub(crate) fn balance(a: &DMatrix<f64>, drive: Option<(usize, usize)>) -> (DMatrix<f64>, Vec<f64>) {
     let dim = a.nrows();
-    let core = dim - 1;
+    let mut core = dim - 1;
+    if drive.is_some() {
+        core -= DRIVE;
+    }
     let mut b = a.clone();
     let mut d = vec![1.0; dim];
     for _sweep in 0..200 {
@@ -428,6 +481,11 @@ pub(crate) fn balance(a: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
             break;
         }
     }
+    if let Some((xh, vh)) = drive {
+        let hammer = (d[xh], d[vh]);
+        balance_drive(&mut b, &mut d, core, hammer);
+        core += DRIVE;
+    }
     let core_norm = (0..core)
         .map(|j| (0..core).map(|i| b[(i, j)].abs()).sum::<f64>())
         .fold(0.0, f64::max);
@@ -441,6 +499,41 @@ pub(crate) fn balance(a: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
         }
     }
     (b, d)
+}
+
+/// The drive's part of [`balance`]: coordinates `s, v, I` at `nz, nz + 1,
+/// nz + 2`, `s` and `v` scaled as the hammer's height and velocity
+/// (`hammer`), `I` so that its row sums to at most 1/16 of the largest
+/// column sum of the rest.
+fn balance_drive(b: &mut DMatrix<f64>, d: &mut [f64], nz: usize, hammer: (f64, f64)) {
+    let one = b.nrows() - 1;
+    let mut scale = |i: usize, f: f64| {
+        d[i] *= f;
+        for j in 0..=one {
+            b[(i, j)] /= f;
+            b[(j, i)] *= f;
+        }
+    };
+    scale(nz, hammer.0);
+    scale(nz + 1, hammer.1);
+    let ii = nz + 2;
+    let rest = (0..one)
+        .map(|j| {
+            (0..one)
+                .filter(|&i| i != ii)
+                .map(|i| b[(i, j)].abs())
+                .sum::<f64>()
+        })
+        .fold(0.0, f64::max);
+    let row: f64 = (0..one).map(|j| b[(ii, j)].abs()).sum();
+    if row > 0.0 && rest > 0.0 {
+        // power of two f with row / f <= rest / 16
+        let f = 2f64.powi((16.0 * row / rest).log2().ceil() as i32);
+        d[ii] *= f;
+        for j in 0..=one {
+            b[(ii, j)] /= f;
+        }
+    }
 }
 
 /// Induced 1-norm (largest column sum).

@@ -1419,3 +1419,127 @@ fn a_link_restating_the_hammers_contact_is_that_contact() {
         assert!(dt * RATE < 1e-8, "{name}: instants {dt:e} s");
     }
 }
+
+/// Heights `f(t)` of a surface at the `n + 1` sample instants of `n`
+/// samples.
+fn surface(n: usize, f: impl Fn(f64) -> f64) -> Vec<f64> {
+    (0..=n).map(|i| f(i as f64 / RATE)).collect()
+}
+
+/// Every number of two solutions (samples and contact instants) the same
+/// bit for bit: their shortest round-trip spellings, `-0` apart from `0`.
+fn same_bits(a: &Solution, b: &Solution) -> bool {
+    format!("{:?}", a.samples) == format!("{:?}", b.samples)
+        && format!("{:?}", a.contacts) == format!("{:?}", b.contacts)
+}
+
+/// A surface of zeros is no surface: the same run bit for bit, by both
+/// solvers, as without one (the expm solver takes a sample where the
+/// surface rests at 0 with the phases without the surface, whose equations
+/// it reduces to; DOP853 integrates `s = 0` through its surface terms, and
+/// the impulse it carries is outside its error control).
+///
+/// The surface's own phases are checked where the surface rests at a
+/// height `c != 0` over the whole run: that is the plain run with the
+/// hammer `c` lower (the penetration `x_c + c - x_h` of a hammer at `x_h`
+/// is that of one at `x_h - c`), heights shifted by `c`, the energy by `m g
+/// c`, no work. Non-chaotic cases (as [`reference_does_not_depend_on_its_substeps`]),
+/// tolerances as there: 1e-9 relative L2 and 1e-8 samples (measured <=
+/// 1.2e-13 and 9e-11 samples); DOP853 on the soft strike within 1e-9 and
+/// 1e-7 samples of its own plain run (measured <= 9e-15 and 5e-15 samples;
+/// at 31.3x Nyquist its error control, relative to heights that the shift
+/// changes, moves the instants by 3e-4 samples).
+#[test]
+fn a_surface_at_rest_is_no_surface() {
+    let cases = [
+        ("soft strike", object(0.01, 2e-4, -1.0, 0.0, 0.45, 0.1)),
+        (
+            "damped bounce, 31.3x",
+            object(0.001, 1e-3, 0.0, 9.81, 31.3, 0.3),
+        ),
+        ("critical rattle", object(0.01, 1e-3, 0.0, 9.81, 3.1, 1.0)),
+        ("wall, 31.9x", wall(0.02, 31.9, 0.1)),
+    ];
+    let n = 2205;
+    let zeros = vec![0.0; n + 1];
+    for (name, model) in &cases {
+        let a = solve(model, RATE, n);
+        let b = crate::solve_on_surface(model, &zeros, RATE, n);
+        let da = dop853::solve(model, RATE, n, 1e-12);
+        let db = dop853::solve_on_surface(model, &zeros, RATE, n, 1e-12);
+        println!(
+            "{name:<22} on a surface of zeros: expm bit for bit {}, DOP853 bit for bit {} ({} contacts)",
+            same_bits(&a, &b),
+            same_bits(&da, &db),
+            a.contacts.len()
+        );
+        assert!(same_bits(&a, &b), "{name}: expm differs on a zero surface");
+        assert!(
+            same_bits(&da, &db),
+            "{name}: DOP853 differs on a zero surface"
+        );
+    }
+    let c = 1.7e-4;
+    for (name, model) in &cases[..2] {
+        let mut lower = model.clone();
+        lower.hammer.height_m -= c;
+        let flat = vec![c; n + 1];
+        let (plain, on) = (
+            solve(&lower, RATE, n),
+            crate::solve_on_surface(model, &flat, RATE, n),
+        );
+        surface_at_rest_case(name, "expm", model, c, &plain, &on);
+        if name.starts_with("soft") {
+            let (plain, on) = (
+                dop853::solve(&lower, RATE, n, 1e-13),
+                dop853::solve_on_surface(model, &flat, RATE, n, 1e-13),
+            );
+            surface_at_rest_case(name, "dop853", model, c, &plain, &on);
+        }
+    }
+}
+
+/// One case of [`a_surface_at_rest_is_no_surface`]: the run `on` a surface
+/// resting at `c` against the `plain` run of the hammer `c` lower.
+fn surface_at_rest_case(
+    name: &str,
+    solver: &str,
+    model: &Model,
+    c: f64,
+    plain: &Solution,
+    on: &Solution,
+) {
+    let shifted: Vec<f64> = on.x_hammer().iter().map(|x| x - c).collect();
+    let mg = model.hammer.mass_kg * model.hammer.gravity_m_per_s2;
+    let e_on: Vec<f64> = on.samples.iter().map(|s| s.energy - mg * c).collect();
+    let e_plain: Vec<f64> = plain.samples.iter().map(|s| s.energy).collect();
+    let errs = [
+        rel_l2(&shifted, &plain.x_hammer()),
+        rel_l2(&on.v_hammer(), &plain.v_hammer()),
+        rel_l2(&on.x_contact(), &plain.x_contact()),
+        rel_l2(&e_on, &e_plain),
+    ];
+    let work = on
+        .samples
+        .iter()
+        .map(|s| s.surface_work_j.abs())
+        .fold(0.0, f64::max);
+    let dt = max_dt(on, plain, f64::INFINITY);
+    println!(
+        "{name:<22} {solver:<6} on a surface at rest at {c:e} m vs the hammer {c:e} m lower: \
+         x_h {:.1e}  v_h {:.1e}  x_c {:.1e}  energy {:.1e}  instants {} samples, work {work:e} J",
+        errs[0],
+        errs[1],
+        errs[2],
+        errs[3],
+        dt.map_or("n/a".into(), |d| format!("{d:.1e}")),
+    );
+    let dt_tol = if solver == "expm" { 1e-8 } else { 1e-7 };
+    assert!(errs.iter().all(|e| *e < 1e-9), "{name} {solver}: {errs:?}");
+    assert!(
+        dt.is_some_and(|d| d < dt_tol),
+        "{name} {solver}: instants {dt:?}"
+    );
+    assert_eq!(work, 0.0, "{name} {solver}: work of a surface at rest");
+    assert!(on.samples.iter().all(|s| s.surface_m == c));
+}
