@@ -74,6 +74,44 @@
 //! also checked by the separable case (two contacts on two objects are two
 //! runs), by energy and momentum and symmetry, and a link restating the
 //! hammer's contact is that contact bit for bit (`tests.rs`).
+//!
+//! A moving surface ([`solve_on_surface`], [`dop853::solve_on_surface`]):
+//! the hammer's own contact may sit on a surface whose height `s(t)` under
+//! the contact point moves with time (rolling, scraping). The penetration
+//! of that contact becomes `p = x_c + s(t) - x_h`, its force `F = k p + c
+//! p'` with `p' = v_c + s'(t) - v_h`, on the hammer up and on the object
+//! down at the contact point as before; out of contact the surface does
+//! nothing, and the switching semantics are the same with `s` in `p`. The
+//! surface is given by its heights `s_n` at the sample instants `t_n = n /
+//! rate` (at least `N + 1` of them for `N` samples) and is linear in
+//! between (first-order hold): on `[t_n, t_n+1]`, `s = s_n + v_n (t -
+//! t_n)`, `v_n = (s_n+1 - s_n) rate`, so its rate jumps at the sample
+//! instants. Without a surface (or where it rests at 0 over a whole
+//! sample) the solvers do exactly what they do without one.
+//!
+//! The expm solver solves each sample exactly with the input: the state of
+//! a driven phase is `[z; s; v; I; 1]`, `s' = v`, `v' = 0` inside the
+//! sample, the contact force's row takes `k` in the column of `s` and `c`
+//! in that of `v`, and `I' = F` is the force's impulse since the sample's
+//! start. Its exponential is taken and checked as the other phases' (in
+//! double-double, against Pade in f64); `s` and `v` are set to `s_n` and
+//! `v_n` (double-double, `(s_n+1 - s_n) / h`, so that the flow reaches
+//! `s_n+1` at the sample's end) and `I` to 0 at every sample's start, and
+//! the events (crossings of `p`, `s` included) are found on the sub-steps
+//! by the same bisection. DOP853 evaluates `s(t)` and `s'(t)` in its own
+//! right-hand side at each stage's instant, restarts at every sample
+//! instant (it lands on them anyway), and integrates `I' = F` beside the
+//! state, outside its error control.
+//!
+//! Work and energy: [`Sample::surface_work_j`] is the work done by the
+//! surface since the start, `W(t) = integral of F s'(t) dt`; inside a
+//! sample the rate is the constant `v_n`, so the sample adds `v_n` times
+//! the force's impulse over it, taken from the integral state `I` (not from
+//! the hammer's momentum, which a back mass or a link on the hammer would
+//! also change). [`Sample::energy`] stays the lab-frame energy (the
+//! hammer's `0.5 m v_h^2 + m g x_h`, the modes', and `0.5 k p^2` in
+//! contact with `s` in `p`), so that `E(t) - E(0) = W(t)` less what the
+//! dampers take (`c p'^2` and the modes' decay).
 
 mod dd;
 pub mod dop853;
@@ -595,7 +633,8 @@ pub struct Sample {
     pub v_contact: f64,
     /// In contact at this instant (after any switch located exactly here).
     pub in_contact: bool,
-    /// Total energy \[J\].
+    /// Total energy \[J\] (lab frame: on a moving surface the hammer's
+    /// contact spring's `0.5 k p^2` has the surface in `p`).
     pub energy: f64,
     /// Back mass position \[m\] (0 without one).
     pub x_back: f64,

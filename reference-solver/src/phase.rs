@@ -7,7 +7,9 @@
 //! `k (h_lower - h_upper - gap)` of an active link's gap and walls, as the
 //! affine term `b`, so that `exp` of the augmented matrix gives the affine
 //! part of the flow exactly. The event rows take the same constants in the
-//! constant coordinate.
+//! constant coordinate. On a moving surface the state is `[z; s; v; I; 1]`
+//! (the surface's height and rate, and the impulse of the hammer's contact
+//! force; see [`augmented_matrix`]).
 //!
 //! Physical coordinates are badly scaled (entries from 1 to `k / m_h`, up to
 //! 1e17): a Pade exponential's error is relative to the matrix norm, so the
