@@ -18,6 +18,8 @@ mod blocks;
 mod closed_forms;
 #[path = "competitors.rs"]
 mod competitors;
+#[path = "drive.rs"]
+mod drive;
 #[path = "energy.rs"]
 mod energy;
 #[path = "hermite_fast_path.rs"]

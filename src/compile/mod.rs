@@ -22,6 +22,7 @@ mod basis;
 pub mod budget;
 pub mod cancel;
 mod checks;
+pub mod drive;
 pub mod error;
 pub mod event;
 pub mod prune;
@@ -323,6 +324,9 @@ pub struct CompiledScene {
     /// cost O(N) (`None` when the contact is affine or not in block form;
     /// [`rest`]).
     pub rest: Option<rest::RestStrike>,
+    /// The contact driven over a surface (`[drive]`; [`drive`]): the
+    /// engine follows the profile sample by sample. `None`: struck.
+    pub drive: Option<drive::DrivePlan>,
     /// Human-readable summary of what was built.
     pub summary: String,
     /// Estimated nodes per sample the exact event search needs near a
@@ -482,8 +486,14 @@ pub fn compile_opts(
     let cost = checked_cost(scene, &spec, ci, opts)?;
     // 2. to 5.
     let ph = phases(scene, &spec, ci, rate_hz, &cost, asked, opts)?;
-    // 5b. a strike on the object at rest
-    let rest = rest_strike(&ph, h);
+    // 5b. a strike on the object at rest (not where a moving surface
+    // changes the hammer's motion every sample)
+    let drive = scene.drive.as_ref().map(drive::plan).transpose()?;
+    let rest = if drive.is_some() {
+        None
+    } else {
+        rest_strike(&ph, h)
+    };
     cancel::check().map_err(|_| CompileError::Cancelled)?;
     // 6. summary
     let (mut summary, search_nodes_estimate) =
@@ -521,6 +531,7 @@ pub fn compile_opts(
         w_fc_h,
         offsets: ph.offsets,
         rest,
+        drive,
         summary,
         search_nodes_estimate,
     })

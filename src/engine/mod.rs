@@ -58,6 +58,7 @@
 
 pub mod denormal;
 mod dot;
+mod drive;
 mod energy;
 mod exact;
 mod fast_path;
@@ -74,6 +75,7 @@ mod state;
 mod switch;
 pub(crate) mod vmath;
 
+pub use drive::SurfaceAt;
 pub use exact::{ExactStats, MAX_SWITCHES_PER_SAMPLE, ROOT_ULPS};
 use exact::{SearchScratch, TermSplit};
 use kernel::{BlockAcc, BlockProps, BlockRows, QuadAcc, EPOCH};
@@ -397,6 +399,11 @@ pub struct EngineState {
     /// ([`strike_stored`](Self::strike_stored)): the state above is the
     /// one the strike left until the replay ends or is settled.
     replay: Option<Replay>,
+    /// A driven scene ([`CompiledScene::drive`]): the clock of the last
+    /// sample whose surface slope the hammer was given (`NO_EPOCH`: none
+    /// since the reset), and that slope \[m/s, physical\].
+    drive_clock: u64,
+    drive_rate: f64,
 }
 
 /// Scratch of the kernel's slope row (`EngineState::run_kernel_rows`).
@@ -535,6 +542,8 @@ impl EngineState {
             structured: true,
             obs: None,
             replay: None,
+            drive_clock: NO_EPOCH,
+            drive_rate: 0.0,
         };
         st.set_time_scale(scene, 1.0)
             .expect("time scale 1 is always valid");
@@ -559,6 +568,8 @@ impl EngineState {
         self.clock = 0;
         self.rest_run = None;
         self.herm_until = None;
+        self.drive_clock = NO_EPOCH;
+        self.drive_rate = 0.0;
         self.discontinuity();
     }
 

@@ -44,6 +44,7 @@ impl EngineState {
         look: impl FnOnce(&mut Self) -> R,
     ) -> ([f64; 2], R) {
         self.settle(scene);
+        self.drive_sample(scene);
         let _flush = FlushDenormals::new(self.flush_denormals);
         self.n_events = 0;
         self.t_in_step = 0.0;
@@ -82,10 +83,17 @@ impl EngineState {
         }
         let _flush = FlushDenormals::new(self.flush_denormals);
         kernel::clean_upper_state(self.simd);
+        // a driven scene runs one sample at a time: its hammer is given
+        // the surface's slope at every sample instant
+        let driven = scene.drive.is_some();
         while i < n {
-            let (done, slow) = self.run_fast(scene, &mut left[i..n], &mut right[i..n], false, None);
+            let end = if driven { i + 1 } else { n };
+            self.drive_sample(scene);
+            let (done, slow) =
+                self.run_fast(scene, &mut left[i..end], &mut right[i..end], false, None);
             i += done;
             if slow && i < n {
+                self.drive_sample(scene);
                 let o = self.slow_sample(scene, false);
                 left[i] = o[0];
                 right[i] = o[1];
@@ -157,15 +165,18 @@ impl EngineState {
         let mut i = self.replay_observed(&mut left[..n], &mut right[..n], &mut motion[..n]);
         let _flush = FlushDenormals::new(self.flush_denormals);
         kernel::clean_upper_state(self.simd);
+        let driven = scene.drive.is_some();
         while i < n {
+            let end = if driven { i + 1 } else { n };
+            self.drive_sample(scene);
             let (done, slow) = self.run_fast(
                 scene,
-                &mut left[i..n],
-                &mut right[i..n],
+                &mut left[i..end],
+                &mut right[i..end],
                 false,
                 Some(ObsOut {
-                    m: &mut motion[i..n],
-                    e: energy.as_deref_mut().map(|e| &mut e[i..n]),
+                    m: &mut motion[i..end],
+                    e: energy.as_deref_mut().map(|e| &mut e[i..end]),
                 }),
             );
             i += done;

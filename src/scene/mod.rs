@@ -18,6 +18,7 @@
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+mod drive;
 mod error;
 mod law;
 mod limits;
@@ -25,6 +26,10 @@ mod mallet;
 mod physical;
 mod validate;
 
+pub use drive::{
+    Beyond, DriveSpec, SurfaceSpec, MAX_PRESS_N, MAX_ROLL_RADIUS_M, MAX_SURFACE_DEPTH_M,
+    MAX_SURFACE_LENGTH_M,
+};
 pub use error::SceneError;
 pub use law::{fit_power, LawSpec, Pieces, MAX_LAW_PIECES};
 pub use limits::{
@@ -129,6 +134,10 @@ pub struct Scene {
     /// (absent: [`DEFAULT_RELEASE_DAMPER`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub play: Option<PlaySpec>,
+    /// The hammer's contact driven over a surface profile (rolling,
+    /// scraping: docs/design.md, "Rolling and scraping"); absent: struck.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drive: Option<DriveSpec>,
 }
 
 /// The damper of a scene that does not say (`[play]` or its `damper`
@@ -605,11 +614,26 @@ impl Scene {
         Ok(scene)
     }
 
-    /// Read, parse and validate a scene file.
+    /// Read, parse and validate a scene file. A file the scene names by
+    /// a relative path (`drive.surface.file`) is taken from the scene
+    /// file's folder.
     pub fn from_file(path: &std::path::Path) -> Result<Scene, SceneError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| SceneError::new("", format!("cannot read {}: {e}", path.display())))?;
-        Self::from_toml_str(&text)
+        let mut scene = Self::from_toml_str(&text)?;
+        if let Some(DriveSpec {
+            surface: SurfaceSpec::Wav { file, .. },
+            ..
+        }) = scene.drive.as_mut()
+        {
+            let named = std::path::Path::new(file.as_str());
+            if named.is_relative() {
+                if let Some(dir) = path.parent() {
+                    *file = dir.join(named).to_string_lossy().into_owned();
+                }
+            }
+        }
+        Ok(scene)
     }
 
     /// Serialise back to TOML.
@@ -665,6 +689,12 @@ impl Scene {
             out.level_db = 0.0;
         }
         out.listener.clear();
+        // a hand pressing a driven hammer: a constant force, as its weight is
+        if let Some(d) = &out.drive {
+            if d.press_n > 0.0 {
+                out.hammer.gravity_m_per_s2 += d.press_n / out.hammer.mass_kg;
+            }
+        }
         out.merge_mallet()?;
         out.expand_law()?;
         Ok(out)

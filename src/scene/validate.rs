@@ -56,6 +56,30 @@ impl Scene {
         if let Some(p) = &self.play {
             p.validate()?;
         }
+        self.validate_drive()?;
+        Ok(())
+    }
+
+    /// `[drive]`: its values, and a scene it can drive: one contact, a
+    /// point-mass hammer.
+    fn validate_drive(&self) -> Result<(), SceneError> {
+        let Some(d) = &self.drive else {
+            return Ok(());
+        };
+        d.validate()?;
+        if self.several_contacts() {
+            return Err(SceneError::new(
+                "drive",
+                "drives the contact of a scene of one contact; this scene has several \
+                 ([[striker]], [[touch]] or a contact law of several pieces)",
+            ));
+        }
+        if self.hammer.object.is_some() {
+            return Err(SceneError::new(
+                "drive",
+                "drives a point-mass hammer; hammer.object makes it a modal mallet",
+            ));
+        }
         Ok(())
     }
 

@@ -124,6 +124,7 @@ impl SceneBuilder {
             pickup: self.pickups,
             approximate: self.approximate,
             play: None,
+            drive: None,
             real_instrument: None,
             level_db: 0.0,
             listener: Vec::new(),
