@@ -136,10 +136,11 @@ fn bouncing(damped: bool, radius: f64) -> Scene {
 /// h`), returns the largest `|E - E(0) - W|` and the largest rise of `E -
 /// W` from one sample to the next, both relative to the largest energy, and
 /// the number of contacts.
-fn ledger(scene: &Scene, seconds: f64) -> (f64, f64, u64, f64) {
+fn ledger(scene: &Scene, seconds: f64, speed: impl Fn(usize) -> f64) -> (f64, f64, u64, f64) {
     let rate = 44100.0;
     let sc = compile_one(scene, rate).unwrap();
     let mut st = EngineState::new(&sc);
+    st.set_drive_speed(&sc, speed(0));
     let (m, g, h) = (sc.m_h, sc.g, 1.0 / rate);
     let energy =
         |l: &Lab| l.e_rel + m * l.v * l.v / 2.0 - m * (l.v - l.rate).powi(2) / 2.0 + m * g * l.s;
@@ -149,7 +150,8 @@ fn ledger(scene: &Scene, seconds: f64) -> (f64, f64, u64, f64) {
     let (mut prev, mut work) = (first, 0.0);
     let (mut worst, mut rise, mut scale) = (0.0f64, 0.0f64, e0.abs());
     let mut last_balance = 0.0;
-    for _ in 1..n {
+    for i in 1..n {
+        st.set_drive_speed(&sc, speed(i));
         let now = lab(&mut st, &sc);
         work += prev.rate * m * (now.v - prev.v + g * h);
         let e = energy(&now);
@@ -163,19 +165,30 @@ fn ledger(scene: &Scene, seconds: f64) -> (f64, f64, u64, f64) {
     (worst / scale, rise / scale, st.contacts_started, scale)
 }
 
+/// The speed of a player's stroke: from the scene's 0.4 m/s down to
+/// rest and back up and backwards, changed every 100 samples.
+fn stroke(i: usize) -> f64 {
+    0.4 * (2.0 * std::f64::consts::PI * (i / 100) as f64 / 150.0).cos()
+}
+
 /// Lossless (undamped modes, no contact damping): the energy is the
-/// surface's work, to rounding, through every lift-off and landing.
+/// surface's work, to rounding, through every lift-off and landing, at a
+/// constant speed and at a speed that changes.
 #[test]
 fn lossless_driven_energy_is_the_surfaces_work() {
-    let (worst, _, contacts, scale) = ledger(&bouncing(false, 0.0), 0.5);
-    println!(
-        "lossless rolling ball: |E - E0 - W| <= {worst:.2e} of {scale:.2e} J, {contacts} contacts"
-    );
-    assert!(
-        contacts > 5,
-        "the ball should lift off and land again: {contacts}"
-    );
-    assert!(worst < 1e-9, "{worst:e}");
+    for (what, changing) in [("constant speed", false), ("changing speed", true)] {
+        let speed = |i: usize| if changing { stroke(i) } else { 0.4 };
+        let (worst, _, contacts, scale) = ledger(&bouncing(false, 0.0), 0.5, speed);
+        println!(
+            "lossless rolling ball, {what}: |E - E0 - W| <= {worst:.2e} of {scale:.2e} J, \
+             {contacts} contacts"
+        );
+        assert!(
+            contacts > 5,
+            "the ball should lift off and land again: {contacts}"
+        );
+        assert!(worst < 1e-9, "{worst:e}");
+    }
 }
 
 /// Damped: `E - W` never rises (the dissipation only grows), also with
@@ -183,7 +196,7 @@ fn lossless_driven_energy_is_the_surfaces_work() {
 #[test]
 fn damped_driven_energy_never_exceeds_the_work() {
     for radius in [0.0, 2e-3] {
-        let (_, rise, contacts, scale) = ledger(&bouncing(true, radius), 0.5);
+        let (_, rise, contacts, scale) = ledger(&bouncing(true, radius), 0.5, |_| 0.4);
         println!("damped rolling ball, radius {radius}: largest rise of E - W {rise:.2e} of {scale:.2e} J, {contacts} contacts");
         assert!(contacts > 2, "{contacts}");
         assert!(rise < 1e-10, "{rise:e}");
@@ -307,7 +320,16 @@ fn driven_contact_matches_the_reference_solver() {
         let sc = compile_one(&scene, rate).unwrap();
         let model = reference_model(&scene);
         let d = sc.drive.as_ref().unwrap();
-        let surface: Vec<f64> = (0..=n).map(|i| d.height_at(i as f64 / rate)).collect();
+        // lossless: the player's changing stroke; damped: the scene's speed
+        let speed = |i: usize| if damped { 0.4 } else { stroke(i) };
+        let mut path = d.start_m;
+        let surface: Vec<f64> = (0..=n)
+            .map(|i| {
+                let s = d.profile.at(path) - d.base_m;
+                path += speed(i) * sc.h;
+                s
+            })
+            .collect();
         let sol = reference::solve_on_surface(&model, &surface, rate, n);
         let twin = reference::solve_on_surface(&model.perturbed(1e-9), &surface, rate, n);
         let hz = reference::horizon(&sol, &twin, 1e-7);
@@ -315,7 +337,9 @@ fn driven_contact_matches_the_reference_solver() {
         let mut starts = Vec::new();
         let (mut num, mut den) = ([0.0f64; 3], [0.0f64; 3]);
         for i in 0..=hz {
+            st.set_drive_speed(&sc, speed(i));
             let got = lab(&mut st, &sc);
+            assert_eq!(got.s, surface[i]);
             let want = &sol.samples[i];
             for (k, (a, b)) in [
                 (got.x, want.x_hammer),
@@ -349,7 +373,11 @@ fn driven_contact_matches_the_reference_solver() {
         println!(
             "{} rolling ball vs reference over {hz} samples: hammer {:.1e}, velocity {:.1e}, \
              contact point {:.1e}; {} contacts, starts within {dt:.1e} samples",
-            if damped { "damped" } else { "lossless" },
+            if damped {
+                "damped, constant speed,"
+            } else {
+                "lossless, changing speed,"
+            },
             errs[0],
             errs[1],
             errs[2],

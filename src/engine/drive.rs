@@ -62,36 +62,73 @@ impl EngineState {
     }
 
     /// The surface at the voice's current sample instant (`None`: the
-    /// scene is not driven).
+    /// scene is not driven): once the sample has begun, the segment it
+    /// follows; before, the one it will follow at the current speed.
     pub fn surface_at(&self, scene: &CompiledScene) -> Option<SurfaceAt> {
         let d = scene.drive.as_ref()?;
-        let t = self.clock as f64 * scene.h;
-        let (s0, s1) = (d.height_at(t), d.height_at(t + scene.h));
+        let path = if self.drive_clock == self.clock {
+            self.drive_path
+        } else if self.drive_clock == NO_EPOCH {
+            d.start_m
+        } else {
+            self.drive_path + self.drive_step
+        };
+        let step = if self.drive_clock == self.clock {
+            self.drive_step
+        } else {
+            self.drive_speed * scene.h
+        };
+        let (s0, s1) = (
+            d.profile.at(path) - d.base_m,
+            d.profile.at(path + step) - d.base_m,
+        );
         Some(SurfaceAt {
-            path_m: d.path_at(t),
+            path_m: path,
             height_m: s0,
             rate_m_per_s: (s1 - s0) * scene.rate_hz,
         })
     }
 
+    /// The speed along the path \[m/s\] from the coming sample on (the
+    /// scene's `drive.speed_m_per_s` after a reset; 0 stops the surface,
+    /// a negative speed runs the path backwards). The surface's height is
+    /// continuous; its slope changes at that sample instant, as it does
+    /// at every instant of a profile. Ignored (false) when the scene is
+    /// not driven or the speed is not finite. \[audio-thread\]
+    pub fn set_drive_speed(&mut self, scene: &CompiledScene, m_per_s: f64) -> bool {
+        if scene.drive.is_none() || !m_per_s.is_finite() {
+            return false;
+        }
+        self.drive_speed = m_per_s;
+        true
+    }
+
+    /// The speed along the path \[m/s\] the coming samples follow.
+    pub fn drive_speed(&self) -> f64 {
+        self.drive_speed
+    }
+
     /// Before the sample at the current clock of a driven scene: the
-    /// profile's slope over the coming sample, and the hammer's relative
-    /// velocity changed by the slope's change (once per sample, however
-    /// many entry points look at it). No-op for a scene that is not
-    /// driven. O(N) in contact. \[audio-thread\]
+    /// path advanced by the last sample's step, the profile's slope over
+    /// the coming sample, and the hammer's relative velocity changed by
+    /// the slope's change (once per sample, however many entry points
+    /// look at it). No-op for a scene that is not driven. O(N) in
+    /// contact. \[audio-thread\]
     pub(super) fn drive_sample(&mut self, scene: &CompiledScene) {
-        let Some(now) = self.surface_at(scene) else {
-            return;
-        };
         if self.drive_clock == self.clock {
             return;
         }
+        let Some(now) = self.surface_at(scene) else {
+            return;
+        };
         let prev = if self.drive_clock == NO_EPOCH {
             0.0
         } else {
             self.drive_rate
         };
         self.drive_clock = self.clock;
+        self.drive_path = now.path_m;
+        self.drive_step = self.drive_speed * scene.h;
         self.drive_rate = now.rate_m_per_s;
         self.kick_hammer(scene, -(now.rate_m_per_s - prev));
     }

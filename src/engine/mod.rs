@@ -401,9 +401,14 @@ pub struct EngineState {
     replay: Option<Replay>,
     /// A driven scene ([`CompiledScene::drive`]): the clock of the last
     /// sample whose surface slope the hammer was given (`NO_EPOCH`: none
-    /// since the reset), and that slope \[m/s, physical\].
+    /// since the reset), that sample's path position \[m\], its step along
+    /// the path \[m\] and the surface's rate over it \[m/s, physical\], and
+    /// the speed along the path for the coming samples \[m/s\].
     drive_clock: u64,
+    drive_path: f64,
+    drive_step: f64,
     drive_rate: f64,
+    drive_speed: f64,
 }
 
 /// Scratch of the kernel's slope row (`EngineState::run_kernel_rows`).
@@ -543,7 +548,10 @@ impl EngineState {
             obs: None,
             replay: None,
             drive_clock: NO_EPOCH,
+            drive_path: 0.0,
+            drive_step: 0.0,
             drive_rate: 0.0,
+            drive_speed: 0.0,
         };
         st.set_time_scale(scene, 1.0)
             .expect("time scale 1 is always valid");
@@ -570,6 +578,11 @@ impl EngineState {
         self.herm_until = None;
         self.drive_clock = NO_EPOCH;
         self.drive_rate = 0.0;
+        self.drive_step = 0.0;
+        if let Some(d) = &scene.drive {
+            self.drive_path = d.start_m;
+            self.drive_speed = d.speed_m_per_s;
+        }
         self.discontinuity();
     }
 
