@@ -20,6 +20,16 @@ pub fn impact_speed_m_per_s(velocity_norm: f64) -> f64 {
     MIN_IMPACT_SPEED_M_PER_S + IMPACT_SPEED_RANGE_M_PER_S * v * v
 }
 
+/// A driven scene's speed along its path \[m/s\] for a note of impact
+/// speed `impact_m_per_s` ([`impact_speed_m_per_s`]; docs/design.md,
+/// "Rolling and scraping"): the scene's own `drive.speed_m_per_s` times
+/// the impact speed's ratio to velocity 100's, so velocity 100 plays the
+/// scene as written, a softer note a slower stroke and a harder one a
+/// faster one (0.03 to 1.6 times it). \[any-thread\]
+pub fn drive_speed_m_per_s(scene_speed_m_per_s: f64, impact_m_per_s: f64) -> f64 {
+    scene_speed_m_per_s * impact_m_per_s / impact_speed_m_per_s(100.0 / 127.0)
+}
+
 /// Which per-voice variants beyond the hardness levels to compile (the
 /// plugin asks for them when a host first modulates that parameter per
 /// voice: docs/plugin.md, "Polyphonic modulation").

@@ -7,6 +7,11 @@
 //!
 //! # Mappings
 //!
+//! - **Velocity -> a driven scene's speed** ([`drive_speed_m_per_s`]): the
+//!   scene's speed along its path times the impact speed's ratio to velocity
+//!   100's; a new note puts the hammer on the surface at rest at the path's
+//!   start, a note on a ringing key changes the speed, note-off stops the
+//!   surface (docs/design.md, "Rolling and scraping").
 //! - **Velocity -> impact speed** ([`impact_speed_m_per_s`]):
 //!   `v = 0.05 + 2.95 * vel^2` m/s for `vel` in 0..1 (MIDI velocity / 127), so
 //!   the softest note hits at 5 cm/s and the hardest at 3 m/s; the square gives
@@ -100,8 +105,8 @@ mod voices;
 pub use events::{Event, TimedEvent};
 pub use kit::{Kit, LISTED_KIT_SPARES, MAX_KIT_VOICES, SILENCE_AMPLITUDE_RATIO};
 pub use mapping::{
-    damped_scene, impact_speed_m_per_s, lowest_frequency_hz, root_note, scene_for,
-    InstrumentParams, PlayParams, SceneParams, VariantSet,
+    damped_scene, drive_speed_m_per_s, impact_speed_m_per_s, lowest_frequency_hz, root_note,
+    scene_for, InstrumentParams, PlayParams, SceneParams, VariantSet,
 };
 pub use mix::{WorkMeter, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_LOOKAHEAD_SAMPLES};
 pub use prepared::{

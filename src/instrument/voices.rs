@@ -3,7 +3,7 @@
 //! running state fades out in a spare), the damper at note-off, and
 //! silence detection.
 
-use super::mapping::key_scale;
+use super::mapping::{drive_speed_m_per_s, key_scale};
 use super::prepared::{Prepared, Variant};
 use super::{
     impact_speed_m_per_s, slew, Instrument, MAX_PRESSURE_DECAY_PER_S, MAX_VOICES,
@@ -226,7 +226,18 @@ impl Instrument {
         let v_ref = speed / s;
         let m_h = p.scenes.scene.m_h;
         let mut e = 0.5 * m_h * v_ref * v_ref;
-        if p.bouncing {
+        if let Some(d) = &p.scenes.scene.drive {
+            // a driven scene: a new note puts the hammer on the surface at
+            // rest at the path's start (its voice was reset); a note on a
+            // ringing key keeps it where it is; either way the note's
+            // velocity sets the speed along the path
+            let path_speed = drive_speed_m_per_s(d.speed_m_per_s, speed);
+            if self.voices[idx].fresh {
+                st.strike(&p.scenes.scene, 0.0, 0.0);
+            }
+            st.set_drive_speed(&p.scenes.scene, path_speed);
+            e = 0.5 * m_h * (path_speed / s) * (path_speed / s);
+        } else if p.bouncing {
             let h = self.play.drop_height_m.max(0.0);
             st.strike(&p.scenes.scene, h, -speed);
             e += m_h * p.scenes.scene.g * h;
@@ -435,12 +446,14 @@ impl Instrument {
     }
 
     /// Release voice `i`: the damper falls (it continues on the damped
-    /// scene of its damper level when there is one).
+    /// scene of its damper level when there is one); a driven scene's
+    /// surface stops (the stroke ends where it is).
     pub(super) fn release_voice(&mut self, i: usize) {
         self.press_flush(i);
         let p = &mut *self.cur;
         let v = &mut self.voices[i];
         v.released = true;
+        p.states[i].set_drive_speed(&p.scenes.scene, 0.0);
         if let Some(d) = p.scenes.damped_for(v.want.damper) {
             if p.states[i].rebind(p.scenes.bound(v.at, false), d) {
                 v.on_damped = true;
@@ -568,6 +581,10 @@ impl Instrument {
             return;
         }
         let scene = p.scenes.bound(v.at, v.on_damped);
+        if p.states[i].drive_speed() != 0.0 && scene.drive.is_some() {
+            // a surface still moving under the hammer keeps feeding it
+            return;
+        }
         if let Some(e) = audible_energy(&p.states[i], scene) {
             if e < SILENCE_ENERGY_RATIO * v.strike_energy {
                 v.active = false;

@@ -1,0 +1,136 @@
+//! A driven scene played by the instrument (docs/design.md, "Rolling and
+//! scraping"): a note starts the stroke (its velocity the speed along
+//! the path), a harder note strokes faster, note-off stops the surface,
+//! and the voice ends once it is silent.
+
+use modal_contact::instrument::{
+    drive_speed_m_per_s, impact_speed_m_per_s, prepare_scene, Event, Instrument, PlayParams,
+    SceneParams, TimedEvent,
+};
+use modal_contact::scene::{Beyond, DriveSpec, Scene, SurfaceSpec};
+use modal_contact::{compile_one, EngineState};
+use modal_testkit::scenes::{Contact, Hammer, Modal, Pickup, SceneBuilder};
+
+const RATE: f64 = 44_100.0;
+
+/// A scraper pressed by 5 N onto ridges 3 mm apart cut into a bar of
+/// three modes, drawn at 0.2 m/s at velocity 100: a pulse every 15 ms.
+fn scraped_bar() -> Scene {
+    let bar = Modal::new("bar", &["c", "p"])
+        .mode(300.0, Some(1.2), &[0.9, 0.5])
+        .mode(1100.0, Some(0.6), &[-0.6, 0.7])
+        .mode(2700.0, Some(0.3), &[0.4, -0.3]);
+    let mut scene = SceneBuilder::new("scraped-bar")
+        .duration(1.0)
+        .object(bar)
+        .hammer(Hammer::new(0.01).height(0.0))
+        .contact(Contact::new("bar", 2.0e5).point("c").damping(2.0))
+        .pickup(Pickup::new("bar", "p"))
+        .build();
+    scene.drive = Some(DriveSpec {
+        speed_m_per_s: 0.2,
+        start_m: 0.0,
+        radius_m: 0.0,
+        press_n: 5.0,
+        beyond: Beyond::Wrap,
+        surface: SurfaceSpec::Ridges {
+            length_m: 0.15,
+            spacing_m: 3e-3,
+            depth_m: 1e-4,
+            rise: 0.9,
+        },
+    });
+    scene
+}
+
+/// `seconds` of the instrument (no gain, no lookahead) after a note at
+/// `velocity` on the scene's root key, released after `hold` seconds
+/// (never if `None`); the left channel and the instrument.
+fn play(velocity: f64, hold: Option<f64>, seconds: f64) -> (Vec<f32>, Instrument) {
+    let scene = scraped_bar();
+    let p = prepare_scene(&scene, &SceneParams::default(), RATE, 0).unwrap();
+    let play = PlayParams {
+        gain_db: 0.0,
+        lookahead_s: 0.0,
+        ..PlayParams::default()
+    };
+    let mut inst = Instrument::new(p, play);
+    inst.set_lookahead(0);
+    let key = modal_contact::instrument::root_note(&scene).round() as u8;
+    let n = (seconds * RATE) as usize;
+    let (mut l, mut r) = (vec![0.0; n], vec![0.0; n]);
+    let mut events = vec![TimedEvent {
+        offset: 0,
+        event: Event::NoteOn {
+            key,
+            velocity_norm: velocity,
+        },
+    }];
+    if let Some(h) = hold {
+        events.push(TimedEvent {
+            offset: (h * RATE) as usize,
+            event: Event::NoteOff { key },
+        });
+    }
+    inst.process(&events, &mut l, &mut r);
+    (l, inst)
+}
+
+/// RMS of `x`.
+fn rms(x: &[f32]) -> f64 {
+    (x.iter().map(|&v| f64::from(v) * f64::from(v)).sum::<f64>() / x.len() as f64).sqrt()
+}
+
+/// A held note on the root key is the scene driven offline with the
+/// scraper put on the surface at rest and the speed of the note's
+/// velocity (velocity 100: the scene's 0.2 m/s), to the output's f32
+/// rounding; a harder note scrapes faster and louder.
+#[test]
+fn a_note_is_the_scene_driven_at_its_velocitys_speed() {
+    let scene = scraped_bar();
+    let sc = compile_one(&scene, RATE).unwrap();
+    let n = (0.5 * RATE) as usize;
+    let mut levels = Vec::new();
+    for velocity in [64.0 / 127.0, 100.0 / 127.0, 1.0] {
+        let (out, inst) = play(velocity, None, 0.5);
+        let speed = drive_speed_m_per_s(0.2, impact_speed_m_per_s(velocity));
+        let mut st = EngineState::new(&sc);
+        st.strike(&sc, 0.0, 0.0);
+        st.set_drive_speed(&sc, speed);
+        let (mut worst, mut peak) = (0.0f64, 0.0f64);
+        for &o in &out[..n] {
+            let y = st.tick(&sc)[0];
+            peak = peak.max(y.abs());
+            worst = worst.max((f64::from(o) - y).abs());
+        }
+        println!(
+            "velocity {:.0}: speed {speed:.3} m/s, instrument vs offline {worst:.1e} of peak \
+             {peak:.1e}, {} contacts",
+            velocity * 127.0,
+            st.contacts_started
+        );
+        assert!(peak > 1e-5 && worst <= 1e-6 * peak, "{worst:e} of {peak:e}");
+        assert_eq!(inst.active_voices(), 1);
+        levels.push(rms(&out));
+    }
+    assert!(levels[0] < levels[1] && levels[1] < levels[2], "{levels:?}");
+}
+
+/// Released, the surface stops: the scraping ends, the bar rings out and
+/// the voice stops when silent; held, it scrapes on.
+#[test]
+fn note_off_stops_the_stroke_and_the_voice_ends() {
+    let (held, _) = play(100.0 / 127.0, None, 3.0);
+    let (released, inst) = play(100.0 / 127.0, Some(0.3), 3.0);
+    let late = |x: &[f32]| rms(&x[(2.0 * RATE) as usize..]);
+    println!(
+        "after 2 s: held {:.2e}, released at 0.3 s {:.2e}; silent stops {}",
+        late(&held),
+        late(&released),
+        inst.stats.silent_stops
+    );
+    assert!(late(&held) > 0.3 * rms(&held));
+    assert!(late(&released) < 1e-4 * late(&held));
+    assert_eq!(inst.stats.silent_stops, 1);
+    assert_eq!(inst.active_voices(), 0);
+}
