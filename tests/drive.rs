@@ -425,3 +425,122 @@ fn reference_model(scene: &Scene) -> pwl_reference::Model {
         links: vec![],
     }
 }
+
+/// 200 random driven scenes, stiff and extreme: contacts from 0.01x to 1000x
+/// Nyquist, 1 g to 1 kg hammers, surfaces from smooth to far steeper than
+/// the hammer can follow, speeds up to 5 m/s forwards and backwards,
+/// rolling radii, pressing forces, every kind of surface: each sample
+/// finite, and `E - W` (the lab-frame energy less the surface's work)
+/// never rising beyond rounding.
+#[test]
+fn random_driven_scenes_stay_finite_and_passive() {
+    use modal_contact::test_rng::TestRng;
+    let mut rng = TestRng(0x6472_6976_65);
+    let rate = 44100.0;
+    let mut worst = 0.0f64;
+    let (mut contacts, mut ran, mut lifted) = (0u64, 0, 0);
+    let cases = 200;
+    for case in 0..cases {
+        let m = 10f64.powf(rng.uniform(-3.0, 0.0));
+        // contact frequency sqrt(k / m) from 0.01x to 1000x Nyquist
+        let f_c = rate / 2.0 * 10f64.powf(rng.uniform(-2.0, 3.0));
+        let k = m * (2.0 * std::f64::consts::PI * f_c).powi(2);
+        let zeta = [0.0, 0.05, 0.5, 1.0, 3.0][rng.below(5)];
+        let c = 2.0 * zeta * (k * m).sqrt();
+        let n_modes = 1 + rng.below(6);
+        let mut bar = Modal::new("bar", &["c", "p"]);
+        for j in 0..n_modes {
+            let f = 10f64.powf(rng.uniform(1.5, 4.3));
+            bar = bar.mode(
+                f,
+                Some(rng.uniform(0.05, 3.0)),
+                &[rng.uniform(-2.0, 2.0), 0.3 + j as f64],
+            );
+        }
+        let mut scene = SceneBuilder::new("random-drive")
+            .object(bar)
+            .hammer(
+                Hammer::new(m)
+                    .height(rng.uniform(0.0, 1e-3))
+                    .gravity([0.0, 9.81, 200.0][rng.below(3)]),
+            )
+            .contact(
+                Contact::new("bar", k.min(1e12))
+                    .point("c")
+                    .damping(c.min(1e6)),
+            )
+            .pickup(Pickup::new("bar", "p"))
+            .build();
+        let length = rng.uniform(0.01, 1.0);
+        let surface = match rng.below(2) {
+            0 => SurfaceSpec::Ridges {
+                length_m: length,
+                spacing_m: length * rng.uniform(0.01, 0.5),
+                depth_m: 10f64.powf(rng.uniform(-8.0, -2.5)),
+                rise: rng.uniform(0.05, 1.0),
+            },
+            _ => SurfaceSpec::Fractal {
+                length_m: length,
+                rms_m: 10f64.powf(rng.uniform(-8.0, -3.0)),
+                correlation_m: length * rng.uniform(0.001, 0.2),
+                exponent: rng.uniform(0.5, 4.0),
+                seed: rng.next_u64(),
+            },
+        };
+        scene.drive = Some(DriveSpec {
+            speed_m_per_s: rng.uniform(-5.0, 5.0),
+            start_m: rng.uniform(-1.0, 1.0),
+            radius_m: [0.0, 1e-3, 0.02][rng.below(3)],
+            press_n: [0.0, 1.0, 20.0][rng.below(3)],
+            beyond: [Beyond::Wrap, Beyond::Stop][rng.below(2)],
+            surface,
+        });
+        if scene.validate().is_err() {
+            continue;
+        }
+        let Ok(sc) = compile_one(&scene, rate) else {
+            continue;
+        };
+        let mut st = EngineState::new(&sc);
+        let (mass, g, h) = (sc.m_h, sc.g, 1.0 / rate);
+        let energy = |l: &Lab| {
+            l.e_rel + mass * l.v * l.v / 2.0 - mass * (l.v - l.rate).powi(2) / 2.0 + mass * g * l.s
+        };
+        let first = lab(&mut st, &sc);
+        let e0 = energy(&first);
+        let (mut prev, mut work, mut last, mut scale) = (first, 0.0, 0.0, e0.abs());
+        for i in 1..2000 {
+            let now = lab(&mut st, &sc);
+            assert!(
+                now.x.is_finite() && now.v.is_finite() && now.e_rel.is_finite(),
+                "case {case}, sample {i}: not finite"
+            );
+            work += prev.rate * mass * (now.v - prev.v + g * h);
+            let e = energy(&now);
+            // the terms the lab energy is summed from, whose rounding it carries
+            let terms = now.e_rel.abs() + mass * now.v * now.v + mass * (g * now.s).abs();
+            scale = scale.max(e.abs()).max(work.abs()).max(terms);
+            let balance = e - e0 - work;
+            let rise = (balance - last) / scale.max(f64::MIN_POSITIVE);
+            assert!(
+                rise < 1e-9,
+                "case {case}, sample {i}: E - W rose by {rise:e} ({last:e} J to {balance:e} J, \
+                 scale {scale:e} J): {scene:?}"
+            );
+            worst = worst.max(rise);
+            last = balance;
+            prev = now;
+        }
+        contacts += st.contacts_started;
+        ran += 1;
+        lifted += usize::from(st.contacts_started > 1);
+    }
+    println!(
+        "{ran} of {cases} random driven scenes compiled and ran ({lifted} lifting off and landing \
+         again, {contacts} contacts): largest rise of E - W {worst:.1e} of the energy"
+    );
+    assert!(
+        ran > cases / 2 && lifted > cases / 10,
+        "{ran} ran, {lifted} lifted off"
+    );
+}
