@@ -28,6 +28,11 @@ pub struct SurfaceAt {
     pub height_m: f64,
     /// Its rate over the coming sample \[m/s\].
     pub rate_m_per_s: f64,
+    /// The rate the voice's hammer velocity is measured against now \[m/s\]:
+    /// the last sample's that has begun (`rate_m_per_s` once the coming
+    /// sample has begun; 0 before the first). The hammer's lab velocity
+    /// is its voice velocity plus this.
+    pub frame_rate_m_per_s: f64,
 }
 
 impl EngineState {
@@ -82,10 +87,16 @@ impl EngineState {
             d.profile.at(path) - d.base_m,
             d.profile.at(path + step) - d.base_m,
         );
+        let frame = if self.drive_clock == NO_EPOCH {
+            0.0
+        } else {
+            self.drive_rate
+        };
         Some(SurfaceAt {
             path_m: path,
             height_m: s0,
             rate_m_per_s: (s1 - s0) * scene.rate_hz,
+            frame_rate_m_per_s: frame,
         })
     }
 

@@ -163,20 +163,35 @@ impl EngineState {
             n = n.min(e.len());
         }
         let mut i = self.replay_observed(&mut left[..n], &mut right[..n], &mut motion[..n]);
+        if scene.drive.is_some() {
+            // a driven scene: sample by sample on the tick path, which runs
+            // the samples the block path runs (the observing kernel tries
+            // the fast path's certificates differently, and a sample it
+            // leaves to the slow path rounds otherwise)
+            let want = energy.is_some();
+            for k in i..n {
+                let (o, (m, e)) = self.tick_with(scene, |st| {
+                    (st.motion(scene), want.then(|| st.energy_observed(scene)))
+                });
+                [left[k], right[k]] = o;
+                motion[k] = m;
+                if let (Some(es), Some(e)) = (energy.as_deref_mut(), e) {
+                    es[k] = e;
+                }
+            }
+            return;
+        }
         let _flush = FlushDenormals::new(self.flush_denormals);
         kernel::clean_upper_state(self.simd);
-        let driven = scene.drive.is_some();
         while i < n {
-            let end = if driven { i + 1 } else { n };
-            self.drive_sample(scene);
             let (done, slow) = self.run_fast(
                 scene,
-                &mut left[i..end],
-                &mut right[i..end],
+                &mut left[i..n],
+                &mut right[i..n],
                 false,
                 Some(ObsOut {
-                    m: &mut motion[i..end],
-                    e: energy.as_deref_mut().map(|e| &mut e[i..end]),
+                    m: &mut motion[i..n],
+                    e: energy.as_deref_mut().map(|e| &mut e[i..n]),
                 }),
             );
             i += done;

@@ -459,6 +459,13 @@ impl MultiModel {
                 "not with several contacts yet: remove it",
             ));
         }
+        if scene.drive.is_some() {
+            return Err(SceneError::new(
+                "drive",
+                "a driven contact runs on the one-contact engine (crate::compile_one), not with \
+                 several contacts",
+            ));
+        }
         let (first_mode, freq_hz, sigma) = place_modes(scene, given, &mut names)?;
         let n = freq_hz.len();
         let sides = SceneSides {
