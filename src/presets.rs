@@ -65,6 +65,9 @@ pub const PRESETS: &[Preset] = &[
     preset!("ball-between-plates", "Ball between plates (kit)"),
     preset!("wind-chimes", "Wind chimes (kit)"),
     preset!("snare-pair", "Snare pair (kit)"),
+    preset!("guiro", "Guiro (scraped)"),
+    preset!("ball-on-plate", "Ball rolling on a plate"),
+    preset!("marble-on-board", "Marble rolling on a board"),
 ];
 
 /// How many presets there are.
