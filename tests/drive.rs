@@ -575,4 +575,3 @@ fn driven_presets_render_the_same_on_every_path() {
         assert_eq!(first(&lt), None, "{name}");
     }
 }
-

@@ -134,4 +134,3 @@ fn note_off_stops_the_stroke_and_the_voice_ends() {
     assert_eq!(inst.stats.silent_stops, 1);
     assert_eq!(inst.active_voices(), 0);
 }
-
