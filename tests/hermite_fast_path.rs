@@ -78,14 +78,18 @@ fn ringing(n: usize) -> Scene {
         .build()
 }
 
-/// Every preset (0.5 s), every stability case (at most 20000 samples) and
+/// Every preset (0.5 s; a driven one 50 ms), every stability case (at most 20000 samples) and
 /// a ringing 200-mode object struck every 1000 samples: (name, scene,
 /// samples, strike period or 0).
 fn cases() -> Vec<(String, Scene, usize, usize)> {
     let mut cases: Vec<(String, Scene, usize, usize)> = presets::one_contact()
         .map(|i| {
             let s = presets::scene(i).unwrap();
-            let n = (s.duration_s.min(0.5) * RATE) as usize;
+            // a ball rolling over roughness is chaotic: each landing's
+            // instant moves the next, so any rounding grows; 50 ms, over
+            // which both certificates give the same bounces
+            let seconds = if s.drive.is_some() { 0.05 } else { 0.5 };
+            let n = (s.duration_s.min(seconds) * RATE) as usize;
             (format!("preset {}", presets::NAMES[i]), s, n, 0)
         })
         .collect();

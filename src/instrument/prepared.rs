@@ -33,7 +33,8 @@ pub struct Prepared {
     pub scenes: Scenes,
     /// MIDI note that plays the scene as written.
     pub root_note: f64,
-    /// The hammer has gravity (it is dropped, it bounces).
+    /// The hammer has gravity or a hand presses it (it is dropped, it
+    /// bounces, it rests on the object under a constant force).
     pub bouncing: bool,
     /// The switching method actually compiled.
     pub switching_used: Switching,
@@ -841,7 +842,10 @@ fn assemble(
     };
     let root = root_note(base);
     let sc = &scenes.scene;
-    let bouncing = base.hammer.gravity_m_per_s2 > 0.0;
+    // a constant force on the hammer: its weight, or a hand pressing a
+    // driven hammer (docs/design.md, "Rolling and scraping")
+    let bouncing =
+        base.hammer.gravity_m_per_s2 > 0.0 || base.drive.as_ref().is_some_and(|d| d.press_n > 0.0);
     let no_keys = kit.is_some() || sc.free.dense.is_some() || sc.contact.dense.is_some();
     let key_props = if no_keys {
         Vec::new()

@@ -62,8 +62,10 @@ fn a_probe_changes_no_sample_and_sees_every_voice_sample() {
             }
             next[*v] = Some(start + m.len() as u64);
             // (none while a strike is played back)
+            // (a hammer under a constant force pressed into the contact
+            // sits below its rest height: its potential is negative)
             assert!(
-                e.is_none_or(|e| e.is_finite() && e >= 0.0),
+                e.is_none_or(|e| e.is_finite() && (e >= 0.0 || probed.cur.bouncing)),
                 "{}: energy {e:?}",
                 preset.name
             );

@@ -36,8 +36,9 @@ fn presets_need_no_realtime_warning_at_any_hardness() {
 }
 
 /// The strike-cost warning: no shipped preset needs it at 64-sample
-/// blocks, and at 32 samples only the 50-mass paper string and the frame
-/// drum (37 coupled membrane modes) do (a 16-note
+/// blocks, and at 32 samples only the 50-mass paper string, the frame
+/// drum (37 coupled membrane modes) and the two rolling balls (47 and 46
+/// plate modes, each coupled to the ball) do (a 16-note
 /// chord on a 50-mode object takes about 70 % of such a block, measured by
 /// `cargo bench --bench worst_block`); a 400-mode object warns at 64-sample
 /// blocks (a 16-note chord would take several blocks' worth of CPU), and a
@@ -69,7 +70,15 @@ fn strike_warning_names_what_fits_at_the_hosts_block_size() {
             pr.scenes.scene.name
         );
     }
-    assert_eq!(warned_at_32, ["paper-string", "frame-drum"]);
+    assert_eq!(
+        warned_at_32,
+        [
+            "paper-string",
+            "frame-drum",
+            "ball-on-plate",
+            "marble-on-board"
+        ]
+    );
     let mut big = modal_base("marimba-bar");
     let ObjectSpec::Modal(m) = &mut big.object[0] else {
         panic!("marimba-bar is modal")
