@@ -45,6 +45,8 @@
 //! - `rest`: following a strike on the object at rest through its stored
 //!   switches;
 //! - `replay`: a strike from rest played back from its recording;
+//! - `drive`: a contact driven over a moving surface (the hammer kept
+//!   relative to it, its velocity changed at each sample instant);
 //! - `state`: what a caller reads and sets between blocks (coordinates,
 //!   the hammer, pressure, a new strike);
 //! - `observe`: the trace's observations; `energy`: the energy and its
