@@ -39,6 +39,14 @@ struct Lab {
     m: Motion,
 }
 
+/// The lab-frame energy of `l` for a hammer of mass `m` under the constant
+/// acceleration `g`: the voice's own energy with the hammer's kinetic
+/// energy taken in the lab instead of relative to the surface, and its
+/// potential from the surface's height too.
+fn lab_energy(l: &Lab, m: f64, g: f64) -> f64 {
+    l.e_rel + m * l.v * l.v / 2.0 - m * (l.v - l.rate).powi(2) / 2.0 + m * g * l.s
+}
+
 fn lab(st: &mut EngineState, sc: &CompiledScene) -> Lab {
     let (_, (m, e_rel, at)) = st.tick_with(sc, |st| {
         (
@@ -142,8 +150,7 @@ fn ledger(scene: &Scene, seconds: f64, speed: impl Fn(usize) -> f64) -> (f64, f6
     let mut st = EngineState::new(&sc);
     st.set_drive_speed(&sc, speed(0));
     let (m, g, h) = (sc.m_h, sc.g, 1.0 / rate);
-    let energy =
-        |l: &Lab| l.e_rel + m * l.v * l.v / 2.0 - m * (l.v - l.rate).powi(2) / 2.0 + m * g * l.s;
+    let energy = |l: &Lab| lab_energy(l, m, g);
     let n = (seconds * rate) as usize;
     let first = lab(&mut st, &sc);
     let e0 = energy(&first);
@@ -450,9 +457,7 @@ fn random_driven_scenes_stay_finite_and_passive() {
         };
         let mut st = EngineState::new(&sc);
         let (mass, g, h) = (sc.m_h, sc.g, 1.0 / rate);
-        let energy = |l: &Lab| {
-            l.e_rel + mass * l.v * l.v / 2.0 - mass * (l.v - l.rate).powi(2) / 2.0 + mass * g * l.s
-        };
+        let energy = |l: &Lab| lab_energy(l, mass, g);
         let first = lab(&mut st, &sc);
         let e0 = energy(&first);
         let (mut prev, mut work, mut last, mut scale) = (first, 0.0, 0.0, e0.abs());

@@ -32,19 +32,6 @@ pub struct DrivePlan {
     pub base_m: f64,
 }
 
-impl DrivePlan {
-    /// Path position \[m\] after `t` seconds.
-    pub fn path_at(&self, t: f64) -> f64 {
-        self.start_m + self.speed_m_per_s * t
-    }
-
-    /// The surface's height \[m\] under the contact after `t` seconds
-    /// (measured from its height at the start).
-    pub fn height_at(&self, t: f64) -> f64 {
-        self.profile.at(self.path_at(t)) - self.base_m
-    }
-}
-
 /// Build the plan of `spec` (field paths `drive.*` in errors).
 pub fn plan(spec: &DriveSpec) -> Result<DrivePlan, SceneError> {
     let periodic = spec.beyond == Beyond::Wrap;
