@@ -63,6 +63,12 @@ impl Compiled {
         }
     }
 
+    /// A scene whose contact is driven over a surface (its trace has
+    /// the surface's columns, `render::DRIVE_COLUMNS`).
+    pub fn driven(&self) -> bool {
+        matches!(self, Compiled::One(c) if c.drive.is_some())
+    }
+
     /// Number of contacts.
     pub fn contacts(&self) -> usize {
         match self {

@@ -586,3 +586,91 @@ fn driven_presets_render_the_same_on_every_path() {
         assert_eq!(first(&lt), None, "{name}");
     }
 }
+
+/// A driven scene's trace (docs/design.md, "Rolling and scraping") ends
+/// each row with the path position and the surface's height under the
+/// contact: the rows a render keeps, its CSV and its NPY carry the
+/// engine's own `surface_at` at each row's instant (the CSV's numbers
+/// read back to the same doubles, the NPY's are their bits), the path
+/// advances by the speed's step per sample, and `x_hammer + surface` is
+/// the hammer's height in the room. A trace made for a scene that is not
+/// driven refuses a surface, and a driven one a row without it.
+#[test]
+fn a_driven_trace_has_the_surfaces_columns() {
+    use modal_contact::render::{
+        render_stream, CsvTrace, NpyTrace, TraceRows, TraceSink, DRIVE_COLUMNS, TRACE_HEADER,
+    };
+    let scene = bouncing(true, 0.0);
+    let sc = compile_one(&scene, 44100.0).unwrap();
+    let n = 3000;
+    let rows = TraceRows {
+        rate_hz: 44100.0,
+        rows: Vec::new(),
+        further: Vec::new(),
+        contacts: 1,
+    };
+    let csv = CsvTrace::driven(44100.0, Vec::new()).unwrap();
+    let npy = NpyTrace::driven(44100.0, n, Vec::new()).unwrap();
+    let mut sinks = (rows, (csv, npy));
+    render_stream(&sc, n, |_, _| Ok(()), Some(&mut sinks)).unwrap();
+    let (rows, (csv, npy)) = sinks;
+    let (csv, npy) = (
+        String::from_utf8(csv.finish().unwrap()).unwrap(),
+        npy.finish().unwrap(),
+    );
+    // the engine's own view, sample by sample
+    let mut st = EngineState::new(&sc);
+    let want: Vec<Lab> = (0..n).map(|_| lab(&mut st, &sc)).collect();
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        format!("{TRACE_HEADER},{DRIVE_COLUMNS}")
+    );
+    let step = 0.4 / 44100.0;
+    let mut worst_step = 0.0f64;
+    let data = &npy[npy.len() - n * 72..];
+    for (i, (r, w)) in rows.rows.iter().zip(&want).enumerate() {
+        assert_eq!(r.obs.x_hammer, w.m.x_hammer, "row {i}");
+        assert_eq!(r.surface[1], w.s, "row {i}");
+        assert_eq!(r.obs.x_hammer + r.surface[1], w.x, "row {i}");
+        let cols: Vec<f64> = lines
+            .next()
+            .unwrap()
+            .split(',')
+            .map(|x| x.parse().unwrap())
+            .collect();
+        assert_eq!(cols.len(), 9);
+        assert_eq!(&cols[7..], &r.surface[..], "csv row {i}");
+        let rec = &data[72 * i..72 * i + 72];
+        let field = |k: usize| f64::from_le_bytes(rec[8 * k..8 * k + 8].try_into().unwrap());
+        assert_eq!([field(7), field(8)], r.surface, "npy row {i}");
+        if i > 0 {
+            let d = r.surface[0] - rows.rows[i - 1].surface[0];
+            worst_step = worst_step.max((d - step).abs() / step);
+        }
+    }
+    assert_eq!(rows.rows.len(), n);
+    assert!(lines.next().is_none());
+    println!(
+        "{n} rows: path steps within {worst_step:.1e} of speed / rate, surfaces {:.2e} .. {:.2e} m",
+        rows.rows
+            .iter()
+            .map(|r| r.surface[1])
+            .fold(f64::INFINITY, f64::min),
+        rows.rows
+            .iter()
+            .map(|r| r.surface[1])
+            .fold(f64::NEG_INFINITY, f64::max)
+    );
+    assert!(worst_step < 1e-9, "{worst_step:e}");
+    // the columns are the file's kind: never dropped, never made up
+    let m = Motion::default();
+    let mut plain = CsvTrace::new(44100.0, Vec::new()).unwrap();
+    assert!(plain.record_driven(0, &m, Some(0.0), [0.0; 2]).is_err());
+    let mut driven = CsvTrace::driven(44100.0, Vec::new()).unwrap();
+    assert!(driven.record(0, &m, Some(0.0)).is_err());
+    let mut plain = NpyTrace::new(44100.0, 1, Vec::new()).unwrap();
+    assert!(plain.record_driven(0, &m, Some(0.0), [0.0; 2]).is_err());
+    let mut driven = NpyTrace::driven(44100.0, 1, Vec::new()).unwrap();
+    assert!(driven.record(0, &m, Some(0.0)).is_err());
+}

@@ -1,11 +1,12 @@
 //! A driven scene played by the instrument (docs/design.md, "Rolling and
 //! scraping"): a note starts the stroke (its velocity the speed along
-//! the path), a harder note strokes faster, note-off stops the surface,
-//! and the voice ends once it is silent.
+//! the path), a harder note strokes faster, the mod wheel speeds a held
+//! stroke up, note-off stops the surface, and the voice ends once it is
+//! silent.
 
 use modal_contact::instrument::{
-    drive_speed_m_per_s, impact_speed_m_per_s, prepare_scene, Event, Instrument, PlayParams,
-    SceneParams, TimedEvent,
+    drive_speed_m_per_s, impact_speed_m_per_s, prepare_scene, wheel_speed_factor, Event,
+    Instrument, PlayParams, SceneParams, TimedEvent, WHEEL_SPEED_RANGE,
 };
 use modal_contact::scene::{Beyond, DriveSpec, Scene, SurfaceSpec};
 use modal_contact::{compile_one, EngineState};
@@ -47,6 +48,17 @@ fn scraped_bar() -> Scene {
 /// `velocity` on the scene's root key, released after `hold` seconds
 /// (never if `None`); the left channel and the instrument.
 fn play(velocity: f64, hold: Option<f64>, seconds: f64) -> (Vec<f32>, Instrument) {
+    play_with(velocity, hold, seconds, &[])
+}
+
+/// [`play`] with `more` events after the note-on (and before the
+/// note-off).
+fn play_with(
+    velocity: f64,
+    hold: Option<f64>,
+    seconds: f64,
+    more: &[TimedEvent],
+) -> (Vec<f32>, Instrument) {
     let scene = scraped_bar();
     let p = prepare_scene(&scene, &SceneParams::default(), RATE, 0).unwrap();
     let play = PlayParams {
@@ -66,6 +78,7 @@ fn play(velocity: f64, hold: Option<f64>, seconds: f64) -> (Vec<f32>, Instrument
             velocity_norm: velocity,
         },
     }];
+    events.extend_from_slice(more);
     if let Some(h) = hold {
         events.push(TimedEvent {
             offset: (h * RATE) as usize,
@@ -133,4 +146,71 @@ fn note_off_stops_the_stroke_and_the_voice_ends() {
     assert!(late(&released) < 1e-4 * late(&held));
     assert_eq!(inst.stats.silent_stops, 1);
     assert_eq!(inst.active_voices(), 0);
+}
+
+/// The mod wheel multiplies a held stroke's speed where the wheel moves
+/// (`4^wheel`): the instrument is the scene driven offline at the note's
+/// speed, then at the wheel's, to the output's f32 rounding; the faster
+/// stroke passes more ridges and is louder; the wheel at rest again
+/// brings the note's own speed back, and a wheel that is not a number
+/// counts as at rest.
+#[test]
+fn the_mod_wheel_speeds_a_held_stroke_up() {
+    assert_eq!(wheel_speed_factor(0.0), 1.0);
+    assert_eq!(wheel_speed_factor(1.0), WHEEL_SPEED_RANGE);
+    assert_eq!(wheel_speed_factor(f64::NAN), 1.0);
+    assert!((wheel_speed_factor(0.5) - 2.0).abs() < 1e-15);
+    let scene = scraped_bar();
+    let sc = compile_one(&scene, RATE).unwrap();
+    let velocity = 100.0 / 127.0;
+    let (up, down) = ((0.2 * RATE) as usize, (0.4 * RATE) as usize);
+    let n = (0.6 * RATE) as usize;
+    let wheel = |offset, value| TimedEvent {
+        offset,
+        event: Event::ModWheel { value },
+    };
+    let (out, inst) = play_with(
+        velocity,
+        None,
+        0.6,
+        &[wheel(up, 0.75), wheel(down, f64::NAN)],
+    );
+    let speed = drive_speed_m_per_s(0.2, impact_speed_m_per_s(velocity));
+    let mut st = EngineState::new(&sc);
+    st.strike(&sc, 0.0, 0.0);
+    st.set_drive_speed(&sc, speed);
+    let (mut worst, mut peak) = (0.0f64, 0.0f64);
+    let mut path = [0.0; 3];
+    for (k, &o) in out[..n].iter().enumerate() {
+        if k == up {
+            path[0] = st.surface_at(&sc).unwrap().path_m;
+            st.set_drive_speed(&sc, speed * 4f64.powf(0.75));
+        }
+        if k == down {
+            path[1] = st.surface_at(&sc).unwrap().path_m;
+            st.set_drive_speed(&sc, speed);
+        }
+        let y = st.tick(&sc)[0];
+        peak = peak.max(y.abs());
+        worst = worst.max((f64::from(o) - y).abs());
+    }
+    path[2] = st.surface_at(&sc).unwrap().path_m;
+    let level = |a: usize, b: usize| rms(&out[a..b]);
+    let (before, during, after) = (level(0, up), level(up, down), level(down, n));
+    println!(
+        "path {:.4} / {:.4} / {:.4} m (0.2 s each), rms {before:.2e} / {during:.2e} / \
+         {after:.2e}; instrument vs offline {worst:.1e} of peak {peak:.1e}",
+        path[0],
+        path[1] - path[0],
+        path[2] - path[1]
+    );
+    assert!(peak > 1e-5 && worst <= 1e-6 * peak, "{worst:e} of {peak:e}");
+    let ratio = (path[1] - path[0]) / path[0];
+    assert!((ratio - 4f64.powf(0.75)).abs() < 1e-6, "{ratio}");
+    assert!(((path[2] - path[1]) / path[0] - 1.0).abs() < 1e-6);
+    assert!(
+        during > 1.5 * before && during > 1.5 * after,
+        "{before} {during} {after}"
+    );
+    assert_eq!(inst.active_voices(), 1);
 }

@@ -5,6 +5,7 @@
 use super::{
     DAMPER_T60_DIVISOR, DEFAULT_BEND_RANGE_SEMITONES, DEFAULT_POLYPHONY, DEFAULT_ROOT_NOTE,
     IMPACT_SPEED_RANGE_M_PER_S, MIN_IMPACT_SPEED_M_PER_S, UNDAMPED_RELEASE_T60_S,
+    WHEEL_SPEED_RANGE,
 };
 use crate::presets;
 use crate::scene::{ObjectSpec, Scene, Switching, DEFAULT_RELEASE_DAMPER};
@@ -28,6 +29,20 @@ pub fn impact_speed_m_per_s(velocity_norm: f64) -> f64 {
 /// faster one (0.03 to 1.6 times it). \[any-thread\]
 pub fn drive_speed_m_per_s(scene_speed_m_per_s: f64, impact_m_per_s: f64) -> f64 {
     scene_speed_m_per_s * impact_m_per_s / impact_speed_m_per_s(100.0 / 127.0)
+}
+
+/// The mod wheel's factor on a driven scene's speed along its path
+/// (docs/design.md, "Rolling and scraping"): `WHEEL_SPEED_RANGE^wheel`,
+/// 1 at rest (the note's velocity alone sets the speed) to
+/// [`WHEEL_SPEED_RANGE`] at full; a wheel that is not a number counts as
+/// at rest. \[any-thread\]
+pub fn wheel_speed_factor(mod_wheel: f64) -> f64 {
+    let w = if mod_wheel.is_finite() {
+        mod_wheel.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    WHEEL_SPEED_RANGE.powf(w)
 }
 
 /// Which per-voice variants beyond the hardness levels to compile (the

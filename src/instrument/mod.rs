@@ -10,8 +10,10 @@
 //! - **Velocity -> a driven scene's speed** ([`drive_speed_m_per_s`]): the
 //!   scene's speed along its path times the impact speed's ratio to velocity
 //!   100's; a new note puts the hammer on the surface at rest at the path's
-//!   start, a note on a ringing key changes the speed, note-off stops the
-//!   surface (docs/design.md, "Rolling and scraping").
+//!   start, a note on a ringing key changes the speed, the mod wheel
+//!   multiplies every held note's speed by 1 to [`WHEEL_SPEED_RANGE`]
+//!   ([`wheel_speed_factor`]), note-off stops the surface (docs/design.md,
+//!   "Rolling and scraping").
 //! - **Velocity -> impact speed** ([`impact_speed_m_per_s`]):
 //!   `v = 0.05 + 2.95 * vel^2` m/s for `vel` in 0..1 (MIDI velocity / 127), so
 //!   the softest note hits at 5 cm/s and the hardest at 3 m/s; the square gives
@@ -106,7 +108,7 @@ pub use events::{Event, TimedEvent};
 pub use kit::{Kit, LISTED_KIT_SPARES, MAX_KIT_VOICES, SILENCE_AMPLITUDE_RATIO};
 pub use mapping::{
     damped_scene, drive_speed_m_per_s, impact_speed_m_per_s, lowest_frequency_hz, root_note,
-    scene_for, InstrumentParams, PlayParams, SceneParams, VariantSet,
+    scene_for, wheel_speed_factor, InstrumentParams, PlayParams, SceneParams, VariantSet,
 };
 pub use mix::{WorkMeter, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_LOOKAHEAD_SAMPLES};
 pub use prepared::{
@@ -150,6 +152,9 @@ pub const DAMPER_T60_DIVISOR: f64 = 50.0;
 pub const UNDAMPED_RELEASE_T60_S: f64 = 20.0;
 /// Slowest impact speed (velocity 0) \[m/s\].
 pub const MIN_IMPACT_SPEED_M_PER_S: f64 = 0.05;
+/// A driven scene's speed at full mod wheel, as a multiple of the speed
+/// its note's velocity set ([`wheel_speed_factor`]).
+pub const WHEEL_SPEED_RANGE: f64 = 4.0;
 /// Impact speed added at full velocity \[m/s\] (velocity 1 gives 3 m/s).
 pub const IMPACT_SPEED_RANGE_M_PER_S: f64 = 2.95;
 /// Hard output ceiling: no sample the instrument writes exceeds this in
@@ -744,6 +749,7 @@ impl Instrument {
                 self.bend_wheel = 0.0;
                 self.channel_pressure = 0.0;
                 self.mod_wheel = 0.0;
+                self.drive_wheel();
                 for i in 0..MAX_VOICES {
                     if self.voices[i].active {
                         self.voices[i].pressure = 0.0;
@@ -803,6 +809,7 @@ impl Instrument {
             }
             Event::ModWheel { value } => {
                 self.mod_wheel = unit(value);
+                self.drive_wheel();
                 (0..MAX_VOICES).for_each(|i| self.repress(i));
                 self.repress_fades();
             }

@@ -3,7 +3,7 @@
 //! running state fades out in a spare), the damper at note-off, and
 //! silence detection.
 
-use super::mapping::{drive_speed_m_per_s, key_scale};
+use super::mapping::{drive_speed_m_per_s, key_scale, wheel_speed_factor};
 use super::prepared::{Prepared, Variant};
 use super::{
     impact_speed_m_per_s, slew, Instrument, MAX_PRESSURE_DECAY_PER_S, MAX_VOICES,
@@ -58,6 +58,9 @@ pub(super) struct Voice {
     /// The damper pressing it since its last decision (`None`: not
     /// pressed), see [`Instrument::press_decide`].
     pub(super) pressing: Option<Pressing>,
+    /// A driven scene's speed along the path its note's velocity set
+    /// \[m/s\], before the mod wheel ([`wheel_speed_factor`]).
+    pub(super) drive_base: f64,
 }
 
 /// A pressed voice between two updates of its state (docs/plugin.md,
@@ -212,6 +215,7 @@ impl Instrument {
             bright_level: 0,
             hard_level: 0,
             pressing: None,
+            drive_base: 0.0,
         };
         stored
     }
@@ -230,12 +234,17 @@ impl Instrument {
             // a driven scene: a new note puts the hammer on the surface at
             // rest at the path's start (its voice was reset); a note on a
             // ringing key keeps it where it is; either way the note's
-            // velocity sets the speed along the path
+            // velocity sets the speed along the path, the mod wheel
+            // multiplies it
             let path_speed = drive_speed_m_per_s(d.speed_m_per_s, speed);
             if self.voices[idx].fresh {
                 st.strike(&p.scenes.scene, 0.0, 0.0);
             }
-            st.set_drive_speed(&p.scenes.scene, path_speed);
+            self.voices[idx].drive_base = path_speed;
+            st.set_drive_speed(
+                &p.scenes.scene,
+                path_speed * wheel_speed_factor(self.mod_wheel),
+            );
             e = 0.5 * m_h * (path_speed / s) * (path_speed / s);
         } else if p.bouncing {
             let h = self.play.drop_height_m.max(0.0);
@@ -567,6 +576,22 @@ impl Instrument {
     pub(super) fn repress(&mut self, i: usize) {
         self.press_flush(i);
         self.press_decide(i);
+    }
+
+    /// A driven scene's held notes at the mod wheel's speed: each the
+    /// speed its velocity set times [`wheel_speed_factor`] (released
+    /// notes stay stopped). \[audio-thread\]
+    pub(super) fn drive_wheel(&mut self) {
+        let p = &mut *self.cur;
+        if p.scenes.scene.drive.is_none() {
+            return;
+        }
+        let factor = wheel_speed_factor(self.mod_wheel);
+        for (v, st) in self.voices.iter().zip(p.states.iter_mut()) {
+            if v.active && !v.released {
+                st.set_drive_speed(&p.scenes.scene, v.drive_base * factor);
+            }
+        }
     }
 
     /// Stop voice `i` if it fell silent (its energy below

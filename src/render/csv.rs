@@ -3,7 +3,7 @@
 //! and a writer thread, and [`write_trace_csv`] for rows in memory.
 
 use super::numbers::{put_numbers, NUMBER_ROOM};
-use super::trace::{check_contacts, trace_header, TraceRow, TraceSink, TRACE_HEADER};
+use super::trace::{check_contacts, trace_header_with, TraceRow, TraceSink, TRACE_HEADER};
 use super::writer::{join_writer, spawn_ordered_writer, ChunkQueue};
 use crate::engine::Motion;
 use crate::scene::MAX_CONTACTS;
@@ -34,6 +34,9 @@ pub struct CsvTrace<W: Write + Send + 'static> {
     /// Contacts per sample: a sample is this many consecutive entries of
     /// `rows` (contact 0's with the energy, then the further contacts').
     contacts: usize,
+    /// A driven scene's trace: every row ends with the surface's columns
+    /// ([`super::DRIVE_COLUMNS`]), fed by [`TraceSink::record_driven`].
+    driven: bool,
     rows: Vec<TraceRow>,
     queue: ChunkQueue<TraceRow>,
     formatters: Vec<std::thread::JoinHandle<()>>,
@@ -50,14 +53,21 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
 
     /// [`new`](Self::new) with `formatters` formatting threads (at least 1).
     pub fn with_formatters(rate_hz: f64, out: W, formatters: usize) -> std::io::Result<Self> {
-        Self::start(rate_hz, out, formatters, 1)
+        Self::start(rate_hz, out, formatters, 1, false)
+    }
+
+    /// The trace of a driven scene (one contact; columns [`TRACE_HEADER`]
+    /// then [`super::DRIVE_COLUMNS`]), fed by [`TraceSink::record_driven`].
+    pub fn driven(rate_hz: f64, out: W) -> std::io::Result<Self> {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        Self::start(rate_hz, out, cores.min(CSV_MAX_FORMATTERS), 1, true)
     }
 
     /// The trace of a render of `contacts` contacts (columns
     /// [`trace_header`]), fed by [`TraceSink::record_several`].
     pub fn with_contacts(rate_hz: f64, out: W, contacts: usize) -> std::io::Result<Self> {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-        Self::start(rate_hz, out, cores.min(CSV_MAX_FORMATTERS), contacts)
+        Self::start(rate_hz, out, cores.min(CSV_MAX_FORMATTERS), contacts, false)
     }
 
     fn start(
@@ -65,10 +75,12 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
         mut out: W,
         formatters: usize,
         contacts: usize,
+        driven: bool,
     ) -> std::io::Result<Self> {
         use crossbeam::channel::bounded;
         let contacts = contacts.clamp(1, MAX_CONTACTS);
-        writeln!(out, "{}", trace_header(contacts))?;
+        let driven = driven && contacts == 1;
+        writeln!(out, "{}", trace_header_with(contacts, driven))?;
         let formatters = formatters.max(1);
         let (to_format, chunks) = bounded::<Chunk>(CSV_CHUNKS_IN_FLIGHT);
         let (to_writer, texts) = bounded::<(u64, Vec<u8>)>(CSV_CHUNKS_IN_FLIGHT);
@@ -88,7 +100,11 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
                             let mut text = spare_text.try_recv().unwrap_or_default();
                             text.resize(rows.len() * ROW_ROOM, 0);
                             let mut end = 0;
-                            if contacts == 1 {
+                            if driven {
+                                for r in &rows {
+                                    end = put_driven_row(&mut text, end, r);
+                                }
+                            } else if contacts == 1 {
                                 for r in &rows {
                                     end = put_row(&mut text, end, r);
                                 }
@@ -114,6 +130,7 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
         Ok(Self {
             rate_hz,
             contacts,
+            driven,
             rows: Vec::with_capacity(CSV_CHUNK_ROWS * contacts),
             queue: ChunkQueue {
                 seq: 0,
@@ -181,6 +198,15 @@ impl<W: Write + Send + 'static> TraceSink for CsvTrace<W> {
     fn record(&mut self, i: usize, m: &Motion, e: Option<f64>) -> std::io::Result<()> {
         self.record_several(i, std::slice::from_ref(m), e)
     }
+    fn record_driven(
+        &mut self,
+        i: usize,
+        m: &Motion,
+        e: Option<f64>,
+        surface: [f64; 2],
+    ) -> std::io::Result<()> {
+        self.driven_row(i, m, e, surface)
+    }
     fn record_several(
         &mut self,
         i: usize,
@@ -188,6 +214,11 @@ impl<W: Write + Send + 'static> TraceSink for CsvTrace<W> {
         e: Option<f64>,
     ) -> std::io::Result<()> {
         check_contacts(motions, self.contacts)?;
+        if self.driven {
+            return Err(std::io::Error::other(
+                "a driven scene's trace was handed a sample without its surface",
+            ));
+        }
         let t = i as f64 / self.rate_hz;
         let e = e.expect("every energy was asked for");
         // the further contacts ride in rows of their own (their energy
@@ -195,8 +226,34 @@ impl<W: Write + Send + 'static> TraceSink for CsvTrace<W> {
         self.rows.extend(motions.iter().map(|m| TraceRow {
             t,
             obs: m.with_energy(e),
+            surface: [0.0; 2],
         }));
         if self.rows.len() >= CSV_CHUNK_ROWS * self.contacts {
+            self.send()?;
+        }
+        Ok(())
+    }
+}
+
+impl<W: Write + Send + 'static> CsvTrace<W> {
+    fn driven_row(
+        &mut self,
+        i: usize,
+        m: &Motion,
+        e: Option<f64>,
+        surface: [f64; 2],
+    ) -> std::io::Result<()> {
+        if !self.driven {
+            return Err(std::io::Error::other(
+                "a trace made for a scene that is not driven was handed a surface",
+            ));
+        }
+        self.rows.push(TraceRow {
+            t: i as f64 / self.rate_hz,
+            obs: m.with_energy(e.expect("every energy was asked for")),
+            surface,
+        });
+        if self.rows.len() >= CSV_CHUNK_ROWS {
             self.send()?;
         }
         Ok(())
@@ -216,9 +273,9 @@ pub fn write_trace_csv<W: Write>(rows: &[TraceRow], mut w: W) -> std::io::Result
     Ok(())
 }
 
-/// Room for one row in [`put_row`]: 6 numbers, each with its separator
-/// (the `in_contact` flag is part of one).
-const ROW_ROOM: usize = 6 * NUMBER_ROOM;
+/// Room for one row in [`put_row`] or [`put_driven_row`]: 8 numbers, each
+/// with its separator (the `in_contact` flag is part of one).
+const ROW_ROOM: usize = 8 * NUMBER_ROOM;
 
 /// Append one CSV row to `buf` (numbers as [`put_numbers`] writes them).
 fn push_row(buf: &mut Vec<u8>, r: &TraceRow) {
@@ -243,6 +300,29 @@ fn put_row(out: &mut [u8], at: usize, r: &TraceRow) -> usize {
         4 if o.in_contact => b",1,",
         4 => b",0,",
         5 => b"\n",
+        _ => b",",
+    })
+}
+
+/// Write one row of a driven scene's trace to `out[at..]` (room for
+/// [`ROW_ROOM`] bytes): [`put_row`]'s numbers, then the path position and
+/// the surface's height ([`super::DRIVE_COLUMNS`]); the end.
+fn put_driven_row(out: &mut [u8], at: usize, r: &TraceRow) -> usize {
+    let o = &r.obs;
+    let xs = [
+        r.t,
+        o.x_hammer,
+        o.v_hammer,
+        o.x_contact,
+        o.v_contact,
+        o.energy,
+        r.surface[0],
+        r.surface[1],
+    ];
+    put_numbers(out, at, &xs, |k| match k {
+        4 if o.in_contact => b",1,",
+        4 => b",0,",
+        7 => b"\n",
         _ => b",",
     })
 }

@@ -64,6 +64,17 @@ impl TraceSink for TraceEnvelope {
     fn wants_energy(&self, i: usize) -> bool {
         i == 0 || self.is_bucket_end(i)
     }
+    /// The plot draws the hammer relative to the surface (what the contact
+    /// sees), not the surface.
+    fn record_driven(
+        &mut self,
+        i: usize,
+        m: &Motion,
+        e: Option<f64>,
+        _: [f64; 2],
+    ) -> std::io::Result<()> {
+        self.record(i, m, e)
+    }
     fn every_energy(&self) -> bool {
         false
     }

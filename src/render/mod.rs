@@ -31,7 +31,9 @@ pub use envelope::{EnvelopeBucket, TraceEnvelope, ENVELOPE_BUCKETS};
 pub use npy::NpyTrace;
 pub use numbers::{push_numbers, put_numbers, NUMBER_ROOM};
 pub use stream::{render_stream, render_stream_several, StreamStats, STREAM_CHUNK};
-pub use trace::{trace_header, TraceRow, TraceRows, TraceSink, TRACE_HEADER};
+pub use trace::{
+    trace_header, trace_header_with, TraceRow, TraceRows, TraceSink, DRIVE_COLUMNS, TRACE_HEADER,
+};
 
 /// Options of an offline render.
 #[derive(Debug, Clone)]

@@ -3,7 +3,7 @@
 //! numbers' own bits.
 
 use super::csv::{CSV_CHUNKS_IN_FLIGHT, CSV_CHUNK_ROWS};
-use super::trace::{check_contacts, trace_header, TraceRow, TraceSink};
+use super::trace::{check_contacts, trace_header_with, TraceRow, TraceSink};
 use super::writer::{join_writer, spawn_ordered_writer, ChunkQueue};
 use crate::engine::Motion;
 use crate::scene::MAX_CONTACTS;
@@ -49,8 +49,12 @@ const NPY_FURTHER: usize = 40;
 /// system's copy runs beside the engine).
 pub struct NpyTrace<W: Write + Send + 'static> {
     rate_hz: f64,
-    /// Contacts per record ([`trace_header`]).
+    /// Contacts per record ([`super::trace_header`]).
     contacts: usize,
+    /// A driven scene's trace: each record ends with the surface's two
+    /// fields ([`super::DRIVE_COLUMNS`]), fed by
+    /// [`TraceSink::record_driven`].
+    driven: bool,
     /// Bytes handed to the writer at a time (whole records).
     chunk: usize,
     rows: usize,
@@ -76,18 +80,38 @@ impl<W: Write + Send + 'static> NpyTrace<W> {
         rate_hz: f64,
         rows: usize,
         contacts: usize,
+        out: W,
+    ) -> std::io::Result<Self> {
+        Self::start(rate_hz, rows, contacts, false, out)
+    }
+
+    /// The trace of a driven scene (one contact): the fields of
+    /// [`super::TRACE_HEADER`] then [`super::DRIVE_COLUMNS`], 72 bytes per
+    /// record; fed by [`TraceSink::record_driven`].
+    pub fn driven(rate_hz: f64, rows: usize, out: W) -> std::io::Result<Self> {
+        Self::start(rate_hz, rows, 1, true, out)
+    }
+
+    fn start(
+        rate_hz: f64,
+        rows: usize,
+        contacts: usize,
+        driven: bool,
         mut out: W,
     ) -> std::io::Result<Self> {
         use crossbeam::channel::bounded;
         let contacts = contacts.clamp(1, MAX_CONTACTS);
-        out.write_all(&npy_header_with(&trace_header(contacts), rows))?;
-        let chunk = CSV_CHUNK_ROWS * (NPY_RECORD + NPY_FURTHER * (contacts - 1));
+        let driven = driven && contacts == 1;
+        out.write_all(&npy_header_with(&trace_header_with(contacts, driven), rows))?;
+        let chunk = CSV_CHUNK_ROWS
+            * (NPY_RECORD + NPY_FURTHER * (contacts - 1) + if driven { 16 } else { 0 });
         let (to_writer, chunks) = bounded(CSV_CHUNKS_IN_FLIGHT);
         let (give, spare) = bounded(CSV_CHUNKS_IN_FLIGHT + 1);
         let writer = spawn_ordered_writer("trace-npy-write", out, chunks, give)?;
         Ok(Self {
             rate_hz,
             contacts,
+            driven,
             chunk,
             rows,
             written: 0,
@@ -138,12 +162,27 @@ impl<W: Write + Send + 'static> NpyTrace<W> {
         let row = TraceRow {
             t: i as f64 / self.rate_hz,
             obs: m.with_energy(e),
+            surface: [0.0; 2],
         };
         let mut rec = [0u8; NPY_RECORD];
         for (k, x) in row.columns().into_iter().enumerate() {
             rec[8 * k..8 * k + 8].copy_from_slice(&x.to_le_bytes());
         }
         self.buf.extend_from_slice(&rec);
+    }
+}
+
+impl<W: Write + Send + 'static> NpyTrace<W> {
+    /// An error if this is a driven scene's trace (its records need the
+    /// surface: [`TraceSink::record_driven`]).
+    fn undriven(&self) -> std::io::Result<()> {
+        if self.driven {
+            Err(std::io::Error::other(
+                "a driven scene's trace was handed a sample without its surface",
+            ))
+        } else {
+            Ok(())
+        }
     }
 }
 
@@ -174,12 +213,35 @@ impl<W: Write + Send + 'static> TraceSink for NpyTrace<W> {
         e: Option<f64>,
     ) -> std::io::Result<()> {
         check_contacts(motions, self.contacts)?;
+        self.undriven()?;
         self.push(i, &motions[0], e.expect("every energy was asked for"));
         for m in &motions[1..] {
             let flag = f64::from(u8::from(m.in_contact));
             for x in [m.x_hammer, m.v_hammer, m.x_contact, m.v_contact, flag] {
                 self.buf.extend_from_slice(&x.to_le_bytes());
             }
+        }
+        self.written += 1;
+        if self.buf.len() >= self.chunk {
+            self.send()?;
+        }
+        Ok(())
+    }
+    fn record_driven(
+        &mut self,
+        i: usize,
+        m: &Motion,
+        e: Option<f64>,
+        surface: [f64; 2],
+    ) -> std::io::Result<()> {
+        if !self.driven {
+            return Err(std::io::Error::other(
+                "a trace made for a scene that is not driven was handed a surface",
+            ));
+        }
+        self.push(i, m, e.expect("every energy was asked for"));
+        for x in surface {
+            self.buf.extend_from_slice(&x.to_le_bytes());
         }
         self.written += 1;
         if self.buf.len() >= self.chunk {
@@ -194,6 +256,7 @@ impl<W: Write + Send + 'static> TraceSink for NpyTrace<W> {
         energy: &[f64],
     ) -> std::io::Result<()> {
         check_contacts(&[Motion::default()], self.contacts)?;
+        self.undriven()?;
         for (k, (m, &e)) in motion.iter().zip(energy).enumerate() {
             self.push(first + k, m, e);
             if self.buf.len() >= self.chunk {

@@ -66,6 +66,23 @@ pub fn render_stream(
         let (lc, rc) = (&mut l[..len], &mut r[..len]);
         match trace.as_deref_mut() {
             None => st.process_block(compiled, lc, rc),
+            Some(sink) if compiled.drive.is_some() => {
+                // a driven scene: each row with the surface at its instant
+                for k in 0..len {
+                    let i = done + k;
+                    let want = sink.wants_energy(i);
+                    let (out, (m, e, at)) = st.tick_with(compiled, |s| {
+                        (
+                            s.motion(compiled),
+                            want.then(|| s.energy(compiled)),
+                            s.surface_at(compiled).unwrap_or_default(),
+                        )
+                    });
+                    sink.record_driven(i, &m, e, [at.path_m, at.height_m])?;
+                    lc[k] = out[0];
+                    rc[k] = out[1];
+                }
+            }
             Some(sink) if !sink.every_energy() => {
                 observe_block(compiled, &mut st, sink, done, lc, rc, &mut motion[..len])?
             }

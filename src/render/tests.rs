@@ -134,6 +134,7 @@ fn parse_csv(bytes: &[u8]) -> Vec<TraceRow> {
                     in_contact: f[5] == "1",
                     energy: x(6),
                 },
+                surface: [0.0; 2],
             }
         })
         .collect()
@@ -359,6 +360,7 @@ fn csv_from_several_formatting_threads_is_the_one_thread_csv() {
                 in_contact: rng.uniform(0.0, 1.0) < 0.1,
                 energy: rng.uniform(0.0, 1e-2),
             },
+            surface: [0.0; 2],
         })
         .collect();
     for n in [0, 1, CSV_CHUNK_ROWS, CSV_CHUNK_ROWS + 1, rows.len()] {
@@ -533,6 +535,15 @@ impl TraceSink for OneContactOnly {
     fn record(&mut self, _: usize, _: &Motion, _: Option<f64>) -> std::io::Result<()> {
         self.0 += 1;
         Ok(())
+    }
+    fn record_driven(
+        &mut self,
+        i: usize,
+        m: &Motion,
+        e: Option<f64>,
+        _: [f64; 2],
+    ) -> std::io::Result<()> {
+        self.record(i, m, e)
     }
 }
 

@@ -11,6 +11,10 @@ pub struct TraceRow {
     pub t: f64,
     /// The observation at that time, after the switching decision.
     pub obs: Observation,
+    /// A driven scene's path position and the surface's height under the
+    /// contact at that time \[m\] ([`DRIVE_COLUMNS`]; zeros for a scene
+    /// that is not driven, whose trace has no such columns).
+    pub surface: [f64; 2],
 }
 
 impl TraceRow {
@@ -32,6 +36,25 @@ impl TraceRow {
 
 /// The trace CSV header (docs/design.md, "The render command and the trace CSV").
 pub const TRACE_HEADER: &str = "t,x_hammer,v_hammer,x_contact,v_contact,in_contact,energy";
+
+/// The columns a driven scene's trace adds after [`TRACE_HEADER`]
+/// (docs/design.md, "Rolling and scraping"): the path position \[m\] and
+/// the surface's height under the contact \[m\] (from its height at the
+/// path's start; `x_hammer` is relative to it: the hammer's height in the
+/// room is `x_hammer + surface`).
+pub const DRIVE_COLUMNS: &str = "path,surface";
+
+/// The trace's header of a driven scene ([`DRIVE_COLUMNS`] after
+/// [`TRACE_HEADER`]) or of `contacts` contacts ([`trace_header`]; a driven
+/// scene has one contact).
+pub fn trace_header_with(contacts: usize, driven: bool) -> String {
+    let mut h = trace_header(contacts);
+    if driven {
+        h.push(',');
+        h.push_str(DRIVE_COLUMNS);
+    }
+    h
+}
 
 /// The trace's header for `contacts` contacts (docs/design.md, "Several
 /// contacts"): [`TRACE_HEADER`] for contact 0 (`energy` the total), then
@@ -75,6 +98,21 @@ pub trait TraceSink {
             ))),
         }
     }
+    /// Record sample `i` of a driven scene: its motion, its energy when
+    /// asked for, and `surface`, the path position and the surface's height
+    /// under the contact \[m\] ([`DRIVE_COLUMNS`]). Every sink says what
+    /// it does with the surface (no default, so a wrapper cannot drop it
+    /// by forgetting): the trace files and the rows in memory keep it (a
+    /// trace file made for a scene that is not driven refuses it: an
+    /// error, not a dropped column); the plot's envelope, which draws no
+    /// surface, takes the motion.
+    fn record_driven(
+        &mut self,
+        i: usize,
+        motion: &Motion,
+        energy: Option<f64>,
+        surface: [f64; 2],
+    ) -> std::io::Result<()>;
     /// Whether the sink wants the energy of (nearly) every sample. When it
     /// does not, the render runs the engine's block path with the motion
     /// ([`EngineState::process_block_observed`], one kernel pass summing
@@ -138,7 +176,21 @@ impl TraceSink for TraceRows {
         self.rows.push(TraceRow {
             t: i as f64 / self.rate_hz,
             obs: m.with_energy(e.expect("every energy was asked for")),
+            surface: [0.0; 2],
         });
+        Ok(())
+    }
+    fn record_driven(
+        &mut self,
+        i: usize,
+        m: &Motion,
+        e: Option<f64>,
+        surface: [f64; 2],
+    ) -> std::io::Result<()> {
+        self.record(i, m, e)?;
+        if let Some(r) = self.rows.last_mut() {
+            r.surface = surface;
+        }
         Ok(())
     }
     fn record_several(
@@ -182,6 +234,18 @@ impl<A: TraceSink, B: TraceSink> TraceSink for (A, B) {
         let e1 = if self.1.wants_energy(i) { e } else { None };
         self.0.record(i, m, e0)?;
         self.1.record(i, m, e1)
+    }
+    fn record_driven(
+        &mut self,
+        i: usize,
+        m: &Motion,
+        e: Option<f64>,
+        surface: [f64; 2],
+    ) -> std::io::Result<()> {
+        let e0 = if self.0.wants_energy(i) { e } else { None };
+        let e1 = if self.1.wants_energy(i) { e } else { None };
+        self.0.record_driven(i, m, e0, surface)?;
+        self.1.record_driven(i, m, e1, surface)
     }
     fn record_several(
         &mut self,

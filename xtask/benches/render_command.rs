@@ -139,6 +139,15 @@ impl TraceSink for Keep {
         self.0.push((*m, e.expect("asked for")));
         Ok(())
     }
+    fn record_driven(
+        &mut self,
+        i: usize,
+        m: &Motion,
+        e: Option<f64>,
+        _: [f64; 2],
+    ) -> std::io::Result<()> {
+        self.record(i, m, e)
+    }
 }
 
 /// The CSV's text alone: the first `n` kept rows through the render's CSV

@@ -68,6 +68,7 @@ fn render_hashes(
         rows.push(TraceRow {
             t: i as f64 / RATE,
             obs,
+            surface: [0.0; 2],
         });
         left.push(out[0]);
         right.push(out[1]);

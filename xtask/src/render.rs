@@ -425,9 +425,16 @@ pub fn render_scene_to(
     out: &SceneOutputs,
     progress: &dyn Fn(u64),
 ) -> Result<StreamStats> {
-    render_outputs(compiled.rate_hz, 1, n, out, progress, |audio, trace| {
-        render_stream(compiled, n, audio, trace)
-    })
+    let driven = compiled.drive.is_some();
+    render_outputs(
+        compiled.rate_hz,
+        1,
+        driven,
+        n,
+        out,
+        progress,
+        |audio, trace| render_stream(compiled, n, audio, trace),
+    )
 }
 
 /// [`render_scene_to`] for a scene of any number of contacts: the trace
@@ -444,6 +451,7 @@ pub fn render_compiled_to(
     render_outputs(
         compiled.rate_hz(),
         compiled.contacts(),
+        compiled.driven(),
         n,
         out,
         progress,
@@ -451,10 +459,13 @@ pub fn render_compiled_to(
     )
 }
 
-/// The outputs of a render of `contacts` contacts that `stream` runs.
+/// The outputs of a render of `contacts` contacts that `stream` runs (a
+/// driven scene's trace with the surface's columns).
+#[allow(clippy::too_many_arguments)]
 fn render_outputs(
     rate_hz: f64,
     contacts: usize,
+    driven: bool,
     n: usize,
     out: &SceneOutputs,
     progress: &dyn Fn(u64),
@@ -478,8 +489,10 @@ fn render_outputs(
         Some(p) => {
             let f = create_trace_file(p)?;
             Some(match TraceFormat::of(p) {
+                TraceFormat::Csv if driven => TraceFile::Csv(CsvTrace::driven(rate_hz, f)?),
                 TraceFormat::Csv if contacts == 1 => TraceFile::Csv(CsvTrace::new(rate_hz, f)?),
                 TraceFormat::Csv => TraceFile::Csv(CsvTrace::with_contacts(rate_hz, f, contacts)?),
+                TraceFormat::Npy if driven => TraceFile::Npy(NpyTrace::driven(rate_hz, n, f)?),
                 TraceFormat::Npy => {
                     TraceFile::Npy(NpyTrace::with_contacts(rate_hz, n, contacts, f)?)
                 }
@@ -569,6 +582,15 @@ impl TraceSink for TraceFile {
         e: Option<f64>,
     ) -> std::io::Result<()> {
         self.sink_mut().record_several(i, motions, e)
+    }
+    fn record_driven(
+        &mut self,
+        i: usize,
+        m: &modal_contact::engine::Motion,
+        e: Option<f64>,
+        surface: [f64; 2],
+    ) -> std::io::Result<()> {
+        self.sink_mut().record_driven(i, m, e, surface)
     }
 }
 
