@@ -1,7 +1,7 @@
 //! A driven scene played by the instrument (docs/design.md, "Rolling and
 //! scraping"): a note starts the stroke (its velocity the speed along
 //! the path), a harder note strokes faster, the mod wheel speeds a held
-//! stroke up, note-off stops the surface, and the voice ends once it is
+//! stroke up, pressure presses it harder, note-off stops the surface, and the voice ends once it is
 //! silent.
 
 use modal_contact::instrument::{
@@ -212,5 +212,78 @@ fn the_mod_wheel_speeds_a_held_stroke_up() {
         during > 1.5 * before && during > 1.5 * after,
         "{before} {during} {after}"
     );
+    assert_eq!(inst.active_voices(), 1);
+}
+
+/// Pressure presses a held stroke harder (docs/design.md, "Rolling and
+/// scraping"): full pressure is press level 4, the hand's force times 4
+/// (5 N to 20 N). The instrument is the scene driven offline and carried
+/// to the scene pressed by 20 N and back where the pressure moves, to the
+/// output's f32 rounding. Independently of the engine, the momentum
+/// balance says the contact's mean force over a window is the pressing
+/// force (the hammer's velocity is bounded): measured from the motion
+/// (`k p + c p'` while in contact), it follows the pressure.
+#[test]
+fn pressure_presses_a_held_stroke_harder() {
+    use modal_contact::instrument::{press_factor, press_level, PRESS_LEVELS};
+    assert_eq!(press_level(1.0), PRESS_LEVELS);
+    assert_eq!(press_level(f64::NAN), 0);
+    assert_eq!(press_factor(PRESS_LEVELS), 4.0);
+    assert_eq!(press_factor(0), 1.0);
+    let scene = scraped_bar();
+    let mut pressed = scene.clone();
+    pressed.drive.as_mut().unwrap().press_n *= 4.0;
+    let (sc, sc4) = (
+        compile_one(&scene, RATE).unwrap(),
+        compile_one(&pressed, RATE).unwrap(),
+    );
+    let velocity = 100.0 / 127.0;
+    let key = modal_contact::instrument::root_note(&scene).round() as u8;
+    let (up, down) = ((0.3 * RATE) as usize, (0.6 * RATE) as usize);
+    let n = (0.9 * RATE) as usize;
+    let press = |offset, value| TimedEvent {
+        offset,
+        event: Event::NotePressure {
+            key: Some(key),
+            value,
+        },
+    };
+    let (out, inst) = play_with(velocity, None, 0.9, &[press(up, 1.0), press(down, 0.0)]);
+    let speed = drive_speed_m_per_s(0.2, impact_speed_m_per_s(velocity));
+    let mut st = EngineState::new(&sc);
+    st.strike(&sc, 0.0, 0.0);
+    st.set_drive_speed(&sc, speed);
+    let (mut worst, mut peak) = (0.0f64, 0.0f64);
+    let (k, c) = (2.0e5, 2.0);
+    let mut force = [0.0f64; 3];
+    for (i, &o) in out[..n].iter().enumerate() {
+        if i == up {
+            assert!(st.rebind(&sc, &sc4));
+        }
+        if i == down {
+            assert!(st.rebind(&sc4, &sc));
+        }
+        let now = if (up..down).contains(&i) { &sc4 } else { &sc };
+        let (y, m) = st.tick_with(now, |s| s.motion(now));
+        let (p, dp) = (m.x_contact - m.x_hammer, m.v_contact - m.v_hammer);
+        if m.in_contact {
+            force[(i >= up) as usize + (i >= down) as usize] += (k * p + c * dp).max(0.0);
+        }
+        peak = peak.max(y[0].abs());
+        worst = worst.max((f64::from(o) - y[0]).abs());
+    }
+    // the mean force over each 0.3 s window
+    let mean = |sum: f64| sum / (0.3 * RATE);
+    println!(
+        "mean contact force {:.2} / {:.2} / {:.2} N (press 5 / 20 / 5 N); instrument vs \
+         offline {worst:.1e} of peak {peak:.1e}",
+        mean(force[0]),
+        mean(force[1]),
+        mean(force[2])
+    );
+    assert!(peak > 1e-5 && worst <= 1e-6 * peak, "{worst:e} of {peak:e}");
+    assert!((mean(force[0]) / 5.0 - 1.0).abs() < 0.15, "{force:?}");
+    assert!((mean(force[1]) / 20.0 - 1.0).abs() < 0.15, "{force:?}");
+    assert!((mean(force[2]) / 5.0 - 1.0).abs() < 0.15, "{force:?}");
     assert_eq!(inst.active_voices(), 1);
 }

@@ -12,7 +12,10 @@
 //!   100's; a new note puts the hammer on the surface at rest at the path's
 //!   start, a note on a ringing key changes the speed, the mod wheel
 //!   multiplies every held note's speed by 1 to [`WHEEL_SPEED_RANGE`]
-//!   ([`wheel_speed_factor`]), note-off stops the surface (docs/design.md,
+//!   ([`wheel_speed_factor`]), pressure (the note's or the channel's)
+//!   presses it with up to [`PRESS_RANGE`] times the scene's force
+//!   ([`press_level`], [`press_factor`]: the voice carried to that level's
+//!   compiled scene), note-off stops the surface (docs/design.md,
 //!   "Rolling and scraping").
 //! - **Velocity -> impact speed** ([`impact_speed_m_per_s`]):
 //!   `v = 0.05 + 2.95 * vel^2` m/s for `vel` in 0..1 (MIDI velocity / 127), so
@@ -113,10 +116,10 @@ pub use mapping::{
 pub use mix::{WorkMeter, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_LOOKAHEAD_SAMPLES};
 pub use prepared::{
     damper_level, hardness_level, position_level, prepare, prepare_scene, prepare_scene_staged,
-    prepare_staged, timbre_level, PrepareError, Prepared, Scenes, Stage, StrikeCost, Variant,
-    DAMPER_STEP, POSITION_STEP, STEP_NS_FIXED, STEP_NS_PER_STATE, STRIKE_BUDGET_FRACTION,
-    STRIKE_NS_FIXED, STRIKE_NS_PER_STATE, STRIKE_NS_PER_SWITCH_FLOP, TIMBRE_LEVEL_MAX,
-    TIMBRE_MAX_STATES, TIMBRE_STIFFNESS_STEP,
+    prepare_staged, press_factor, press_level, timbre_level, PrepareError, Prepared, Scenes, Stage,
+    StrikeCost, Variant, DAMPER_STEP, POSITION_STEP, PRESS_LEVELS, PRESS_RANGE, STEP_NS_FIXED,
+    STEP_NS_PER_STATE, STRIKE_BUDGET_FRACTION, STRIKE_NS_FIXED, STRIKE_NS_PER_STATE,
+    STRIKE_NS_PER_SWITCH_FLOP, TIMBRE_LEVEL_MAX, TIMBRE_MAX_STATES, TIMBRE_STIFFNESS_STEP,
 };
 pub use probe::{VoiceChunk, VoiceProbe};
 
@@ -755,6 +758,7 @@ impl Instrument {
                         self.voices[i].pressure = 0.0;
                     }
                     self.repress(i);
+                    self.press_drive(i);
                 }
                 self.for_fades(None, |f| f.pressure = 0.0);
                 self.repress_fades();
@@ -780,6 +784,7 @@ impl Instrument {
                     if v.active && key.is_none_or(|k| k == v.key) {
                         v.pressure = value;
                         self.repress(i);
+                        self.press_drive(i);
                     }
                 }
                 // and the voices of `key` fading out
@@ -804,7 +809,10 @@ impl Instrument {
             }
             Event::ChannelPressure { value } => {
                 self.channel_pressure = unit(value);
-                (0..MAX_VOICES).for_each(|i| self.repress(i));
+                for i in 0..MAX_VOICES {
+                    self.repress(i);
+                    self.press_drive(i);
+                }
                 self.repress_fades();
             }
             Event::ModWheel { value } => {

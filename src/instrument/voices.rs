@@ -259,6 +259,8 @@ impl Instrument {
         }
         self.voices[idx].strike_energy = e;
         self.voices[idx].onset_pos = self.sample_pos;
+        // a pressed channel presses a new stroke from its start
+        self.press_drive(idx);
     }
 
     /// Voice `i`'s note fades out from here: stolen by a new note, choked,
@@ -576,6 +578,32 @@ impl Instrument {
     pub(super) fn repress(&mut self, i: usize) {
         self.press_flush(i);
         self.press_decide(i);
+    }
+
+    /// Voice `i` of a driven scene under a constant force at the press
+    /// level of its pressure (its note's or the channel's, the larger;
+    /// [`super::press_level`]): carried to that level's scene
+    /// ([`EngineState::rebind`]: the same physical state, in contact too,
+    /// now pressed by the level's force). Released voices keep their
+    /// level. O(N^2) when the level changes, else O(1). \[audio-thread\]
+    pub(super) fn press_drive(&mut self, i: usize) {
+        let p = &mut *self.cur;
+        let levels = p.scenes.press_levels();
+        let v = &mut self.voices[i];
+        if levels == 0 || !v.active || v.released {
+            return;
+        }
+        let level = super::press_level(v.pressure.max(self.channel_pressure)).min(levels);
+        if level == v.at.press {
+            return;
+        }
+        let mut to = v.at;
+        to.press = level;
+        let (from_scene, to_scene) = (p.scenes.bound(v.at, v.on_damped), p.scenes.bound(to, false));
+        if p.states[i].rebind(from_scene, to_scene) {
+            v.at.press = level;
+            v.want.press = level;
+        }
     }
 
     /// A driven scene's held notes at the mod wheel's speed: each the
