@@ -64,7 +64,7 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
     }
 
     /// The trace of a render of `contacts` contacts (columns
-    /// [`trace_header`]), fed by [`TraceSink::record_several`].
+    /// [`super::trace_header`]), fed by [`TraceSink::record_several`].
     pub fn with_contacts(rate_hz: f64, out: W, contacts: usize) -> std::io::Result<Self> {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         Self::start(rate_hz, out, cores.min(CSV_MAX_FORMATTERS), contacts, false)

@@ -74,7 +74,7 @@ impl<W: Write + Send + 'static> NpyTrace<W> {
     }
 
     /// The trace of a render of `contacts` contacts: the fields of
-    /// [`trace_header`], [`Self::RECORD`] bytes for contact 0 and 40 more
+    /// [`super::trace_header`], [`Self::RECORD`] bytes for contact 0 and 40 more
     /// per further contact; fed by [`TraceSink::record_several`].
     pub fn with_contacts(
         rate_hz: f64,
