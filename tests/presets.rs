@@ -266,10 +266,12 @@ struct Rewritten {
     /// relative L2 of the first second of both renders, when the
     /// whole model is the same
     render: Option<f64>,
-    /// the preset's `points` line when the fixture was tabulated, for
-    /// a preset whose strike point has moved since (the fixture checks
-    /// the object's model, so it is read at the points it was made at)
-    points: Option<&'static str>,
+    /// the preset's lines as they were when the fixture was tabulated,
+    /// each replacing the object's line with the same key, for a preset
+    /// whose strike point or size has moved since (the fixture checks the
+    /// object's model, so it is read at the points and size it was made
+    /// at)
+    lines: &'static [&'static str],
     /// the bar's resonator tube, added since the fixture: left out (it
     /// damps and moves the modes on purpose: tests/radiation.rs)
     resonator: bool,
@@ -283,7 +285,7 @@ fn rewritten_cases() -> [Rewritten; 4] {
             changed: &[],
             replaced: &[],
             render: Some(1e-3),
-            points: None,
+            lines: &[],
             resonator: false,
         },
         // the torsional modes at the uniform bar's frequencies instead of
@@ -293,7 +295,7 @@ fn rewritten_cases() -> [Rewritten; 4] {
             changed: &[],
             replaced: &[1, 3],
             render: None,
-            points: None,
+            lines: &[],
             resonator: true,
         },
         // the exact Timoshenko root instead of its first-order expansion
@@ -303,31 +305,46 @@ fn rewritten_cases() -> [Rewritten; 4] {
             replaced: &[],
             render: None,
             // the fixture was made struck at 0.45 L; the preset strikes the centre
-            points: Some(
-                "points = { contact = [0.06903556710181151, 0.006], \
-                 pickup = [0.006136494853494357, -0.0075] }",
-            ),
+            lines: &["points = { contact = [0.06903556710181151, 0.006], \
+                 pickup = [0.006136494853494357, -0.0075] }"],
             resonator: false,
         },
+        // the fixture's lip (25 x 6 x 1 cm, maple as the old table gave
+        // it); the preset's lip is sized from a recording since
+        // (presets/wood-block.toml)
         Rewritten {
             name: "wood-block",
             changed: &[(0, 1e-3), (3, 7e-3), (4, 2.5e-2)],
             replaced: &[],
             render: None,
-            points: None,
+            lines: &[
+                "material = { name = \"maple\", density_kg_per_m3 = 700.0, \
+                 youngs_modulus_pa = 12e9, shear_modulus_pa = 1.1e9, loss_factor = 0.011 }",
+                "length_m = 0.25",
+                "width_m = 0.06",
+                "thickness_m = 0.01",
+                "loss = { decay_rate_per_s = 5.0 }",
+                "points = { contact = [0.1125, 0.018], pickup = [0.075, -0.015] }",
+            ],
             resonator: false,
         },
     ]
 }
 
 /// The preset of `case` as its fixture was tabulated: at the fixture's
-/// points, without a resonator added since, at unit output level.
+/// points and size, without a resonator added since, at unit output level.
 fn rewritten_scene(root: &std::path::Path, case: &Rewritten) -> Scene {
     let name = case.name;
     let path = root.join(format!("presets/{name}.toml"));
     let mut text = std::fs::read_to_string(&path).unwrap();
-    if let Some(line) = case.points {
-        let at = text.find("\npoints = {").expect("a points line") + 1;
+    let object = text.find("\n[[object]]").expect("an object") + 1;
+    for line in case.lines {
+        let key = &line[..line.find(" = ").expect("a key = value line") + 3];
+        let at = object
+            + text[object..]
+                .find(&format!("\n{key}"))
+                .unwrap_or_else(|| panic!("{name}: no {key} line"))
+            + 1;
         let end = at + text[at..].find('\n').unwrap();
         text = format!("{}{line}{}", &text[..at], &text[end..]);
     }

@@ -104,8 +104,13 @@ fn strike_position_moves_the_string_contact_and_interpolates_modal_weights() {
         "position 0 = first point"
     );
 
-    // two points: ignored
-    let b = modal_base("wood-block");
+    // two points: ignored (the wood block as a table of modes, before it
+    // became a physical description: its preset, heard by a listener,
+    // expands into four points)
+    let b = Scene::from_toml_str(include_str!(
+        "../../../tests/data/modal-presets/wood-block.toml"
+    ))
+    .unwrap();
     let mut p = params("wood-block");
     p.scene.strike_pos_norm = Some(0.3);
     assert_eq!(scene_for(&b, &p).object, b.object);
