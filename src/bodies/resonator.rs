@@ -33,8 +33,16 @@
 //! frequency), as the radiation to a listener is (docs/design.md,
 //! "Radiation to a listener"): this holds while the tube answers faster
 //! than the mode decays (the tube's bandwidth, a few hertz, against the
-//! mode's decay rate); the tube's own ringing after the strike, and the
-//! coupling of two bar modes through the tube, are left out.
+//! mode's decay rate); the coupling of two bar modes through the tube is
+//! left out.
+//!
+//! The tube's own ringing after the strike: its resonances above the
+//! tuned one ([`Resonator::own_modes`], a closed tube's odd harmonics)
+//! are modes of their own, each an air mass and a compliance from the
+//! pole of `Z_par` (its Foster term), coupled to the bar modes to first
+//! order ([`Resonator::mixing`]) and radiating from the open end
+//! ([`TubeMode`]). The tuned resonance itself stays in the bar mode it is
+//! tuned to (the two are too close for the first-order picture).
 //!
 //! Sources: the closed tube's impedance and the wall-loss attenuation
 //! `alpha = 3e-5 sqrt(f) / a` \[1/m\] (air at room temperature), Fletcher
@@ -179,9 +187,175 @@ fn reactance_ratio(ka: f64) -> f64 {
     END_CORRECTION * ka / (1.0 + ka * ka / 4.0)
 }
 
+/// `d (X_r / Z0) / d(ka)`.
+fn reactance_ratio_slope(ka: f64) -> f64 {
+    let d = 1.0 + ka * ka / 4.0;
+    END_CORRECTION * (1.0 - ka * ka / 4.0) / (d * d)
+}
+
+/// Largest mixing of a tube mode with a bar mode (the first-order
+/// eigenvector component, dimensionless) for which the tube mode is
+/// added as a mode of its own ([`Resonator::mixing`]): beyond, the two are
+/// too close in frequency for the first-order picture, and the tube mode
+/// is left out (docs/design.md, "Resonator tubes").
+pub const MAX_MIXING: f64 = 0.1;
+
+/// One of the tube's own resonances above the tuned one, as an oscillator
+/// of the air (docs/design.md, "Resonator tubes"): near its resonance the
+/// mouth's impedance `Z_par` is the Foster term `(1 / C) s / (s^2 +
+/// Omega^2)` of an air mass `L` and a compliance `C` (`Omega^2 = 1 / (L
+/// C)`), so the mouth's pressure is `(X - xi) / C` with `X` the volume the
+/// bar pushes into the mouth and `xi` the volume the air mass has moved
+/// (`L xi'' = (X - xi) / C`). With `eta = sqrt(L) xi` the tube mode is a
+/// unit-mass oscillator coupled to a bar mode of weight `phi` at the
+/// tube's axis through the potential `(S_c phi q - eta / sqrt(L))^2 / (2
+/// C)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TubeMode {
+    /// The lossless resonance `Omega / (2 pi)` \[Hz\] (a root of `Z_t + Z_r`
+    /// without losses or radiation resistance).
+    pub lossless_hz: f64,
+    /// The resonance with the walls' and the mouth's losses \[Hz\].
+    pub freq_hz: f64,
+    /// Its decay rate \[1/s\] (the wall losses and the radiation
+    /// resistance of the open end).
+    pub decay_rate_per_s: f64,
+    /// `1 / C` \[Pa/m^3\]: the Foster residue of `Z_par` at `Omega`.
+    pub stiffness: f64,
+    /// `L = 1 / (C Omega^2)` \[kg/m^4\].
+    pub inertance: f64,
+    /// The monopole it radiates per unit of its coordinate `eta`, in the
+    /// units of [`ModeEffect::far_field`].
+    pub far_field: (f64, f64),
+}
+
+impl Resonator {
+    /// The tube's own resonances above the tuned one (the roots of `Z_t +
+    /// Z_r` with `k L` in `((j - 1) pi, (j - 1) pi + pi / 2)`, `j >= 2`: a
+    /// closed tube's odd harmonics, each lowered by the end correction) up
+    /// to `max_hz` and [`MAX_COMPACT_KA`]. `None` when a lossy root is not
+    /// found (it always is for a valid tube: a defect, not bad input).
+    pub fn own_modes(&self, max_hz: f64) -> Option<Vec<TubeMode>> {
+        let (a, len, c) = (self.radius_m, self.length_m, SOUND_SPEED_M_PER_S);
+        let z0 = self.z0();
+        let mut out = Vec::new();
+        for j in 2.. {
+            // cot(theta) - x(theta a / L), decreasing from +inf to -x
+            let g = |th: f64| 1.0 / th.tan() - reactance_ratio(th * a / len);
+            let lo0 = (j - 1) as f64 * PI;
+            let (mut lo, mut hi) = (lo0 + 1e-12, lo0 + PI / 2.0);
+            for _ in 0..200 {
+                let mid = 0.5 * (lo + hi);
+                if g(mid) > 0.0 {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            let th = 0.5 * (lo + hi);
+            let omega = th * c / len;
+            let ka = omega * a / c;
+            let f = omega / (2.0 * PI);
+            if ka > MAX_COMPACT_KA || f > max_hz {
+                break;
+            }
+            let x = reactance_ratio(ka);
+            // Z_par = Z_t Z_r / (Z_t + Z_r) near the root: Z_t Z_r = X_r^2,
+            // Z_t + Z_r = i D'(Omega) (omega - Omega), D = X_r - Z0 cot(k L);
+            // the Foster term is (1 / C) / (2 i (omega - Omega)) there
+            let sin = th.sin();
+            let d_slope = z0 * (reactance_ratio_slope(ka) * a / c + len / (c * sin * sin));
+            let stiffness = 2.0 * (z0 * x) * (z0 * x) / d_slope;
+            let inertance = stiffness / (omega * omega);
+            let (root, slope) = self.lossy_root(omega)?;
+            // the mouth's pressure -eta / (C sqrt(L)) per unit eta; the room
+            // receives the monopole -p / Z_t (module docs), which at the
+            // mode's own complex frequency, where Z_t = -Z_r, is the flow
+            // p / Z_r through the open end; W = -i Q / (2 omega)
+            let w_hz = root.re / (2.0 * PI);
+            let q = C::new(-stiffness / inertance.sqrt(), 0.0) / self.radiation_at(root);
+            // The losses are spread along the tube and over its open end,
+            // not a damper on one air mass: the lossy Z_par's residue at the
+            // root, Z_t Z_r / (Z_t + Z_r)' = -Z_r^2 / (Z_t + Z_r)', differs
+            // from the damped oscillator's, (1 / C) omega* / (2 i
+            // Omega_d), by a few per cent and a fraction of a radian; the
+            // monopole takes their ratio, so the mode's sound is the exact
+            // resonance's
+            let zr = self.radiation_at(root);
+            let exact = -(zr * zr) / slope;
+            let lumped = C::new(stiffness, 0.0) * root / C::new(0.0, 2.0 * root.re);
+            let w = C::new(0.0, -1.0) * q / (2.0 * root.re) * (exact / lumped);
+            out.push(TubeMode {
+                lossless_hz: f,
+                freq_hz: w_hz,
+                decay_rate_per_s: root.im,
+                stiffness,
+                inertance,
+                far_field: (w.re, w.im),
+            });
+        }
+        Some(out)
+    }
+
+    /// The open end's radiation impedance at a complex angular frequency
+    /// (the continuation of [`Self::radiation_impedance`]).
+    fn radiation_at(&self, w: C) -> C {
+        let ka = w * (self.radius_m / SOUND_SPEED_M_PER_S);
+        let d = C::new(1.0, 0.0) + ka * ka / 4.0;
+        (ka * ka / 4.0 + C::new(0.0, END_CORRECTION) * ka) / d * self.z0()
+    }
+
+    /// The complex root `omega = Omega' + i sigma` of `Z_t + Z_r` near the
+    /// lossless `omega0` (`e^{i omega t}`: `sigma > 0` decays), by Newton's
+    /// method on the analytic continuation (the wall loss's `sqrt(f)`
+    /// too), and the slope of `Z_t + Z_r` there.
+    fn lossy_root(&self, omega0: f64) -> Option<(C, C)> {
+        let (a, len, c) = (self.radius_m, self.length_m, SOUND_SPEED_M_PER_S);
+        let z0 = self.z0();
+        let f = |w: C| {
+            // the wall loss at the complex frequency: sqrt(f) continued
+            let alpha = (w / (2.0 * PI)).sqrt() * (WALL_LOSS / a);
+            let kl = (w / c - C::new(0.0, 1.0) * alpha) * len;
+            C::new(0.0, -z0) * kl.cos() / kl.sin() + self.radiation_at(w)
+        };
+        let mut w = C::new(omega0, 0.0);
+        let h = 1e-6 * omega0;
+        for _ in 0..50 {
+            let fw = f(w);
+            let df = (f(w + h) - f(w - h)) / (2.0 * h);
+            let step = fw / df;
+            w -= step;
+            if !(w.re.is_finite() && w.im.is_finite()) {
+                return None;
+            }
+            if step.norm() < 1e-13 * omega0 {
+                let df = (f(w + h) - f(w - h)) / (2.0 * h);
+                return (w.im > 0.0 && df.norm() > 0.0).then_some((w, df));
+            }
+        }
+        None
+    }
+
+    /// The coupling `K = -S_c phi / (C sqrt(L))` of tube mode `m` and a
+    /// mass-normalised bar mode of weight `phi` \[1/sqrt(kg)\] at the
+    /// tube's axis, an entry of the joint stiffness matrix \[1/s^2\].
+    pub fn coupling(&self, m: &TubeMode, phi: f64) -> f64 {
+        -self.coupling_area_m2 * phi * m.stiffness / m.inertance.sqrt()
+    }
+
+    /// The first-order component of bar mode `(omega_bar, phi)` in tube
+    /// mode `m`'s eigenvector, `K / (Omega^2 - omega_bar^2)`
+    /// (dimensionless; each coordinate of unit mass).
+    pub fn mixing(&self, m: &TubeMode, omega_bar: f64, phi: f64) -> f64 {
+        let om = 2.0 * PI * m.lossless_hz;
+        self.coupling(m, phi) / (om * om - omega_bar * omega_bar)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::physics::model::LN_1000;
 
     fn marimba_a3() -> Resonator {
         let a = 0.033;
@@ -285,6 +459,192 @@ mod tests {
         let above = MAX_COMPACT_KA * SOUND_SPEED_M_PER_S / (2.0 * PI * r.radius_m) * 1.001;
         let e = r.on_mode(above, phi);
         assert_eq!((e.decay_rate_per_s, e.far_field), (0.0, (0.0, 0.0)));
+    }
+
+    /// `Z_par = Z_t Z_r / (Z_t + Z_r)` in closed form, `lossless` without
+    /// the wall losses and the radiation resistance.
+    fn z_par(r: &Resonator, f: f64, lossless: bool) -> C {
+        let (zt, zr) = if lossless {
+            let k = 2.0 * PI * f / SOUND_SPEED_M_PER_S;
+            (
+                C::new(0.0, -r.z0() / (k * r.length_m).tan()),
+                C::new(0.0, reactance_ratio(k * r.radius_m) * r.z0()),
+            )
+        } else {
+            (r.tube_impedance(f), r.radiation_impedance(f))
+        };
+        zt * zr / (zt + zr)
+    }
+
+    /// The tube's own modes against the closed form of the mouth's
+    /// impedance: each lies at a pole of the lossless `Z_par`, near a
+    /// closed tube's odd harmonic; its residue is the Foster term's `1 /
+    /// (2 C)` (the limit of `i (omega - Omega) Z_par`); its decay rate is
+    /// half the -3 dB width of the lossy `|Z_par|^2` along the real axis.
+    #[test]
+    fn the_tubes_own_modes_are_the_poles_of_the_mouths_impedance() {
+        let r = marimba_a3();
+        let modes = r.own_modes(20_000.0).unwrap();
+        let top = MAX_COMPACT_KA * SOUND_SPEED_M_PER_S / (2.0 * PI * r.radius_m);
+        println!("{} modes below ka = 1 ({top:.0} Hz)", modes.len());
+        assert_eq!(modes.len(), 3, "660, 1100, 1540 Hz, not 1980");
+        for (j, m) in modes.iter().enumerate() {
+            let odd = (2 * j + 3) as f64;
+            assert!(m.lossless_hz < odd * 220.0 * 1.02 && m.lossless_hz > odd * 220.0 * 0.9);
+            // the residue, from both sides of the pole
+            for eps in [1e-7, -1e-7] {
+                let f = m.lossless_hz * (1.0 + eps);
+                let res = C::new(0.0, 2.0 * PI * (f - m.lossless_hz)) * z_par(&r, f, true);
+                let rel = (res.re - 0.5 * m.stiffness).abs() / (0.5 * m.stiffness);
+                println!(
+                    "mode {}: {:.3} Hz (odd harmonic {odd}: {:.4} x 220), 1/C {:.4e} Pa/m^3, \
+                     residue rel. error {rel:.2e} (side {eps:+})",
+                    j + 2,
+                    m.lossless_hz,
+                    m.lossless_hz / 220.0,
+                    m.stiffness
+                );
+                assert!(rel < 1e-5, "{rel:e}");
+                assert!(res.im.abs() < 1e-5 * m.stiffness);
+            }
+            // the lossy resonance from the closed form on the real axis
+            // alone (the wall loss at each frequency, not frozen at the
+            // mode's): `Z_t + Z_r` through three frequencies a quarter
+            // half-width apart as a quadratic in omega, and its root near
+            // them
+            let d = 0.25 * m.decay_rate_per_s;
+            let w0 = 2.0 * PI * m.freq_hz;
+            let g = |w: f64| {
+                let f = w / (2.0 * PI);
+                r.tube_impedance(f) + r.radiation_impedance(f)
+            };
+            let (ga, gb, gc) = (g(w0 - d), g(w0), g(w0 + d));
+            // g(w0 + t d) = gb + t (gc - ga) / 2 + t^2 (gc - 2 gb + ga) / 2
+            let (c1, c2) = ((gc - ga) * 0.5, (gc - gb * 2.0 + ga) * 0.5);
+            let disc = (c1 * c1 - c2 * gb * 4.0).sqrt();
+            let t = [(-c1 + disc) / (c2 * 2.0), (-c1 - disc) / (c2 * 2.0)];
+            let t = if t[0].norm() < t[1].norm() {
+                t[0]
+            } else {
+                t[1]
+            };
+            let root = C::new(w0, 0.0) + t * d;
+            println!(
+                "   lossy {:.3} Hz, sigma {:.4} 1/s (T60 {:.3} s); from the real axis {:.3} Hz, {:.4} 1/s",
+                m.freq_hz,
+                m.decay_rate_per_s,
+                LN_1000 / m.decay_rate_per_s,
+                root.re / (2.0 * PI),
+                root.im
+            );
+            // (the quadratic's own error, extrapolating a decay rate's
+            // distance off the axis from a quarter of it, is a few parts in
+            // 10^3)
+            assert!((root.re - w0).abs() < 3e-5 * w0);
+            assert!((root.im - m.decay_rate_per_s).abs() < 2e-2 * m.decay_rate_per_s);
+            assert!(m.inertance > 0.0 && m.decay_rate_per_s > 0.0);
+        }
+    }
+
+    /// Each tube mode's monopole is the exact lossy resonance's (the
+    /// residue of the closed form's `Z_par` at its complex frequency), and
+    /// its first-order eigenvector components are those of the joint
+    /// stiffness matrix's eigenvector.
+    #[test]
+    fn a_tube_mode_radiates_and_couples_as_the_closed_form() {
+        let r = marimba_a3();
+        let modes = r.own_modes(20_000.0).unwrap();
+        for m in &modes {
+            // the residue of the lossy Z_par at the mode's complex frequency
+            // (Z_t Z_r / (Z_t + Z_r)', the derivative by central
+            // differences on the real axis beside it) against the lossy
+            // Foster term's, (1 / C) omega* / (2 i Omega_d)
+            let w0 = 2.0 * PI * m.freq_hz;
+            let sigma = m.decay_rate_per_s;
+            let root = C::new(w0, sigma);
+            let zt = |w: C| {
+                let alpha = (w / (2.0 * PI)).sqrt() * (WALL_LOSS / r.radius_m);
+                let kl = (w / SOUND_SPEED_M_PER_S - C::new(0.0, 1.0) * alpha) * r.length_m;
+                C::new(0.0, -r.z0()) * kl.cos() / kl.sin()
+            };
+            let h = 1e-4 * w0;
+            let sum = |w: C| zt(w) + r.radiation_at(w);
+            let slope = (sum(root + h) - sum(root - h)) / (2.0 * h);
+            let res = zt(root) * r.radiation_at(root) / slope;
+            let foster = C::new(m.stiffness, 0.0) * root / C::new(0.0, 2.0 * (w0 * w0).sqrt());
+            let rel = (res - foster).norm() / foster.norm();
+            println!(
+                "{:.1} Hz: residue of Z_par {res:.5e}, Foster term {foster:.5e}, rel {rel:.2e}; \
+                 W per unit eta {:.4e} {:+.4e}i",
+                m.freq_hz, m.far_field.0, m.far_field.1
+            );
+            // the tube's losses are spread along it and over its open end,
+            // not a damper on one air mass: against the lumped oscillator's
+            // they turn the residue by 0.3 to 0.6 radian and scale it by 3
+            // to 15 per cent
+            // (the monopole takes the ratio: the tube mode's sound is the
+            // exact resonance's)
+            let ratio = res / foster;
+            let q = C::new(-m.stiffness / m.inertance.sqrt(), 0.0) / r.radiation_at(root);
+            let lumped_w = C::new(0.0, -1.0) * q / (2.0 * w0);
+            let w = C::new(m.far_field.0, m.far_field.1);
+            println!(
+                "   exact / lumped residue {:.4} at {:+.3} rad; W / lumped W {:.4} at {:+.3} rad",
+                ratio.norm(),
+                ratio.arg(),
+                (w / lumped_w).norm(),
+                (w / lumped_w).arg()
+            );
+            assert!((w / lumped_w - ratio).norm() < 1e-6);
+            assert!(
+                (ratio.norm() - 1.0).abs() < 0.2 && ratio.arg().abs() < 1.0,
+                "{ratio}"
+            );
+            // the flow out of the open end at the root is -p / Z_t
+            assert!((zt(root) + r.radiation_at(root)).norm() < 1e-9 * r.z0());
+        }
+        // first-order eigenvectors against the joint stiffness matrix of a
+        // bar tuned 1:4:10 (weights 2, -1.5, 1 at the axis) and the tube modes
+        let bar = [(220.0, 2.0), (880.0, -1.5), (2200.0, 1.0)];
+        let n = bar.len() + modes.len();
+        let mut k = nalgebra::DMatrix::<f64>::zeros(n, n);
+        for (i, (f, phi)) in bar.iter().enumerate() {
+            k[(i, i)] += (2.0 * PI * f).powi(2);
+            for (j, m) in modes.iter().enumerate() {
+                let jj = bar.len() + j;
+                let c = r.coupling(m, *phi);
+                k[(i, jj)] = c;
+                k[(jj, i)] = c;
+                for (i2, (_, phi2)) in bar.iter().enumerate() {
+                    // the compression term (S_c phi)(S_c phi2) / C
+                    k[(i, i2)] += r.coupling_area_m2.powi(2) * phi * phi2 * m.stiffness;
+                }
+                k[(jj, jj)] = (2.0 * PI * m.lossless_hz).powi(2);
+            }
+        }
+        let eig = nalgebra::SymmetricEigen::new(k);
+        for (j, m) in modes.iter().enumerate() {
+            let jj = bar.len() + j;
+            let col = (0..n)
+                .max_by(|&a, &b| {
+                    eig.eigenvectors[(jj, a)]
+                        .abs()
+                        .total_cmp(&eig.eigenvectors[(jj, b)].abs())
+                })
+                .unwrap();
+            let v = eig.eigenvectors.column(col);
+            let v = v / v[jj];
+            for (i, (f, phi)) in bar.iter().enumerate() {
+                let first = r.mixing(m, 2.0 * PI * f, *phi);
+                let err = (v[i] - first).abs();
+                println!(
+                    "tube mode {:.0} Hz on bar mode {f} Hz: first order {first:+.4e}, exact {:+.4e}",
+                    m.lossless_hz, v[i]
+                );
+                assert!(first.abs() < MAX_MIXING);
+                assert!(err < 0.05 * first.abs() + 1e-9, "{err:e}");
+            }
+        }
     }
 
     #[test]

@@ -6,7 +6,7 @@ use super::loss::plate_radiation_rate;
 use super::shape::shape_error;
 use super::PhysicalSpec;
 use crate::bodies::radiation::{far_field, Direction, SOUND_SPEED_M_PER_S};
-use crate::bodies::resonator::{ModeEffect, Resonator};
+use crate::bodies::resonator::{ModeEffect, Resonator, MAX_MIXING};
 use crate::bodies::shapes::{Point, Shape, ShapeMode};
 use crate::scene::error::{check_non_negative, check_positive, SceneError};
 use crate::scene::limits::{MAX_FREQ_HZ, MAX_MODES_PER_OBJECT, MAX_WEIGHT, MIN_FREQ_HZ, MIN_T60_S};
@@ -96,6 +96,27 @@ impl PhysicalSpec<'_> {
                 t60_s,
                 weights,
             });
+        }
+        if let Some((r, at)) = &resonator {
+            let bars = modes
+                .iter()
+                .zip(&mode)
+                .map(|(m, spec)| Ok((m.omega(), weight_scale * m.shape_at(*at)?, spec)))
+                .collect::<Result<Vec<_>, String>>()
+                .map_err(|e| SceneError::new(format!("{base}.resonator.point"), e))?;
+            let own = tube_modes(base, r, &bars, max_freq, points.len(), listeners.len())?;
+            if mode.len() + own.len() > MAX_MODES_PER_OBJECT {
+                return Err(SceneError::new(
+                    format!("{base}.resonator"),
+                    format!(
+                        "the bar's {} modes and the tube's {} exceed {MAX_MODES_PER_OBJECT}: \
+                         lower max_modes",
+                        mode.len(),
+                        own.len()
+                    ),
+                ));
+            }
+            mode.extend(own);
         }
         let mut names: Vec<String> = points.into_iter().map(|(n, _)| n).collect();
         for l in listeners {
@@ -351,12 +372,14 @@ impl Weighing<'_> {
                     e.to_string(),
                 )
             })?;
-            // the tube's monopole beside the bar's own far field
+            // the tube's monopole beside the bar's own far field (the
+            // tube's is already per unit of the mass-normalised mode)
+            let (re, im) = (self.weight_scale * re, self.weight_scale * im);
             let (re, im) = tube.map_or((re, im), |t| (re + t.far_field.0, im + t.far_field.1));
             let r = m.omega() / PRESSURE_REF_OMEGA;
             for w in [
-                self.weight_scale * r * r * re / PRESSURE_REF_AREA_M2,
-                self.weight_scale * r * im / PRESSURE_REF_AREA_M2,
+                r * r * re / PRESSURE_REF_AREA_M2,
+                r * im / PRESSURE_REF_AREA_M2,
             ] {
                 if !(w.abs() <= MAX_WEIGHT) {
                     return Err(SceneError::new(
@@ -373,6 +396,71 @@ impl Weighing<'_> {
         }
         Ok(())
     }
+}
+
+/// The tube's own resonances above its tuned one as modes of the bar and
+/// tube together (docs/design.md, "Resonator tubes"), to first order in
+/// their coupling: tube mode `j`'s eigenvector has the component `c_ij`
+/// ([`Resonator::mixing`]) on bar mode `i`, so its weight at each point is
+/// `sum_i c_ij` times bar mode `i`'s there, and toward each listener it
+/// radiates the tube's monopole ([`crate::bodies::resonator::TubeMode::far_field`]). `bars`: each
+/// bar mode's `omega`, its weight at the tube's axis and its spec (the
+/// first `points` weights are at the named points). A tube mode whose
+/// mixing with some bar mode exceeds [`MAX_MIXING`] (the two nearly in
+/// tune) is left out, as the tuned resonance is: the bar mode carries the
+/// tube's response at its own frequency.
+fn tube_modes(
+    base: &str,
+    r: &Resonator,
+    bars: &[(f64, f64, &ModeSpec)],
+    max_freq_hz: f64,
+    points: usize,
+    listeners: usize,
+) -> Result<Vec<ModeSpec>, SceneError> {
+    let path = format!("{base}.resonator");
+    let own = r.own_modes(max_freq_hz).ok_or_else(|| {
+        SceneError::new(
+            path.clone(),
+            "no lossy resonance of the tube found (a defect)",
+        )
+    })?;
+    let mut out = Vec::new();
+    for t in &own {
+        let c: Vec<f64> = bars
+            .iter()
+            .map(|(omega, phi, _)| r.mixing(t, *omega, *phi))
+            .collect();
+        if c.iter().any(|x| !(x.abs() <= MAX_MIXING)) {
+            continue;
+        }
+        let mut weights = vec![0.0; points];
+        for (ci, (_, _, spec)) in c.iter().zip(bars) {
+            for (w, b) in weights.iter_mut().zip(&spec.weights[..points]) {
+                *w += ci * b;
+            }
+        }
+        let ratio = 2.0 * PI * t.freq_hz / PRESSURE_REF_OMEGA;
+        for _ in 0..listeners {
+            weights.push(ratio * ratio * t.far_field.0 / PRESSURE_REF_AREA_M2);
+            weights.push(ratio * t.far_field.1 / PRESSURE_REF_AREA_M2);
+        }
+        if let Some(w) = weights.iter().find(|w| !(w.abs() <= MAX_WEIGHT)) {
+            return Err(SceneError::new(
+                path,
+                format!(
+                    "the tube's mode at {:.1} Hz has weight {w:e}, beyond {MAX_WEIGHT:e}",
+                    t.freq_hz
+                ),
+            ));
+        }
+        let sigma = t.decay_rate_per_s;
+        out.push(ModeSpec {
+            freq_hz: t.freq_hz,
+            t60_s: Some((1000f64.ln() / sigma).max(MIN_T60_S)),
+            weights,
+        });
+    }
+    Ok(out)
 }
 
 /// Modes below `f` by the asymptotic mode count of each kind (Weyl's law
