@@ -8,6 +8,7 @@ use super::PhysicalSpec;
 use crate::bodies::radiation::{far_field, Direction, SOUND_SPEED_M_PER_S};
 use crate::bodies::resonator::{ModeEffect, Resonator, MAX_MIXING};
 use crate::bodies::shapes::{Point, Shape, ShapeMode};
+use crate::physics::model::LN_1000;
 use crate::scene::error::{check_non_negative, check_positive, SceneError};
 use crate::scene::limits::{MAX_FREQ_HZ, MAX_MODES_PER_OBJECT, MAX_WEIGHT, MIN_FREQ_HZ, MIN_T60_S};
 use crate::scene::{
@@ -85,7 +86,7 @@ impl PhysicalSpec<'_> {
                 .map_err(|e| shape_error(base, e))?
                 + radiation.as_ref().map_or(0.0, |r| r(m.freq_hz))
                 + tube.map_or(0.0, |t| t.decay_rate_per_s);
-            let t60_s = (sigma > 0.0).then(|| (1000f64.ln() / sigma).max(MIN_T60_S));
+            let t60_s = (sigma > 0.0).then(|| (LN_1000 / sigma).max(MIN_T60_S));
             // the tube's frequency shift (under 0.1 cent on the presets) is
             // not applied: the bar keeps the tuning its maker gave it
             let freq_hz = m.freq_hz;
@@ -376,11 +377,7 @@ impl Weighing<'_> {
             // tube's is already per unit of the mass-normalised mode)
             let (re, im) = (self.weight_scale * re, self.weight_scale * im);
             let (re, im) = tube.map_or((re, im), |t| (re + t.far_field.0, im + t.far_field.1));
-            let r = m.omega() / PRESSURE_REF_OMEGA;
-            for w in [
-                r * r * re / PRESSURE_REF_AREA_M2,
-                r * im / PRESSURE_REF_AREA_M2,
-            ] {
+            for w in pressure_weights(m.omega(), (re, im)) {
                 if !(w.abs() <= MAX_WEIGHT) {
                     return Err(SceneError::new(
                         self.base.to_string(),
@@ -396,6 +393,18 @@ impl Weighing<'_> {
         }
         Ok(())
     }
+}
+
+/// The two pseudo-point weights (`{l}~q`, `{l}~v`) of a mode at `omega`
+/// radiating `W = (re, im)` toward a listener: `(omega /
+/// PRESSURE_REF_OMEGA)^k W / PRESSURE_REF_AREA_M2`, `k` = 2 and 1
+/// ([`crate::scene::PRESSURE_REF_OMEGA`]).
+fn pressure_weights(omega: f64, (re, im): (f64, f64)) -> [f64; 2] {
+    let r = omega / PRESSURE_REF_OMEGA;
+    [
+        r * r * re / PRESSURE_REF_AREA_M2,
+        r * im / PRESSURE_REF_AREA_M2,
+    ]
 }
 
 /// The tube's own resonances above its tuned one as modes of the bar and
@@ -439,10 +448,9 @@ fn tube_modes(
                 *w += ci * b;
             }
         }
-        let ratio = 2.0 * PI * t.freq_hz / PRESSURE_REF_OMEGA;
+        let heard = pressure_weights(2.0 * PI * t.freq_hz, t.far_field);
         for _ in 0..listeners {
-            weights.push(ratio * ratio * t.far_field.0 / PRESSURE_REF_AREA_M2);
-            weights.push(ratio * t.far_field.1 / PRESSURE_REF_AREA_M2);
+            weights.extend(heard);
         }
         if let Some(w) = weights.iter().find(|w| !(w.abs() <= MAX_WEIGHT)) {
             return Err(SceneError::new(
@@ -453,10 +461,9 @@ fn tube_modes(
                 ),
             ));
         }
-        let sigma = t.decay_rate_per_s;
         out.push(ModeSpec {
             freq_hz: t.freq_hz,
-            t60_s: Some((1000f64.ln() / sigma).max(MIN_T60_S)),
+            t60_s: Some((LN_1000 / t.decay_rate_per_s).max(MIN_T60_S)),
             weights,
         });
     }
