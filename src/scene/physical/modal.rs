@@ -8,7 +8,6 @@ use super::PhysicalSpec;
 use crate::bodies::radiation::{far_field, Direction, SOUND_SPEED_M_PER_S};
 use crate::bodies::resonator::{ModeEffect, Resonator, MAX_MIXING};
 use crate::bodies::shapes::{Point, Shape, ShapeMode};
-use crate::physics::model::LN_1000;
 use crate::scene::error::{check_non_negative, check_positive, SceneError};
 use crate::scene::limits::{MAX_FREQ_HZ, MAX_MODES_PER_OBJECT, MAX_WEIGHT, MIN_FREQ_HZ, MIN_T60_S};
 use crate::scene::{
@@ -86,7 +85,7 @@ impl PhysicalSpec<'_> {
                 .map_err(|e| shape_error(base, e))?
                 + radiation.as_ref().map_or(0.0, |r| r(m.freq_hz))
                 + tube.map_or(0.0, |t| t.decay_rate_per_s);
-            let t60_s = (sigma > 0.0).then(|| (LN_1000 / sigma).max(MIN_T60_S));
+            let t60_s = (sigma > 0.0).then(|| (1000f64.ln() / sigma).max(MIN_T60_S));
             // the tube's frequency shift (under 0.1 cent on the presets) is
             // not applied: the bar keeps the tuning its maker gave it
             let freq_hz = m.freq_hz;
@@ -463,7 +462,7 @@ fn tube_modes(
         }
         out.push(ModeSpec {
             freq_hz: t.freq_hz,
-            t60_s: Some((LN_1000 / t.decay_rate_per_s).max(MIN_T60_S)),
+            t60_s: Some((1000f64.ln() / t.decay_rate_per_s).max(MIN_T60_S)),
             weights,
         });
     }
