@@ -418,6 +418,18 @@ fn bad_physical_objects_are_refused_with_the_field() {
             "name = \"o\"\nkind = \"stiff_string\"\nlength_m = 0.6\ntension_n = 500.0\npoints = { contact = 0.1, pickup = 0.2 }".into(),
             "object[0]: give either",
         ),
+        (
+            bar("length_m = 0.3\nwidth_m = 0.05\nthickness_m = 0.02\nloss = { dashpots = [{ point = \"cord\", n_s_per_m = 1.0 }] }"),
+            "object[0].loss.dashpots[0].point",
+        ),
+        (
+            bar("length_m = 0.3\nwidth_m = 0.05\nthickness_m = 0.02\nloss = { dashpots = [{ point = \"contact\", n_s_per_m = -1.0 }] }"),
+            "object[0].loss.dashpots[0].n_s_per_m",
+        ),
+        (
+            bar("length_m = 0.3\nwidth_m = 0.05\nthickness_m = 0.02\nloss = { dashpots = [{ point = \"contact\", n_s_per_m = 1e300 }] }"),
+            "object[0].loss.dashpots[0].n_s_per_m",
+        ),
         // very fine geometry: a huge thin plate has far too many modes
         (
             "name = \"o\"\nkind = \"plate\"\nmaterial = \"steel\"\nlength_x_m = 3.0\nlength_y_m = 2.0\nthickness_m = 0.0005\npoints = { contact = [0.1, 0.1], pickup = [0.2, 0.1] }".into(),
@@ -529,4 +541,152 @@ points = { contact = [0.05, 0.01], pickup = [0.02, -0.01] }"#,
     );
     let m = modal_of(&moved);
     assert!(m.mode.iter().any(|x| x.weights[0] != 0.0), "struck");
+}
+
+/// Dashpots where a bar is held (docs/design.md, "Dashpots at points"):
+/// each mode's added decay rate is `sum_p c w_p^2 / 2` with `w_p` the
+/// closed-form free-free Euler-Bernoulli shape, mass-normalised, written
+/// out here; and that first-order rate is what the exact eigenvalues of the
+/// full system (modal masses, stiffnesses and decay, plus the dashpots'
+/// rank-two damping matrix, which couples the modes) give, to the order
+/// the neglected coupling leaves. A dashpot at a mode's node does not damp
+/// it, and the instrument's decay parameter scales the dashpots as it does
+/// every other rate.
+#[test]
+fn dashpots_at_points_damp_each_mode_to_first_order() {
+    // an aluminium bar on two cords at its fundamental's nodes
+    let (len, b, h, rho, e) = (0.35, 0.057, 0.0127, 2700.0, 70e9);
+    let c = 2.0;
+    let bar = |dashpots: &str| {
+        parse(&format!(
+            "name = \"o\"\nkind = \"bar\"\n\
+             material = {{ name = \"aluminium\", density_kg_per_m3 = {rho}, youngs_modulus_pa = {e}, shear_modulus_pa = 26e9, loss_factor = 0.0 }}\n\
+             length_m = {len}\nwidth_m = {b}\nthickness_m = {h}\ntimoshenko = false\n\
+             max_freq_hz = 20000.0\n\
+             loss = {{ decay_rate_per_s = 1.0{dashpots} }}\n\
+             points = {{ contact = 0.17, pickup = 0.02, cord_a = {a:.6}, cord_b = {z:.6} }}",
+            a = 0.224_2 * len,
+            z = 0.775_8 * len,
+        ))
+    };
+    let plain = modal_of(&bar(""));
+    let held_scene = bar(&format!(
+        ", dashpots = [{{ point = \"cord_a\", n_s_per_m = {c} }}, {{ point = \"cord_b\", n_s_per_m = {c} }}]"
+    ));
+    let held = modal_of(&held_scene);
+    assert_eq!(plain.mode.len(), held.mode.len());
+    let n = held.mode.len();
+    assert!(n >= 5, "{n} modes");
+    let mass = rho * b * h * len;
+    let shape = |k: usize, x: f64| free_free_shape(k, x / len) / mass.sqrt();
+    let row = |name: &str| held.points.iter().position(|p| p == name).expect(name);
+    let (ia, ib) = (row("cord_a"), row("cord_b"));
+    let sigma = |t60: Option<f64>| LN_1000 / t60.expect("damped");
+    let mut worst_first = 0.0_f64;
+    for k in 0..n.min(6) {
+        let added = sigma(held.mode[k].t60_s) - sigma(plain.mode[k].t60_s);
+        let want = 0.5 * c * (shape(k, 0.224_2 * len).powi(2) + shape(k, 0.775_8 * len).powi(2));
+        let rel = (added - want).abs() / want.max(1e-3);
+        println!(
+            "mode {k} ({:.1} Hz): added decay {added:.6e} 1/s, closed form {want:.6e} (relative error {rel:.1e})",
+            held.mode[k].freq_hz
+        );
+        worst_first = worst_first.max(rel);
+    }
+    assert!(
+        worst_first < 1e-4,
+        "first-order rates against the closed form: {worst_first:e}"
+    );
+    // the fundamental sits still at its nodes: under 1e-3 of the next mode's added rate
+    let added = |k: usize| sigma(held.mode[k].t60_s) - sigma(plain.mode[k].t60_s);
+    assert!(added(0) < 1e-3 * added(1), "{} vs {}", added(0), added(1));
+
+    let plain_rates: Vec<f64> = plain.mode.iter().map(|m| sigma(m.t60_s)).collect();
+    let eig = exact_eigenvalues(&held, &plain_rates, &[(ia, c), (ib, c)]);
+    let mut worst_exact = 0.0_f64;
+    for (k, m) in held.mode.iter().enumerate() {
+        let om = 2.0 * PI * m.freq_hz;
+        let lam = eig
+            .iter()
+            .filter(|l| l.im > 0.0)
+            .min_by(|x, y| (x.im - om).abs().total_cmp(&(y.im - om).abs()))
+            .expect("an eigenvalue");
+        let exact = -lam.re;
+        let first = sigma(m.t60_s);
+        let rel = (first - exact).abs() / exact;
+        println!(
+            "mode {k} ({:.1} Hz): decay rate first order {first:.6e}, exact {exact:.6e} 1/s (relative {rel:.1e}); frequency shift {:.1e} relative",
+            m.freq_hz,
+            (lam.im - om) / om
+        );
+        worst_exact = worst_exact.max(rel);
+    }
+    assert!(
+        worst_exact < 1e-6,
+        "first order against the exact eigenvalues: {worst_exact:e}"
+    );
+
+    // the instrument's decay parameter and the damper scale the dashpots
+    // with every other rate: every mode's T60 alike
+    let mut p = InstrumentParams::default();
+    p.scene.decay_scale = 2.5;
+    let longer = modal_of(&scene_for(&held_scene, &p));
+    let damped = modal_of(&damped_scene(&held_scene, 0.4));
+    let f = 1.0 + modal_contact::instrument::DAMPER_T60_DIVISOR * 0.4;
+    for ((a, b), d) in held.mode.iter().zip(&longer.mode).zip(&damped.mode) {
+        assert!((b.t60_s.unwrap() / a.t60_s.unwrap() / 2.5 - 1.0).abs() < 1e-13);
+        assert!((a.t60_s.unwrap() / d.t60_s.unwrap() / f - 1.0).abs() < 1e-13);
+    }
+}
+
+/// Mode `k` (from 0) of a free-free Euler-Bernoulli beam at `u = x / L`,
+/// `cosh + cos - s (sinh + sin)` of `beta_k x`, normalised numerically to a
+/// mean square of 1 over the length (times `1 / sqrt(mass)`: the
+/// mass-normalised shape).
+fn free_free_shape(k: usize, u: f64) -> f64 {
+    let bl = match k {
+        0 => 4.730_040_745,
+        1 => 7.853_204_624,
+        2 => 10.995_607_838,
+        3 => 14.137_165_491,
+        _ => (2 * k + 3) as f64 * PI / 2.0,
+    };
+    let s = (bl.cosh() - bl.cos()) / (bl.sinh() - bl.sin());
+    let f = |u: f64| {
+        let y = bl * u;
+        y.cosh() + y.cos() - s * (y.sinh() + y.sin())
+    };
+    let steps = 4000;
+    let mean_sq = (0..steps)
+        .map(|i| f((i as f64 + 0.5) / steps as f64).powi(2))
+        .sum::<f64>()
+        / steps as f64;
+    f(u) / mean_sq.sqrt()
+}
+
+/// The eigenvalues of `x'' + C x' + K x = 0` for the modes of `m`: `K =
+/// diag(omega^2)`, `C = diag(2 rates) + sum c w_p w_p^T` over the
+/// dashpots `(row, c)` (`w_p` the modes' weights in that row), in the
+/// balanced state `(omega x, x')`, whose matrix's norm is the highest
+/// `omega` rather than its square, so the eigenvalues come out to rounding
+/// of `omega`.
+fn exact_eigenvalues(
+    m: &modal_contact::scene::ModalSpec,
+    rates: &[f64],
+    dashpots: &[(usize, f64)],
+) -> Vec<nalgebra::Complex<f64>> {
+    let n = m.mode.len();
+    let mut a = nalgebra::DMatrix::<f64>::zeros(2 * n, 2 * n);
+    for i in 0..n {
+        let om = 2.0 * PI * m.mode[i].freq_hz;
+        a[(i, n + i)] = om;
+        a[(n + i, i)] = -om;
+        a[(n + i, n + i)] = -2.0 * rates[i];
+        for j in 0..n {
+            for &(row, c) in dashpots {
+                a[(n + i, n + j)] -= c * m.mode[i].weights[row] * m.mode[j].weights[row];
+            }
+        }
+    }
+    a.complex_eigenvalues().iter().copied().collect()
 }

@@ -42,7 +42,7 @@ pub use limits::{
 pub use mallet::{mallet_contact_point, ChainSpec, MAX_CHAIN_MASSES};
 pub use physical::{
     plate_radiation_rate, BarSpec, EdgesSpec, LossSpec, MaterialSpec, MembraneSpec, PhysicalSpec,
-    PlateSpec, PointSpec, StiffStringSpec, SupportSpec, TubeSpec,
+    PlateSpec, PointDashpotSpec, PointSpec, StiffStringSpec, SupportSpec, TubeSpec,
 };
 
 /// How the engine switches between the free and the contact phase.

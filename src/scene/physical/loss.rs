@@ -32,6 +32,22 @@ pub struct LossSpec {
     /// 20 C; 0, the default: none), beside the power law above.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub plate_radiation: f64,
+    /// Dashpots where the object is held (the cords through a bar, the
+    /// felt under it): each adds `n_s_per_m w^2 / 2` \[1/s\] to a mode of
+    /// weight `w` there (docs/design.md, "Dashpots at points").
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub dashpots: Vec<PointDashpotSpec>,
+}
+
+/// A dashpot between one of a physical object's named points and the
+/// (still) frame: where the object is held.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PointDashpotSpec {
+    /// The object's named point.
+    pub point: String,
+    /// Damping coefficient \[N s/m\].
+    pub n_s_per_m: f64,
 }
 
 /// Density of air \[kg/m^3\] (20 C) for [`plate_radiation_rate`].
@@ -102,6 +118,7 @@ impl Default for LossSpec {
             radiation_ref_hz: default_radiation_ref_hz(),
             radiation_exponent: default_radiation_exponent(),
             plate_radiation: 0.0,
+            dashpots: Vec::new(),
         }
     }
 }
@@ -117,7 +134,7 @@ impl LossSpec {
         }
     }
 
-    /// Every decay rate changed by `rate` (a caller scales decay times
+    /// Every decay rate (and every dashpot's damping) changed by `rate` (a caller scales decay times
     /// through it, as the instrument does for its decay and damper
     /// parameters: each mode's `sigma` is linear in the three rates, so
     /// scaling them scales every mode's T60 alike), `material_eta` the loss
@@ -129,6 +146,7 @@ impl LossSpec {
             && self.decay_rate_per_s == 0.0
             && self.radiation_per_s == 0.0
             && self.plate_radiation == 0.0
+            && self.dashpots.iter().all(|d| d.n_s_per_m == 0.0)
         {
             if undamped_rate == 0.0 {
                 return self.clone();
@@ -150,6 +168,15 @@ impl LossSpec {
             decay_rate_per_s: rate(self.decay_rate_per_s),
             radiation_per_s: rate(self.radiation_per_s),
             plate_radiation: rate(self.plate_radiation),
+            // a dashpot's decay rate is linear in its damping
+            dashpots: self
+                .dashpots
+                .iter()
+                .map(|d| PointDashpotSpec {
+                    n_s_per_m: rate(d.n_s_per_m),
+                    ..d.clone()
+                })
+                .collect(),
             ..self.clone()
         }
     }

@@ -33,7 +33,7 @@ mod shape;
 pub use kinds::{
     BarSpec, EdgesSpec, MembraneSpec, PlateSpec, PointSpec, StiffStringSpec, SupportSpec, TubeSpec,
 };
-pub use loss::{plate_radiation_rate, LossSpec};
+pub use loss::{plate_radiation_rate, LossSpec, PointDashpotSpec};
 pub use material::MaterialSpec;
 
 /// Any physically described object.

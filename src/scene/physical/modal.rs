@@ -8,8 +8,10 @@ use super::PhysicalSpec;
 use crate::bodies::radiation::{far_field, Direction, SOUND_SPEED_M_PER_S};
 use crate::bodies::resonator::{ModeEffect, Resonator, MAX_MIXING};
 use crate::bodies::shapes::{Point, Shape, ShapeMode};
-use crate::scene::error::{check_non_negative, check_positive, SceneError};
-use crate::scene::limits::{MAX_FREQ_HZ, MAX_MODES_PER_OBJECT, MAX_WEIGHT, MIN_FREQ_HZ, MIN_T60_S};
+use crate::scene::error::{check_max, check_non_negative, check_positive, SceneError};
+use crate::scene::limits::{
+    MAX_DAMPING_N_S_PER_M, MAX_FREQ_HZ, MAX_MODES_PER_OBJECT, MAX_WEIGHT, MIN_FREQ_HZ, MIN_T60_S,
+};
 use crate::scene::{
     pressure_point, ListenerSpec, ModalSpec, ModeSpec, PRESSURE_REF_AREA_M2, PRESSURE_REF_OMEGA,
 };
@@ -46,6 +48,7 @@ impl PhysicalSpec<'_> {
         let limits = self.limits();
         let (max_freq, max_count) = mode_limits(base, &limits, rate_hz)?;
         let points = self.named_points(base)?;
+        let dashpots = self.dashpots(base, &points)?;
         let modes = listed_modes(
             base,
             &shape,
@@ -84,7 +87,8 @@ impl PhysicalSpec<'_> {
                 .decay_rate(m.freq_hz)
                 .map_err(|e| shape_error(base, e))?
                 + radiation.as_ref().map_or(0.0, |r| r(m.freq_hz))
-                + tube.map_or(0.0, |t| t.decay_rate_per_s);
+                + tube.map_or(0.0, |t| t.decay_rate_per_s)
+                + dashpot_decay_rate(base, weight_scale, &dashpots, m)?;
             let t60_s = (sigma > 0.0).then(|| (1000f64.ln() / sigma).max(MIN_T60_S));
             // the tube's frequency shift (under 0.1 cent on the presets) is
             // not applied: the bar keeps the tuning its maker gave it
@@ -144,6 +148,33 @@ impl PhysicalSpec<'_> {
             ));
         }
         Ok(points)
+    }
+
+    /// The dashpots' points (named points of the object) and dampings,
+    /// each damping within `0 ..= MAX_DAMPING_N_S_PER_M`.
+    fn dashpots(
+        &self,
+        base: &str,
+        points: &[(String, Point)],
+    ) -> Result<Vec<(Point, f64)>, SceneError> {
+        self.loss()
+            .dashpots
+            .iter()
+            .enumerate()
+            .map(|(i, d)| {
+                let path = format!("{base}.loss.dashpots[{i}]");
+                let Some((_, p)) = points.iter().find(|(n, _)| *n == d.point) else {
+                    return Err(SceneError::new(
+                        format!("{path}.point"),
+                        format!("names no point of the object: {:?}", d.point),
+                    ));
+                };
+                let c = d.n_s_per_m;
+                check_non_negative(&format!("{path}.n_s_per_m"), c)?;
+                check_max(&format!("{path}.n_s_per_m"), c, MAX_DAMPING_N_S_PER_M)?;
+                Ok((*p, c))
+            })
+            .collect()
     }
 
     /// A bar's resonator tube and the point over its axis; `lowest_hz`
@@ -309,6 +340,27 @@ fn listed_modes(
         ));
     }
     Ok(modes)
+}
+
+/// The decay rate \[1/s\] the dashpots add to mode `m`: `sum_p c_p w_p^2 /
+/// 2`, `w_p` its mass-normalised weight at dashpot `p` (times
+/// `weight_scale`), to first order in the dampings (docs/design.md,
+/// "Dashpots at points").
+fn dashpot_decay_rate(
+    base: &str,
+    weight_scale: f64,
+    dashpots: &[(Point, f64)],
+    m: &ShapeMode,
+) -> Result<f64, SceneError> {
+    let mut sigma = 0.0;
+    for (i, (p, c)) in dashpots.iter().enumerate() {
+        let w = weight_scale
+            * m.shape_at(*p).map_err(|e| {
+                SceneError::new(format!("{base}.loss.dashpots[{i}].point"), e.to_string())
+            })?;
+        sigma += 0.5 * c * w * w;
+    }
+    Ok(sigma)
 }
 
 /// What each mode of one object is weighed at: its named points, and the
