@@ -39,10 +39,20 @@ SR = 44100
 ROOT_NOTE = 57  # marimba bar (220 Hz), the default scene
 
 
+_PLUGIN = None
+
+
 def load():
-    plugin = pedalboard.load_plugin(BUNDLE)
-    assert plugin.is_instrument
-    return plugin
+    """The plugin, loaded once for all the tests: pedalboard reads every
+    parameter's info at load, nice-plug's 2080 hidden MIDI controller
+    parameters included, which takes tens of seconds. Each test sets back
+    the parameters it changes, and every render starts from a reset
+    (pedalboard's default)."""
+    global _PLUGIN
+    if _PLUGIN is None:
+        _PLUGIN = pedalboard.load_plugin(BUNDLE)
+        assert _PLUGIN.is_instrument
+    return _PLUGIN
 
 
 def render(plugin, msgs, duration=2.0, sr=SR, **kw):

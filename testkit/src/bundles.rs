@@ -68,15 +68,17 @@ pub const STANDALONE_BIN: &str = "modal-contact-standalone";
 /// `test-release` profile (optimised, debug assertions on, so nice-plug's
 /// `assert_process_allocs` is active) and the features of the test build
 /// ([`TEST_FEATURES`]; the standalone code compiled in is not used by the
-/// bundles), so the dependency tree is compiled once for all of them. Release comes last so that after `cargo xtask test`,
+/// bundles), so the dependency tree is compiled once for all of them.
+///
+/// The order saves two compilations of the plugin crate. A library with a
+/// `cdylib` crate type is written to a file name without cargo's hash of
+/// its features, so a build with other features overwrites it and makes
+/// the earlier build stale: the panic-bug bundle comes first, and the
+/// checked bundle after it, whose compilation the standalone application,
+/// the workspace's tests and the reference renderer that `cargo xtask test`
+/// builds next reuse. Release comes last so that after `cargo xtask test`,
 /// `target/bundled/` holds the release bundle users install.
 pub const BUNDLES: [Bundle; 3] = [
-    // The checked build also carries the test-only alloc-bug trigger (note 2
-    // at velocity 0.123, played by no other test): one build instead of two.
-    Bundle {
-        name: "rt-checks",
-        cargo_args: &["--profile", "test-release", "--features", TEST_FEATURES],
-    },
     // Without rt-checks: the allocation checker aborts on the unwinder's own
     // (de)allocations, so a caught panic can only be shown in a build
     // without it (as users run it).
@@ -88,6 +90,12 @@ pub const BUNDLES: [Bundle; 3] = [
             "--features",
             "standalone,panic-bug",
         ],
+    },
+    // The checked build also carries the test-only alloc-bug trigger (note 2
+    // at velocity 0.123, played by no other test): one build instead of two.
+    Bundle {
+        name: "rt-checks",
+        cargo_args: &["--profile", "test-release", "--features", TEST_FEATURES],
     },
     Bundle {
         name: "release",

@@ -212,10 +212,10 @@ fn ensure_venv() -> Result<PathBuf> {
 }
 
 /// `cargo xtask test`: every test of the project (the README's test command):
-/// bundles the plugin three ways (release; rt-checks with the test-only
-/// alloc-bug trigger; the test-only panic-bug), builds the allocation-checked
-/// standalone application for the editor test,
-/// runs the workspace tests (plugin-tests load those bundles), the core
+/// bundles the plugin three ways (the test-only panic-bug; rt-checks with
+/// the test-only alloc-bug trigger; release), builds the allocation-checked
+/// standalone application for the editor test and the reference renderer
+/// for the VST3 test, runs the workspace tests (plugin-tests load those bundles), the core
 /// without the plugin ([`run_embed`]), then renders
 /// the VST3 with pedalboard and in Ardour.
 fn run_tests(extra: &[String]) -> Result<()> {
@@ -226,8 +226,23 @@ fn run_tests(extra: &[String]) -> Result<()> {
         dirs.push((b, bundle_to(b.name, b.cargo_args)?));
     }
     // The editor test runs the standalone application with the allocation
-    // checker (plugin-tests/tests/editor_gui.rs).
+    // checker (plugin-tests/tests/editor_gui.rs); the VST3 test compares
+    // with the library through `render-reference`. Both reuse the checked
+    // bundle's compilation of the plugin crate, built last of the test
+    // builds (`BUNDLES`); the core's build without the plugin below would
+    // make it stale.
     run(std::process::Command::new("cargo").args(modal_testkit::bundles::STANDALONE_BUILD_ARGS))?;
+    run(std::process::Command::new("cargo").args([
+        "build",
+        "--package",
+        "plugin-tests",
+        "--profile",
+        "test-release",
+        "--bin",
+        "render-reference",
+        "--features",
+        modal_testkit::bundles::TEST_FEATURES_ARG,
+    ]))?;
     // The numerical tests run long loops (1e6 samples with per-sample energy
     // checks): release mode keeps them fast; debug assertions stay on.
     // --no-fail-fast: a failure in one test binary still runs the others
@@ -261,18 +276,6 @@ fn run_tests(extra: &[String]) -> Result<()> {
     let cargo_tests = run(&mut cmd);
     let embed_test = run_embed();
     let alloc_test = run_alloc_tests();
-    // The VST3 test compares with the library through this binary.
-    run(std::process::Command::new("cargo").args([
-        "build",
-        "--package",
-        "plugin-tests",
-        "--profile",
-        "test-release",
-        "--bin",
-        "render-reference",
-        "--features",
-        modal_testkit::bundles::TEST_FEATURES_ARG,
-    ]))?;
     let release = &dirs
         .iter()
         .find(|(b, _)| b.name == "release")
