@@ -1,12 +1,13 @@
 //! A driven scene played by the instrument (docs/design.md, "Rolling and
 //! scraping"): a note starts the stroke (its velocity the speed along
 //! the path), a harder note strokes faster, the mod wheel speeds a held
-//! stroke up, pressure presses it harder, note-off stops the surface, and the voice ends once it is
+//! stroke up and so does its note's slide (MPE's brightness), pressure
+//! presses it harder, note-off stops the surface, and the voice ends once it is
 //! silent.
 
 use modal_contact::instrument::{
-    drive_speed_m_per_s, impact_speed_m_per_s, prepare_scene, wheel_speed_factor, Event,
-    Instrument, PlayParams, SceneParams, TimedEvent, WHEEL_SPEED_RANGE,
+    drive_speed_m_per_s, impact_speed_m_per_s, prepare_scene, slide_speed_factor,
+    wheel_speed_factor, Event, Instrument, PlayParams, SceneParams, TimedEvent, WHEEL_SPEED_RANGE,
 };
 use modal_contact::scene::{Beyond, DriveSpec, Scene, SurfaceSpec};
 use modal_contact::{compile_one, EngineState};
@@ -213,6 +214,58 @@ fn the_mod_wheel_speeds_a_held_stroke_up() {
         "{before} {during} {after}"
     );
     assert_eq!(inst.active_voices(), 1);
+}
+
+/// A note's brightness (MPE's slide) in a driven scene sets its own speed
+/// (docs/design.md, "Rolling and scraping"): `WHEEL_SPEED_RANGE^(2 b -
+/// 1)`. Slid to the top it plays exactly what the mod wheel at full plays
+/// (bit for bit: both multiply the note's speed by 4, and the slide leaves
+/// the hardness alone), back to the centre what the wheel at rest plays;
+/// a slide on another key changes nothing.
+#[test]
+fn the_slide_sets_its_own_notes_speed() {
+    assert_eq!(slide_speed_factor(0.5), 1.0);
+    assert_eq!(slide_speed_factor(f64::NAN), 1.0);
+    assert!((slide_speed_factor(1.0) - WHEEL_SPEED_RANGE).abs() < 1e-15);
+    assert!((slide_speed_factor(0.0) - 1.0 / WHEEL_SPEED_RANGE).abs() < 1e-15);
+    assert_eq!(slide_speed_factor(7.0), slide_speed_factor(1.0));
+    let key = modal_contact::instrument::root_note(&scraped_bar()).round() as u8;
+    let velocity = 100.0 / 127.0;
+    let (up, down) = ((0.2 * RATE) as usize, (0.4 * RATE) as usize);
+    let at = |offset, event| TimedEvent { offset, event };
+    let slide = |k: u8, value| Event::NoteBrightness {
+        key: Some(k),
+        value,
+    };
+    let wheel = |value| Event::ModWheel { value };
+    let (slid, _) = play_with(
+        velocity,
+        None,
+        0.6,
+        &[at(up, slide(key, 1.0)), at(down, slide(key, 0.5))],
+    );
+    let (wheeled, _) = play_with(
+        velocity,
+        None,
+        0.6,
+        &[at(up, wheel(1.0)), at(down, wheel(0.0))],
+    );
+    let (plain, _) = play(velocity, None, 0.6);
+    let (other, _) = play_with(velocity, None, 0.6, &[at(up, slide(key + 1, 1.0))]);
+    let differ = |a: &[f32], b: &[f32]| a.iter().zip(b).filter(|(x, y)| x != y).count();
+    let during = |x: &[f32]| rms(&x[up..down]);
+    println!(
+        "slid vs wheeled: {} samples differ; slid vs plain: {} differ (rms while slid {:.2e} against {:.2e}); another key's slide: {} differ",
+        differ(&slid, &wheeled),
+        differ(&slid, &plain),
+        during(&slid),
+        during(&plain),
+        differ(&other, &plain)
+    );
+    assert_eq!(differ(&slid, &wheeled), 0);
+    assert!(differ(&slid[up..down], &plain[up..down]) > 0);
+    assert!(during(&slid) > 1.5 * during(&plain));
+    assert_eq!(differ(&other, &plain), 0);
 }
 
 /// Pressure presses a held stroke harder (docs/design.md, "Rolling and

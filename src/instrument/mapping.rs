@@ -45,6 +45,21 @@ pub fn wheel_speed_factor(mod_wheel: f64) -> f64 {
     WHEEL_SPEED_RANGE.powf(w)
 }
 
+/// A note's brightness as its factor on a driven scene's speed along its
+/// path (MPE's slide, CC 74 on the note's channel; docs/design.md,
+/// "Rolling and scraping"): `WHEEL_SPEED_RANGE^(2 b - 1)`, 1 at MPE's
+/// centre 0.5, from `1 / WHEEL_SPEED_RANGE` at 0 to [`WHEEL_SPEED_RANGE`]
+/// at 1; a brightness that is not a number counts as the centre.
+/// \[any-thread\]
+pub fn slide_speed_factor(brightness: f64) -> f64 {
+    let b = if brightness.is_nan() {
+        0.5
+    } else {
+        brightness.clamp(0.0, 1.0)
+    };
+    WHEEL_SPEED_RANGE.powf(2.0 * b - 1.0)
+}
+
 /// Which per-voice variants beyond the hardness levels to compile (the
 /// plugin asks for them when a host first modulates that parameter per
 /// voice: docs/plugin.md, "Polyphonic modulation").

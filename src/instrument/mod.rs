@@ -12,7 +12,10 @@
 //!   100's; a new note puts the hammer on the surface at rest at the path's
 //!   start, a note on a ringing key changes the speed, the mod wheel
 //!   multiplies every held note's speed by 1 to [`WHEEL_SPEED_RANGE`]
-//!   ([`wheel_speed_factor`]), pressure (the note's or the channel's)
+//!   ([`wheel_speed_factor`]), a note's brightness (MPE's slide) its own
+//!   speed by `1 / WHEEL_SPEED_RANGE` to [`WHEEL_SPEED_RANGE`], 1 at the
+//!   centre ([`slide_speed_factor`]; in a driven scene it does not change
+//!   the hardness), pressure (the note's or the channel's)
 //!   presses it with up to [`PRESS_RANGE`] times the scene's force
 //!   ([`press_level`], [`press_factor`]: the voice carried to that level's
 //!   compiled scene), note-off stops the surface (docs/design.md,
@@ -111,7 +114,8 @@ pub use events::{Event, TimedEvent};
 pub use kit::{Kit, LISTED_KIT_SPARES, MAX_KIT_VOICES, SILENCE_AMPLITUDE_RATIO};
 pub use mapping::{
     damped_scene, drive_speed_m_per_s, impact_speed_m_per_s, lowest_frequency_hz, root_note,
-    scene_for, wheel_speed_factor, InstrumentParams, PlayParams, SceneParams, VariantSet,
+    scene_for, slide_speed_factor, wheel_speed_factor, InstrumentParams, PlayParams, SceneParams,
+    VariantSet,
 };
 pub use mix::{WorkMeter, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_LOOKAHEAD_SAMPLES};
 pub use prepared::{
@@ -791,10 +795,7 @@ impl Instrument {
                 self.for_fades(key, |f| f.pressure = value);
                 self.repress_fades();
             }
-            Event::NoteBrightness { key, value } => {
-                let level = timbre_level(value);
-                self.want_levels(key, |v| v.bright_level = level);
-            }
+            Event::NoteBrightness { key, value } => self.note_brightness(key, value),
             Event::NoteHardness { key, factor } => {
                 let level = hardness_level(factor);
                 self.want_levels(key, |v| v.hard_level = level);
@@ -836,6 +837,17 @@ impl Instrument {
 }
 
 impl Instrument {
+    /// A note's brightness: its hardness level, or in a driven scene its
+    /// stroke's speed (MPE's slide, [`slide_speed_factor`]).
+    fn note_brightness(&mut self, key: Option<u8>, value: f64) {
+        if self.cur.kit.is_none() && self.cur.scenes.scene.drive.is_some() {
+            self.drive_slide(key, slide_speed_factor(value));
+        } else {
+            let level = timbre_level(value);
+            self.want_levels(key, |v| v.bright_level = level);
+        }
+    }
+
     /// Update the voices of `key` (every voice for `None`) with `set` and
     /// move them to the hardness level their note now asks for.
     fn want_levels(&mut self, key: Option<u8>, set: impl Fn(&mut Voice)) {

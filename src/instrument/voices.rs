@@ -59,8 +59,12 @@ pub(super) struct Voice {
     /// pressed), see [`Instrument::press_decide`].
     pub(super) pressing: Option<Pressing>,
     /// A driven scene's speed along the path its note's velocity set
-    /// \[m/s\], before the mod wheel ([`wheel_speed_factor`]).
+    /// \[m/s\], before the mod wheel ([`wheel_speed_factor`]) and its
+    /// slide.
     pub(super) drive_base: f64,
+    /// A driven scene's factor on that speed from its note's brightness
+    /// (MPE's slide, [`super::slide_speed_factor`]); 1 until one comes.
+    pub(super) slide: f64,
 }
 
 /// A pressed voice between two updates of its state (docs/plugin.md,
@@ -216,6 +220,7 @@ impl Instrument {
             hard_level: 0,
             pressing: None,
             drive_base: 0.0,
+            slide: 1.0,
         };
         stored
     }
@@ -243,7 +248,7 @@ impl Instrument {
             self.voices[idx].drive_base = path_speed;
             st.set_drive_speed(
                 &p.scenes.scene,
-                path_speed * wheel_speed_factor(self.mod_wheel),
+                path_speed * wheel_speed_factor(self.mod_wheel) * self.voices[idx].slide,
             );
             e = 0.5 * m_h * (path_speed / s) * (path_speed / s);
         } else if p.bouncing {
@@ -617,7 +622,25 @@ impl Instrument {
         let factor = wheel_speed_factor(self.mod_wheel);
         for (v, st) in self.voices.iter().zip(p.states.iter_mut()) {
             if v.active && !v.released {
-                st.set_drive_speed(&p.scenes.scene, v.drive_base * factor);
+                st.set_drive_speed(&p.scenes.scene, v.drive_base * factor * v.slide);
+            }
+        }
+    }
+
+    /// A driven scene's notes of `key` (every note for `None`) slide to
+    /// `factor` times their velocity's speed (times the mod wheel's):
+    /// MPE's slide on their channel, or a host's brightness
+    /// ([`super::slide_speed_factor`]). A released note's surface has
+    /// stopped and stays still. \[audio-thread\]
+    pub(super) fn drive_slide(&mut self, key: Option<u8>, factor: f64) {
+        let p = &mut *self.cur;
+        let wheel = wheel_speed_factor(self.mod_wheel);
+        for (v, st) in self.voices.iter_mut().zip(p.states.iter_mut()) {
+            if v.active && key.is_none_or(|k| k == v.key) {
+                v.slide = factor;
+                if !v.released {
+                    st.set_drive_speed(&p.scenes.scene, v.drive_base * wheel * factor);
+                }
             }
         }
     }
