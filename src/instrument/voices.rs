@@ -67,6 +67,14 @@ pub(super) struct Voice {
     pub(super) slide: f64,
 }
 
+impl Voice {
+    /// A driven scene's speed along the path \[m/s\]: its velocity's,
+    /// times the mod wheel's factor `wheel` and its slide.
+    fn drive_speed(&self, wheel: f64) -> f64 {
+        self.drive_base * wheel * self.slide
+    }
+}
+
 /// A pressed voice between two updates of its state (docs/plugin.md,
 /// "Pressure and the mod wheel"): its engine runs the free motion, each
 /// sample leaves multiplied by `g` (then `g *= q`), and the state takes the
@@ -246,10 +254,8 @@ impl Instrument {
                 st.strike(&p.scenes.scene, 0.0, 0.0);
             }
             self.voices[idx].drive_base = path_speed;
-            st.set_drive_speed(
-                &p.scenes.scene,
-                path_speed * wheel_speed_factor(self.mod_wheel) * self.voices[idx].slide,
-            );
+            let speed = self.voices[idx].drive_speed(wheel_speed_factor(self.mod_wheel));
+            st.set_drive_speed(&p.scenes.scene, speed);
             e = 0.5 * m_h * (path_speed / s) * (path_speed / s);
         } else if p.bouncing {
             let h = self.play.drop_height_m.max(0.0);
@@ -622,7 +628,7 @@ impl Instrument {
         let factor = wheel_speed_factor(self.mod_wheel);
         for (v, st) in self.voices.iter().zip(p.states.iter_mut()) {
             if v.active && !v.released {
-                st.set_drive_speed(&p.scenes.scene, v.drive_base * factor * v.slide);
+                st.set_drive_speed(&p.scenes.scene, v.drive_speed(factor));
             }
         }
     }
@@ -639,7 +645,7 @@ impl Instrument {
             if v.active && key.is_none_or(|k| k == v.key) {
                 v.slide = factor;
                 if !v.released {
-                    st.set_drive_speed(&p.scenes.scene, v.drive_base * wheel * factor);
+                    st.set_drive_speed(&p.scenes.scene, v.drive_speed(wheel));
                 }
             }
         }

@@ -134,10 +134,10 @@ impl LossSpec {
         }
     }
 
-    /// Every decay rate (and every dashpot's damping) changed by `rate` (a caller scales decay times
-    /// through it, as the instrument does for its decay and damper
-    /// parameters: each mode's `sigma` is linear in the three rates, so
-    /// scaling them scales every mode's T60 alike), `material_eta` the loss
+    /// Every decay rate (and every dashpot's damping) changed by `rate` (a
+    /// caller scales decay times through it, as the instrument does for its
+    /// decay and damper parameters: each mode's `sigma` is linear in them,
+    /// so scaling them scales every mode's T60 alike), `material_eta` the loss
     /// factor the object takes when none is given here. An object without
     /// any loss gets the constant rate `undamped_rate` instead.
     pub fn scaled(&self, material_eta: f64, undamped_rate: f64, rate: impl Fn(f64) -> f64) -> Self {

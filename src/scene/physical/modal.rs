@@ -83,17 +83,17 @@ impl PhysicalSpec<'_> {
                 }
                 None => None,
             };
+            let mut weights = weighing.at_points(k, m)?;
             let sigma = loss
                 .decay_rate(m.freq_hz)
                 .map_err(|e| shape_error(base, e))?
                 + radiation.as_ref().map_or(0.0, |r| r(m.freq_hz))
                 + tube.map_or(0.0, |t| t.decay_rate_per_s)
-                + dashpot_decay_rate(base, weight_scale, &dashpots, m)?;
+                + dashpot_decay_rate(&dashpots, &weights);
             let t60_s = (sigma > 0.0).then(|| (1000f64.ln() / sigma).max(MIN_T60_S));
             // the tube's frequency shift (under 0.1 cent on the presets) is
             // not applied: the bar keeps the tuning its maker gave it
             let freq_hz = m.freq_hz;
-            let mut weights = weighing.at_points(k, m)?;
             weighing.toward_listeners(k, m, tube, &mut weights)?;
             mode.push(ModeSpec {
                 freq_hz,
@@ -150,20 +150,20 @@ impl PhysicalSpec<'_> {
         Ok(points)
     }
 
-    /// The dashpots' points (named points of the object) and dampings,
-    /// each damping within `0 ..= MAX_DAMPING_N_S_PER_M`.
+    /// The dashpots: the index of each one's point among the named points
+    /// and its damping, within `0 ..= MAX_DAMPING_N_S_PER_M`.
     fn dashpots(
         &self,
         base: &str,
         points: &[(String, Point)],
-    ) -> Result<Vec<(Point, f64)>, SceneError> {
+    ) -> Result<Vec<(usize, f64)>, SceneError> {
         self.loss()
             .dashpots
             .iter()
             .enumerate()
             .map(|(i, d)| {
                 let path = format!("{base}.loss.dashpots[{i}]");
-                let Some((_, p)) = points.iter().find(|(n, _)| *n == d.point) else {
+                let Some(at) = points.iter().position(|(n, _)| *n == d.point) else {
                     return Err(SceneError::new(
                         format!("{path}.point"),
                         format!("names no point of the object: {:?}", d.point),
@@ -172,7 +172,7 @@ impl PhysicalSpec<'_> {
                 let c = d.n_s_per_m;
                 check_non_negative(&format!("{path}.n_s_per_m"), c)?;
                 check_max(&format!("{path}.n_s_per_m"), c, MAX_DAMPING_N_S_PER_M)?;
-                Ok((*p, c))
+                Ok((at, c))
             })
             .collect()
     }
@@ -342,25 +342,14 @@ fn listed_modes(
     Ok(modes)
 }
 
-/// The decay rate \[1/s\] the dashpots add to mode `m`: `sum_p c_p w_p^2 /
-/// 2`, `w_p` its mass-normalised weight at dashpot `p` (times
-/// `weight_scale`), to first order in the dampings (docs/design.md,
-/// "Dashpots at points").
-fn dashpot_decay_rate(
-    base: &str,
-    weight_scale: f64,
-    dashpots: &[(Point, f64)],
-    m: &ShapeMode,
-) -> Result<f64, SceneError> {
-    let mut sigma = 0.0;
-    for (i, (p, c)) in dashpots.iter().enumerate() {
-        let w = weight_scale
-            * m.shape_at(*p).map_err(|e| {
-                SceneError::new(format!("{base}.loss.dashpots[{i}].point"), e.to_string())
-            })?;
-        sigma += 0.5 * c * w * w;
-    }
-    Ok(sigma)
+/// The decay rate \[1/s\] the dashpots `(point index, c)` add to a mode
+/// of these weights at the named points: `sum_p c_p w_p^2 / 2`, to first
+/// order in the dampings (docs/design.md, "Dashpots at points").
+fn dashpot_decay_rate(dashpots: &[(usize, f64)], weights: &[f64]) -> f64 {
+    dashpots
+        .iter()
+        .map(|&(at, c)| 0.5 * c * weights[at] * weights[at])
+        .sum()
 }
 
 /// What each mode of one object is weighed at: its named points, and the
