@@ -22,6 +22,7 @@
 pub mod browser;
 pub mod clap_entry;
 pub mod editor;
+pub mod import;
 pub mod live;
 pub mod mpe;
 pub mod params;

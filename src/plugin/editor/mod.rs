@@ -20,6 +20,7 @@
 mod view;
 
 use super::browser::{self, Folder};
+use super::import::{import_recording, Imported};
 use super::live::{LiveConsumer, LiveHistory, LiveRing};
 use super::params::{ModalContactParams, EDITOR_SIZE};
 use super::user_scene::{lock, UserScene};
@@ -137,6 +138,28 @@ pub struct App {
     chosen: (u64, u64),
     /// Pads held down: (key).
     pad_down: Option<u8>,
+    /// What the import thread reports (GUI and import threads only).
+    import_msg: Arc<Mutex<Option<ImportMsg>>>,
+    /// The last import: running, its fit, or why it failed.
+    import: Option<ImportView>,
+}
+
+/// What the import thread tells the GUI thread.
+enum ImportMsg {
+    /// The file chosen is being analysed (its name).
+    Started(String),
+    /// The analysis ended: the scene saved, or why not.
+    Done(Result<Imported, String>),
+}
+
+/// The import the editor shows (below the mode spectrum).
+pub(super) enum ImportView {
+    /// Analysing the named file.
+    Running(String),
+    /// Saved and loaded: its fit.
+    Done(Imported),
+    /// Refused: why.
+    Failed(String),
 }
 
 impl App {
@@ -155,6 +178,62 @@ impl App {
             open_error: None,
             chosen: (0, 0),
             pad_down: None,
+            import_msg: Arc::new(Mutex::new(None)),
+            import: None,
+        }
+    }
+
+    /// Analyse the recording at `wav` (or the one a file dialog picks, when
+    /// `None`) on a background thread and save its scene into the user
+    /// folder (docs/plugin.md, "Import a recording"); [`Self::take_import`]
+    /// loads it when done. The audio thread plays on meanwhile: nothing here
+    /// touches it.
+    fn start_import(&mut self, wav: Option<PathBuf>) {
+        let Some(folder) = self.folder() else {
+            self.import = Some(ImportView::Failed(
+                "this platform has no user data directory: choose a folder first".into(),
+            ));
+            return;
+        };
+        let out = self.import_msg.clone();
+        let n = self.notifier.clone();
+        let spawned = std::thread::Builder::new()
+            .name("modal-contact-import".into())
+            .spawn(move || {
+                // the native dialog blocks: never on the GUI thread
+                let wav = wav.or_else(|| {
+                    rfd::FileDialog::new()
+                        .add_filter("WAV recording", &["wav", "WAV", "wave"])
+                        .pick_file()
+                });
+                let Some(wav) = wav else { return };
+                let name = wav
+                    .file_name()
+                    .map_or(String::new(), |s| s.to_string_lossy().into_owned());
+                *lock(&out) = Some(ImportMsg::Started(name));
+                n.request_repaint();
+                let r = import_recording(&wav, &folder);
+                *lock(&out) = Some(ImportMsg::Done(r));
+                n.request_repaint();
+            });
+        if let Err(e) = spawned {
+            self.import = Some(ImportView::Failed(format!("the import cannot start: {e}")));
+        }
+    }
+
+    /// What the import thread reported since the last frame: a finished
+    /// import's scene is listed and loaded (it plays like any user scene).
+    fn take_import(&mut self) {
+        let msg = lock(&self.import_msg).take();
+        match msg {
+            None => {}
+            Some(ImportMsg::Started(name)) => self.import = Some(ImportView::Running(name)),
+            Some(ImportMsg::Done(Ok(a))) => {
+                self.relist();
+                self.load_file(&a.path);
+                self.import = Some(ImportView::Done(a));
+            }
+            Some(ImportMsg::Done(Err(e))) => self.import = Some(ImportView::Failed(e)),
         }
     }
 
@@ -327,33 +406,7 @@ impl App {
                 self.relist();
             }
         });
-        ui.horizontal(|ui| {
-            if ui.button("Refresh").clicked() {
-                self.relist();
-            }
-            if ui.button("Create folder").clicked() {
-                if let Some(f) = self.folder() {
-                    if let Err(e) = std::fs::create_dir_all(&f) {
-                        self.open_error = Some(format!("cannot create {}: {e}", f.display()));
-                    }
-                    self.relist();
-                }
-            }
-            if ui.button("Open file...").clicked() {
-                let out = self.picked.clone();
-                let start = self.folder();
-                let n = self.notifier.clone();
-                // the native dialog blocks: never on the GUI thread
-                std::thread::spawn(move || {
-                    let mut d = rfd::FileDialog::new().add_filter("scene", &["toml"]);
-                    if let Some(s) = start.filter(|s| s.is_dir()) {
-                        d = d.set_directory(s);
-                    }
-                    *lock(&out) = d.pick_file();
-                    n.request_repaint();
-                });
-            }
-        });
+        self.folder_actions(ui);
         let picked = lock(&self.picked).take();
         if let Some(p) = picked {
             self.load_file(&p);
@@ -395,6 +448,47 @@ impl App {
                 }
             }
         });
+    }
+
+    /// The user folder's buttons: refresh, create, open a file, import a
+    /// recording.
+    fn folder_actions(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            if ui.button("Refresh").clicked() {
+                self.relist();
+            }
+            if ui.button("Create folder").clicked() {
+                if let Some(f) = self.folder() {
+                    if let Err(e) = std::fs::create_dir_all(&f) {
+                        self.open_error = Some(format!("cannot create {}: {e}", f.display()));
+                    }
+                    self.relist();
+                }
+            }
+            if ui.button("Open file...").clicked() {
+                let out = self.picked.clone();
+                let start = self.folder();
+                let n = self.notifier.clone();
+                // the native dialog blocks: never on the GUI thread
+                std::thread::spawn(move || {
+                    let mut d = rfd::FileDialog::new().add_filter("scene", &["toml"]);
+                    if let Some(s) = start.filter(|s| s.is_dir()) {
+                        d = d.set_directory(s);
+                    }
+                    *lock(&out) = d.pick_file();
+                    n.request_repaint();
+                });
+            }
+        });
+        if ui
+            .button("Import recording...")
+            .on_hover_text(
+                "Analyse a recorded strike (WAV) into a scene of its modes, saved in this folder",
+            )
+            .clicked()
+        {
+            self.start_import(None);
+        }
     }
 
     fn params_panel(&self, ui: &mut egui::Ui, setter: &ParamSetter) {
@@ -555,6 +649,19 @@ impl NiceEguiApp for App {
             return;
         };
         let setter = gui.param_setter();
+        // a recording dropped on the window, where the windowing layer
+        // passes drops on to egui
+        let dropped = ui.ctx().input(|i| {
+            i.raw
+                .dropped_files
+                .iter()
+                .map(|f| f.path().to_path_buf())
+                .find(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("wav")))
+        });
+        if dropped.is_some() {
+            self.start_import(dropped);
+        }
+        self.take_import();
         egui::Panel::top("top").show(ui, |ui| self.top_bar(ui));
         egui::Panel::left("browser")
             .resizable(true)
@@ -575,6 +682,11 @@ impl NiceEguiApp for App {
                 self.link.ring.dropped(),
             );
             view::spectrum(ui, &report);
+            if let Some(im) = &self.import {
+                if view::import_view(ui, im) {
+                    self.import = None;
+                }
+            }
         });
         // no repaint asked here: see the module doc
     }

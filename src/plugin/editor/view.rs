@@ -266,6 +266,75 @@ pub(super) fn spectrum(ui: &mut egui::Ui, report: &CompileReport) {
     );
 }
 
+/// The last import of a recording ("Import recording..."): while it runs,
+/// the file's name; when done, the recording's spectrum (grey) with the
+/// fitted modes' (orange) over it and the modes as ticks, 20 Hz to Nyquist,
+/// 0 to -80 dB re the recording's largest; when refused, why. Returns
+/// whether the user closed it.
+pub(super) fn import_view(ui: &mut egui::Ui, im: &super::ImportView) -> bool {
+    use super::ImportView;
+    let closed = ui
+        .horizontal(|ui| {
+            let title = match im {
+                ImportView::Running(name) => format!("Importing {name}\u{2026}"),
+                ImportView::Done(a) => format!("Imported {} as {}", a.name, a.path.display()),
+                ImportView::Failed(_) => "Import refused".to_string(),
+            };
+            ui.label(egui::RichText::new(title).strong());
+            !matches!(im, ImportView::Running(_)) && ui.small_button("close").clicked()
+        })
+        .inner;
+    let a = match im {
+        ImportView::Running(_) => return closed,
+        ImportView::Failed(e) => {
+            ui.colored_label(Color32::from_rgb(240, 90, 80), e);
+            return closed;
+        }
+        ImportView::Done(a) => a,
+    };
+    ui.label(egui::RichText::new(&a.summary).small());
+    let (r, painter) = frame(
+        ui,
+        120.0,
+        "Recording (grey) and fitted modes (orange), first 0.5 s",
+    );
+    let s = &a.spectrum;
+    let (Some(&lo), Some(&hi)) = (s.freqs_hz.first(), s.freqs_hz.last()) else {
+        return closed;
+    };
+    let (f_lo, f_hi) = (lo.log10(), hi.log10().max(lo.log10() + 1e-3));
+    let x_of = |f: f64| {
+        r.left() + ((f.max(1.0).log10() - f_lo) / (f_hi - f_lo)).clamp(0.0, 1.0) as f32 * r.width()
+    };
+    let y_of = |db: f64| r.top() + (-db / 80.0).clamp(0.0, 1.0) as f32 * r.height();
+    for &(f, db) in &s.modes {
+        let x = x_of(f);
+        painter.line_segment(
+            [
+                pos2(x, r.bottom()),
+                pos2(
+                    x,
+                    r.bottom() - 6.0 - (1.0 + db / 80.0).clamp(0.0, 1.0) as f32 * 10.0,
+                ),
+            ],
+            Stroke::new(1.0, Color32::from_rgb(240, 170, 70)),
+        );
+    }
+    for (levels, colour, width) in [
+        (&s.recording_db, Color32::from_gray(170), 1.5),
+        (&s.fit_db, Color32::from_rgb(240, 170, 70), 1.0),
+    ] {
+        let points = s
+            .freqs_hz
+            .iter()
+            .zip(levels.iter())
+            .map(|(&f, &db)| pos2(x_of(f), y_of(db)))
+            .collect();
+        painter.add(Shape::line(points, Stroke::new(width, colour)));
+    }
+    closed
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
