@@ -82,10 +82,10 @@ enum Command {
     /// machine, OS, compiler and date of its run. Relative paths are from
     /// the workspace root.
     Benchmarks(benchmarks::BenchmarksArgs),
-    /// Every test: bundles the plugin three ways, runs the workspace tests
-    /// (the plugin tests load those bundles), the core without the plugin
-    /// (its doctest, examples/embed.rs), then the VST3 tests (pedalboard,
-    /// Ardour).
+    /// Every test: checks the core without the plugin, bundles the plugin
+    /// three ways, runs the allocation tests and examples/embed.rs, the
+    /// workspace tests (the plugin tests load those bundles), then the VST3
+    /// tests (pedalboard, Ardour).
     Test(TestArgs),
     /// Bundle the release plugin and render a demo through the built CLAP
     /// plugin into target/demo/; each preset that names a real instrument
@@ -212,25 +212,35 @@ fn ensure_venv() -> Result<PathBuf> {
 }
 
 /// `cargo xtask test`: every test of the project (the README's test command):
-/// bundles the plugin three ways (the test-only panic-bug; rt-checks with
-/// the test-only alloc-bug trigger; release), builds the allocation-checked
-/// standalone application for the editor test and the reference renderer
-/// for the VST3 test, runs the workspace tests (plugin-tests load those bundles), the core
-/// without the plugin ([`run_embed`]), then renders
-/// the VST3 with pedalboard and in Ardour.
+/// checks the core without the plugin and bundles the plugin three ways
+/// (the test-only panic-bug; rt-checks with the test-only alloc-bug
+/// trigger; release), runs the allocation tests and the embedding example
+/// on the first of them ([`run_alloc_tests`], [`run_embed`]), builds the
+/// allocation-checked standalone application for the editor test and the
+/// reference renderer for the VST3 test, runs the workspace tests
+/// (plugin-tests load those bundles), then renders the VST3 with
+/// pedalboard and in Ardour.
 fn run_tests(extra: &[String]) -> Result<()> {
     nice_plug_xtask::chdir_workspace_root()?;
     let python = ensure_venv()?;
+    check_core()?;
     let mut dirs = Vec::new();
+    let mut unchecked = Vec::new();
     for b in &BUNDLES {
         dirs.push((b, bundle_to(b.name, b.cargo_args)?));
+        if b.name == "panic-bug" {
+            // the tests that need a build without the allocation checker,
+            // on this bundle's compilation of the crate before the next
+            // bundle's features overwrite its library (`BUNDLES`)
+            unchecked.push(run_alloc_tests(b.cargo_args));
+            unchecked.push(run_embed(b.cargo_args));
+        }
     }
     // The editor test runs the standalone application with the allocation
     // checker (plugin-tests/tests/editor_gui.rs); the VST3 test compares
     // with the library through `render-reference`. Both reuse the checked
-    // bundle's compilation of the plugin crate, built last of the test
-    // builds (`BUNDLES`); the core's build without the plugin below would
-    // make it stale.
+    // bundle's compilation of the plugin crate, the last of the
+    // test-release builds of the crate's library (`BUNDLES`).
     run(std::process::Command::new("cargo").args(modal_testkit::bundles::STANDALONE_BUILD_ARGS))?;
     run(std::process::Command::new("cargo").args([
         "build",
@@ -274,8 +284,6 @@ fn run_tests(extra: &[String]) -> Result<()> {
             .join(modal_testkit::bundles::STANDALONE_BIN),
     );
     let cargo_tests = run(&mut cmd);
-    let embed_test = run_embed();
-    let alloc_test = run_alloc_tests();
     let release = &dirs
         .iter()
         .find(|(b, _)| b.name == "release")
@@ -298,51 +306,57 @@ fn run_tests(extra: &[String]) -> Result<()> {
     let vst3_test = host_test("plugin-tests/vst3/test_vst3.py");
     let ardour_test = host_test("plugin-tests/ardour/test_ardour.py");
     cargo_tests?;
-    embed_test?;
-    alloc_test?;
+    for r in unchecked {
+        r?;
+    }
     vst3_test?;
     ardour_test
 }
 
-/// The cargo arguments of the core without the plugin (README,
-/// "Embedding"): `-p`, since the workspace's other crates turn the plugin
-/// on; the `test-release` profile, after the workspace's tests, so the
-/// build reuses their compilations of the dependencies
-/// (feature-union/Cargo.toml).
-const CORE_ARGS: [&str; 5] = [
-    "-p",
-    "modal_contact",
-    "--profile",
-    "test-release",
-    "--no-default-features",
-];
+/// The core without the plugin (README, "Embedding"; docs/design.md,
+/// "Layers"): the library and `examples/embed.rs` checked with
+/// `--no-default-features`, so nothing of the core names nice-plug, egui,
+/// rfd, directories or clap-sys (`-p`, since the workspace's other crates
+/// turn the plugin on). A check, not a build: it shares the clippy step's
+/// checked dependencies (feature-union/Cargo.toml) instead of compiling the
+/// crate once more; the example and the doctest run in the builds with the
+/// plugin ([`run_embed`], the workspace's tests), the same code.
+fn check_core() -> Result<()> {
+    run(std::process::Command::new("cargo").args([
+        "check",
+        "-p",
+        "modal_contact",
+        "--no-default-features",
+        "--lib",
+        "--example",
+        "embed",
+    ]))
+}
 
 /// The allocation tests (`tests/kit_alloc.rs`, `tests/multi_alloc.rs`):
 /// each installs a counting global allocator, so both are empty in the
 /// workspace's build with `rt-checks` (whose allocation checker is that
-/// build's global allocator) and run here, in the core's build.
-fn run_alloc_tests() -> Result<()> {
+/// build's global allocator) and run here, with `bundle_args`, a bundle's
+/// arguments without the checker (its compilation of the crate reused).
+fn run_alloc_tests(bundle_args: &[&str]) -> Result<()> {
     run(std::process::Command::new("cargo")
-        .arg("test")
-        .args(CORE_ARGS)
+        .args(["test", "-p", "modal_contact"])
+        .args(bundle_args)
         .args(["--test", "kit_alloc", "--test", "multi_alloc"]))
 }
 
-/// The core without the plugin: its doctest (the README's embedding
-/// example), `examples/embed.rs` writing a WAV file that is read back
-/// (stereo, 48 kHz, 2 s, finite, not silent) for a scene of one contact
-/// and one of several, and the example refusing a
-/// missing scene file with exit code 1 and a message.
-fn run_embed() -> Result<()> {
-    run(std::process::Command::new("cargo")
-        .args(["test", "--doc"])
-        .args(CORE_ARGS))?;
+/// `examples/embed.rs` (the README's embedding path) built with
+/// `bundle_args` (a bundle's arguments: its compilation of the crate
+/// reused) writing a WAV file that is read back (stereo, 48 kHz, 2 s,
+/// finite, not silent) for a scene of one contact and one of several, and
+/// refusing a missing scene file with exit code 1 and a message.
+fn run_embed(bundle_args: &[&str]) -> Result<()> {
     let dir = Path::new("target/embed");
     std::fs::create_dir_all(dir)?;
     let example = |args: &[&Path]| {
         let mut cmd = std::process::Command::new("cargo");
-        cmd.arg("run")
-            .args(CORE_ARGS)
+        cmd.args(["run", "-p", "modal_contact"])
+            .args(bundle_args)
             .args(["--example", "embed", "--"])
             .args(args);
         cmd
