@@ -99,8 +99,6 @@ use modal_testkit::scenes::{Contact, Hammer, Modal, Pickup, SceneBuilder, Wall};
 use pwl_reference as reference;
 use std::f64::consts::PI;
 use std::fmt::Write as _;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
 use std::time::Instant;
 
 const RATE: f64 = 44_100.0;
@@ -782,23 +780,8 @@ fn table(outcomes: &[Outcome]) -> String {
 fn stiff_exact_switching_matches_the_reference() {
     let cases = cases();
     let t0 = Instant::now();
-    let next = AtomicUsize::new(0);
-    let results: Vec<Mutex<Option<Outcome>>> = cases.iter().map(|_| Mutex::new(None)).collect();
     let threads = std::thread::available_parallelism().map_or(2, |n| n.get());
-    std::thread::scope(|s| {
-        for _ in 0..threads {
-            s.spawn(|| loop {
-                let i = next.fetch_add(1, Ordering::Relaxed);
-                let Some(case) = cases.get(i) else { break };
-                let o = run_caught(case);
-                *results[i].lock().unwrap() = Some(o);
-            });
-        }
-    });
-    let outcomes: Vec<Outcome> = results
-        .into_iter()
-        .map(|m| m.into_inner().unwrap().expect("every case ran"))
-        .collect();
+    let outcomes: Vec<Outcome> = modal_testkit::parallel::map(&cases, run_caught);
     let md = table(&outcomes);
     println!("{md}");
     println!(

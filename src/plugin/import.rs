@@ -69,6 +69,13 @@ pub struct FitSpectrum {
 /// [`crate::recording::RecordingError`], or the folder's); nothing is
 /// written then. \[worker\]
 pub fn import_recording(wav: &Path, folder: &Path) -> Result<Imported, String> {
+    // a folder that cannot be made is said before the analysis's seconds
+    if folder.exists() && !folder.is_dir() {
+        return Err(format!(
+            "cannot make the user folder {}: a file is in its place",
+            folder.display()
+        ));
+    }
     let rec = read_wav(wav, Channel::Mix).map_err(|e| format!("{}: {e}", wav.display()))?;
     let x = &rec.samples;
     let an = analyze(x, rec.rate_hz, &AnalysisOptions::default())
@@ -266,7 +273,7 @@ mod tests {
     const MODES: [(f64, f64, f64); 3] = [(440.0, 1.5, 0.4), (1210.0, 0.8, 0.2), (2950.0, 0.4, 0.1)];
 
     /// A 16-bit WAV of [`MODES`] ringing from 10 ms into the file (silence
-    /// before it), 1 s at 44.1 kHz.
+    /// before it), 0.6 s at 44.1 kHz.
     fn strike_wav(path: &Path) {
         let rate = 44_100.0;
         let spec = hound::WavSpec {
@@ -276,7 +283,7 @@ mod tests {
             sample_format: hound::SampleFormat::Int,
         };
         let mut w = hound::WavWriter::create(path, spec).expect("wav");
-        for i in 0..44_100 {
+        for i in 0..26_460 {
             let t = (i as f64 - 441.0) / rate;
             let v: f64 = if t < 0.0 {
                 0.0
@@ -353,26 +360,26 @@ mod tests {
     }
 
     #[test]
-    fn a_second_import_never_overwrites() {
+    fn a_second_save_never_overwrites() {
         let dir = temp("twice");
-        let wav = dir.with_extension("wav");
-        strike_wav(&wav);
         std::fs::create_dir_all(&dir).expect("dir");
-        let stem = wav.file_stem().unwrap().to_string_lossy().into_owned();
         // the user's own file of that name stays as it is
-        let own = dir.join(format!("{stem}.toml"));
+        let own = dir.join("bowl.toml");
         std::fs::write(&own, "# mine\n").expect("write");
-        let a = import_recording(&wav, &dir).expect("import");
-        let b = import_recording(&wav, &dir).expect("import");
-        assert_eq!(a.path, dir.join(format!("{stem}-2.toml")));
-        assert_eq!(b.path, dir.join(format!("{stem}-3.toml")));
+        let a = save_new(&dir, "bowl", "# first\n").expect("save");
+        let b = save_new(&dir, "bowl", "# second\n").expect("save");
+        assert_eq!(a, dir.join("bowl-2.toml"));
+        assert_eq!(b, dir.join("bowl-3.toml"));
         assert_eq!(std::fs::read_to_string(&own).unwrap(), "# mine\n");
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "# first\n");
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), "# second\n");
+        // a folder made on the way
+        let deeper = dir.join("new").join("scenes");
         assert_eq!(
-            std::fs::read_to_string(&a.path).unwrap(),
-            std::fs::read_to_string(&b.path).unwrap()
+            save_new(&deeper, "bowl", "x").expect("save"),
+            deeper.join("bowl.toml")
         );
         let _ = std::fs::remove_dir_all(&dir);
-        let _ = std::fs::remove_file(&wav);
     }
 
     #[test]

@@ -141,12 +141,6 @@ fn classify(ctx: &BandCtx<'_>, fit: &Fit, sig: &BandSignal, peak: f64, found: &m
             t60_rel_sd: sd * ctx.rate_hz / d / alpha.abs().max(1e-300),
         };
         let why = reason(ctx, &mode, offset, alpha, fit.stable[k], span_s);
-        if std::env::var("RECDBG").is_ok() && mode.freq_hz > 9000.0 && mode.freq_hz < 9700.0 {
-            eprintln!(
-                "DBG band {} f {:.3} t60 {:.4} snr {:.1} sd {:.3e} {:?}",
-                ctx.index, mode.freq_hz, mode.t60_s, mode.snr_db, mode.freq_sd_hz, why
-            );
-        }
         match why {
             Some(reason) => found.dropped.push(DroppedPole {
                 freq_hz: mode.freq_hz,

@@ -22,6 +22,7 @@ pub mod analysis;
 pub mod bundles;
 pub mod competitors;
 pub mod metrics;
+pub mod parallel;
 pub mod rng;
 pub mod scenes;
 pub mod stability;
