@@ -558,9 +558,18 @@ fn summary_event_search() {
     }
 }
 
-/// The paper's two presets rendered whole, against real time.
+/// The paper's two presets and the three driven ones (a ball rolling on
+/// a plate, a marble on a board, a guiro scraped: the surface read and
+/// its affine input every sample) rendered whole, against real time, and
+/// per sample.
 fn summary_renders() {
-    for name in ["paper-bounce", "paper-string"] {
+    for name in [
+        "paper-bounce",
+        "paper-string",
+        "ball-on-plate",
+        "marble-on-board",
+        "guiro",
+    ] {
         let scene = preset(name);
         let sc = compile_with(&scene, RATE, None).unwrap();
         let secs = scene.duration_s;
@@ -570,9 +579,10 @@ fn summary_renders() {
             black_box(run_engine(&mut st, &sc, n));
         });
         println!(
-            "render {name} ({secs} s): {:.2} ms, {:.0}x faster than real time",
+            "render {name} ({secs} s): {:.2} ms, {:.0}x faster than real time, {:.0} ns per sample",
             t * 1e3,
-            secs / t
+            secs / t,
+            t * 1e9 / n as f64
         );
     }
 }

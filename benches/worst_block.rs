@@ -28,6 +28,8 @@ const RATE: f64 = 48000.0;
 const SECONDS: f64 = 2.0;
 /// Chords repeat this often.
 const CHORD_EVERY_S: f64 = 0.125;
+/// Runs of each preset's chords; a block's time is its least over them.
+const PRESET_RUNS: usize = 3;
 
 /// A struck modal object of `n` modes (a bar-like spectrum up to 18 kHz,
 /// weights that fall slowly with frequency), hammer as the presets'.
@@ -529,13 +531,16 @@ fn pitch_bend(_: &mut Criterion) {
 /// Every preset as the plugin plays it: the same 16 keys (every other
 /// semitone from C3) struck again every [`CHORD_EVERY_S`] on their own
 /// voices, still ringing (a strike on a ringing object locates every
-/// switch: none is played back), 64-sample blocks at 48 kHz; the worst
-/// block and the 99.9th percentile, % of the budget. The presets keep the
-/// worst block under half of it, but for the wind chimes (docs/design.md,
-/// "How close to the real instruments", mode bands).
+/// switch: none is played back; a driven preset's notes are 16 strokes
+/// at once), 64-sample blocks at 48 kHz; the worst block and the 99.9th
+/// percentile, % of the budget. Each block's time is the least of
+/// [`PRESET_RUNS`] runs of the same deterministic work, so a block the
+/// machine interrupted in one run (a pause of about 10 ms spans two
+/// 64-sample blocks, which lifts the percentile too) does not stand for
+/// the preset's cost.
 fn preset_chords(_: &mut Criterion) {
     use modal_contact::instrument::{prepare, SceneParams};
-    println!("\npresets, the same 16-note chord struck again every {CHORD_EVERY_S} s on its ringing voices, 64-sample blocks at 48 kHz, {SECONDS} s: worst block, % of the budget (max / 99.9th percentile):");
+    println!("\npresets, the same 16-note chord struck again every {CHORD_EVERY_S} s on its ringing voices (a driven preset: 16 strokes), 64-sample blocks at 48 kHz, {SECONDS} s, each block the least of {PRESET_RUNS} runs: worst block, % of the budget (max / 99.9th percentile):");
     println!("| preset | 64 samples |");
     println!("|---|---|");
     let total = (SECONDS * RATE) as usize;
@@ -558,7 +563,13 @@ fn preset_chords(_: &mut Criterion) {
             ..SceneParams::default()
         };
         let prepared = prepare(&sp, RATE, 0).expect("compile");
-        let times = run_blocks(&prepared, &evs, total, 64, 0);
+        let mut times = run_blocks(&prepared, &evs, total, 64, 0);
+        for _ in 1..PRESET_RUNS {
+            let again = run_blocks(&prepared, &evs, total, 64, 0);
+            for (t, a) in times.iter_mut().zip(again) {
+                *t = t.min(a);
+            }
+        }
         println!("| {} | {} |", p.name, cell(times, 64));
     }
 }

@@ -86,7 +86,8 @@ vibrating object. Median of 5; the SIMD path chosen at run time, and the portabl
 and the whole sample holding a located impact), the worst sample of the exact event \
 search under a hammer rattling through a critically damped contact, every preset \
 struck at full velocity at every Hardness (worst sample of the first 100 ms against \
-the 22.7 us sample period), two preset renders against real time, 16 voices of 200 \
+the 22.7 us sample period), the paper's two presets and the three driven ones \
+(rolling and scraping) rendered against real time and per sample, 16 voices of 200 \
 modes, the compile of 100 / 400 / 1000 modes, and 200 modes in the subnormal range \
 with and without the flush. The targets these are held to: \
 docs/design.md, \"Speed targets\".",
@@ -105,8 +106,10 @@ real-time budget (above 100 % a block is late). \"dense switches\" is the same \
 scene with its structured changes of basis removed, \"strikes not played back\" \
 with its recorded strikes dropped. Beside it: what one strike costs (ringing, at \
 rest, played back), one note's first block at three pitches, 64 voices of the \
-heaviest preset with and without the editor's live view, bad input (all 128 keys \
-in one block, a note on every sample), a pitch bend, a 16-note chord with a \
+heaviest preset with and without the editor's live view, every preset's 16-note \
+chord struck again on its ringing voices (on a driven preset, 16 strokes rolling or \
+scraping at once; each block the least of three runs, so that a pause of the \
+machine's does not stand for a preset's cost), bad input (all 128 keys in one block, a note on every sample), a pitch bend, a 16-note chord with a \
 brightness on every note, and the lookahead table. A largest far above its \
 percentile is one block the machine interrupted; compare rows of one run, not runs \
 of different days. What the numbers mean for the plugin: \
