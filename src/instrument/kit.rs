@@ -636,6 +636,7 @@ impl Instrument {
                         start: t0,
                         motion: &self.kit_motion[j][..len],
                         energy_j: Some(energy_j),
+                        path_m: None,
                     });
                 }
             }

@@ -496,6 +496,7 @@ impl Instrument {
                     // (asking a replaying voice would run its strike)
                     energy_j: (!st.replaying())
                         .then(|| st.energy_rt_scaled(scene, v.pressing.map_or(1.0, |pr| pr.g))),
+                    path_m: st.surface_at(scene).map(|s| s.path_m),
                 });
             }
             if self.lanes.meter == WorkMeter::Estimate {

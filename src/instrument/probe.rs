@@ -25,6 +25,10 @@ pub struct VoiceChunk<'a> {
     /// recording holds no energies: docs/numerics.md, "A strike from rest
     /// played back").
     pub energy_j: Option<f64>,
+    /// A driven voice's position along its path at the chunk's end \[m\]
+    /// (`None`: the scene is not driven; docs/design.md, "Rolling and
+    /// scraping").
+    pub path_m: Option<f64>,
 }
 
 /// Receives the voices' motion; called on the audio thread, so an

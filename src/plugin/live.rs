@@ -53,6 +53,8 @@ pub struct LiveFrame {
     /// The voice's energy at the chunk's end \[J\] (`None` while its
     /// strike is played back from a recording).
     pub energy_j: Option<f64>,
+    /// A driven voice's position along its path at the chunk's end \[m\].
+    pub path_m: Option<f32>,
 }
 
 impl LiveFrame {
@@ -68,6 +70,7 @@ impl LiveFrame {
             contact_m: [0.0; FRAME_POINTS],
             contact_bits: 0,
             energy_j: c.energy_j,
+            path_m: c.path_m.map(|x| x as f32),
         };
         for (j, m) in c.motion.iter().enumerate() {
             let g = (c.start + j as u64) / DECIMATION as u64;
@@ -245,6 +248,8 @@ pub struct VoiceHistory {
     pub points: VecDeque<(u64, f32, f32, bool)>,
     /// Energy at each chunk's end: (group, joules).
     pub energy: VecDeque<(u64, f64)>,
+    /// A driven voice's latest position along its path \[m\].
+    pub path_m: Option<f32>,
 }
 
 /// What the editor keeps of the frames: per voice, the last
@@ -274,6 +279,7 @@ impl LiveHistory {
         let h = &mut self.voices[v];
         h.key = f.key;
         h.released = f.released;
+        h.path_m = f.path_m;
         for k in 0..usize::from(f.points) {
             let g = f.first_group + k as u64;
             if h.points.back().is_some_and(|p| p.0 >= g) {
@@ -359,6 +365,7 @@ mod tests {
             contact_m: [0.0; FRAME_POINTS],
             contact_bits: 0,
             energy_j: Some(1.0),
+            path_m: None,
         }
     }
 
@@ -443,6 +450,7 @@ mod tests {
             start: 6,
             motion: &m,
             energy_j: Some(0.25),
+            path_m: Some(0.25),
         });
         assert_eq!((f.first_group, f.points), (1, 3));
         assert_eq!(&f.hammer_m[..3], &[0.0, 2.0, 6.0]);
@@ -452,6 +460,7 @@ mod tests {
             (f.voice, f.key, f.released, f.energy_j),
             (3, 61, true, Some(0.25))
         );
+        assert_eq!(f.path_m, Some(0.25));
     }
 
     #[test]

@@ -111,6 +111,52 @@ pub struct CompileReport {
     /// says the strike warning for the Polyphony and Lookahead of the
     /// moment ([`CompileReport::strike_warning`]).
     pub strike: Option<(StrikeCost, usize)>,
+    /// A driven scene's path (`None`: the scene is struck).
+    pub path: Option<PathView>,
+}
+
+/// Columns of a driven scene's path the editor draws.
+pub const PATH_COLUMNS: usize = 512;
+
+/// A driven scene's path for the editor (docs/plugin.md, "The editor"):
+/// the profile the contact follows (the surface as the rolling body sees
+/// it), as the lowest and highest height of each of [`PATH_COLUMNS`]
+/// equal stretches of the path (fewer when the profile has fewer points).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PathView {
+    /// The path's length \[m\] (its period when it wraps).
+    pub length_m: f64,
+    /// Whether the path wraps (a position beyond it is taken modulo it).
+    pub periodic: bool,
+    /// Each column's lowest and highest height \[m\].
+    pub columns: Vec<(f32, f32)>,
+}
+
+impl PathView {
+    /// The view of a compiled drive's profile.
+    pub fn of(d: &crate::compile::drive::DrivePlan) -> Self {
+        let h = &d.profile.heights;
+        let n = h.len();
+        let cols = PATH_COLUMNS.min(n.max(1));
+        let columns = (0..cols)
+            .map(|c| {
+                let (a, b) = (
+                    c * n / cols,
+                    ((c + 1) * n / cols).max(c * n / cols + 1).min(n),
+                );
+                h[a..b]
+                    .iter()
+                    .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+                        (lo.min(v as f32), hi.max(v as f32))
+                    })
+            })
+            .collect();
+        Self {
+            length_m: d.profile.length(),
+            periodic: d.profile.periodic,
+            columns,
+        }
+    }
 }
 
 impl CompileReport {
@@ -304,6 +350,7 @@ impl SceneLibrary {
                 .flatten()
                 .collect();
                 report.strike = Some((p.strike_cost(), host.max_block));
+                report.path = p.scenes.scene.drive.as_ref().map(PathView::of);
                 // the log says the strike warning for the compile's
                 // parameters; the editor says it for the current ones
                 let mut log = report.warnings.clone();
@@ -593,6 +640,69 @@ gain = 0.5
     /// lowest kept one at the frequency the instrument tunes to (the root
     /// note is the MIDI note nearest it; a `fundamental_hz` is met); a
     /// lumped string says plainly that it has no spectrum.
+    /// A driven preset's report carries its path for the editor: the
+    /// compiled profile's length, and columns whose lows and highs are
+    /// the profile's own extremes (every height inside its column's
+    /// range); a struck preset's carries none.
+    #[test]
+    fn driven_presets_report_their_path() {
+        for (i, pr) in presets::PRESETS.iter().enumerate() {
+            let lib = SceneLibrary::default();
+            let params = SceneParams {
+                preset: i,
+                ..SceneParams::default()
+            };
+            lib.prepare(&params, 48_000.0, 1, HOST)
+                .unwrap_or_else(|e| panic!("{}: {e}", pr.name));
+            let r = lib.report();
+            let scene = presets::scene(i).unwrap();
+            let Some(spec) = &scene.drive else {
+                assert!(r.path.is_none(), "{}", pr.name);
+                continue;
+            };
+            let plan = crate::compile::drive::plan(spec).unwrap();
+            let path = r.path.as_ref().expect("a path");
+            let h = &plan.profile.heights;
+            assert_eq!(path.length_m, plan.profile.length(), "{}", pr.name);
+            assert_eq!(path.columns.len(), PATH_COLUMNS.min(h.len()));
+            // the columns tile the points in order, each its stretch's extremes
+            let cols = path.columns.len();
+            let mut next = 0;
+            for (c, &(lo, hi)) in path.columns.iter().enumerate() {
+                let end = ((c + 1) * h.len() / cols).max(next + 1);
+                let stretch = &h[next..end];
+                let lo_want = stretch.iter().fold(f64::INFINITY, |m, &v| m.min(v)) as f32;
+                let hi_want = stretch.iter().fold(f64::NEG_INFINITY, |m, &v| m.max(v)) as f32;
+                assert_eq!((lo, hi), (lo_want, hi_want), "{}: column {c}", pr.name);
+                next = end;
+            }
+            assert_eq!(next, h.len(), "{}", pr.name);
+            let lo = path
+                .columns
+                .iter()
+                .map(|c| c.0)
+                .fold(f32::INFINITY, f32::min);
+            let hi = path
+                .columns
+                .iter()
+                .map(|c| c.1)
+                .fold(f32::NEG_INFINITY, f32::max);
+            let (min, max) = h
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                    (a.min(v), b.max(v))
+                });
+            assert_eq!((lo, hi), (min as f32, max as f32), "{}", pr.name);
+            println!(
+                "{}: {} points in {} columns over {:.3} m",
+                pr.name,
+                h.len(),
+                cols,
+                path.length_m
+            );
+        }
+    }
+
     #[test]
     fn every_preset_shows_its_modes_at_its_tuning() {
         for (i, pr) in presets::PRESETS.iter().enumerate() {

@@ -119,3 +119,62 @@ fn energy_rt_equals_energy() {
         assert!(checked_contact, "{}: never in contact", preset.name);
     }
 }
+
+/// What the path test's probe keeps: (voice, chunk start, its length,
+/// the path position at its end).
+type PathSeen = std::sync::Arc<std::sync::Mutex<Vec<(usize, u64, usize, Option<f64>)>>>;
+
+struct PathRecorder(PathSeen);
+
+impl VoiceProbe for PathRecorder {
+    fn voice_chunk(&mut self, c: &VoiceChunk) {
+        self.0
+            .lock()
+            .unwrap()
+            .push((c.voice, c.start, c.motion.len(), c.path_m));
+    }
+}
+
+/// A driven voice tells the live view where it is on its path (the
+/// editor's path view): at every chunk's end the path's start plus the
+/// note's speed along it (the scene's at velocity 100, as
+/// `drive_speed_m_per_s` maps it) times the time since its note-on, at
+/// two keys an octave apart (the speed along the path is physical: the
+/// pitch does not move it); a struck preset's chunks say no path.
+#[test]
+fn a_driven_voice_reports_its_path_position() {
+    for preset in presets::PRESETS {
+        let scene = base(preset.name);
+        let p = params(preset.name);
+        let seen: PathSeen = Default::default();
+        let mut inst = instrument(&p);
+        inst.set_probe(Some(Box::new(PathRecorder(seen.clone()))));
+        inst.set_probe_on(true);
+        let (t_on, n) = (100, 12_000);
+        render(
+            &mut inst,
+            &[on(t_on, 60, 100.0 / 127.0), on(t_on, 72, 100.0 / 127.0)],
+            n,
+        );
+        let seen = seen.lock().unwrap();
+        let Some(d) = &scene.drive else {
+            assert!(seen.iter().all(|c| c.3.is_none()), "{}", preset.name);
+            continue;
+        };
+        let speed = drive_speed_m_per_s(d.speed_m_per_s, impact_speed_m_per_s(100.0 / 127.0));
+        let mut worst = 0.0_f64;
+        for &(v, start, len, path) in seen.iter() {
+            let end = start + len as u64 - t_on as u64;
+            let want = d.start_m + speed * end as f64 / RATE;
+            let got = path.unwrap_or_else(|| panic!("{}: voice {v} says no path", preset.name));
+            worst = worst.max((got - want).abs());
+        }
+        println!(
+            "{}: {} chunks, path within {worst:.1e} m of start + speed x time ({speed} m/s)",
+            preset.name,
+            seen.len()
+        );
+        assert!(seen.len() > 10);
+        assert!(worst < 1e-12, "{}: path off by {worst:e} m", preset.name);
+    }
+}

@@ -682,6 +682,7 @@ impl NiceEguiApp for App {
                 self.link.ring.dropped(),
             );
             view::spectrum(ui, &report);
+            view::path_view(ui, &report, &lock(&self.shared.live).history);
             if let Some(im) = &self.import {
                 if view::import_view(ui, im) {
                     self.import = None;

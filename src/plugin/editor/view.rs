@@ -266,6 +266,56 @@ pub(super) fn spectrum(ui: &mut egui::Ui, report: &CompileReport) {
     );
 }
 
+/// A driven scene's path: the profile the contact follows (each column
+/// from its lowest to its highest height, scaled to the frame), and where
+/// each sounding voice is on it (a line in the voice's colour).
+pub(super) fn path_view(ui: &mut egui::Ui, report: &CompileReport, h: &LiveHistory) {
+    let Some(path) = &report.path else {
+        return;
+    };
+    let (r, painter) = frame(
+        ui,
+        70.0,
+        &format!(
+            "Path: the surface under the contact, 0 .. {:.0} mm{}",
+            1e3 * path.length_m,
+            if path.periodic { " (wraps)" } else { "" }
+        ),
+    );
+    let (lo, hi) = path
+        .columns
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &(l, u)| {
+            (a.min(l), b.max(u))
+        });
+    if !(hi > lo) || path.columns.is_empty() {
+        return;
+    }
+    let y_of = |v: f32| r.bottom() - (v - lo) / (hi - lo) * r.height();
+    let w = r.width() / path.columns.len() as f32;
+    for (c, &(l, u)) in path.columns.iter().enumerate() {
+        let x = r.left() + (c as f32 + 0.5) * w;
+        painter.line_segment(
+            [pos2(x, y_of(l)), pos2(x, y_of(u) - 0.5)],
+            Stroke::new(w.max(1.0), Color32::from_gray(150)),
+        );
+    }
+    for (v, vh) in h.sounding() {
+        let Some(at) = vh.path_m else { continue };
+        let len = path.length_m as f32;
+        let at = if path.periodic {
+            at.rem_euclid(len)
+        } else {
+            at.clamp(0.0, len)
+        };
+        let x = r.left() + at / len * r.width();
+        painter.line_segment(
+            [pos2(x, r.top()), pos2(x, r.bottom())],
+            Stroke::new(2.0, voice_colour(v)),
+        );
+    }
+}
+
 /// The last import of a recording ("Import recording..."): while it runs,
 /// the file's name; when done, the recording's spectrum (grey) with the
 /// fitted modes' (orange) over it and the modes as ticks, 20 Hz to Nyquist,
