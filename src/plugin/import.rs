@@ -259,6 +259,7 @@ fn magnitudes(x: &[f64], nfft: usize) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::physics::model::LN_1000;
     use crate::plugin::browser::{list_folder, Folder};
     use std::f64::consts::PI;
 
@@ -272,31 +273,44 @@ mod tests {
     /// Three modes `(f, T60, amplitude)` (the strike's object).
     const MODES: [(f64, f64, f64); 3] = [(440.0, 1.5, 0.4), (1210.0, 0.8, 0.2), (2950.0, 0.4, 0.1)];
 
+    /// An integer PCM WAV file of `samples` (interleaved).
+    fn write_wav(
+        path: &Path,
+        channels: u16,
+        rate: u32,
+        bits: u16,
+        samples: impl Iterator<Item = i32>,
+    ) {
+        let spec = hound::WavSpec {
+            channels,
+            sample_rate: rate,
+            bits_per_sample: bits,
+            sample_format: hound::SampleFormat::Int,
+        };
+        let mut w = hound::WavWriter::create(path, spec).expect("wav");
+        for v in samples {
+            w.write_sample(v).expect("sample");
+        }
+        w.finalize().expect("wav");
+    }
+
     /// A 16-bit WAV of [`MODES`] ringing from 10 ms into the file (silence
     /// before it), 0.6 s at 44.1 kHz.
     fn strike_wav(path: &Path) {
         let rate = 44_100.0;
-        let spec = hound::WavSpec {
-            channels: 1,
-            sample_rate: 44_100,
-            bits_per_sample: 16,
-            sample_format: hound::SampleFormat::Int,
-        };
-        let mut w = hound::WavWriter::create(path, spec).expect("wav");
-        for i in 0..26_460 {
+        let samples = (0..26_460).map(|i| {
             let t = (i as f64 - 441.0) / rate;
             let v: f64 = if t < 0.0 {
                 0.0
             } else {
                 MODES
                     .iter()
-                    .map(|(f, t60, a)| a * (-6.907_755 / t60 * t).exp() * (2.0 * PI * f * t).sin())
+                    .map(|(f, t60, a)| a * (-LN_1000 / t60 * t).exp() * (2.0 * PI * f * t).sin())
                     .sum()
             };
-            w.write_sample((v * 32767.0).round() as i16)
-                .expect("sample");
-        }
-        w.finalize().expect("wav");
+            (v * 32767.0).round() as i32
+        });
+        write_wav(path, 1, 44_100, 16, samples);
     }
 
     #[test]
@@ -394,17 +408,7 @@ mod tests {
         assert!(e.contains("notes.wav") && e.contains("not a WAV"), "{e}");
         // silence
         let quiet = dir.join("quiet.wav");
-        let spec = hound::WavSpec {
-            channels: 2,
-            sample_rate: 48_000,
-            bits_per_sample: 24,
-            sample_format: hound::SampleFormat::Int,
-        };
-        let mut w = hound::WavWriter::create(&quiet, spec).expect("wav");
-        for _ in 0..2 * 48_000 {
-            w.write_sample(0).expect("sample");
-        }
-        w.finalize().expect("wav");
+        write_wav(&quiet, 2, 48_000, 24, std::iter::repeat_n(0, 2 * 48_000));
         let e = import_recording(&quiet, &scenes).unwrap_err();
         assert!(e.contains("silent"), "{e}");
         // a missing file

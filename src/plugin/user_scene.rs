@@ -634,12 +634,20 @@ gain = 0.5
         );
     }
 
-    /// Every preset's mode spectrum, played as the preset and as a user
-    /// scene of the same text: the struck object's modes as the compiler
-    /// resolves them (objects from geometry and material included), the
-    /// lowest kept one at the frequency the instrument tunes to (the root
-    /// note is the MIDI note nearest it; a `fundamental_hz` is met); a
-    /// lumped string says plainly that it has no spectrum.
+    /// Preset `i` prepared at 48 kHz by a new library: the library, the
+    /// parameters and its report.
+    fn preset_report(i: usize) -> (SceneLibrary, SceneParams, CompileReport) {
+        let lib = SceneLibrary::default();
+        let params = SceneParams {
+            preset: i,
+            ..SceneParams::default()
+        };
+        lib.prepare(&params, 48_000.0, 1, HOST)
+            .unwrap_or_else(|e| panic!("{}: {e}", presets::PRESETS[i].name));
+        let r = lib.report();
+        (lib, params, r)
+    }
+
     /// A driven preset's report carries its path for the editor: the
     /// compiled profile's length, and columns whose lows and highs are
     /// the profile's own extremes (every height inside its column's
@@ -647,14 +655,7 @@ gain = 0.5
     #[test]
     fn driven_presets_report_their_path() {
         for (i, pr) in presets::PRESETS.iter().enumerate() {
-            let lib = SceneLibrary::default();
-            let params = SceneParams {
-                preset: i,
-                ..SceneParams::default()
-            };
-            lib.prepare(&params, 48_000.0, 1, HOST)
-                .unwrap_or_else(|e| panic!("{}: {e}", pr.name));
-            let r = lib.report();
+            let (_, _, r) = preset_report(i);
             let scene = presets::scene(i).unwrap();
             let Some(spec) = &scene.drive else {
                 assert!(r.path.is_none(), "{}", pr.name);
@@ -703,17 +704,16 @@ gain = 0.5
         }
     }
 
+    /// Every preset's mode spectrum, played as the preset and as a user
+    /// scene of the same text: the struck object's modes as the compiler
+    /// resolves them (objects from geometry and material included), the
+    /// lowest kept one at the frequency the instrument tunes to (the root
+    /// note is the MIDI note nearest it; a `fundamental_hz` is met); a
+    /// lumped string says plainly that it has no spectrum.
     #[test]
     fn every_preset_shows_its_modes_at_its_tuning() {
         for (i, pr) in presets::PRESETS.iter().enumerate() {
-            let lib = SceneLibrary::default();
-            let params = SceneParams {
-                preset: i,
-                ..SceneParams::default()
-            };
-            lib.prepare(&params, 48_000.0, 1, HOST)
-                .unwrap_or_else(|e| panic!("{}: {e}", pr.name));
-            let r = lib.report();
+            let (lib, params, r) = preset_report(i);
             lib.load(user(pr.toml));
             lib.prepare(&wanted(&lib), 48_000.0, 2, HOST)
                 .unwrap_or_else(|e| panic!("{} as a user scene: {e}", pr.name));
