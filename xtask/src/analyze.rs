@@ -11,7 +11,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use modal_contact::recording::{
     analyze, object_scene, read_wav, Analysis, AnalysisOptions, Channel, DropReason,
-    DEFAULT_MALLET_KG,
+    MalletEstimate, DEFAULT_MALLET_KG,
 };
 use modal_contact::render::{render, RenderOptions};
 use modal_contact::Scene;
@@ -19,11 +19,11 @@ use modal_testkit::analysis::{band_levels, third_octave_distance, welch};
 use std::path::PathBuf;
 
 /// The stretch the 1/3-octave distances are measured over \[s\].
-const DISTANCE_S: f64 = 0.5;
+pub const DISTANCE_S: f64 = 0.5;
 
 /// `cargo xtask analyze STRIKE.wav --out OBJECT.toml [options]`.
 #[derive(Args, Debug)]
-pub(crate) struct AnalyzeArgs {
+pub struct AnalyzeArgs {
     /// The recorded strike: a WAV file (16/24/32-bit integer or 32-bit
     /// float, 22.05 to 192 kHz), the strike near its start and its decay
     /// after it.
@@ -59,8 +59,55 @@ pub(crate) struct AnalyzeArgs {
     name: Option<String>,
 }
 
+/// An analysis and what it gives: the scene written, its mallet, and the
+/// distances `cargo xtask analyze` reports.
+pub struct Fit {
+    /// The modes, the poles dropped, onset and span.
+    pub an: Analysis,
+    /// The scene file's text.
+    pub text: String,
+    /// The mallet estimated from the attack.
+    pub mallet: MalletEstimate,
+    /// The resynthesis's 1/3-octave distance to the recording over the
+    /// first [`DISTANCE_S`] after the onset \[dB\].
+    pub resynthesis_db: f64,
+    /// The residual's energy (recording - resynthesis) over the span
+    /// fitted, relative to the recording's \[dB\].
+    pub residual_db: f64,
+    /// The written scene's render: its 1/3-octave distance to the
+    /// recording over the first [`DISTANCE_S`] \[dB\].
+    pub render_db: f64,
+}
+
+/// The analysis of `x` (at `rate_hz`) with `opts`, the scene named `name`
+/// with a mallet of `mallet_kg`, and the distances: what `cargo xtask
+/// analyze` does, for it and for `cargo xtask analyze-real`.
+pub fn fit(
+    x: &[f64],
+    rate_hz: f64,
+    opts: &AnalysisOptions,
+    name: &str,
+    mallet_kg: f64,
+) -> Result<Fit> {
+    let an = analyze(x, rate_hz, opts)?;
+    let (text, mallet) = object_scene(&an, x, name, mallet_kg)?;
+    let model = an.resynthesize(x.len());
+    let from = an.onset;
+    let resynthesis_db = distance(&x[from..], &model[from..], an.rate_hz);
+    let residual_db = an.residual_db(x);
+    let render_db = render_distance(&an, x, &text)?;
+    Ok(Fit {
+        an,
+        text,
+        mallet,
+        resynthesis_db,
+        residual_db,
+        render_db,
+    })
+}
+
 /// Analyse, write the scene, print the report.
-pub(crate) fn run(a: &AnalyzeArgs) -> Result<()> {
+pub fn run(a: &AnalyzeArgs) -> Result<()> {
     let channel = a.channel.map_or(Channel::Mix, Channel::Index);
     let rec = read_wav(&a.wav, channel)?;
     let opts = AnalysisOptions {
@@ -71,14 +118,13 @@ pub(crate) fn run(a: &AnalyzeArgs) -> Result<()> {
         ..AnalysisOptions::default()
     };
     let x = &rec.samples;
-    let an = analyze(x, rec.rate_hz, &opts)?;
     let name = a.name.clone().unwrap_or_else(|| {
         a.wav
             .file_stem()
             .map_or("recording".into(), |s| s.to_string_lossy().into_owned())
     });
-    let (text, mallet) = object_scene(&an, x, &name, a.mallet_kg)?;
-    std::fs::write(&a.out, &text).with_context(|| format!("writing {}", a.out.display()))?;
+    let f = fit(x, rec.rate_hz, &opts, &name, a.mallet_kg)?;
+    std::fs::write(&a.out, &f.text).with_context(|| format!("writing {}", a.out.display()))?;
     println!(
         "{}: {} channel(s), {}, {} Hz, {:.3} s; analysed {}",
         a.wav.display(),
@@ -91,10 +137,20 @@ pub(crate) fn run(a: &AnalyzeArgs) -> Result<()> {
             Channel::Index(c) => format!("channel {c}"),
         }
     );
-    print_span(&an);
-    print_modes(&an);
-    print_dropped(&an);
-    print_fit(&an, x, &text)?;
+    let an = &f.an;
+    print_span(an);
+    print_modes(an);
+    print_dropped(an);
+    println!(
+        "resynthesis: 1/3-octave distance to the recording {:.2} dB over the first {DISTANCE_S} s; \
+         residual (recording - resynthesis) {:.1} dB of the recording's energy over the span fitted",
+        f.resynthesis_db, f.residual_db
+    );
+    println!(
+        "the scene's render: 1/3-octave distance to the recording {:.2} dB over the first {DISTANCE_S} s",
+        f.render_db
+    );
+    let mallet = &f.mallet;
     println!(
         "mallet: {:.0} g, contact {:.3} ms (onset slope {:.3} ms, highest strong mode {:.0} Hz), \
          stiffness {:.4e} N/m",
@@ -187,16 +243,10 @@ fn distance(a: &[f64], b: &[f64], rate_hz: f64) -> f64 {
     )
 }
 
-/// The resynthesis against the recording, and the written scene's render.
-fn print_fit(an: &Analysis, x: &[f64], text: &str) -> Result<()> {
-    let model = an.resynthesize(x.len());
-    let from = an.onset;
-    println!(
-        "resynthesis: 1/3-octave distance to the recording {:.2} dB over the first {DISTANCE_S} s; \
-         residual (recording - resynthesis) {:.1} dB of the recording's energy over the span fitted",
-        distance(&x[from..], &model[from..], an.rate_hz),
-        an.residual_db(x)
-    );
+/// The written scene's render against the recording: the 1/3-octave
+/// distance of the first [`DISTANCE_S`] after each one's onset (the
+/// render's: its first sample at a tenth of its peak) \[dB\].
+fn render_distance(an: &Analysis, x: &[f64], text: &str) -> Result<f64> {
     let scene = Scene::from_toml_str(text)?;
     let out = render(
         &scene,
@@ -212,9 +262,5 @@ fn print_fit(an: &Analysis, x: &[f64], text: &str) -> Result<()> {
         .iter()
         .position(|v| v.abs() >= 0.1 * peak)
         .unwrap_or(0);
-    println!(
-        "the scene's render: 1/3-octave distance to the recording {:.2} dB over the first {DISTANCE_S} s",
-        distance(&x[from..], &out.left[start..], an.rate_hz)
-    );
-    Ok(())
+    Ok(distance(&x[an.onset..], &out.left[start..], an.rate_hz))
 }

@@ -13,8 +13,14 @@
 //! - [`compare_real`]: `cargo xtask compare-real` (the presets against real
 //!   recordings from the FluidR3 General MIDI soundfont);
 //! - [`levels`]: `cargo xtask levels` (each preset's loudness at one
-//!   velocity, and the `level_db` that evens them out).
+//!   velocity, and the `level_db` that evens them out);
+//! - [`analyze`]: `cargo xtask analyze` (a struck object's modes from a
+//!   recording, as a scene file);
+//! - [`analyze_real`]: `cargo xtask analyze-real` (that analysis of the
+//!   FluidR3 soundfont's mallet percussion, against the 3 dB target).
 
+pub mod analyze;
+pub mod analyze_real;
 pub mod benchmarks;
 pub mod compare_real;
 pub mod levels;

@@ -36,16 +36,21 @@
 //!   [--mallet-kg KG] [--name NAME]`: the modes of a struck object from a
 //!   recording of one strike, as a scene file, with a report (modes, poles
 //!   dropped, the resynthesis's distance and residual)
+//! - `cargo xtask analyze-real [--instrument NAME]... [--out
+//!   docs/analyze-real.md] [--sf2 PATH] [--scenes DIR] [--check]` and
+//!   `analyze`'s options: that analysis of FluidR3's recorded samples of
+//!   nine struck instruments, each scene's render against its recording
+//!   (target: 3 dB on the 1/3-octave distance; `docs/analyze-real.md`,
+//!   the scenes and recordings in `target/analyze-real/`)
 //! - `cargo xtask levels [--check] [--write] [--out docs/levels.md]
 //!   [--presets DIR]`: each preset's loudness and peaks at velocity 100,
 //!   and the `level_db` that puts it at the common target
 //!   (`docs/levels.md`; `--write` sets the presets' levels)
 
-mod analyze;
 mod golden;
 mod paramdocs;
 
-use xtask::{benchmarks, compare_real, levels, multisample, render, report};
+use xtask::{analyze, analyze_real, benchmarks, compare_real, levels, multisample, render, report};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -115,6 +120,12 @@ enum Command {
     /// prints the modes, the poles dropped and why, and how near the
     /// resynthesis and the scene's render come to the recording.
     Analyze(analyze::AnalyzeArgs),
+    /// The analysis of `analyze` on FluidR3's recorded samples of nine
+    /// struck instruments (marimba to timpani), each analysed scene's
+    /// render against its recording on the 1/3-octave distance (target
+    /// 3 dB); writes docs/analyze-real.md, and the scenes and recordings
+    /// into target/analyze-real/.
+    AnalyzeReal(analyze_real::AnalyzeRealArgs),
     /// Anything else: nice-plug's xtask (`bundle`, `bundle-universal`, ...).
     #[command(external_subcommand)]
     NicePlug(Vec<String>),
@@ -158,6 +169,7 @@ fn main() -> Result<()> {
         Some(Command::CompareReal(a)) => compare_real::run(&a),
         Some(Command::Levels(a)) => levels::run(&a),
         Some(Command::Analyze(a)) => analyze::run(&a),
+        Some(Command::AnalyzeReal(a)) => analyze_real::run(&a),
         Some(Command::NicePlug(args)) => nice_plug_xtask::main_with_args("cargo xtask", args),
         None => nice_plug_xtask::main(),
     }
