@@ -21,19 +21,42 @@ const EDGE_MARGIN: f64 = 1.5;
 
 /// A pole is stable when the fit at the higher order has one within this
 /// distance, in `ln p` per decimated sample, divided by the number of
-/// samples `M` (0.3 / M is 5 % of the frequency resolution `2 pi / M`),
-/// or within 10 of its own standard deviations when that is more.
-const STABLE_TOLERANCE: f64 = 0.3;
+/// samples `M` (1 / M is 16 % of the frequency resolution `2 pi / M`: a
+/// real partial, not exactly one damped exponential, moves that much
+/// between orders), or within 10 of its own standard deviations when that
+/// is more.
+const STABLE_TOLERANCE: f64 = 1.0;
+
+/// Unstable poles closer than this many frequency resolutions (`2 pi /
+/// M` in `arg p`) to one another are one cluster: a partial whose
+/// envelope is not one exponential (a beat, a room, a fade) that the fit
+/// spreads over neighbouring poles with partly cancelling amplitudes.
+const CLUSTER_CELLS: f64 = 30.0;
+
+/// What became of a pole of the fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Status {
+    /// The fit at the higher order has it too, or it stands for a
+    /// cluster.
+    Stable,
+    /// No partner at the higher order and no unstable neighbour to form a
+    /// cluster with: a fit of the noise.
+    Unstable,
+    /// A member of a cluster, replaced by the cluster's one pole.
+    Merged,
+}
 
 /// A band's fit.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Fit {
-    /// Poles of the decimated signal.
+    /// Poles of the decimated signal: the fit's, then one per cluster.
     pub poles: Vec<c64>,
-    /// Complex amplitude of each pole at the first decimated sample.
+    /// Complex amplitude of each pole at the first decimated sample: a
+    /// kept pole's by least squares on the samples with the kept poles
+    /// alone, a dropped one's from the fit with every pole.
     pub amps: Vec<c64>,
-    /// Whether the fit at the higher order has the pole too.
-    pub stable: Vec<bool>,
+    /// What became of each pole.
+    pub status: Vec<Status>,
     /// The Cramer-Rao standard deviation of `ln p` (its real and its
     /// imaginary part each) per decimated sample.
     pub sd: Vec<f64>,
@@ -67,31 +90,99 @@ pub(crate) fn fit(y: &[c64], max_order: usize, floor_var: f64) -> Result<Fit, Re
         return Ok(Fit::default());
     }
     let u = svd.U();
-    let poles = esprit(u, order)?;
+    let mut poles = esprit(u, order)?;
     let higher = esprit(u, (order + (order / 4).max(2)).min(rows / 2))?;
-    let amps = amplitudes(y, &poles)?;
+    let fitted = amplitudes(y, &poles)?;
+    // A pole moves between orders by about its own uncertainty: the
+    // tolerance is the larger of 16 % of the resolution and 10 of them.
+    let mut status: Vec<Status> = poles
+        .iter()
+        .zip(&fitted)
+        .map(|(p, c)| {
+            let sd = bound(*p, *c, m, noise_var).0;
+            let tol = (STABLE_TOLERANCE / m as f64).max(10.0 * sd);
+            if higher.iter().any(|q| (log(*p) - log(*q)).norm() < tol) {
+                Status::Stable
+            } else {
+                Status::Unstable
+            }
+        })
+        .collect();
+    for members in clusters(&poles, &status, m) {
+        let sum: Vec<c64> = (0..m)
+            .map(|j| {
+                members
+                    .iter()
+                    .map(|&k| fitted[k] * (log(poles[k]) * j as f64).exp())
+                    .sum()
+            })
+            .collect();
+        if let Some(p) = one_pole(&sum) {
+            for &k in &members {
+                status[k] = Status::Merged;
+            }
+            poles.push(p);
+            status.push(Status::Stable);
+        }
+    }
+    // The kept poles' amplitudes by least squares with the kept poles
+    // alone: what a dropped pole carried goes to its neighbours.
+    let kept: Vec<usize> = (0..poles.len())
+        .filter(|&k| status[k] == Status::Stable)
+        .collect();
+    let kept_poles: Vec<c64> = kept.iter().map(|&k| poles[k]).collect();
+    let mut amps = fitted;
+    amps.resize(poles.len(), c64::new(0.0, 0.0));
+    for (a, &k) in amplitudes(y, &kept_poles)?.into_iter().zip(&kept) {
+        amps[k] = a;
+    }
     let (sd, snr): (Vec<f64>, Vec<f64>) = poles
         .iter()
         .zip(&amps)
         .map(|(p, c)| bound(*p, *c, m, noise_var))
         .unzip();
-    // A pole moves between orders by about its own uncertainty: the
-    // tolerance is the larger of 5 % of the resolution and 10 of them.
-    let stable = poles
-        .iter()
-        .zip(&sd)
-        .map(|(p, sd)| {
-            let tol = (STABLE_TOLERANCE / m as f64).max(10.0 * sd);
-            higher.iter().any(|q| (log(*p) - log(*q)).norm() < tol)
-        })
-        .collect();
     Ok(Fit {
         poles,
         amps,
-        stable,
+        status,
         sd,
         snr,
     })
+}
+
+/// The clusters among the unstable poles: runs of two or more, each
+/// closer than [`CLUSTER_CELLS`] resolutions (in frequency) to the next,
+/// as lists of indices.
+fn clusters(poles: &[c64], status: &[Status], m: usize) -> Vec<Vec<usize>> {
+    let gap = CLUSTER_CELLS * 2.0 * std::f64::consts::PI / m as f64;
+    let arg = |k: usize| log(poles[k]).im;
+    let mut loose: Vec<usize> = (0..poles.len())
+        .filter(|&k| status[k] == Status::Unstable)
+        .collect();
+    loose.sort_by(|&a, &b| arg(a).total_cmp(&arg(b)));
+    let mut runs: Vec<Vec<usize>> = Vec::new();
+    for k in loose {
+        match runs.last_mut() {
+            Some(run) if run.last().is_some_and(|&j| arg(k) - arg(j) <= gap) => run.push(k),
+            _ => runs.push(vec![k]),
+        }
+    }
+    runs.retain(|run| run.len() > 1);
+    runs
+}
+
+/// The one pole that best continues `s` by one sample (the least-squares
+/// linear predictor of order one, `p = sum s[j+1] s[j]* / sum |s[j]|^2`):
+/// a cluster's frequency and decay, weighted by its energy. `None` when
+/// `s` has no energy.
+fn one_pole(s: &[c64]) -> Option<c64> {
+    let (mut num, mut den) = (c64::new(0.0, 0.0), 0.0);
+    for w in s.windows(2) {
+        num += w[1] * w[0].conj();
+        den += w[0].norm_sqr();
+    }
+    let p = num / den;
+    (den > 0.0 && p.re.is_finite() && p.im.is_finite() && p.norm() > 0.0).then_some(p)
 }
 
 /// The complex logarithm of a pole, `ln|p| + i arg p` (arg in `(-pi, pi]`).

@@ -45,20 +45,34 @@
 //! the singular values (the signal's are few, so the median is noise's).
 //! Each band is fitted at that order and at a higher one (a quarter more,
 //! at least 2 more); a pole without a partner at the higher order (within
-//! 5 % of the frequency resolution, or 10 of its standard deviations when
-//! that is more) is unstable, a fit of the noise, and is dropped. The others are dropped
-//! when they grow (no passive object does), lie outside the band's centre
-//! (the neighbouring band has them), lie outside the frequency range
-//! asked for, carry less energy than 20 dB over the noise (matched-filter
-//! signal-to-noise ratio: the component's energy over the band's noise
-//! variance per sample), or decay too slowly for the recording to measure
-//! (T60 beyond 30 times the span analysed, or its uncertainty over 50 %).
-//! Every dropped pole is listed with its reason. A mode found by two
-//! neighbouring bands (at their common edge) is kept once, from the band
-//! whose centre is nearer.
+//! 16 % of the frequency resolution, or 10 of its standard deviations when
+//! that is more) is unstable. A lone unstable pole is a fit of the noise
+//! and is dropped. Unstable poles that come in runs, each within 30
+//! resolutions of the next, are a *cluster*: a real partial whose envelope
+//! is not one exponential (a beat, a room, a sample's processing), which
+//! the fit spreads over neighbouring poles with partly cancelling
+//! amplitudes, so that no one of them is the partial and dropping them
+//! all would drop it. A cluster is replaced by one pole: the least-squares
+//! one-step predictor of its members' summed component (its frequency and
+//! decay weighted by its energy); the members are listed as merged. The
+//! poles kept are dropped when they grow (no passive object does), lie
+//! outside the band's centre (the neighbouring band has them), lie outside
+//! the frequency range asked for, carry less energy than 20 dB over the
+//! noise (matched-filter signal-to-noise ratio: the component's energy
+//! over the band's noise variance per sample), decay too slowly for the
+//! recording to measure (T60 beyond 30 times the span analysed, or its
+//! uncertainty over 50 %), or so fast that their level at the onset would
+//! be extrapolated by more than 20 dB over what the band cannot see (the
+//! settling time and the band filter's run-in): such a pole's amplitude
+//! at the onset is a guess, and on real recordings it came out 40 to 140
+//! dB above the recording's peak. Every dropped pole is listed with its
+//! reason. A mode found by two neighbouring bands (at their common edge)
+//! is kept once, from the band whose centre is nearer.
 //!
 //! Amplitudes: each band's complex amplitudes come from least squares on
-//! its samples with its poles (a Vandermonde system); the filter scales a
+//! its samples with the poles it keeps (a Vandermonde system; a dropped
+//! pole's share goes to its neighbours instead of leaving a partner that
+//! cancelled it alone); the filter scales a
 //! component by its transfer function at the pole, `H(w) = sum h[m] w^-m`,
 //! which is known exactly, so the amplitude in the recording is recovered
 //! exactly, referred to the onset (time 0 of the model, the first sample
@@ -83,7 +97,8 @@
 //! (bandwidths overlapping) come out with errors of 1e-4 and several
 //! percent, or are missed; and a recording that is not a sum of damped
 //! sinusoids after the strike (a pitch glide, a rattle, a room's
-//! reverberation) splits its partials into clusters of unstable poles.
+//! reverberation) splits its partials into clusters of unstable poles,
+//! each then one mode of the cluster's energy and mean decay.
 //!
 //! Files: `input.rs` (checks, onset, clipping, span, noise), `band.rs` (the
 //! band split), `esprit.rs` (one band's fit), `select.rs` (which poles are
@@ -108,6 +123,13 @@ use std::f64::consts::PI;
 
 /// The sample rates the analysis takes \[Hz\].
 pub const RATE_RANGE_HZ: (f64, f64) = (8_000.0, 384_000.0);
+
+/// A mode's amplitude at the onset is extrapolated back from its band's
+/// first sample, past the settling time and the band filter's half
+/// length; a mode that would lose more than this many dB over that lag is
+/// dropped (its onset amplitude is not measured; the fast pass's shorter
+/// filter sees it when it is there to see) \[dB\].
+pub const MAX_EXTRAPOLATION_DB: f64 = 20.0;
 
 /// The shortest recording the analysis takes \[s\].
 pub const MIN_SECONDS: f64 = 0.05;
@@ -213,10 +235,17 @@ pub enum DropReason {
     OutsideRange,
     /// No partner in the fit at the higher model order: a fit of noise.
     Unstable,
+    /// One of a cluster of unstable poles, replaced by the cluster's one
+    /// pole.
+    Merged,
     /// Its matched-filter signal-to-noise ratio \[dB\] is under the least.
     BelowNoise(f64),
     /// It decays too slowly for the span analysed to measure its T60.
     BeyondReach,
+    /// It decays so fast that its amplitude at the onset would be
+    /// extrapolated by this many dB from the band's first sample
+    /// (more than [`MAX_EXTRAPOLATION_DB`]).
+    TooFast(f64),
     /// The same mode from the neighbouring band, kept from there.
     Duplicate,
     /// More modes than the most asked for; the weakest go.
@@ -230,8 +259,13 @@ impl std::fmt::Display for DropReason {
             Self::OutsideBandCentre => write!(f, "outside its band's centre"),
             Self::OutsideRange => write!(f, "outside the frequency range"),
             Self::Unstable => write!(f, "unstable across model orders"),
+            Self::Merged => write!(f, "merged into its cluster's mode"),
             Self::BelowNoise(snr) => write!(f, "below the noise (SNR {snr:.1} dB)"),
             Self::BeyondReach => write!(f, "T60 beyond the recording's reach"),
+            Self::TooFast(db) => write!(
+                f,
+                "decays before its band's first sample (onset level extrapolated by {db:.0} dB)"
+            ),
             Self::Duplicate => write!(f, "duplicate of the neighbouring band's"),
             Self::OverLimit => write!(f, "over the mode limit"),
         }

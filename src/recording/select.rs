@@ -4,9 +4,11 @@
 //! the common edge of two bands kept once) and limited in number.
 
 use super::band::{band_signal, BandSignal, Lowpass, Plan};
-use super::esprit::{self, Fit};
+use super::esprit::{self, Fit, Status};
 use super::input::Located;
-use super::{AnalysisOptions, DropReason, DroppedPole, Mode, RecordingError, LN_1000};
+use super::{
+    AnalysisOptions, DropReason, DroppedPole, Mode, RecordingError, LN_1000, MAX_EXTRAPOLATION_DB,
+};
 use std::f64::consts::PI;
 
 /// A band with fewer decimated samples than this is not fitted.
@@ -56,6 +58,11 @@ struct BandCtx<'a> {
     lp: &'a Lowpass,
     plan: &'a Plan,
     onset: usize,
+    /// The samples from the onset the extrapolation rule counts: the
+    /// band filter's run-in from the span's start, plus the settling time
+    /// (not a later start the user or a clipped attack asks for: what a
+    /// mode lost there is measured, not guessed).
+    unseen: f64,
     range: (f64, f64),
     min_snr_db: f64,
 }
@@ -99,6 +106,9 @@ pub(crate) fn fit_bands(
             lp: &lp,
             plan,
             onset: at.onset,
+            unseen: (lp.half() as f64)
+                + (at.start - at.onset.min(at.start)).min((opts.settle_s * rate_hz) as usize)
+                    as f64,
             range,
             min_snr_db: opts.min_snr_db,
         };
@@ -140,7 +150,9 @@ fn classify(ctx: &BandCtx<'_>, fit: &Fit, sig: &BandSignal, peak: f64, found: &m
             freq_sd_hz: sd * ctx.rate_hz / (2.0 * PI * d),
             t60_rel_sd: sd * ctx.rate_hz / d / alpha.abs().max(1e-300),
         };
-        let why = reason(ctx, &mode, offset, alpha, fit.stable[k], span_s);
+        let lag_db = 20.0 * alpha * ctx.unseen / ctx.rate_hz / std::f64::consts::LN_10;
+        let why = reason(ctx, &mode, offset, alpha, fit.status[k], span_s)
+            .or_else(|| (lag_db > MAX_EXTRAPOLATION_DB).then_some(DropReason::TooFast(lag_db)));
         match why {
             Some(reason) => found.dropped.push(DroppedPole {
                 freq_hz: mode.freq_hz,
@@ -163,16 +175,18 @@ fn reason(
     mode: &Mode,
     offset: f64,
     alpha: f64,
-    stable: bool,
+    status: Status,
     span_s: f64,
 ) -> Option<DropReason> {
-    if !(alpha > 0.0) {
+    if status == Status::Merged {
+        Some(DropReason::Merged)
+    } else if !(alpha > 0.0) {
         Some(DropReason::Growing)
     } else if offset.abs() > 0.5 * ctx.plan.width_hz * (1.0 + EDGE_SLACK) {
         Some(DropReason::OutsideBandCentre)
     } else if !(mode.freq_hz >= ctx.range.0 && mode.freq_hz <= ctx.range.1) {
         Some(DropReason::OutsideRange)
-    } else if !stable {
+    } else if status == Status::Unstable {
         Some(DropReason::Unstable)
     } else if !(mode.snr_db >= ctx.min_snr_db) {
         Some(DropReason::BelowNoise(mode.snr_db))
@@ -262,6 +276,7 @@ pub(crate) fn summary(dropped: &[DroppedPole]) -> String {
     for d in dropped {
         let name = match d.reason {
             DropReason::BelowNoise(_) => "below the noise".to_string(),
+            DropReason::TooFast(_) => "decaying before their band's first sample".to_string(),
             r => r.to_string(),
         };
         match counts.iter_mut().find(|(n, _)| *n == name) {

@@ -77,6 +77,10 @@ pub struct Fit {
     /// The written scene's render: its 1/3-octave distance to the
     /// recording over the first [`DISTANCE_S`] \[dB\].
     pub render_db: f64,
+    /// The same two distances over [`DISTANCE_S`] from the start of the
+    /// span fitted instead of the onset (resynthesis, render): the free
+    /// decay the modes were fitted on, without the attack \[dB\].
+    pub decay_db: (f64, f64),
 }
 
 /// The analysis of `x` (at `rate_hz`) with `opts`, the scene named `name`
@@ -95,7 +99,17 @@ pub fn fit(
     let from = an.onset;
     let resynthesis_db = distance(&x[from..], &model[from..], an.rate_hz);
     let residual_db = an.residual_db(x);
-    let render_db = render_distance(&an, x, &text)?;
+    let render = render_aligned(&an, &text)?;
+    let render_db = distance(&x[from..], &render, an.rate_hz);
+    let settle = an.span.0 - from;
+    let decay_db = (
+        distance(&x[an.span.0..], &model[an.span.0..], an.rate_hz),
+        distance(
+            &x[an.span.0..],
+            render.get(settle..).unwrap_or(&[]),
+            an.rate_hz,
+        ),
+    );
     Ok(Fit {
         an,
         text,
@@ -103,6 +117,7 @@ pub fn fit(
         resynthesis_db,
         residual_db,
         render_db,
+        decay_db,
     })
 }
 
@@ -149,6 +164,11 @@ pub fn run(a: &AnalyzeArgs) -> Result<()> {
     println!(
         "the scene's render: 1/3-octave distance to the recording {:.2} dB over the first {DISTANCE_S} s",
         f.render_db
+    );
+    println!(
+        "over {DISTANCE_S} s from the span fitted's start (the free decay, no attack): \
+         resynthesis {:.2} dB, render {:.2} dB",
+        f.decay_db.0, f.decay_db.1
     );
     let mallet = &f.mallet;
     println!(
@@ -237,22 +257,25 @@ fn print_dropped(an: &Analysis) {
 
 /// The 1/3-octave distance of the first 0.5 s after the onset \[dB\].
 fn distance(a: &[f64], b: &[f64], rate_hz: f64) -> f64 {
+    // Over the same stretch of both: a recording shorter than
+    // DISTANCE_S (a looped sample's attack) is compared with as much of
+    // the render.
+    let n = a.len().min(b.len());
     third_octave_distance(
-        &band_levels(&welch(a, rate_hz, DISTANCE_S)),
-        &band_levels(&welch(b, rate_hz, DISTANCE_S)),
+        &band_levels(&welch(&a[..n], rate_hz, DISTANCE_S)),
+        &band_levels(&welch(&b[..n], rate_hz, DISTANCE_S)),
     )
 }
 
-/// The written scene's render against the recording: the 1/3-octave
-/// distance of the first [`DISTANCE_S`] after each one's onset (the
-/// render's: its first sample at a tenth of its peak) \[dB\].
-fn render_distance(an: &Analysis, x: &[f64], text: &str) -> Result<f64> {
+/// The written scene rendered offline, from its onset (its first sample
+/// at a tenth of its peak, as the analysis's onset of the recording is).
+fn render_aligned(an: &Analysis, text: &str) -> Result<Vec<f64>> {
     let scene = Scene::from_toml_str(text)?;
     let out = render(
         &scene,
         &RenderOptions {
             rate_hz: an.rate_hz,
-            seconds: Some(DISTANCE_S + 0.1),
+            seconds: Some(2.0 * DISTANCE_S + 0.1),
             ..RenderOptions::default()
         },
     )?;
@@ -262,5 +285,5 @@ fn render_distance(an: &Analysis, x: &[f64], text: &str) -> Result<f64> {
         .iter()
         .position(|v| v.abs() >= 0.1 * peak)
         .unwrap_or(0);
-    Ok(distance(&x[an.onset..], &out.left[start..], an.rate_hz))
+    Ok(out.left[start..].to_vec())
 }
