@@ -74,23 +74,23 @@ pub struct AnalyzeRealArgs {
     /// Exit non-zero when a sample misses the 3 dB target.
     #[arg(long)]
     pub check: bool,
-    /// Start of the span fitted, from the recording's start [s]; default:
+    /// Start of the span fitted, from the recording's start (s); default:
     /// 5 ms after the onset.
     #[arg(long)]
     pub start: Option<f64>,
-    /// End of the span fitted [s]; default: the recording's end.
+    /// End of the span fitted (s); default: the recording's end.
     #[arg(long)]
     pub end: Option<f64>,
     /// Keep at most this many modes (the strongest).
     #[arg(long)]
     pub modes: Option<usize>,
-    /// Lowest mode frequency [Hz].
+    /// Lowest mode frequency (Hz).
     #[arg(long, default_value_t = 20.0)]
     pub min_freq: f64,
-    /// Highest mode frequency [Hz].
+    /// Highest mode frequency (Hz).
     #[arg(long, default_value_t = 20_000.0)]
     pub max_freq: f64,
-    /// The mallet's mass in the scenes [kg].
+    /// The mallet's mass in the scenes (kg).
     #[arg(long, default_value_t = DEFAULT_MALLET_KG)]
     pub mallet_kg: f64,
 }
