@@ -361,13 +361,7 @@ fn one(sf: &SoundFont, sound: GmSound, reference: u8, a: &AnalyzeRealArgs) -> Re
 /// `cargo xtask analyze-real`.
 pub fn run(a: &AnalyzeRealArgs) -> Result<()> {
     let t0 = Instant::now();
-    if !a.sf2.is_file() {
-        bail!(
-            "soundfont {} not found: install the Debian package {SF2_PACKAGE} \
-             (apt-get install {SF2_PACKAGE}), or give another with --sf2 PATH",
-            a.sf2.display()
-        );
-    }
+    crate::compare_real::require_sf2(&a.sf2)?;
     let list = chosen(&a.instruments)?;
     let sf = SoundFont::open(&a.sf2)?;
     std::fs::create_dir_all(&a.scenes)

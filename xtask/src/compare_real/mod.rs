@@ -850,16 +850,23 @@ partial with a fit on both; the nearest recording in the confusion table is the 
     )
 }
 
-/// `cargo xtask compare-real`.
-pub fn run(a: &CompareRealArgs) -> Result<()> {
-    let t0 = Instant::now();
-    if !a.sf2.is_file() {
+/// An error naming the Debian package when the soundfont `path` is not a
+/// file (`compare-real` and `analyze-real` read it).
+pub fn require_sf2(path: &std::path::Path) -> Result<()> {
+    if !path.is_file() {
         bail!(
             "soundfont {} not found: install the Debian package {SF2_PACKAGE} \
              (apt-get install {SF2_PACKAGE}), or give another with --sf2 PATH",
-            a.sf2.display()
+            path.display()
         );
     }
+    Ok(())
+}
+
+/// `cargo xtask compare-real`.
+pub fn run(a: &CompareRealArgs) -> Result<()> {
+    let t0 = Instant::now();
+    require_sf2(&a.sf2)?;
     if !(a.seconds > 0.0 && a.seconds <= 60.0) {
         bail!("--seconds must be in (0, 60], got {}", a.seconds);
     }
