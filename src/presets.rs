@@ -68,6 +68,9 @@ pub const PRESETS: &[Preset] = &[
     preset!("guiro", "Guiro (scraped)"),
     preset!("ball-on-plate", "Ball rolling on a plate"),
     preset!("marble-on-board", "Marble rolling on a board"),
+    preset!("glockenspiel-recorded", "Glockenspiel (from a recording)"),
+    preset!("marimba-recorded", "Marimba (from a recording)"),
+    preset!("timpani-recorded", "Timpani (from a recording)"),
 ];
 
 /// How many presets there are.

@@ -99,10 +99,10 @@ fn db(x: f64) -> f64 {
 
 /// Every preset's damper, as its `[play]` table says (the choices are
 /// explained in the preset files): no damper on bars, bells, plates,
-/// drums, kits and driven scenes; the piano string, the paper string, the vibraphone
+/// drums, kits, driven scenes and the scenes made from recordings; the piano string, the paper string, the vibraphone
 /// and the tubular chime are damped on release, as every scene was
 /// before scenes said it.
-const DAMPERS: [(&str, f64); 19] = [
+const DAMPERS: [(&str, f64); 22] = [
     ("bell", 0.0),
     ("glockenspiel-bar", 0.0),
     ("marimba-bar", 0.0),
@@ -122,6 +122,9 @@ const DAMPERS: [(&str, f64); 19] = [
     ("guiro", 0.0),
     ("ball-on-plate", 0.0),
     ("marble-on-board", 0.0),
+    ("glockenspiel-recorded", 0.0),
+    ("marimba-recorded", 0.0),
+    ("timpani-recorded", 0.0),
 ];
 
 #[test]

@@ -300,10 +300,12 @@ fn the_editor_shows_the_scene_plays_pads_and_loads_user_scenes() {
     let (w, h) = (before.w, before.h);
     println!("idle: {} colours", before.colours(0, 0, w, h));
     // the folder's entries (below the built-in list: one 23-pixel row per
-    // preset; at 7 presets and without the "Import recording..." row the
-    // first entry sat at y = 327; that button's row is 23 pixels too):
-    // the invalid file's error in red below its name
-    let user_row_y = 327 + 23 * (modal_contact::presets::COUNT as u32 - 7) + 23;
+    // preset shown, at most BUILT_IN_ROWS, the rest scrolled; at 7 presets
+    // and without the "Import recording..." row the first entry sat at
+    // y = 327; that button's row is 23 pixels too): the invalid file's
+    // error in red below its name
+    let shown = modal_contact::presets::COUNT.min(modal_contact::plugin::editor::BUILT_IN_ROWS);
+    let user_row_y = 327 + 23 * (shown as u32 - 7) + 23;
     let listed_red = red_pixels(&before, 0, user_row_y as usize, 260, h);
     println!("folder list: {listed_red} red pixels (the invalid file's error)");
     assert!(

@@ -57,6 +57,12 @@ pub struct EditorLink {
     pub handoff: Arc<super::worker::Handoff>,
 }
 
+/// The built-in scenes the browser shows at once; more scroll.
+pub const BUILT_IN_ROWS: usize = 19;
+
+/// The height of one row of the browser's lists \[logical px\].
+const ROW_PX: f32 = 23.0;
+
 /// The editor's type (the plugin's `Plugin::Editor`).
 pub type ModalEditor = EguiEditor<App>;
 
@@ -379,16 +385,26 @@ impl App {
         ui.label("Built in");
         let current = params.scene.value().index();
         let user_active = lib.active() != 0;
-        for (i, p) in crate::presets::PRESETS.iter().enumerate() {
-            let selected = !user_active && i == current;
-            if ui.selectable_label(selected, p.title).clicked() {
-                lib.clear();
-                self.note_choice();
-                setter.begin_set_parameter(&params.scene);
-                setter.set_parameter(&params.scene, super::params::PresetChoice::from_index(i));
-                setter.end_set_parameter(&params.scene);
-            }
-        }
+        // at most BUILT_IN_ROWS rows tall, scrolled beyond: the user
+        // folder below stays in the window at the editor's size
+        egui::ScrollArea::vertical()
+            .id_salt("built-in")
+            .max_height(BUILT_IN_ROWS as f32 * ROW_PX)
+            .show(ui, |ui| {
+                for (i, p) in crate::presets::PRESETS.iter().enumerate() {
+                    let selected = !user_active && i == current;
+                    if ui.selectable_label(selected, p.title).clicked() {
+                        lib.clear();
+                        self.note_choice();
+                        setter.begin_set_parameter(&params.scene);
+                        setter.set_parameter(
+                            &params.scene,
+                            super::params::PresetChoice::from_index(i),
+                        );
+                        setter.end_set_parameter(&params.scene);
+                    }
+                }
+            });
         ui.separator();
         ui.label("User folder");
         if self.listed_at.is_none() {
