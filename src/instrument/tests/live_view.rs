@@ -19,22 +19,33 @@ impl VoiceProbe for Recorder {
 
 /// The live view's probe changes no output sample (bit for bit, on every
 /// preset, with a chord, a restrike and a release), sees every sample of
-/// every sounding voice exactly once, sees each strike's contact, and its
+/// every sounding voice exactly once, sees each strike's contact, gives no
+/// energy while a stored strike is played back and one after it, and its
 /// energies equal the engine's own `energy` bit for bit; switched off, it
 /// sees nothing.
 #[test]
 fn a_probe_changes_no_sample_and_sees_every_voice_sample() {
     for preset in presets::PRESETS {
         let p = params(preset.name);
+        let mut plain_inst = instrument(&p);
+        // a chord on the root, its third and fifth (a kit's pieces at 60,
+        // 64 and 67): far above a low root a mallet's contact can be
+        // shorter than a sample, which no sample shows
+        let r = if plain_inst.cur.kit.is_some() {
+            60
+        } else {
+            plain_inst.cur.root_note.round().clamp(0.0, 120.0) as u8
+        };
+        let keys = [r, r + 4, r + 7];
         let events = [
-            on(10, 60, 0.8),
-            on(10, 64, 0.5),
-            on(700, 67, 0.6),
-            on(3000, 60, 0.9),
-            off(5000, 64),
+            on(10, keys[0], 0.8),
+            on(10, keys[1], 0.5),
+            on(700, keys[2], 0.6),
+            on(3000, keys[0], 0.9),
+            off(5000, keys[1]),
         ];
         let n = 8000;
-        let plain = render(&mut instrument(&p), &events, n);
+        let plain = render(&mut plain_inst, &events, n);
         let seen: Seen = Default::default();
         let mut probed = instrument(&p);
         assert!(probed
@@ -52,6 +63,7 @@ fn a_probe_changes_no_sample_and_sees_every_voice_sample() {
         // per voice: chunks follow each other without gap or overlap
         let mut next: [Option<u64>; MAX_VOICES] = [None; MAX_VOICES];
         let mut contact_keys = std::collections::BTreeSet::new();
+        let replays = !probed.cur.key_props.is_empty() && !probed.cur.bouncing;
         for (v, key, start, m, e) in seen.iter() {
             if let Some(want) = next[*v] {
                 assert_eq!(
@@ -59,6 +71,17 @@ fn a_probe_changes_no_sample_and_sees_every_voice_sample() {
                     "{}: voice {v} skipped or repeated samples",
                     preset.name
                 );
+            } else if replays {
+                // a new note's first chunk: played back (no energy) while
+                // its stored strike outlasts the chunk, with one after it
+                let stored = probed.cur.key_props[usize::from(*key)]
+                    .stored_strike()
+                    .map_or(0, |s| s.len());
+                if stored > m.len() {
+                    assert!(e.is_none(), "{}: key {key}", preset.name);
+                } else if stored < m.len() {
+                    assert!(e.is_some(), "{}: key {key}", preset.name);
+                }
             }
             next[*v] = Some(start + m.len() as u64);
             // (none while a strike is played back)
@@ -73,14 +96,13 @@ fn a_probe_changes_no_sample_and_sees_every_voice_sample() {
                 contact_keys.insert(*key);
             }
         }
-        // a new note's first chunks are played back (no energy), the later
-        // ones have one
-        if !probed.cur.key_props.is_empty() && !probed.cur.bouncing {
-            assert!(seen.iter().any(|c| c.4.is_none()), "{}", preset.name);
+        // the three notes from rest were played back
+        if replays {
+            assert!(probed.stats.strikes_replayed >= 3, "{}", preset.name);
         }
         assert!(seen.iter().any(|c| c.4.is_some()), "{}", preset.name);
         assert!(
-            [60, 64, 67].iter().all(|k| contact_keys.contains(k)),
+            keys.iter().all(|k| contact_keys.contains(k)),
             "{}: a strike's contact was not seen ({contact_keys:?})",
             preset.name
         );

@@ -76,7 +76,10 @@ fn strike_warning_names_what_fits_at_the_hosts_block_size() {
             "paper-string",
             "frame-drum",
             "ball-on-plate",
-            "marble-on-board"
+            "marble-on-board",
+            "glockenspiel-recorded",
+            "marimba-recorded",
+            "timpani-recorded"
         ]
     );
     let mut big = modal_base("marimba-bar");
