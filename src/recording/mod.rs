@@ -106,6 +106,7 @@
 //! scene file).
 
 mod band;
+pub mod distance;
 mod error;
 mod esprit;
 mod input;
@@ -116,7 +117,7 @@ mod tests;
 mod wav;
 
 pub use error::RecordingError;
-pub use scene::{object_scene, MalletEstimate, DEFAULT_MALLET_KG};
+pub use scene::{object_scene, MalletEstimate, DEFAULT_MALLET_KG, FIT_S};
 pub use wav::{read_wav, Channel, Recording};
 
 use std::f64::consts::PI;

@@ -40,7 +40,11 @@
 //! # The mallet
 //!
 //! The mass is a stated default, [`DEFAULT_MALLET_KG`]. The contact time
-//! `tau` comes from the onset's steepest slope
+//! `tau` is fitted against renders: the scene is written and rendered for
+//! contact times around a first estimate, and the one whose render's
+//! 1/3-octave distance to the recording over the first half second
+//! ([`super::distance`], from each one's onset) is least is kept. The
+//! first estimate comes from the onset's steepest slope
 //! (during a half-sine force pulse the velocity rises by its jump `j` as
 //! `(1 - cos(pi t / tau)) / 2`, whose largest first difference at the
 //! sampling step `h` is `d = j sin(pi h / (2 tau))`; `d` is the largest
@@ -48,12 +52,21 @@
 //! magnitude there, then the rise across the pulse that first estimate
 //! gives, centred on the steepest step; `tau = pi h / (2 asin(d / j))`);
 //! without a slope (a silent onset), `1 / f_top`, with `f_top` the highest
-//! mode within 40 dB of the strongest. `tau` is kept within 20 us and 5
-//! ms. The weights divide by `|F(f_i)|` down to -40 dB, no further. The
-//! stiffness is `m_eff (pi / tau)^2`; the contact has no damping.
+//! mode within 40 dB of the strongest. The search tries the estimate times
+//! `2^(k/2)`, `k = -6..=6`, then halves the step twice around the best
+//! (up to 17 renders); `tau` is kept within 5 ms and three sampling steps
+//! (at least 20 us): a shorter pulse differs only at the top of the band
+//! and stiffens the contact. The slope alone
+//! misreads a recording whose onset is not the contact's force (a
+//! microphone's distance, a room, a trimmed sample) and a soft mallet,
+//! whose slow pulse the modes' own swing hides. The weights divide by
+//! `|F(f_i)|` down to -40 dB, no further. The stiffness is
+//! `m_eff (pi / tau)^2`; the contact has no damping.
 
+use super::distance::{band_levels, third_octave_distance, welch};
 use super::{Analysis, RecordingError};
 use crate::compile::compile_one;
+use crate::render::{render, RenderOptions};
 use crate::scene::Scene;
 use std::f64::consts::PI;
 use std::fmt::Write as _;
@@ -64,11 +77,37 @@ pub const DEFAULT_MALLET_KG: f64 = 0.05;
 /// The object's mass at the contact point over the mallet's.
 const POINT_MASS_RATIO: f64 = 10.0;
 
-/// The contact time's bounds \[s\].
+/// The contact time's bounds \[s\]; the shortest is also at least
+/// [`MIN_CONTACT_SAMPLES`] sampling steps.
 const CONTACT_S: (f64, f64) = (20e-6, 5e-3);
+
+/// The shortest contact in sampling steps: a half-sine pulse of three
+/// steps has its first spectral zero at the Nyquist frequency, so a
+/// shorter one changes only the top of the band, and it stiffens the
+/// contact beyond what the exact event search resolves within its node
+/// budget at real time (docs/numerics.md, "Why it terminates, and what it
+/// costs").
+const MIN_CONTACT_SAMPLES: f64 = 3.0;
+
+/// The contact time's bounds at `rate_hz` \[s\].
+fn contact_bounds(rate_hz: f64) -> (f64, f64) {
+    (CONTACT_S.0.max(MIN_CONTACT_SAMPLES / rate_hz), CONTACT_S.1)
+}
 
 /// The strike's speed in the scene \[m/s\] (offline renders).
 const STRIKE_M_PER_S: f64 = 1.0;
+
+/// The stretch the contact time is fitted over, from the onset \[s\] (the
+/// distance `cargo xtask analyze` reports is over the same).
+pub const FIT_S: f64 = 0.5;
+
+/// The contact times the fit tries first: the estimate times `2^(k/2)`
+/// for `k` in `-FIT_SPAN..=FIT_SPAN`.
+const FIT_SPAN: i32 = 6;
+
+/// Halvings of the step around the best contact time after the first
+/// grid (two on each side each: 2^(1/4), 2^(1/8)).
+const FIT_REFINE: i32 = 2;
 
 /// The least normalised force spectrum a weight is divided by (-40 dB),
 /// so a mode near a zero of the pulse's spectrum is not blown up.
@@ -83,10 +122,18 @@ pub struct MalletEstimate {
     pub rise_s: f64,
     /// The highest mode within 40 dB of the strongest \[Hz\].
     pub top_mode_hz: f64,
-    /// The contact time chosen \[s\].
+    /// The contact time the fit started from: the slope's, else
+    /// `1 / top_mode_hz`, within the bounds \[s\].
+    pub first_s: f64,
+    /// The contact time chosen: the fitted one \[s\].
     pub contact_s: f64,
     /// The contact stiffness \[N/m\].
     pub stiffness_n_per_m: f64,
+    /// The chosen scene's render: its 1/3-octave distance to the recording
+    /// over the first [`FIT_S`] \[dB\].
+    pub render_db: f64,
+    /// The renders the fit compared.
+    pub renders: usize,
 }
 
 /// The normalised spectrum `|F(f)| / J` of a half-sine force pulse of
@@ -145,15 +192,64 @@ fn mallet(a: &Analysis, recording: &[f64], mass_kg: f64) -> MalletEstimate {
     } else {
         CONTACT_S.1
     };
-    let contact_s = if rise_s > 0.0 { by_rise } else { by_top }.clamp(CONTACT_S.0, CONTACT_S.1);
-    let m_eff = mass_kg * POINT_MASS_RATIO / (1.0 + POINT_MASS_RATIO);
-    MalletEstimate {
+    let (lo, hi) = contact_bounds(a.rate_hz);
+    let first_s = if rise_s > 0.0 { by_rise } else { by_top }.clamp(lo, hi);
+    let mut m = MalletEstimate {
         mass_kg,
         rise_s,
         top_mode_hz,
-        contact_s,
-        stiffness_n_per_m: m_eff * (PI / contact_s).powi(2),
+        first_s,
+        contact_s: first_s,
+        stiffness_n_per_m: 0.0,
+        render_db: f64::NAN,
+        renders: 0,
+    };
+    m.set_contact(first_s);
+    m
+}
+
+impl MalletEstimate {
+    /// Contact for `tau` seconds: the stiffness of a half-sine pulse of
+    /// that duration on the mallet in series with the point mass.
+    fn set_contact(&mut self, tau: f64) {
+        let m_eff = self.mass_kg * POINT_MASS_RATIO / (1.0 + POINT_MASS_RATIO);
+        self.contact_s = tau;
+        self.stiffness_n_per_m = m_eff * (PI / tau).powi(2);
     }
+}
+
+/// The 1/3-octave distance of `text`'s render (from its first sample at a
+/// tenth of its peak) to `recording` from `onset`, over [`FIT_S`] or the
+/// shorter of the two, at `rate_hz`.
+fn render_distance(
+    text: &str,
+    recording: &[f64],
+    onset: usize,
+    rate_hz: f64,
+) -> Result<f64, RecordingError> {
+    let scene = Scene::from_toml_str(text)
+        .map_err(|e| RecordingError::Scene(format!("the scene written does not load: {e}")))?;
+    let out = render(
+        &scene,
+        &RenderOptions {
+            rate_hz,
+            seconds: Some(FIT_S + 0.1),
+            ..RenderOptions::default()
+        },
+    )
+    .map_err(|e| RecordingError::Scene(format!("the scene written does not render: {e}")))?;
+    let peak = out.left.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let start = out
+        .left
+        .iter()
+        .position(|v| v.abs() >= 0.1 * peak)
+        .unwrap_or(0);
+    let (a, b) = (&recording[onset.min(recording.len())..], &out.left[start..]);
+    let n = a.len().min(b.len());
+    Ok(third_octave_distance(
+        &band_levels(&welch(&a[..n], rate_hz, FIT_S)),
+        &band_levels(&welch(&b[..n], rate_hz, FIT_S)),
+    ))
 }
 
 /// The scene file (TOML) of the object in `a`, analysed from `recording`,
@@ -171,7 +267,62 @@ pub fn object_scene(
             "mallet mass {mass_kg} kg: need a positive mass"
         )));
     }
-    let m = mallet(a, recording, mass_kg);
+    let mut m = mallet(a, recording, mass_kg);
+    let signs = product_signs(a);
+    let mut tried: Vec<(f64, f64)> = Vec::new();
+    let (lo, hi) = contact_bounds(a.rate_hz);
+    let mut try_tau = |m: &mut MalletEstimate, tau: f64| -> Result<f64, RecordingError> {
+        let tau = tau.clamp(lo, hi);
+        if let Some(&(_, d)) = tried.iter().find(|(t, _)| *t == tau) {
+            return Ok(d);
+        }
+        m.set_contact(tau);
+        let text = scene_for(a, recording.len(), name, m, &signs)?;
+        let d = render_distance(&text, recording, a.onset, a.rate_hz)?;
+        tried.push((tau, d));
+        Ok(d)
+    };
+    // the grid, then halved steps around its best
+    let mut best = (m.first_s, f64::INFINITY);
+    for k in -FIT_SPAN..=FIT_SPAN {
+        let tau = m.first_s * 2f64.powf(f64::from(k) / 2.0);
+        let d = try_tau(&mut m, tau)?;
+        if d < best.1 {
+            best = (tau.clamp(lo, hi), d);
+        }
+    }
+    for r in 1..=FIT_REFINE {
+        let step = 2f64.powf(0.5 / f64::from(1 << r));
+        let centre = best.0;
+        for tau in [centre / step, centre * step] {
+            let d = try_tau(&mut m, tau)?;
+            if d < best.1 {
+                best = (tau.clamp(lo, hi), d);
+            }
+        }
+    }
+    let renders = tried.len();
+    m.set_contact(best.0);
+    m.render_db = best.1;
+    m.renders = renders;
+    let text = scene_for(a, recording.len(), name, &m, &signs)?;
+    let scene = Scene::from_toml_str(&text)
+        .map_err(|e| RecordingError::Scene(format!("the scene written does not load: {e}")))?;
+    compile_one(&scene, a.rate_hz)
+        .map_err(|e| RecordingError::Scene(format!("the scene written does not compile: {e}")))?;
+    Ok((text, m))
+}
+
+/// The scene text for the mallet `m`: the weights from the amplitudes
+/// over `m`'s pulse spectrum, scaled to the point mass, and the gain
+/// that plays the modes at the recording's level.
+fn scene_for(
+    a: &Analysis,
+    len: usize,
+    name: &str,
+    m: &MalletEstimate,
+    signs: &[f64],
+) -> Result<String, RecordingError> {
     // w_i^2 = s A_i / |F(f_i)|, with sum w_i^2 = 1 / (POINT_MASS_RATIO m).
     let raw: Vec<f64> = a
         .modes
@@ -182,20 +333,14 @@ pub fn object_scene(
     if !(total > 0.0 && total.is_finite()) {
         return Err(RecordingError::NoModes("no mode has an amplitude".into()));
     }
-    let s = 1.0 / (POINT_MASS_RATIO * mass_kg * total);
-    let m_eff = mass_kg * POINT_MASS_RATIO / (1.0 + POINT_MASS_RATIO);
+    let s = 1.0 / (POINT_MASS_RATIO * m.mass_kg * total);
+    let m_eff = m.mass_kg * POINT_MASS_RATIO / (1.0 + POINT_MASS_RATIO);
     // Render amplitude of mode i: gain * J * w_i^2 * |F_i| * pan, with the
     // impulse J = 2 m_eff v of an undamped contact and the centre pan's
     // 1/sqrt(2) per channel; w_i^2 |F_i| = s A_i (above MIN_SPECTRUM).
     let impulse = 2.0 * m_eff * STRIKE_M_PER_S;
     let gain = std::f64::consts::SQRT_2 / (impulse * s);
-    let signs = product_signs(a);
-    let text = scene_text(a, name, &m, (&raw, &signs), s, gain, recording.len());
-    let scene = Scene::from_toml_str(&text)
-        .map_err(|e| RecordingError::Scene(format!("the scene written does not load: {e}")))?;
-    compile_one(&scene, a.rate_hz)
-        .map_err(|e| RecordingError::Scene(format!("the scene written does not compile: {e}")))?;
-    Ok((text, m))
+    Ok(scene_text(a, name, m, (&raw, signs), s, gain, len))
 }
 
 /// The sign of each mode's product of weights (contact times pickup),
@@ -255,12 +400,13 @@ fn scene_text(
         "# An object analysed from a recording: {} modes (ESPRIT on sub-bands).\n\
          # Contact and pickup at one point: the weights are sqrt(amplitude / pulse spectrum),\n\
          # scaled so the object's mass at that point is {POINT_MASS_RATIO} times the mallet's.\n\
-         # Mallet: {:.0} g, contact {:.3} ms (from the onset's slope {:.3} ms, highest strong mode {:.0} Hz).\n\
+         # Mallet: {:.0} g, contact {:.3} ms (fitted against renders from {:.3} ms; the onset's slope gives {:.3} ms, highest strong mode {:.0} Hz).\n\
          version = 1\nname = \"{name}\"\nduration_s = {duration:.3}\n\n\
          [[object]]\nname = \"object\"\nkind = \"modal\"\npoints = [\"contact\", \"pickup\"]\n",
         a.modes.len(),
         1e3 * m.mass_kg,
         1e3 * m.contact_s,
+        1e3 * m.first_s,
         1e3 * m.rise_s,
         m.top_mode_hz
     );

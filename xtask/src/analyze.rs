@@ -18,8 +18,9 @@ use modal_contact::Scene;
 use modal_testkit::analysis::{band_levels, third_octave_distance, welch};
 use std::path::PathBuf;
 
-/// The stretch the 1/3-octave distances are measured over \[s\].
-pub const DISTANCE_S: f64 = 0.5;
+/// The stretch the 1/3-octave distances are measured over \[s\]: the one
+/// the mallet's contact time is fitted over.
+pub const DISTANCE_S: f64 = modal_contact::recording::FIT_S;
 
 /// `cargo xtask analyze STRIKE.wav --out OBJECT.toml [options]`.
 #[derive(Args, Debug)]
@@ -172,10 +173,12 @@ pub fn run(a: &AnalyzeArgs) -> Result<()> {
     );
     let mallet = &f.mallet;
     println!(
-        "mallet: {:.0} g, contact {:.3} ms (onset slope {:.3} ms, highest strong mode {:.0} Hz), \
-         stiffness {:.4e} N/m",
+        "mallet: {:.0} g, contact {:.3} ms (fitted against {} renders from {:.3} ms; onset slope {:.3} ms, \
+         highest strong mode {:.0} Hz), stiffness {:.4e} N/m",
         1e3 * mallet.mass_kg,
         1e3 * mallet.contact_s,
+        mallet.renders,
+        1e3 * mallet.first_s,
         1e3 * mallet.rise_s,
         mallet.top_mode_hz,
         mallet.stiffness_n_per_m
