@@ -53,8 +53,8 @@
 //! gives, centred on the steepest step; `tau = pi h / (2 asin(d / j))`);
 //! without a slope (a silent onset), `1 / f_top`, with `f_top` the highest
 //! mode within 40 dB of the strongest. The search tries the estimate times
-//! `2^(k/2)`, `k = -6..=6`, then halves the step twice around the best
-//! (up to 17 renders); `tau` is kept within 5 ms and three sampling steps
+//! `2^(k/2)` over the whole range allowed, then halves the step twice
+//! around the best (up to 21 renders); `tau` is kept within 5 ms and three sampling steps
 //! (at least 20 us): a shorter pulse differs only at the top of the band
 //! and stiffens the contact. The slope alone
 //! misreads a recording whose onset is not the contact's force (a
@@ -102,8 +102,9 @@ const STRIKE_M_PER_S: f64 = 1.0;
 pub const FIT_S: f64 = 0.5;
 
 /// The contact times the fit tries first: the estimate times `2^(k/2)`
-/// for `k` in `-FIT_SPAN..=FIT_SPAN`.
-const FIT_SPAN: i32 = 6;
+/// for `k` in `-FIT_SPAN..=FIT_SPAN`, those within the bounds (which
+/// they span: at least 20 us and 5 ms are 8 octaves apart).
+const FIT_SPAN: i32 = 16;
 
 /// Halvings of the step around the best contact time after the first
 /// grid (two on each side each: 2^(1/4), 2^(1/8)).
@@ -132,6 +133,9 @@ pub struct MalletEstimate {
     /// The chosen scene's render: its 1/3-octave distance to the recording
     /// over the first [`FIT_S`] \[dB\].
     pub render_db: f64,
+    /// The render with the first contact time: its distance likewise
+    /// \[dB\].
+    pub first_db: f64,
     /// The renders the fit compared.
     pub renders: usize,
 }
@@ -202,6 +206,7 @@ fn mallet(a: &Analysis, recording: &[f64], mass_kg: f64) -> MalletEstimate {
         contact_s: first_s,
         stiffness_n_per_m: 0.0,
         render_db: f64::NAN,
+        first_db: f64::NAN,
         renders: 0,
     };
     m.set_contact(first_s);
@@ -286,7 +291,13 @@ pub fn object_scene(
     let mut best = (m.first_s, f64::INFINITY);
     for k in -FIT_SPAN..=FIT_SPAN {
         let tau = m.first_s * 2f64.powf(f64::from(k) / 2.0);
+        if !(lo..=hi).contains(&tau) {
+            continue;
+        }
         let d = try_tau(&mut m, tau)?;
+        if k == 0 {
+            m.first_db = d;
+        }
         if d < best.1 {
             best = (tau.clamp(lo, hi), d);
         }
