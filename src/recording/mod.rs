@@ -117,7 +117,9 @@ mod tests;
 mod wav;
 
 pub use error::RecordingError;
-pub use scene::{object_scene, MalletEstimate, DEFAULT_MALLET_KG, FIT_S};
+pub use scene::{
+    fit_distance, object_scene, render_from_onset, MalletEstimate, DEFAULT_MALLET_KG, FIT_S,
+};
 pub use wav::{read_wav, Channel, Recording};
 
 use std::f64::consts::PI;

@@ -223,22 +223,21 @@ impl MalletEstimate {
     }
 }
 
-/// The 1/3-octave distance of `text`'s render (from its first sample at a
-/// tenth of its peak) to `recording` from `onset`, over [`FIT_S`] or the
-/// shorter of the two, at `rate_hz`.
-fn render_distance(
+/// `seconds` of the render of the scene `text` at `rate_hz`, from its
+/// onset (its first sample at a tenth of its peak, as the analysis's onset
+/// of a recording is).
+pub fn render_from_onset(
     text: &str,
-    recording: &[f64],
-    onset: usize,
     rate_hz: f64,
-) -> Result<f64, RecordingError> {
+    seconds: f64,
+) -> Result<Vec<f64>, RecordingError> {
     let scene = Scene::from_toml_str(text)
         .map_err(|e| RecordingError::Scene(format!("the scene written does not load: {e}")))?;
     let out = render(
         &scene,
         &RenderOptions {
             rate_hz,
-            seconds: Some(FIT_S + 0.1),
+            seconds: Some(seconds),
             ..RenderOptions::default()
         },
     )
@@ -249,11 +248,33 @@ fn render_distance(
         .iter()
         .position(|v| v.abs() >= 0.1 * peak)
         .unwrap_or(0);
-    let (a, b) = (&recording[onset.min(recording.len())..], &out.left[start..]);
+    Ok(out.left[start..].to_vec())
+}
+
+/// The 1/3-octave distance of `a` and `b` (both from their onsets) over
+/// the first [`FIT_S`], or over the shorter one's length (a recording
+/// shorter than that is compared with as much of the other) \[dB\].
+pub fn fit_distance(a: &[f64], b: &[f64], rate_hz: f64) -> f64 {
     let n = a.len().min(b.len());
-    Ok(third_octave_distance(
+    third_octave_distance(
         &band_levels(&welch(&a[..n], rate_hz, FIT_S)),
         &band_levels(&welch(&b[..n], rate_hz, FIT_S)),
+    )
+}
+
+/// The 1/3-octave distance of `text`'s render to `recording` from
+/// `onset` ([`fit_distance`]).
+fn render_distance(
+    text: &str,
+    recording: &[f64],
+    onset: usize,
+    rate_hz: f64,
+) -> Result<f64, RecordingError> {
+    let copy = render_from_onset(text, rate_hz, FIT_S + 0.1)?;
+    Ok(fit_distance(
+        &recording[onset.min(recording.len())..],
+        &copy,
+        rate_hz,
     ))
 }
 

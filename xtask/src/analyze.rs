@@ -9,13 +9,13 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
+// the 1/3-octave distance over the first 0.5 s after the onset, the one
+// the mallet is fitted by
+use modal_contact::recording::fit_distance as distance;
 use modal_contact::recording::{
-    analyze, object_scene, read_wav, Analysis, AnalysisOptions, Channel, DropReason,
-    MalletEstimate, DEFAULT_MALLET_KG,
+    analyze, object_scene, read_wav, render_from_onset, Analysis, AnalysisOptions, Channel,
+    DropReason, MalletEstimate, DEFAULT_MALLET_KG,
 };
-use modal_contact::render::{render, RenderOptions};
-use modal_contact::Scene;
-use modal_testkit::analysis::{band_levels, third_octave_distance, welch};
 use std::path::PathBuf;
 
 /// The stretch the 1/3-octave distances are measured over \[s\]: the one
@@ -258,35 +258,8 @@ fn print_dropped(an: &Analysis) {
     }
 }
 
-/// The 1/3-octave distance of the first 0.5 s after the onset \[dB\].
-fn distance(a: &[f64], b: &[f64], rate_hz: f64) -> f64 {
-    // Over the same stretch of both: a recording shorter than
-    // DISTANCE_S (a looped sample's attack) is compared with as much of
-    // the render.
-    let n = a.len().min(b.len());
-    third_octave_distance(
-        &band_levels(&welch(&a[..n], rate_hz, DISTANCE_S)),
-        &band_levels(&welch(&b[..n], rate_hz, DISTANCE_S)),
-    )
-}
-
-/// The written scene rendered offline, from its onset (its first sample
-/// at a tenth of its peak, as the analysis's onset of the recording is).
+/// The written scene rendered offline from its onset, long enough for the
+/// distance over the free decay.
 fn render_aligned(an: &Analysis, text: &str) -> Result<Vec<f64>> {
-    let scene = Scene::from_toml_str(text)?;
-    let out = render(
-        &scene,
-        &RenderOptions {
-            rate_hz: an.rate_hz,
-            seconds: Some(2.0 * DISTANCE_S + 0.1),
-            ..RenderOptions::default()
-        },
-    )?;
-    let peak = out.left.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
-    let start = out
-        .left
-        .iter()
-        .position(|v| v.abs() >= 0.1 * peak)
-        .unwrap_or(0);
-    Ok(out.left[start..].to_vec())
+    Ok(render_from_onset(text, an.rate_hz, 2.0 * DISTANCE_S + 0.1)?)
 }
