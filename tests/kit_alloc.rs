@@ -2,7 +2,7 @@
 //! counting allocator armed around every `Instrument::process` and
 //! `Instrument::install` of a random abuse of the kit presets (swaps
 //! between them and a preset of one contact, either switching method,
-//! random play parameters, random notes). Built without the `rt-checks` feature (whose allocation
+//! random play parameters and dampers, random notes). Built without the `rt-checks` feature (whose allocation
 //! checker is that build's global allocator; the plugin's checked build
 //! plays the kits in `plugin-tests/tests/rt_alloc.rs`).
 #![cfg(not(feature = "rt-checks"))]
@@ -122,6 +122,9 @@ fn kits_allocate_nothing_on_the_audio_thread() {
             sp.stiffness_factor = [0.3, 1.0, 3.0][rng.below(3)];
             sp.decay_scale = [0.5, 1.0, 2.0][rng.below(3)];
             sp.switching = [Switching::Exact, Switching::OffsetRod][rng.below(2)];
+            // a damper: released kit voices carried to its compile
+            sp.damper_custom = rng.below(2) == 0;
+            sp.damper_norm = [0.0, 0.5, 1.0][rng.below(3)];
             if let Ok(p) = prepare(&sp, RATE, revision) {
                 revision += 1;
                 if inst.can_install() {

@@ -326,16 +326,19 @@ fn large_script(bundle: &Path) -> String {
 /// Scenes of several contacts as user scenes, each played as a kit
 /// (docs/design.md, "Played as a kit"): a roll on one key, notes on
 /// every sample, every key at velocity 127 in one block, the bend, the
-/// pressure, note-offs and pedals (which a kit ignores), and a Hardness
-/// change whose swap fades the ringing kit out. Returns a summary line.
+/// pressure, note-offs and pedals (a released kit voice goes on the
+/// scene's damped compile: the two mallets once more with a damper), and a
+/// Hardness change whose swap fades the ringing kit out. Returns a
+/// summary line.
 fn kit_script(bundle: &Path) -> String {
     let rate = 48_000.0;
     let mut lines = Vec::new();
+    let two = include_str!("../../presets/marimba-two-mallets.toml");
+    let damped = two.replace("\ndamper = 0.0", "\ndamper = 0.5");
+    assert_ne!(damped, two, "the preset says its damper");
     for (name, text) in [
-        (
-            "two-mallets",
-            include_str!("../../presets/marimba-two-mallets.toml"),
-        ),
+        ("two-mallets", two),
+        ("two-mallets-damped", damped.as_str()),
         (
             "ball",
             include_str!("../../presets/ball-between-plates.toml"),

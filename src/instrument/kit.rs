@@ -16,8 +16,15 @@
 //!   `[[striker]]`) is one kit voice at the scene's pitch: a note throws
 //!   every mallet that lists it (a drum kit).
 //!
-//! A kit voice keeps ringing after note-off (mallets have no damper) and
-//! stops when it is silent: its output below [`SILENCE_AMPLITUDE_RATIO`] of
+//! A released kit voice (its note's key up, the pedals too; a kit of
+//! listed notes: its last note's key) continues on the scene's damped
+//! compile when the scene has a damper (`[play] damper`, or Custom damper),
+//! as a voice of one contact continues on its damped scene: the same
+//! physical state carried while no contact is closed ([`Kit::damped`],
+//! [`MultiState::carry`]; with one closed, at a later step of the
+//! silence-check grid), and back to the played compile when its key
+//! strikes again. Without a damper it rings on. A kit voice stops when it
+//! is silent: its output below [`SILENCE_AMPLITUDE_RATIO`] of
 //! its loudest since its last throw for a whole check interval while the
 //! masses that may still land hardly move ([`MultiState::masses_to_land`]
 //! below [`SILENCE_ENERGY_RATIO`] of the throw's energy).
@@ -71,6 +78,10 @@ pub(super) struct KitVoice {
 pub struct Kit {
     /// Every phase of the scene's contacts.
     pub sc: CompiledMulti,
+    /// The same scene under the damper (every object's decay times
+    /// divided as [`super::mapping::damped_scene`] does), which released
+    /// kit voices continue on; `None` when the damper is 0.
+    pub damped: Option<CompiledMulti>,
     /// The kit voices ([`MAX_KIT_VOICES`] when pitched, else 1).
     pub(super) voices: Vec<KitVoice>,
     /// Spare states for kit voices to fade out in when stolen, choked or
@@ -95,12 +106,31 @@ pub struct Kit {
 
 impl Kit {
     /// The kit of a scene of several contacts (as played: the parameters
-    /// already applied) at `rate_hz`. \[worker\] \[main-thread\]
-    pub fn new(scene: &Scene, rate_hz: f64) -> Result<Self, SceneError> {
-        let model = MultiModel::from_scene(scene, rate_hz)?;
+    /// already applied) at `rate_hz`, with its damped compile when
+    /// `damper_norm` (0 .. 1) is above 0. \[worker\] \[main-thread\]
+    pub fn new(scene: &Scene, rate_hz: f64, damper_norm: f64) -> Result<Self, SceneError> {
         let switching = scene.contact.switching.unwrap_or_default();
-        let sc = CompiledMulti::with_switching(&model, rate_hz, switching)
-            .map_err(|e| e.in_scene(scene))?;
+        let compile = |scene: &Scene| -> Result<CompiledMulti, SceneError> {
+            let model = MultiModel::from_scene(scene, rate_hz)?;
+            CompiledMulti::with_switching(&model, rate_hz, switching).map_err(|e| e.in_scene(scene))
+        };
+        let sc = compile(scene)?;
+        let damped = if damper_norm > 0.0 {
+            let d = compile(&super::mapping::damped_scene(scene, damper_norm))?;
+            // the same bodies and phases, other decays: a state carries
+            // between the two ([`MultiState::carry`])
+            let mut probe = MultiState::new(&sc);
+            probe.rest(&sc);
+            if !probe.carry(&sc, &d) {
+                return Err(SceneError::new(
+                    "play.damper",
+                    "the damped scene's phases differ from the played scene's",
+                ));
+            }
+            Some(d)
+        } else {
+            None
+        };
         let lists: Vec<&Vec<u8>> = std::iter::once(&scene.hammer.notes)
             .chain(scene.striker.iter().map(|s| &s.notes))
             .collect();
@@ -141,6 +171,7 @@ impl Kit {
             bouncing: scene.hammer.gravity_m_per_s2 > 0.0,
             refused: 0,
             sc,
+            damped,
         })
     }
 
@@ -179,6 +210,13 @@ impl Kit {
         self.sc.max_dim()
     }
 
+    /// The compile a kit voice runs on: the damped one when `damped` (a
+    /// released voice that was carried to it) and the kit has one, else
+    /// the played one.
+    pub fn sc_for(&self, damped: bool) -> &CompiledMulti {
+        compile_for(&self.sc, &self.damped, damped)
+    }
+
     /// Most throws that can start at one instant: a voice each when
     /// pitched, else every mallet.
     pub fn most_at_once(&self) -> usize {
@@ -195,13 +233,14 @@ impl Kit {
     /// not a number (the voice then rests). \[audio-thread\]
     pub(super) fn tick_into(
         &mut self,
-        i: usize,
+        (i, damped): (usize, bool),
         buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
         len: usize,
         (g0, dg): (f64, f64),
         look: Option<impl FnMut(usize, &MultiState, &CompiledMulti)>,
     ) -> bool {
-        tick_state(&mut self.voices[i].st, &self.sc, buf, len, (g0, dg), look)
+        let sc = compile_for(&self.sc, &self.damped, damped);
+        tick_state(&mut self.voices[i].st, sc, buf, len, (g0, dg), look)
     }
 
     /// Tick spare state `f` (a stolen kit voice fading out) `len` samples
@@ -209,13 +248,14 @@ impl Kit {
     /// sample was not a number (the state then rests). \[audio-thread\]
     pub(super) fn tick_spare_into(
         &mut self,
-        f: usize,
+        (f, damped): (usize, bool),
         buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
         len: usize,
     ) -> bool {
+        let sc = compile_for(&self.sc, &self.damped, damped);
         tick_state(
             &mut self.spares[f],
-            &self.sc,
+            sc,
             buf,
             len,
             (1.0, 0.0),
@@ -228,16 +268,21 @@ impl Kit {
     /// contacts is closed ([`MultiState::carry`]: the physical state and
     /// so the energy unchanged), with its pitch, its turn, its keys and
     /// its silence test's references; `old` keeps this kit's fresh state
-    /// (to be retired). False (nothing changed) when a contact is closed,
-    /// the bodies differ or the new kit has no such voice.
-    /// Allocation-free. \[audio-thread\]
-    pub(super) fn take_over(&mut self, old: &mut Kit, i: usize) -> bool {
+    /// (to be retired). `damped`: the voice runs on `old`'s damped compile
+    /// and goes on this kit's (its played one when it has none). The
+    /// compile it now runs on (`Some(true)`: the damped one), or `None`
+    /// (nothing changed) when a contact is closed, the bodies differ or the
+    /// new kit has no such voice. Allocation-free. \[audio-thread\]
+    pub(super) fn take_over(&mut self, old: &mut Kit, (i, damped): (usize, bool)) -> Option<bool> {
         if self.mallets != old.mallets || i >= self.voices.len() || i >= old.voices.len() {
-            return false;
+            return None;
         }
+        let to_damped = damped && self.damped.is_some();
+        let from_sc = compile_for(&old.sc, &old.damped, damped);
+        let to_sc = compile_for(&self.sc, &self.damped, to_damped);
         let (to, from) = (&mut self.voices[i], &mut old.voices[i]);
-        if !from.st.carry(&old.sc, &self.sc) {
-            return false;
+        if !from.st.carry(from_sc, to_sc) {
+            return None;
         }
         std::mem::swap(&mut to.st, &mut from.st);
         to.next = from.next;
@@ -245,7 +290,31 @@ impl Kit {
         to.peak = from.peak;
         to.interval_peak = from.interval_peak;
         to.strike_energy = from.strike_energy;
-        true
+        Some(to_damped)
+    }
+
+    /// Carry kit voice `i` between the played and the damped compile when
+    /// it runs on one (`on_damped`) and wants the other (`want_damped`,
+    /// taken as false when the kit has no damped compile), while no contact
+    /// is closed ([`MultiState::carry`]: the physical state, so the energy,
+    /// unchanged). The compile it runs on afterwards (`true`: the damped
+    /// one); unchanged when a contact is closed (a later grid step tries
+    /// again). O(dim^2) when it moves, allocation-free. \[audio-thread\]
+    pub(super) fn settle_damper(&mut self, i: usize, on_damped: bool, want_damped: bool) -> bool {
+        let want = want_damped && self.damped.is_some();
+        if want == on_damped || i >= self.voices.len() {
+            return on_damped;
+        }
+        let (from, to) = match &self.damped {
+            Some(d) if want => (&self.sc, d),
+            Some(d) => (d, &self.sc),
+            None => (&self.sc, &self.sc),
+        };
+        if self.voices[i].st.carry(from, to) {
+            want
+        } else {
+            on_damped
+        }
     }
 
     /// How loud kit voice `i` is, as a steal compares kit voices: its
@@ -302,9 +371,10 @@ impl Kit {
     /// from `height` (m) for a note on `key`; a throw the state refuses is
     /// counted. A throw restarts the silence test's references.
     /// \[audio-thread\]
-    fn throw(&mut self, idx: usize, which: u8, key: u8, speed: f64, height: f64) {
+    fn throw(&mut self, (idx, damped): (usize, bool), which: u8, key: u8, speed: f64, height: f64) {
+        let sc = compile_for(&self.sc, &self.damped, damped);
         let kv = &mut self.voices[idx];
-        let g = self.sc.model.gravity_m_per_s2;
+        let g = sc.model.gravity_m_per_s2;
         // the model's units: a physical speed is `scale` times the model's
         let v_model = speed / kv.st.time_scale();
         let mut energy = 0.0;
@@ -312,8 +382,8 @@ impl Kit {
             if which & (1 << i) == 0 {
                 continue;
             }
-            if kv.st.strike(&self.sc, i, height, -v_model).is_ok() {
-                let m = self.sc.model.masses[i].mass_kg;
+            if kv.st.strike(sc, i, height, -v_model).is_ok() {
+                let m = sc.model.masses[i].mass_kg;
                 energy += 0.5 * m * v_model * v_model + m * g * height;
                 kv.last_key[i] = key;
             } else {
@@ -325,6 +395,19 @@ impl Kit {
             kv.strike_energy = energy;
             kv.peak = 0.0;
         }
+    }
+}
+
+/// `damped` if `on_damped` and there is one, else `sc` ([`Kit::sc_for`]
+/// on a kit's fields, so the voices can be borrowed beside it).
+pub(super) fn compile_for<'a>(
+    sc: &'a CompiledMulti,
+    damped: &'a Option<CompiledMulti>,
+    on_damped: bool,
+) -> &'a CompiledMulti {
+    match damped {
+        Some(d) if on_damped => d,
+        _ => sc,
     }
 }
 
@@ -429,7 +512,7 @@ impl Instrument {
             return;
         };
         let height = if kit.bouncing { drop } else { 0.0 };
-        kit.throw(idx, which, key, speed, height);
+        kit.throw((idx, v.on_damped), which, key, speed, height);
     }
 
     /// The kit voice a note on `key` plays on a pitched kit of `kits`
@@ -463,6 +546,13 @@ impl Instrument {
         };
         let v = &mut self.voices[idx];
         let kv = &mut kit.voices[idx];
+        if kit.damped.is_some() {
+            // its state may have run on the damped compile (its own, or a
+            // fade's it was swapped with): the played one's tables from here
+            kv.st.forget_tables();
+        }
+        v.on_damped = false;
+        v.released = false;
         // woken (or stolen) at rest, at the key's pitch and the bend
         let base = if kit.pitched && tracking {
             super::mapping::key_scale(key, root)
@@ -492,10 +582,16 @@ impl Instrument {
         v.tuning_target = 0.0;
     }
 
-    /// A new note on kit voice `idx` while it rings: it starts untuned.
+    /// A new note on kit voice `idx` while it rings: it starts untuned,
+    /// back on the played compile (while a contact is closed it stays on
+    /// the damped one until a later grid step carries it back).
     fn renote_kit_voice(&mut self, idx: usize) {
         let v = &mut self.voices[idx];
         // a new note on its ringing voice
+        v.released = false;
+        if let Some(kit) = self.cur.kit.as_deref_mut() {
+            v.on_damped = kit.settle_damper(idx, v.on_damped, false);
+        }
         v.fresh = false;
         if v.tuning_target != 0.0 || v.tuning_now != 0.0 {
             // a new note starts untuned (from where it is, gliding)
@@ -517,19 +613,26 @@ impl Instrument {
         let Some(kit) = self.cur.kit.as_deref_mut() else {
             return (false, false);
         };
-        for (i, kv) in kit.voices.iter_mut().enumerate() {
+        let Kit {
+            voices,
+            sc,
+            damped,
+            bouncing,
+            ..
+        } = kit;
+        for (i, kv) in voices.iter_mut().enumerate() {
             let v = &mut self.voices[i];
             if !v.active {
                 continue;
             }
             v.tuning_now = super::slew(v.tuning_now, v.tuning_target, step);
-            if kit.bouncing {
+            if *bouncing {
                 continue;
             }
             moving |= v.tuning_now != v.tuning_target;
             let s = v.base_scale * 2f64.powf((self.bend_now + v.tuning_now) / 12.0);
             // Err: a bend that cannot be taken (a bouncing kit) stays put
-            if let Ok(false) = kv.retune(&kit.sc, s) {
+            if let Ok(false) = kv.retune(compile_for(sc, damped, v.on_damped), s) {
                 pending = true;
             }
         }
@@ -559,7 +662,10 @@ impl Instrument {
             }
         }
         self.tuning_moving |= fading;
-        for (i, kv) in kit.voices.iter_mut().enumerate() {
+        let Kit {
+            voices, sc, damped, ..
+        } = kit;
+        for (i, kv) in voices.iter_mut().enumerate() {
             let v = &mut self.voices[i];
             if !v.active || key.is_some_and(|k| k != v.key) {
                 continue;
@@ -570,7 +676,7 @@ impl Instrument {
             }
             if v.onset_pos == self.sample_pos {
                 let s = v.base_scale * 2f64.powf((self.bend_now + t) / 12.0);
-                if let Ok(true) = kv.retune(&kit.sc, s) {
+                if let Ok(true) = kv.retune(compile_for(sc, damped, v.on_damped), s) {
                     v.tuning_now = t;
                     continue;
                 }
@@ -610,7 +716,14 @@ impl Instrument {
                 };
             }
         };
-        let finite = kit.tick_into(i, &mut self.vbuf, len, (1.0, 0.0), observe.then_some(look));
+        let on_damped = self.voices[i].on_damped;
+        let finite = kit.tick_into(
+            (i, on_damped),
+            &mut self.vbuf,
+            len,
+            (1.0, 0.0),
+            observe.then_some(look),
+        );
         if !finite {
             self.voices[i].active = false;
             self.stats.nonfinite_resets += 1;
@@ -626,13 +739,18 @@ impl Instrument {
         if observe {
             // physical energy: the model's times the scale squared
             let s = kv.st.time_scale();
-            let energy_j = kv.st.observe(&kit.sc).energy * s * s;
+            let energy_j = kv
+                .st
+                .observe(compile_for(&kit.sc, &kit.damped, on_damped))
+                .energy
+                * s
+                * s;
             if let Some(probe) = self.probe.as_deref_mut() {
                 for j in 0..contacts {
                     probe.voice_chunk(&super::VoiceChunk {
                         voice: i * MAX_CONTACTS + j,
                         key: kv.last_key[j],
-                        released: false,
+                        released: self.voices[i].released,
                         start: t0,
                         motion: &self.kit_motion[j][..len],
                         energy_j: Some(energy_j),
@@ -643,6 +761,26 @@ impl Instrument {
         }
         let now: u64 = kv.st.stats.contacts_started.iter().sum();
         Some(now - started)
+    }
+
+    /// A note-off on a kit (after the pedals): every sounding kit voice of
+    /// `key` (every one for `None`; a kit of listed notes is its last
+    /// note's) is released and carried to the damped compile, if the kit
+    /// has one, now or, while a contact is closed, at a later step of the
+    /// silence-check grid ([`Kit::settle_damper`]). O(dim^2) per voice
+    /// carried, allocation-free. \[audio-thread\]
+    pub(super) fn kit_note_off(&mut self, key: Option<u8>) {
+        let Some(kit) = self.cur.kit.as_deref_mut() else {
+            return;
+        };
+        for i in 0..kit.voices.len().min(super::MAX_VOICES) {
+            let v = &mut self.voices[i];
+            if !v.active || v.released || key.is_some_and(|k| k != v.key) {
+                continue;
+            }
+            v.released = true;
+            v.on_damped = kit.settle_damper(i, v.on_damped, true);
+        }
     }
 
     /// Kit voice `i`'s silence check (on the silence-check grid): it stops
@@ -656,10 +794,15 @@ impl Instrument {
         if !self.voices[i].active || i >= kit.voices.len() {
             return;
         }
+        // a released voice that waited for its contacts to open goes on
+        // the damped compile now (and a struck one back off it)
+        let v = &mut self.voices[i];
+        v.on_damped = kit.settle_damper(i, v.on_damped, v.released);
+        let sc = compile_for(&kit.sc, &kit.damped, v.on_damped);
         let kv = &mut kit.voices[i];
         let quiet = kv.interval_peak < SILENCE_AMPLITUDE_RATIO * kv.peak;
         kv.interval_peak = 0.0;
-        if quiet && kv.st.masses_to_land(&kit.sc) < SILENCE_ENERGY_RATIO * kv.strike_energy {
+        if quiet && kv.st.masses_to_land(sc) < SILENCE_ENERGY_RATIO * kv.strike_energy {
             self.voices[i].active = false;
             self.stats.silent_stops += 1;
         }

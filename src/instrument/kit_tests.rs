@@ -331,11 +331,16 @@ fn a_kit_renders_the_same_in_any_blocks_and_with_a_lookahead() {
 }
 
 /// A kit voice stops when it has gone silent, and the next note wakes it
-/// at rest: the same samples as the first note's. Note-off, the pedals, the
-/// bend, pressure and note expressions change nothing of a kit.
+/// at rest: the same samples as the first note's. On a kit without a
+/// damper, note-off, the pedals, pressure and note expressions change
+/// nothing.
 #[test]
 fn a_kit_stops_when_silent_and_wakes_at_rest() {
-    let scene = small_kit("", "");
+    let mut scene = small_kit("", "");
+    scene.play = Some(crate::scene::PlaySpec {
+        damper: Some(0.0),
+        ..Default::default()
+    });
     let mut inst = kit_instrument(&scene, 0.0);
     let n = 4800;
     let first = render(&mut inst, &[on(0, 50, 0.6)], n);
@@ -964,4 +969,131 @@ fn listed_kit_ends_by_choke_and_all_sound_off() {
         &|ch, k| gain(k) * sample(&a, ch, k),
         ringing_after(&a, t0),
     );
+}
+
+/// `small_kit`'s modes ringing long (T60 2, 1 and 0.5 s) with the damper
+/// `damper` in its `[play]`.
+fn ringing_kit(damper: f64) -> Scene {
+    let mut scene = small_kit("", "");
+    if let crate::scene::ObjectSpec::Modal(m) = &mut scene.object[0] {
+        for (mode, t60) in m.mode.iter_mut().zip([2.0, 1.0, 0.5]) {
+            mode.t60_s = Some(t60);
+        }
+    }
+    scene.play = Some(crate::scene::PlaySpec {
+        damper: Some(damper),
+        ..Default::default()
+    });
+    scene
+}
+
+/// The decay of `x` in dB/s: a least-squares line through the levels of
+/// its 5 ms windows from `from` to `to` seconds.
+fn decay_db_per_s(x: &[f32], from: f64, to: f64) -> f64 {
+    let w = (0.005 * RATE) as usize;
+    let (mut pts, mut t) = (Vec::new(), from);
+    while t + 0.005 <= to {
+        let k = (t * RATE) as usize;
+        let ms = x[k..k + w]
+            .iter()
+            .map(|&v| f64::from(v).powi(2))
+            .sum::<f64>()
+            / w as f64;
+        pts.push((t + 0.0025, 10.0 * ms.log10()));
+        t += 0.005;
+    }
+    let n = pts.len() as f64;
+    let (mt, my) = pts
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (t, y)| (a + t / n, b + y / n));
+    let sxy: f64 = pts.iter().map(|(t, y)| (t - mt) * (y - my)).sum();
+    let sxx: f64 = pts.iter().map(|(t, _)| (t - mt) * (t - mt)).sum();
+    -sxy / sxx
+}
+
+/// A released kit voice continues on the kit's damped compile
+/// (docs/design.md, "Played as a kit"), as a voice of one contact
+/// continues on its damped scene: until the note-off it plays as the same
+/// kit without a damper, sample for sample; the note-off (no contact
+/// closed) carries it there with its energy unchanged to rounding; from
+/// there its output falls as fast as the damped scene's slowest mode (T60
+/// divided by 1 + 50 damper), against the undamped kit's slow decay; a
+/// new note on its key carries it back to the played compile.
+#[test]
+fn a_released_kit_voice_continues_on_the_damped_compile() {
+    let mut a = kit_instrument(&ringing_kit(0.5), 0.0);
+    let mut b = kit_instrument(&ringing_kit(0.0), 0.0);
+    assert!(kit(&a).damped.is_some() && kit(&b).damped.is_none());
+    let key = a.cur.root_note as u8;
+    let n = (0.3 * RATE) as usize;
+    let ra = render(&mut a, &[on(0, key, 0.8)], n);
+    let rb = render(&mut b, &[on(0, key, 0.8)], n);
+    assert!(ra == rb, "the same kit until the note-off");
+    let i = a.voices.iter().position(|v| v.active).unwrap();
+    let energy = |inst: &Instrument| {
+        let k = kit(inst);
+        let st = &k.voices[i].st;
+        st.observe(k.sc_for(inst.voices[i].on_damped)).energy
+    };
+    let e0 = energy(&a);
+    a.note_off(Some(key));
+    b.note_off(Some(key));
+    assert!(
+        a.voices[i].released && a.voices[i].on_damped,
+        "carried at once"
+    );
+    assert!(b.voices[i].released && !b.voices[i].on_damped);
+    let e1 = energy(&a);
+    println!(
+        "energy at the carry {e0:.6e} -> {e1:.6e} J (model), relative {:.1e}",
+        (e1 - e0) / e0
+    );
+    assert!(((e1 - e0) / e0).abs() < 1e-12);
+    let m = (0.05 * RATE) as usize;
+    let [da, _] = render(&mut a, &[], m);
+    let [db, _] = render(&mut b, &[], m);
+    let (rate_a, rate_b) = (
+        decay_db_per_s(&da, 0.005, 0.045),
+        decay_db_per_s(&db, 0.005, 0.045),
+    );
+    // the slowest mode's decay [dB/s]: 8.686 sigma, the damped compile's
+    // and the played one's
+    let slowest = |sc: &CompiledMulti| {
+        let s = sc.model.sigma.iter().copied().fold(f64::INFINITY, f64::min);
+        20.0 * std::f64::consts::E.log10() * s
+    };
+    let (want_a, want_b) = (
+        slowest(kit(&a).damped.as_ref().unwrap()),
+        slowest(&kit(&b).sc),
+    );
+    println!("decay after the release: damped {rate_a:.0} dB/s (slowest mode {want_a:.0}), undamped {rate_b:.1} dB/s (slowest mode {want_b:.1})");
+    assert!(
+        (rate_a / want_a - 1.0).abs() < 0.03,
+        "{rate_a} against {want_a}"
+    );
+    assert!(
+        (rate_b / want_b - 1.0).abs() < 0.1,
+        "{rate_b} against {want_b}"
+    );
+    // struck again on its key: back on the played compile
+    render(&mut a, &[on(0, key, 0.8)], 1);
+    assert!(!a.voices[i].released && !a.voices[i].on_damped);
+    // released while its mallet is on the object: it waits for the
+    // contact to open, then goes on the damped compile at a grid step
+    let mut t = 0;
+    while kit(&a).voices[i].st.observe(&kit(&a).sc).active == 0 {
+        render(&mut a, &[], 1);
+        t += 1;
+        assert!(t < 4800, "the mallet lands");
+    }
+    a.note_off(Some(key));
+    assert!(a.voices[i].released && !a.voices[i].on_damped, "waits");
+    let mut waited = 0;
+    while !a.voices[i].on_damped {
+        render(&mut a, &[], 64);
+        waited += 64;
+        assert!(waited < 4800, "carried once the contact opens");
+    }
+    assert_eq!(kit(&a).voices[i].st.observe(kit(&a).sc_for(true)).active, 0);
+    println!("released in contact: carried {waited} samples later");
 }

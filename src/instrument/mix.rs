@@ -351,7 +351,7 @@ impl Instrument {
                 let dg = 1.0 / self.fade_len as f64;
                 if let Some(kit) = f.kit.as_deref_mut() {
                     if kit.tick_into(
-                        i,
+                        (i, on_damped),
                         &mut self.vbuf,
                         len,
                         (g0, dg),
@@ -699,7 +699,7 @@ fn steal_fades_into(
         };
         let m = len.min(fade.left);
         let finite = match p.kit.as_deref_mut() {
-            Some(kit) => kit.tick_spare_into(f, vbuf, m),
+            Some(kit) => kit.tick_spare_into((f, fade.on_damped), vbuf, m),
             None => {
                 let scene = p.scenes.bound(fade.at, fade.on_damped);
                 let st = &mut p.spares[f];

@@ -644,12 +644,13 @@ impl Instrument {
             // contact is closed (`Kit::take_over`), else it fades out and
             // the new one starts at rest
             if self.cur.kit.is_some() || new.kit.is_some() {
-                let carried = same_object
-                    && match (self.cur.kit.as_deref_mut(), new.kit.as_deref_mut()) {
-                        (Some(old), Some(to)) => to.take_over(old, i),
-                        _ => false,
-                    };
-                if carried {
+                let on_damped = self.voices[i].on_damped;
+                let carried = match (self.cur.kit.as_deref_mut(), new.kit.as_deref_mut()) {
+                    (Some(old), Some(to)) if same_object => to.take_over(old, (i, on_damped)),
+                    _ => None,
+                };
+                if let Some(on_damped) = carried {
+                    self.voices[i].on_damped = on_damped;
                     self.stats.voices_carried += 1;
                 } else {
                     let v = &mut self.voices[i];

@@ -1011,7 +1011,7 @@ fn prepare_kit(
     rate_hz: f64,
     revision: u64,
 ) -> Result<Box<Prepared>, PrepareError> {
-    let kit = Kit::new(played, rate_hz).map_err(PrepareError::Kit)?;
+    let kit = Kit::new(played, rate_hz, params.damper_norm).map_err(PrepareError::Kit)?;
     let mut alone = played.clone();
     alone.striker.clear();
     alone.touch.clear();

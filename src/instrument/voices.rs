@@ -316,9 +316,10 @@ impl Instrument {
         match p.kit.as_deref_mut() {
             Some(kit) => {
                 std::mem::swap(&mut kit.voices[i].st, &mut kit.spares[f]);
-                // a kit voice plays the scene as compiled (no variants)
+                // a kit voice plays the scene as compiled (no variants),
+                // or its damped compile once released
                 fade.at = Variant::default();
-                fade.on_damped = false;
+                fade.on_damped = v.on_damped && kit.damped.is_some();
             }
             None => std::mem::swap(&mut p.states[i], &mut p.spares[f]),
         }
@@ -455,8 +456,7 @@ impl Instrument {
 
     pub(super) fn note_off(&mut self, key: Option<u8>) {
         if self.cur.kit.is_some() {
-            // mallets have no damper: a kit rings on
-            return;
+            return self.kit_note_off(key);
         }
         for i in 0..MAX_VOICES {
             let v = self.voices[i];
@@ -736,7 +736,10 @@ impl Instrument {
                 let s = fade.base_scale * 2f64.powf((bend + fade.tuning_now) / 12.0);
                 let bent = match p.kit.as_deref_mut() {
                     Some(kit) => match kit.spares.get_mut(f) {
-                        Some(st) if st.time_scale() != s => st.bend_time_scale(&kit.sc, s),
+                        Some(st) if st.time_scale() != s => {
+                            let sc = super::kit::compile_for(&kit.sc, &kit.damped, fade.on_damped);
+                            st.bend_time_scale(sc, s)
+                        }
                         _ => continue,
                     },
                     None => {

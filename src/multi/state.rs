@@ -122,12 +122,21 @@ impl MultiState {
             &mut self.s,
         );
         // the tables were the old compile's
+        self.forget_tables();
+        self.tables[0].make(new, b, self.scale, self.step_h, self.band_hz);
+        true
+    }
+
+    /// Forget every phase's tables: the state is to run on another compile
+    /// of the same layout from a rest ([`rest`](Self::rest)) or a new time
+    /// scale ([`set_time_scale`](Self::set_time_scale)), which make the
+    /// current phase's tables; the others are made when entered, as after a
+    /// [`carry`](Self::carry). O(phases), allocation-free. \[audio-thread\]
+    pub fn forget_tables(&mut self) {
         for t in &mut self.tables {
             t.at = f64::NAN;
         }
-        self.tables[0].make(new, b, self.scale, self.step_h, self.band_hz);
         self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
-        true
     }
 
     /// A strike between two samples: the mass on the upper side of
