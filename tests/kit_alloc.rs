@@ -2,7 +2,7 @@
 //! counting allocator armed around every `Instrument::process` and
 //! `Instrument::install` of a random abuse of the kit presets (swaps
 //! between them and a preset of one contact, either switching method,
-//! random play parameters and dampers, random notes). Built without the `rt-checks` feature (whose allocation
+//! random play parameters and dampers, random notes and pressure). Built without the `rt-checks` feature (whose allocation
 //! checker is that build's global allocator; the plugin's checked build
 //! plays the kits in `plugin-tests/tests/rt_alloc.rs`).
 #![cfg(not(feature = "rt-checks"))]
@@ -153,12 +153,13 @@ fn kits_allocate_nothing_on_the_audio_thread() {
         for _ in 0..rng.below(24) {
             let offset = rng.below(n);
             let key = 36 + rng.below(60) as u8;
-            let event = match rng.below(4) {
+            let event = match rng.below(5) {
                 0 | 1 => Event::NoteOn {
                     key,
                     velocity_norm: rng.unit(),
                 },
                 2 => Event::NoteOff { key },
+                3 => Event::ChannelPressure { value: rng.unit() },
                 _ => Event::PitchBend {
                     value: rng.uniform(-1.0, 1.0),
                 },

@@ -37,7 +37,7 @@ use super::{
     impact_speed_m_per_s, Instrument, CHECK_INTERVAL_SAMPLES, SILENCE_ENERGY_RATIO, STEAL_FADES,
 };
 use crate::engine::TimeScaleError;
-use crate::multi::{CompiledMulti, MultiModel, MultiState, MAX_CONTACTS};
+use crate::multi::{CompiledMulti, MultiEnd, MultiModel, MultiState, MAX_CONTACTS};
 use crate::scene::{Scene, SceneError};
 
 /// A kit voice stops when its output stays below this fraction of its
@@ -513,6 +513,7 @@ impl Instrument {
         };
         let height = if kit.bouncing { drop } else { 0.0 };
         kit.throw((idx, v.on_damped), which, key, speed, height);
+        self.press_decide(idx);
     }
 
     /// The kit voice a note on `key` plays on a pitched kit of `kits`
@@ -553,6 +554,8 @@ impl Instrument {
         }
         v.on_damped = false;
         v.released = false;
+        // (a sounding voice's damper was taken when it faded out)
+        v.pressing = None;
         // woken (or stolen) at rest, at the key's pitch and the bend
         let base = if kit.pitched && tracking {
             super::mapping::key_scale(key, root)
@@ -586,6 +589,7 @@ impl Instrument {
     /// back on the played compile (while a contact is closed it stays on
     /// the damped one until a later grid step carries it back).
     fn renote_kit_voice(&mut self, idx: usize) {
+        self.press_flush(idx);
         let v = &mut self.voices[idx];
         // a new note on its ringing voice
         v.released = false;
@@ -610,33 +614,49 @@ impl Instrument {
     /// \[audio-thread\]
     pub(super) fn kit_bend_tick(&mut self, step: f64) -> (bool, bool) {
         let (mut pending, mut moving) = (false, false);
-        let Some(kit) = self.cur.kit.as_deref_mut() else {
+        let Some(kit) = self.cur.kit.as_deref() else {
             return (false, false);
         };
-        let Kit {
-            voices,
-            sc,
-            damped,
-            bouncing,
-            ..
-        } = kit;
-        for (i, kv) in voices.iter_mut().enumerate() {
+        let (n, bouncing) = (kit.voices.len().min(super::MAX_VOICES), kit.bouncing);
+        for i in 0..n {
             let v = &mut self.voices[i];
             if !v.active {
                 continue;
             }
             v.tuning_now = super::slew(v.tuning_now, v.tuning_target, step);
-            if *bouncing {
+            if bouncing {
                 continue;
             }
             moving |= v.tuning_now != v.tuning_target;
             let s = v.base_scale * 2f64.powf((self.bend_now + v.tuning_now) / 12.0);
-            // Err: a bend that cannot be taken (a bouncing kit) stays put
-            if let Ok(false) = kv.retune(compile_for(sc, damped, v.on_damped), s) {
+            if self.retune_kit_voice(i, s) == Ok(false) {
                 pending = true;
             }
         }
         (pending, moving)
+    }
+
+    /// Kit voice `i` to the time scale `s` ([`KitVoice::retune`]); a
+    /// pressed one takes its damper's decay first and is decided again at
+    /// its new pitch. \[audio-thread\]
+    fn retune_kit_voice(&mut self, i: usize, s: f64) -> Result<bool, TimeScaleError> {
+        let Some(kit) = self.cur.kit.as_deref() else {
+            return Ok(true);
+        };
+        if kit.voices[i].st.time_scale() == s {
+            return Ok(true);
+        }
+        self.press_flush(i);
+        let on_damped = self.voices[i].on_damped;
+        let Some(Kit {
+            voices, sc, damped, ..
+        }) = self.cur.kit.as_deref_mut()
+        else {
+            return Ok(true);
+        };
+        let done = voices[i].retune(compile_for(sc, damped, on_damped), s);
+        self.press_decide(i);
+        done
     }
 
     /// A per-note tuning on a kit: a pitched kit's voice of that key (or
@@ -662,10 +682,7 @@ impl Instrument {
             }
         }
         self.tuning_moving |= fading;
-        let Kit {
-            voices, sc, damped, ..
-        } = kit;
-        for (i, kv) in voices.iter_mut().enumerate() {
+        for i in 0..kit.voices.len().min(super::MAX_VOICES) {
             let v = &mut self.voices[i];
             if !v.active || key.is_some_and(|k| k != v.key) {
                 continue;
@@ -676,8 +693,8 @@ impl Instrument {
             }
             if v.onset_pos == self.sample_pos {
                 let s = v.base_scale * 2f64.powf((self.bend_now + t) / 12.0);
-                if let Ok(true) = kv.retune(compile_for(sc, damped, v.on_damped), s) {
-                    v.tuning_now = t;
+                if let Ok(true) = self.retune_kit_voice(i, s) {
+                    self.voices[i].tuning_now = t;
                     continue;
                 }
             }
@@ -729,6 +746,32 @@ impl Instrument {
             self.stats.nonfinite_resets += 1;
             return None;
         }
+        // damper pressure (docs/plugin.md, "Pressure and the mod wheel"):
+        // no contact of the voice could close when it was last decided, so
+        // its pressed motion is the free motion with the objects' part
+        // times the damper's decay, sample by sample
+        let mut pressed = 1.0;
+        if let Some(pr) = self.voices[i].pressing.as_mut() {
+            if observe {
+                for (ct, m) in kit.sc.model.contacts.iter().zip(&mut self.kit_motion) {
+                    let mut g = pr.g;
+                    for mk in &mut m[..len] {
+                        if matches!(ct.lower, MultiEnd::Point(_)) {
+                            mk.x_contact *= g;
+                            mk.v_contact *= g;
+                        }
+                        if matches!(ct.upper, MultiEnd::Point(_)) {
+                            mk.x_hammer *= g;
+                            mk.v_hammer *= g;
+                        }
+                        g *= pr.q;
+                    }
+                }
+            }
+            pr.g = super::mix::decay_into(&mut self.vbuf, len, pr.g, pr.q, None);
+            pressed = pr.g;
+            self.stats.pressed_samples += len as u64;
+        }
         let kv = &mut kit.voices[i];
         let mut peak = kv.interval_peak;
         for k in 0..len {
@@ -739,12 +782,8 @@ impl Instrument {
         if observe {
             // physical energy: the model's times the scale squared
             let s = kv.st.time_scale();
-            let energy_j = kv
-                .st
-                .observe(compile_for(&kit.sc, &kit.damped, on_damped))
-                .energy
-                * s
-                * s;
+            let sc = compile_for(&kit.sc, &kit.damped, on_damped);
+            let energy_j = kv.st.energy_objects_scaled(sc, pressed) * s * s;
             if let Some(probe) = self.probe.as_deref_mut() {
                 for j in 0..contacts {
                     probe.voice_chunk(&super::VoiceChunk {
@@ -770,16 +809,22 @@ impl Instrument {
     /// silence-check grid ([`Kit::settle_damper`]). O(dim^2) per voice
     /// carried, allocation-free. \[audio-thread\]
     pub(super) fn kit_note_off(&mut self, key: Option<u8>) {
-        let Some(kit) = self.cur.kit.as_deref_mut() else {
+        let Some(kit) = self.cur.kit.as_deref() else {
             return;
         };
         for i in 0..kit.voices.len().min(super::MAX_VOICES) {
-            let v = &mut self.voices[i];
+            let v = self.voices[i];
             if !v.active || v.released || key.is_some_and(|k| k != v.key) {
                 continue;
             }
+            self.press_flush(i);
+            let Some(kit) = self.cur.kit.as_deref_mut() else {
+                return;
+            };
+            let v = &mut self.voices[i];
             v.released = true;
             v.on_damped = kit.settle_damper(i, v.on_damped, true);
+            self.press_decide(i);
         }
     }
 

@@ -4,7 +4,7 @@
 //! blocks and the lookahead do not change a sample, a kit voice stops when
 //! silent and wakes at rest, a swap carries or fades it.
 
-use super::tests::{at, largest, on, render, steal_fade_gain, worst_and_tol};
+use super::tests::{at, largest, off, on, render, steal_fade_gain, worst_and_tol};
 use super::*;
 use crate::multi::{CompiledMulti, MultiModel, MultiState};
 use crate::scene::{Scene, Switching};
@@ -295,10 +295,30 @@ fn notes_strike_the_mallets_the_scene_gives_them() {
 /// samples are the same (the lookahead's: that many samples later).
 #[test]
 fn a_kit_renders_the_same_in_any_blocks_and_with_a_lookahead() {
-    let scene = two_mallets();
-    let events = [on(10, 60, 0.9), on(700, 62, 0.5), on(3000, 60, 1.0)];
+    // with a damper, pressure and note-offs: their decisions are on the
+    // grid and at events, not where blocks end
+    let mut scene = two_mallets();
+    scene.play = Some(crate::scene::PlaySpec {
+        damper: Some(0.5),
+        ..Default::default()
+    });
+    let press = |offset, value| TimedEvent {
+        offset,
+        event: Event::ChannelPressure { value },
+    };
+    let events = [
+        on(10, 60, 0.9),
+        on(700, 62, 0.5),
+        press(1500, 0.7),
+        press(2500, 0.0),
+        on(3000, 60, 1.0),
+        off(4000, 62),
+        off(7000, 60),
+    ];
     let n = 12_000;
-    let whole = render(&mut kit_instrument(&scene, 0.0), &events, n);
+    let mut first = kit_instrument(&scene, 0.0);
+    let whole = render(&mut first, &events, n);
+    assert!(first.stats.pressed_samples > 0, "pressed");
     let mut inst = kit_instrument(&scene, 0.0);
     let (mut l, mut r) = (vec![0.0f32; n], vec![0.0f32; n]);
     let (mut pos, mut i) = (0, 0);
@@ -332,8 +352,7 @@ fn a_kit_renders_the_same_in_any_blocks_and_with_a_lookahead() {
 
 /// A kit voice stops when it has gone silent, and the next note wakes it
 /// at rest: the same samples as the first note's. On a kit without a
-/// damper, note-off, the pedals, pressure and note expressions change
-/// nothing.
+/// damper, note-off, the pedals and note expressions change nothing.
 #[test]
 fn a_kit_stops_when_silent_and_wakes_at_rest() {
     let mut scene = small_kit("", "");
@@ -351,10 +370,6 @@ fn a_kit_stops_when_silent_and_wakes_at_rest() {
         TimedEvent {
             offset: 3,
             event: Event::NoteOff { key: 50 },
-        },
-        TimedEvent {
-            offset: 9,
-            event: Event::ChannelPressure { value: 1.0 },
         },
         TimedEvent {
             offset: 11,
@@ -663,6 +678,8 @@ fn kits_take_random_abuse() {
             sp.hammer_mass_factor = [0.1, 1.0, 4.0][rng.below(3)];
             sp.decay_scale = [0.05, 1.0, 3.0][rng.below(3)];
             sp.strike_pos_norm = [None, Some(0.0), Some(0.7)][rng.below(3)];
+            sp.damper_custom = rng.below(2) == 0;
+            sp.damper_norm = [0.0, 0.5, 1.0][rng.below(3)];
             if let Ok(p) = prepare(&sp, RATE, revision) {
                 revision += 1;
                 if inst.can_install() {
@@ -689,7 +706,7 @@ fn kits_take_random_abuse() {
         for _ in 0..rng.below(40) {
             let offset = rng.below(n);
             let key = rng.below(128) as u8;
-            let event = match rng.below(6) {
+            let event = match rng.below(7) {
                 0..=2 => Event::NoteOn {
                     key,
                     velocity_norm: [rng.unit(), 1.0, f64::NAN, 0.0][rng.below(4)],
@@ -697,6 +714,9 @@ fn kits_take_random_abuse() {
                 3 => Event::NoteOff { key },
                 4 => Event::PitchBend {
                     value: rng.uniform(-1.0, 1.0),
+                },
+                5 => Event::ChannelPressure {
+                    value: [rng.unit(), 1.0, f64::NAN][rng.below(3)],
                 },
                 _ => Event::Sustain {
                     down: rng.below(2) == 0,
@@ -1096,4 +1116,67 @@ fn a_released_kit_voice_continues_on_the_damped_compile() {
     }
     assert_eq!(kit(&a).voices[i].st.observe(kit(&a).sc_for(true)).active, 0);
     println!("released in contact: carried {waited} samples later");
+}
+
+/// One mode of a kit voice, played at its own pitch, under pressure `p`
+/// from its note-on: once its mallet has left and no contact of it can
+/// close, its free decay has the closed form of a damped mode, `y_(n+1) =
+/// 2 r cos(w dt) y_n - r^2 y_(n-1)` with `w = sqrt(omega^2 - sigma^2)` and
+/// `r = exp(-sigma dt)`, where pressure adds `p MAX_PRESSURE_DECAY_PER_S`
+/// to `sigma` and keeps `w` (as on a voice of one contact:
+/// `src/instrument/tests/pressure.rs`). The worst residual over the peak
+/// of the free and of the pressed recurrence, and the samples pressed.
+fn kit_one_mode_residuals(p: f64) -> (f64, f64, u64) {
+    let mut scene = ringing_kit(0.0);
+    let crate::scene::ObjectSpec::Modal(m) = &mut scene.object[0] else {
+        panic!("modal")
+    };
+    m.mode.truncate(1);
+    let (f, t60) = (m.mode[0].freq_hz, m.mode[0].t60_s.unwrap());
+    let mut inst = kit_instrument(&scene, 0.0);
+    let key = inst.cur.root_note as u8;
+    let press = TimedEvent {
+        offset: 0,
+        event: Event::ChannelPressure { value: p },
+    };
+    let n = 20_000;
+    let [y, _] = render(&mut inst, &[on(0, key, 0.8), press], n);
+    let y: Vec<f64> = y.iter().map(|&v| f64::from(v)).collect();
+    let dt = 1.0 / RATE;
+    let omega = 2.0 * std::f64::consts::PI * f;
+    let sigma = crate::physics::model::LN_1000 / t60;
+    let w = (omega * omega - sigma * sigma).sqrt();
+    let peak = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let end = y.iter().rposition(|&v| v != 0.0).unwrap() - 1;
+    assert!(end > 5000, "{end}");
+    let worst = |rate: f64| {
+        let r = (-rate * dt).exp();
+        (2000..end)
+            .map(|i| (y[i + 1] - 2.0 * r * (w * dt).cos() * y[i] + r * r * y[i - 1]).abs())
+            .fold(0.0f64, f64::max)
+            / peak
+    };
+    let rates = (worst(sigma), worst(sigma + p * MAX_PRESSURE_DECAY_PER_S));
+    (rates.0, rates.1, inst.stats.pressed_samples)
+}
+
+/// Pressure damps a kit voice as it damps a voice of one contact
+/// (docs/plugin.md, "Pressure and the mod wheel"): one more decay rate on
+/// every mode once no contact of the voice can close
+/// (`MultiState::contacts_clear`), its frequency kept, and nothing while
+/// it is not pressed.
+#[test]
+fn pressure_adds_one_decay_rate_to_a_kit_voice_clear_of_its_mallets() {
+    let (plain, _, none) = kit_one_mode_residuals(0.0);
+    let (wrong, right, pressed) = kit_one_mode_residuals(0.6);
+    println!(
+        "kit, one mode, closed-form recurrence residual / peak: no pressure {plain:.1e}; \
+         pressure 0.6: with the pressed decay {right:.1e}, with the free decay {wrong:.1e} \
+         ({pressed} samples pressed)"
+    );
+    assert_eq!(none, 0);
+    assert!(pressed > 10_000, "{pressed}");
+    // f32 output: residuals of a few 1e-8 of the peak
+    assert!(plain < 1e-6 && right < 1e-6, "{plain:e} {right:e}");
+    assert!(wrong > 30.0 * right, "the pressure did nothing: {wrong:e}");
 }

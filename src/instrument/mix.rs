@@ -735,7 +735,7 @@ fn steal_fades_into(
 /// Multiply the `len` samples of `buf` (and the probe's contact point) by
 /// `g, g q, g q^2, ...` (a pressed voice's damper, continuing from `g`);
 /// returns `g q^len`.
-fn decay_into(
+pub(super) fn decay_into(
     buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
     len: usize,
     mut g: f64,

@@ -644,6 +644,8 @@ impl Instrument {
             // contact is closed (`Kit::take_over`), else it fades out and
             // the new one starts at rest
             if self.cur.kit.is_some() || new.kit.is_some() {
+                // a pressed kit voice's state takes its damper's decay so far
+                self.press_flush(i);
                 let on_damped = self.voices[i].on_damped;
                 let carried = match (self.cur.kit.as_deref_mut(), new.kit.as_deref_mut()) {
                     (Some(old), Some(to)) if same_object => to.take_over(old, (i, on_damped)),

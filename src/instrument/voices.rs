@@ -555,7 +555,13 @@ impl Instrument {
     pub(super) fn press_flush(&mut self, i: usize) {
         if let Some(pr) = self.voices[i].pressing.take() {
             if pr.g != 1.0 {
-                let taken = self.cur.states[i].scale_free_state(pr.g);
+                let taken = match self.cur.kit.as_deref_mut() {
+                    Some(kit) => kit
+                        .voices
+                        .get_mut(i)
+                        .is_some_and(|kv| kv.st.scale_objects(pr.g)),
+                    None => self.cur.states[i].scale_free_state(pr.g),
+                };
                 debug_assert!(taken, "a pressed voice is out of contact");
             }
         }
@@ -573,11 +579,19 @@ impl Instrument {
     pub(super) fn press_decide(&mut self, i: usize) {
         let p = &*self.cur;
         let v = &self.voices[i];
-        if !v.active || v.pressing.is_some() || p.bouncing || p.kit.is_some() {
+        if !v.active || v.pressing.is_some() || p.bouncing {
             return;
         }
         let press = v.pressure.max(self.channel_pressure).max(self.mod_wheel);
-        if press > 0.0 && p.states[i].hammer_clear(p.scenes.bound(v.at, v.on_damped)) {
+        let clear = || match p.kit.as_deref() {
+            // a kit voice: no contact of it can close
+            Some(kit) => kit
+                .voices
+                .get(i)
+                .is_some_and(|kv| kv.st.contacts_clear(kit.sc_for(v.on_damped))),
+            None => p.states[i].hammer_clear(p.scenes.bound(v.at, v.on_damped)),
+        };
+        if press > 0.0 && clear() {
             let q = (-MAX_PRESSURE_DECAY_PER_S * press / p.rate_hz).exp();
             self.voices[i].pressing = Some(Pressing { q, g: 1.0 });
         }
@@ -770,27 +784,41 @@ impl Instrument {
 fn fade_flush(p: &mut Prepared, f: usize, fade: &mut StealFade) {
     if let Some(pr) = fade.pressing.take() {
         if pr.g != 1.0 {
-            if let Some(st) = p.spares.get_mut(f) {
-                let taken = st.scale_free_state(pr.g);
-                debug_assert!(taken, "a pressed fade is out of contact");
-            }
+            let taken = match p.kit.as_deref_mut() {
+                Some(kit) => kit
+                    .spares
+                    .get_mut(f)
+                    .is_some_and(|st| st.scale_objects(pr.g)),
+                None => p
+                    .spares
+                    .get_mut(f)
+                    .is_some_and(|st| st.scale_free_state(pr.g)),
+            };
+            debug_assert!(taken, "a pressed fade is out of contact");
         }
     }
 }
 
 /// Decide whether fade `f` of `p` is pressed from now to its next decision
 /// ([`Instrument::press_decide`]'s rule): its note's pressure or `floor`
-/// (the channel's and the mod wheel's) above 0, not a bouncing scene nor a
-/// kit, its hammer clear of the object.
+/// (the channel's and the mod wheel's) above 0, not a bouncing scene, its
+/// hammer clear of the object (a kit's: no contact of it can close).
 pub(super) fn fade_decide(p: &Prepared, f: usize, fade: &mut StealFade, floor: f64) {
-    if fade.pressing.is_some() || p.bouncing || p.kit.is_some() {
+    if fade.pressing.is_some() || p.bouncing {
         return;
     }
     let press = fade.pressure.max(floor);
-    let Some(st) = p.spares.get(f) else {
-        return;
+    let clear = || match p.kit.as_deref() {
+        Some(kit) => kit
+            .spares
+            .get(f)
+            .is_some_and(|st| st.contacts_clear(kit.sc_for(fade.on_damped))),
+        None => p
+            .spares
+            .get(f)
+            .is_some_and(|st| st.hammer_clear(p.scenes.bound(fade.at, fade.on_damped))),
     };
-    if press > 0.0 && st.hammer_clear(p.scenes.bound(fade.at, fade.on_damped)) {
+    if press > 0.0 && clear() {
         let q = (-MAX_PRESSURE_DECAY_PER_S * press / p.rate_hz).exp();
         fade.pressing = Some(Pressing { q, g: 1.0 });
     }

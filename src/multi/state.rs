@@ -473,6 +473,76 @@ impl MultiState {
         dot(&ph.ev[j], &self.s) + ph.ev0[j] + self.off_ev[j] + at(lo) - at(up)
     }
 
+    /// Whether no contact can close for as long as every body flies free:
+    /// no contact closed, no gravity, and for each contact the flights in
+    /// its penetration moving away (a free lower side not rising, a free
+    /// upper side not falling) while the objects' share stays below the
+    /// rest of it. In this phase every block is a free mode's own `(omega
+    /// q, q')`, whose norm never grows (the mode only loses energy), so
+    /// block `k`'s share of contact `j`'s penetration stays within
+    /// `|r_k| |s_k|` (`MultiPhase::ev_e`) and the penetration below its
+    /// constant part, the flights now and those sums. Also when the
+    /// objects are damped more (a pressed kit voice: its objects' state
+    /// times a factor below 1), so a kit voice that is clear is pressed
+    /// exactly by scaling its samples (docs/plugin.md, "Pressure and the
+    /// mod wheel"). The margin `1e-9` of the reach covers the sum's
+    /// rounding and the blocks' `1 + 1e-12` per step. O(contacts N).
+    /// \[audio-thread\]
+    pub fn contacts_clear(&self, sc: &CompiledMulti) -> bool {
+        if self.mask != 0 || sc.model.gravity_m_per_s2 != 0.0 {
+            return false;
+        }
+        let ph = &sc.phases[0];
+        let nb = ph.gens.len();
+        let s = &self.s;
+        if s.len() != 2 * nb {
+            return false;
+        }
+        (0..sc.contacts()).all(|j| {
+            let e = &ph.ev_e[j];
+            if e.len() != nb {
+                return false;
+            }
+            let (lo, up) = ph.ev_fly[j];
+            let away =
+                lo.is_none_or(|k| self.v_f[k] <= 0.0) && up.is_none_or(|k| self.v_f[k] >= 0.0);
+            let reach: f64 = (0..nb)
+                .map(|k| e[k] * (s[k] * s[k] + s[nb + k] * s[nb + k]).sqrt())
+                .sum();
+            let rest = self.penetration(sc, j) - dot(&ph.ev[j], s);
+            away && rest + reach * (1.0 + 1e-9) < 0.0
+        })
+    }
+
+    /// Multiply the objects' state by `factor` (in `(0, 1]`) while no
+    /// contact is closed: added mass-proportional damping over the samples
+    /// it stands for (a pressed kit voice; the one-contact engine's
+    /// `EngineState::scale_free_state`). Every mode keeps its damped
+    /// frequency and decays faster; the masses fly on as they were.
+    /// Refused (false, nothing changed) with a contact closed or a factor
+    /// outside `(0, 1]`. O(N), allocation-free. \[audio-thread\]
+    pub fn scale_objects(&mut self, factor: f64) -> bool {
+        if self.mask != 0 || !(factor > 0.0 && factor <= 1.0) {
+            return false;
+        }
+        self.s.iter_mut().for_each(|x| *x *= factor);
+        self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
+        true
+    }
+
+    /// The energy \[J, model units\] were the objects' state times `g`
+    /// (a pressed kit voice's, [`scale_objects`](Self::scale_objects) not
+    /// yet taken): the objects' part times `g^2`, with no contact closed;
+    /// else the energy. O(N). \[audio-thread\]
+    pub fn energy_objects_scaled(&self, sc: &CompiledMulti, g: f64) -> f64 {
+        let e = self.observe(sc).energy;
+        if self.mask != 0 || g == 1.0 {
+            return e;
+        }
+        let objects = 0.5 * self.s.iter().map(|x| x * x).sum::<f64>();
+        e - (1.0 - g * g) * objects
+    }
+
     /// Contact `j`'s offset rod \[m\] (0 when open, and with exact
     /// switching).
     pub fn rod(&self, j: usize) -> f64 {

@@ -73,7 +73,7 @@ pub(super) fn on(offset: usize, key: u8, vel: f64) -> TimedEvent {
     }
 }
 
-fn off(offset: usize, key: u8) -> TimedEvent {
+pub(super) fn off(offset: usize, key: u8) -> TimedEvent {
     TimedEvent {
         offset,
         event: Event::NoteOff { key },
