@@ -23,8 +23,12 @@
 //! physical state carried while no contact is closed ([`Kit::damped`],
 //! [`MultiState::carry`]; with one closed, at a later step of the
 //! silence-check grid), and back to the played compile when its key
-//! strikes again. Without a damper it rings on. A kit voice stops when it
-//! is silent: its output below [`SILENCE_AMPLITUDE_RATIO`] of
+//! strikes again. Without a damper it rings on. A note's brightness (and
+//! a host's polyphonic modulation of Hardness) moves its kit voice to the
+//! kit's compile at that hardness level ([`Kit::settle`], the same way),
+//! and pressure damps it once none of its contacts can close
+//! ([`MultiState::contacts_clear`]), as they do a voice of one contact. A
+//! kit voice stops when it is silent: its output below [`SILENCE_AMPLITUDE_RATIO`] of
 //! its loudest since its last throw for a whole check interval while the
 //! masses that may still land hardly move ([`MultiState::masses_to_land`]
 //! below [`SILENCE_ENERGY_RATIO`] of the throw's energy).
@@ -35,6 +39,7 @@
 
 use super::{
     impact_speed_m_per_s, Instrument, CHECK_INTERVAL_SAMPLES, SILENCE_ENERGY_RATIO, STEAL_FADES,
+    TIMBRE_LEVEL_MAX,
 };
 use crate::engine::TimeScaleError;
 use crate::multi::{CompiledMulti, MultiEnd, MultiModel, MultiState, MAX_CONTACTS};
@@ -82,6 +87,12 @@ pub struct Kit {
     /// divided as [`super::mapping::damped_scene`] does), which released
     /// kit voices continue on; `None` when the damper is 0.
     pub damped: Option<CompiledMulti>,
+    /// The scene at the other hardness levels (a note's brightness and
+    /// hardness modulation: the Hardness parameter's times
+    /// [`super::TIMBRE_STIFFNESS_STEP`]`^level` on every mallet), by
+    /// `level + TIMBRE_LEVEL_MAX`; `None` at level 0 (that is `sc`) and
+    /// where not compiled (its voices play level 0).
+    pub(super) hard: Vec<Option<CompiledMulti>>,
     /// The kit voices ([`MAX_KIT_VOICES`] when pitched, else 1).
     pub(super) voices: Vec<KitVoice>,
     /// Spare states for kit voices to fade out in when stolen, choked or
@@ -110,10 +121,7 @@ impl Kit {
     /// `damper_norm` (0 .. 1) is above 0. \[worker\] \[main-thread\]
     pub fn new(scene: &Scene, rate_hz: f64, damper_norm: f64) -> Result<Self, SceneError> {
         let switching = scene.contact.switching.unwrap_or_default();
-        let compile = |scene: &Scene| -> Result<CompiledMulti, SceneError> {
-            let model = MultiModel::from_scene(scene, rate_hz)?;
-            CompiledMulti::with_switching(&model, rate_hz, switching).map_err(|e| e.in_scene(scene))
-        };
+        let compile = |scene: &Scene| Self::compile_scene(scene, rate_hz, switching);
         let sc = compile(scene)?;
         let damped = if damper_norm > 0.0 {
             let d = compile(&super::mapping::damped_scene(scene, damper_norm))?;
@@ -172,7 +180,20 @@ impl Kit {
             refused: 0,
             sc,
             damped,
+            hard: (0..LEVELS).map(|_| None).collect(),
         })
+    }
+
+    /// One compile of a kit's scene (`scene`, a variant of the played one:
+    /// another hardness, the damper) at `rate_hz` with `switching`.
+    /// \[worker\] \[main-thread\]
+    pub fn compile_scene(
+        scene: &Scene,
+        rate_hz: f64,
+        switching: crate::scene::Switching,
+    ) -> Result<CompiledMulti, SceneError> {
+        let model = MultiModel::from_scene(scene, rate_hz)?;
+        CompiledMulti::with_switching(&model, rate_hz, switching).map_err(|e| e.in_scene(scene))
     }
 
     /// Which note throws which mallet, in words (the summary).
@@ -213,8 +234,46 @@ impl Kit {
     /// The compile a kit voice runs on: the damped one when `damped` (a
     /// released voice that was carried to it) and the kit has one, else
     /// the played one.
-    pub fn sc_for(&self, damped: bool) -> &CompiledMulti {
-        compile_for(&self.sc, &self.damped, damped)
+    pub fn sc_for(&self, at: KitAt) -> &CompiledMulti {
+        compile_for(&self.sc, &self.damped, &self.hard, at)
+    }
+
+    /// The compile `at` names as the kit has it: the damped one if asked
+    /// and compiled (then at level 0: a released voice throws nothing),
+    /// else the level if compiled, else level 0.
+    pub(super) fn resolve(&self, at: KitAt) -> KitAt {
+        if at.damped && self.damped.is_some() {
+            return KitAt {
+                hard: 0,
+                damped: true,
+            };
+        }
+        let compiled = self
+            .hard
+            .get(level_slot(at.hard))
+            .is_some_and(Option::is_some);
+        KitAt {
+            hard: if compiled { at.hard } else { 0 },
+            damped: false,
+        }
+    }
+
+    /// Install the hardness levels' compiles (`(level, compile)`, level
+    /// 0 left out): each must carry a state of the played compile
+    /// ([`MultiState::carry`]), else it is left out. \[worker\]
+    pub(super) fn set_hardness_levels(&mut self, levels: Vec<(i8, CompiledMulti)>) {
+        let mut probe = MultiState::new(&self.sc);
+        probe.rest(&self.sc);
+        for (level, c) in levels {
+            if level != 0 && probe.carry(&self.sc, &c) && probe.carry(&c, &self.sc) {
+                self.hard[level_slot(level)] = Some(c);
+            }
+        }
+    }
+
+    /// How many hardness levels are compiled besides the played one.
+    pub fn hardness_levels(&self) -> usize {
+        self.hard.iter().filter(|c| c.is_some()).count()
     }
 
     /// Most throws that can start at one instant: a voice each when
@@ -233,13 +292,13 @@ impl Kit {
     /// not a number (the voice then rests). \[audio-thread\]
     pub(super) fn tick_into(
         &mut self,
-        (i, damped): (usize, bool),
+        (i, at): (usize, KitAt),
         buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
         len: usize,
         (g0, dg): (f64, f64),
         look: Option<impl FnMut(usize, &MultiState, &CompiledMulti)>,
     ) -> bool {
-        let sc = compile_for(&self.sc, &self.damped, damped);
+        let sc = compile_for(&self.sc, &self.damped, &self.hard, at);
         tick_state(&mut self.voices[i].st, sc, buf, len, (g0, dg), look)
     }
 
@@ -248,11 +307,11 @@ impl Kit {
     /// sample was not a number (the state then rests). \[audio-thread\]
     pub(super) fn tick_spare_into(
         &mut self,
-        (f, damped): (usize, bool),
+        (f, at): (usize, KitAt),
         buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
         len: usize,
     ) -> bool {
-        let sc = compile_for(&self.sc, &self.damped, damped);
+        let sc = compile_for(&self.sc, &self.damped, &self.hard, at);
         tick_state(
             &mut self.spares[f],
             sc,
@@ -268,18 +327,20 @@ impl Kit {
     /// contacts is closed ([`MultiState::carry`]: the physical state and
     /// so the energy unchanged), with its pitch, its turn, its keys and
     /// its silence test's references; `old` keeps this kit's fresh state
-    /// (to be retired). `damped`: the voice runs on `old`'s damped compile
-    /// and goes on this kit's (its played one when it has none). The
-    /// compile it now runs on (`Some(true)`: the damped one), or `None`
-    /// (nothing changed) when a contact is closed, the bodies differ or the
-    /// new kit has no such voice. Allocation-free. \[audio-thread\]
-    pub(super) fn take_over(&mut self, old: &mut Kit, (i, damped): (usize, bool)) -> Option<bool> {
+    /// (to be retired). `at`: the compile of `old` the voice runs on; it
+    /// goes on the same one of this kit (the nearest it has: [`resolve`]).
+    /// The compile it now runs on, or `None` (nothing changed) when a
+    /// contact is closed, the bodies differ or the new kit has no such
+    /// voice. Allocation-free. \[audio-thread\]
+    ///
+    /// [`resolve`]: Kit::resolve
+    pub(super) fn take_over(&mut self, old: &mut Kit, (i, at): (usize, KitAt)) -> Option<KitAt> {
         if self.mallets != old.mallets || i >= self.voices.len() || i >= old.voices.len() {
             return None;
         }
-        let to_damped = damped && self.damped.is_some();
-        let from_sc = compile_for(&old.sc, &old.damped, damped);
-        let to_sc = compile_for(&self.sc, &self.damped, to_damped);
+        let to_at = self.resolve(at);
+        let from_sc = compile_for(&old.sc, &old.damped, &old.hard, at);
+        let to_sc = compile_for(&self.sc, &self.damped, &self.hard, to_at);
         let (to, from) = (&mut self.voices[i], &mut old.voices[i]);
         if !from.st.carry(from_sc, to_sc) {
             return None;
@@ -290,30 +351,27 @@ impl Kit {
         to.peak = from.peak;
         to.interval_peak = from.interval_peak;
         to.strike_energy = from.strike_energy;
-        Some(to_damped)
+        Some(to_at)
     }
 
-    /// Carry kit voice `i` between the played and the damped compile when
-    /// it runs on one (`on_damped`) and wants the other (`want_damped`,
-    /// taken as false when the kit has no damped compile), while no contact
-    /// is closed ([`MultiState::carry`]: the physical state, so the energy,
-    /// unchanged). The compile it runs on afterwards (`true`: the damped
-    /// one); unchanged when a contact is closed (a later grid step tries
-    /// again). O(dim^2) when it moves, allocation-free. \[audio-thread\]
-    pub(super) fn settle_damper(&mut self, i: usize, on_damped: bool, want_damped: bool) -> bool {
-        let want = want_damped && self.damped.is_some();
-        if want == on_damped || i >= self.voices.len() {
-            return on_damped;
+    /// Carry kit voice `i` from the compile it runs on (`at`) to the one it
+    /// wants (`want`, the nearest the kit has: [`Kit::resolve`]; the damped
+    /// one for a released voice, else its note's hardness level), while no
+    /// contact is closed ([`MultiState::carry`]: the physical state, so the
+    /// energy, unchanged). The compile it runs on afterwards; unchanged
+    /// when a contact is closed (a later grid step tries again). O(dim^2)
+    /// when it moves, allocation-free. \[audio-thread\]
+    pub(super) fn settle(&mut self, i: usize, at: KitAt, want: KitAt) -> KitAt {
+        let want = self.resolve(want);
+        if want == at || i >= self.voices.len() {
+            return at;
         }
-        let (from, to) = match &self.damped {
-            Some(d) if want => (&self.sc, d),
-            Some(d) => (d, &self.sc),
-            None => (&self.sc, &self.sc),
-        };
+        let from = compile_for(&self.sc, &self.damped, &self.hard, at);
+        let to = compile_for(&self.sc, &self.damped, &self.hard, want);
         if self.voices[i].st.carry(from, to) {
             want
         } else {
-            on_damped
+            at
         }
     }
 
@@ -371,8 +429,8 @@ impl Kit {
     /// from `height` (m) for a note on `key`; a throw the state refuses is
     /// counted. A throw restarts the silence test's references.
     /// \[audio-thread\]
-    fn throw(&mut self, (idx, damped): (usize, bool), which: u8, key: u8, speed: f64, height: f64) {
-        let sc = compile_for(&self.sc, &self.damped, damped);
+    fn throw(&mut self, (idx, at): (usize, KitAt), which: u8, key: u8, speed: f64, height: f64) {
+        let sc = compile_for(&self.sc, &self.damped, &self.hard, at);
         let kv = &mut self.voices[idx];
         let g = sc.model.gravity_m_per_s2;
         // the model's units: a physical speed is `scale` times the model's
@@ -398,16 +456,63 @@ impl Kit {
     }
 }
 
-/// `damped` if `on_damped` and there is one, else `sc` ([`Kit::sc_for`]
-/// on a kit's fields, so the voices can be borrowed beside it).
+/// The compile voice `v` (a kit voice's slot) runs on.
+pub(super) fn kit_at(v: &super::Voice) -> KitAt {
+    KitAt {
+        hard: v.at.hard,
+        damped: v.on_damped,
+    }
+}
+
+/// The compile voice `v` wants: the damped one once released, else its
+/// note's hardness level.
+fn kit_want(v: &super::Voice) -> KitAt {
+    KitAt {
+        hard: v.want.hard,
+        damped: v.released,
+    }
+}
+
+/// Voice `v` now runs on `at`.
+fn set_kit_at(v: &mut super::Voice, at: KitAt) {
+    v.at.hard = at.hard;
+    v.on_damped = at.damped;
+}
+
+/// Which of a kit's compiles a kit voice runs on: its hardness level
+/// (0: the Hardness parameter's) and whether it is the damped one (a
+/// released voice's; then at level 0).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct KitAt {
+    /// The hardness level, `-TIMBRE_LEVEL_MAX ..= TIMBRE_LEVEL_MAX`.
+    pub hard: i8,
+    /// The damped compile.
+    pub damped: bool,
+}
+
+/// Levels of the hardness axis.
+const LEVELS: usize = 2 * TIMBRE_LEVEL_MAX as usize + 1;
+
+/// The index of hardness `level` in [`Kit::hard`] (clamped to the levels).
+fn level_slot(level: i8) -> usize {
+    (level.clamp(-TIMBRE_LEVEL_MAX, TIMBRE_LEVEL_MAX) + TIMBRE_LEVEL_MAX) as usize
+}
+
+/// The compile `at` names among a kit's fields (`damped` if asked and
+/// compiled, else the level's if compiled, else `sc`: [`Kit::sc_for`] on
+/// the fields, so the voices can be borrowed beside them).
 pub(super) fn compile_for<'a>(
     sc: &'a CompiledMulti,
     damped: &'a Option<CompiledMulti>,
-    on_damped: bool,
+    hard: &'a [Option<CompiledMulti>],
+    at: KitAt,
 ) -> &'a CompiledMulti {
     match damped {
-        Some(d) if on_damped => d,
-        _ => sc,
+        Some(d) if at.damped => d,
+        _ => hard
+            .get(level_slot(at.hard))
+            .and_then(Option::as_ref)
+            .unwrap_or(sc),
     }
 }
 
@@ -512,7 +617,7 @@ impl Instrument {
             return;
         };
         let height = if kit.bouncing { drop } else { 0.0 };
-        kit.throw((idx, v.on_damped), which, key, speed, height);
+        kit.throw((idx, kit_at(v)), which, key, speed, height);
         self.press_decide(idx);
     }
 
@@ -547,14 +652,20 @@ impl Instrument {
         };
         let v = &mut self.voices[idx];
         let kv = &mut kit.voices[idx];
-        if kit.damped.is_some() {
-            // its state may have run on the damped compile (its own, or a
+        if kit.damped.is_some() || kit.hard.iter().any(Option::is_some) {
+            // its state may have run on another compile (its own, or a
             // fade's it was swapped with): the played one's tables from here
             kv.st.forget_tables();
         }
+        // a new note: the played compile, its note's levels, pressure and
+        // tuning reset (a sounding voice's damper was taken when it faded)
         v.on_damped = false;
         v.released = false;
-        // (a sounding voice's damper was taken when it faded out)
+        v.at = super::Variant::default();
+        v.want = super::Variant::default();
+        v.bright_level = 0;
+        v.hard_level = 0;
+        v.pressure = 0.0;
         v.pressing = None;
         // woken (or stolen) at rest, at the key's pitch and the bend
         let base = if kit.pitched && tracking {
@@ -586,15 +697,20 @@ impl Instrument {
     }
 
     /// A new note on kit voice `idx` while it rings: it starts untuned,
-    /// back on the played compile (while a contact is closed it stays on
-    /// the damped one until a later grid step carries it back).
+    /// without its note's pressure, back on the played compile at level 0
+    /// (while a contact is closed it stays where it is until a later grid
+    /// step carries it).
     fn renote_kit_voice(&mut self, idx: usize) {
         self.press_flush(idx);
         let v = &mut self.voices[idx];
         // a new note on its ringing voice
         v.released = false;
+        v.want = super::Variant::default();
+        v.bright_level = 0;
+        v.hard_level = 0;
+        v.pressure = 0.0;
         if let Some(kit) = self.cur.kit.as_deref_mut() {
-            v.on_damped = kit.settle_damper(idx, v.on_damped, false);
+            set_kit_at(v, kit.settle(idx, kit_at(v), kit_want(v)));
         }
         v.fresh = false;
         if v.tuning_target != 0.0 || v.tuning_now != 0.0 {
@@ -647,14 +763,18 @@ impl Instrument {
             return Ok(true);
         }
         self.press_flush(i);
-        let on_damped = self.voices[i].on_damped;
+        let at = kit_at(&self.voices[i]);
         let Some(Kit {
-            voices, sc, damped, ..
+            voices,
+            sc,
+            damped,
+            hard,
+            ..
         }) = self.cur.kit.as_deref_mut()
         else {
             return Ok(true);
         };
-        let done = voices[i].retune(compile_for(sc, damped, on_damped), s);
+        let done = voices[i].retune(compile_for(sc, damped, hard, at), s);
         self.press_decide(i);
         done
     }
@@ -733,9 +853,9 @@ impl Instrument {
                 };
             }
         };
-        let on_damped = self.voices[i].on_damped;
+        let at = kit_at(&self.voices[i]);
         let finite = kit.tick_into(
-            (i, on_damped),
+            (i, at),
             &mut self.vbuf,
             len,
             (1.0, 0.0),
@@ -768,7 +888,7 @@ impl Instrument {
                     }
                 }
             }
-            pr.g = super::mix::decay_into(&mut self.vbuf, len, pr.g, pr.q, None);
+            pr.g = super::decay_into(&mut self.vbuf, len, pr.g, pr.q, None);
             pressed = pr.g;
             self.stats.pressed_samples += len as u64;
         }
@@ -782,7 +902,7 @@ impl Instrument {
         if observe {
             // physical energy: the model's times the scale squared
             let s = kv.st.time_scale();
-            let sc = compile_for(&kit.sc, &kit.damped, on_damped);
+            let sc = compile_for(&kit.sc, &kit.damped, &kit.hard, at);
             let energy_j = kv.st.energy_objects_scaled(sc, pressed) * s * s;
             if let Some(probe) = self.probe.as_deref_mut() {
                 for j in 0..contacts {
@@ -800,6 +920,36 @@ impl Instrument {
         }
         let now: u64 = kv.st.stats.contacts_started.iter().sum();
         Some(now - started)
+    }
+
+    /// A note's brightness or hardness modulation on a kit (`set` on the
+    /// voices of `key`, every voice for `None`; a kit of listed notes is
+    /// its last note's): each kit voice goes on its note's hardness level
+    /// now, or while a contact of it is closed at a later grid step
+    /// ([`Kit::settle`]); a released one stays on the damped compile.
+    /// \[audio-thread\]
+    pub(super) fn kit_want_levels(&mut self, key: Option<u8>, set: impl Fn(&mut super::Voice)) {
+        let Some(kit) = self.cur.kit.as_deref() else {
+            return;
+        };
+        for i in 0..kit.voices.len().min(super::MAX_VOICES) {
+            let v = &mut self.voices[i];
+            if !v.active || key.is_some_and(|k| k != v.key) {
+                continue;
+            }
+            set(v);
+            v.want.hard = super::wanted_level(v.bright_level, v.hard_level);
+            if kit_at(v) == kit_want(v) {
+                continue;
+            }
+            self.press_flush(i);
+            let Some(kit) = self.cur.kit.as_deref_mut() else {
+                return;
+            };
+            let v = &mut self.voices[i];
+            set_kit_at(v, kit.settle(i, kit_at(v), kit_want(v)));
+            self.press_decide(i);
+        }
     }
 
     /// A note-off on a kit (after the pedals): every sounding kit voice of
@@ -823,7 +973,7 @@ impl Instrument {
             };
             let v = &mut self.voices[i];
             v.released = true;
-            v.on_damped = kit.settle_damper(i, v.on_damped, true);
+            set_kit_at(v, kit.settle(i, kit_at(v), kit_want(v)));
             self.press_decide(i);
         }
     }
@@ -839,11 +989,12 @@ impl Instrument {
         if !self.voices[i].active || i >= kit.voices.len() {
             return;
         }
-        // a released voice that waited for its contacts to open goes on
-        // the damped compile now (and a struck one back off it)
+        // a voice that waited for its contacts to open goes on the
+        // compile it wants now: the damped one when released, else its
+        // note's hardness level
         let v = &mut self.voices[i];
-        v.on_damped = kit.settle_damper(i, v.on_damped, v.released);
-        let sc = compile_for(&kit.sc, &kit.damped, v.on_damped);
+        set_kit_at(v, kit.settle(i, kit_at(v), kit_want(v)));
+        let sc = compile_for(&kit.sc, &kit.damped, &kit.hard, kit_at(v));
         let kv = &mut kit.voices[i];
         let quiet = kv.interval_peak < SILENCE_AMPLITUDE_RATIO * kv.peak;
         kv.interval_peak = 0.0;

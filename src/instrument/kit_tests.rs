@@ -788,7 +788,7 @@ fn a_stolen_kit_voice_fades_out_while_the_new_key_starts() {
 /// voices"): a choke of a pitched kit's key, All Sound Off and a lowered
 /// Polyphony (the quietest kit voice) fade them out exactly as a stolen
 /// kit voice fades (the output is the others plus the ended ones times
-/// the steal's fade gain, where a release, which a kit ignores, would
+/// the steal's fade gain, where a release, on this kit without a damper, would
 /// leave them ringing); a kit of listed notes, one voice for every key,
 /// fades in a spare kit state of its own when its last note's key or
 /// every note is choked, and a choke of another key leaves it; a stolen
@@ -1053,7 +1053,7 @@ fn a_released_kit_voice_continues_on_the_damped_compile() {
     let energy = |inst: &Instrument| {
         let k = kit(inst);
         let st = &k.voices[i].st;
-        st.observe(k.sc_for(inst.voices[i].on_damped)).energy
+        st.observe(k.sc_for(kit::kit_at(&inst.voices[i]))).energy
     };
     let e0 = energy(&a);
     a.note_off(Some(key));
@@ -1114,7 +1114,14 @@ fn a_released_kit_voice_continues_on_the_damped_compile() {
         waited += 64;
         assert!(waited < 4800, "carried once the contact opens");
     }
-    assert_eq!(kit(&a).voices[i].st.observe(kit(&a).sc_for(true)).active, 0);
+    let damped = kit::KitAt {
+        hard: 0,
+        damped: true,
+    };
+    assert_eq!(
+        kit(&a).voices[i].st.observe(kit(&a).sc_for(damped)).active,
+        0
+    );
     println!("released in contact: carried {waited} samples later");
 }
 
@@ -1179,4 +1186,57 @@ fn pressure_adds_one_decay_rate_to_a_kit_voice_clear_of_its_mallets() {
     // f32 output: residuals of a few 1e-8 of the peak
     assert!(plain < 1e-6 && right < 1e-6, "{plain:e} {right:e}");
     assert!(wrong > 30.0 * right, "the pressure did nothing: {wrong:e}");
+}
+
+/// A note's brightness plays a kit voice at its hardness level, as it
+/// plays a voice of one contact (docs/plugin.md, "Brightness"): the kit
+/// compiles its four other levels; brightness 1 at the note's onset throws
+/// with every mallet's spring `TIMBRE_STIFFNESS_STEP^2` = 4 times as stiff,
+/// the same samples as the kit prepared at Hardness x4 struck alike (the
+/// voice carried through the physical state before its mallet lands:
+/// rounding); brightness 0.5, level 0, changes nothing.
+#[test]
+fn brightness_plays_a_kit_voice_at_its_hardness_level() {
+    let scene = ringing_kit(0.0);
+    let mut a = kit_instrument(&scene, 0.0);
+    assert_eq!(kit(&a).hardness_levels(), 4);
+    let key = a.cur.root_note as u8;
+    let bright = |value| TimedEvent {
+        offset: 0,
+        event: Event::NoteBrightness {
+            key: Some(key),
+            value,
+        },
+    };
+    let n = 4800;
+    let [ra, _] = render(&mut a, &[on(0, key, 0.8), bright(1.0)], n);
+    let harder = SceneParams {
+        stiffness_factor: TIMBRE_STIFFNESS_STEP.powi(2),
+        ..SceneParams::default()
+    };
+    let play = PlayParams {
+        gain_db: 0.0,
+        ..PlayParams::default()
+    };
+    let mut b = Instrument::new(prepare_scene(&scene, &harder, RATE, 0).unwrap(), play);
+    let [rb, _] = render(&mut b, &[on(0, key, 0.8)], n);
+    let [rc, _] = render(&mut kit_instrument(&scene, 0.0), &[on(0, key, 0.8)], n);
+    let [rd, _] = render(
+        &mut kit_instrument(&scene, 0.0),
+        &[on(0, key, 0.8), bright(0.5)],
+        n,
+    );
+    let peak = rb.iter().fold(0.0f32, |m, x| m.max(x.abs()));
+    let diff = |x: &[f32], y: &[f32]| {
+        x.iter()
+            .zip(y)
+            .fold(0.0f32, |m, (p, q)| m.max((p - q).abs()))
+    };
+    let (same, other) = (diff(&ra, &rb), diff(&ra, &rc));
+    println!(
+        "brightness 1 against Hardness x4: {same:.2e} of peak {peak:.3e}; against level 0: {other:.2e}"
+    );
+    assert!(same <= 1e-6 * peak, "{same:e}");
+    assert!(other > 1e-2 * peak, "{other:e}");
+    assert!(rd == rc, "level 0 is the played compile");
 }

@@ -350,8 +350,12 @@ impl Instrument {
                 let g0 = self.fade_left as f64 / self.fade_len as f64;
                 let dg = 1.0 / self.fade_len as f64;
                 if let Some(kit) = f.kit.as_deref_mut() {
+                    let kat = super::kit::KitAt {
+                        hard: at.hard,
+                        damped: on_damped,
+                    };
                     if kit.tick_into(
-                        (i, on_damped),
+                        (i, kat),
                         &mut self.vbuf,
                         len,
                         (g0, dg),
@@ -482,7 +486,7 @@ impl Instrument {
                     !st.in_contact() && st.contacts_started - st.contacts_replayed == contacts
                 );
                 let motion = observing.then_some(&mut self.motion[..len]);
-                pr.g = decay_into(&mut self.vbuf, len, pr.g, pr.q, motion);
+                pr.g = super::decay_into(&mut self.vbuf, len, pr.g, pr.q, motion);
                 self.stats.pressed_samples += len as u64;
             }
             let new_contacts = st.contacts_started - st.contacts_replayed - contacts;
@@ -699,7 +703,13 @@ fn steal_fades_into(
         };
         let m = len.min(fade.left);
         let finite = match p.kit.as_deref_mut() {
-            Some(kit) => kit.tick_spare_into((f, fade.on_damped), vbuf, m),
+            Some(kit) => {
+                let at = super::kit::KitAt {
+                    hard: fade.at.hard,
+                    damped: fade.on_damped,
+                };
+                kit.tick_spare_into((f, at), vbuf, m)
+            }
             None => {
                 let scene = p.scenes.bound(fade.at, fade.on_damped);
                 let st = &mut p.spares[f];
@@ -714,7 +724,7 @@ fn steal_fades_into(
             // a pressed fade: its damper's decay, as a pressed voice's
             // (`Instrument::voice_chunk`), under the fade's gain
             if let Some(pr) = fade.pressing.as_mut() {
-                pr.g = decay_into(vbuf, m, pr.g, pr.q, None);
+                pr.g = super::decay_into(vbuf, m, pr.g, pr.q, None);
             }
             for k in 0..m {
                 let g = (fade.left - k) as f64 / fade_len as f64;
@@ -730,28 +740,6 @@ fn steal_fades_into(
             *slot = None;
         }
     }
-}
-
-/// Multiply the `len` samples of `buf` (and the probe's contact point) by
-/// `g, g q, g q^2, ...` (a pressed voice's damper, continuing from `g`);
-/// returns `g q^len`.
-pub(super) fn decay_into(
-    buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
-    len: usize,
-    mut g: f64,
-    q: f64,
-    mut motion: Option<&mut [Motion]>,
-) -> f64 {
-    for k in 0..len {
-        buf[0][k] *= g;
-        buf[1][k] *= g;
-        if let Some(m) = motion.as_deref_mut() {
-            m[k].x_contact *= g;
-            m[k].v_contact *= g;
-        }
-        g *= q;
-    }
-    g
 }
 
 fn add_into(

@@ -646,13 +646,17 @@ impl Instrument {
             if self.cur.kit.is_some() || new.kit.is_some() {
                 // a pressed kit voice's state takes its damper's decay so far
                 self.press_flush(i);
-                let on_damped = self.voices[i].on_damped;
+                let at = kit::kit_at(&self.voices[i]);
                 let carried = match (self.cur.kit.as_deref_mut(), new.kit.as_deref_mut()) {
-                    (Some(old), Some(to)) if same_object => to.take_over(old, (i, on_damped)),
+                    (Some(old), Some(to)) if same_object => to.take_over(old, (i, at)),
                     _ => None,
                 };
-                if let Some(on_damped) = carried {
-                    self.voices[i].on_damped = on_damped;
+                if let Some(at) = carried {
+                    let v = &mut self.voices[i];
+                    v.at.hard = at.hard;
+                    v.on_damped = at.damped;
+                    // its note's level, where the new kit has it, at the
+                    // next grid step
                     self.stats.voices_carried += 1;
                 } else {
                     let v = &mut self.voices[i];
@@ -855,7 +859,7 @@ impl Instrument {
     /// move them to the hardness level their note now asks for.
     fn want_levels(&mut self, key: Option<u8>, set: impl Fn(&mut Voice)) {
         if self.cur.kit.is_some() {
-            return;
+            return self.kit_want_levels(key, set);
         }
         for v in &mut self.voices {
             if v.active && key.is_none_or(|k| k == v.key) {
@@ -868,6 +872,28 @@ impl Instrument {
             self.apply_timbre();
         }
     }
+}
+
+/// Multiply the `len` samples of `buf` (and the probe's contact point) by
+/// `g, g q, g q^2, ...` (a pressed voice's damper, continuing from `g`);
+/// returns `g q^len`.
+fn decay_into(
+    buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
+    len: usize,
+    mut g: f64,
+    q: f64,
+    mut motion: Option<&mut [Motion]>,
+) -> f64 {
+    for k in 0..len {
+        buf[0][k] *= g;
+        buf[1][k] *= g;
+        if let Some(m) = motion.as_deref_mut() {
+            m[k].x_contact *= g;
+            m[k].v_contact *= g;
+        }
+        g *= q;
+    }
+    g
 }
 
 /// The hardness level of a note: its brightness's level plus its hardness

@@ -541,6 +541,18 @@ impl Prepared {
     /// modulation levels ([`TIMBRE_MAX_STATES`]): every note plays at the
     /// parameters' values. \[any-thread\]
     pub fn timbre_note(&self) -> Option<String> {
+        if let Some(kit) = self.kit.as_deref() {
+            let dim = kit.max_dim();
+            return (dim > TIMBRE_MAX_STATES).then(|| {
+                format!(
+                    "scene {:?}: a kit whose largest phase has {dim} states, more than \
+                     {TIMBRE_MAX_STATES}: its hardness levels are not compiled, so note \
+                     brightness (the note expression, MPE timbre) and polyphonic modulation of \
+                     Hardness play every note at the Hardness parameter's value",
+                    self.scenes.scene.name
+                )
+            });
+        }
         let dim = self.scenes.scene.contact.dim;
         (dim > TIMBRE_MAX_STATES).then(|| {
             format!(
@@ -735,7 +747,7 @@ pub fn prepare_scene_staged(
     };
     let played_scene = scene_for(base, &ip);
     if played_scene.several_contacts() {
-        return prepare_kit(base, &played_scene, params, rate_hz, revision);
+        return prepare_kit(base, &played_scene, params, (rate_hz, revision), stage);
     }
     let (scene, switching_used, fallback_note) =
         compile_with_fallback(&played_scene, rate_hz, params.switching)?;
@@ -1008,10 +1020,42 @@ fn prepare_kit(
     base: &Scene,
     played: &Scene,
     params: &SceneParams,
-    rate_hz: f64,
-    revision: u64,
+    (rate_hz, revision): (f64, u64),
+    stage: Stage,
 ) -> Result<Box<Prepared>, PrepareError> {
-    let kit = Kit::new(played, rate_hz, params.damper_norm).map_err(PrepareError::Kit)?;
+    let mut kit = Kit::new(played, rate_hz, params.damper_norm).map_err(PrepareError::Kit)?;
+    cancel::check()?;
+    // the hardness levels a note's brightness plays, as a scene of one
+    // contact has them: every mallet's spring (or law) times
+    // TIMBRE_STIFFNESS_STEP^level, for phases of at most TIMBRE_MAX_STATES
+    // states; a playable stage leaves them to the full one
+    let small = kit.max_dim() <= TIMBRE_MAX_STATES;
+    let levels: Vec<i8> = if small && stage == Stage::Full {
+        (-TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX)
+            .filter(|&h| h != 0)
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let left_out = small && stage == Stage::Playable;
+    let switching = kit.sc.switching;
+    let compiled = side_by_side(&levels, |&h| {
+        let mut p = *params;
+        p.stiffness_factor *= TIMBRE_STIFFNESS_STEP.powi(i32::from(h));
+        let ip = InstrumentParams {
+            scene: p,
+            play: PlayParams::default(),
+        };
+        Kit::compile_scene(&scene_for(base, &ip), rate_hz, switching).ok()
+    });
+    cancel::check()?;
+    kit.set_hardness_levels(
+        levels
+            .into_iter()
+            .zip(compiled)
+            .filter_map(|(h, c)| c.map(|c| (h, c)))
+            .collect(),
+    );
     let mut alone = played.clone();
     alone.striker.clear();
     alone.touch.clear();
@@ -1035,6 +1079,6 @@ fn prepare_kit(
         (used, None),
         scenes,
         Some(Box::new(kit)),
-        (Stage::Full, false),
+        (Stage::Full, left_out),
     )
 }

@@ -316,10 +316,13 @@ impl Instrument {
         match p.kit.as_deref_mut() {
             Some(kit) => {
                 std::mem::swap(&mut kit.voices[i].st, &mut kit.spares[f]);
-                // a kit voice plays the scene as compiled (no variants),
-                // or its damped compile once released
-                fade.at = Variant::default();
-                fade.on_damped = v.on_damped && kit.damped.is_some();
+                // a kit voice fades on the compile it runs on (its note's
+                // hardness level, or the damped one once released)
+                fade.at = Variant {
+                    hard: v.at.hard,
+                    ..Variant::default()
+                };
+                fade.on_damped = v.on_damped;
             }
             None => std::mem::swap(&mut p.states[i], &mut p.spares[f]),
         }
@@ -588,7 +591,7 @@ impl Instrument {
             Some(kit) => kit
                 .voices
                 .get(i)
-                .is_some_and(|kv| kv.st.contacts_clear(kit.sc_for(v.on_damped))),
+                .is_some_and(|kv| kv.st.contacts_clear(kit.sc_for(super::kit::kit_at(v)))),
             None => p.states[i].hammer_clear(p.scenes.bound(v.at, v.on_damped)),
         };
         if press > 0.0 && clear() {
@@ -751,7 +754,11 @@ impl Instrument {
                 let bent = match p.kit.as_deref_mut() {
                     Some(kit) => match kit.spares.get_mut(f) {
                         Some(st) if st.time_scale() != s => {
-                            let sc = super::kit::compile_for(&kit.sc, &kit.damped, fade.on_damped);
+                            let at = super::kit::KitAt {
+                                hard: fade.at.hard,
+                                damped: fade.on_damped,
+                            };
+                            let sc = super::kit::compile_for(&kit.sc, &kit.damped, &kit.hard, at);
                             st.bend_time_scale(sc, s)
                         }
                         _ => continue,
@@ -809,10 +816,12 @@ pub(super) fn fade_decide(p: &Prepared, f: usize, fade: &mut StealFade, floor: f
     }
     let press = fade.pressure.max(floor);
     let clear = || match p.kit.as_deref() {
-        Some(kit) => kit
-            .spares
-            .get(f)
-            .is_some_and(|st| st.contacts_clear(kit.sc_for(fade.on_damped))),
+        Some(kit) => kit.spares.get(f).is_some_and(|st| {
+            st.contacts_clear(kit.sc_for(super::kit::KitAt {
+                hard: fade.at.hard,
+                damped: fade.on_damped,
+            }))
+        }),
         None => p
             .spares
             .get(f)

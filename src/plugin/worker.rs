@@ -586,7 +586,8 @@ mod tests {
     /// A live host's first scene is playable at once (no variants, no
     /// stored strikes) and the whole scene of the same revision follows as
     /// a later scene; a cancellation drops that upgrade too, and a newer
-    /// request replaces it; a kit (nothing to add) is complete at once.
+    /// request replaces it; a kit's hardness levels follow as its whole
+    /// scene.
     #[test]
     fn a_playable_first_scene_is_followed_by_the_whole_one() {
         let h = Handoff::new();
@@ -616,10 +617,17 @@ mod tests {
         assert_eq!(got.revision, 3, "the cancelled upgrade came");
         assert!(next_ready(&h, 200).is_none());
 
-        // a kit has no variants or stored strikes: complete at once
+        // a kit's playable scene leaves its hardness levels out, and the
+        // whole kit follows with them
         assert!(h.request(playable_first(4, "snare-pair")));
         wait_for(&h, |h| !h.compiling());
-        assert!(h.take_first().expect("the kit").prepared().complete);
+        let inst = h.take_first().expect("the kit");
+        let first = inst.prepared();
+        assert!(!first.complete);
+        assert_eq!(first.kit.as_ref().unwrap().hardness_levels(), 0);
+        let full = next_ready(&h, 60_000).expect("the whole kit follows");
+        assert!(full.complete);
+        assert_eq!(full.kit.as_ref().unwrap().hardness_levels(), 4);
         assert!(
             next_ready(&h, 500).is_none(),
             "an upgrade of a complete scene"
