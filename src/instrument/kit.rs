@@ -956,7 +956,7 @@ impl Instrument {
     /// `key` (every one for `None`; a kit of listed notes is its last
     /// note's) is released and carried to the damped compile, if the kit
     /// has one, now or, while a contact is closed, at a later step of the
-    /// silence-check grid ([`Kit::settle_damper`]). O(dim^2) per voice
+    /// silence-check grid ([`Kit::settle`]). O(dim^2) per voice
     /// carried, allocation-free. \[audio-thread\]
     pub(super) fn kit_note_off(&mut self, key: Option<u8>) {
         let Some(kit) = self.cur.kit.as_deref() else {
