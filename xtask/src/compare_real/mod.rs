@@ -21,6 +21,7 @@ pub use modal_testkit::analysis;
 pub mod gm;
 mod plots;
 pub mod sf2;
+mod velocity;
 
 use crate::benchmarks::{rustc_version, today};
 use analysis::{Peak, Spectrum, T60};
@@ -932,6 +933,10 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
     write_scale_pairs(&mut body, &pairs, &recs);
     write_other_recordings(&mut body, &others, &recs);
     write_confusion(&mut body, &set, &comparisons);
+    let rows = velocity::rows(&sf, &compared, |p, s| {
+        keys.get(&(s, p.key)).copied().unwrap_or(p.key)
+    });
+    velocity::write(&mut body, &rows);
 
     // per preset
     let plot_dir = a.out.join("compare-real");
