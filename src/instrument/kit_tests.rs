@@ -4,7 +4,9 @@
 //! blocks and the lookahead do not change a sample, a kit voice stops when
 //! silent and wakes at rest, a swap carries or fades it.
 
-use super::tests::{at, largest, off, on, render, steal_fade_gain, worst_and_tol};
+use super::tests::{
+    at, largest, off, on, one_mode_residuals, render, steal_fade_gain, worst_and_tol,
+};
 use super::*;
 use crate::multi::{CompiledMulti, MultiModel, MultiState};
 use crate::scene::{Scene, Switching};
@@ -1148,23 +1150,8 @@ fn kit_one_mode_residuals(p: f64) -> (f64, f64, u64) {
     };
     let n = 20_000;
     let [y, _] = render(&mut inst, &[on(0, key, 0.8), press], n);
-    let y: Vec<f64> = y.iter().map(|&v| f64::from(v)).collect();
-    let dt = 1.0 / RATE;
-    let omega = 2.0 * std::f64::consts::PI * f;
-    let sigma = crate::physics::model::LN_1000 / t60;
-    let w = (omega * omega - sigma * sigma).sqrt();
-    let peak = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    let end = y.iter().rposition(|&v| v != 0.0).unwrap() - 1;
-    assert!(end > 5000, "{end}");
-    let worst = |rate: f64| {
-        let r = (-rate * dt).exp();
-        (2000..end)
-            .map(|i| (y[i + 1] - 2.0 * r * (w * dt).cos() * y[i] + r * r * y[i - 1]).abs())
-            .fold(0.0f64, f64::max)
-            / peak
-    };
-    let rates = (worst(sigma), worst(sigma + p * MAX_PRESSURE_DECAY_PER_S));
-    (rates.0, rates.1, inst.stats.pressed_samples)
+    let (free, pressed) = one_mode_residuals(&y, RATE, (f, t60), p * MAX_PRESSURE_DECAY_PER_S);
+    (free, pressed, inst.stats.pressed_samples)
 }
 
 /// Pressure damps a kit voice as it damps a voice of one contact

@@ -703,13 +703,7 @@ fn steal_fades_into(
         };
         let m = len.min(fade.left);
         let finite = match p.kit.as_deref_mut() {
-            Some(kit) => {
-                let at = super::kit::KitAt {
-                    hard: fade.at.hard,
-                    damped: fade.on_damped,
-                };
-                kit.tick_spare_into((f, at), vbuf, m)
-            }
+            Some(kit) => kit.tick_spare_into((f, fade.kit_at()), vbuf, m),
             None => {
                 let scene = p.scenes.bound(fade.at, fade.on_damped);
                 let st = &mut p.spares[f];

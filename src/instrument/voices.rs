@@ -754,10 +754,7 @@ impl Instrument {
                 let bent = match p.kit.as_deref_mut() {
                     Some(kit) => match kit.spares.get_mut(f) {
                         Some(st) if st.time_scale() != s => {
-                            let at = super::kit::KitAt {
-                                hard: fade.at.hard,
-                                damped: fade.on_damped,
-                            };
+                            let at = fade.kit_at();
                             let sc = super::kit::compile_for(&kit.sc, &kit.damped, &kit.hard, at);
                             st.bend_time_scale(sc, s)
                         }
@@ -816,12 +813,10 @@ pub(super) fn fade_decide(p: &Prepared, f: usize, fade: &mut StealFade, floor: f
     }
     let press = fade.pressure.max(floor);
     let clear = || match p.kit.as_deref() {
-        Some(kit) => kit.spares.get(f).is_some_and(|st| {
-            st.contacts_clear(kit.sc_for(super::kit::KitAt {
-                hard: fade.at.hard,
-                damped: fade.on_damped,
-            }))
-        }),
+        Some(kit) => kit
+            .spares
+            .get(f)
+            .is_some_and(|st| st.contacts_clear(kit.sc_for(fade.kit_at()))),
         None => p
             .spares
             .get(f)
@@ -888,6 +883,15 @@ pub(super) struct StealFade {
 }
 
 impl StealFade {
+    /// The kit compile it fades on, when its scene is a kit (its note's
+    /// hardness level, or the damped one).
+    pub(super) fn kit_at(&self) -> super::kit::KitAt {
+        super::kit::KitAt {
+            hard: self.at.hard,
+            damped: self.on_damped,
+        }
+    }
+
     /// The fade of voice `v` starting now (`fade_len` samples).
     pub(super) fn of(v: &Voice, fade_len: usize) -> Self {
         Self {

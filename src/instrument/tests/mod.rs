@@ -63,6 +63,38 @@ pub(super) fn steal_fade_gain(k: usize, t0: usize, fade: usize) -> f64 {
     }
 }
 
+/// One mode's free decay after its strike, `y` at `rate_hz` (the output
+/// of a note from its onset until its voice stops), against the closed
+/// form of a damped mode of frequency `f` and T60 `t60`: `y_(n+1) = 2 r
+/// cos(w dt) y_n - r^2 y_(n-1)`, `w = sqrt(omega^2 - sigma^2)`, `r =
+/// exp(-rate dt)`. The worst residual over the peak from sample 2000 to
+/// the voice's end for `rate` = `sigma` and for `sigma + added_per_s`
+/// (a pressed voice's, at the same `w`).
+pub(super) fn one_mode_residuals(
+    y: &[f32],
+    rate_hz: f64,
+    (f, t60): (f64, f64),
+    added_per_s: f64,
+) -> (f64, f64) {
+    let y: Vec<f64> = y.iter().map(|&v| f64::from(v)).collect();
+    let dt = 1.0 / rate_hz;
+    let omega = 2.0 * std::f64::consts::PI * f;
+    let sigma = LN_1000 / t60;
+    let w = (omega * omega - sigma * sigma).sqrt();
+    let peak = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    // until the voice stops (-90 dB: the silence test)
+    let end = y.iter().rposition(|&v| v != 0.0).unwrap() - 1;
+    assert!(end > 5000, "{end}");
+    let worst = |rate: f64| {
+        let r = (-rate * dt).exp();
+        (2000..end)
+            .map(|i| (y[i + 1] - 2.0 * r * (w * dt).cos() * y[i] + r * r * y[i - 1]).abs())
+            .fold(0.0f64, f64::max)
+            / peak
+    };
+    (worst(sigma), worst(sigma + added_per_s))
+}
+
 pub(super) fn on(offset: usize, key: u8, vel: f64) -> TimedEvent {
     TimedEvent {
         offset,

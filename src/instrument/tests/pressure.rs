@@ -27,23 +27,7 @@ fn one_mode_recurrence_residuals(p: f64) -> (f64, f64) {
     let mut inst = Instrument::new(pr, play);
     let n = 20_000;
     let [y, _] = render(&mut inst, &[on(0, 60, 0.8), pressure(0, None, p)], n);
-    let y: Vec<f64> = y.iter().map(|&v| f64::from(v)).collect();
-    let dt = 1.0 / RATE;
-    let omega = 2.0 * std::f64::consts::PI * f;
-    let sigma = LN_1000 / t60;
-    let w = (omega * omega - sigma * sigma).sqrt();
-    let peak = y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    // until the voice stops (-90 dB: the silence test)
-    let end = y.iter().rposition(|&v| v != 0.0).unwrap() - 1;
-    assert!(end > 5000, "{end}");
-    let worst = |rate: f64| {
-        let r = (-rate * dt).exp();
-        (2000..end)
-            .map(|i| (y[i + 1] - 2.0 * r * (w * dt).cos() * y[i] + r * r * y[i - 1]).abs())
-            .fold(0.0f64, f64::max)
-            / peak
-    };
-    (worst(sigma), worst(sigma + p * MAX_PRESSURE_DECAY_PER_S))
+    one_mode_residuals(&y, RATE, (f, t60), p * MAX_PRESSURE_DECAY_PER_S)
 }
 
 #[test]
