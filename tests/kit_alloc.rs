@@ -8,7 +8,7 @@
 #![cfg(not(feature = "rt-checks"))]
 
 use modal_contact::instrument::{
-    lookahead_samples, prepare, Event, Instrument, PlayParams, SceneParams, TimedEvent,
+    lookahead_samples, prepare, Event, Instrument, PlayParams, SceneParams, TimedEvent, VariantSet,
 };
 use modal_contact::presets;
 use modal_contact::scene::Switching;
@@ -125,6 +125,13 @@ fn kits_allocate_nothing_on_the_audio_thread() {
             // a damper: released kit voices carried to its compile
             sp.damper_custom = rng.below(2) == 0;
             sp.damper_norm = [0.0, 0.5, 1.0][rng.below(3)];
+            // the levels of a host's polyphonic modulation: more compiles
+            // a kit voice is carried between
+            sp.strike_pos_norm = [None, Some(0.3)][rng.below(2)];
+            sp.variants = VariantSet {
+                position: rng.below(2) == 0,
+                damper: rng.below(2) == 0,
+            };
             if let Ok(p) = prepare(&sp, RATE, revision) {
                 revision += 1;
                 if inst.can_install() {
@@ -153,13 +160,25 @@ fn kits_allocate_nothing_on_the_audio_thread() {
         for _ in 0..rng.below(24) {
             let offset = rng.below(n);
             let key = 36 + rng.below(60) as u8;
-            let event = match rng.below(5) {
+            let event = match rng.below(8) {
                 0 | 1 => Event::NoteOn {
                     key,
                     velocity_norm: rng.unit(),
                 },
                 2 => Event::NoteOff { key },
                 3 => Event::ChannelPressure { value: rng.unit() },
+                4 => Event::NotePosition {
+                    key: Some(key),
+                    offset: rng.uniform(-0.3, 0.3),
+                },
+                5 => Event::NoteDamper {
+                    key: Some(key),
+                    offset: rng.uniform(-0.6, 0.6),
+                },
+                6 => Event::NoteBrightness {
+                    key: Some(key),
+                    value: rng.unit(),
+                },
                 _ => Event::PitchBend {
                     value: rng.uniform(-1.0, 1.0),
                 },

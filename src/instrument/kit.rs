@@ -87,12 +87,10 @@ pub struct Kit {
     /// divided as [`super::mapping::damped_scene`] does), which released
     /// kit voices continue on; `None` when the damper is 0.
     pub damped: Option<CompiledMulti>,
-    /// The scene at the other hardness levels (a note's brightness and
-    /// hardness modulation: the Hardness parameter's times
-    /// [`super::TIMBRE_STIFFNESS_STEP`]`^level` on every mallet), by
-    /// `level + TIMBRE_LEVEL_MAX`; `None` at level 0 (that is `sc`) and
-    /// where not compiled (its voices play level 0).
-    pub(super) hard: Vec<Option<CompiledMulti>>,
+    /// The scene at the other levels of a note's hardness, strike
+    /// position and damper (a note's brightness, a host's polyphonic
+    /// modulation), where compiled.
+    pub(super) levels: KitLevels,
     /// The kit voices ([`MAX_KIT_VOICES`] when pitched, else 1).
     pub(super) voices: Vec<KitVoice>,
     /// Spare states for kit voices to fade out in when stolen, choked or
@@ -180,7 +178,7 @@ impl Kit {
             refused: 0,
             sc,
             damped,
-            hard: (0..LEVELS).map(|_| None).collect(),
+            levels: KitLevels::none(),
         })
     }
 
@@ -231,49 +229,94 @@ impl Kit {
         self.sc.max_dim()
     }
 
-    /// The compile a kit voice runs on: the damped one when `damped` (a
-    /// released voice that was carried to it) and the kit has one, else
-    /// the played one.
+    /// The compile a kit voice runs on (`at`, or the nearest the kit has:
+    /// [`Kit::resolve`]).
     pub fn sc_for(&self, at: KitAt) -> &CompiledMulti {
-        compile_for(&self.sc, &self.damped, &self.hard, at)
+        compile_for(&self.sc, &self.damped, &self.levels, at)
     }
 
-    /// The compile `at` names as the kit has it: the damped one if asked
-    /// and compiled (then at level 0: a released voice throws nothing),
-    /// else the level if compiled, else level 0.
+    /// The compile `at` names as the kit has it: once damped, the damped
+    /// compile of its damper level if compiled (a level whose damper is 0:
+    /// not damped, it rings on), else the parameter's damped compile if
+    /// any (a released voice throws nothing: at hardness and position 0);
+    /// else its (hardness, position) level if compiled, else its hardness
+    /// level at the parameter's position, else the played compile.
     pub(super) fn resolve(&self, at: KitAt) -> KitAt {
-        if at.damped && self.damped.is_some() {
-            return KitAt {
-                hard: 0,
-                damped: true,
-            };
-        }
-        let compiled = self
-            .hard
-            .get(level_slot(at.hard))
-            .is_some_and(Option::is_some);
-        KitAt {
-            hard: if compiled { at.hard } else { 0 },
-            damped: false,
-        }
+        lookup(&self.sc, &self.damped, &self.levels, at).0
     }
 
-    /// Install the hardness levels' compiles (`(level, compile)`, level
-    /// 0 left out): each must carry a state of the played compile
-    /// ([`MultiState::carry`]), else it is left out. \[worker\]
-    pub(super) fn set_hardness_levels(&mut self, levels: Vec<(i8, CompiledMulti)>) {
+    /// Install the compiles of the other levels: `played` at (hardness,
+    /// position) levels, `damped` at damper levels (`None`: that level's
+    /// damper is 0). Each must carry a state of the played compile both
+    /// ways ([`MultiState::carry`]), else it is left out. \[worker\]
+    pub(super) fn set_levels(
+        &mut self,
+        played: Vec<((i8, i8), CompiledMulti)>,
+        damped: Vec<(i8, Option<CompiledMulti>)>,
+    ) {
         let mut probe = MultiState::new(&self.sc);
         probe.rest(&self.sc);
-        for (level, c) in levels {
-            if level != 0 && probe.carry(&self.sc, &c) && probe.carry(&c, &self.sc) {
-                self.hard[level_slot(level)] = Some(c);
+        let mut fits = |c: &CompiledMulti| probe.carry(&self.sc, c) && probe.carry(c, &self.sc);
+        for ((h, p), c) in played {
+            if (h, p) != (0, 0) && fits(&c) {
+                self.levels.played[cell(h, p)] = Some(c);
+            }
+        }
+        for (d, c) in damped {
+            if d == 0 {
+                continue;
+            }
+            match c {
+                Some(c) if fits(&c) => self.levels.damped[slot(d)] = Some(Some(c)),
+                Some(_) => {}
+                None => self.levels.damped[slot(d)] = Some(None),
             }
         }
     }
 
-    /// How many hardness levels are compiled besides the played one.
+    /// How many hardness levels are compiled besides the played one (at
+    /// the parameter's strike position).
     pub fn hardness_levels(&self) -> usize {
-        self.hard.iter().filter(|c| c.is_some()).count()
+        (-TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX)
+            .filter(|&h| h != 0 && self.levels.played[cell(h, 0)].is_some())
+            .count()
+    }
+
+    /// How many (hardness, position) levels off the parameter's position
+    /// are compiled.
+    pub fn position_levels(&self) -> usize {
+        let all = self.levels.played.iter().filter(|c| c.is_some()).count();
+        all - self.hardness_levels()
+    }
+
+    /// How many damper levels besides the parameter's are known (compiled,
+    /// or of damper 0).
+    pub fn damper_levels(&self) -> usize {
+        self.levels.damped.iter().filter(|c| c.is_some()).count()
+    }
+
+    /// How many compiles of other levels it holds (hardness, position,
+    /// damper).
+    pub fn level_count(&self) -> usize {
+        self.levels.played.iter().filter(|c| c.is_some()).count()
+            + self
+                .levels
+                .damped
+                .iter()
+                .filter(|d| matches!(d, Some(Some(_))))
+                .count()
+    }
+
+    /// Whether any compile besides the played one exists (a voice may run
+    /// on another).
+    pub(super) fn has_other_compiles(&self) -> bool {
+        self.damped.is_some()
+            || self.levels.played.iter().any(Option::is_some)
+            || self
+                .levels
+                .damped
+                .iter()
+                .any(|d| matches!(d, Some(Some(_))))
     }
 
     /// Most throws that can start at one instant: a voice each when
@@ -298,7 +341,7 @@ impl Kit {
         (g0, dg): (f64, f64),
         look: Option<impl FnMut(usize, &MultiState, &CompiledMulti)>,
     ) -> bool {
-        let sc = compile_for(&self.sc, &self.damped, &self.hard, at);
+        let sc = compile_for(&self.sc, &self.damped, &self.levels, at);
         tick_state(&mut self.voices[i].st, sc, buf, len, (g0, dg), look)
     }
 
@@ -311,7 +354,7 @@ impl Kit {
         buf: &mut [[f64; CHECK_INTERVAL_SAMPLES]; 2],
         len: usize,
     ) -> bool {
-        let sc = compile_for(&self.sc, &self.damped, &self.hard, at);
+        let sc = compile_for(&self.sc, &self.damped, &self.levels, at);
         tick_state(
             &mut self.spares[f],
             sc,
@@ -339,8 +382,8 @@ impl Kit {
             return None;
         }
         let to_at = self.resolve(at);
-        let from_sc = compile_for(&old.sc, &old.damped, &old.hard, at);
-        let to_sc = compile_for(&self.sc, &self.damped, &self.hard, to_at);
+        let from_sc = compile_for(&old.sc, &old.damped, &old.levels, at);
+        let to_sc = compile_for(&self.sc, &self.damped, &self.levels, to_at);
         let (to, from) = (&mut self.voices[i], &mut old.voices[i]);
         if !from.st.carry(from_sc, to_sc) {
             return None;
@@ -366,9 +409,11 @@ impl Kit {
         if want == at || i >= self.voices.len() {
             return at;
         }
-        let from = compile_for(&self.sc, &self.damped, &self.hard, at);
-        let to = compile_for(&self.sc, &self.damped, &self.hard, want);
-        if self.voices[i].st.carry(from, to) {
+        let from = compile_for(&self.sc, &self.damped, &self.levels, at);
+        let to = compile_for(&self.sc, &self.damped, &self.levels, want);
+        // the same compile under another name (a level not compiled, a
+        // damper level that only matters once released): nothing to carry
+        if std::ptr::eq(from, to) || self.voices[i].st.carry(from, to) {
             want
         } else {
             at
@@ -430,7 +475,7 @@ impl Kit {
     /// counted. A throw restarts the silence test's references.
     /// \[audio-thread\]
     fn throw(&mut self, (idx, at): (usize, KitAt), which: u8, key: u8, speed: f64, height: f64) {
-        let sc = compile_for(&self.sc, &self.damped, &self.hard, at);
+        let sc = compile_for(&self.sc, &self.damped, &self.levels, at);
         let kv = &mut self.voices[idx];
         let g = sc.model.gravity_m_per_s2;
         // the model's units: a physical speed is `scale` times the model's
@@ -458,62 +503,148 @@ impl Kit {
 
 /// The compile voice `v` (a kit voice's slot) runs on.
 pub(super) fn kit_at(v: &super::Voice) -> KitAt {
-    KitAt {
-        hard: v.at.hard,
-        damped: v.on_damped,
-    }
+    KitAt::of(v.at, v.on_damped)
 }
 
-/// The compile voice `v` wants: the damped one once released, else its
-/// note's hardness level.
+/// The compile voice `v` wants: the damped one (of its damper level) once
+/// released, else its note's hardness and position levels.
 fn kit_want(v: &super::Voice) -> KitAt {
-    KitAt {
-        hard: v.want.hard,
-        damped: v.released,
-    }
+    KitAt::of(v.want, v.released)
 }
 
 /// Voice `v` now runs on `at`.
-fn set_kit_at(v: &mut super::Voice, at: KitAt) {
+pub(super) fn set_kit_at(v: &mut super::Voice, at: KitAt) {
     v.at.hard = at.hard;
+    v.at.pos = at.pos;
+    v.at.damper = at.damper;
     v.on_damped = at.damped;
 }
 
-/// Which of a kit's compiles a kit voice runs on: its hardness level
-/// (0: the Hardness parameter's) and whether it is the damped one (a
-/// released voice's; then at level 0).
+/// Which of a kit's compiles a kit voice runs on: its hardness and
+/// strike-position levels (0: the parameters' own), its damper level, and
+/// whether it runs on a damped compile (a released voice's; then at
+/// hardness and position 0).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct KitAt {
     /// The hardness level, `-TIMBRE_LEVEL_MAX ..= TIMBRE_LEVEL_MAX`.
     pub hard: i8,
-    /// The damped compile.
+    /// The strike-position level, `-TIMBRE_LEVEL_MAX ..= TIMBRE_LEVEL_MAX`.
+    pub pos: i8,
+    /// The damper level, `-TIMBRE_LEVEL_MAX ..= TIMBRE_LEVEL_MAX` (what a
+    /// release damps with).
+    pub damper: i8,
+    /// A damped compile.
     pub damped: bool,
 }
 
-/// Levels of the hardness axis.
+impl KitAt {
+    /// The compile a voice's levels `at` name, damped or not.
+    pub(super) fn of(at: super::Variant, damped: bool) -> Self {
+        Self {
+            hard: at.hard,
+            pos: at.pos,
+            damper: at.damper,
+            damped,
+        }
+    }
+}
+
+/// A kit's compiles at other levels than the parameters' (docs/plugin.md,
+/// "Polyphonic modulation").
+#[derive(Clone)]
+pub(super) struct KitLevels {
+    /// By [`cell`]`(hardness, position)`: the scene with every mallet's
+    /// spring (or law) times [`super::TIMBRE_STIFFNESS_STEP`]`^hardness`
+    /// and the strike point moved by `position` times
+    /// [`super::POSITION_STEP`]; `None` at (0, 0) (that is [`Kit::sc`])
+    /// and where not compiled.
+    played: Vec<Option<CompiledMulti>>,
+    /// By [`slot`]`(damper)`: the damped compile with the damper plus
+    /// `damper` times [`super::DAMPER_STEP`]; `Some(None)` where that
+    /// damper is 0 (a released voice rings on); `None` at 0 (that is
+    /// [`Kit::damped`]) and where not compiled.
+    damped: Vec<Option<Option<CompiledMulti>>>,
+}
+
+impl KitLevels {
+    /// No level compiled.
+    fn none() -> Self {
+        Self {
+            played: (0..LEVELS * LEVELS).map(|_| None).collect(),
+            damped: (0..LEVELS).map(|_| None).collect(),
+        }
+    }
+}
+
+/// Levels of each axis.
 const LEVELS: usize = 2 * TIMBRE_LEVEL_MAX as usize + 1;
 
-/// The index of hardness `level` in [`Kit::hard`] (clamped to the levels).
-fn level_slot(level: i8) -> usize {
+/// The index of `level` on an axis (clamped to the levels).
+fn slot(level: i8) -> usize {
     (level.clamp(-TIMBRE_LEVEL_MAX, TIMBRE_LEVEL_MAX) + TIMBRE_LEVEL_MAX) as usize
 }
 
-/// The compile `at` names among a kit's fields (`damped` if asked and
-/// compiled, else the level's if compiled, else `sc`: [`Kit::sc_for`] on
-/// the fields, so the voices can be borrowed beside them).
+/// The index of (hardness, position) levels in [`KitLevels::played`].
+fn cell(hard: i8, pos: i8) -> usize {
+    slot(hard) * LEVELS + slot(pos)
+}
+
+/// The compile `at` names among a kit's fields, the nearest compiled
+/// ([`Kit::resolve`]), and its name.
+fn lookup<'a>(
+    sc: &'a CompiledMulti,
+    damped: &'a Option<CompiledMulti>,
+    levels: &'a KitLevels,
+    at: KitAt,
+) -> (KitAt, &'a CompiledMulti) {
+    let (h, p, d) = (at.hard, at.pos, at.damper);
+    if at.damped {
+        let released = |damper| KitAt {
+            hard: 0,
+            pos: 0,
+            damper,
+            damped: true,
+        };
+        match levels.damped.get(slot(d)) {
+            Some(Some(Some(c))) if d != 0 => return (released(d), c),
+            // that level's damper is 0: the voice rings on, undamped
+            Some(Some(None)) if d != 0 => {}
+            _ => {
+                if let Some(c) = damped {
+                    return (released(0), c);
+                }
+            }
+        }
+    }
+    let played = |h, p| levels.played.get(cell(h, p)).and_then(Option::as_ref);
+    let name = |hard, pos| KitAt {
+        hard,
+        pos,
+        damper: d,
+        damped: false,
+    };
+    if (h, p) == (0, 0) {
+        return (name(0, 0), sc);
+    }
+    if let Some(c) = played(h, p) {
+        return (name(h, p), c);
+    }
+    match played(h, 0) {
+        Some(c) if h != 0 => (name(h, 0), c),
+        _ => (name(0, 0), sc),
+    }
+}
+
+/// The compile `at` names among a kit's fields (the nearest compiled:
+/// [`Kit::sc_for`] on the fields, so the voices can be borrowed beside
+/// them).
 pub(super) fn compile_for<'a>(
     sc: &'a CompiledMulti,
     damped: &'a Option<CompiledMulti>,
-    hard: &'a [Option<CompiledMulti>],
+    levels: &'a KitLevels,
     at: KitAt,
 ) -> &'a CompiledMulti {
-    match damped {
-        Some(d) if at.damped => d,
-        _ => hard
-            .get(level_slot(at.hard))
-            .and_then(Option::as_ref)
-            .unwrap_or(sc),
-    }
+    lookup(sc, damped, levels, at).1
 }
 
 /// Tick `st` `len` samples into `buf` with a linear gain ramp
@@ -651,8 +782,9 @@ impl Instrument {
             return;
         };
         let v = &mut self.voices[idx];
+        let others = kit.has_other_compiles();
         let kv = &mut kit.voices[idx];
-        if kit.damped.is_some() || kit.hard.iter().any(Option::is_some) {
+        if others {
             // its state may have run on another compile (its own, or a
             // fade's it was swapped with): the played one's tables from here
             kv.st.forget_tables();
@@ -768,13 +900,13 @@ impl Instrument {
             voices,
             sc,
             damped,
-            hard,
+            levels,
             ..
         }) = self.cur.kit.as_deref_mut()
         else {
             return Ok(true);
         };
-        let done = voices[i].retune(compile_for(sc, damped, hard, at), s);
+        let done = voices[i].retune(compile_for(sc, damped, levels, at), s);
         self.press_decide(i);
         done
     }
@@ -902,7 +1034,7 @@ impl Instrument {
         if observe {
             // physical energy: the model's times the scale squared
             let s = kv.st.time_scale();
-            let sc = compile_for(&kit.sc, &kit.damped, &kit.hard, at);
+            let sc = compile_for(&kit.sc, &kit.damped, &kit.levels, at);
             let energy_j = kv.st.energy_objects_scaled(sc, pressed) * s * s;
             if let Some(probe) = self.probe.as_deref_mut() {
                 for j in 0..contacts {
@@ -994,7 +1126,7 @@ impl Instrument {
         // note's hardness level
         let v = &mut self.voices[i];
         set_kit_at(v, kit.settle(i, kit_at(v), kit_want(v)));
-        let sc = compile_for(&kit.sc, &kit.damped, &kit.hard, kit_at(v));
+        let sc = compile_for(&kit.sc, &kit.damped, &kit.levels, kit_at(v));
         let kv = &mut kit.voices[i];
         let quiet = kv.interval_peak < SILENCE_AMPLITUDE_RATIO * kv.peak;
         kv.interval_peak = 0.0;

@@ -682,6 +682,10 @@ fn kits_take_random_abuse() {
             sp.strike_pos_norm = [None, Some(0.0), Some(0.7)][rng.below(3)];
             sp.damper_custom = rng.below(2) == 0;
             sp.damper_norm = [0.0, 0.5, 1.0][rng.below(3)];
+            sp.variants = crate::instrument::VariantSet {
+                position: rng.below(2) == 0,
+                damper: rng.below(2) == 0,
+            };
             if let Ok(p) = prepare(&sp, RATE, revision) {
                 revision += 1;
                 if inst.can_install() {
@@ -708,7 +712,8 @@ fn kits_take_random_abuse() {
         for _ in 0..rng.below(40) {
             let offset = rng.below(n);
             let key = rng.below(128) as u8;
-            let event = match rng.below(7) {
+            let key_or_all = [Some(key), None][rng.below(2)];
+            let event = match rng.below(10) {
                 0..=2 => Event::NoteOn {
                     key,
                     velocity_norm: [rng.unit(), 1.0, f64::NAN, 0.0][rng.below(4)],
@@ -719,6 +724,18 @@ fn kits_take_random_abuse() {
                 },
                 5 => Event::ChannelPressure {
                     value: [rng.unit(), 1.0, f64::NAN][rng.below(3)],
+                },
+                6 => Event::NotePosition {
+                    key: key_or_all,
+                    offset: [rng.uniform(-0.5, 0.5), f64::NAN][rng.below(2)],
+                },
+                7 => Event::NoteDamper {
+                    key: key_or_all,
+                    offset: [rng.uniform(-1.0, 1.0), f64::NAN][rng.below(2)],
+                },
+                8 => Event::NoteHardness {
+                    key: key_or_all,
+                    factor: [rng.uniform(0.1, 8.0), f64::NAN, 0.0][rng.below(3)],
                 },
                 _ => Event::Sustain {
                     down: rng.below(2) == 0,
@@ -1117,8 +1134,8 @@ fn a_released_kit_voice_continues_on_the_damped_compile() {
         assert!(waited < 4800, "carried once the contact opens");
     }
     let damped = kit::KitAt {
-        hard: 0,
         damped: true,
+        ..kit::KitAt::default()
     };
     assert_eq!(
         kit(&a).voices[i].st.observe(kit(&a).sc_for(damped)).active,

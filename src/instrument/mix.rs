@@ -350,10 +350,7 @@ impl Instrument {
                 let g0 = self.fade_left as f64 / self.fade_len as f64;
                 let dg = 1.0 / self.fade_len as f64;
                 if let Some(kit) = f.kit.as_deref_mut() {
-                    let kat = super::kit::KitAt {
-                        hard: at.hard,
-                        damped: on_damped,
-                    };
+                    let kat = super::kit::KitAt::of(at, on_damped);
                     if kit.tick_into(
                         (i, kat),
                         &mut self.vbuf,

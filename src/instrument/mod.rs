@@ -653,8 +653,7 @@ impl Instrument {
                 };
                 if let Some(at) = carried {
                     let v = &mut self.voices[i];
-                    v.at.hard = at.hard;
-                    v.on_damped = at.damped;
+                    kit::set_kit_at(v, at);
                     // its note's level, where the new kit has it, at the
                     // next grid step
                     self.stats.voices_carried += 1;

@@ -546,9 +546,10 @@ impl Prepared {
             return (dim > TIMBRE_MAX_STATES).then(|| {
                 format!(
                     "scene {:?}: a kit whose largest phase has {dim} states, more than \
-                     {TIMBRE_MAX_STATES}: its hardness levels are not compiled, so note \
-                     brightness (the note expression, MPE timbre) and polyphonic modulation of \
-                     Hardness play every note at the Hardness parameter's value",
+                     {TIMBRE_MAX_STATES}: its brightness and modulation levels are not \
+                     compiled, so note brightness (the note expression, MPE timbre) and \
+                     polyphonic modulation of Hardness, Strike position and Damper play every \
+                     note at the parameters' values",
                     self.scenes.scene.name
                 )
             });
@@ -1016,6 +1017,15 @@ fn voice_states<const N: usize>(scene: &CompiledScene, rate_hz: f64) -> Box<[Eng
 /// compiled for what the instrument reads of every scene (no voice plays
 /// it). The kit switches as the Switching parameter says (an offset rod
 /// per contact, or exactly). \[worker\] \[main-thread\]
+/// A compile of a kit at other levels ([`prepare_kit`]).
+#[derive(Clone, Copy)]
+enum KitJob {
+    /// At (hardness, position) levels.
+    Played(i8, i8),
+    /// Damped, at a damper level.
+    Damped(i8),
+}
+
 fn prepare_kit(
     base: &Scene,
     played: &Scene,
@@ -1025,37 +1035,70 @@ fn prepare_kit(
 ) -> Result<Box<Prepared>, PrepareError> {
     let mut kit = Kit::new(played, rate_hz, params.damper_norm).map_err(PrepareError::Kit)?;
     cancel::check()?;
-    // the hardness levels a note's brightness plays, as a scene of one
-    // contact has them: every mallet's spring (or law) times
-    // TIMBRE_STIFFNESS_STEP^level, for phases of at most TIMBRE_MAX_STATES
-    // states; a playable stage leaves them to the full one
+    // the levels a note's brightness and a host's polyphonic modulation
+    // play, as a scene of one contact has them (`Variants::played`,
+    // `Variants::damped_at`): every mallet's spring (or law) times
+    // TIMBRE_STIFFNESS_STEP^level, with the position levels at each when
+    // asked for, and the damped compile at each damper level when asked
+    // for; for phases of at most TIMBRE_MAX_STATES states; a playable
+    // stage leaves them to the full one
     let small = kit.max_dim() <= TIMBRE_MAX_STATES;
-    let levels: Vec<i8> = if small && stage == Stage::Full {
-        (-TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX)
-            .filter(|&h| h != 0)
-            .collect()
-    } else {
-        Vec::new()
-    };
-    let left_out = small && stage == Stage::Playable;
+    let positions = params.variants.position && params.strike_pos_norm.is_some();
+    let levels = -TIMBRE_LEVEL_MAX..=TIMBRE_LEVEL_MAX;
+    let mut jobs: Vec<KitJob> = levels
+        .clone()
+        .flat_map(|h| levels.clone().map(move |pl| KitJob::Played(h, pl)))
+        .filter(
+            |j| matches!(*j, KitJob::Played(h, pl) if (h, pl) != (0, 0) && (pl == 0 || positions)),
+        )
+        .collect();
+    if params.variants.damper {
+        jobs.extend(levels.filter(|&d| d != 0).map(KitJob::Damped));
+    }
+    if !small {
+        jobs.clear();
+    }
+    let left_out = !jobs.is_empty() && stage == Stage::Playable;
+    if stage == Stage::Playable {
+        jobs.clear();
+    }
     let switching = kit.sc.switching;
-    let compiled = side_by_side(&levels, |&h| {
-        let mut p = *params;
-        p.stiffness_factor *= TIMBRE_STIFFNESS_STEP.powi(i32::from(h));
-        let ip = InstrumentParams {
-            scene: p,
-            play: PlayParams::default(),
-        };
-        Kit::compile_scene(&scene_for(base, &ip), rate_hz, switching).ok()
+    let compiled = side_by_side(&jobs, |job| match *job {
+        KitJob::Played(h, pl) => {
+            let mut p = *params;
+            p.stiffness_factor *= TIMBRE_STIFFNESS_STEP.powi(i32::from(h));
+            p.strike_pos_norm = p
+                .strike_pos_norm
+                .map(|x| (x + f64::from(pl) * POSITION_STEP).clamp(0.0, 1.0));
+            let ip = InstrumentParams {
+                scene: p,
+                play: PlayParams::default(),
+            };
+            Kit::compile_scene(&scene_for(base, &ip), rate_hz, switching)
+                .ok()
+                .map(Some)
+        }
+        KitJob::Damped(d) => {
+            let value = (params.damper_norm + f64::from(d) * DAMPER_STEP).clamp(0.0, 1.0);
+            if value > 0.0 {
+                Kit::compile_scene(&damped_scene(played, value), rate_hz, switching)
+                    .ok()
+                    .map(Some)
+            } else {
+                Some(None)
+            }
+        }
     });
     cancel::check()?;
-    kit.set_hardness_levels(
-        levels
-            .into_iter()
-            .zip(compiled)
-            .filter_map(|(h, c)| c.map(|c| (h, c)))
-            .collect(),
-    );
+    let (mut at_levels, mut at_dampers) = (Vec::new(), Vec::new());
+    for (job, c) in jobs.into_iter().zip(compiled) {
+        match (job, c) {
+            (KitJob::Played(h, pl), Some(Some(c))) => at_levels.push(((h, pl), c)),
+            (KitJob::Damped(d), Some(c)) => at_dampers.push((d, c)),
+            _ => {}
+        }
+    }
+    kit.set_levels(at_levels, at_dampers);
     let mut alone = played.clone();
     alone.striker.clear();
     alone.touch.clear();

@@ -317,11 +317,8 @@ impl Instrument {
             Some(kit) => {
                 std::mem::swap(&mut kit.voices[i].st, &mut kit.spares[f]);
                 // a kit voice fades on the compile it runs on (its note's
-                // hardness level, or the damped one once released)
-                fade.at = Variant {
-                    hard: v.at.hard,
-                    ..Variant::default()
-                };
+                // levels, or the damped one once released)
+                fade.at = Variant { press: 0, ..v.at };
                 fade.on_damped = v.on_damped;
             }
             None => std::mem::swap(&mut p.states[i], &mut p.spares[f]),
@@ -755,7 +752,7 @@ impl Instrument {
                     Some(kit) => match kit.spares.get_mut(f) {
                         Some(st) if st.time_scale() != s => {
                             let at = fade.kit_at();
-                            let sc = super::kit::compile_for(&kit.sc, &kit.damped, &kit.hard, at);
+                            let sc = super::kit::compile_for(&kit.sc, &kit.damped, &kit.levels, at);
                             st.bend_time_scale(sc, s)
                         }
                         _ => continue,
@@ -886,10 +883,7 @@ impl StealFade {
     /// The kit compile it fades on, when its scene is a kit (its note's
     /// hardness level, or the damped one).
     pub(super) fn kit_at(&self) -> super::kit::KitAt {
-        super::kit::KitAt {
-            hard: self.at.hard,
-            damped: self.on_damped,
-        }
+        super::kit::KitAt::of(self.at, self.on_damped)
     }
 
     /// The fade of voice `v` starting now (`fade_len` samples).

@@ -30,7 +30,7 @@
 use super::user_scene::{HostBlocks, SceneLibrary};
 use super::waits::{Held, Shared};
 use crate::compile::cancel::{self, Cancel};
-use crate::instrument::{Instrument, PlayParams, Prepared, SceneParams, Stage};
+use crate::instrument::{Instrument, Kit, PlayParams, Prepared, SceneParams, Stage};
 use atomic_float::AtomicF64;
 use crossbeam::queue::ArrayQueue;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -347,7 +347,7 @@ type Outcome = (Delivery, Vec<String>, usize, Option<CompileRequest>);
 
 /// The [`Outcome`] of `p`, compiled for `req`. \[worker\]
 fn deliverable(p: Box<Prepared>, warnings: Vec<String>, req: &CompileRequest) -> Outcome {
-    let variants = p.scenes.variant_count();
+    let variants = p.scenes.variant_count() + p.kit.as_deref().map_or(0, Kit::level_count);
     // the whole scene follows a playable one, compiled with what
     // that one used (a fallback's parameters, the generation of
     // the user scene)

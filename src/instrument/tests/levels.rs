@@ -375,6 +375,149 @@ fn damper_modulation_damps_the_release_at_its_level() {
     assert!(b < 0.5 * a, "{a} {b}");
 }
 
+/// The largest difference between two renders' samples.
+fn max_diff(x: &[f32], y: &[f32]) -> f32 {
+    x.iter()
+        .zip(y)
+        .fold(0.0f32, |m, (p, q)| m.max((p - q).abs()))
+}
+
+/// On a kit (the two-mallet marimba), a note's strike position once the
+/// position levels are compiled plays the strike of a kit prepared at the
+/// level's position (and with a hardness, the pair's): the voice is carried
+/// onto the level's compile through the physical state before its mallet
+/// lands, so the same samples to rounding; without the levels the
+/// parameter's position.
+#[test]
+fn position_modulation_strikes_a_kit_voice_at_its_level() {
+    let mut p = params("marimba-two-mallets");
+    p.scene.strike_pos_norm = Some(0.4);
+    p.scene.variants.position = true;
+    let pr = prepare(&p.scene, RATE, 0).unwrap();
+    let kit = pr.kit.as_deref().unwrap();
+    assert_eq!((kit.hardness_levels(), kit.position_levels()), (4, 20));
+    let root = pr.root_note.round() as u8;
+    let n = 4800;
+    let mut sounds = Vec::new();
+    for (by, pos, factor, hl) in [
+        (0.1, 1, 1.0, 0),
+        (-0.2, -2, 1.0, 0),
+        (0.1, 1, 2.0, 1),
+        (f64::NAN, 0, 1.0, 0),
+    ] {
+        let mut inst = instrument(&p);
+        let [got, _] = render(
+            &mut inst,
+            &[
+                on(10, root, 0.8),
+                position(10, Some(root), by),
+                hardness(10, Some(root), factor),
+            ],
+            n,
+        );
+        let at = inst.voices[0].at;
+        assert_eq!((at.hard, at.pos), (hl, pos), "offset {by}");
+        let mut q = p;
+        q.scene.variants = VariantSet::default();
+        q.scene.strike_pos_norm = Some(0.4 + f64::from(pos) * POSITION_STEP);
+        q.scene.stiffness_factor *= TIMBRE_STIFFNESS_STEP.powi(i32::from(hl));
+        let [want, _] = render(&mut instrument(&q), &[on(10, root, 0.8)], n);
+        let peak = want.iter().fold(0.0f32, |m, x| m.max(x.abs()));
+        let d = max_diff(&got, &want);
+        println!("kit, position offset {by}, hardness x{factor}: {d:.2e} of peak {peak:.3e}");
+        assert!(d <= 1e-6 * peak, "offset {by}: {d:e}");
+        sounds.push(got);
+    }
+    assert!(sounds[3] == render(&mut instrument(&p), &[on(10, root, 0.8)], n)[0]);
+    let peak = sounds[3].iter().fold(0.0f32, |m, x| m.max(x.abs()));
+    for (a, b) in [(0, 1), (0, 3), (1, 3)] {
+        let d = max_diff(&sounds[a], &sounds[b]);
+        assert!(d > 1e-2 * peak, "levels {a} and {b}: {d:e}");
+    }
+    // not asked for: the parameter's position, no levels but hardness's
+    let mut q = p;
+    q.scene.variants.position = false;
+    let pr = prepare(&q.scene, RATE, 0).unwrap();
+    assert_eq!(pr.kit.as_deref().unwrap().position_levels(), 0);
+    let got = render(
+        &mut instrument(&q),
+        &[on(10, root, 0.8), position(10, Some(root), 0.2)],
+        n,
+    );
+    assert!(got == render(&mut instrument(&q), &[on(10, root, 0.8)], n));
+}
+
+/// On a kit (the two-mallet marimba), a note's damper once the damper
+/// levels are compiled damps its release as a kit prepared with the
+/// level's Damper, bit for bit (the same compiles, the same carry; a level
+/// at damper 0 rings on); a change after the release carries the released
+/// voice to the new level's damped compile.
+#[test]
+fn damper_modulation_damps_a_released_kit_voice_at_its_level() {
+    let mut p = params("marimba-two-mallets");
+    p.scene.damper_norm = 0.5;
+    p.scene.damper_custom = true;
+    p.scene.variants.damper = true;
+    let pr = prepare(&p.scene, RATE, 0).unwrap();
+    assert_eq!(pr.kit.as_deref().unwrap().damper_levels(), 4);
+    let root = pr.root_note.round() as u8;
+    let n = 16_000;
+    let mut tails = Vec::new();
+    for (by, level) in [
+        (-0.5, -2),
+        (-0.3, -1),
+        (0.1, 0),
+        (0.25, 1),
+        (0.5, 2),
+        (f64::NAN, 0),
+    ] {
+        let mut inst = instrument(&p);
+        let got = render(
+            &mut inst,
+            &[
+                on(10, root, 0.8),
+                damper(10, Some(root), by),
+                off(3000, root),
+            ],
+            n,
+        );
+        assert_eq!(inst.voices[0].at.damper, level, "offset {by}");
+        assert_eq!(inst.voices[0].on_damped, level != -2, "offset {by}");
+        let mut q = p;
+        q.scene.variants = VariantSet::default();
+        q.scene.damper_norm = (0.5 + f64::from(level) * DAMPER_STEP).clamp(0.0, 1.0);
+        let want = render(
+            &mut instrument(&q),
+            &[on(10, root, 0.8), off(3000, root)],
+            n,
+        );
+        assert!(got == want, "offset {by}: not the level's release");
+        if !by.is_nan() {
+            tails.push(rms(&got[0][3200..3700]));
+        }
+    }
+    println!("kit release tails by damper level: {tails:?}");
+    assert!(tails.windows(2).all(|w| w[1] < w[0]), "{tails:?}");
+    let plain = render(
+        &mut instrument(&p),
+        &[on(10, root, 0.8), off(3000, root)],
+        n,
+    );
+    let later = render(
+        &mut instrument(&p),
+        &[
+            on(10, root, 0.8),
+            off(3000, root),
+            damper(3100, Some(root), 0.5),
+        ],
+        n,
+    );
+    assert_eq!(plain[0][..3100], later[0][..3100]);
+    let (a, b) = (rms(&plain[0][3300..3800]), rms(&later[0][3300..3800]));
+    println!("kit damper raised after the release: tail {a:.3e} -> {b:.3e}");
+    assert!(b < 0.5 * a, "{a} {b}");
+}
+
 /// Every preset has its four brightness levels; a scene larger than
 /// `TIMBRE_MAX_STATES` has none and plays every brightness at the Hardness
 /// parameter's level (the same samples as without brightness).
@@ -387,9 +530,14 @@ fn presets_have_every_brightness_level_and_large_scenes_none() {
             ..SceneParams::default()
         };
         let pr = prepare(&sp, RATE, 0).unwrap();
-        if pr.kit.is_some() {
-            // a kit plays every note at the parameters' values: no levels
+        if let Some(kit) = pr.kit.as_deref() {
+            // a kit's levels are its own compiles
             assert_eq!(pr.scenes.variant_count(), 0, "{name}");
+            assert!(
+                pr.timbre_note().is_none() && kit.hardness_levels() == 4,
+                "{name}: {} states",
+                kit.max_dim()
+            );
             continue;
         }
         assert!(
