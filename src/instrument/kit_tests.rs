@@ -1244,3 +1244,71 @@ fn brightness_plays_a_kit_voice_at_its_hardness_level() {
     assert!(other > 1e-2 * peak, "{other:e}");
     assert!(rd == rc, "level 0 is the played compile");
 }
+
+/// The several-contact engine and the engine of one contact make the same
+/// arithmetic: the two-mallet marimba (the marimba-bar preset's bar,
+/// pickup and mallet, with a second mallet that a note on a pitched kit
+/// does not throw) played as a kit gives the samples of marimba-bar played
+/// as voices of one contact, bit for bit, at and away from the root, at
+/// several velocities, through a release on the damped compile (Custom
+/// damper) and with two keys sounding, until a voice falls silent: a voice
+/// of one contact stops when its energy is below [`SILENCE_ENERGY_RATIO`]
+/// of its strike's, a kit voice when its output stays below
+/// [`SILENCE_AMPLITUDE_RATIO`] of its loudest for a check interval (its
+/// masses may hold energy that does not sound), a few intervals later; the
+/// kit's tail meanwhile stays below 1e-4 of the peak.
+#[test]
+fn a_kit_of_one_thrown_mallet_plays_the_one_contact_voice_bit_for_bit() {
+    let play = PlayParams {
+        gain_db: 0.0,
+        ..PlayParams::default()
+    };
+    let prepared = |name: &str| {
+        let sp = SceneParams {
+            preset: crate::presets::index_of(name).unwrap(),
+            damper_custom: true,
+            damper_norm: 0.5,
+            ..SceneParams::default()
+        };
+        prepare(&sp, RATE, 0).unwrap()
+    };
+    let root = prepared("marimba-bar").root_note.round() as u8;
+    let n = 12_000;
+    for events in [
+        vec![on(0, root, 0.8), off(4000, root)],
+        vec![on(10, root - 12, 0.3), off(6000, root - 12)],
+        vec![
+            on(0, root + 7, 1.0),
+            on(2000, root, 0.5),
+            off(5000, root + 7),
+        ],
+    ] {
+        let mut kit = Instrument::new(prepared("marimba-two-mallets"), play);
+        assert!(kit.cur.kit.is_some());
+        let mut one = Instrument::new(prepared("marimba-bar"), play);
+        assert!(one.cur.kit.is_none());
+        let a = render(&mut kit, &events, n);
+        let b = render(&mut one, &events, n);
+        let peak = b[0].iter().fold(0.0f32, |m, x| m.max(x.abs()));
+        let diff = a[0]
+            .iter()
+            .zip(&b[0])
+            .fold(0.0f32, |m, (p, q)| m.max((p - q).abs()));
+        let first = a[0].iter().zip(&b[0]).position(|(p, q)| p != q);
+        let last_a = a[0].iter().rposition(|&x| x != 0.0);
+        let last_b = b[0].iter().rposition(|&x| x != 0.0);
+        println!(
+            "kit against one contact: {diff:.1e} of peak {peak:.3e}, first at {first:?}, last \
+             sounding {last_a:?} {last_b:?}, stops {} {}",
+            kit.stats.silent_stops, one.stats.silent_stops
+        );
+        assert!(peak > 1e-3);
+        if let Some(k) = first {
+            // the samples part where a voice of one contact stops, after
+            // its release
+            assert!(one.stats.silent_stops > 0 && k >= 4000, "differ at {k}");
+            assert!(diff <= 1e-4 * peak, "differ by {diff:e}");
+        }
+        assert_eq!(kit.stats.silent_stops, one.stats.silent_stops);
+    }
+}
