@@ -871,9 +871,16 @@ fn hardness_poly_modulation_and_note_ends_through_the_host() {
 /// unmodulated): the plugin's render equals the library's with
 /// those levels compiled and the offsets the amounts mean (from the
 /// parameters' ranges, written out in the test), and differs from the same
-/// notes unmodulated.
+/// notes unmodulated. On the default scene and on a kit (the two-mallet
+/// marimba, whose kit voices move between the kit's compiles of those
+/// levels).
 #[test]
 fn position_and_damper_poly_modulation_through_the_host_match_the_library() {
+    position_and_damper_through_the_host(None);
+    position_and_damper_through_the_host(Some("marimba-two-mallets"));
+}
+
+fn position_and_damper_through_the_host(preset: Option<&str>) {
     let rate = 48_000.0;
     let total = 16_000;
     let notes = vec![
@@ -887,17 +894,25 @@ fn position_and_damper_poly_modulation_through_the_host_match_the_library() {
         off(9_000, 64),
         off(9_000, 69),
     ];
-    let mut events = vec![
+    let index = preset.map(|name| presets::index_of(name).unwrap());
+    let mut events: Vec<HostEvent> = index
+        .map(|i| param(0, ids::SCENE, i as f64))
+        .into_iter()
+        .collect();
+    events.extend([
         param(0, ids::STRIKE_CUSTOM, 1.0),
         poly_mod(0, 99, PolyTarget::StrikePosition, 0.1),
         poly_mod(0, 99, PolyTarget::Damper, 0.1),
-    ];
+    ]);
     events.extend(notes.iter().copied());
     let mut spec = RenderSpec::new(rate, 256, total, events);
     spec.settle_after = vec![0, 256, 512];
     spec.settle_ms = 400;
     let plugin = LoadedPlugin::load(&clap_bundle(Variant::Release)).render(&spec);
     let mut params = InstrumentParams::default();
+    if let Some(i) = index {
+        params.scene.preset = i;
+    }
     params.scene.strike_pos_norm = Some(0.5);
     params.scene.variants = VariantSet {
         position: true,
@@ -905,7 +920,7 @@ fn position_and_damper_poly_modulation_through_the_host_match_the_library() {
     };
     let lib = library_render(&params, rate, total, &notes);
     let d = max_abs_diff(&plugin[0], &lib[0]).max(max_abs_diff(&plugin[1], &lib[1]));
-    println!("position and damper modulation: max |plugin - library| = {d:.3e}");
+    println!("{preset:?}: position and damper modulation: max |plugin - library| = {d:.3e}");
     assert!(peak(&lib[0]) > 1e-3, "the library's render is silent");
     assert!(d <= 1e-6, "plugin and library differ by {d}");
     let plain_notes: Vec<HostEvent> = notes
