@@ -50,9 +50,10 @@ use crate::scene::{Scene, SceneError};
 /// voices' energy ratio [`SILENCE_ENERGY_RATIO`] as an amplitude).
 pub const SILENCE_AMPLITUDE_RATIO: f64 = 3.1622776601683795e-5;
 
-/// Kit voices of a pitched kit (each holds every phase's tables at its
-/// pitch: about 170 KB for four contacts on 100 modes).
-pub const MAX_KIT_VOICES: usize = 16;
+/// Kit voices of a pitched kit: as many as voices of one contact (the
+/// Polyphony parameter's range), each holding every phase's tables at its
+/// pitch (about 170 KB for four contacts on 100 modes).
+pub const MAX_KIT_VOICES: usize = super::MAX_VOICES;
 
 /// Spare kit states of a kit whose mallets list notes (one kit voice,
 /// never stolen): its voice fades out in one when choked or silenced by
@@ -229,8 +230,9 @@ impl Kit {
         self.sc.max_dim()
     }
 
-    /// The compile a kit voice runs on (`at`, or the nearest the kit has:
-    /// [`Kit::resolve`]).
+    /// The compile a kit voice runs on (`at`, or the nearest level the kit
+    /// has compiled: a missing position level at the same hardness, a
+    /// missing damper level on the parameter's damped compile).
     pub fn sc_for(&self, at: KitAt) -> &CompiledMulti {
         compile_for(&self.sc, &self.damped, &self.levels, at)
     }
