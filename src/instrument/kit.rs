@@ -28,10 +28,10 @@
 //! kit's compile at that hardness level ([`Kit::settle`], the same way),
 //! and pressure damps it once none of its contacts can close
 //! ([`MultiState::contacts_clear`]), as they do a voice of one contact. A
-//! kit voice stops when it is silent: its output below [`SILENCE_AMPLITUDE_RATIO`] of
-//! its loudest since its last throw for a whole check interval while the
-//! masses that may still land hardly move ([`MultiState::masses_to_land`]
-//! below [`SILENCE_ENERGY_RATIO`] of the throw's energy).
+//! kit voice stops when it is silent, as a voice of one contact does: no
+//! contact closed, and its objects' energy and the masses that may still
+//! land ([`MultiState::masses_to_land`]) below [`SILENCE_ENERGY_RATIO`] of
+//! its last throw's energy.
 //!
 //! Kit voice `i` renders in voice `i`'s lane, so the lookahead, the gain,
 //! the output guard and the fades of a swap and of a steal are the
@@ -44,11 +44,6 @@ use super::{
 use crate::engine::TimeScaleError;
 use crate::multi::{CompiledMulti, MultiEnd, MultiModel, MultiState, MAX_CONTACTS};
 use crate::scene::{Scene, SceneError};
-
-/// A kit voice stops when its output stays below this fraction of its
-/// loudest since the last throw for a whole check interval (-90 dB, the
-/// voices' energy ratio [`SILENCE_ENERGY_RATIO`] as an amplitude).
-pub const SILENCE_AMPLITUDE_RATIO: f64 = 3.1622776601683795e-5;
 
 /// Kit voices of a pitched kit: as many as voices of one contact (the
 /// Polyphony parameter's range), each holding every phase's tables at its
@@ -1112,10 +1107,11 @@ impl Instrument {
         }
     }
 
-    /// Kit voice `i`'s silence check (on the silence-check grid): it stops
-    /// when its last interval's output stayed below
-    /// [`SILENCE_AMPLITUDE_RATIO`] of its loudest since the throw and the
-    /// masses that may still land hardly move. \[audio-thread\]
+    /// Kit voice `i`'s silence check (on the silence-check grid): it stops,
+    /// as a voice of one contact does, when no contact of it is closed and
+    /// its objects' energy ([`MultiState::objects_energy`]) and the masses
+    /// that may still land hold less than [`SILENCE_ENERGY_RATIO`] of its
+    /// last throw's energy. \[audio-thread\]
     pub(super) fn kit_silence(&mut self, i: usize) {
         let Some(kit) = self.cur.kit.as_deref_mut() else {
             return;
@@ -1130,9 +1126,11 @@ impl Instrument {
         set_kit_at(v, kit.settle(i, kit_at(v), kit_want(v)));
         let sc = compile_for(&kit.sc, &kit.damped, &kit.levels, kit_at(v));
         let kv = &mut kit.voices[i];
-        let quiet = kv.interval_peak < SILENCE_AMPLITUDE_RATIO * kv.peak;
         kv.interval_peak = 0.0;
-        if quiet && kv.st.masses_to_land(sc) < SILENCE_ENERGY_RATIO * kv.strike_energy {
+        let Some(objects) = kv.st.objects_energy() else {
+            return;
+        };
+        if objects + kv.st.masses_to_land(sc) < SILENCE_ENERGY_RATIO * kv.strike_energy {
             self.voices[i].active = false;
             self.stats.silent_stops += 1;
         }
