@@ -31,7 +31,8 @@
 //! kit voice stops when it is silent, as a voice of one contact does: no
 //! contact closed, and its objects' energy and the masses that may still
 //! land ([`MultiState::masses_to_land`]) below [`SILENCE_ENERGY_RATIO`] of
-//! its last throw's energy.
+//! its last throw's energy (a mass lying on an object: its output below
+//! [`SILENCE_AMPLITUDE_RATIO`] of its loudest for a check interval).
 //!
 //! Kit voice `i` renders in voice `i`'s lane, so the lookahead, the gain,
 //! the output guard and the fades of a swap and of a steal are the
@@ -44,6 +45,12 @@ use super::{
 use crate::engine::TimeScaleError;
 use crate::multi::{CompiledMulti, MultiEnd, MultiModel, MultiState, MAX_CONTACTS};
 use crate::scene::{Scene, SceneError};
+
+/// A kit voice resting with a contact closed (a mass lying on an object
+/// under gravity) stops when its output stays below this fraction of its
+/// loudest since the last throw for a whole check interval (-90 dB, the
+/// voices' energy ratio [`SILENCE_ENERGY_RATIO`] as an amplitude).
+pub const SILENCE_AMPLITUDE_RATIO: f64 = 3.1622776601683795e-5;
 
 /// Kit voices of a pitched kit: as many as voices of one contact (the
 /// Polyphony parameter's range), each holding every phase's tables at its
@@ -1111,7 +1118,10 @@ impl Instrument {
     /// as a voice of one contact does, when no contact of it is closed and
     /// its objects' energy ([`MultiState::objects_energy`]) and the masses
     /// that may still land hold less than [`SILENCE_ENERGY_RATIO`] of its
-    /// last throw's energy. \[audio-thread\]
+    /// last throw's energy; with a contact closed (a mass lying on an
+    /// object), when its last interval's output stayed below
+    /// [`SILENCE_AMPLITUDE_RATIO`] of its loudest since the throw and the
+    /// masses that may land hardly move. \[audio-thread\]
     pub(super) fn kit_silence(&mut self, i: usize) {
         let Some(kit) = self.cur.kit.as_deref_mut() else {
             return;
@@ -1126,11 +1136,19 @@ impl Instrument {
         set_kit_at(v, kit.settle(i, kit_at(v), kit_want(v)));
         let sc = compile_for(&kit.sc, &kit.damped, &kit.levels, kit_at(v));
         let kv = &mut kit.voices[i];
+        let quiet = kv.interval_peak < SILENCE_AMPLITUDE_RATIO * kv.peak;
         kv.interval_peak = 0.0;
-        let Some(objects) = kv.st.objects_energy() else {
-            return;
+        let floor = SILENCE_ENERGY_RATIO * kv.strike_energy;
+        let landing = kv.st.masses_to_land(sc);
+        let silent = match kv.st.objects_energy() {
+            // no contact closed: the rule of a voice of one contact
+            Some(objects) => objects + landing < floor,
+            // a contact closed at rest (a mass lying on an object under
+            // gravity holds its spring's and its objects' static energy):
+            // its output, and the masses that may land hardly moving
+            None => quiet && landing < floor,
         };
-        if objects + kv.st.masses_to_land(sc) < SILENCE_ENERGY_RATIO * kv.strike_energy {
+        if silent {
             self.voices[i].active = false;
             self.stats.silent_stops += 1;
         }

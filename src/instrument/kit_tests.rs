@@ -1306,3 +1306,29 @@ fn a_kit_of_one_thrown_mallet_plays_the_one_contact_voice_bit_for_bit() {
         assert_eq!(kit.active_voices(), one.active_voices());
     }
 }
+
+/// Every kit preset's voice falls silent after a note and stops: the
+/// ball between two plates comes to rest lying on a plate (a contact
+/// closed, so it stops on its output), the others with no contact closed
+/// (on their energy, as voices of one contact).
+#[test]
+fn every_kit_preset_falls_silent_after_a_note() {
+    for i in (0..crate::presets::COUNT).filter(|&i| crate::presets::is_kit(i)) {
+        let sp = SceneParams {
+            preset: i,
+            ..SceneParams::default()
+        };
+        let p = prepare(&sp, RATE, 0).unwrap();
+        let root = p.root_note.round() as u8;
+        let mut inst = Instrument::new(p, PlayParams::default());
+        render(&mut inst, &[on(0, root, 0.8)], 4800);
+        let t = until_silent(&mut inst);
+        let name = crate::presets::PRESETS[i].name;
+        println!(
+            "{name}: silent {:.2} s after the first 0.1 s",
+            t as f64 / RATE
+        );
+        assert_eq!(inst.active_voices(), 0, "{name}");
+        assert_eq!(inst.stats.silent_stops, 1, "{name}");
+    }
+}

@@ -111,7 +111,7 @@ mod tests;
 mod voices;
 
 pub use events::{Event, TimedEvent};
-pub use kit::{Kit, LISTED_KIT_SPARES, MAX_KIT_VOICES};
+pub use kit::{Kit, LISTED_KIT_SPARES, MAX_KIT_VOICES, SILENCE_AMPLITUDE_RATIO};
 pub use mapping::{
     damped_scene, drive_speed_m_per_s, impact_speed_m_per_s, lowest_frequency_hz, root_note,
     scene_for, slide_speed_factor, wheel_speed_factor, InstrumentParams, PlayParams, SceneParams,
