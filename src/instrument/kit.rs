@@ -28,10 +28,11 @@
 //! kit's compile at that hardness level ([`Kit::settle`], the same way),
 //! and pressure damps it once none of its contacts can close
 //! ([`MultiState::contacts_clear`]), as they do a voice of one contact. A
-//! kit voice stops when it is silent: its output below [`SILENCE_AMPLITUDE_RATIO`] of
-//! its loudest since its last throw for a whole check interval while the
-//! masses that may still land hardly move ([`MultiState::masses_to_land`]
-//! below [`SILENCE_ENERGY_RATIO`] of the throw's energy).
+//! kit voice stops when it is silent, as a voice of one contact does: no
+//! contact closed, and its objects' energy and the masses that may still
+//! land ([`MultiState::masses_to_land`]) below [`SILENCE_ENERGY_RATIO`] of
+//! its last throw's energy (a mass lying on an object: its output below
+//! [`SILENCE_AMPLITUDE_RATIO`] of its loudest for a check interval).
 //!
 //! Kit voice `i` renders in voice `i`'s lane, so the lookahead, the gain,
 //! the output guard and the fades of a swap and of a steal are the
@@ -45,7 +46,8 @@ use crate::engine::TimeScaleError;
 use crate::multi::{CompiledMulti, MultiEnd, MultiModel, MultiState, MAX_CONTACTS};
 use crate::scene::{Scene, SceneError};
 
-/// A kit voice stops when its output stays below this fraction of its
+/// A kit voice resting with a contact closed (a mass lying on an object
+/// under gravity) stops when its output stays below this fraction of its
 /// loudest since the last throw for a whole check interval (-90 dB, the
 /// voices' energy ratio [`SILENCE_ENERGY_RATIO`] as an amplitude).
 pub const SILENCE_AMPLITUDE_RATIO: f64 = 3.1622776601683795e-5;
@@ -1112,10 +1114,14 @@ impl Instrument {
         }
     }
 
-    /// Kit voice `i`'s silence check (on the silence-check grid): it stops
-    /// when its last interval's output stayed below
+    /// Kit voice `i`'s silence check (on the silence-check grid): it stops,
+    /// as a voice of one contact does, when no contact of it is closed and
+    /// its objects' energy ([`MultiState::objects_energy`]) and the masses
+    /// that may still land hold less than [`SILENCE_ENERGY_RATIO`] of its
+    /// last throw's energy; with a contact closed (a mass lying on an
+    /// object), when its last interval's output stayed below
     /// [`SILENCE_AMPLITUDE_RATIO`] of its loudest since the throw and the
-    /// masses that may still land hardly move. \[audio-thread\]
+    /// masses that may land hardly move. \[audio-thread\]
     pub(super) fn kit_silence(&mut self, i: usize) {
         let Some(kit) = self.cur.kit.as_deref_mut() else {
             return;
@@ -1132,7 +1138,17 @@ impl Instrument {
         let kv = &mut kit.voices[i];
         let quiet = kv.interval_peak < SILENCE_AMPLITUDE_RATIO * kv.peak;
         kv.interval_peak = 0.0;
-        if quiet && kv.st.masses_to_land(sc) < SILENCE_ENERGY_RATIO * kv.strike_energy {
+        let floor = SILENCE_ENERGY_RATIO * kv.strike_energy;
+        let landing = kv.st.masses_to_land(sc);
+        let silent = match kv.st.objects_energy() {
+            // no contact closed: the rule of a voice of one contact
+            Some(objects) => objects + landing < floor,
+            // a contact closed at rest (a mass lying on an object under
+            // gravity holds its spring's and its objects' static energy):
+            // its output, and the masses that may land hardly moving
+            None => quiet && landing < floor,
+        };
+        if silent {
             self.voices[i].active = false;
             self.stats.silent_stops += 1;
         }

@@ -530,6 +530,13 @@ impl MultiState {
         true
     }
 
+    /// The objects' energy (the model's units) while no contact is
+    /// closed: the free phase's state is energy-normalised, so half its
+    /// squared norm; `None` while a contact is closed. O(N). \[audio-thread\]
+    pub fn objects_energy(&self) -> Option<f64> {
+        (self.mask == 0).then(|| 0.5 * self.s.iter().map(|x| x * x).sum::<f64>())
+    }
+
     /// The energy \[J, model units\] were the objects' state times `g`
     /// (a pressed kit voice's, [`scale_objects`](Self::scale_objects) not
     /// yet taken): the objects' part times `g^2`, with no contact closed;
