@@ -776,8 +776,12 @@ fn law_line(scene: &Scene) -> String {
         ),
         _ => String::new(),
     };
+    // each piece's damper in proportion to the stiffness it adds
+    // (docs/design.md, "Stiffening contacts"): one relaxation time c / k
+    let c1 = scene.contact.damping_n_s_per_m;
+    let relax = c1 / p.stiffness[0];
     format!(
-        "contact law: {} pieces, breakpoints {:.3e} m, stiffness {:.3e} N/m{fit}\n",
+        "contact law: {} pieces, breakpoints {:.3e} m, stiffness {:.3e} N/m{fit}; damping {c1:.3e} N s/m on the first piece, relaxation time c / k = {relax:.3e} s on every piece\n",
         p.stiffness.len(),
         DisplayList(&p.breakpoints),
         DisplayList(&p.stiffness)
