@@ -9,6 +9,22 @@ use super::*;
 use crate::compile::event::THETA_RESOLVED;
 use crate::engine::search::{self, EventModel, Found, NodeBounds, Tally, ROUND_UNITS, STACK};
 
+/// `|(a, b)|`: the square root of the sum of squares where the sum can
+/// neither overflow nor lose digits to underflow (a correctly rounded
+/// root of a sum rounded twice: within 2 ulp), `hypot` elsewhere: a node
+/// takes one per block it touches, and libm's `hypot` costs several square
+/// roots. The bounds it enters carry their rounding allowances
+/// (`ROUND_UNITS`), far above these ulps.
+#[inline]
+fn norm2(a: f64, b: f64) -> f64 {
+    let s = a * a + b * b;
+    if (1e-290..=1e290).contains(&s) {
+        s.sqrt()
+    } else {
+        a.hypot(b)
+    }
+}
+
 /// Contact `j`'s event function `psi` in the current phase from the
 /// block state `s` at the search's origin.
 struct ContactModel<'a> {
@@ -49,10 +65,10 @@ impl ContactModel<'_> {
                 out.q[1] += rd[k] * y0 + rd[nb + k] * y1;
                 out.q[2] += rdd[k] * y0 + rdd[nb + k] * y1;
                 if !all {
-                    out.c3 += tb.ev_c3[j][k] * y0.hypot(y1);
+                    out.c3 += tb.ev_c3[j][k] * norm2(y0, y1);
                 }
             } else {
-                let n = y0.hypot(y1);
+                let n = norm2(y0, y1);
                 out.u += tb.ev_e[j][k] * n;
                 out.l += tb.ev_c1[j][k] * n;
             }
@@ -169,7 +185,7 @@ impl MultiState {
         let nb = ph.gens.len();
         self.norms[..nb].fill(0.0);
         for &k in &ph.ev_blocks[j] {
-            self.norms[k] = self.s[k].hypot(self.s[nb + k]);
+            self.norms[k] = norm2(self.s[k], self.s[nb + k]);
         }
     }
 
