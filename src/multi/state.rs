@@ -543,11 +543,10 @@ impl MultiState {
     /// else the energy. O(N). \[audio-thread\]
     pub fn energy_objects_scaled(&self, sc: &CompiledMulti, g: f64) -> f64 {
         let e = self.observe(sc).energy;
-        if self.mask != 0 || g == 1.0 {
-            return e;
+        match self.objects_energy() {
+            Some(objects) if g != 1.0 => e - (1.0 - g * g) * objects,
+            _ => e,
         }
-        let objects = 0.5 * self.s.iter().map(|x| x * x).sum::<f64>();
-        e - (1.0 - g * g) * objects
     }
 
     /// Contact `j`'s offset rod \[m\] (0 when open, and with exact
