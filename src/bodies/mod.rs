@@ -7,6 +7,7 @@
 
 pub mod chain;
 pub mod materials;
+pub mod radiated_power;
 pub mod radiation;
 pub mod resonator;
 pub mod shapes;

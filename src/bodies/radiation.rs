@@ -134,11 +134,11 @@ pub const SOUND_SPEED_M_PER_S: f64 = 343.0;
 pub const AIR_DENSITY_KG_PER_M3: f64 = 1.204;
 
 /// Convergence tolerance, relative to `integral |phi| dA`.
-const TOLERANCE: f64 = 1e-10;
+pub(super) const TOLERANCE: f64 = 1e-10;
 /// Nodes of the smallest rule.
 const MIN_NODES: usize = 32;
 /// Rules of `MIN_NODES << j`, `j < LEVELS` (the largest has 4096 nodes).
-const LEVELS: usize = 8;
+pub(super) const LEVELS: usize = 8;
 /// Nodes of the largest rule.
 const MAX_NODES: usize = MIN_NODES << (LEVELS - 1);
 
@@ -246,7 +246,7 @@ pub fn far_field(
 }
 
 /// Diameter \[m\] of a round steel wire of linear density `mu` \[kg/m\].
-fn string_diameter(mu: f64) -> Result<f64, String> {
+pub(super) fn string_diameter(mu: f64) -> Result<f64, String> {
     let steel = material("steel")?;
     Ok((4.0 * mu / (PI * steel.density_kg_m3)).sqrt())
 }
@@ -300,7 +300,7 @@ fn torsion_strip(
 }
 
 /// `sin z / z`.
-fn sinc(z: f64) -> f64 {
+pub(super) fn sinc(z: f64) -> f64 {
     if z == 0.0 {
         1.0
     } else {
@@ -311,7 +311,7 @@ fn sinc(z: f64) -> f64 {
 /// `g = integral_0^h y sin(alpha y) dy = h^2 (sin z - z cos z) / z^2`, `z =
 /// alpha h`; the power series for `|z| < 1/2`, where the closed form
 /// cancels.
-fn odd_moment(alpha: f64, h: f64) -> f64 {
+pub(super) fn odd_moment(alpha: f64, h: f64) -> f64 {
     let z = alpha * h;
     if z.abs() >= 0.5 {
         return h * h * (z.sin() - z * z.cos()) / (z * z);
@@ -378,7 +378,7 @@ fn plate(
 
 /// A membrane mode `(m, n)` (`sine`: the `sin(m theta)` partner) of radius
 /// `a`, `beta = k sin(polar)`, azimuth `psi` \[rad\].
-fn membrane(
+pub(super) fn membrane(
     mode: &ShapeMode,
     a: f64,
     (m, n, sine): (usize, usize, bool),
@@ -478,7 +478,7 @@ fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
 }
 
 /// The rule of `MIN_NODES << level` nodes, computed once.
-fn rule(level: usize) -> &'static [(f64, f64)] {
+pub(super) fn rule(level: usize) -> &'static [(f64, f64)] {
     static RULES: [OnceLock<Vec<(f64, f64)>>; LEVELS] = [const { OnceLock::new() }; LEVELS];
     RULES[level].get_or_init(|| gauss_legendre(MIN_NODES << level))
 }
@@ -487,7 +487,7 @@ fn rule(level: usize) -> &'static [(f64, f64)] {
 /// over its interval: at least `phase / 4 + 16` nodes (the doubled rule that
 /// checks it has `phase / 2 + 32`, well past the `phase / 4` where
 /// Gauss-Legendre starts to converge).
-fn start_nodes(phase: f64) -> usize {
+pub(super) fn start_nodes(phase: f64) -> usize {
     let want = 0.25 * phase.abs() + 16.0;
     let mut level = 0;
     while level + 1 < LEVELS && ((MIN_NODES << level) as f64) < want {
@@ -539,7 +539,7 @@ fn converge_1d(
 /// `integral f(x) exp(i kappa (x - centre)) dx` over `interval` and
 /// `integral |f| dx`: `(re, im, abs)`. `half_waves` of `f` set the first
 /// rule with the phase.
-fn oscillatory_1d(
+pub(super) fn oscillatory_1d(
     mut f: impl FnMut(f64) -> Result<f64, String>,
     interval: (f64, f64),
     centre: f64,

@@ -32,6 +32,15 @@ pub struct LossSpec {
     /// 20 C; 0, the default: none), beside the power law above.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub plate_radiation: f64,
+    /// Bars, tubes, stiff strings and membranes: the power each mode
+    /// radiates into air from both faces, each face as the far field the
+    /// listeners hear gives it (a face in a baffle,
+    /// [`radiation_decay_rate`](crate::bodies::radiated_power::radiation_decay_rate)),
+    /// times this factor (1: both faces radiate freely; 0, the default:
+    /// none), beside the power law above (docs/design.md, "Radiation
+    /// damping").
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub radiation_damping: f64,
     /// Dashpots where the object is held (the cords through a bar, the
     /// felt under it): each adds `n_s_per_m w^2 / 2` \[1/s\] to a mode of
     /// weight `w` there (docs/design.md, "Dashpots at points").
@@ -118,6 +127,7 @@ impl Default for LossSpec {
             radiation_ref_hz: default_radiation_ref_hz(),
             radiation_exponent: default_radiation_exponent(),
             plate_radiation: 0.0,
+            radiation_damping: 0.0,
             dashpots: Vec::new(),
         }
     }
@@ -146,6 +156,7 @@ impl LossSpec {
             && self.decay_rate_per_s == 0.0
             && self.radiation_per_s == 0.0
             && self.plate_radiation == 0.0
+            && self.radiation_damping == 0.0
             && self.dashpots.iter().all(|d| d.n_s_per_m == 0.0)
         {
             if undamped_rate == 0.0 {
@@ -168,6 +179,7 @@ impl LossSpec {
             decay_rate_per_s: rate(self.decay_rate_per_s),
             radiation_per_s: rate(self.radiation_per_s),
             plate_radiation: rate(self.plate_radiation),
+            radiation_damping: rate(self.radiation_damping),
             // a dashpot's decay rate is linear in its damping
             dashpots: self
                 .dashpots

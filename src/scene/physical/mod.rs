@@ -118,6 +118,15 @@ impl<'a> PhysicalSpec<'a> {
             .validate()
             .map_err(|e| shape_error(&format!("{base}.loss"), e))?;
         self.plate_radiation(base, &shape)?;
+        if self.radiation_damping(base)? > 0.0
+            && matches!(shape, crate::bodies::shapes::Shape::Plate(_))
+        {
+            return Err(SceneError::new(
+                format!("{base}.loss.radiation_damping"),
+                "a plate's radiation is loss.plate_radiation (Maidanik's efficiency); \
+                 radiation_damping is computed for bars, tubes, stiff strings and membranes",
+            ));
+        }
         self.weight_scale(base, &shape)?;
         if let Some(f) = self.lowest_frequency_hz() {
             self.resonator(base, &shape, f)?;

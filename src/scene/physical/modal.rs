@@ -5,6 +5,7 @@
 use super::loss::plate_radiation_rate;
 use super::shape::shape_error;
 use super::PhysicalSpec;
+use crate::bodies::radiated_power::radiation_decay_rate;
 use crate::bodies::radiation::{far_field, Direction, SOUND_SPEED_M_PER_S};
 use crate::bodies::resonator::{ModeEffect, Resonator, MAX_MIXING};
 use crate::bodies::shapes::{Point, Shape, ShapeMode};
@@ -59,6 +60,7 @@ impl PhysicalSpec<'_> {
         let weight_scale = self.weight_scale(base, &shape)?;
         let mut mode = Vec::with_capacity(modes.len());
         let radiation = self.plate_radiation(base, &shape)?;
+        let radiated = self.radiation_damping(base)?;
         let lowest = modes
             .iter()
             .map(|m| m.freq_hz)
@@ -88,6 +90,7 @@ impl PhysicalSpec<'_> {
                 .decay_rate(m.freq_hz)
                 .map_err(|e| shape_error(base, e))?
                 + radiation.as_ref().map_or(0.0, |r| r(m.freq_hz))
+                + radiated_decay_rate(base, radiated, &shape, m, weight_scale)?
                 + tube.map_or(0.0, |t| t.decay_rate_per_s)
                 + dashpot_decay_rate(&dashpots, &weights);
             let t60_s = (sigma > 0.0).then(|| (1000f64.ln() / sigma).max(MIN_T60_S));
@@ -233,6 +236,14 @@ impl PhysicalSpec<'_> {
         Ok((uniform / m).sqrt())
     }
 
+    /// The factor of the radiation damping (`loss.radiation_damping`),
+    /// checked: finite and not negative.
+    pub(super) fn radiation_damping(&self, base: &str) -> Result<f64, SceneError> {
+        let scale = self.loss().radiation_damping;
+        check_non_negative(&format!("{base}.loss.radiation_damping"), scale)?;
+        Ok(scale)
+    }
+
     /// The plate radiation term of the loss, when asked for (plates only).
     #[allow(clippy::type_complexity)]
     pub(super) fn plate_radiation(
@@ -262,6 +273,24 @@ impl PhysicalSpec<'_> {
         })))
     }
 }
+/// The decay rate radiating costs mode `m` (`scale` times both faces'
+/// power, docs/design.md "Radiation damping"), its shape scaled by
+/// `weight_scale` (an undercut bar's shapes renormalised to its mass).
+fn radiated_decay_rate(
+    base: &str,
+    scale: f64,
+    shape: &Shape,
+    m: &ShapeMode,
+    weight_scale: f64,
+) -> Result<f64, SceneError> {
+    if scale == 0.0 {
+        return Ok(0.0);
+    }
+    let one_face = radiation_decay_rate(shape, m)
+        .map_err(|e| SceneError::new(format!("{base}.loss.radiation_damping"), e))?;
+    Ok(scale * 2.0 * weight_scale * weight_scale * one_face)
+}
+
 /// The highest frequency and the most modes `limits` let an object list:
 /// `max_freq_hz` (at most [`MAX_FREQ_HZ`]) or the Nyquist frequency of
 /// `rate_hz`, and `max_modes` (1 ..= [`MAX_MODES_PER_OBJECT`]) or that
