@@ -37,8 +37,9 @@ pub struct LossSpec {
     /// listeners hear gives it (a face in a baffle,
     /// [`radiation_decay_rate`](crate::bodies::radiated_power::radiation_decay_rate)),
     /// times this factor (1: both faces radiate freely; 0, the default:
-    /// none), beside the power law above (docs/design.md, "Radiation
-    /// damping").
+    /// none), beside the power law above. A tube's is its projected
+    /// strip's, which overstates a round tube's (docs/design.md,
+    /// "Radiation damping").
     #[serde(default, skip_serializing_if = "is_zero")]
     pub radiation_damping: f64,
     /// Dashpots where the object is held (the cords through a bar, the
