@@ -35,11 +35,21 @@
 //!   the width's factor (`b sinc(k v b / 2)` bending, `2 g(k v)` torsion).
 //!   With `v = sqrt(1 - u^2) sin(psi)` the singular weight goes: `J =
 //!   integral_(-1)^1 |I(k u)|^2 G(u) du`, `G(u) = integral_(-pi/2)^(pi/2)
-//!   |Y(k sqrt(1 - u^2) sin psi)|^2 dpsi`.
+//!   |Y(k sqrt(1 - u^2) sin psi)|^2 dpsi`. A string's `scale sin(p x)` has
+//!   the closed form `I = scale p (exp(-i kappa L/2) - (-1)^n exp(i kappa
+//!   L/2)) / (p^2 - kappa^2)`, taken where `kappa` is more than about 1e-3
+//!   from `p`; a bar's or tube's shape, and a string's near `p`, the
+//!   radiation module's quadrature.
 //! - Membrane: `W = 2 pi i^m a(phi) R(k sin theta)` with the angular factor
 //!   `a` (`cos m phi` or `sin m phi`), so `J = A_m integral_0^(pi/2) |W(theta,
 //!   antinode)|^2 sin theta dtheta`, `A_m = integral a^2 dphi` (`2 pi` for `m
-//!   = 0`, else `pi`).
+//!   = 0`, else `pi`). The radial transform of an ideal membrane's `scale
+//!   J_m(alpha r)` (`J_m(alpha a) = 0`) is Lommel's closed form, `integral_0^a
+//!   J_m(alpha r) J_m(beta r) r dr = a alpha J_(m+1)(alpha a) J_m(beta a) /
+//!   (alpha^2 - beta^2)` (Watson, *A Treatise on the Theory of Bessel
+//!   Functions*, section 5.11), taken where `beta = k sin theta` is more than
+//!   1e-3 from `alpha`; nearer, where it cancels, the radiation module's
+//!   quadrature.
 //!
 //! Each integral is Gauss-Legendre from the rule its phase asks for, doubled
 //! until two results agree to [`POWER_TOLERANCE`]. Plates are not computed
@@ -52,7 +62,7 @@ use super::radiation::{
     membrane, odd_moment, oscillatory_1d, rule, sinc, start_nodes, string_diameter,
     AIR_DENSITY_KG_PER_M3, LEVELS, SOUND_SPEED_M_PER_S, TOLERANCE,
 };
-use crate::bodies::shapes::{ModeLabel, Point, Shape, ShapeMode};
+use crate::bodies::shapes::{bessel_j, ModeLabel, Point, Shape, ShapeMode};
 
 /// Relative agreement of two successive rules of a power integral.
 pub const POWER_TOLERANCE: f64 = 1e-6;
@@ -194,7 +204,22 @@ fn strip_power(
     width: Width,
 ) -> Result<f64, String> {
     let hw = 0.5 * width.width();
+    let sine = mode.string_sine();
     let along = |kappa: f64| -> Result<f64, String> {
+        // a string's scale sin(p x), p = n pi / L: integral_0^L sin(p x)
+        // exp(i kappa (x - L/2)) dx = p (exp(-i kappa L/2) - (-1)^n
+        // exp(i kappa L/2)) / (p^2 - kappa^2), where it does not cancel
+        if let Some((scale, n, l)) = sine {
+            let p = n as f64 * PI / l;
+            let d = (p - kappa) * (p + kappa);
+            if d.abs() > 1e-3 * p * p {
+                let sign = if n % 2 == 0 { 1.0 } else { -1.0 };
+                let (s, c) = (0.5 * kappa * l).sin_cos();
+                let (re, im) = ((1.0 - sign) * c, -(1.0 + sign) * s);
+                let f = scale * p / d;
+                return Ok(f * f * (re * re + im * im));
+            }
+        }
         let (re, im, _) = match width {
             Width::Bending(_) => oscillatory_1d(
                 |x| mode.shape_at(Point::Line(x)),
@@ -244,9 +269,27 @@ fn membrane_power(
     };
     let angular = if m == 0 { 2.0 * PI } else { PI };
     let phase = 2.0 * PI * (n as f64 + 0.5 * m as f64 + 1.0) + 2.0 * k * radius;
+    // an ideal membrane's radial factor scale J_m(alpha r), J_m(alpha a) =
+    // 0, has Lommel's closed form (the module docs); the quadrature of the
+    // radiation module where it cancels (beta within 1e-3 of alpha)
+    let closed = mode.membrane_radial().map(|(scale, j, a)| {
+        let alpha = j / a;
+        (scale, alpha, a, bessel_j(m + 1, j))
+    });
     let j = converge((0.0, 0.5 * PI), phase, |theta| {
-        let (re, im) = membrane(mode, radius, (m, n, sine), k * theta.sin(), antinode)?;
-        Ok((re * re + im * im) * theta.sin())
+        let beta = k * theta.sin();
+        let w2 = match closed {
+            Some((scale, alpha, a, j_next)) if (alpha - beta).abs() > 1e-3 * alpha => {
+                let w = 2.0 * PI * scale * a * alpha * j_next * bessel_j(m, beta * a)
+                    / ((alpha - beta) * (alpha + beta));
+                w * w
+            }
+            _ => {
+                let (re, im) = membrane(mode, radius, (m, n, sine), beta, antinode)?;
+                re * re + im * im
+            }
+        };
+        Ok(w2 * theta.sin())
     })?;
     Ok(angular * j)
 }

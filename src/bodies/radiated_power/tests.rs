@@ -4,7 +4,7 @@
 use super::*;
 use crate::bodies::materials::material;
 use crate::bodies::radiation::{far_field, Direction};
-use crate::bodies::shapes::{Bar, BeamSupport, Membrane, Plate, PlateEdges, Tube};
+use crate::bodies::shapes::{Bar, BeamSupport, Membrane, Plate, PlateEdges, StiffString, Tube};
 
 /// `J` from the decay rate (the module's formula read backwards).
 fn j_of(shape: &Shape, mode: &ShapeMode) -> f64 {
@@ -49,11 +49,26 @@ fn the_factorised_power_matches_the_far_field_over_the_half_sphere() {
         tension_n_per_m: 3000.0,
         areal_density_kg_m2: 0.26,
     });
+    // waves faster than sound (480 m/s): k sin(theta) crosses each mode's
+    // radial wavenumber, where Lommel's closed form cancels and the
+    // quadrature takes over
+    let fast_drum = Shape::Membrane(Membrane {
+        radius_m: 0.18,
+        tension_n_per_m: 60000.0,
+        areal_density_kg_m2: 0.26,
+    });
+    // a piano-like wire, waves near the speed of sound (324 m/s, faster
+    // up the series with its stiffness): the sine's closed form and, where
+    // k u meets its wavenumber, the quadrature
+    let steel = material("steel").unwrap();
+    let wire = Shape::StiffString(StiffString::round_wire(0.62, 648.8, 0.001, &steel));
     let mut worst: f64 = 0.0;
     for (shape, max_hz, picks) in [
-        (&bar, 20000.0, &[0usize, 1, 2, 3, 4][..]),
+        (&wire, 6000.0, &[0usize, 1, 4, 9, 17][..]),
+        (&bar, 20000.0, &[0, 1, 2, 3, 4][..]),
         (&tube, 6000.0, &[0, 3, 6][..]),
         (&drum, 700.0, &[0, 1, 2, 3, 4, 5][..]),
+        (&fast_drum, 4000.0, &[0, 1, 3, 5][..]),
     ] {
         let modes = shape.modes(max_hz, 400).unwrap();
         for &i in picks {

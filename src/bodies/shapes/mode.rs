@@ -108,6 +108,26 @@ pub struct ShapeMode {
 }
 
 impl ShapeMode {
+    /// A string mode's `scale sin(n pi x / L)` as `(scale, n, L)`; none
+    /// for a mode of another object.
+    pub(crate) fn string_sine(&self) -> Option<(f64, usize, f64)> {
+        match self.shape {
+            ModeShape::String { length, n, scale } => Some((scale, n, length)),
+            _ => None,
+        }
+    }
+
+    /// A membrane mode's radial factor `scale J_m(j r / a)` as `(scale, j,
+    /// a)`; none for a mode of another object.
+    pub(crate) fn membrane_radial(&self) -> Option<(f64, f64, f64)> {
+        match self.shape {
+            ModeShape::Membrane {
+                radius, j, scale, ..
+            } => Some((scale, j, radius)),
+            _ => None,
+        }
+    }
+
     /// Angular frequency \[rad/s\].
     pub fn omega(&self) -> f64 {
         2.0 * PI * self.freq_hz
