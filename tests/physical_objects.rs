@@ -321,7 +321,7 @@ points = { contact = 0.15, pickup = 0.02 }"#,
 
 /// The instrument's strike position moves the contact point along the
 /// object and its weights come from the mode shapes there; the decay scale
-/// and the damper scale every T60 exactly.
+/// and the damper scale every T60 exactly (radiation damping included).
 #[test]
 fn instrument_parameters_on_physical_objects() {
     let scene = parse(
@@ -332,7 +332,7 @@ bending_stiffness_n_m2 = 1e-4
 length_m = 0.65
 tension_n = 700.0
 max_modes = 20
-loss = { decay_rate_per_s = 0.5, loss_factor = 1e-4 }
+loss = { decay_rate_per_s = 0.5, loss_factor = 1e-4, radiation_damping = 1.0 }
 points = { contact = 0.1, pickup = 0.3 }"#,
     );
     let mut p = InstrumentParams::default();
@@ -429,6 +429,18 @@ fn bad_physical_objects_are_refused_with_the_field() {
         (
             bar("length_m = 0.3\nwidth_m = 0.05\nthickness_m = 0.02\nloss = { dashpots = [{ point = \"contact\", n_s_per_m = 1e300 }] }"),
             "object[0].loss.dashpots[0].n_s_per_m",
+        ),
+        (
+            bar("length_m = 0.3\nwidth_m = 0.05\nthickness_m = 0.02\nloss = { radiation_damping = -1.0 }"),
+            "object[0].loss.radiation_damping: must be",
+        ),
+        (
+            bar("length_m = 0.3\nwidth_m = 0.05\nthickness_m = 0.02\nloss = { radiation_damping = inf }"),
+            "object[0].loss.radiation_damping: must be",
+        ),
+        (
+            "name = \"o\"\nkind = \"plate\"\nmaterial = \"steel\"\nlength_x_m = 0.3\nlength_y_m = 0.2\nthickness_m = 0.002\nloss = { radiation_damping = 1.0 }\npoints = { contact = [0.1, 0.1], pickup = [0.2, 0.1] }".into(),
+            "object[0].loss.radiation_damping: a plate's radiation is loss.plate_radiation",
         ),
         // very fine geometry: a huge thin plate has far too many modes
         (
