@@ -59,10 +59,10 @@
 use std::f64::consts::PI;
 
 use super::radiation::{
-    membrane, odd_moment, oscillatory_1d, rule, sinc, start_nodes, string_diameter,
-    AIR_DENSITY_KG_PER_M3, LEVELS, SOUND_SPEED_M_PER_S, TOLERANCE,
+    along_strip, membrane, odd_moment, rule, sinc, start_nodes, string_diameter,
+    AIR_DENSITY_KG_PER_M3, LEVELS, SOUND_SPEED_M_PER_S,
 };
-use crate::bodies::shapes::{bessel_j, ModeLabel, Point, Shape, ShapeMode};
+use crate::bodies::shapes::{bessel_j, ModeLabel, Shape, ShapeMode};
 
 /// Relative agreement of two successive rules of a power integral.
 pub const POWER_TOLERANCE: f64 = 1e-6;
@@ -203,7 +203,6 @@ fn strip_power(
     half_waves: f64,
     width: Width,
 ) -> Result<f64, String> {
-    let hw = 0.5 * width.width();
     let sine = mode.string_sine();
     let along = |kappa: f64| -> Result<f64, String> {
         // a string's scale sin(p x), p = n pi / L: integral_0^L sin(p x)
@@ -220,24 +219,11 @@ fn strip_power(
                 return Ok(f * f * (re * re + im * im));
             }
         }
-        let (re, im, _) = match width {
-            Width::Bending(_) => oscillatory_1d(
-                |x| mode.shape_at(Point::Line(x)),
-                (0.0, length),
-                0.5 * length,
-                kappa,
-                half_waves,
-                TOLERANCE,
-            )?,
-            Width::Torsion(_) => oscillatory_1d(
-                |x| Ok(mode.shape_at(Point::Bar { x, y: hw })? / hw),
-                (0.0, length),
-                0.5 * length,
-                kappa,
-                half_waves,
-                TOLERANCE,
-            )?,
+        let half_width = match width {
+            Width::Bending(_) => None,
+            Width::Torsion(b) => Some(0.5 * b),
         };
+        let (re, im) = along_strip(mode, length, half_width, kappa, half_waves)?;
         Ok(re * re + im * im)
     };
     let across = |u: f64| -> Result<f64, String> {

@@ -134,7 +134,7 @@ pub const SOUND_SPEED_M_PER_S: f64 = 343.0;
 pub const AIR_DENSITY_KG_PER_M3: f64 = 1.204;
 
 /// Convergence tolerance, relative to `integral |phi| dA`.
-pub(super) const TOLERANCE: f64 = 1e-10;
+const TOLERANCE: f64 = 1e-10;
 /// Nodes of the smallest rule.
 const MIN_NODES: usize = 32;
 /// Rules of `MIN_NODES << j`, `j < LEVELS` (the largest has 4096 nodes).
@@ -264,14 +264,7 @@ fn strip(
     ky: f64,
     half_waves: f64,
 ) -> Result<(f64, f64), String> {
-    let (re, im, _) = oscillatory_1d(
-        |x| mode.shape_at(Point::Line(x)),
-        (0.0, length),
-        0.5 * length,
-        kx,
-        half_waves,
-        TOLERANCE,
-    )?;
+    let (re, im) = along_strip(mode, length, None, kx, half_waves)?;
     let y = width * sinc(0.5 * ky * width);
     Ok((re * y, im * y))
 }
@@ -286,17 +279,34 @@ fn torsion_strip(
     half_waves: f64,
 ) -> Result<(f64, f64), String> {
     let hw = 0.5 * width;
-    let (re, im, _) = oscillatory_1d(
-        |x| Ok(mode.shape_at(Point::Bar { x, y: hw })? / hw),
-        (0.0, length),
-        0.5 * length,
-        kx,
-        half_waves,
-        TOLERANCE,
-    )?;
+    let (re, im) = along_strip(mode, length, Some(hw), kx, half_waves)?;
     // integral_{-h}^{h} y exp(i ky y) dy = 2 i g.
     let g2 = 2.0 * odd_moment(ky, hw);
     Ok((-im * g2, re * g2))
+}
+
+/// `integral_0^L f(x) exp(i kappa (x - L/2)) dx` of a strip mode: `f` its
+/// shape along the centre line (bending, string), or with `half_width`
+/// a torsional mode's twist `theta(x) = phi(x, w/2) / (w/2)`.
+pub(super) fn along_strip(
+    mode: &ShapeMode,
+    length: f64,
+    half_width: Option<f64>,
+    kappa: f64,
+    half_waves: f64,
+) -> Result<(f64, f64), String> {
+    let (re, im, _) = oscillatory_1d(
+        |x| match half_width {
+            None => mode.shape_at(Point::Line(x)),
+            Some(hw) => Ok(mode.shape_at(Point::Bar { x, y: hw })? / hw),
+        },
+        (0.0, length),
+        0.5 * length,
+        kappa,
+        half_waves,
+        TOLERANCE,
+    )?;
+    Ok((re, im))
 }
 
 /// `sin z / z`.
@@ -539,7 +549,7 @@ fn converge_1d(
 /// `integral f(x) exp(i kappa (x - centre)) dx` over `interval` and
 /// `integral |f| dx`: `(re, im, abs)`. `half_waves` of `f` set the first
 /// rule with the phase.
-pub(super) fn oscillatory_1d(
+fn oscillatory_1d(
     mut f: impl FnMut(f64) -> Result<f64, String>,
     interval: (f64, f64),
     centre: f64,

@@ -4,7 +4,9 @@
 use super::*;
 use crate::bodies::materials::material;
 use crate::bodies::radiation::{far_field, Direction};
-use crate::bodies::shapes::{Bar, BeamSupport, Membrane, Plate, PlateEdges, StiffString, Tube};
+use crate::bodies::shapes::{
+    Bar, BeamSupport, Membrane, Plate, PlateEdges, Point, StiffString, Tube,
+};
 
 /// `J` from the decay rate (the module's formula read backwards).
 fn j_of(shape: &Shape, mode: &ShapeMode) -> f64 {
