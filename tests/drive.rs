@@ -70,7 +70,10 @@ fn lab(st: &mut EngineState, sc: &CompiledScene) -> Lab {
 /// height is, per sample, `s(t) - m g / k` plus the damped oscillation
 /// of `m y'' + c y' + k y = 0` that the slope changes start (the
 /// position and velocity continuous, `y' = x' - s'` jumping with `s'`),
-/// written out here in closed form. The engine agrees to rounding.
+/// written out here in closed form. A third of the way through, a hand
+/// presses the mass 1.5 times its weight more ([`EngineState::set_load`]
+/// 2.5): the equilibrium drops to `2.5 m g / k` below the surface and the
+/// mass swings about it. The engine agrees to rounding.
 #[test]
 fn a_mass_resting_on_a_moving_surface_follows_the_closed_form() {
     let (m, k, c, g, rate) = (0.05, 1.0e5, 5.0, 9.81, 44100.0);
@@ -90,11 +93,21 @@ fn a_mass_resting_on_a_moving_surface_follows_the_closed_form() {
     let (mut worst, mut peak, mut lowest_force) = (0.0f64, 0.0f64, f64::INFINITY);
     let n = (0.25 * rate) as usize;
     for i in 0..n {
+        let load = if i < n / 3 { 1.0 } else { 2.5 };
+        assert!(st.set_load(&sc, load));
+        let g = g * load;
         let got = lab(&mut st, &sc);
         assert!(got.m.in_contact, "sample {i}: lifted off");
         let err = (got.x - x).abs().max((got.v - v).abs() / w0);
         worst = worst.max(err);
         peak = peak.max((x - got.s).abs());
+        if i == n / 3 {
+            // refused, and nothing moves
+            for bad in [f64::NAN, -1.0, f64::INFINITY] {
+                assert!(!st.set_load(&sc, bad));
+            }
+            assert_eq!(st.load(), 2.5);
+        }
         lowest_force = lowest_force.min(k * (got.s - got.x) + c * (got.rate - got.v));
         // one sample of the closed form from (x, v), surface from s with rate
         let y0 = x - (got.s - m * g / k);
@@ -143,25 +156,38 @@ fn bouncing(damped: bool, radius: f64) -> Scene {
 /// impulse, which the hammer's momentum gives: `m (v(t+h) - v(t)) + m g
 /// h`), returns the largest `|E - E(0) - W|` and the largest rise of `E -
 /// W` from one sample to the next, both relative to the largest energy, and
-/// the number of contacts.
-fn ledger(scene: &Scene, seconds: f64, speed: impl Fn(usize) -> f64) -> (f64, f64, u64, f64) {
+/// the number of contacts. `load(i)` is the constant force's factor from
+/// sample `i` on ([`EngineState::set_load`]: a hand pressing harder or
+/// lighter); where it steps, the force's potential `m g x` steps with it
+/// at the same height `x`, and `W` counts that step as the hand's.
+fn ledger(
+    scene: &Scene,
+    seconds: f64,
+    speed: impl Fn(usize) -> f64,
+    load: impl Fn(usize) -> f64,
+) -> (f64, f64, u64, f64) {
     let rate = 44100.0;
     let sc = compile_one(scene, rate).unwrap();
     let mut st = EngineState::new(&sc);
     st.set_drive_speed(&sc, speed(0));
-    let (m, g, h) = (sc.m_h, sc.g, 1.0 / rate);
-    let energy = |l: &Lab| lab_energy(l, m, g);
+    assert!(st.set_load(&sc, load(0)));
+    let (m, h) = (sc.m_h, 1.0 / rate);
+    let mut g = sc.g * load(0);
     let n = (seconds * rate) as usize;
     let first = lab(&mut st, &sc);
-    let e0 = energy(&first);
+    let e0 = lab_energy(&first, m, g);
     let (mut prev, mut work) = (first, 0.0);
     let (mut worst, mut rise, mut scale) = (0.0f64, 0.0f64, e0.abs());
     let mut last_balance = 0.0;
     for i in 1..n {
         st.set_drive_speed(&sc, speed(i));
+        assert!(st.set_load(&sc, load(i)));
         let now = lab(&mut st, &sc);
         work += prev.rate * m * (now.v - prev.v + g * h);
-        let e = energy(&now);
+        let g_now = sc.g * load(i);
+        work += m * (g_now - g) * now.x;
+        g = g_now;
+        let e = lab_energy(&now, m, g);
         scale = scale.max(e.abs()).max(work.abs());
         let balance = e - e0 - work;
         worst = worst.max(balance.abs());
@@ -178,14 +204,27 @@ fn stroke(i: usize) -> f64 {
     0.4 * (2.0 * std::f64::consts::PI * (i / 100) as f64 / 150.0).cos()
 }
 
+/// A hand pressing the ball harder and lighter: the force's factor 1 to
+/// 4, stepped every 64 samples along a slow wave.
+fn pressing(i: usize) -> f64 {
+    1.0 + 1.5 * (1.0 - (2.0 * std::f64::consts::PI * (i / 64) as f64 / 90.0).cos())
+}
+
 /// Lossless (undamped modes, no contact damping): the energy is the
 /// surface's work, to rounding, through every lift-off and landing, at a
-/// constant speed and at a speed that changes.
+/// constant speed, at a speed that changes, and under a force that
+/// changes.
 #[test]
 fn lossless_driven_energy_is_the_surfaces_work() {
-    for (what, changing) in [("constant speed", false), ("changing speed", true)] {
+    let cases = [
+        ("constant speed", false, false),
+        ("changing speed", true, false),
+        ("changing speed and force", true, true),
+    ];
+    for (what, changing, pressed) in cases {
         let speed = |i: usize| if changing { stroke(i) } else { 0.4 };
-        let (worst, _, contacts, scale) = ledger(&bouncing(false, 0.0), 0.5, speed);
+        let load = |i: usize| if pressed { pressing(i) } else { 1.0 };
+        let (worst, _, contacts, scale) = ledger(&bouncing(false, 0.0), 0.5, speed, load);
         println!(
             "lossless rolling ball, {what}: |E - E0 - W| <= {worst:.2e} of {scale:.2e} J, \
              {contacts} contacts"
@@ -202,9 +241,13 @@ fn lossless_driven_energy_is_the_surfaces_work() {
 /// the rolling filter of a 2 mm ball.
 #[test]
 fn damped_driven_energy_never_exceeds_the_work() {
-    for radius in [0.0, 2e-3] {
-        let (_, rise, contacts, scale) = ledger(&bouncing(true, radius), 0.5, |_| 0.4);
-        println!("damped rolling ball, radius {radius}: largest rise of E - W {rise:.2e} of {scale:.2e} J, {contacts} contacts");
+    for (radius, pressed) in [(0.0, false), (2e-3, false), (2e-3, true)] {
+        let load = |i: usize| if pressed { pressing(i) } else { 1.0 };
+        let (_, rise, contacts, scale) = ledger(&bouncing(true, radius), 0.5, |_| 0.4, load);
+        println!(
+            "damped rolling ball, radius {radius}, pressed {pressed}: largest rise of E - W \
+             {rise:.2e} of {scale:.2e} J, {contacts} contacts"
+        );
         assert!(contacts > 2, "{contacts}");
         assert!(rise < 1e-10, "{rise:e}");
     }

@@ -268,21 +268,26 @@ fn the_slide_sets_its_own_notes_speed() {
     assert_eq!(differ(&other, &plain), 0);
 }
 
-/// Pressure presses a held stroke harder (docs/design.md, "Rolling and
-/// scraping"): full pressure is press level 4, the hand's force times 4
-/// (5 N to 20 N). The instrument is the scene driven offline and carried
-/// to the scene pressed by 20 N and back where the pressure moves, to the
-/// output's f32 rounding. Independently of the engine, the momentum
-/// balance says the contact's mean force over a window is the pressing
-/// force (the hammer's velocity is bounded): measured from the motion
-/// (`k p + c p'` while in contact), it follows the pressure.
+/// Pressure presses a held stroke harder, continuously (docs/design.md,
+/// "Rolling and scraping"): the hand's force times `1 + 3 p` (5 N
+/// unpressed, 20 N at full pressure). The instrument is the scene driven
+/// offline with its load set where the pressure moves
+/// ([`EngineState::set_load`]), to the output's f32 rounding. The load is
+/// checked against the scene compiled under 20 N (its own equilibrium and
+/// rows, an independent route to the same physics: the offline voice
+/// carried there and back, [`EngineState::rebind`]). And independently of
+/// the engine, the momentum balance says the contact's mean force over a
+/// window is the pressing force (the hammer's velocity is bounded):
+/// measured from the motion (`k p + c p'` while in contact), it follows
+/// the pressure.
 #[test]
 fn pressure_presses_a_held_stroke_harder() {
-    use modal_contact::instrument::{press_factor, press_level, PRESS_LEVELS};
-    assert_eq!(press_level(1.0), PRESS_LEVELS);
-    assert_eq!(press_level(f64::NAN), 0);
-    assert_eq!(press_factor(PRESS_LEVELS), 4.0);
-    assert_eq!(press_factor(0), 1.0);
+    use modal_contact::instrument::{press_factor, PRESS_RANGE};
+    assert_eq!(press_factor(1.0), PRESS_RANGE);
+    assert_eq!(press_factor(7.0), PRESS_RANGE);
+    assert_eq!(press_factor(f64::NAN), 1.0);
+    assert_eq!(press_factor(-1.0), 1.0);
+    assert_eq!(press_factor(0.5), 2.5);
     let scene = scraped_bar();
     let mut pressed = scene.clone();
     pressed.drive.as_mut().unwrap().press_n *= 4.0;
@@ -303,40 +308,125 @@ fn pressure_presses_a_held_stroke_harder() {
     };
     let (out, inst) = play_with(velocity, None, 0.9, &[press(up, 1.0), press(down, 0.0)]);
     let speed = drive_speed_m_per_s(0.2, impact_speed_m_per_s(velocity));
-    let mut st = EngineState::new(&sc);
-    st.strike(&sc, 0.0, 0.0);
-    st.set_drive_speed(&sc, speed);
-    let (mut worst, mut peak) = (0.0f64, 0.0f64);
+    let start = || {
+        let mut st = EngineState::new(&sc);
+        st.strike(&sc, 0.0, 0.0);
+        st.set_drive_speed(&sc, speed);
+        st
+    };
+    let (mut st, mut other) = (start(), start());
+    let (mut worst, mut apart, mut peak) = (0.0f64, 0.0f64, 0.0f64);
     let (k, c) = (2.0e5, 2.0);
     let mut force = [0.0f64; 3];
     for (i, &o) in out[..n].iter().enumerate() {
         if i == up {
-            assert!(st.rebind(&sc, &sc4));
+            assert!(st.set_load(&sc, 4.0));
+            assert!(other.rebind(&sc, &sc4));
         }
         if i == down {
-            assert!(st.rebind(&sc4, &sc));
+            assert!(st.set_load(&sc, 1.0));
+            assert!(other.rebind(&sc4, &sc));
         }
+        let (y, m) = st.tick_with(&sc, |s| s.motion(&sc));
         let now = if (up..down).contains(&i) { &sc4 } else { &sc };
-        let (y, m) = st.tick_with(now, |s| s.motion(now));
+        let y4 = other.tick(now)[0];
         let (p, dp) = (m.x_contact - m.x_hammer, m.v_contact - m.v_hammer);
         if m.in_contact {
             force[(i >= up) as usize + (i >= down) as usize] += (k * p + c * dp).max(0.0);
         }
         peak = peak.max(y[0].abs());
         worst = worst.max((f64::from(o) - y[0]).abs());
+        apart = apart.max((y4 - y[0]).abs());
     }
     // the mean force over each 0.3 s window
     let mean = |sum: f64| sum / (0.3 * RATE);
     println!(
         "mean contact force {:.2} / {:.2} / {:.2} N (press 5 / 20 / 5 N); instrument vs \
-         offline {worst:.1e} of peak {peak:.1e}",
+         offline {worst:.1e}, load vs the scene compiled under 20 N {apart:.1e}, of peak \
+         {peak:.1e}",
         mean(force[0]),
         mean(force[1]),
         mean(force[2])
     );
     assert!(peak > 1e-5 && worst <= 1e-6 * peak, "{worst:e} of {peak:e}");
+    assert!(apart <= 1e-9 * peak, "{apart:e} of {peak:e}");
     assert!((mean(force[0]) / 5.0 - 1.0).abs() < 0.15, "{force:?}");
     assert!((mean(force[1]) / 20.0 - 1.0).abs() < 0.15, "{force:?}");
     assert!((mean(force[2]) / 5.0 - 1.0).abs() < 0.15, "{force:?}");
     assert_eq!(inst.active_voices(), 1);
+}
+
+/// Pressure swept from none to full over 0.4 s in steps of 1/128 (a
+/// controller's stream): the force follows every step, not a few levels.
+/// The instrument is the scene driven offline with the load set at each
+/// step, to the output's f32 rounding; the mean contact force over each
+/// quarter of the sweep (from the motion, as above) is the hand's mean
+/// force over it, `5 (1 + 3 p)` N, within 15 %; and the sweep's distinct
+/// loads are all 129.
+#[test]
+fn pressure_moves_the_force_continuously() {
+    use modal_contact::instrument::press_factor;
+    let scene = scraped_bar();
+    let sc = compile_one(&scene, RATE).unwrap();
+    let velocity = 100.0 / 127.0;
+    let key = modal_contact::instrument::root_note(&scene).round() as u8;
+    let (from, len) = ((0.1 * RATE) as usize, (0.4 * RATE) as usize);
+    let steps = 128;
+    let at = |j: usize| from + j * len / steps;
+    let events: Vec<TimedEvent> = (0..=steps)
+        .map(|j| TimedEvent {
+            offset: at(j),
+            event: Event::NotePressure {
+                key: Some(key),
+                value: j as f64 / steps as f64,
+            },
+        })
+        .collect();
+    // a block past the last step
+    let n = from + len + 64;
+    let (out, _) = play_with(velocity, None, n as f64 / RATE, &events);
+    let mut st = EngineState::new(&sc);
+    st.strike(&sc, 0.0, 0.0);
+    st.set_drive_speed(
+        &sc,
+        drive_speed_m_per_s(0.2, impact_speed_m_per_s(velocity)),
+    );
+    let (k, c) = (2.0e5, 2.0);
+    let (mut worst, mut peak) = (0.0f64, 0.0f64);
+    let mut force = [0.0f64; 4];
+    let mut loads = Vec::new();
+    let mut next = 0;
+    for (i, &o) in out[..n].iter().enumerate() {
+        if next <= steps && i == at(next) {
+            assert!(st.set_load(&sc, press_factor(next as f64 / steps as f64)));
+            loads.push(st.load());
+            next += 1;
+        }
+        let (y, m) = st.tick_with(&sc, |s| s.motion(&sc));
+        if i >= from && m.in_contact {
+            let (p, dp) = (m.x_contact - m.x_hammer, m.v_contact - m.v_hammer);
+            if i < from + len {
+                force[4 * (i - from) / len] += (k * p + c * dp).max(0.0);
+            }
+        }
+        peak = peak.max(y[0].abs());
+        worst = worst.max((f64::from(o) - y[0]).abs());
+    }
+    loads.dedup();
+    let quarter = len as f64 / 4.0;
+    let means: Vec<f64> = force.iter().map(|f| f / quarter).collect();
+    // the hand's mean force over quarter q: 5 (1 + 3 p) at its middle
+    let want: Vec<f64> = (0..4)
+        .map(|q| 5.0 * (1.0 + 3.0 * (q as f64 + 0.5) / 4.0))
+        .collect();
+    println!(
+        "mean contact force per quarter {means:.2?} N (the hand's {want:.2?}); {} loads; \
+         instrument vs offline {worst:.1e} of peak {peak:.1e}",
+        loads.len()
+    );
+    assert_eq!(loads.len(), steps + 1);
+    assert!(peak > 1e-5 && worst <= 1e-6 * peak, "{worst:e} of {peak:e}");
+    for (m, w) in means.iter().zip(&want) {
+        assert!((m / w - 1.0).abs() < 0.15, "{means:?} against {want:?}");
+    }
 }

@@ -228,3 +228,51 @@ fn a_cloned_prepared_scene_plays_without_allocating() {
         assert_eq!(inst.stats.notes, 128, "{preset}");
     }
 }
+
+/// Pressure on held strokes of the driven presets under a constant force
+/// (the ball's weight, the hand on the guiro's stick) moves that force
+/// at every pressure message (`EngineState::set_load`), in contact and
+/// in flight: no allocation.
+#[test]
+fn pressing_a_driven_stroke_allocates_nothing() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    const RATE: f64 = 48_000.0;
+    for preset in ["ball-on-plate", "guiro", "marble-on-board"] {
+        let sp = SceneParams {
+            preset: presets::index_of(preset).unwrap(),
+            ..SceneParams::default()
+        };
+        let mut inst = Instrument::new(prepare(&sp, RATE, 0).unwrap(), PlayParams::default());
+        let (mut l, mut r) = (vec![0.0f32; 256], vec![0.0f32; 256]);
+        let keys = [60u8, 64, 67];
+        let on: Vec<TimedEvent> = keys
+            .iter()
+            .map(|&key| TimedEvent {
+                offset: 0,
+                event: Event::NoteOn {
+                    key,
+                    velocity_norm: 0.8,
+                },
+            })
+            .collect();
+        armed(preset, || inst.process(&on, &mut l, &mut r));
+        let mut rng = TestRng(7);
+        for _ in 0..40 {
+            let events: Vec<TimedEvent> = (0..8)
+                .map(|j| TimedEvent {
+                    offset: 32 * j,
+                    event: if rng.below(3) == 0 {
+                        Event::ChannelPressure { value: rng.unit() }
+                    } else {
+                        Event::NotePressure {
+                            key: Some(keys[rng.below(3)]),
+                            value: rng.unit(),
+                        }
+                    },
+                })
+                .collect();
+            armed(preset, || inst.process(&events, &mut l, &mut r));
+        }
+        assert!(inst.active_voices() > 0, "{preset}: the strokes go on");
+    }
+}

@@ -22,7 +22,7 @@ impl EngineState {
         }
         let s = self.time_scale;
         let hammer =
-            s * s * (0.5 * scene.m_h * self.v_h * self.v_h + scene.m_h * scene.g * self.x_h);
+            s * s * (0.5 * scene.m_h * self.v_h * self.v_h + scene.m_h * self.g * self.x_h);
         (e - hammer) * factor * factor + hammer
     }
 
@@ -106,17 +106,20 @@ impl EngineState {
         }
         let st = &self.phases[CONTACT].s;
         let s_f = &mut obs.y[..df];
-        s_f.copy_from_slice(&scene.s_f_star);
+        for (x, s) in s_f.iter_mut().zip(&scene.s_f_star) {
+            *x = s * self.load;
+        }
         let [a, b, c] = &mut self.dense_tmp;
         kernel::hodlr_mat_vec_add(self.simd, h, st, s_f, [a, b, c]);
-        let e_obj = half_norm_sq_energy_coords(&scene.free, s_f, &[], &mut Vec::new());
+        let e_obj = half_norm_sq_energy_coords(&scene.free, s_f, (&[], 0.0), &mut Vec::new());
         let rows = &scene.contact.rows;
-        let pi = dot(&rows.pi, st) + scene.offsets.pi;
-        let eta = dot(&rows.eta, st) + scene.offsets.eta;
-        let x_c = dot(&rows.x_c, st) + scene.offsets.x_c;
+        let off = self.offsets(scene);
+        let pi = dot(&rows.pi, st) + off.pi;
+        let eta = dot(&rows.eta, st) + off.eta;
+        let x_c = dot(&rows.x_c, st) + off.x_c;
         let x_h = self.contact_hammer_height(scene, x_c);
         let s = self.time_scale;
-        s * s * (e_obj + 0.5 * (pi * pi + eta * eta) + scene.m_h * scene.g * x_h)
+        s * s * (e_obj + 0.5 * (pi * pi + eta * eta) + scene.m_h * self.g * x_h)
     }
 
     /// See [`energy`](Self::energy); `y` is grown to the phase's dimension
@@ -126,29 +129,32 @@ impl EngineState {
         if self.in_contact() {
             let ph = &scene.contact;
             let st = &self.phases[CONTACT].s;
-            let e_ref = half_norm_sq_energy_coords(ph, st, &scene.s_star, y);
-            let x_c = dot(&ph.rows.x_c, st) + scene.offsets.x_c;
+            let e_ref = half_norm_sq_energy_coords(ph, st, (&scene.s_star, self.load), y);
+            let x_c = dot(&ph.rows.x_c, st) + self.offsets(scene).x_c;
             let x_h = self.contact_hammer_height(scene, x_c);
-            s * s * (e_ref + scene.m_h * scene.g * x_h)
+            s * s * (e_ref + scene.m_h * self.g * x_h)
         } else {
-            let e_obj = half_norm_sq_energy_coords(&scene.free, &self.phases[FREE].s, &[], y);
+            let e_obj =
+                half_norm_sq_energy_coords(&scene.free, &self.phases[FREE].s, (&[], 0.0), y);
             let v = self.v_h;
-            s * s * (e_obj + 0.5 * scene.m_h * v * v + scene.m_h * scene.g * self.x_h)
+            s * s * (e_obj + 0.5 * scene.m_h * v * v + scene.m_h * self.g * self.x_h)
         }
     }
 }
 
-/// `0.5 |y|^2` for `y = V (s + s_star)` (physical energy coordinates).
+/// `0.5 |y|^2` for `y = V (s + load s_star)` (physical energy
+/// coordinates; `star` is `(s_star, load)`).
 /// Each `y_i` is summed over `j` in ascending order, so the sparse and the
 /// dense products give the same value bit for bit. A sparse `V` costs its
 /// nonzeros; a dense one is applied by columns (contiguous in memory).
 fn half_norm_sq_energy_coords(
     ph: &CompiledPhase,
     s: &[f64],
-    s_star: &[f64],
+    star: (&[f64], f64),
     y: &mut Vec<f64>,
 ) -> f64 {
-    let sj = |j: usize| s[j] + s_star.get(j).copied().unwrap_or(0.0);
+    let (s_star, load) = star;
+    let sj = |j: usize| s[j] + s_star.get(j).map_or(0.0, |x| x * load);
     if let Some(sp) = &ph.v_sparse {
         let mut e = 0.0;
         for i in 0..ph.dim {

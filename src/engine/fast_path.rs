@@ -206,7 +206,7 @@ impl EngineState {
         let herm_units = herm_units(current_phase(self, scene));
         let phi0 = self.cache[0]
             + if in_contact {
-                scene.offsets.pi / scene.sk
+                self.offsets(scene).pi / scene.sk
             } else {
                 self.x_h
             };
@@ -243,7 +243,7 @@ impl EngineState {
         let g = self.g;
         let margin = self.bound;
         let (off, out_off) = if in_contact {
-            (scene.offsets.pi / scene.sk, self.out_c_offset)
+            (self.offsets(scene).pi / scene.sk, self.out_c_offset())
         } else {
             (0.0, [0.0; 2])
         };

@@ -320,7 +320,8 @@ pub struct EngineState {
     /// `SPEC_RESTART` when a sample fails its check, doubled after each
     /// full success (speed only, never results).
     spec_len: usize,
-    /// Constants added to the contact phase's outputs (its equilibrium).
+    /// Constants added to the contact phase's outputs (its equilibrium)
+    /// at load 1 ([`out_c_offset`](Self::out_c_offset) scales them).
     out_c_offset: [f64; 2],
     /// Output band [Hz, physical]: modes of the struck object above it are
     /// left out of the outputs (not of the dynamics). Infinite = all heard.
@@ -336,7 +337,14 @@ pub struct EngineState {
     time_scale: f64,
     /// `s h`.
     step_s: f64,
-    /// The scene's gravity (reference time; physically `g s^2`).
+    /// The constant force on the hammer (its weight and a hand's press)
+    /// as a multiple of the scene's own ([`set_load`](Self::set_load)):
+    /// 1 as compiled. Every quantity the force sets is the scene's times
+    /// this: the hammer's acceleration, the contact phase's equilibrium
+    /// `s_star` and the rows' constants.
+    load: f64,
+    /// The hammer's acceleration: the scene's gravity times `load`
+    /// (reference time; physically `g s^2`).
     g: f64,
     /// Number of contact starts since the last reset (diagnostic).
     pub contacts_started: u64,
@@ -521,6 +529,7 @@ impl EngineState {
             v_h: 0.0,
             time_scale: 1.0,
             step_s: scene.h,
+            load: 1.0,
             g: scene.g,
             contacts_started: 0,
             contacts_replayed: 0,
@@ -578,6 +587,8 @@ impl EngineState {
         self.clock = 0;
         self.rest_run = None;
         self.herm_until = None;
+        self.load = 1.0;
+        self.g = scene.g;
         self.drive_clock = NO_EPOCH;
         self.drive_rate = 0.0;
         self.drive_step = 0.0;
@@ -599,6 +610,30 @@ impl EngineState {
         // and the energy an observed run kept for the next run's first sample
         if let Some(o) = self.obs.as_mut() {
             o.e_next = None;
+        }
+    }
+
+    /// The rows' constants under the current load: the scene's times
+    /// [`load`](Self::set_load) (they are the rows of the force's
+    /// equilibrium, linear in the force; the scene's own bit for bit at
+    /// load 1).
+    #[inline]
+    fn out_c_offset(&self) -> [f64; 2] {
+        self.out_c_offset.map(|x| x * self.load)
+    }
+
+    /// See [`offsets`](Self::offsets): the contact phase's output constants
+    /// under the current load.
+    #[inline]
+    fn offsets(&self, scene: &CompiledScene) -> crate::compile::RowOffsets {
+        let (o, l) = (&scene.offsets, self.load);
+        crate::compile::RowOffsets {
+            x_c: o.x_c * l,
+            v_c: o.v_c * l,
+            disp_l: o.disp_l * l,
+            disp_r: o.disp_r * l,
+            pi: o.pi * l,
+            eta: o.eta * l,
         }
     }
 }

@@ -80,6 +80,7 @@ impl EngineState {
         };
         let in_contact = self.in_contact();
         let ph = scene.phase(self.phase);
+        let off = self.offsets(scene);
         let obs = self
             .obs
             .as_mut()
@@ -106,12 +107,12 @@ impl EngineState {
                 } else {
                     self.brows.ev[j - 1]
                 };
-                let x_c = xc + scene.offsets.x_c;
+                let x_c = xc + off.x_c;
                 Motion {
-                    x_hammer: x_c - (ev + scene.offsets.pi / scene.sk) - self.rod_m,
-                    v_hammer: (eta + scene.offsets.eta) / scene.sm * sc,
+                    x_hammer: x_c - (ev + off.pi / scene.sk) - self.rod_m,
+                    v_hammer: (eta + off.eta) / scene.sm * sc,
                     x_contact: x_c,
-                    v_contact: (vc + scene.offsets.v_c) * sc,
+                    v_contact: (vc + off.v_c) * sc,
                     in_contact: true,
                 }
             } else {
@@ -135,9 +136,9 @@ impl EngineState {
                 let x_h = mj.x_hammer;
                 let v_h = mj.v_hammer / sc;
                 let affine = if in_contact {
-                    scene.m_h * scene.g * x_h
+                    scene.m_h * g * x_h
                 } else {
-                    0.5 * scene.m_h * v_h * v_h + scene.m_h * scene.g * x_h
+                    0.5 * scene.m_h * v_h * v_h + scene.m_h * g * x_h
                 };
                 sc * sc * (stored + affine)
             };
@@ -173,9 +174,10 @@ impl EngineState {
         if self.in_contact() {
             let ph = &scene.contact;
             let st = &self.phases[CONTACT].s;
-            let x_c = dot(&ph.rows.x_c, st) + scene.offsets.x_c;
-            let v_c = dot(&ph.rows.v_c, st) + scene.offsets.v_c;
-            let eta = dot(&ph.rows.eta, st) + scene.offsets.eta;
+            let off = self.offsets(scene);
+            let x_c = dot(&ph.rows.x_c, st) + off.x_c;
+            let v_c = dot(&ph.rows.v_c, st) + off.v_c;
+            let eta = dot(&ph.rows.eta, st) + off.eta;
             Motion {
                 x_hammer: self.contact_hammer_height(scene, x_c),
                 v_hammer: eta / scene.sm * s,
@@ -208,7 +210,8 @@ impl EngineState {
             return p;
         }
         if self.in_contact() {
-            (dot(&scene.contact.rows.pi, &self.phases[CONTACT].s) + scene.offsets.pi) / scene.sk
+            (dot(&scene.contact.rows.pi, &self.phases[CONTACT].s) + self.offsets(scene).pi)
+                / scene.sk
         } else {
             dot(&scene.free.rows.x_c, &self.phases[FREE].s) - self.x_h
         }

@@ -266,8 +266,8 @@ impl EngineState {
         }
         if self.in_contact() {
             [
-                self.cache[1] + self.out_c_offset[0],
-                self.cache[2] + self.out_c_offset[1],
+                self.cache[1] + self.out_c_offset()[0],
+                self.cache[2] + self.out_c_offset()[1],
             ]
         } else {
             [self.cache[1], self.cache[2]]

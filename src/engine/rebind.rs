@@ -36,6 +36,7 @@ impl EngineState {
         if !self.can_rebind(old, new) {
             return false;
         }
+        let load = self.load;
         let (ph_old, ph_new, s, star_old, star_new) = if self.in_contact() {
             (
                 &old.contact,
@@ -58,7 +59,7 @@ impl EngineState {
         for i in 0..dim {
             let mut acc = 0.0;
             for j in 0..dim {
-                acc += ph_old.v[(i, j)] * (s[j] + star_old.get(j).copied().unwrap_or(0.0));
+                acc += ph_old.v[(i, j)] * (s[j] + star_old.get(j).map_or(0.0, |x| x * load));
             }
             self.scratch[i] = acc;
         }
@@ -68,12 +69,12 @@ impl EngineState {
             for j in 0..dim {
                 acc += ph_new.vinv[(i, j)] * self.scratch[j];
             }
-            s[i] = acc - star_new.get(i).copied().unwrap_or(0.0);
+            s[i] = acc - star_new.get(i).map_or(0.0, |x| x * load);
         }
         if self.in_contact() {
             // keep the true penetration p = p_eff + rod: x_h is unchanged
             // only if the spring length is; choose the rod so p_eff' = pi/sk'.
-            let pi = dot(&new.contact.rows.pi, &self.phases[CONTACT].s) + new.offsets.pi;
+            let pi = dot(&new.contact.rows.pi, &self.phases[CONTACT].s) + new.offsets.pi * load;
             let p_true = self.rod_m + old_p_eff(old, pi);
             self.rod_m = p_true - pi / new.sk;
         }

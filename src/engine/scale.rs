@@ -135,7 +135,7 @@ impl EngineState {
             mix_rows(&mut self.phases[FREE].out[ch], &scene.free, ch, s);
         }
         self.apply_band(scene, pre);
-        self.g = scene.g;
+        self.g = scene.g * self.load;
         self.discontinuity();
     }
 

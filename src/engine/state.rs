@@ -86,6 +86,45 @@ impl EngineState {
         self.x_h > reach * (1.0 + 1e-9)
     }
 
+    /// Change the constant force on the hammer (its weight and a hand's
+    /// press, `[hammer] gravity_m_per_s2` and `drive.press_n`) to `load`
+    /// times the scene's, from this sample instant on: the instrument's
+    /// pressure on a driven scene (docs/design.md, "Rolling and scraping").
+    /// The physical state does not move: in flight only the hammer's
+    /// acceleration changes; in contact the state is held about the
+    /// contact phase's equilibrium under the force, `y = V (s + load
+    /// s_star)`, and that equilibrium is linear in the force, so `s` takes
+    /// `(load_old - load) s_star` and every row keeps its value (the
+    /// penetration, the rod, the outputs). A step of the force at an
+    /// instant is as exact as any other sample's motion; what it does to
+    /// the energy is the hand's work. Refused (false, nothing changed) for
+    /// a load that is not finite or is negative. O(N). \[audio-thread\]
+    pub fn set_load(&mut self, scene: &CompiledScene, load: f64) -> bool {
+        if !(load.is_finite() && load >= 0.0) {
+            return false;
+        }
+        self.settle(scene);
+        if load == self.load {
+            return true;
+        }
+        if self.in_contact() {
+            let d = self.load - load;
+            for (x, star) in self.phases[CONTACT].s.iter_mut().zip(&scene.s_star) {
+                *x += d * star;
+            }
+        }
+        self.load = load;
+        self.g = scene.g * load;
+        self.discontinuity();
+        true
+    }
+
+    /// The constant force on the hammer as a multiple of the scene's
+    /// ([`set_load`](Self::set_load); 1 after a reset).
+    pub fn load(&self) -> f64 {
+        self.load
+    }
+
     /// Multiply the free phase's state by `factor` (in `(0, 1]`): added
     /// mass-proportional damping over the samples it stands for (the
     /// instrument's pressure, docs/plugin.md, "Pressure and the mod

@@ -16,7 +16,7 @@ impl EngineState {
             self.refresh_cache(scene);
         }
         if self.in_contact() {
-            self.cache[0] + scene.offsets.pi / scene.sk
+            self.cache[0] + self.offsets(scene).pi / scene.sk
         } else {
             self.cache[0] + self.x_h
         }
@@ -51,16 +51,17 @@ impl EngineState {
         self.rod_m = p;
         let eta = scene.sm * self.v_h;
         let dc = scene.contact.dim;
+        let load = self.load;
         let [free, contact] = &mut self.phases;
         if let Some((sw, d, scale)) = stored {
             // a later contact of a strike from rest, where the compiler
             // found it: the state it stored
             for i in 0..dc {
-                contact.s[i] = scale * (sw.s[i] + d * sw.s_d[i]) - scene.s_star[i];
+                contact.s[i] = scale * (sw.s[i] + d * sw.s_d[i]) - scene.s_star[i] * load;
             }
         } else {
             for i in 0..dc {
-                contact.s[i] = scene.col_eta[i] * eta - scene.s_star[i];
+                contact.s[i] = scene.col_eta[i] * eta - scene.s_star[i] * load;
             }
             if !at_rest {
                 kernel::change_of_basis_add(
@@ -100,22 +101,26 @@ impl EngineState {
         let rows = &scene.contact.rows;
         let [pi, x_c, eta] = dot3([&rows.pi, &rows.x_c, &rows.eta], &self.phases[CONTACT].s);
         // exactly `penetration`'s
-        let p_eff = (pi + scene.offsets.pi) / scene.sk;
-        let x_c = x_c + scene.offsets.x_c;
-        let mut eta = eta + scene.offsets.eta;
+        let off = self.offsets(scene);
+        let p_eff = (pi + off.pi) / scene.sk;
+        let x_c = x_c + off.x_c;
+        let mut eta = eta + off.eta;
         let df = scene.free.dim;
+        let load = self.load;
         let rest = self.rest_next(scene, false);
         let [free, contact] = &mut self.phases;
         if let Some((sw, d, scale)) = rest {
             for i in 0..df {
-                free.s[i] = scene.s_f_star[i] + scale * (sw.s[i] + d * sw.s_d[i]);
+                free.s[i] = scene.s_f_star[i] * load + scale * (sw.s[i] + d * sw.s_d[i]);
             }
             if let Some((e, e_d)) = sw.hammer_eta {
                 // the hammer leaves on the stored trajectory too
                 eta = scale * (e + d * e_d);
             }
         } else {
-            free.s[..df].copy_from_slice(&scene.s_f_star);
+            for (x, s) in free.s[..df].iter_mut().zip(&scene.s_f_star) {
+                *x = s * load;
+            }
             kernel::change_of_basis_add(
                 self.simd,
                 scene.w_fc_h.as_ref().filter(|_| self.structured),

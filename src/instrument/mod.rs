@@ -16,9 +16,9 @@
 //!   speed by `1 / WHEEL_SPEED_RANGE` to [`WHEEL_SPEED_RANGE`], 1 at the
 //!   centre ([`slide_speed_factor`]; in a driven scene it does not change
 //!   the hardness), pressure (the note's or the channel's)
-//!   presses it with up to [`PRESS_RANGE`] times the scene's force
-//!   ([`press_level`], [`press_factor`]: the voice carried to that level's
-//!   compiled scene), note-off stops the surface (docs/design.md,
+//!   presses it with up to [`PRESS_RANGE`] times the scene's force,
+//!   continuously ([`press_factor`]; [`EngineState::set_load`] in O(N) at
+//!   the sample the pressure changes), note-off stops the surface (docs/design.md,
 //!   "Rolling and scraping").
 //! - **Velocity -> impact speed** ([`impact_speed_m_per_s`]):
 //!   `v = 0.05 + 2.95 * vel^2` m/s for `vel` in 0..1 (MIDI velocity / 127), so
@@ -120,10 +120,10 @@ pub use mapping::{
 pub use mix::{WorkMeter, LOOKAHEAD_WORK_FRACTION, MAX_LOOKAHEAD_S, MAX_LOOKAHEAD_SAMPLES};
 pub use prepared::{
     damper_level, hardness_level, position_level, prepare, prepare_scene, prepare_scene_staged,
-    prepare_staged, press_factor, press_level, timbre_level, PrepareError, Prepared, Scenes, Stage,
-    StrikeCost, Variant, DAMPER_STEP, POSITION_STEP, PRESS_LEVELS, PRESS_RANGE, STEP_NS_FIXED,
-    STEP_NS_PER_STATE, STRIKE_BUDGET_FRACTION, STRIKE_NS_FIXED, STRIKE_NS_PER_STATE,
-    STRIKE_NS_PER_SWITCH_FLOP, TIMBRE_LEVEL_MAX, TIMBRE_MAX_STATES, TIMBRE_STIFFNESS_STEP,
+    prepare_staged, press_factor, timbre_level, PrepareError, Prepared, Scenes, Stage, StrikeCost,
+    Variant, DAMPER_STEP, POSITION_STEP, PRESS_RANGE, STEP_NS_FIXED, STEP_NS_PER_STATE,
+    STRIKE_BUDGET_FRACTION, STRIKE_NS_FIXED, STRIKE_NS_PER_STATE, STRIKE_NS_PER_SWITCH_FLOP,
+    TIMBRE_LEVEL_MAX, TIMBRE_MAX_STATES, TIMBRE_STIFFNESS_STEP,
 };
 pub use probe::{VoiceChunk, VoiceProbe};
 

@@ -104,12 +104,6 @@ pub struct Scenes {
     /// `damped`), `Some(None)` where that level's damper is 0 (a released
     /// voice rings on its played scene). On the heap, as `played`.
     damped_at: Vec<Option<Option<CompiledScene>>>,
-    /// A driven scene under a constant force (a hand's `press_n`, a
-    /// ball's weight): the played scene with that force times
-    /// [`press_factor`]`(level)` at `[level - 1]`, levels 1 ..=
-    /// [`PRESS_LEVELS`] (docs/design.md, "Rolling and scraping"); empty for
-    /// any other scene.
-    pressed: Vec<CompiledScene>,
 }
 
 /// A variant of the played scene and whether it steps the free phase in
@@ -146,9 +140,6 @@ pub struct Variant {
     pub pos: i8,
     /// Damper level (once released): the damper plus `damper * DAMPER_STEP`.
     pub damper: i8,
-    /// Press level of a driven scene under a constant force
-    /// ([`press_level`]): the force times [`press_factor`]`(press)`.
-    pub press: i8,
 }
 
 impl Prepared {
@@ -195,28 +186,13 @@ impl Scenes {
                 return d;
             }
         }
-        if v.press > 0 {
-            if let Some(s) = self.pressed.get(v.press as usize - 1) {
-                return s;
-            }
-        }
         self.played_at(v.hard, v.pos).0
     }
 
-    /// The press levels compiled (0: none, the scene is not driven under a
-    /// constant force).
-    pub fn press_levels(&self) -> i8 {
-        self.pressed.len() as i8
-    }
-
     /// Whether the played scenes of `a` and `b` step the free phase in the
-    /// same coordinates (so a voice moves between them in O(N)); never
-    /// across press levels (their contact phases rest elsewhere).
+    /// same coordinates (so a voice moves between them in O(N)).
     pub fn same_free(&self, a: Variant, b: Variant) -> bool {
-        a.press == 0
-            && b.press == 0
-            && self.played_at(a.hard, a.pos).1
-            && self.played_at(b.hard, b.pos).1
+        self.played_at(a.hard, a.pos).1 && self.played_at(b.hard, b.pos).1
     }
 
     /// Whether `v`'s hardness and position levels have a played scene of
@@ -291,65 +267,17 @@ pub const TIMBRE_STIFFNESS_STEP: f64 = 2.0;
 /// in its log and the editor: [`Prepared::timbre_note`]).
 pub const TIMBRE_MAX_STATES: usize = 128;
 
-/// Press levels of a driven scene under a constant force (docs/design.md,
-/// "Rolling and scraping"): a note's pressure picks one of `0 ..=
-/// PRESS_LEVELS` ([`press_level`]).
-pub const PRESS_LEVELS: i8 = 4;
-
 /// The constant force on a driven hammer at full pressure, as a multiple
 /// of the scene's own ([`press_factor`]).
 pub const PRESS_RANGE: f64 = 4.0;
 
-/// The press level of pressure `p` (0 .. 1; not a number is 0):
-/// `round(PRESS_LEVELS p)`. \[any-thread\]
-pub fn press_level(p: f64) -> i8 {
+/// The factor on a driven scene's constant force at pressure `p` (0 .. 1;
+/// not a number is 0): `1 + (PRESS_RANGE - 1) p`, 1 unpressed (the scene as
+/// written) to [`PRESS_RANGE`] at full pressure, continuous (docs/design.md,
+/// "Rolling and scraping"; [`EngineState::set_load`]). \[any-thread\]
+pub fn press_factor(p: f64) -> f64 {
     let p = if p.is_nan() { 0.0 } else { p.clamp(0.0, 1.0) };
-    (f64::from(PRESS_LEVELS) * p).round() as i8
-}
-
-/// The factor on a driven scene's constant force at press level `level`:
-/// `1 + (PRESS_RANGE - 1) level / PRESS_LEVELS` (1 at level 0, the scene as
-/// written; [`PRESS_RANGE`] at full pressure). \[any-thread\]
-pub fn press_factor(level: i8) -> f64 {
-    let l = f64::from(level.clamp(0, PRESS_LEVELS));
-    1.0 + (PRESS_RANGE - 1.0) * l / f64::from(PRESS_LEVELS)
-}
-
-/// The played scene of a driven scene under a constant force at each press
-/// level 1 ..= [`PRESS_LEVELS`] ([`Scenes`]; empty for any other scene):
-/// the hammer's gravity and the hand's `press_n` both times
-/// [`press_factor`], compiled as the played scene is. A level that does not
-/// compile to the played scene's layout ends the list (the levels below it
-/// still play).
-fn pressed_scenes(
-    played: &Scene,
-    scene: &CompiledScene,
-    rate_hz: f64,
-    switching: Switching,
-) -> Result<Vec<CompiledScene>, PrepareError> {
-    let Some(drive) = &played.drive else {
-        return Ok(Vec::new());
-    };
-    if played.hammer.gravity_m_per_s2 <= 0.0 && drive.press_n <= 0.0 {
-        return Ok(Vec::new());
-    }
-    let mut out = Vec::with_capacity(PRESS_LEVELS as usize);
-    for level in 1..=PRESS_LEVELS {
-        cancel::check()?;
-        let f = press_factor(level);
-        let mut s = played.clone();
-        s.hammer.gravity_m_per_s2 *= f;
-        if let Some(d) = &mut s.drive {
-            d.press_n *= f;
-        }
-        match compile_with(&s, rate_hz, Some(switching)) {
-            Ok(c) if c.free.dim == scene.free.dim && c.contact.dim == scene.contact.dim => {
-                out.push(c)
-            }
-            _ => break,
-        }
-    }
-    Ok(out)
+    1.0 + (PRESS_RANGE - 1.0) * p
 }
 
 /// The hardness level of brightness `b` (0 .. 1; not a number is the
@@ -777,14 +705,12 @@ pub fn prepare_scene_staged(
     let (played, played_left_out) = variants.played()?;
     let (damped_at, dampers_left_out) = variants.damped_at();
     let left_out = played_left_out | dampers_left_out;
-    let pressed = pressed_scenes(&played_scene, &scene, rate_hz, switching_used)?;
     cancel::check()?;
     let scenes = Scenes {
         scene,
         damped,
         played,
         damped_at,
-        pressed,
     };
     assemble(
         (base, params, rate_hz, revision),
@@ -1115,7 +1041,6 @@ fn prepare_kit(
         damped: None,
         played: (0..LEVELS * LEVELS).map(|_| None).collect(),
         damped_at: (0..LEVELS).map(|_| None).collect(),
-        pressed: Vec::new(),
     };
     assemble(
         (base, params, rate_hz, revision),

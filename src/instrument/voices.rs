@@ -318,7 +318,7 @@ impl Instrument {
                 std::mem::swap(&mut kit.voices[i].st, &mut kit.spares[f]);
                 // a kit voice fades on the compile it runs on (its note's
                 // levels, or the damped one once released)
-                fade.at = Variant { press: 0, ..v.at };
+                fade.at = v.at;
                 fade.on_damped = v.on_damped;
             }
             None => std::mem::swap(&mut p.states[i], &mut p.spares[f]),
@@ -605,30 +605,21 @@ impl Instrument {
         self.press_decide(i);
     }
 
-    /// Voice `i` of a driven scene under a constant force at the press
-    /// level of its pressure (its note's or the channel's, the larger;
-    /// [`super::press_level`]): carried to that level's scene
-    /// ([`EngineState::rebind`]: the same physical state, in contact too,
-    /// now pressed by the level's force). Released voices keep their
-    /// level. O(N^2) when the level changes, else O(1). \[audio-thread\]
+    /// Voice `i` of a driven scene under a constant force pressed by its
+    /// pressure (its note's or the channel's, the larger): the force times
+    /// [`super::press_factor`], from this sample on
+    /// ([`EngineState::set_load`]: the same physical state, in contact
+    /// too, now under that force). Released voices keep theirs. O(N) when
+    /// the pressure changes, else O(1). \[audio-thread\]
     pub(super) fn press_drive(&mut self, i: usize) {
         let p = &mut *self.cur;
-        let levels = p.scenes.press_levels();
-        let v = &mut self.voices[i];
-        if levels == 0 || !v.active || v.released {
+        let v = &self.voices[i];
+        if !p.bouncing || p.scenes.scene.drive.is_none() || !v.active || v.released {
             return;
         }
-        let level = super::press_level(v.pressure.max(self.channel_pressure)).min(levels);
-        if level == v.at.press {
-            return;
-        }
-        let mut to = v.at;
-        to.press = level;
-        let (from_scene, to_scene) = (p.scenes.bound(v.at, v.on_damped), p.scenes.bound(to, false));
-        if p.states[i].rebind(from_scene, to_scene) {
-            v.at.press = level;
-            v.want.press = level;
-        }
+        let load = super::press_factor(v.pressure.max(self.channel_pressure));
+        let taken = p.states[i].set_load(p.scenes.bound(v.at, v.on_damped), load);
+        debug_assert!(taken, "a press factor is finite and positive");
     }
 
     /// A driven scene's held notes at the mod wheel's speed: each the

@@ -84,7 +84,7 @@ impl EngineState {
             ..HermiteSums::default()
         };
         if in_contact {
-            let off = scene.offsets.pi / scene.sk;
+            let off = self.offsets(scene).pi / scene.sk;
             h.f0 += off;
             h.f1 += off;
             h.mag += off.abs();

@@ -329,9 +329,10 @@ impl EngineState {
         let phase = self.phase;
         let in_contact = phase == Phase::Contact;
         let ph = current_phase(self, scene);
+        let off_pi = self.offsets(scene).pi;
         let sc = &mut self.search;
         sc.c = if in_contact {
-            [scene.offsets.pi / scene.sk, 0.0, 0.0]
+            [off_pi / scene.sk, 0.0, 0.0]
         } else {
             [self.x_h, self.v_h, -self.g]
         };

@@ -19,7 +19,7 @@ impl EngineState {
     pub(super) fn eval_event3(&mut self, scene: &CompiledScene, tau: f64, full: bool) -> [f64; 3] {
         let [mut f, mut d, mut dd] = self.event_sums(scene, tau, full);
         if self.in_contact() {
-            f += scene.offsets.pi / scene.sk;
+            f += self.offsets(scene).pi / scene.sk;
         } else {
             f += self.x_h + self.v_h * tau - 0.5 * self.g * tau * tau;
             d += self.v_h - self.g * tau;
