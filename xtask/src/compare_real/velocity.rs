@@ -10,7 +10,7 @@ use super::analysis::{attack_spectrum, centroid};
 use super::gm::GmSound;
 use super::sf2::SoundFont;
 use super::{render_mono, PresetFile, RecordingKey, Sound, ATTACK_S, RATE_HZ};
-use modal_contact::instrument::impact_speed_m_per_s;
+use modal_contact::instrument::{drive_speed_m_per_s, impact_speed_m_per_s};
 use modal_contact::scene::Scene;
 use rayon::prelude::*;
 use std::fmt::Write as _;
@@ -38,14 +38,19 @@ fn attack_centroid(full: &[f64], band_limit_hz: f64) -> f64 {
 }
 
 /// The attack centroid \[Hz\] of `scene` struck at each of [`VELOCITIES`]
-/// (its `[hammer]` at the instrument's impact speed), side by side.
+/// (its `[hammer]` at the instrument's impact speed; a driven scene's
+/// stroke at the speed the instrument gives that velocity, its hammer as
+/// written), side by side.
 fn render_centroids(scene: &Scene) -> Vec<Result<f64, String>> {
     VELOCITIES
         .par_iter()
         .map(|&v| {
             let mut scene = scene.clone();
             let speed = impact_speed_m_per_s(f64::from(v) / 127.0);
-            scene.hammer.velocity_m_per_s = -speed;
+            match &mut scene.drive {
+                Some(d) => d.speed_m_per_s = drive_speed_m_per_s(d.speed_m_per_s, speed),
+                None => scene.hammer.velocity_m_per_s = -speed,
+            }
             render_mono(&scene, RENDER_S)
                 .map(|x| attack_centroid(&x, 0.5 * RATE_HZ))
                 .map_err(|e| format!("{e:#}"))
