@@ -71,6 +71,7 @@ pub const PRESETS: &[Preset] = &[
     preset!("glockenspiel-recorded", "Glockenspiel (from a recording)"),
     preset!("marimba-recorded", "Marimba (from a recording)"),
     preset!("timpani-recorded", "Timpani (from a recording)"),
+    preset!("guiro-recorded", "Guiro (from a recording)"),
 ];
 
 /// How many presets there are.
