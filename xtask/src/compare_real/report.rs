@@ -484,16 +484,25 @@ pub(super) fn write_preset_plots(
         ),
         &spec_svg,
     )?;
-    plots::decays(
-        &c.decays.0,
-        &c.decays.1,
-        &format!("{} against {}: T60 per partial", c.stem, c.sound.name()),
-        &t60_svg,
-    )?;
-    let _ = writeln!(
-        body,
-        "![{0} spectra](compare-real/{0}-spectrum.svg)\n![{0} T60](compare-real/{0}-t60.svg)\n",
-        c.stem
-    );
+    if c.strokes.is_some() {
+        // a stroke has no partials ringing down: no T60 plot
+        let _ = writeln!(
+            body,
+            "![{0} spectra](compare-real/{0}-spectrum.svg)\n",
+            c.stem
+        );
+    } else {
+        plots::decays(
+            &c.decays.0,
+            &c.decays.1,
+            &format!("{} against {}: T60 per partial", c.stem, c.sound.name()),
+            &t60_svg,
+        )?;
+        let _ = writeln!(
+            body,
+            "![{0} spectra](compare-real/{0}-spectrum.svg)\n![{0} T60](compare-real/{0}-t60.svg)\n",
+            c.stem
+        );
+    }
     write_pair(wav_dir, &c.stem, &c.signals.0, &c.signals.1)
 }
