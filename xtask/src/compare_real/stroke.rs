@@ -54,59 +54,53 @@ pub(super) fn stroke(x: &[f64], rate_hz: f64) -> Stroke {
             clicks: None,
         };
     };
-    let sounding_s = (last + 1 - first) as f64 * FRAME_S;
     let hop = (ENVELOPE_S * rate_hz).round() as usize;
     let per = (FRAME_S / ENVELOPE_S).round() as usize;
     let mut env = rms_frames(x, hop);
     env.truncate((last + 1) * per);
     let start = (first * per).min(env.len());
-    let env = &mut env[start..];
+    Stroke {
+        sounding_s: (last + 1 - first) as f64 * FRAME_S,
+        clicks: click_rate(&mut env[start..], hop as f64 / rate_hz),
+    }
+}
+
+/// Clicks a second and their correlation from an RMS envelope in frames
+/// of `frame_s` (see [`Stroke::clicks`]); the envelope's mean is removed
+/// in place.
+fn click_rate(env: &mut [f64], frame_s: f64) -> Option<(f64, f64)> {
     let mean = env.iter().sum::<f64>() / env.len().max(1) as f64;
     env.iter_mut().for_each(|e| *e -= mean);
-    let env = &*env;
-    let ac = |lag: usize| -> f64 { env.iter().zip(&env[lag..]).map(|(a, b)| a * b).sum() };
-    let a0 = ac(0);
     let (lo, hi) = (
         (PERIODS_S.0 / ENVELOPE_S).floor() as usize,
         (PERIODS_S.1 / ENVELOPE_S).ceil() as usize,
     );
-    if a0 <= 0.0 || env.len() < 2 * hi {
-        return Stroke {
-            sounding_s,
-            clicks: None,
-        };
+    if env.len() < 2 * hi {
+        return None;
+    }
+    let ac: Vec<f64> = (0..=hi + 1)
+        .map(|lag| env.iter().zip(&env[lag..]).map(|(a, b)| a * b).sum())
+        .collect();
+    if ac[0] <= 0.0 {
+        return None;
     }
     // the largest peak (a lag whose correlation exceeds both neighbours'),
     // not the slope down from lag 0 that a smooth envelope has
-    let peak = (lo..=hi)
-        .map(|l| (l, ac(l)))
-        .filter(|&(l, a)| a > ac(l - 1) && a >= ac(l + 1))
-        .max_by(|a, b| a.1.total_cmp(&b.1));
-    let Some((best, a)) = peak else {
-        return Stroke {
-            sounding_s,
-            clicks: None,
-        };
-    };
-    let r = a / a0;
+    let best = (lo..=hi)
+        .filter(|&l| ac[l] > ac[l - 1] && ac[l] >= ac[l + 1])
+        .max_by(|&a, &b| ac[a].total_cmp(&ac[b]))?;
+    let r = ac[best] / ac[0];
     if r <= 0.0 {
-        return Stroke {
-            sounding_s,
-            clicks: None,
-        };
+        return None;
     }
-    let (ym, y0, yp) = (ac(best - 1), ac(best), ac(best + 1));
+    let (ym, y0, yp) = (ac[best - 1], ac[best], ac[best + 1]);
     let den = ym - 2.0 * y0 + yp;
     let shift = if den < 0.0 {
         (0.5 * (ym - yp) / den).clamp(-0.5, 0.5)
     } else {
         0.0
     };
-    let period_s = (best as f64 + shift) * hop as f64 / rate_hz;
-    Stroke {
-        sounding_s,
-        clicks: Some((1.0 / period_s, r)),
-    }
+    Some((1.0 / ((best as f64 + shift) * frame_s), r))
 }
 
 #[cfg(test)]
