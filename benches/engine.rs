@@ -558,18 +558,15 @@ fn summary_event_search() {
     }
 }
 
-/// The paper's two presets and the three driven ones (a ball rolling on
-/// a plate, a marble on a board, a guiro scraped: the surface read and
-/// its affine input every sample) rendered whole, against real time, and
-/// per sample.
+/// The paper's two presets and every driven one (a ball rolling, a
+/// guiro scraped, a brush drawn: the surface read and its affine input
+/// every sample) rendered whole, against real time, and per sample.
 fn summary_renders() {
-    for name in [
-        "paper-bounce",
-        "paper-string",
-        "ball-on-plate",
-        "marble-on-board",
-        "guiro",
-    ] {
+    let driven = modal_contact::presets::PRESETS
+        .iter()
+        .map(|p| p.name)
+        .filter(|&n| preset(n).drive.is_some());
+    for name in ["paper-bounce", "paper-string"].into_iter().chain(driven) {
         let scene = preset(name);
         let sc = compile_with(&scene, RATE, None).unwrap();
         let secs = scene.duration_s;

@@ -72,6 +72,7 @@ pub const PRESETS: &[Preset] = &[
     preset!("marimba-recorded", "Marimba (from a recording)"),
     preset!("timpani-recorded", "Timpani (from a recording)"),
     preset!("guiro-recorded", "Guiro (from a recording)"),
+    preset!("snare-brush", "Snare head, brushed"),
 ];
 
 /// How many presets there are.

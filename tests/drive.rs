@@ -253,6 +253,41 @@ fn damped_driven_energy_never_exceeds_the_work() {
     }
 }
 
+/// Every driven preset keeps the ledger: `E - W` never rises (its modes
+/// and contacts are damped), over its stroke at the scene's speed and
+/// over one slowed, stopped and reversed by a player's hand pressing
+/// harder and lighter.
+#[test]
+fn every_driven_preset_keeps_its_ledger() {
+    let mut driven = 0;
+    for p in modal_contact::presets::PRESETS {
+        let scene = modal_testkit::scenes::preset(p.name);
+        let Some(d) = scene.drive.as_ref() else {
+            continue;
+        };
+        driven += 1;
+        let v = d.speed_m_per_s;
+        let played = |i: usize| v * stroke(i) / 0.4;
+        for (what, speed, load) in [
+            (
+                "its stroke",
+                &(|_| v) as &dyn Fn(usize) -> f64,
+                &(|_| 1.0) as &dyn Fn(usize) -> f64,
+            ),
+            ("played", &played, &pressing),
+        ] {
+            let (_, rise, contacts, scale) = ledger(&scene, 0.3, speed, load);
+            println!(
+                "{} ({what}): largest rise of E - W {rise:.2e} of {scale:.2e} J, {contacts} contacts",
+                p.name
+            );
+            assert!(contacts >= 1, "{}: {contacts}", p.name);
+            assert!(rise < 1e-10, "{} ({what}): {rise:e}", p.name);
+        }
+    }
+    assert!(driven >= 5, "{driven} driven presets");
+}
+
 /// A driven render is the same in any blocks and in the tick path, and a
 /// standing surface (speed 0) is the struck scene bit for bit.
 #[test]
@@ -599,13 +634,19 @@ fn random_driven_scene(rng: &mut modal_contact::test_rng::TestRng) -> Scene {
     scene
 }
 
-/// A driven preset renders the same samples on every path: the block
+/// Every driven preset renders the same samples on every path: the block
 /// path, the tick path, and the block path that observes the motion and
 /// the energy (what a trace runs), bit for bit.
 #[test]
 fn driven_presets_render_the_same_on_every_path() {
-    for name in ["guiro", "ball-on-plate", "marble-on-board"] {
+    let mut driven = 0;
+    for p in modal_contact::presets::PRESETS {
+        let name = p.name;
         let scene = modal_testkit::scenes::preset(name);
+        if scene.drive.is_none() {
+            continue;
+        }
+        driven += 1;
         let sc = compile_one(&scene, 44100.0).unwrap();
         let n = 20000;
         let mut a = EngineState::new(&sc);
@@ -628,6 +669,7 @@ fn driven_presets_render_the_same_on_every_path() {
         assert_eq!(first(&ticks), None, "{name}");
         assert_eq!(first(&lt), None, "{name}");
     }
+    assert!(driven >= 5, "{driven} driven presets");
 }
 
 /// A driven scene's trace (docs/design.md, "Rolling and scraping") ends

@@ -242,6 +242,7 @@ fn pressing_a_driven_stroke_allocates_nothing() {
         "guiro",
         "marble-on-board",
         "guiro-recorded",
+        "snare-brush",
     ] {
         let sp = SceneParams {
             preset: presets::index_of(preset).unwrap(),

@@ -102,7 +102,7 @@ fn db(x: f64) -> f64 {
 /// drums, kits, driven scenes and the scenes made from recordings; the piano string, the paper string, the vibraphone
 /// and the tubular chime are damped on release, as every scene was
 /// before scenes said it.
-const DAMPERS: [(&str, f64); 23] = [
+const DAMPERS: [(&str, f64); 24] = [
     ("bell", 0.0),
     ("glockenspiel-bar", 0.0),
     ("marimba-bar", 0.0),
@@ -126,6 +126,7 @@ const DAMPERS: [(&str, f64); 23] = [
     ("marimba-recorded", 0.0),
     ("timpani-recorded", 0.0),
     ("guiro-recorded", 0.0),
+    ("snare-brush", 0.0),
 ];
 
 #[test]

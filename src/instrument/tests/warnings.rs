@@ -39,7 +39,8 @@ fn presets_need_no_realtime_warning_at_any_hardness() {
 /// blocks, and at 32 samples only the 50-mass paper string, the frame
 /// drum (37 coupled membrane modes), the two rolling balls (47 and 46
 /// plate modes, each coupled to the ball) and the scenes made from
-/// recordings (up to 40 modes; the guiro's scraped one by a stick) do (a 16-note
+/// recordings (up to 40 modes; the guiro's scraped one by a stick) and the brushed
+/// snare head (39 membrane modes) do (a 16-note
 /// chord on a 50-mode object takes about 70 % of such a block, measured by
 /// `cargo bench --bench worst_block`); a 400-mode object warns at 64-sample
 /// blocks (a 16-note chord would take several blocks' worth of CPU), and a
@@ -81,7 +82,8 @@ fn strike_warning_names_what_fits_at_the_hosts_block_size() {
             "glockenspiel-recorded",
             "marimba-recorded",
             "timpani-recorded",
-            "guiro-recorded"
+            "guiro-recorded",
+            "snare-brush"
         ]
     );
     let mut big = modal_base("marimba-bar");

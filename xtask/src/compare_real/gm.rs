@@ -1,7 +1,9 @@
 //! The General MIDI names a preset's `real_instrument` key may give: the 128
 //! program names of General MIDI Level 1 (bank 0) and the GM1 percussion
 //! key names of channel 10 (keys 35 to 81, a soundfont's bank 128), as the
-//! MIDI Manufacturers Association's GM1 sound set lists them.
+//! MIDI Manufacturers Association's GM1 sound set lists them; and the three
+//! brush sounds of the Roland GS brush kit (bank 128 program 40), which
+//! General MIDI Level 1 has no name for.
 
 /// The GM1 program names, program 0 (MIDI program change 1) first.
 pub const PROGRAMS: [&str; 128] = [
@@ -189,6 +191,13 @@ pub const DRUMS: [&str; 47] = [
     "Open Triangle",
 ];
 
+/// The GS brush kit's program in bank 128.
+pub const BRUSH_KIT: u16 = 40;
+
+/// The GS brush kit's own sounds and their keys (the rest of that kit is
+/// the standard kit's).
+pub const BRUSHES: [(u8, &str); 3] = [(38, "Brush Tap"), (39, "Brush Slap"), (40, "Brush Swirl")];
+
 /// A General MIDI sound: a melodic program or a percussion key.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum GmSound {
@@ -197,6 +206,9 @@ pub enum GmSound {
     /// Percussion key 35-81 of the drum kit (bank 128, program 0),
     /// always played at that key.
     Drum(u8),
+    /// One of [`BRUSHES`]: a key of the GS brush kit (bank 128, program
+    /// [`BRUSH_KIT`]), always played at that key.
+    Brush(u8),
 }
 
 /// A name compared loosely: case-insensitive, `-` and runs of spaces
@@ -217,10 +229,13 @@ impl GmSound {
         if let Some(p) = PROGRAMS.iter().position(|p| loose(p) == n) {
             return Some(Self::Program(p as u8));
         }
-        DRUMS
+        if let Some(k) = DRUMS.iter().position(|d| loose(d) == n) {
+            return Some(Self::Drum(FIRST_DRUM_KEY + k as u8));
+        }
+        BRUSHES
             .iter()
-            .position(|d| loose(d) == n)
-            .map(|k| Self::Drum(FIRST_DRUM_KEY + k as u8))
+            .find(|(_, b)| loose(b) == n)
+            .map(|&(k, _)| Self::Brush(k))
     }
 
     /// Its General MIDI name.
@@ -228,20 +243,26 @@ impl GmSound {
         match self {
             Self::Program(p) => PROGRAMS[p as usize],
             Self::Drum(k) => DRUMS[(k - FIRST_DRUM_KEY) as usize],
+            Self::Brush(k) => BRUSHES
+                .iter()
+                .find(|(key, _)| *key == k)
+                .map_or("Brush", |(_, n)| n),
         }
     }
 
     /// Whether it is a percussion key (played at its key, never transposed).
     pub fn is_drum(self) -> bool {
-        matches!(self, Self::Drum(_))
+        matches!(self, Self::Drum(_) | Self::Brush(_))
     }
 
     /// The soundfont bank and program that hold it (GM: programs in bank
-    /// 0, the standard drum kit in bank 128 program 0).
+    /// 0, the standard drum kit in bank 128 program 0, GS's brush kit in
+    /// bank 128 program 40).
     pub fn bank_program(self) -> (u16, u16) {
         match self {
             Self::Program(p) => (0, u16::from(p)),
             Self::Drum(_) => (128, 0),
+            Self::Brush(_) => (128, BRUSH_KIT),
         }
     }
 
@@ -249,7 +270,7 @@ impl GmSound {
     pub fn key_for(self, key: u8) -> u8 {
         match self {
             Self::Program(_) => key,
-            Self::Drum(k) => k,
+            Self::Drum(k) | Self::Brush(k) => k,
         }
     }
 
@@ -258,6 +279,7 @@ impl GmSound {
         match self {
             Self::Program(p) => format!("{} (program {})", self.name(), p),
             Self::Drum(k) => format!("{} (kit key {})", self.name(), k),
+            Self::Brush(k) => format!("{} (brush kit key {})", self.name(), k),
         }
     }
 }
@@ -284,5 +306,16 @@ mod tests {
         assert_eq!(GmSound::parse("MARIMBA"), Some(GmSound::Program(12)));
         assert_eq!(GmSound::parse("closed hi-hat"), Some(GmSound::Drum(42)));
         assert_eq!(GmSound::parse("Marimbaphone"), None);
+        for (k, name) in BRUSHES {
+            let s = GmSound::parse(name).expect("a brush");
+            assert_eq!((s, s.name(), s.key_for(60)), (GmSound::Brush(k), name, k));
+            assert_eq!(s.bank_program(), (128, BRUSH_KIT));
+            assert!(s.is_drum());
+            assert!(!PROGRAMS
+                .iter()
+                .chain(&DRUMS)
+                .any(|p| loose(p) == loose(name)));
+        }
+        assert_eq!(GmSound::parse("brush swirl"), Some(GmSound::Brush(40)));
     }
 }

@@ -207,8 +207,9 @@ pub const OTHER_KITS: [u16; 5] = [8, 16, 32, 40, 48];
 /// pitched instrument the samples of the nearest other key range of the
 /// same preset, played at `key` (transposed at most an octave,
 /// [`MAX_TRANSPOSE_CENTS`]); for a percussion key the same key of the
-/// first other kit ([`OTHER_KITS`]) whose samples differ. `None` when the
-/// soundfont has no such recording.
+/// first other kit ([`OTHER_KITS`]) whose samples differ (a brush kit's
+/// own sounds have no other kit). `None` when the soundfont has no such
+/// recording.
 fn another_recording(sf: &SoundFont, s: GmSound, key: u8) -> Option<KeyRegion> {
     let (bank, program) = s.bank_program();
     let key = s.key_for(key);
@@ -216,6 +217,9 @@ fn another_recording(sf: &SoundFont, s: GmSound, key: u8) -> Option<KeyRegion> {
     let names = |r: &KeyRegion| -> Vec<String> { r.zones.iter().map(|z| z.name.clone()).collect() };
     let own_names = names(&own);
     let differs = |r: &KeyRegion| names(r).iter().all(|n| !own_names.contains(n));
+    if let GmSound::Brush(_) = s {
+        return None;
+    }
     if s.is_drum() {
         return OTHER_KITS.iter().find_map(|&kit| {
             sf.key_region(bank, kit, key, VELOCITY)
