@@ -110,6 +110,7 @@ pub mod distance;
 mod error;
 mod esprit;
 mod input;
+mod refine;
 mod scene;
 mod select;
 #[cfg(test)]

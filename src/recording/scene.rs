@@ -61,7 +61,11 @@
 //! microphone's distance, a room, a trimmed sample) and a soft mallet,
 //! whose slow pulse the modes' own swing hides. The weights divide by
 //! `|F(f_i)|` down to -40 dB, no further. The stiffness is
-//! `m_eff (pi / tau)^2`; the contact has no damping.
+//! `m_eff (pi / tau)^2`. The contact's damping ratio is then fitted the
+//! same way ([`DAMPING_RATIOS`], then finer steps around the best), and
+//! the weights are corrected by the amplitudes the written scene's
+//! render plays (`corrected_weights`), while that brings the render
+//! nearer the recording.
 
 use super::distance::{band_levels, third_octave_distance, welch};
 use super::{Analysis, RecordingError};
@@ -130,6 +134,10 @@ pub struct MalletEstimate {
     pub contact_s: f64,
     /// The contact stiffness \[N/m\].
     pub stiffness_n_per_m: f64,
+    /// The contact's damping ratio (of the mallet in series with the
+    /// point mass on the stiffness), fitted against renders after the
+    /// contact time: none, or from 0.02 to 0.5 and between.
+    pub damping_ratio: f64,
     /// The chosen scene's render: its 1/3-octave distance to the recording
     /// over the first [`FIT_S`] \[dB\].
     pub render_db: f64,
@@ -138,6 +146,10 @@ pub struct MalletEstimate {
     pub first_db: f64,
     /// The renders the fit compared.
     pub renders: usize,
+    /// Rounds of the weights' correction by the amplitudes a render
+    /// plays (kept only while each brought the render nearer the
+    /// recording); 0: the weights of the half-sine pulse.
+    pub weight_rounds: usize,
 }
 
 /// The normalised spectrum `|F(f)| / J` of a half-sine force pulse of
@@ -205,15 +217,23 @@ fn mallet(a: &Analysis, recording: &[f64], mass_kg: f64) -> MalletEstimate {
         first_s,
         contact_s: first_s,
         stiffness_n_per_m: 0.0,
+        damping_ratio: 0.0,
         render_db: f64::NAN,
         first_db: f64::NAN,
         renders: 0,
+        weight_rounds: 0,
     };
     m.set_contact(first_s);
     m
 }
 
 impl MalletEstimate {
+    /// The contact's damping \[N s/m\]: `2 zeta sqrt(k m_eff)`.
+    pub fn damping_n_s_per_m(&self) -> f64 {
+        let m_eff = self.mass_kg * POINT_MASS_RATIO / (1.0 + POINT_MASS_RATIO);
+        2.0 * self.damping_ratio * (self.stiffness_n_per_m * m_eff).sqrt()
+    }
+
     /// Contact for `tau` seconds: the stiffness of a half-sine pulse of
     /// that duration on the mallet in series with the point mass.
     fn set_contact(&mut self, tau: f64) {
@@ -278,6 +298,77 @@ fn render_distance(
     ))
 }
 
+/// The contact's damping ratios tried after the contact time (besides
+/// none): a felt or yarn head, a soft rubber one, is lossy.
+pub(super) const DAMPING_RATIOS: [f64; 6] = [0.02, 0.05, 0.1, 0.2, 0.3, 0.5];
+
+/// The most rounds of the weights' correction.
+const WEIGHT_ROUNDS: usize = 4;
+
+/// The largest factor one round changes a weight's square by (either
+/// way): a mode the render barely plays (near a zero of the contact's
+/// spectrum) is raised step by step, each step kept only if the render
+/// comes nearer the recording.
+const WEIGHT_STEP: f64 = 10.0;
+
+/// The longest stretch of a render the amplitudes are fitted on \[s\].
+const WEIGHT_FIT_S: f64 = 2.0;
+
+/// The weights corrected by what the contact really does: the render of
+/// the scene with `raw` is measured ([`super::refine::amplitudes`], over
+/// the span the analysis fitted, from the same offset after the onset),
+/// each `raw_i` is multiplied by the recording's amplitude of mode `i`
+/// over the render's, and the scene is kept while its render's distance
+/// to the recording falls (`m.render_db`, updated). A render plays mode
+/// `i` at `(sqrt 2 / J) raw_i |F(f_i)|` whatever the other weights (the
+/// normalisation to the point mass cancels in the gain), so one round
+/// corrects the pulse's spectrum up to the change the new weights make to
+/// the contact; the rounds stop at [`WEIGHT_ROUNDS`].
+fn corrected_weights(
+    a: &Analysis,
+    recording: &[f64],
+    name: &str,
+    m: &mut MalletEstimate,
+    signs: &[f64],
+    mut raw: Vec<f64>,
+) -> Result<Vec<f64>, RecordingError> {
+    let settle = a.span.0.saturating_sub(a.onset);
+    let fit_len = (a.span.1.saturating_sub(a.span.0)).min((WEIGHT_FIT_S * a.rate_hz) as usize);
+    let seconds = ((settle + fit_len) as f64 / a.rate_hz).max(FIT_S) + 0.1;
+    let mut text = scene_for(a, recording.len(), name, m, (&raw, signs))?;
+    let mut best = (raw.clone(), m.render_db, 0);
+    for round in 1..=WEIGHT_ROUNDS {
+        let copy = render_from_onset(&text, a.rate_hz, seconds)?;
+        let Some(played) =
+            super::refine::amplitudes(&copy, a.rate_hz, &a.modes, (settle, settle + fit_len))
+        else {
+            break;
+        };
+        raw = raw
+            .iter()
+            .zip(&played)
+            .zip(&a.modes)
+            .map(|((r, p), md)| {
+                let ratio = if *p > 0.0 {
+                    md.amplitude / p
+                } else {
+                    WEIGHT_STEP
+                };
+                r * ratio.clamp(1.0 / WEIGHT_STEP, WEIGHT_STEP)
+            })
+            .collect();
+        text = scene_for(a, recording.len(), name, m, (&raw, signs))?;
+        let d = render_distance(&text, recording, a.onset, a.rate_hz)?;
+        m.renders += 2;
+        if d < best.1 {
+            best = (raw.clone(), d, round);
+        }
+    }
+    m.render_db = best.1;
+    m.weight_rounds = best.2;
+    Ok(best.0)
+}
+
 /// The scene file (TOML) of the object in `a`, analysed from `recording`,
 /// named `name`, struck by a mallet of `mass_kg`; checked by parsing it
 /// and compiling it at the recording's rate. Returns the text and the
@@ -303,7 +394,7 @@ pub fn object_scene(
             return Ok(d);
         }
         m.set_contact(tau);
-        let text = scene_for(a, recording.len(), name, m, &signs)?;
+        let text = scene_for(a, recording.len(), name, m, (&pulse_raw(a, m), &signs))?;
         let d = render_distance(&text, recording, a.onset, a.rate_hz)?;
         tried.push((tau, d));
         Ok(d)
@@ -333,11 +424,37 @@ pub fn object_scene(
             }
         }
     }
-    let renders = tried.len();
+    let mut renders = tried.len();
     m.set_contact(best.0);
     m.render_db = best.1;
+    // the damping ratio: the grid, then a quarter and an eighth octave
+    // either side of its best (none stays if nothing beats it)
+    let mut try_zeta = |m: &mut MalletEstimate, zeta: f64| -> Result<(), RecordingError> {
+        let mut c = m.clone();
+        c.damping_ratio = zeta;
+        let text = scene_for(a, recording.len(), name, &c, (&pulse_raw(a, &c), &signs))?;
+        let d = render_distance(&text, recording, a.onset, a.rate_hz)?;
+        renders += 1;
+        if d < m.render_db {
+            m.damping_ratio = zeta;
+            m.render_db = d;
+        }
+        Ok(())
+    };
+    for zeta in DAMPING_RATIOS {
+        try_zeta(&mut m, zeta)?;
+    }
+    for step in [2f64.powf(0.25), 2f64.powf(0.125)] {
+        let centre = m.damping_ratio;
+        if centre > 0.0 {
+            try_zeta(&mut m, centre / step)?;
+            try_zeta(&mut m, centre * step)?;
+        }
+    }
     m.renders = renders;
-    let text = scene_for(a, recording.len(), name, &m, &signs)?;
+    let first_raw = pulse_raw(a, &m);
+    let raw = corrected_weights(a, recording, name, &mut m, &signs, first_raw)?;
+    let text = scene_for(a, recording.len(), name, &m, (&raw, &signs))?;
     let scene = Scene::from_toml_str(&text)
         .map_err(|e| RecordingError::Scene(format!("the scene written does not load: {e}")))?;
     compile_one(&scene, a.rate_hz)
@@ -345,22 +462,26 @@ pub fn object_scene(
     Ok((text, m))
 }
 
-/// The scene text for the mallet `m`: the weights from the amplitudes
-/// over `m`'s pulse spectrum, scaled to the point mass, and the gain
-/// that plays the modes at the recording's level.
+/// The weights' squares up to a common scale for `m`'s pulse: each
+/// mode's amplitude over the half-sine pulse's spectrum at its frequency.
+fn pulse_raw(a: &Analysis, m: &MalletEstimate) -> Vec<f64> {
+    a.modes
+        .iter()
+        .map(|x| x.amplitude / half_sine_spectrum(x.freq_hz, m.contact_s).max(MIN_SPECTRUM))
+        .collect()
+}
+
+/// The scene text for the mallet `m` and the weights' squares `raw` (up
+/// to a common scale): scaled to the point mass, and the gain that plays
+/// the modes at the recording's level.
 fn scene_for(
     a: &Analysis,
     len: usize,
     name: &str,
     m: &MalletEstimate,
-    signs: &[f64],
+    (raw, signs): (&[f64], &[f64]),
 ) -> Result<String, RecordingError> {
-    // w_i^2 = s A_i / |F(f_i)|, with sum w_i^2 = 1 / (POINT_MASS_RATIO m).
-    let raw: Vec<f64> = a
-        .modes
-        .iter()
-        .map(|x| x.amplitude / half_sine_spectrum(x.freq_hz, m.contact_s).max(MIN_SPECTRUM))
-        .collect();
+    // w_i^2 = s raw_i, with sum w_i^2 = 1 / (POINT_MASS_RATIO m).
     let total: f64 = raw.iter().sum();
     if !(total > 0.0 && total.is_finite()) {
         return Err(RecordingError::NoModes("no mode has an amplitude".into()));
@@ -372,7 +493,7 @@ fn scene_for(
     // 1/sqrt(2) per channel; w_i^2 |F_i| = s A_i (above MIN_SPECTRUM).
     let impulse = 2.0 * m_eff * STRIKE_M_PER_S;
     let gain = std::f64::consts::SQRT_2 / (impulse * s);
-    Ok(scene_text(a, name, m, (&raw, signs), s, gain, len))
+    Ok(scene_text(a, name, m, (raw, signs), s, gain, len))
 }
 
 /// The sign of each mode's product of weights (contact times pickup),
@@ -430,17 +551,30 @@ fn scene_text(
     let _ = writeln!(
         t,
         "# An object analysed from a recording: {} modes (ESPRIT on sub-bands).\n\
-         # Contact and pickup at one point: the weights are sqrt(amplitude / pulse spectrum),\n\
+         # Contact and pickup at one point: the weights are sqrt(amplitude / pulse spectrum){},\n\
          # scaled so the object's mass at that point is {POINT_MASS_RATIO} times the mallet's.\n\
-         # Mallet: {:.0} g, contact {:.3} ms (fitted against renders from {:.3} ms; the onset's slope gives {:.3} ms, highest strong mode {:.0} Hz).\n\
+         # Mallet: {:.0} g, contact {:.3} ms (fitted against renders from {:.3} ms; the onset's slope gives {:.3} ms, highest strong mode {:.0} Hz){}.\n\
          version = 1\nname = \"{name}\"\nduration_s = {duration:.3}\n\n\
          [[object]]\nname = \"object\"\nkind = \"modal\"\npoints = [\"contact\", \"pickup\"]\n",
         a.modes.len(),
+        if m.weight_rounds > 0 {
+            format!(
+                " corrected by {} round(s) of the amplitudes renders play",
+                m.weight_rounds
+            )
+        } else {
+            String::new()
+        },
         1e3 * m.mass_kg,
         1e3 * m.contact_s,
         1e3 * m.first_s,
         1e3 * m.rise_s,
-        m.top_mode_hz
+        m.top_mode_hz,
+        if m.damping_ratio > 0.0 {
+            format!(", damping ratio {:.3}", m.damping_ratio)
+        } else {
+            String::new()
+        }
     );
     for ((x, r), sign) in a.modes.iter().zip(raw).zip(signs) {
         let w = (s * r).sqrt();
@@ -456,9 +590,12 @@ fn scene_text(
         t,
         "[hammer]\nmass_kg = {}\nheight_m = 0.0001\nvelocity_m_per_s = {}\n\n\
          [contact]\nobject = \"object\"\npoint = \"contact\"\nstiffness_n_per_m = {}\n\
-         damping_n_s_per_m = 0.0\n\n\
+         damping_n_s_per_m = {:?}\n\n\
          [[pickup]]\nobject = \"object\"\npoint = \"pickup\"\nquantity = \"velocity\"\ngain = {gain}",
-        m.mass_kg, -STRIKE_M_PER_S, m.stiffness_n_per_m
+        m.mass_kg,
+        -STRIKE_M_PER_S,
+        m.stiffness_n_per_m,
+        m.damping_n_s_per_m()
     );
     t
 }

@@ -174,14 +174,17 @@ pub fn run(a: &AnalyzeArgs) -> Result<()> {
     let mallet = &f.mallet;
     println!(
         "mallet: {:.0} g, contact {:.3} ms (fitted against {} renders from {:.3} ms; onset slope {:.3} ms, \
-         highest strong mode {:.0} Hz), stiffness {:.4e} N/m",
+         highest strong mode {:.0} Hz), stiffness {:.4e} N/m, damping ratio {:.3}, weights corrected \
+         in {} round(s)",
         1e3 * mallet.mass_kg,
         1e3 * mallet.contact_s,
         mallet.renders,
         1e3 * mallet.first_s,
         1e3 * mallet.rise_s,
         mallet.top_mode_hz,
-        mallet.stiffness_n_per_m
+        mallet.stiffness_n_per_m,
+        mallet.damping_ratio,
+        mallet.weight_rounds
     );
     println!("wrote {}", a.out.display());
     Ok(())
