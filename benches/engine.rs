@@ -562,10 +562,7 @@ fn summary_event_search() {
 /// guiro scraped, a brush drawn: the surface read and its affine input
 /// every sample) rendered whole, against real time, and per sample.
 fn summary_renders() {
-    let driven = modal_contact::presets::PRESETS
-        .iter()
-        .map(|p| p.name)
-        .filter(|&n| preset(n).drive.is_some());
+    let driven = modal_testkit::scenes::driven_presets();
     for name in ["paper-bounce", "paper-string"].into_iter().chain(driven) {
         let scene = preset(name);
         let sc = compile_with(&scene, RATE, None).unwrap();

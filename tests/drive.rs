@@ -259,14 +259,11 @@ fn damped_driven_energy_never_exceeds_the_work() {
 /// harder and lighter.
 #[test]
 fn every_driven_preset_keeps_its_ledger() {
-    let mut driven = 0;
-    for p in modal_contact::presets::PRESETS {
-        let scene = modal_testkit::scenes::preset(p.name);
-        let Some(d) = scene.drive.as_ref() else {
-            continue;
-        };
-        driven += 1;
-        let v = d.speed_m_per_s;
+    let driven = modal_testkit::scenes::driven_presets();
+    assert!(driven.len() >= 5, "{driven:?}");
+    for name in driven {
+        let scene = modal_testkit::scenes::preset(name);
+        let v = scene.drive.as_ref().expect("a driven preset").speed_m_per_s;
         let played = |i: usize| v * stroke(i) / 0.4;
         for (what, speed, load) in [
             (
@@ -279,13 +276,12 @@ fn every_driven_preset_keeps_its_ledger() {
             let (_, rise, contacts, scale) = ledger(&scene, 0.3, speed, load);
             println!(
                 "{} ({what}): largest rise of E - W {rise:.2e} of {scale:.2e} J, {contacts} contacts",
-                p.name
+                name
             );
-            assert!(contacts >= 1, "{}: {contacts}", p.name);
-            assert!(rise < 1e-10, "{} ({what}): {rise:e}", p.name);
+            assert!(contacts >= 1, "{}: {contacts}", name);
+            assert!(rise < 1e-10, "{} ({what}): {rise:e}", name);
         }
     }
-    assert!(driven >= 5, "{driven} driven presets");
 }
 
 /// A driven render is the same in any blocks and in the tick path, and a
@@ -639,14 +635,10 @@ fn random_driven_scene(rng: &mut modal_contact::test_rng::TestRng) -> Scene {
 /// the energy (what a trace runs), bit for bit.
 #[test]
 fn driven_presets_render_the_same_on_every_path() {
-    let mut driven = 0;
-    for p in modal_contact::presets::PRESETS {
-        let name = p.name;
+    let driven = modal_testkit::scenes::driven_presets();
+    assert!(driven.len() >= 5, "{driven:?}");
+    for name in driven {
         let scene = modal_testkit::scenes::preset(name);
-        if scene.drive.is_none() {
-            continue;
-        }
-        driven += 1;
         let sc = compile_one(&scene, 44100.0).unwrap();
         let n = 20000;
         let mut a = EngineState::new(&sc);
@@ -669,7 +661,6 @@ fn driven_presets_render_the_same_on_every_path() {
         assert_eq!(first(&ticks), None, "{name}");
         assert_eq!(first(&lt), None, "{name}");
     }
-    assert!(driven >= 5, "{driven} driven presets");
 }
 
 /// A driven scene's trace (docs/design.md, "Rolling and scraping") ends

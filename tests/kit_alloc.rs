@@ -237,13 +237,9 @@ fn a_cloned_prepared_scene_plays_without_allocating() {
 fn pressing_a_driven_stroke_allocates_nothing() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     const RATE: f64 = 48_000.0;
-    for preset in [
-        "ball-on-plate",
-        "guiro",
-        "marble-on-board",
-        "guiro-recorded",
-        "snare-brush",
-    ] {
+    let driven = modal_testkit::scenes::driven_presets();
+    assert!(driven.len() >= 5, "{driven:?}");
+    for preset in driven {
         let sp = SceneParams {
             preset: presets::index_of(preset).unwrap(),
             ..SceneParams::default()

@@ -335,10 +335,13 @@ fn corrected_weights(
     let settle = a.span.0.saturating_sub(a.onset);
     let fit_len = (a.span.1.saturating_sub(a.span.0)).min((WEIGHT_FIT_S * a.rate_hz) as usize);
     let seconds = ((settle + fit_len) as f64 / a.rate_hz).max(FIT_S) + 0.1;
-    let mut text = scene_for(a, recording.len(), name, m, (&raw, signs))?;
+    let text = scene_for(a, recording.len(), name, m, (&raw, signs))?;
+    // one render per scene: its amplitudes set the next round's weights,
+    // its first FIT_S its distance
+    let mut copy = render_from_onset(&text, a.rate_hz, seconds)?;
+    m.renders += 1;
     let mut best = (raw.clone(), m.render_db, 0);
     for round in 1..=WEIGHT_ROUNDS {
-        let copy = render_from_onset(&text, a.rate_hz, seconds)?;
         let Some(played) =
             super::refine::amplitudes(&copy, a.rate_hz, &a.modes, (settle, settle + fit_len))
         else {
@@ -357,9 +360,10 @@ fn corrected_weights(
                 r * ratio.clamp(1.0 / WEIGHT_STEP, WEIGHT_STEP)
             })
             .collect();
-        text = scene_for(a, recording.len(), name, m, (&raw, signs))?;
-        let d = render_distance(&text, recording, a.onset, a.rate_hz)?;
-        m.renders += 2;
+        let text = scene_for(a, recording.len(), name, m, (&raw, signs))?;
+        copy = render_from_onset(&text, a.rate_hz, seconds)?;
+        m.renders += 1;
+        let d = fit_distance(&recording[a.onset.min(recording.len())..], &copy, a.rate_hz);
         if d < best.1 {
             best = (raw.clone(), d, round);
         }

@@ -376,6 +376,17 @@ pub fn preset(name: &str) -> Scene {
     Scene::from_file(&preset_path(name)).unwrap_or_else(|e| panic!("{name}: {e}"))
 }
 
+/// The presets driven over a surface (a `[drive]` table), in the
+/// preset list's order: the tests and benches of rolling and scraping
+/// take each of them, a new one included.
+pub fn driven_presets() -> Vec<&'static str> {
+    modal_contact::presets::PRESETS
+        .iter()
+        .map(|p| p.name)
+        .filter(|&n| preset(n).drive.is_some())
+        .collect()
+}
+
 /// A scene with only its first pickup, panned hard left: the engine's left
 /// channel is then that pickup times its gain (`cos(0) = 1`), the same
 /// signal the competitors produce (they ignore the pan), so the report and
