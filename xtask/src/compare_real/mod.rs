@@ -19,20 +19,28 @@
 
 pub use modal_testkit::analysis;
 pub mod gm;
+mod measure;
 mod plots;
+mod recordings;
 mod report;
 pub mod sf2;
 mod stroke;
+mod targets;
 mod velocity;
+mod wavs;
 
 use crate::benchmarks::{rustc_version, today};
 use analysis::{Peak, Spectrum, T60};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use gm::GmSound;
+use measure::compare;
 use modal_contact::instrument::root_note;
 use modal_contact::scene::Scene;
 use rayon::prelude::*;
+use recordings::{
+    bells_and_plates, confusion_set, other_recordings, play_recordings, recording_keys, scale_pairs,
+};
 use report::{
     method_text, report_header, write_confusion, write_other_recordings, write_preset_plots,
     write_preset_table, write_scale_pairs, write_strokes, write_summary,
@@ -42,6 +50,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+pub use wavs::demo_recordings;
 
 /// Where Debian's `fluid-soundfont-gm` installs the soundfont.
 pub const DEFAULT_SF2: &str = "/usr/share/sounds/sf2/FluidR3_GM.sf2";
@@ -132,6 +141,11 @@ pub const NO_RECORDING: [(&str, &str); 2] = [
     ),
 ];
 
+/// The General MIDI kits (bank 128 programs) searched, in this order, for
+/// another recording of a percussion key: Room, Power, Jazz, Brush,
+/// Orchestra (the General Standard 2 kit numbers).
+pub const OTHER_KITS: [u16; 5] = [8, 16, 32, 40, 48];
+
 /// `cargo xtask compare-real [--preset NAME]... [--out DIR] [--sf2 PATH]
 /// [--check] [--seconds S]`.
 #[derive(Args, Debug)]
@@ -157,89 +171,6 @@ pub struct CompareRealArgs {
 /// The workspace root (the presets and `target/` are found from it).
 fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-/// The keys nearest `key` first (`key`, then one below, one above, ...).
-fn keys_around(key: u8) -> impl Iterator<Item = u8> {
-    let k = i32::from(key);
-    std::iter::once(k)
-        .chain((1..128).flat_map(move |d| [k - d, k + d]))
-        .filter(|k| (0..128).contains(k))
-        .map(|k| k as u8)
-}
-
-/// Whether `s` played at `key` is transposed at most
-/// [`MAX_TRANSPOSE_CENTS`] (a percussion key always is: it plays at its
-/// own key).
-fn near_recorded(sf: &SoundFont, s: GmSound, key: u8) -> bool {
-    let (bank, program) = s.bank_program();
-    sf.transposition(bank, program, s.key_for(key), VELOCITY)
-        .is_some_and(|c| c <= MAX_TRANSPOSE_CENTS + 1e-9)
-}
-
-/// The key `s` is played at to stand for `key`: its percussion key; else
-/// `key` itself when that is within an octave of the recording, otherwise
-/// the nearest key that is ([`MAX_TRANSPOSE_CENTS`]); `key` when none is.
-fn playable_key(sf: &SoundFont, s: GmSound, key: u8) -> u8 {
-    if s.is_drum() {
-        return s.key_for(key);
-    }
-    keys_around(key)
-        .find(|&k| near_recorded(sf, s, k))
-        .unwrap_or(key)
-}
-
-/// The common key of two recordings compared with each other: the
-/// nearest key to `key` at which both are within an octave of their
-/// recordings ([`MAX_TRANSPOSE_CENTS`]), `key` when there is none.
-fn common_key(sf: &SoundFont, a: GmSound, b: GmSound, key: u8) -> u8 {
-    keys_around(key)
-        .find(|&k| near_recorded(sf, a, k) && near_recorded(sf, b, k))
-        .unwrap_or(key)
-}
-
-/// The General MIDI kits (bank 128 programs) searched, in this order, for
-/// another recording of a percussion key: Room, Power, Jazz, Brush,
-/// Orchestra (the General Standard 2 kit numbers).
-pub const OTHER_KITS: [u16; 5] = [8, 16, 32, 40, 48];
-
-/// Another recording of `s` at `key`, for the scale of "close": for a
-/// pitched instrument the samples of the nearest other key range of the
-/// same preset, played at `key` (transposed at most an octave,
-/// [`MAX_TRANSPOSE_CENTS`]); for a percussion key the same key of the
-/// first other kit ([`OTHER_KITS`]) whose samples differ (a brush kit's
-/// own sounds have no other kit). `None` when the soundfont has no such
-/// recording.
-fn another_recording(sf: &SoundFont, s: GmSound, key: u8) -> Option<KeyRegion> {
-    let (bank, program) = s.bank_program();
-    let key = s.key_for(key);
-    let own = sf.key_region(bank, program, key, VELOCITY).ok()?;
-    let names = |r: &KeyRegion| -> Vec<String> { r.zones.iter().map(|z| z.name.clone()).collect() };
-    let own_names = names(&own);
-    let differs = |r: &KeyRegion| names(r).iter().all(|n| !own_names.contains(n));
-    if let GmSound::Brush(_) = s {
-        return None;
-    }
-    if s.is_drum() {
-        return OTHER_KITS.iter().find_map(|&kit| {
-            sf.key_region(bank, kit, key, VELOCITY)
-                .ok()
-                .filter(|r| differs(r))
-        });
-    }
-    keys_around(key)
-        .skip(1)
-        .take_while(|&k| k.abs_diff(key) <= 12)
-        .find_map(|k| {
-            sf.key_region_played_at(bank, program, k, key, VELOCITY)
-                .ok()
-                .filter(|r| {
-                    differs(r)
-                        && r.zones
-                            .iter()
-                            .all(|z| z.cents.abs() <= MAX_TRANSPOSE_CENTS + 1e-9)
-                })
-        })
 }
 
 /// A preset file and what it names.
@@ -416,13 +347,6 @@ impl Recording {
     }
 }
 
-/// The partials of a sound: the strongest peaks of its long spectrum.
-fn partials(s: &Sound, range_db: f64) -> Vec<Peak> {
-    let (spec, n) = analysis::long_spectrum(&s.x, RATE_HZ, PARTIAL_WINDOW_S);
-    let hi = (0.95 * s.band_limit_hz).min(20000.0);
-    analysis::peaks(&spec, n, 30.0, hi, range_db)
-}
-
 /// One of the recording's strongest partials against the render.
 struct PartialRow {
     real: Peak,
@@ -512,317 +436,9 @@ struct Comparison {
     strokes: Option<(stroke::Stroke, stroke::Stroke)>,
 }
 
-/// The 1/3-octave distance between two sounds over the first
-/// [`WINDOW_S`] (or the shorter one's length).
-fn distance(a: &Sound, b: &Sound) -> f64 {
-    let t = WINDOW_S.min(a.seconds()).min(b.seconds());
-    let la = analysis::band_levels(&analysis::welch(&a.x, RATE_HZ, t));
-    let lb = analysis::band_levels(&analysis::welch(&b.x, RATE_HZ, t));
-    analysis::third_octave_distance(&la, &lb)
-}
-
-/// The decays of a sound's partials.
-fn decays(s: &Sound, frames: &[Vec<f64>], peaks: &[Peak]) -> Decays {
-    peaks
-        .iter()
-        .map(|p| {
-            (
-                p.freq_hz,
-                analysis::fit_t60(&analysis::track(frames, RATE_HZ, p.freq_hz)),
-            )
-        })
-        .filter(|_| !s.x.is_empty())
-        .collect()
-}
-
 type RecordingKey = (GmSound, u8);
 /// A recording played, or why it could not be.
 type Played = std::result::Result<Recording, String>;
-
-/// Measure a preset against its recording and the confusion set.
-fn compare(
-    p: &PresetFile,
-    sound: GmSound,
-    render: &Sound,
-    recs: &BTreeMap<RecordingKey, std::result::Result<Recording, String>>,
-    keys: &BTreeMap<RecordingKey, u8>,
-    set: &[GmSound],
-) -> Result<Comparison> {
-    let own_key = keys[&(sound, p.key)];
-    let own = match &recs[&(sound, own_key)] {
-        Ok(r) => r,
-        Err(e) => bail!("{e}"),
-    };
-    let real = &own.played;
-    let window_s = WINDOW_S.min(real.seconds()).min(render.seconds());
-
-    // partials
-    let real_peaks = partials(real, PEAK_RANGE_DB);
-    let render_peaks = partials(render, RENDER_RANGE_DB);
-    let real_frames = analysis::stft(&real.x);
-    let render_frames = analysis::stft(&render.x);
-    let rows = partial_rows(&real_peaks, &render_peaks, &real_frames, &render_frames);
-
-    // attack
-    let ra = analysis::attack_spectrum(&real.x, RATE_HZ, ATTACK_S);
-    let ga = analysis::attack_spectrum(&render.x, RATE_HZ, ATTACK_S);
-    let centroid = (analysis::centroid(&ra), analysis::centroid(&ga));
-    let hf_db = (
-        analysis::fraction_above_db(&ra, HF_HZ),
-        analysis::fraction_above_db(&ga, HF_HZ),
-    );
-
-    // bands
-    let spectra = (
-        analysis::welch(&real.x, RATE_HZ, window_s),
-        analysis::welch(&render.x, RATE_HZ, window_s),
-    );
-    let dist = analysis::third_octave_distance(
-        &analysis::band_levels(&spectra.0),
-        &analysis::band_levels(&spectra.1),
-    );
-    let confusion = confusion_distances(render, p.key, recs, keys, set);
-
-    let real_top: Vec<Peak> = real_peaks.iter().copied().take(PLOT_PARTIALS).collect();
-    let render_top: Vec<Peak> = render_peaks.iter().copied().take(PLOT_PARTIALS).collect();
-    let mut c = Comparison {
-        stem: p.stem.clone(),
-        sound,
-        key: p.key,
-        recording: if own_key == sound.key_for(p.key) {
-            own.describe()
-        } else {
-            format!(
-                "{}. Played at key {own_key}, not at the preset's key {}: there the recording would be \
-                 transposed by more than an octave (see the method)",
-                own.describe(),
-                p.key
-            )
-        },
-        render_onset_s: render.onset_s,
-        window_s,
-        rows,
-        centroid,
-        hf_db,
-        distance: dist,
-        confusion,
-        targets: Vec::new(),
-        decays: (
-            decays(real, &real_frames, &real_top),
-            decays(render, &render_frames, &render_top),
-        ),
-        spectra,
-        signals: (real.x.clone(), render.x.clone()),
-        strokes: p.scene.drive.is_some().then(|| {
-            (
-                stroke::stroke(&real.x, RATE_HZ),
-                stroke::stroke(&render.x, RATE_HZ),
-            )
-        }),
-    };
-    c.targets = targets(&c, real.band_limit_hz, own_key);
-    Ok(c)
-}
-
-/// The recording's strongest [`PARTIALS`] partials, each with the
-/// render's nearest partial and both decays (`*_frames`: the two STFTs).
-fn partial_rows(
-    real_peaks: &[Peak],
-    render_peaks: &[Peak],
-    real_frames: &[Vec<f64>],
-    render_frames: &[Vec<f64>],
-) -> Vec<PartialRow> {
-    let strongest: Vec<Peak> = real_peaks.iter().copied().take(PARTIALS).collect();
-    let lowest = strongest
-        .iter()
-        .map(|p| p.freq_hz)
-        .fold(f64::INFINITY, f64::min);
-    strongest
-        .iter()
-        .map(|&rp| {
-            let near = render_peaks
-                .iter()
-                .map(|q| (*q, analysis::cents(rp.freq_hz, q.freq_hz)))
-                .min_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
-            let t60_render = near
-                .filter(|(_, c)| c.abs() <= T60_MATCH_CENTS)
-                .map(|(q, _)| {
-                    analysis::fit_t60(&analysis::track(render_frames, RATE_HZ, q.freq_hz))
-                });
-            PartialRow {
-                real: rp,
-                ratio: rp.freq_hz / lowest,
-                render: near,
-                t60_real: analysis::fit_t60(&analysis::track(real_frames, RATE_HZ, rp.freq_hz)),
-                t60_render,
-            }
-        })
-        .collect::<Vec<_>>()
-}
-
-/// The render's distance to the recording of every sound of the set
-/// `set` at `key` (`None`: no zone), and the key each was played at.
-fn confusion_distances(
-    render: &Sound,
-    key: u8,
-    recs: &BTreeMap<RecordingKey, std::result::Result<Recording, String>>,
-    keys: &BTreeMap<RecordingKey, u8>,
-    set: &[GmSound],
-) -> Vec<(GmSound, Option<f64>, u8)> {
-    set.iter()
-        .map(|&s| {
-            let k = keys[&(s, key)];
-            let d = recs[&(s, k)]
-                .as_ref()
-                .ok()
-                .map(|r| distance(render, &r.played));
-            (s, d, k)
-        })
-        .collect()
-}
-
-/// The targets of the comparison `c` (its `targets` not yet set), the
-/// recording's band limit \[Hz\] and the key it was played at.
-fn targets(c: &Comparison, band_limit_hz: f64, own_key: u8) -> Vec<Target> {
-    let (dist, centroid, hf_db, rows, sound) = (c.distance, c.centroid, c.hf_db, &c.rows, c.sound);
-    let mut targets = Vec::new();
-    targets.push(Target {
-        name: "1/3-octave distance <= 6 dB",
-        verdict: Verdict::of(dist <= TARGET_DISTANCE_DB),
-        detail: format!("{dist:.1} dB"),
-    });
-    let cr = centroid.1 / centroid.0;
-    targets.push(Target {
-        name: "attack centroid 0.75-1.33x",
-        verdict: Verdict::of((TARGET_CENTROID.0..=TARGET_CENTROID.1).contains(&cr)),
-        detail: format!("{cr:.2}x"),
-    });
-    let hd = hf_db.1 - hf_db.0;
-    let (hf_verdict, hf_detail) = if band_limit_hz < HF_HZ * 1.1 {
-        (
-            Verdict::NotApplicable,
-            format!(
-                "{hd:+.1} dB, but the recording stops at {:.1} kHz",
-                band_limit_hz / 1000.0
-            ),
-        )
-    } else {
-        (
-            Verdict::of(hd.abs() <= TARGET_HF_DB),
-            format!("{hd:+.1} dB"),
-        )
-    };
-    targets.push(Target {
-        name: "energy > 5 kHz within +-6 dB",
-        verdict: hf_verdict,
-        detail: hf_detail,
-    });
-    let present = rows.iter().filter(|r| r.present()).count();
-    let elsewhere = if own_key == sound.key_for(c.key) {
-        String::new()
-    } else {
-        format!(", the recording at key {own_key}")
-    };
-    if c.strokes.is_some() {
-        // a stroke's spectrum is its clicks' on the object, not partials
-        // ringing down from one strike ("Strokes" says how it moves)
-        for name in ["4 strongest partials within 15 cents", "T60 within 1.5x"] {
-            targets.push(Target {
-                name,
-                verdict: Verdict::NotApplicable,
-                detail: "a stroke, not a strike".into(),
-            });
-        }
-    } else {
-        targets.push(Target {
-            name: "4 strongest partials within 15 cents",
-            verdict: Verdict::of(present == rows.len() && rows.len() == PARTIALS),
-            detail: format!("{present} of {}{elsewhere}", rows.len()),
-        });
-        targets.push(t60_target(rows));
-    }
-    let nearest = c
-        .confusion
-        .iter()
-        .filter_map(|(s, d, _)| d.map(|d| (*s, d)))
-        .min_by(|a, b| a.1.total_cmp(&b.1));
-    targets.push(Target {
-        name: "nearest recording is its own",
-        verdict: Verdict::of(nearest.is_some_and(|(s, _)| s == sound)),
-        detail: nearest.map_or("none".into(), |(s, d)| format!("{} ({d:.1} dB)", s.name())),
-    });
-    targets
-}
-
-/// The decay target: every partial fitted on both within
-/// [`TARGET_T60_FACTOR`].
-fn t60_target(rows: &[PartialRow]) -> Target {
-    let ratios: Vec<f64> = rows.iter().filter_map(PartialRow::t60_ratio).collect();
-    if ratios.is_empty() {
-        return Target {
-            name: "T60 within 1.5x",
-            verdict: Verdict::NotApplicable,
-            detail: "no partial with a fit on both".into(),
-        };
-    }
-    let ok = ratios
-        .iter()
-        .filter(|r| (1.0 / TARGET_T60_FACTOR..=TARGET_T60_FACTOR).contains(*r))
-        .count();
-    Target {
-        name: "T60 within 1.5x",
-        verdict: Verdict::of(ok == ratios.len()),
-        detail: format!("{ok} of {} fitted", ratios.len()),
-    }
-}
-
-/// What FluidR3 offers for the presets that name no recording: preset
-/// headers whose names say bell, chime, gong, plate, cymbal, triangle,
-/// agogo or steel (not the steel-string guitar), each with the samples its zones play at key 72, and the
-/// standard kit's metal keys with theirs.
-fn bells_and_plates(sf: &SoundFont) -> String {
-    const WORDS: [&str; 8] = [
-        "bell", "chime", "gong", "plate", "cymbal", "triangle", "agogo", "steel",
-    ];
-    let samples = |bank: u16, program: u16, key: u8| -> String {
-        match sf.key_region(bank, program, key, VELOCITY) {
-            Ok(r) => {
-                let mut names: Vec<String> = Vec::new();
-                for z in &r.zones {
-                    let n = format!("\"{}\"", z.name);
-                    if !names.contains(&n) {
-                        names.push(n);
-                    }
-                }
-                names.join(", ")
-            }
-            Err(_) => "no zone".into(),
-        }
-    };
-    let mut s = String::new();
-    for h in sf.presets() {
-        let low = h.name.to_lowercase();
-        if h.bank < 128 && WORDS.iter().any(|w| low.contains(w)) && !low.contains("guitar") {
-            let _ = writeln!(
-                s,
-                "- bank {} program {} \"{}\": key 72 plays {}",
-                h.bank,
-                h.program,
-                h.name,
-                samples(h.bank, h.program, 72)
-            );
-        }
-    }
-    for key in [49u8, 51, 52, 53, 55, 56, 57, 59, 80, 81] {
-        let _ = writeln!(
-            s,
-            "- kit (bank 128 program 0) key {key} {}: plays {}",
-            GmSound::Drum(key).name(),
-            samples(128, 0, key)
-        );
-    }
-    s
-}
 
 /// An error naming the Debian package when the soundfont `path` is not a
 /// file (`compare-real` and `analyze-real` read it).
@@ -950,234 +566,9 @@ pub fn run(a: &CompareRealArgs) -> Result<()> {
     Ok(())
 }
 
-/// The confusion set: every instrument a preset names, then
-/// [`CONFUSION_EXTRA`], each once.
-fn confusion_set(all: &[PresetFile]) -> Vec<GmSound> {
-    let mut set: Vec<GmSound> = Vec::new();
-    for p in all {
-        if let Ok(Some(s)) = p.real {
-            if !set.contains(&s) {
-                set.push(s);
-            }
-        }
-    }
-    for n in CONFUSION_EXTRA {
-        let s = GmSound::parse(n).expect("a GM name");
-        if !set.contains(&s) {
-            set.push(s);
-        }
-    }
-    set
-}
-
-/// The key each recording of the set is played at, for each compared
-/// preset's key; and the recordings that takes, each once.
-fn recording_keys(
-    sf: &SoundFont,
-    compared: &[(&PresetFile, GmSound)],
-    set: &[GmSound],
-) -> (BTreeMap<RecordingKey, u8>, Vec<RecordingKey>) {
-    let mut keys: BTreeMap<RecordingKey, u8> = BTreeMap::new();
-    let mut wanted: Vec<RecordingKey> = Vec::new();
-    for (p, _) in compared {
-        for &o in set {
-            let k = playable_key(sf, o, p.key);
-            keys.insert((o, p.key), k);
-            if !wanted.contains(&(o, k)) {
-                wanted.push((o, k));
-            }
-        }
-    }
-    (keys, wanted)
-}
-
-/// The [`SCALE_PAIRS`] with the key both are played at (the first's
-/// preset's key, or middle C), their recordings added to `wanted`.
-fn scale_pairs(
-    sf: &SoundFont,
-    all: &[PresetFile],
-    wanted: &mut Vec<RecordingKey>,
-) -> Vec<(GmSound, GmSound, u8)> {
-    let key_of = |s: GmSound| -> u8 {
-        all.iter()
-            .find(|p| matches!(p.real, Ok(Some(x)) if x == s))
-            .map_or(60, |p| p.key)
-    };
-    let pairs: Vec<(GmSound, GmSound, u8)> = SCALE_PAIRS
-        .iter()
-        .map(|(x, y)| {
-            let (x, y) = (
-                GmSound::parse(x).expect("GM"),
-                GmSound::parse(y).expect("GM"),
-            );
-            (x, y, common_key(sf, x, y, key_of(x)))
-        })
-        .collect();
-    for &(x, y, k) in &pairs {
-        for s in [x, y] {
-            if !wanted.contains(&(s, s.key_for(k))) {
-                wanted.push((s, s.key_for(k)));
-            }
-        }
-    }
-    pairs
-}
-
-/// The same instruments, another recording each, at the first preset's
-/// key.
-fn other_recordings(
-    sf: &SoundFont,
-    compared: &[(&PresetFile, GmSound)],
-) -> Vec<(GmSound, u8, Option<Played>)> {
-    let mut own_sounds: Vec<(GmSound, u8)> = Vec::new();
-    for (p, s) in compared {
-        if !own_sounds.iter().any(|(x, _)| x == s) {
-            own_sounds.push((*s, playable_key(sf, *s, p.key)));
-        }
-    }
-    own_sounds
-        .par_iter()
-        .map(|&(s, k)| (s, k, another_recording(sf, s, k).map(Recording::new)))
-        .collect()
-}
-
-/// Every recording of `wanted`, played.
-fn play_recordings(
-    sf: &SoundFont,
-    wanted: &[RecordingKey],
-) -> BTreeMap<RecordingKey, std::result::Result<Recording, String>> {
-    wanted
-        .par_iter()
-        .map(|&(s, key)| {
-            let (bank, program) = s.bank_program();
-            let r = sf
-                .key_region(bank, program, key, VELOCITY)
-                .map_err(|e| format!("{e:#}"))
-                .and_then(Recording::new);
-            ((s, key), r)
-        })
-        .collect()
-}
-
-/// For `cargo xtask demo`: beside each `DIR/NAME.wav` the demo rendered
-/// for a preset that names a real instrument (its strike at its root key,
-/// velocity [`VELOCITY`], through the built plugin), the recording it is
-/// compared with, as the comparison plays it (the soundfont's raw
-/// samples for that key and velocity, transposed and resampled as a
-/// sampler plays them, the zones mixed to mono, from the onset), as `DIR/NAME-real.wav` at [`RATE_HZ`] on both channels, scaled
-/// to the render's EBU R128 integrated loudness so that a listener
-/// compares the sounds, not their levels (its peak held at -1 dBFS if
-/// that would be higher). Returns one line per preset. Without the
-/// soundfont it writes nothing and returns one line naming the Debian
-/// package: the demo does not need it.
-pub fn demo_recordings(dir: &Path, sf2: &Path) -> Result<Vec<String>> {
-    if !sf2.is_file() {
-        return Ok(vec![format!(
-            "no recordings beside the real-instrument demos: soundfont {} not found (Debian \
-             package {SF2_PACKAGE})",
-            sf2.display()
-        )]);
-    }
-    let sf = SoundFont::open(sf2)?;
-    let mut lines = Vec::new();
-    for p in load_presets(&workspace_root().join("presets"))? {
-        let Ok(Some(sound)) = p.real else { continue };
-        let render_path = dir.join(format!("{}.wav", p.stem));
-        let render = read_wav(&render_path)?;
-        let key = playable_key(&sf, sound, p.key);
-        let (bank, program) = sound.bank_program();
-        let rec = match sf
-            .key_region(bank, program, key, VELOCITY)
-            .map_err(|e| format!("{e:#}"))
-            .and_then(Recording::new)
-        {
-            Ok(r) => r,
-            Err(e) => {
-                lines.push(format!("{}: no recording ({e})", p.stem));
-                continue;
-            }
-        };
-        let x: Vec<f32> = rec.played.x.iter().map(|&v| v as f32).collect();
-        let chans = [render.1.as_slice(), render.2.as_slice()];
-        let want = crate::levels::loudness_lufs(&chans, render.0)?;
-        let have = crate::levels::loudness_lufs(&[&x, &x], RATE_HZ)?;
-        let peak = x.iter().fold(0.0f64, |m, v| m.max(f64::from(v.abs())));
-        let mut gain = 10f64.powf((want - have) / 20.0);
-        let mut held = "";
-        if peak * gain > 10f64.powf(-1.0 / 20.0) {
-            gain = 10f64.powf(-1.0 / 20.0) / peak;
-            held = ", held at -1 dBFS peak";
-        }
-        if !gain.is_finite() {
-            bail!("{}: a silent render or recording", render_path.display());
-        }
-        let y: Vec<f32> = x.iter().map(|&v| (f64::from(v) * gain) as f32).collect();
-        let out = dir.join(format!("{}-real.wav", p.stem));
-        crate::offline::write_wav(&out, RATE_HZ, &y, &y, crate::offline::WavFormat::Float32)?;
-        let moved = if key == sound.key_for(p.key) {
-            String::new()
-        } else {
-            format!(
-                " (played at key {key}: at the preset's key {} it would be transposed by more \
-                 than an octave)",
-                p.key
-            )
-        };
-        lines.push(format!(
-            "wrote {}: {} key {} velocity {VELOCITY}{moved}, at the render's loudness {want:.1} \
-             LUFS{held}",
-            out.display(),
-            sound.label(),
-            sound.key_for(key),
-        ));
-    }
-    Ok(lines)
-}
-
-/// A WAV's rate and its first two channels (one channel: both), as f32.
-fn read_wav(path: &Path) -> Result<(f64, Vec<f32>, Vec<f32>)> {
-    let mut r =
-        hound::WavReader::open(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let spec = r.spec();
-    let data: Vec<f32> = match spec.sample_format {
-        hound::SampleFormat::Float => r.samples::<f32>().collect::<Result<_, _>>()?,
-        hound::SampleFormat::Int => {
-            let full = 2f32.powi(i32::from(spec.bits_per_sample) - 1);
-            r.samples::<i32>()
-                .map(|s| s.map(|v| v as f32 / full))
-                .collect::<Result<_, _>>()?
-        }
-    };
-    let c = usize::from(spec.channels.max(1));
-    let left: Vec<f32> = data.iter().step_by(c).copied().collect();
-    let right: Vec<f32> = if c > 1 {
-        data.iter().skip(1).step_by(c).copied().collect()
-    } else {
-        left.clone()
-    };
-    Ok((f64::from(spec.sample_rate), left, right))
-}
-
-/// Write the recording and the render as `NAME-real.wav` and
-/// `NAME-render.wav` (32-bit float, both peaks at -6 dBFS, the mono signal
-/// on both channels).
-fn write_pair(dir: &Path, stem: &str, real: &[f64], render: &[f64]) -> Result<()> {
-    for (what, x) in [("real", real), ("render", render)] {
-        let peak = x.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-300);
-        let y: Vec<f32> = x.iter().map(|v| (0.5 * v / peak) as f32).collect();
-        crate::offline::write_wav(
-            &dir.join(format!("{stem}-{what}.wav")),
-            RATE_HZ,
-            &y,
-            &y,
-            crate::offline::WavFormat::Float32,
-        )?;
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
+    use super::recordings::another_recording;
     use super::*;
 
     /// Another recording of a pitched instrument is the nearest other key

@@ -1,8 +1,10 @@
 //! The report `cargo xtask compare-real` writes (docs/compare-real.md):
 //! its header and method, the summary and its tally, the scales of
 //! "close", the confusion table, the strokes, and each preset's section
-//! with its plots. The measuring is in the parent module.
+//! with its plots. The measuring is in `measure.rs`.
 
+use super::measure::distance;
+use super::wavs::write_pair;
 use super::*;
 
 /// The stroke of each scraped or rolled preset beside its recording's

@@ -1,0 +1,469 @@
+//! Compiling a phase (the contacts of a mask closed): its coordinates, its
+//! block decomposition and every row the engine reads ([`MultiPhase`]);
+//! the compiled model ([`CompiledMulti`]) and the per-state tables.
+
+use super::*;
+
+mod coupled;
+mod rows;
+mod whole;
+
+use coupled::{CoupledBlocks, CoupledForces, CoupledPart, CoupledSystem};
+use rows::{PhaseRows, SwitchProducts};
+use whole::WholePhase;
+
+impl Layout {
+    fn new(m: &MultiModel, members: &[usize]) -> Self {
+        let nm = m.masses.len();
+        let mut parent: Vec<usize> = (0..nm).collect();
+        fn root(p: &mut [usize], mut i: usize) -> usize {
+            while p[i] != i {
+                p[i] = p[p[i]];
+                i = p[i];
+            }
+            i
+        }
+        let mut in_contact = vec![false; nm];
+        let mut held = vec![false; nm];
+        for &c in members {
+            let ct = &m.contacts[c];
+            match (&ct.lower, &ct.upper) {
+                (MultiEnd::Mass(a), MultiEnd::Mass(b)) => {
+                    in_contact[*a] = true;
+                    in_contact[*b] = true;
+                    let (ra, rb) = (root(&mut parent, *a), root(&mut parent, *b));
+                    parent[ra] = rb;
+                }
+                (MultiEnd::Mass(a), _) | (_, MultiEnd::Mass(a)) => {
+                    in_contact[*a] = true;
+                    held[*a] = true;
+                }
+                _ => {}
+            }
+        }
+        let mut root_held = vec![false; nm];
+        for j in 0..nm {
+            if held[j] {
+                let r = root(&mut parent, j);
+                root_held[r] = true;
+            }
+        }
+        let mut bound = vec![];
+        let mut place = vec![None; nm];
+        let mut group_of_root: Vec<Option<usize>> = vec![None; nm];
+        let mut groups: Vec<Vec<usize>> = vec![];
+        let mut fly_of = vec![None; nm];
+        for j in 0..nm {
+            if !in_contact[j] {
+                fly_of[j] = Some(j);
+                continue;
+            }
+            place[j] = Some(bound.len());
+            bound.push(j);
+            let r = root(&mut parent, j);
+            if !root_held[r] {
+                let g = *group_of_root[r].get_or_insert_with(|| {
+                    groups.push(vec![]);
+                    groups.len() - 1
+                });
+                groups[g].push(j);
+                fly_of[j] = Some(groups[g][0]);
+            }
+        }
+        Self {
+            bound,
+            place,
+            groups,
+            fly_of,
+        }
+    }
+}
+
+impl MultiPhase {
+    fn new(m: &MultiModel, mask: u32, h: f64) -> Result<Self, MultiError> {
+        let members: Vec<usize> = (0..m.contacts.len())
+            .filter(|j| mask & (1 << j) != 0)
+            .collect();
+        let lay = Layout::new(m, &members);
+        let rows = contact_rows_z(m, &lay, &members);
+        let p0: Vec<f64> = rows.iter().map(|r| r.1).collect();
+        let cp = CoupledPart::new(m, &lay, &rows);
+        let cf = CoupledForces::new(m, &lay, &members, &rows, &p0, &cp);
+        let cs = CoupledSystem::new(&cp, &cf, mask)?;
+        let blocks = CoupledBlocks::new(&cs.a, h, mask)?;
+        let kappa = blocks.kappa;
+        let eq = cs.equilibrium(&cp, &cf.rod_force, mask)?;
+        let w = WholePhase::new(m, &lay, &members, &cp, &cs, blocks, &eq);
+        let growth: Vec<f64> = w.gens.iter().map(|g| (sym_growth(g) * h).exp()).collect();
+        let growth_max = growth.iter().copied().fold(1.0, f64::max);
+        let phase_rows = PhaseRows {
+            m,
+            lay: &lay,
+            w: &w,
+        };
+        let er = phase_rows.events(&members, &p0);
+        let sides = phase_rows.sides();
+        let out = phase_rows.outputs();
+        // the entries of s the coupled part moves (the free modes' blocks
+        // are their own (omega q, q'))
+        let coupled: Vec<usize> = (0..cs.dimc).map(|c| w.smap(c)).collect();
+        let sp = SwitchProducts::new(m.n(), &lay, &members, &cp.cm, &w, &coupled);
+        let mut flyers: Vec<usize> = (0..m.masses.len())
+            .filter(|&j| lay.place[j].is_none())
+            .collect();
+        flyers.extend(lay.groups.iter().map(|grp| grp[0]));
+        let free_blocks: Vec<(usize, usize, usize)> = cp
+            .fm
+            .iter()
+            .enumerate()
+            .map(|(j, &i)| (i, w.nbc + j, w.nb + w.nbc + j))
+            .collect();
+        let forms = w.gens.iter().map(OscForm::of).collect();
+        Ok(Self {
+            members,
+            dim: w.dim,
+            forms,
+            ev_blocks: er.ev_blocks,
+            ev_nz: er.ev_nz,
+            evd_nz: er.evd_nz,
+            gens: w.gens,
+            qv0: sp.qv0,
+            pv0: sp.pv0,
+            zv0: sp.zv0,
+            qv: sp.qv,
+            pv: sp.pv,
+            zv: sp.zv,
+            qv_c: sp.qv_c,
+            qv_rows: sp.qv_rows,
+            pv_c: sp.pv_c,
+            pv_rows: sp.pv_rows,
+            zv_c: sp.zv_c,
+            bound_rows: (0..lay.bound.len()).collect(),
+            vq_c: sp.vq_c,
+            vp_c: sp.vp_c,
+            free_blocks,
+            s_star: sp.s_star,
+            bound: lay.bound,
+            place: lay.place,
+            groups: lay.groups,
+            fly_of: lay.fly_of,
+            flyers,
+            p0,
+            rod_s: w.rod_s,
+            ev: er.ev,
+            ev0: er.ev0,
+            ev_d: er.ev_d,
+            ev_c2: er.ev_c2,
+            ev_e: er.ev_e,
+            ev_fly: er.ev_fly,
+            search: er.search,
+            sides,
+            coupled,
+            coupled_modes: cp.cm,
+            out_d: out.out_d,
+            out_d0: out.out_d0,
+            out_v: out.out_v,
+            out_v0: out.out_v0,
+            kappa,
+            growth: growth_max,
+        })
+    }
+}
+
+/// A phase that cannot be compiled, and why.
+fn phase_error(mask: u32, why: String) -> MultiError {
+    MultiError::Phase { mask, why }
+}
+
+/// Each closed contact's row over z and constant: `p = g . z + p0`.
+fn contact_rows_z(m: &MultiModel, lay: &Layout, members: &[usize]) -> Vec<(Vec<f64>, f64)> {
+    let n = m.n();
+    let nz = n + lay.bound.len();
+    let sqm = |j: usize| m.masses[j].mass_kg.sqrt();
+    let row_z = |e: &MultiEnd| -> (Vec<f64>, f64) {
+        let mut r = vec![0.0; nz];
+        match e {
+            MultiEnd::Point(w) => {
+                r[..n].copy_from_slice(w);
+                (r, 0.0)
+            }
+            MultiEnd::Mass(j) => {
+                if let Some(b) = lay.place[*j] {
+                    r[n + b] = 1.0 / sqm(*j);
+                }
+                (r, 0.0)
+            }
+            MultiEnd::Wall(hw) => (r, *hw),
+        }
+    };
+    let contact_z = |c: usize| {
+        let ct = &m.contacts[c];
+        let (rl, cl) = row_z(&ct.lower);
+        let (ru, cu) = row_z(&ct.upper);
+        let r: Vec<f64> = rl.iter().zip(&ru).map(|(a, b)| a - b).collect();
+        (r, cl - cu - ct.gap_m)
+    };
+    members.iter().map(|&c| contact_z(c)).collect()
+}
+
+impl MultiPhase {
+    /// Block `k`'s `exp(G_k t)` (what [`exp2`] gives, its split made once).
+    #[inline]
+    pub(super) fn exp_block(&self, k: usize, t: f64) -> Mat2 {
+        match &self.forms[k] {
+            Some(f) => f.exp(t),
+            None => exp2(&self.gens[k], t),
+        }
+    }
+}
+
+impl CompiledMulti {
+    /// Compile every phase (`2^K` of them) at `rate_hz`.
+    pub fn new(model: &MultiModel, rate_hz: f64) -> Result<Self, MultiError> {
+        model.validate()?;
+        check_value("rate_hz", rate_hz, rate_hz > 0.0)?;
+        model.within_budget()?;
+        let k = model.contacts.len();
+        let h = 1.0 / rate_hz;
+        let phases = (0..1u32 << k)
+            .map(|mask| MultiPhase::new(model, mask, h))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self {
+            model: model.clone(),
+            h,
+            rate_hz,
+            phases,
+            switching: Switching::Exact,
+        })
+    }
+
+    /// [`new`](Self::new) with the given switching method (the scene's
+    /// `contact.switching`).
+    pub fn with_switching(
+        model: &MultiModel,
+        rate_hz: f64,
+        switching: Switching,
+    ) -> Result<Self, MultiError> {
+        let mut sc = Self::new(model, rate_hz)?;
+        sc.switching = switching;
+        Ok(sc)
+    }
+
+    /// Number of contacts.
+    pub fn contacts(&self) -> usize {
+        self.model.contacts.len()
+    }
+
+    /// The largest condition number of the phases' `V`.
+    pub fn kappa(&self) -> f64 {
+        self.phases.iter().map(|p| p.kappa).fold(1.0, f64::max)
+    }
+
+    /// The largest block growth over one sample of any phase
+    /// ([`MultiPhase::growth`]).
+    pub fn growth(&self) -> f64 {
+        self.phases.iter().map(|p| p.growth).fold(1.0, f64::max)
+    }
+
+    /// The largest phase dimension.
+    pub fn max_dim(&self) -> usize {
+        self.phases.iter().map(|p| p.dim).max().unwrap_or(0)
+    }
+}
+
+impl PhaseTables {
+    pub(super) fn new(ph: &MultiPhase) -> Self {
+        Self {
+            props: vec![[0.0; 4]; ph.gens.len()],
+            soa: BlockProps::new(ph.gens.len()),
+            growth: vec![1.0; ph.gens.len()],
+            growth_max: 1.0,
+            ev_c2: ph.ev_c2.clone(),
+            ev_e: ph.ev_e.clone(),
+            ev_c1: ph.search.c1.clone(),
+            ev_c3: ph.search.c3.clone(),
+            out: [vec![0.0; ph.dim], vec![0.0; ph.dim]],
+            out0: [0.0; 2],
+            at: f64::NAN,
+            limit: f64::INFINITY,
+            muted: 0,
+        }
+    }
+
+    /// Bring them to `scale` (step `h` of the model's time) and the output
+    /// band `band_hz` (physical; infinite: every mode heard). O(dim), plus
+    /// O(dim) per mode left out, allocation-free.
+    pub(super) fn make(
+        &mut self,
+        ph: &MultiPhase,
+        m: &MultiModel,
+        scale: f64,
+        h: f64,
+        band_hz: f64,
+    ) {
+        let limit = two_pi() * band_hz / scale;
+        if self.at == scale && self.limit == limit {
+            return;
+        }
+        self.growth_max = 1.0;
+        for (k, g) in ph.gens.iter().enumerate() {
+            self.props[k] = exp2(g, h);
+            self.soa.set(k, &self.props[k]);
+            self.growth[k] = (sym_growth(g) * h).exp();
+            self.growth_max = self.growth_max.max(self.growth[k]);
+        }
+        for j in 0..self.ev_e.len() {
+            for k in 0..ph.gens.len() {
+                let g = self.growth[k];
+                self.ev_c2[j][k] = ph.ev_c2[j][k] * g;
+                self.ev_e[j][k] = ph.ev_e[j][k] * g;
+                self.ev_c1[j][k] = ph.search.c1[j][k] * g;
+                self.ev_c3[j][k] = ph.search.c3[j][k] * g;
+            }
+        }
+        for c in 0..2 {
+            for (o, (d, v)) in self.out[c]
+                .iter_mut()
+                .zip(ph.out_d[c].iter().zip(&ph.out_v[c]))
+            {
+                *o = d + scale * v;
+            }
+            self.out0[c] = ph.out_d0[c] + scale * ph.out_v0[c];
+        }
+        // a mode above the band leaves the outputs: its share of each row
+        // (`q_i = (Q u)_i / omega_i`, `q'_i = (P w)_i`, the rows a switch
+        // takes the physical state through) is taken out, in every phase
+        // alike, so the output stays a continuous function of the
+        // physical state across switches; its dynamics stay
+        self.muted = 0;
+        for i in 0..m.n() {
+            let w = two_pi() * m.freq_hz[i];
+            if !(w > limit) {
+                continue;
+            }
+            self.muted += 1;
+            for c in 0..2 {
+                let (a, b) = (m.pickups[c].0[i] / w, scale * m.pickups[c].1[i]);
+                if a == 0.0 && b == 0.0 {
+                    continue;
+                }
+                for (col, o) in self.out[c].iter_mut().enumerate() {
+                    *o -= a * ph.qv[(i, col)] + b * ph.pv[(i, col)];
+                }
+                self.out0[c] -= a * ph.qv0[i] + b * ph.pv0[i];
+            }
+        }
+        self.at = scale;
+        self.limit = limit;
+    }
+}
+
+impl MultiPhase {
+    /// The physical state of the phase's `y` (the flights from `fly`).
+    pub(super) fn physical_of(
+        &self,
+        m: &MultiModel,
+        s: &[f64],
+        (x_f, v_f): (&[f64], &[f64]),
+        (zq, zv): (&mut [f64], &mut [f64]),
+        out: &mut Physical,
+    ) {
+        let n = m.n();
+        // a free mode's block is its own (omega q, q')
+        for &(i, k1, k2) in &self.free_blocks {
+            out.q[i] = s[k1] / (two_pi() * m.freq_hz[i]);
+            out.qv[i] = s[k2];
+        }
+        // the coupled modes' q from Q u = (omega q, ...), z' = P w, the
+        // held masses' x from Z u (the part off the free groups' centres)
+        for &r in &self.qv_rows {
+            zq[r] = self.qv0[r];
+        }
+        mat_vec_idx(&self.qv_c, (&self.coupled, s), &self.qv_rows, zq);
+        for &i in &self.coupled_modes {
+            out.q[i] = zq[i] / (two_pi() * m.freq_hz[i]);
+        }
+        for &r in &self.pv_rows {
+            zv[r] = self.pv0[r];
+        }
+        mat_vec_idx(&self.pv_c, (&self.coupled, s), &self.pv_rows, zv);
+        for &i in &self.coupled_modes {
+            out.qv[i] = zv[i];
+        }
+        let nb = self.bound.len();
+        zq[..nb].copy_from_slice(&self.zv0);
+        mat_vec_idx(&self.zv_c, (&self.coupled, s), &self.bound_rows, zq);
+        for (j, ms) in m.masses.iter().enumerate() {
+            match self.place[j] {
+                Some(b) => {
+                    let s = ms.mass_kg.sqrt();
+                    let (mut x, mut v) = (zq[b] / s, zv[n + b] / s);
+                    if let Some(k) = self.fly_of[j] {
+                        x += x_f[k];
+                        v += v_f[k];
+                    }
+                    out.x[j] = x;
+                    out.v[j] = v;
+                }
+                None => {
+                    out.x[j] = x_f[j];
+                    out.v[j] = v_f[j];
+                }
+            }
+        }
+    }
+
+    /// The phase's block state `s` of a physical state whose closed
+    /// contacts' penetrations are `pen` (by contact), and its flights: `u =
+    /// Q^T (omega q, sqrt(k_c) (p_c - p0_c))`, `w = P^T z'`, `s = V^-1 (y -
+    /// y*)`.
+    /// The penetrations come apart from the positions: as a difference of
+    /// two sides a heavy hammer's would keep `u |x|` of error.
+    pub(super) fn state_of(
+        &self,
+        m: &MultiModel,
+        (ph, pen): (&Physical, &[f64; MAX_CONTACTS]),
+        (x_f, v_f): (&mut [f64], &mut [f64]),
+        (zq, zv): (&mut [f64], &mut [f64]),
+        s: &mut [f64],
+    ) {
+        let n = m.n();
+        for i in 0..n {
+            zq[i] = two_pi() * m.freq_hz[i] * ph.q[i];
+        }
+        for (pos, &c) in self.members.iter().enumerate() {
+            zq[n + pos] = m.contacts[c].stiffness_n_per_m.sqrt() * (pen[c] - self.p0[pos]);
+        }
+        zv[..n].copy_from_slice(&ph.qv);
+        for (b, &j) in self.bound.iter().enumerate() {
+            zv[n + b] = m.masses[j].mass_kg.sqrt() * ph.v[j];
+        }
+        for (j, place) in self.place.iter().enumerate() {
+            if place.is_none() {
+                x_f[j] = ph.x[j];
+                v_f[j] = ph.v[j];
+            }
+        }
+        for grp in &self.groups {
+            let total: f64 = grp.iter().map(|&j| m.masses[j].mass_kg).sum();
+            let (mut x, mut v) = (0.0, 0.0);
+            for &j in grp {
+                x += m.masses[j].mass_kg * ph.x[j];
+                v += m.masses[j].mass_kg * ph.v[j];
+            }
+            x_f[grp[0]] = x / total;
+            v_f[grp[0]] = v / total;
+        }
+        for (o, x) in s.iter_mut().zip(&self.s_star) {
+            *o = -x;
+        }
+        // a free mode's block is its own (omega q, q') (its `s*` is 0);
+        // the coupled entries through the coupled part's products
+        for &(i, k1, k2) in &self.free_blocks {
+            s[k1] += zq[i];
+            s[k2] += zv[i];
+        }
+        mat_vec_idx(&self.vq_c, (&self.qv_rows, zq), &self.coupled, s);
+        mat_vec_idx(&self.vp_c, (&self.pv_rows, zv), &self.coupled, s);
+    }
+}
