@@ -115,6 +115,11 @@ pub fn radiation_decay_rate(shape: &Shape, mode: &ShapeMode) -> Result<f64, Stri
         ),
         // a tube's torsion moves no surface along its normal
         (Shape::Tube(_), ModeLabel::Torsion { .. }) => Ok(0.0),
+        (Shape::Tube(_), ModeLabel::Ring { .. }) => Err(
+            "the radiation of a tube's ovalling modes is not modelled (loss.radiation_damping \
+             takes bending alone)"
+                .to_string(),
+        ),
         (Shape::Tube(_), _) => return mismatch("tube"),
         (Shape::StiffString(s), ModeLabel::String { n }) => strip_power(
             mode,

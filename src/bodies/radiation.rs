@@ -211,6 +211,11 @@ pub fn far_field(
             )
             .map_err(named),
             ModeLabel::Torsion { .. } => Ok((0.0, 0.0)),
+            ModeLabel::Ring { .. } => Err(named(
+                "the far field of a tube's ovalling modes is not modelled (hear the tube \
+                 through a velocity or displacement pickup)"
+                    .to_string(),
+            )),
             _ => mismatch("tube"),
         },
         Shape::StiffString(s) => match mode.label {

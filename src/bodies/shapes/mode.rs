@@ -77,6 +77,15 @@ pub enum ModeLabel {
         /// Mode number from 1.
         n: usize,
     },
+    /// A tube's ovalling (shell) mode: `n` waves round the wall (`n >= 2`),
+    /// the same along the tube; `sine` tells the partner turned by a
+    /// quarter wave (`sin(n phi)`).
+    Ring {
+        /// Waves round the circumference.
+        n: usize,
+        /// The `sin(n phi)` partner.
+        sine: bool,
+    },
 }
 
 impl fmt::Display for ModeLabel {
@@ -93,6 +102,9 @@ impl fmt::Display for ModeLabel {
             }
             ModeLabel::String { n } => write!(f, "string {n}"),
             ModeLabel::Torsion { n } => write!(f, "torsion {n}"),
+            ModeLabel::Ring { n, sine } => {
+                write!(f, "ovalling {n} {}", if sine { "sin" } else { "cos" })
+            }
         }
     }
 }
@@ -186,6 +198,18 @@ pub(super) enum ModeShape {
         n: usize,
         scale: f64,
     },
+    /// A tube's ovalling mode: the wall's radial motion `scale cos(n phi)`
+    /// and tangential `-(scale / n) sin(n phi)` (or the `sine` partner's,
+    /// turned by a quarter wave), the same at every `x`; a point's weight
+    /// is the motion across the tube's axis at the surface point `phi =
+    /// asin(y / (D / 2))` from the top (`tube.rs`, "Ovalling modes").
+    Ring {
+        length: f64,
+        half_width: f64,
+        n: usize,
+        sine: bool,
+        scale: f64,
+    },
 }
 
 impl ModeShape {
@@ -260,10 +284,31 @@ impl ModeShape {
                 };
                 Ok(scale * bessel_j(m, j * r / radius) * angular)
             }
+            (
+                &ModeShape::Ring {
+                    length,
+                    half_width,
+                    n,
+                    sine,
+                    scale,
+                },
+                Point::Line(_) | Point::Bar { .. },
+            ) => {
+                let (_, y) = bar_point(point, length, half_width)?;
+                let phi = (y / half_width).clamp(-1.0, 1.0).asin();
+                let (sp, cp) = phi.sin_cos();
+                let (sn, cn) = (n as f64 * phi).sin_cos();
+                let nf = n as f64;
+                // radial w and tangential v (toward +y), projected on the
+                // direction across the axis that y = 0 faces: w cos phi -
+                // v sin phi
+                let (w, v) = if sine { (sn, cn / nf) } else { (cn, -sn / nf) };
+                Ok(scale * (w * cp - v * sp))
+            }
             (shape, p) => Err(format!(
                 "point: {p:?} is not a point of a {}",
                 match shape {
-                    ModeShape::Beam { .. } | ModeShape::Torsion { .. } =>
+                    ModeShape::Beam { .. } | ModeShape::Torsion { .. } | ModeShape::Ring { .. } =>
                         "bar or tube (use Point::Bar or Point::Line)",
                     ModeShape::String { .. } => "string (use Point::Line)",
                     ModeShape::PlateSs { .. } | ModeShape::PlateFree { .. } =>

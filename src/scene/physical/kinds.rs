@@ -160,6 +160,15 @@ pub struct TubeSpec {
     /// Torsional modes (Saint-Venant); default off.
     #[serde(default)]
     pub torsion: bool,
+    /// Ovalling modes of the wall (Rayleigh's inextensional shell modes,
+    /// free ends); default off.
+    #[serde(default)]
+    pub ovalling: bool,
+    /// The wall's modulus round the circumference for the ovalling modes
+    /// \[Pa\] (a wooden tube's is across the grain); default the
+    /// material's Young's modulus.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hoop_modulus_pa: Option<f64>,
     /// Decay.
     #[serde(default)]
     pub loss: LossSpec,
@@ -170,7 +179,8 @@ pub struct TubeSpec {
     /// Most modes listed (default and limit `MAX_MODES_PER_OBJECT`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_modes: Option<usize>,
-    /// Named points: position along the tube \[m\].
+    /// Named points: position along the tube \[m\], or `[along, across]`
+    /// (across from the line the contact faces, `|across| <= D / 2`).
     pub points: BTreeMap<String, PointSpec>,
 }
 

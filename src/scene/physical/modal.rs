@@ -562,7 +562,13 @@ fn mode_count_estimate(shape: &Shape, f: f64) -> f64 {
             let torsion = t
                 .torsion
                 .map_or(0.0, |g| 2.0 * t.length_m * f / (g / t.density_kg_m3).sqrt());
-            t.length_m * (w * w / ei_ra).powf(0.25) / PI + torsion
+            // two partners per ovalling mode `n` (a few dozen at most
+            // below any audio rate)
+            let ovalling = (2..10_000)
+                .take_while(|&n| t.ovalling_freq_hz(n).is_some_and(|fo| fo <= f))
+                .count() as f64
+                * 2.0;
+            t.length_m * (w * w / ei_ra).powf(0.25) / PI + torsion + ovalling
         }
         Shape::Plate(p) => {
             let area = p.length_x_m * p.length_y_m;

@@ -1,7 +1,7 @@
 //! A physical object's shape: its geometry with the material's values,
 //! and its named points as points of the shape.
 
-use super::kinds::{EdgesSpec, PointSpec};
+use super::kinds::{EdgesSpec, PointSpec, TubeSpec};
 use super::PhysicalSpec;
 use crate::bodies::shapes::{Bar, Membrane, Plate, PlateEdges, Point, Shape, StiffString, Tube};
 use crate::scene::error::{check_positive, SceneError};
@@ -16,6 +16,35 @@ pub(super) fn shape_error(base: &str, msg: String) -> SceneError {
         _ => SceneError::new(base.to_string(), msg),
     }
 }
+/// A tube's shape (with its torsional and ovalling modes when asked) and
+/// its material's loss factor.
+fn tube_shape(s: &TubeSpec, base: &str) -> Result<(Shape, f64), SceneError> {
+    let m = s.material.resolve(base)?;
+    let mut tube = Tube::new(s.length_m, s.outer_diameter_m, s.inner_diameter_m, &m);
+    tube.support = s.support.support();
+    if s.timoshenko {
+        tube = tube.with_timoshenko(m.shear_modulus_pa, m.poisson_ratio);
+    }
+    if s.torsion {
+        tube = tube.with_torsion(m.shear_modulus_pa);
+    }
+    match (s.ovalling, s.hoop_modulus_pa) {
+        (true, e) => {
+            let e = e.unwrap_or(m.youngs_modulus_pa);
+            check_positive(&format!("{base}.hoop_modulus_pa"), e)?;
+            tube = tube.with_ovalling(e, m.poisson_ratio);
+        }
+        (false, Some(_)) => {
+            return Err(SceneError::new(
+                format!("{base}.hoop_modulus_pa"),
+                "sets the ovalling modes' modulus: give `ovalling = true` too",
+            ))
+        }
+        (false, None) => {}
+    }
+    Ok((Shape::Tube(tube), m.loss_factor))
+}
+
 impl PhysicalSpec<'_> {
     /// The shape (geometry with the material's values) and the loss factor
     /// the material gives.
@@ -43,18 +72,7 @@ impl PhysicalSpec<'_> {
                 }
                 (Shape::Bar(bar), m.loss_factor)
             }
-            PhysicalSpec::Tube(s) => {
-                let m = s.material.resolve(base)?;
-                let mut tube = Tube::new(s.length_m, s.outer_diameter_m, s.inner_diameter_m, &m);
-                tube.support = s.support.support();
-                if s.timoshenko {
-                    tube = tube.with_timoshenko(m.shear_modulus_pa, m.poisson_ratio);
-                }
-                if s.torsion {
-                    tube = tube.with_torsion(m.shear_modulus_pa);
-                }
-                (Shape::Tube(tube), m.loss_factor)
-            }
+            PhysicalSpec::Tube(s) => tube_shape(s, base)?,
             PhysicalSpec::Plate(s) => {
                 let m = s.material.resolve(base)?;
                 let edges = match s.edges {
