@@ -302,3 +302,163 @@ point = "pickup"
     assert_eq!(rises, 0, "energy rose beyond rounding (largest {worst:e})");
     assert!(e < 0.99 * e0);
 }
+
+/// A bar of three modes with points `contact`, `other` and `pickup`; the
+/// `[hammer]`, `[contact]` and `[[striker]]` tables as given.
+fn bar_scene(hammer_contact: &str, striker: &str) -> Scene {
+    Scene::from_toml_str(&format!(
+        r#"
+version = 1
+name = "law-bar"
+duration_s = 0.05
+[[object]]
+name = "bar"
+kind = "modal"
+points = ["contact", "other", "pickup"]
+[[object.mode]]
+freq_hz = 440.0
+t60_s = 1.0
+weights = [1.0, -0.4, 0.7]
+[[object.mode]]
+freq_hz = 1760.0
+t60_s = 0.5
+weights = [0.8, 0.9, -0.6]
+[[object.mode]]
+freq_hz = 3960.0
+t60_s = 0.3
+weights = [0.6, -0.7, 0.5]
+{hammer_contact}
+{striker}
+[[pickup]]
+object = "bar"
+point = "pickup"
+"#
+    ))
+    .unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The pickup's output over `n` samples.
+fn played(s: &Scene, n: usize) -> (Vec<f64>, [u64; 4]) {
+    let sc = several(s);
+    let mut st = MultiState::new(&sc);
+    let out = (0..n).map(|_| st.tick(&sc)[0]).collect();
+    let mut started = [0; 4];
+    started[..sc.contacts()].copy_from_slice(&st.stats.contacts_started[..sc.contacts()]);
+    (out, started)
+}
+
+/// A striker's law is `[contact]`'s law on another mass: the same strike
+/// written with the hammer and the striker's roles swapped (the law on
+/// the hammer's contact at `other`, the parked linear mallet a striker at
+/// `contact`) plays the same to rounding, every piece touching; a touch's
+/// law between the hammer and a ceiling (a wall) crosses every breakpoint
+/// when the closed form of a mass on the pieces says, after the flight to
+/// the touch's gap, and sends the hammer back at the speed it came.
+#[test]
+fn a_strikers_law_and_a_touchs_law_are_the_contacts_law_elsewhere() {
+    let law = power_law(2.5, 3, 1.5e-3);
+    let parked = "mass_kg = 0.02\nheight_m = 0.5\nvelocity_m_per_s = 0.0";
+    let thrown = "mass_kg = 0.02\nheight_m = 0.0\nvelocity_m_per_s = -2.0";
+    let on_striker = bar_scene(
+        &format!(
+            "[hammer]\n{parked}\n[contact]\nobject = \"bar\"\npoint = \"contact\"\n\
+             stiffness_n_per_m = 2e5\ndamping_n_s_per_m = 3.0"
+        ),
+        &format!("[[striker]]\n{thrown}\npoint = \"other\"\ndamping_n_s_per_m = 5.0\nlaw = {law}"),
+    );
+    let on_hammer = bar_scene(
+        &format!(
+            "[hammer]\n{thrown}\n[contact]\nobject = \"bar\"\npoint = \"other\"\n\
+             damping_n_s_per_m = 5.0\nlaw = {law}"
+        ),
+        &format!(
+            "[[striker]]\n{parked}\npoint = \"contact\"\nstiffness_n_per_m = 2e5\n\
+             damping_n_s_per_m = 3.0"
+        ),
+    );
+    let n = (0.02 * RATE) as usize;
+    let (a, started_a) = played(&on_striker, n);
+    let (b, started_b) = played(&on_hammer, n);
+    let peak = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let diff = a
+        .iter()
+        .zip(&b)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    eprintln!(
+        "striker's law against the hammer's: contacts started {started_a:?} / {started_b:?}, \
+         largest difference {:.1e} of the peak",
+        diff / peak
+    );
+    // contact 0 is [contact], 1 the striker, 2.. the law's further pieces
+    assert_eq!(started_a, [0, 1, 1, 1]);
+    assert_eq!(started_b, [1, 0, 1, 1]);
+    assert!(peak > 0.0 && diff <= 1e-12 * peak, "{diff:e} of {peak:e}");
+
+    // a touch's law: the hammer thrown up from 1 mm over the bar into a
+    // ceiling (a wall) resting `gap` over the bar's rest, through the
+    // law's pieces and back down, as the closed form of a mass on the
+    // pieces says, shifted by the flight to the gap
+    let (h0, gap, v) = (1e-3, 2e-3, 1.0);
+    let up_to = power_contact(2.5, MASS, 3.0).0;
+    let pieces_law = power_law(2.5, 3, up_to);
+    let s = bar_scene(
+        &format!(
+            "[hammer]\nmass_kg = {MASS}\nheight_m = {h0}\nvelocity_m_per_s = {v}\n\
+             gravity_m_per_s2 = 0.0\n[contact]\nobject = \"bar\"\npoint = \"contact\"\n\
+             stiffness_n_per_m = 2e5"
+        ),
+        &format!(
+            "[[object]]\nname = \"ceiling\"\nkind = \"wall\"\n[[touch]]\n\
+             lower = {{ object = \"hammer\" }}\nupper = {{ object = \"ceiling\" }}\n\
+             gap_m = {gap}\nlaw = {pieces_law}"
+        ),
+    );
+    let p = s.touch[0]
+        .law
+        .clone()
+        .unwrap()
+        .pieces("touch[0].law")
+        .unwrap();
+    let sc = several(&s);
+    assert_eq!(sc.contacts(), 4);
+    let st = strike(&sc);
+    let (cross, _, duration) = pieces_contact(&p.breakpoints, &p.stiffness, MASS, v);
+    let t0 = (gap - h0) / v;
+    // contact 1 is the touch's first piece, 2 and 3 its further ones
+    let mut want: Vec<(usize, bool, f64)> = vec![(1, true, t0), (1, false, t0 + duration)];
+    for (j, &t) in cross.iter().enumerate() {
+        want.push((j + 2, true, t0 + t));
+        want.push((j + 2, false, t0 + duration - t));
+    }
+    let mut got: Vec<(usize, bool, f64)> = st
+        .switches
+        .iter()
+        .map(|w| (w.contact, w.entered, w.time_s))
+        .collect();
+    want.sort_by(|a, b| a.2.total_cmp(&b.2));
+    got.sort_by(|a, b| a.2.total_cmp(&b.2));
+    // the first flight up and back (then it falls back on the bar, and
+    // bounces between the two)
+    got.retain(|g| g.2 <= t0 + 1.5 * duration);
+    assert_eq!(got.len(), want.len(), "{got:?} vs {want:?}");
+    let mut worst = 0.0f64;
+    for (g, w) in got.iter().zip(&want) {
+        assert_eq!((g.0, g.1), (w.0, w.1), "{got:?} vs {want:?}");
+        worst = worst.max((g.2 - w.2).abs() / duration);
+    }
+    // its speed when it leaves the ceiling: run the scene again to that
+    // instant's sample
+    let mut again = MultiState::new(&sc);
+    let left = ((t0 + duration) * RATE).ceil() as usize + 1;
+    for _ in 0..left {
+        again.tick(&sc);
+    }
+    let back = again.observe(&sc).v_hammer[0];
+    eprintln!(
+        "touch's law into a ceiling: {} switches, largest instant error {worst:.1e} of the \
+         contact's duration, back down at {back} m/s (thrown up at {v})",
+        got.len()
+    );
+    assert!(worst < 1e-9, "{worst:e}");
+    assert!((back + v).abs() < 1e-10 * v, "{back}");
+}

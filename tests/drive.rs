@@ -376,6 +376,7 @@ fn bad_drive_input_is_refused_by_field() {
         point: "p".into(),
         stiffness_n_per_m: 1e5,
         damping_n_s_per_m: 0.0,
+        law: None,
         notes: Vec::new(),
         mallet: None,
     });

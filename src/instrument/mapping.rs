@@ -294,6 +294,9 @@ pub fn scene_for(base: &Scene, p: &InstrumentParams) -> Scene {
     for st in &mut s.striker {
         st.mass_kg *= mass_factor;
         st.stiffness_n_per_m *= positive_or(sp.stiffness_factor, 1.0);
+        if let Some(law) = &mut st.law {
+            law.scale_force(positive_or(sp.stiffness_factor, 1.0));
+        }
         st.damping_n_s_per_m *= cf;
     }
     let ds = positive_or(sp.decay_scale, 1.0);

@@ -418,10 +418,11 @@ impl SceneSides<'_> {
         Ok(w)
     }
 
-    /// A touch's side: the hammer, a wall, or a point of an object.
+    /// A touch's side: the hammer (or a striker, where a striker's law
+    /// put it), a wall, or a point of an object.
     fn side(&self, field: &str, end: &SceneEnd) -> Result<MultiEnd, SceneError> {
         if end.object == crate::scene::HAMMER_SIDE {
-            return Ok(MultiEnd::Mass(0));
+            return Ok(MultiEnd::Mass(end.striker.map_or(0, |i| 1 + i)));
         }
         let o = self.object(field, &end.object)?;
         match (&self.scene.object[o], &end.point) {
@@ -617,6 +618,7 @@ impl SceneSides<'_> {
                 &SceneEnd {
                     object: c.object.clone(),
                     point: None,
+                    striker: None,
                 },
             ),
         }

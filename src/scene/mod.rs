@@ -403,11 +403,17 @@ pub struct StrikerSpec {
     pub velocity_m_per_s: f64,
     /// The struck object's point it hits.
     pub point: String,
-    /// Contact stiffness \[N/m\].
+    /// Contact stiffness \[N/m\] (omitted, 0, with a `law`).
+    #[serde(default)]
     pub stiffness_n_per_m: f64,
-    /// Contact damping \[N s/m\].
+    /// Contact damping \[N s/m\] (with a `law`: the first piece's, as
+    /// [`ContactSpec::damping_n_s_per_m`]).
     #[serde(default)]
     pub damping_n_s_per_m: f64,
+    /// A law of several pieces instead of one stiffness, as `[contact]`'s
+    /// ([`ContactSpec::law`]); not with a modal mallet yet.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub law: Option<LawSpec>,
     /// The MIDI notes that strike this mallet when the instrument plays
     /// the scene. When no mallet (`[hammer]` or a striker) lists notes,
     /// every note strikes the next mallet in turn (a roll on one key);
@@ -437,6 +443,11 @@ pub struct End {
     /// The object's point (not for a wall or the hammer).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub point: Option<String>,
+    /// Set by [`Scene::expanded`] alone, on a side `"hammer"`: the side is
+    /// striker `i` (the further pieces of a striker's law); never read
+    /// from or written to a scene file.
+    #[serde(skip)]
+    pub striker: Option<usize>,
 }
 
 /// A contact between two sides (docs/design.md, "Several contacts"):
@@ -455,11 +466,16 @@ pub struct TouchSpec {
     /// wall is at 0).
     #[serde(default)]
     pub gap_m: f64,
-    /// Contact stiffness \[N/m\].
+    /// Contact stiffness \[N/m\] (omitted, 0, with a `law`).
+    #[serde(default)]
     pub stiffness_n_per_m: f64,
-    /// Contact damping \[N s/m\].
+    /// Contact damping \[N s/m\] (with a `law`: the first piece's).
     #[serde(default)]
     pub damping_n_s_per_m: f64,
+    /// A law of several pieces instead of one stiffness, as `[contact]`'s
+    /// ([`ContactSpec::law`]), its breakpoints counted from `gap_m`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub law: Option<LawSpec>,
 }
 
 /// The contact spring-damper (paper eq. 9).
@@ -700,38 +716,65 @@ impl Scene {
         Ok(out)
     }
 
-    /// `[contact]`'s law as springs side by side (src/scene/law.rs): the
-    /// contact takes the first piece's stiffness, and each further piece
-    /// becomes a `[[touch]]` between the same two sides, after the
-    /// scene's own, its gap the piece's breakpoint, its stiffness and
-    /// damping what the piece adds (damping in proportion to stiffness,
-    /// the first piece's ratio). Each added spring and damper is positive,
-    /// so each is passive, and so is their sum.
+    /// Every contact's law as springs side by side (src/scene/law.rs):
+    /// the contact takes its first piece's stiffness, and each further
+    /// piece becomes a `[[touch]]` between the same two sides, after the
+    /// scene's own touches (`[contact]`'s, then each striker's, then each
+    /// touch's), its gap the piece's breakpoint (a touch's: plus its own
+    /// gap), its stiffness and damping what the piece adds (damping in
+    /// proportion to stiffness, the first piece's ratio). Each added
+    /// spring and damper is positive, so each is passive, and so is their
+    /// sum.
     fn expand_law(&mut self) -> Result<(), SceneError> {
-        let Some(law) = self.contact.law.take() else {
-            return Ok(());
+        let mut added = Vec::new();
+        let hammer = |striker: Option<usize>| End {
+            object: HAMMER_SIDE.to_string(),
+            point: None,
+            striker,
         };
-        let pieces = law.pieces("contact.law")?;
-        let c = &mut self.contact;
-        let k1 = pieces.stiffness[0];
-        let ratio = c.damping_n_s_per_m / k1;
-        c.stiffness_n_per_m = k1;
-        for (i, &q) in pieces.breakpoints.iter().enumerate() {
-            let dk = pieces.stiffness[i + 1] - pieces.stiffness[i];
-            self.touch.push(TouchSpec {
-                lower: End {
-                    object: self.contact.object.clone(),
-                    point: self.contact.point.clone(),
-                },
-                upper: End {
-                    object: HAMMER_SIDE.to_string(),
-                    point: None,
-                },
-                gap_m: q,
-                stiffness_n_per_m: dk,
-                damping_n_s_per_m: ratio * dk,
-            });
+        if let Some(law) = self.contact.law.take() {
+            let c = &mut self.contact;
+            let lower = End {
+                object: c.object.clone(),
+                point: c.point.clone(),
+                striker: None,
+            };
+            let (k, d) = (&mut c.stiffness_n_per_m, c.damping_n_s_per_m);
+            added.extend(law_touches(
+                &law,
+                "contact.law",
+                (k, d),
+                (lower, hammer(None)),
+                0.0,
+            )?);
         }
+        for (i, st) in self.striker.iter_mut().enumerate() {
+            if let Some(law) = st.law.take() {
+                let lower = End {
+                    object: self.contact.object.clone(),
+                    point: Some(st.point.clone()),
+                    striker: None,
+                };
+                let (k, d) = (&mut st.stiffness_n_per_m, st.damping_n_s_per_m);
+                let path = format!("striker[{i}].law");
+                added.extend(law_touches(
+                    &law,
+                    &path,
+                    (k, d),
+                    (lower, hammer(Some(i))),
+                    0.0,
+                )?);
+            }
+        }
+        for (i, t) in self.touch.iter_mut().enumerate() {
+            if let Some(law) = t.law.take() {
+                let sides = (t.lower.clone(), t.upper.clone());
+                let (k, d) = (&mut t.stiffness_n_per_m, t.damping_n_s_per_m);
+                let path = format!("touch[{i}].law");
+                added.extend(law_touches(&law, &path, (k, d), sides, t.gap_m)?);
+            }
+        }
+        self.touch.extend(added);
         Ok(())
     }
 
@@ -745,17 +788,30 @@ impl Scene {
     /// engine runs it, the one-contact compiler and the instrument refuse
     /// it.
     pub fn several_contacts(&self) -> bool {
-        !self.striker.is_empty() || !self.touch.is_empty() || self.law_contacts() > 1
+        !self.striker.is_empty() || !self.touch.is_empty() || self.all_contacts() > 1
     }
 
     /// Contacts `[contact]`'s law makes: one per piece (1 without a law,
     /// or with one that is not valid: validation says why).
     pub fn law_contacts(&self) -> usize {
-        self.contact
-            .law
-            .as_ref()
-            .and_then(|l| l.pieces("contact.law").ok())
-            .map_or(1, |p| p.stiffness.len())
+        law_count(self.contact.law.as_ref())
+    }
+
+    /// Contacts the scene makes once every law is springs side by side:
+    /// each contact one per piece of its law (one without a law, or with
+    /// one that is not valid).
+    pub fn all_contacts(&self) -> usize {
+        law_count(self.contact.law.as_ref())
+            + self
+                .striker
+                .iter()
+                .map(|st| law_count(st.law.as_ref()))
+                .sum::<usize>()
+            + self
+                .touch
+                .iter()
+                .map(|t| law_count(t.law.as_ref()))
+                .sum::<usize>()
     }
 
     /// Index of the object named `name`.
@@ -771,6 +827,46 @@ impl Scene {
             .and_then(|p| p.damper)
             .unwrap_or(DEFAULT_RELEASE_DAMPER)
     }
+}
+
+/// Contacts a law makes: one per piece (1 without a law, or with one
+/// that is not valid: validation says why).
+fn law_count(law: Option<&LawSpec>) -> usize {
+    law.and_then(|l| l.pieces("law").ok())
+        .map_or(1, |p| p.stiffness.len())
+}
+
+/// The touches a contact's `law` adds between `sides` (lower, upper): the
+/// contact's stiffness `k` becomes the first piece's, each further piece a
+/// touch at `gap + ` its breakpoint with the stiffness it adds and damping
+/// in the first piece's ratio `d / k_1` ([`Scene::expand_law`]).
+fn law_touches(
+    law: &LawSpec,
+    path: &str,
+    (k, d): (&mut f64, f64),
+    (lower, upper): (End, End),
+    gap: f64,
+) -> Result<Vec<TouchSpec>, SceneError> {
+    let pieces = law.pieces(path)?;
+    let k1 = pieces.stiffness[0];
+    let ratio = d / k1;
+    *k = k1;
+    Ok(pieces
+        .breakpoints
+        .iter()
+        .enumerate()
+        .map(|(i, &q)| {
+            let dk = pieces.stiffness[i + 1] - pieces.stiffness[i];
+            TouchSpec {
+                lower: lower.clone(),
+                upper: upper.clone(),
+                gap_m: gap + q,
+                stiffness_n_per_m: dk,
+                damping_n_s_per_m: ratio * dk,
+                law: None,
+            }
+        })
+        .collect())
 }
 
 #[cfg(test)]
@@ -856,6 +952,103 @@ point = "contact"
                 "law = { power = 2.5, pieces = 3 }",
             ),
             "contact.law.force_n_at",
+        );
+    }
+
+    /// A striker's and a touch's `law`: read, a round trip through TOML,
+    /// expanded into touches after the scene's own (a striker's against
+    /// that striker, a touch's between its sides from its own gap), the
+    /// contacts counted with every law's pieces; refusals name the field.
+    #[test]
+    fn striker_and_touch_laws_become_touches_and_bad_ones_name_their_field() {
+        let law = "law = { breakpoints_m = [1e-4], stiffness_n_per_m = [1e5, 3e5] }";
+        let bar = BAR
+            .replace(
+                "points = [\"contact\"]",
+                "points = [\"contact\", \"b\", \"c\"]",
+            )
+            .replace("weights = [1.0]", "weights = [1.0, 0.5, -0.5]");
+        let striker = format!(
+            "[[striker]]\nmass_kg = 0.02\nheight_m = 0.001\npoint = \"b\"\ndamping_n_s_per_m = 2.0\n{law}\n"
+        );
+        let touch = format!(
+            "[[touch]]\nlower = {{ object = \"bar\", point = \"c\" }}\nupper = {{ object = \"hammer\" }}\n\
+             gap_m = 0.002\ndamping_n_s_per_m = 1.0\n{law}\n"
+        );
+        let s = Scene::from_toml_str(&format!("{bar}{striker}"))
+            .map_err(|e| e.to_string())
+            .unwrap();
+        assert_eq!(s.all_contacts(), 3);
+        let back = Scene::from_toml_str(&s.to_toml_string()).unwrap();
+        assert_eq!(back, s, "round trip");
+        let e = s.expanded(48_000.0).unwrap();
+        assert_eq!(e.striker[0].law, None);
+        assert_eq!(e.striker[0].stiffness_n_per_m, 1e5);
+        assert_eq!(e.touch.len(), 1);
+        let t = &e.touch[0];
+        assert_eq!(
+            (t.gap_m, t.stiffness_n_per_m, t.damping_n_s_per_m),
+            (1e-4, 2e5, 4.0)
+        );
+        assert_eq!(
+            (t.upper.object.as_str(), t.upper.striker),
+            (HAMMER_SIDE, Some(0))
+        );
+        assert_eq!(t.lower.point.as_deref(), Some("b"));
+        let s = Scene::from_toml_str(&format!("{bar}{touch}")).unwrap();
+        let e = s.expanded(48_000.0).unwrap();
+        assert_eq!(e.touch.len(), 2);
+        assert_eq!(e.touch[0].stiffness_n_per_m, 1e5);
+        let t = &e.touch[1];
+        assert_eq!(
+            (t.gap_m, t.stiffness_n_per_m, t.damping_n_s_per_m),
+            (0.002 + 1e-4, 2e5, 2.0)
+        );
+        assert_eq!(
+            (t.upper.striker, t.lower.point.as_deref()),
+            (None, Some("c"))
+        );
+        let bad = |text: String, field: &str| {
+            let err = Scene::from_toml_str(&text).unwrap_err();
+            assert_eq!(err.path, field, "{err}");
+            err.to_string()
+        };
+        let too_many = bad(format!("{bar}{striker}{touch}"), "striker[0].law");
+        assert!(too_many.contains("5 contacts"), "{too_many}");
+        bad(
+            format!(
+                "{bar}{}",
+                striker.replace("damping_n_s_per_m = 2.0", "stiffness_n_per_m = 1e5")
+            ),
+            "striker[0].stiffness_n_per_m",
+        );
+        bad(
+            format!(
+                "{bar}{}",
+                touch.replace("damping_n_s_per_m = 1.0", "stiffness_n_per_m = 1e5")
+            ),
+            "touch[0].stiffness_n_per_m",
+        );
+        bad(
+            format!("{bar}{}", striker.replace(&format!("{law}\n"), "")),
+            "striker[0].stiffness_n_per_m",
+        );
+        bad(
+            format!("{bar}{}", striker.replace("[1e5, 3e5]", "[3e5, 1e5]")),
+            "striker[0].law.stiffness_n_per_m[1]",
+        );
+        // a striker's law on a modal mallet: not yet
+        let mallet = "[[object]]\nname = \"m\"\nkind = \"modal\"\npoints = [\"tip\"]\n\
+                      [[object.mode]]\nfreq_hz = 2000.0\nt60_s = 0.1\nweights = [1.0]\n";
+        bad(
+            format!(
+                "{bar}{mallet}{}",
+                striker.replace(
+                    "point = \"b\"",
+                    "point = \"b\"\nmallet = { object = \"m\", point = \"tip\" }"
+                )
+            ),
+            "striker[0].law",
         );
     }
 

@@ -50,6 +50,7 @@ impl Scene {
         self.validate_mallet()?;
         self.validate_strikers()?;
         self.validate_touches()?;
+        self.validate_law_total()?;
         self.validate_notes()?;
         self.validate_listeners()?;
         self.validate_pickups()?;
@@ -112,7 +113,8 @@ impl Scene {
 
     /// `[contact] law`: instead of `stiffness_n_per_m`, pieces that are a
     /// law (src/scene/law.rs), one contact each within `MAX_CONTACTS` with
-    /// the strikers and touches, on a point-mass hammer.
+    /// the strikers and touches (and their laws' pieces), on a point-mass
+    /// hammer.
     fn validate_law(&self) -> Result<(), SceneError> {
         let c = &self.contact;
         let Some(law) = &c.law else {
@@ -124,26 +126,63 @@ impl Scene {
                 "give either the stiffness or a law: remove one",
             ));
         }
-        let pieces = law.pieces("contact.law")?.stiffness.len();
+        law.pieces("contact.law")?;
         if self.hammer.object.is_some() {
             return Err(SceneError::new(
                 "contact.law",
                 "not with a modal mallet yet: a point-mass hammer only",
             ));
         }
-        let total = pieces + self.striker.len() + self.touch.len();
-        if total > MAX_CONTACTS {
+        Ok(())
+    }
+
+    /// Every contact's law's pieces, one contact each, with the strikers
+    /// and touches at most `MAX_CONTACTS` (run after each contact's own
+    /// checks).
+    fn validate_law_total(&self) -> Result<(), SceneError> {
+        let total = self.all_contacts();
+        if total <= MAX_CONTACTS {
+            return Ok(());
+        }
+        let field = if self.contact.law.is_some() {
+            "contact.law".to_string()
+        } else if let Some(i) = self.striker.iter().position(|st| st.law.is_some()) {
+            format!("striker[{i}].law")
+        } else if let Some(i) = self.touch.iter().position(|t| t.law.is_some()) {
+            format!("touch[{i}].law")
+        } else {
+            "touch".to_string()
+        };
+        Err(SceneError::new(
+            field,
+            format!(
+                "[contact], {} strikers and {} touches make {total} contacts with their laws' \
+                 pieces (one contact each), at most {MAX_CONTACTS}",
+                self.striker.len(),
+                self.touch.len()
+            ),
+        ))
+    }
+
+    /// A striker's or a touch's `law` at `base` (`striker[i]`,
+    /// `touch[i]`): its pieces valid and no stiffness beside it; whether
+    /// it has one.
+    fn validate_own_law(
+        base: &str,
+        law: Option<&crate::scene::LawSpec>,
+        stiffness: f64,
+    ) -> Result<bool, SceneError> {
+        let Some(law) = law else {
+            return Ok(false);
+        };
+        if stiffness != 0.0 {
             return Err(SceneError::new(
-                "contact.law",
-                format!(
-                    "{pieces} pieces (one contact each), {} strikers and {} touches make {total} \
-                     contacts, at most {MAX_CONTACTS}",
-                    self.striker.len(),
-                    self.touch.len()
-                ),
+                format!("{base}.stiffness_n_per_m"),
+                "give either the stiffness or a law: remove one",
             ));
         }
-        Ok(())
+        law.pieces(&format!("{base}.law"))?;
+        Ok(true)
     }
 
     /// Strikers: at most `MAX_CONTACTS - 1`; each hits a point of the
@@ -223,17 +262,16 @@ impl Scene {
             st.velocity_m_per_s,
             MAX_SPEED_M_PER_S,
         )?;
-        check_positive(&f("stiffness_n_per_m"), st.stiffness_n_per_m)?;
-        check_min(
-            &f("stiffness_n_per_m"),
-            st.stiffness_n_per_m,
-            MIN_STIFFNESS_N_PER_M,
-        )?;
-        check_max(
-            &f("stiffness_n_per_m"),
-            st.stiffness_n_per_m,
-            MAX_STIFFNESS_N_PER_M,
-        )?;
+        if Self::validate_own_law(&base, st.law.as_ref(), st.stiffness_n_per_m)? {
+            if st.mallet.is_some() {
+                return Err(SceneError::new(
+                    f("law"),
+                    "not with a modal mallet yet: a point-mass striker only",
+                ));
+            }
+        } else {
+            check_stiffness(&f("stiffness_n_per_m"), st.stiffness_n_per_m)?;
+        }
         check_non_negative(&f("damping_n_s_per_m"), st.damping_n_s_per_m)?;
         check_max(
             &f("damping_n_s_per_m"),
@@ -461,17 +499,9 @@ impl Scene {
         let f = |k: &str| format!("touch[{i}].{k}");
         check_non_negative(&f("gap_m"), t.gap_m)?;
         check_max(&f("gap_m"), t.gap_m, MAX_HEIGHT_M)?;
-        check_positive(&f("stiffness_n_per_m"), t.stiffness_n_per_m)?;
-        check_min(
-            &f("stiffness_n_per_m"),
-            t.stiffness_n_per_m,
-            MIN_STIFFNESS_N_PER_M,
-        )?;
-        check_max(
-            &f("stiffness_n_per_m"),
-            t.stiffness_n_per_m,
-            MAX_STIFFNESS_N_PER_M,
-        )?;
+        if !Self::validate_own_law(&format!("touch[{i}]"), t.law.as_ref(), t.stiffness_n_per_m)? {
+            check_stiffness(&f("stiffness_n_per_m"), t.stiffness_n_per_m)?;
+        }
         check_non_negative(&f("damping_n_s_per_m"), t.damping_n_s_per_m)?;
         check_max(
             &f("damping_n_s_per_m"),
@@ -893,4 +923,19 @@ fn validate_string(base: &str, s: &StringSpec) -> Result<(), SceneError> {
         }
     }
     Ok(())
+}
+
+/// A contact's stiffness at `field`: positive and within the scene's
+/// limits (0, missing, says a law may take its place).
+fn check_stiffness(field: &str, k: f64) -> Result<(), SceneError> {
+    if k == 0.0 {
+        return Err(SceneError::new(
+            field,
+            "must be > 0, got 0 (missing: give the contact's stiffness, or a law of several \
+             pieces)",
+        ));
+    }
+    check_positive(field, k)?;
+    check_min(field, k, MIN_STIFFNESS_N_PER_M)?;
+    check_max(field, k, MAX_STIFFNESS_N_PER_M)
 }

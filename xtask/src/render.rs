@@ -739,7 +739,7 @@ fn several_contacts_report(
          coordinates, condition of the bases at most {:.1}\n",
         scene.striker.len(),
         scene.touch.len(),
-        scene.law_contacts(),
+        scene.all_contacts() - scene.striker.len() - scene.touch.len(),
         model.freq_hz.len(),
         model.masses.len(),
         compiled.phases.len(),
@@ -762,30 +762,44 @@ fn several_contacts_report(
 /// The contact law's pieces and, for a fitted power law, its largest
 /// relative force error (empty without a law).
 fn law_line(scene: &Scene) -> String {
-    let Some(law) = &scene.contact.law else {
-        return String::new();
-    };
-    let Ok(p) = law.pieces("contact.law") else {
-        return String::new();
-    };
-    let fit = match (law.power, law.up_to_m) {
-        (Some(power), Some(up_to)) => format!(
-            ", fitted to F ~ p^{power}: largest force error {:.2} % from {:.3e} to {up_to:.3e} m",
-            100.0 * p.fit_error,
-            law.from_m.unwrap_or(0.1 * up_to)
-        ),
-        _ => String::new(),
-    };
-    // each piece's damper in proportion to the stiffness it adds
-    // (docs/design.md, "Stiffening contacts"): one relaxation time c / k
-    let c1 = scene.contact.damping_n_s_per_m;
-    let relax = c1 / p.stiffness[0];
-    format!(
-        "contact law: {} pieces, breakpoints {:.3e} m, stiffness {:.3e} N/m{fit}; damping {c1:.3e} N s/m on the first piece, relaxation time c / k = {relax:.3e} s on every piece\n",
-        p.stiffness.len(),
-        DisplayList(&p.breakpoints),
-        DisplayList(&p.stiffness)
-    )
+    let mut laws: Vec<(String, &modal_contact::scene::LawSpec, f64)> = Vec::new();
+    if let Some(law) = &scene.contact.law {
+        laws.push(("contact".into(), law, scene.contact.damping_n_s_per_m));
+    }
+    for (i, st) in scene.striker.iter().enumerate() {
+        if let Some(law) = &st.law {
+            laws.push((format!("striker[{i}]"), law, st.damping_n_s_per_m));
+        }
+    }
+    for (i, t) in scene.touch.iter().enumerate() {
+        if let Some(law) = &t.law {
+            laws.push((format!("touch[{i}]"), law, t.damping_n_s_per_m));
+        }
+    }
+    let mut out = String::new();
+    for (name, law, c1) in laws {
+        let Ok(p) = law.pieces(&format!("{name}.law")) else {
+            continue;
+        };
+        let fit = match (law.power, law.up_to_m) {
+            (Some(power), Some(up_to)) => format!(
+                ", fitted to F ~ p^{power}: largest force error {:.2} % from {:.3e} to {up_to:.3e} m",
+                100.0 * p.fit_error,
+                law.from_m.unwrap_or(0.1 * up_to)
+            ),
+            _ => String::new(),
+        };
+        // each piece's damper in proportion to the stiffness it adds
+        // (docs/design.md, "Stiffening contacts"): one relaxation time c / k
+        let relax = c1 / p.stiffness[0];
+        out.push_str(&format!(
+            "{name} law: {} pieces, breakpoints {:.3e} m, stiffness {:.3e} N/m{fit}; damping {c1:.3e} N s/m on the first piece, relaxation time c / k = {relax:.3e} s on every piece\n",
+            p.stiffness.len(),
+            DisplayList(&p.breakpoints),
+            DisplayList(&p.stiffness)
+        ));
+    }
+    out
 }
 
 /// A list of numbers in scientific notation, `[a, b, ...]`.
