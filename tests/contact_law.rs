@@ -462,3 +462,110 @@ fn a_strikers_law_and_a_touchs_law_are_the_contacts_law_elsewhere() {
     assert!(worst < 1e-9, "{worst:e}");
     assert!((back + v).abs() < 1e-10 * v, "{back}");
 }
+
+/// A law on a modal mallet: the mallet's modes join the struck object's
+/// (here a wall's: the wall becomes an object of the mallet's modes alone)
+/// before the law's pieces are laid out, so every piece presses on the
+/// joined contact point. As the mallet's one elastic mode stiffens, its tip
+/// follows its rigid mass and the strike tends to the point mass's closed
+/// form on the pieces: the switch instants' error falls as the mode rises
+/// from 2 to 200 kHz (about as `(f_contact / f_mode)^2`).
+#[test]
+fn a_law_on_a_modal_mallet_tends_to_the_point_mass_as_its_mode_stiffens() {
+    let up_to = power_contact(2.5, MASS, SPEEDS[2]).0;
+    let law = power_law(2.5, 3, up_to);
+    let v = 1.0;
+    let mut errors = Vec::new();
+    for f_mode in [2e3, 2e4, 2e5] {
+        let s = Scene::from_toml_str(&format!(
+            r#"
+version = 1
+name = "law-mallet"
+duration_s = 0.05
+[[object]]
+name = "wall"
+kind = "wall"
+[[object]]
+name = "head"
+kind = "modal"
+points = ["tip"]
+[[object.mode]]
+freq_hz = {f_mode}
+t60_s = 10.0
+weights = [14.0]
+[hammer]
+mass_kg = {MASS}
+height_m = 0.0
+velocity_m_per_s = {vel}
+object = "head"
+point = "tip"
+[contact]
+object = "wall"
+damping_n_s_per_m = 0.0
+law = {law}
+"#,
+            vel = -v
+        ))
+        .unwrap_or_else(|e| panic!("{e}"));
+        let p = s
+            .contact
+            .law
+            .clone()
+            .unwrap()
+            .pieces("contact.law")
+            .unwrap();
+        let sc = several(&s);
+        assert_eq!(sc.contacts(), 3);
+        let st = strike(&sc);
+        let (cross, _, duration) = pieces_contact(&p.breakpoints, &p.stiffness, MASS, v);
+        let mut want: Vec<f64> = vec![0.0, duration];
+        for &t in &cross {
+            want.extend([t, duration - t]);
+        }
+        want.sort_by(f64::total_cmp);
+        // the first strike's switches (a soft mode may bounce it again)
+        let mut got: Vec<f64> = st.switches.iter().map(|w| w.time_s).collect();
+        got.sort_by(f64::total_cmp);
+        got.truncate(want.len());
+        assert_eq!(got.len(), want.len(), "{f_mode} Hz: {got:?} vs {want:?}");
+        let worst = got
+            .iter()
+            .zip(&want)
+            .map(|(g, w)| (g - w).abs() / duration)
+            .fold(0.0f64, f64::max);
+        eprintln!("mallet mode at {f_mode} Hz: switch instants within {worst:.2e} of the duration");
+        errors.push(worst);
+    }
+    assert!(
+        errors[1] < 0.2 * errors[0] && errors[2] < 0.2 * errors[1],
+        "{errors:?}"
+    );
+    assert!(errors[2] < 1e-3, "{errors:?}");
+}
+
+/// A law with a modal mallet on a lumped string is refused by name: the
+/// string meets its mallet in the compiler, after the pieces are laid out.
+#[test]
+fn a_law_with_a_modal_mallet_on_a_lumped_string_is_refused() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/presets/paper-string.toml"
+    ))
+    .unwrap()
+    .replace(
+        "[hammer]\n",
+        "[hammer]\nobject = \"head\"\npoint = \"tip\"\n",
+    )
+    .replace(
+        "stiffness_n_per_m = 2e4",
+        "law = { breakpoints_m = [1e-4], stiffness_n_per_m = [1e4, 3e4] }",
+    );
+    let text = format!(
+        "{text}\n[[object]]\nname = \"head\"\nkind = \"modal\"\npoints = [\"tip\"]\n\
+         [[object.mode]]\nfreq_hz = 3000.0\nt60_s = 0.2\nweights = [10.0]\n"
+    );
+    let e = Scene::from_toml_str(&text).unwrap_err();
+    eprintln!("{e}");
+    assert_eq!(e.path, "contact.law");
+    assert!(e.to_string().contains("lumped string"), "{e}");
+}

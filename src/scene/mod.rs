@@ -411,7 +411,7 @@ pub struct StrikerSpec {
     #[serde(default)]
     pub damping_n_s_per_m: f64,
     /// A law of several pieces instead of one stiffness, as `[contact]`'s
-    /// ([`ContactSpec::law`]); not with a modal mallet yet.
+    /// ([`ContactSpec::law`]); not with a modal mallet (`mallet`) yet.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub law: Option<LawSpec>,
     /// The MIDI notes that strike this mallet when the instrument plays

@@ -113,8 +113,8 @@ impl Scene {
 
     /// `[contact] law`: instead of `stiffness_n_per_m`, pieces that are a
     /// law (src/scene/law.rs), one contact each within `MAX_CONTACTS` with
-    /// the strikers and touches (and their laws' pieces), on a point-mass
-    /// hammer.
+    /// the strikers and touches (and their laws' pieces); with a modal
+    /// mallet, on an object of modes or a wall.
     fn validate_law(&self) -> Result<(), SceneError> {
         let c = &self.contact;
         let Some(law) = &c.law else {
@@ -127,10 +127,17 @@ impl Scene {
             ));
         }
         law.pieces("contact.law")?;
-        if self.hammer.object.is_some() {
+        // a modal mallet's modes join the struck object's before the law
+        // is expanded (`Scene::expanded`), so each piece presses on the
+        // joined contact point; a lumped string is joined to its mallet
+        // later, in the compiler, which the pieces would miss
+        let struck_string = self
+            .object_index(&c.object)
+            .is_some_and(|i| matches!(self.object[i], ObjectSpec::String(_)));
+        if self.hammer.object.is_some() && struck_string {
             return Err(SceneError::new(
                 "contact.law",
-                "not with a modal mallet yet: a point-mass hammer only",
+                "not with a modal mallet on a lumped string: a point-mass hammer there",
             ));
         }
         Ok(())
