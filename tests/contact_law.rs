@@ -569,3 +569,78 @@ fn a_law_with_a_modal_mallet_on_a_lumped_string_is_refused() {
     assert_eq!(e.path, "contact.law");
     assert!(e.to_string().contains("lumped string"), "{e}");
 }
+
+/// A law on a soft modal mallet presses where its one linear spring does:
+/// a law whose second piece starts 1 nm in (stiffness 1e3 N/m, then 1.2e5)
+/// plays, within the nanometre's share, what the one-contact engine plays
+/// for the mallet on a spring of 1.2e5 N/m (its own compiler: the mallet's
+/// modes joined, no touches), on a bar, with the mallet's elastic mode at 2
+/// kHz (its face moves far from its rigid mass).
+#[test]
+fn a_law_on_a_soft_modal_mallet_presses_where_its_spring_does() {
+    let text = |contact: &str| {
+        format!(
+            r#"
+version = 1
+name = "soft-mallet"
+duration_s = 0.03
+[[object]]
+name = "bar"
+kind = "modal"
+points = ["contact", "pickup"]
+[[object.mode]]
+freq_hz = 440.0
+t60_s = 1.0
+weights = [1.0, 0.7]
+[[object.mode]]
+freq_hz = 1760.0
+t60_s = 0.5
+weights = [0.8, -0.6]
+[[object]]
+name = "head"
+kind = "modal"
+points = ["tip"]
+[[object.mode]]
+freq_hz = 2000.0
+t60_s = 0.2
+weights = [14.0]
+[hammer]
+mass_kg = 0.02
+height_m = 0.0
+velocity_m_per_s = -1.0
+object = "head"
+point = "tip"
+[contact]
+object = "bar"
+point = "contact"
+damping_n_s_per_m = 0.0
+{contact}
+[[pickup]]
+object = "bar"
+point = "pickup"
+"#
+        )
+    };
+    let opts = modal_contact::render::RenderOptions {
+        rate_hz: RATE,
+        ..Default::default()
+    };
+    let linear = Scene::from_toml_str(&text("stiffness_n_per_m = 1.2e5")).unwrap();
+    let law = Scene::from_toml_str(&text(
+        "law = { breakpoints_m = [1e-9], stiffness_n_per_m = [1e3, 1.2e5] }",
+    ))
+    .unwrap();
+    assert!(law.several_contacts() && !linear.several_contacts());
+    let a = modal_contact::render::render(&linear, &opts).unwrap().left;
+    let b = modal_contact::render::render(&law, &opts).unwrap().left;
+    let peak = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let diff = a
+        .iter()
+        .zip(&b)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    eprintln!(
+        "law on a 2 kHz mallet against its spring: largest difference {:.2e} of the peak",
+        diff / peak
+    );
+    assert!(peak > 0.0 && diff < 1e-3 * peak, "{:e}", diff / peak);
+}

@@ -695,9 +695,14 @@ impl SceneSides<'_> {
             let mut lower = self.side(&format!("touch[{i}].lower"), &t.lower)?;
             let mut upper = self.side(&format!("touch[{i}].upper"), &t.upper)?;
             let mut gap = t.gap_m;
+            // a piece of `[contact]`'s law presses on its joined point,
+            // which holds the mallet's face already
+            let joined = t.lower.object == c.object && t.lower.point == c.point;
             if upper == MultiEnd::Mass(0) {
-                let psi = psi_of(format!("touch[{i}].upper.point"), &t.upper)?;
-                (lower, gap) = less_face(lower, gap, true, psi);
+                if !joined {
+                    let psi = psi_of(format!("touch[{i}].upper.point"), &t.upper)?;
+                    (lower, gap) = less_face(lower, gap, true, psi);
+                }
             } else if lower == MultiEnd::Mass(0) {
                 let psi = psi_of(format!("touch[{i}].lower.point"), &t.lower)?;
                 (upper, gap) = less_face(upper, gap, false, psi);
