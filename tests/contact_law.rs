@@ -304,7 +304,8 @@ point = "pickup"
 }
 
 /// A bar of three modes with points `contact`, `other` and `pickup`; the
-/// `[hammer]`, `[contact]` and `[[striker]]` tables as given.
+/// `[hammer]` and `[contact]` tables, then any further tables (strikers,
+/// touches, objects), as given.
 fn bar_scene(hammer_contact: &str, striker: &str) -> Scene {
     Scene::from_toml_str(&format!(
         r#"
@@ -579,57 +580,22 @@ fn a_law_with_a_modal_mallet_on_a_lumped_string_is_refused() {
 #[test]
 fn a_law_on_a_soft_modal_mallet_presses_where_its_spring_does() {
     let text = |contact: &str| {
-        format!(
-            r#"
-version = 1
-name = "soft-mallet"
-duration_s = 0.03
-[[object]]
-name = "bar"
-kind = "modal"
-points = ["contact", "pickup"]
-[[object.mode]]
-freq_hz = 440.0
-t60_s = 1.0
-weights = [1.0, 0.7]
-[[object.mode]]
-freq_hz = 1760.0
-t60_s = 0.5
-weights = [0.8, -0.6]
-[[object]]
-name = "head"
-kind = "modal"
-points = ["tip"]
-[[object.mode]]
-freq_hz = 2000.0
-t60_s = 0.2
-weights = [14.0]
-[hammer]
-mass_kg = 0.02
-height_m = 0.0
-velocity_m_per_s = -1.0
-object = "head"
-point = "tip"
-[contact]
-object = "bar"
-point = "contact"
-damping_n_s_per_m = 0.0
-{contact}
-[[pickup]]
-object = "bar"
-point = "pickup"
-"#
+        bar_scene(
+            &format!(
+                "[hammer]\nmass_kg = 0.02\nheight_m = 0.0\nvelocity_m_per_s = -1.0\n\
+                 object = \"head\"\npoint = \"tip\"\n[contact]\nobject = \"bar\"\n\
+                 point = \"contact\"\ndamping_n_s_per_m = 0.0\n{contact}"
+            ),
+            "[[object]]\nname = \"head\"\nkind = \"modal\"\npoints = [\"tip\"]\n\
+             [[object.mode]]\nfreq_hz = 2000.0\nt60_s = 0.2\nweights = [14.0]",
         )
     };
     let opts = modal_contact::render::RenderOptions {
         rate_hz: RATE,
         ..Default::default()
     };
-    let linear = Scene::from_toml_str(&text("stiffness_n_per_m = 1.2e5")).unwrap();
-    let law = Scene::from_toml_str(&text(
-        "law = { breakpoints_m = [1e-9], stiffness_n_per_m = [1e3, 1.2e5] }",
-    ))
-    .unwrap();
+    let linear = text("stiffness_n_per_m = 1.2e5");
+    let law = text("law = { breakpoints_m = [1e-9], stiffness_n_per_m = [1e3, 1.2e5] }");
     assert!(law.several_contacts() && !linear.several_contacts());
     let a = modal_contact::render::render(&linear, &opts).unwrap().left;
     let b = modal_contact::render::render(&law, &opts).unwrap().left;

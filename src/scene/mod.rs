@@ -791,12 +791,6 @@ impl Scene {
         !self.striker.is_empty() || !self.touch.is_empty() || self.all_contacts() > 1
     }
 
-    /// Contacts `[contact]`'s law makes: one per piece (1 without a law,
-    /// or with one that is not valid: validation says why).
-    pub fn law_contacts(&self) -> usize {
-        law_count(self.contact.law.as_ref())
-    }
-
     /// Contacts the scene makes once every law is springs side by side:
     /// each contact one per piece of its law (one without a law, or with
     /// one that is not valid).
@@ -909,7 +903,7 @@ point = "contact"
         );
         let s = Scene::from_toml_str(&with).unwrap();
         assert!(s.several_contacts());
-        assert_eq!(s.law_contacts(), 3);
+        assert_eq!(s.all_contacts(), 3);
         let back = Scene::from_toml_str(&s.to_toml_string()).unwrap();
         assert_eq!(back, s, "round trip");
         let e = s.expanded(48_000.0).unwrap();
