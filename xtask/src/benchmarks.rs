@@ -99,7 +99,9 @@ docs/design.md, \"Speed targets\".",
         args: &["bench", "--bench", "worst_block"],
         quick_args: &[],
         about: "The instrument (`Instrument::process`, what the plugin runs per host \
-block) at 48 kHz, 2 s per cell, chords of 1, 4 or 16 notes (keys 48-83) struck \
+block) at 48 kHz, 2 s per cell (each block the least of three runs of the same \
+work, so that a pause of the machine's does not stand for the instrument's cost), \
+chords of 1, 4 or 16 notes (keys 48-83) struck \
 together every 125 ms on voices that still ring, on modal objects of 10 to 1000 \
 modes: the largest and the 99.9th percentile block as a percentage of the block's \
 real-time budget (above 100 % a block is late). \"dense switches\" is the same \
@@ -108,8 +110,7 @@ with its recorded strikes dropped. Beside it: what one strike costs (ringing, at
 rest, played back), one note's first block at three pitches, 64 voices of the \
 heaviest preset with and without the editor's live view, every preset's 16-note \
 chord struck again on its ringing voices (on a driven preset, 16 strokes rolling or \
-scraping at once; each block the least of three runs, so that a pause of the \
-machine's does not stand for a preset's cost), bad input (all 128 keys in one block, a note on every sample), a pitch bend, a 16-note chord with a \
+scraping at once), bad input (all 128 keys in one block, a note on every sample), a pitch bend, a 16-note chord with a \
 brightness on every note, and the lookahead table. A largest far above its \
 percentile is one block the machine interrupted; compare rows of one run, not runs \
 of different days. What the numbers mean for the plugin: \
