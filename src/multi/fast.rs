@@ -14,7 +14,6 @@
 use super::*;
 use crate::engine::kernel::{rows_of, run_block_with, BlockIo, BlockRows, Extras, ObsIo, Rows};
 use crate::engine::kernel::{BlockAcc, EPOCH};
-use crate::engine::vmath::SimdPath;
 
 /// The kernel's scratch, one per state (about 30 KB: kept off the state's
 /// own size by a box).
@@ -82,6 +81,22 @@ impl MultiState {
     #[doc(hidden)]
     pub fn set_block_path(&mut self, on: bool) {
         self.block_path = on;
+    }
+
+    /// Run the batched `exp`, `sin` and `cos` of the search's nodes and of
+    /// partial steps on the portable kernels (`true`, the baseline target)
+    /// or this CPU's fastest (`false`, the default). The two round
+    /// differently (fused multiply-adds), each deterministically, as the
+    /// one-contact engine's (`EngineState::set_portable_kernels`). The
+    /// block kernel stays on its portable path on both: its state is the
+    /// per-sample step's bit for bit (docs/numerics.md section 14).
+    /// \[any-thread\]
+    pub fn set_portable_kernels(&mut self, portable: bool) {
+        self.simd = if portable {
+            SimdPath::Generic
+        } else {
+            SimdPath::detect()
+        };
     }
 
     /// Up to `left.len()` samples (at most to the end of the clock's

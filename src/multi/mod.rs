@@ -59,6 +59,7 @@
 use crate::compile::{pan_gains, CompileBudget};
 use crate::engine::kernel::BlockProps;
 use crate::engine::search::STACK;
+use crate::engine::vmath::{self, SimdPath};
 use crate::engine::TimeScaleError;
 use crate::physics::block::{exp2, mul2, sym_growth, Mat2, OscForm};
 use crate::physics::decomp::{decompose_via, Form};
@@ -662,6 +663,11 @@ pub struct MultiState {
     cached: [(u64, f64); MAX_CONTACTS],
     /// The certified search's pending nodes.
     stack: [(f64, f64); STACK],
+    /// The blocks' exponentials at a node or a partial step.
+    trig: Trig,
+    /// The kernels' path: this CPU's fastest, or the portable one
+    /// ([`set_portable_kernels`](Self::set_portable_kernels)).
+    simd: SimdPath,
     /// The block path's scratch, and whether it runs (a test knob: off,
     /// every sample takes the search's way).
     kern: Box<fast::Kern>,
@@ -717,6 +723,8 @@ impl Clone for MultiState {
             phys: self.phys.clone(),
             cached: self.cached,
             stack: self.stack,
+            trig: self.trig.clone(),
+            simd: self.simd,
             kern: self.kern.clone(),
             block_path: self.block_path,
             rod: self.rod,
@@ -774,9 +782,27 @@ impl EventFn {
 /// columns in the order of `cols` (increasing, as a dense product's), so
 /// the sums are those of the dense product over the whole vectors whose
 /// other entries of `M` are 0.
+/// Rows that run without a gap (a struck object's modes, which every
+/// contact couples) take a contiguous axpy per column, which the compiler
+/// vectorises; the same products in the same order, so the same sums.
 fn mat_vec_idx(m: &DMatrix<f64>, (cols, x): (&[usize], &[f64]), rows: &[usize], out: &mut [f64]) {
     let nr = rows.len();
     let data = m.as_slice();
+    if let Some(&r0) = rows.first() {
+        if rows.iter().enumerate().all(|(i, &r)| r == r0 + i) {
+            let out = &mut out[r0..r0 + nr];
+            for (c, &xc) in cols.iter().enumerate() {
+                let v = x[xc];
+                if v == 0.0 {
+                    continue;
+                }
+                for (o, a) in out.iter_mut().zip(&data[c * nr..(c + 1) * nr]) {
+                    *o += a * v;
+                }
+            }
+            return;
+        }
+    }
     for (c, &xc) in cols.iter().enumerate() {
         let v = x[xc];
         if v == 0.0 {
@@ -797,14 +823,78 @@ fn step_blocks(props: &[Mat2], s: &[f64], out: &mut [f64], nb: usize) {
     }
 }
 
-/// `out = exp(G t) s`.
-fn step_to(ph: &MultiPhase, t: f64, s: &[f64], out: &mut [f64]) {
+/// `out = exp(G t) s`, the blocks' exponentials in one batch.
+fn step_to(
+    ph: &MultiPhase,
+    (simd, trig): (SimdPath, &mut Trig),
+    t: f64,
+    s: &[f64],
+    out: &mut [f64],
+) {
     let nb = ph.gens.len();
+    trig.at(simd, ph, 0..nb, t);
     for k in 0..nb {
-        let p = ph.exp_block(k, t);
+        let p = trig.exp(ph, k, k, t);
         let (x0, x1) = mul2(&p, s[k], s[nb + k]);
         out[k] = x0;
         out[nb + k] = x1;
+    }
+}
+
+/// Scratch of the blocks' exponentials at one time `t`, taken in one batch
+/// by the engine's vectorised `exp`, `sin` and `cos` (`engine/vmath.rs`, on
+/// the state's kernel path): per listed block, `exp(m t)`, `sin(w t)`, `cos(w t)` of its
+/// oscillatory form. A block without one (real eigenvalues) takes
+/// [`exp2`] when asked. Sized for the largest phase; never allocates after
+/// [`Trig::new`].
+#[derive(Debug, Clone)]
+struct Trig {
+    mt: Vec<f64>,
+    wt: Vec<f64>,
+    e: Vec<f64>,
+    sin: Vec<f64>,
+    cos: Vec<f64>,
+}
+
+impl Trig {
+    fn new(blocks: usize) -> Self {
+        let v = || vec![0.0; blocks];
+        Self {
+            mt: v(),
+            wt: v(),
+            e: v(),
+            sin: v(),
+            cos: v(),
+        }
+    }
+
+    /// The exponentials of `blocks` (the `i`-th listed block in slot `i`)
+    /// at `t`. \[audio-thread\]
+    fn at(&mut self, simd: SimdPath, ph: &MultiPhase, blocks: impl Iterator<Item = usize>, t: f64) {
+        let mut n = 0;
+        for k in blocks {
+            let (m, w) = ph.forms[k].as_ref().map_or((0.0, 0.0), |f| (f.m, f.w));
+            self.mt[n] = m * t;
+            self.wt[n] = w * t;
+            n += 1;
+        }
+        vmath::exp_sincos(
+            simd,
+            &self.mt[..n],
+            &self.wt[..n],
+            &mut self.e[..n],
+            &mut self.sin[..n],
+            &mut self.cos[..n],
+        );
+    }
+
+    /// `exp(G_k t)` of block `k`, taken by [`at`](Self::at) in slot `i`.
+    #[inline]
+    fn exp(&self, ph: &MultiPhase, k: usize, i: usize, t: f64) -> Mat2 {
+        match &ph.forms[k] {
+            Some(f) => f.exp_from(self.e[i], self.sin[i], self.cos[i]),
+            None => exp2(&ph.gens[k], t),
+        }
     }
 }
 

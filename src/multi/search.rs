@@ -35,6 +35,8 @@ struct ContactModel<'a> {
     f: EventFn,
     tol: (f64, f64),
     stack: &'a mut [(f64, f64); STACK],
+    trig: &'a mut Trig,
+    simd: SimdPath,
     evaluations: &'a mut u64,
 }
 
@@ -58,8 +60,10 @@ impl ContactModel<'_> {
             l: 0.0,
             c3: 0.0,
         };
-        for &k in &ph.ev_blocks[j] {
-            let (y0, y1) = mul2(&ph.exp_block(k, a), self.s[k], self.s[nb + k]);
+        self.trig
+            .at(self.simd, ph, ph.ev_blocks[j].iter().copied(), a);
+        for (i, &k) in ph.ev_blocks[j].iter().enumerate() {
+            let (y0, y1) = mul2(&self.trig.exp(ph, k, i, a), self.s[k], self.s[nb + k]);
             if all || ph.search.rho[k] * w <= THETA_RESOLVED {
                 out.q[0] += r[k] * y0 + r[nb + k] * y1;
                 out.q[1] += rd[k] * y0 + rd[nb + k] * y1;
@@ -149,6 +153,8 @@ impl MultiState {
             f,
             tol,
             stack: &mut self.stack,
+            trig: &mut self.trig,
+            simd: self.simd,
             evaluations: &mut self.stats.evaluations,
         };
         let mut tally = Tally::default();

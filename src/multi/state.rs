@@ -37,6 +37,8 @@ impl MultiState {
             phys: Physical::new(&sc.model),
             cached: [(u64::MAX, 0.0); MAX_CONTACTS],
             stack: [(0.0, 0.0); STACK],
+            trig: Trig::new(dim / 2),
+            simd: SimdPath::detect(),
             kern: Box::new(fast::Kern::new(dim)),
             block_path: true,
             rod: [0.0; MAX_CONTACTS],

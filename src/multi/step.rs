@@ -27,7 +27,13 @@ impl MultiState {
                 let props = &self.tables[self.mask as usize].props;
                 step_blocks(props, &self.s, &mut self.end[..ph.dim], nb);
             } else {
-                step_to(ph, rem, &self.s, &mut self.end[..ph.dim]);
+                step_to(
+                    ph,
+                    (self.simd, &mut self.trig),
+                    rem,
+                    &self.s,
+                    &mut self.end[..ph.dim],
+                );
             }
             if taken >= MAX_SWITCHES_PER_SAMPLE {
                 self.stats.capped += 1;
@@ -61,7 +67,13 @@ impl MultiState {
             };
             let tau = tau.min(rem);
             if tau < rem {
-                step_to(ph, tau, &self.s, &mut self.end[..ph.dim]);
+                step_to(
+                    ph,
+                    (self.simd, &mut self.trig),
+                    tau,
+                    &self.s,
+                    &mut self.end[..ph.dim],
+                );
             }
             self.s.copy_from_slice(&self.end[..ph.dim]);
             self.fly(sc, tau);

@@ -30,7 +30,9 @@ pub use csv::{write_trace_csv, CsvTrace};
 pub use envelope::{EnvelopeBucket, TraceEnvelope, ENVELOPE_BUCKETS};
 pub use npy::NpyTrace;
 pub use numbers::{push_numbers, put_numbers, NUMBER_ROOM};
-pub use stream::{render_stream, render_stream_several, StreamStats, STREAM_CHUNK};
+pub use stream::{
+    render_stream, render_stream_several, render_stream_several_on, StreamStats, STREAM_CHUNK,
+};
 pub use trace::{
     trace_header, trace_header_with, TraceRow, TraceRows, TraceSink, DRIVE_COLUMNS, TRACE_HEADER,
 };
@@ -209,6 +211,17 @@ pub fn render_compiled(compiled: &CompiledScene, n: usize, trace: bool) -> Rende
 /// Render `n` samples of a compiled several-contact scene from its initial
 /// state, in memory.
 pub fn render_several(compiled: &CompiledMulti, n: usize, trace: bool) -> RenderOutput {
+    render_several_on(compiled, n, trace, false)
+}
+
+/// [`render_several`] on the portable kernels (`portable`) or this CPU's
+/// fastest ([`MultiState::set_portable_kernels`](crate::multi::MultiState::set_portable_kernels)).
+pub fn render_several_on(
+    compiled: &CompiledMulti,
+    n: usize,
+    trace: bool,
+    portable: bool,
+) -> RenderOutput {
     let k = compiled.contacts();
     render_in_memory(
         compiled.rate_hz,
@@ -216,7 +229,7 @@ pub fn render_several(compiled: &CompiledMulti, n: usize, trace: bool) -> Render
         n,
         trace,
         String::new(),
-        |audio, sink| render_stream_several(compiled, n, audio, sink),
+        |audio, sink| render_stream_several_on(compiled, n, audio, sink, portable),
     )
 }
 

@@ -135,10 +135,23 @@ pub fn render_stream(
 pub fn render_stream_several(
     compiled: &CompiledMulti,
     n: usize,
+    audio: impl FnMut(&[f64], &[f64]) -> std::io::Result<()>,
+    trace: Option<&mut dyn TraceSink>,
+) -> std::io::Result<StreamStats> {
+    render_stream_several_on(compiled, n, audio, trace, false)
+}
+
+/// [`render_stream_several`] on the portable kernels (`portable`) or this
+/// CPU's fastest ([`MultiState::set_portable_kernels`]).
+pub fn render_stream_several_on(
+    compiled: &CompiledMulti,
+    n: usize,
     mut audio: impl FnMut(&[f64], &[f64]) -> std::io::Result<()>,
     mut trace: Option<&mut dyn TraceSink>,
+    portable: bool,
 ) -> std::io::Result<StreamStats> {
     let mut st = MultiState::new(compiled);
+    st.set_portable_kernels(portable);
     let k = compiled.contacts();
     let (mut l, mut r) = (
         vec![0.0; STREAM_CHUNK.min(n)],

@@ -8,17 +8,17 @@
 //! hashes are compared with that file and any difference is an error.
 //!
 //! Why: a refactoring that must not change behaviour is shown to be one by
-//! bit-identical renders. The one-contact engine runs on the portable
-//! kernels (the baseline target, no FMA), whose rounding is the same on
-//! every x86-64, and on this CPU's detected kernels; each path has its own
-//! lines. A scene of several contacts runs on its engine's one scalar path
-//! (`scalar` lines; its trace's further contacts hashed after the rows).
+//! bit-identical renders. Every scene runs on the portable kernels (the
+//! baseline target, no FMA), whose rounding is the same on every x86-64,
+//! and on this CPU's detected kernels; each path has its own lines. A
+//! scene of several contacts hashes its trace's further contacts after the
+//! rows.
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use modal_contact::compile::compile_with;
 use modal_contact::engine::{has_faster_kernels, EngineState};
-use modal_contact::render::{write_trace_csv, TraceRow};
+use modal_contact::render::{render_several_on, write_trace_csv, TraceRow};
 use modal_contact::scene::{Scene, Switching};
 use modal_contact::Compiled;
 use modal_testkit::scenes::RATE;
@@ -78,12 +78,20 @@ fn render_hashes(
     Ok((fnv1a(&wav_bytes(&left, &right)?), trace_hash(&rows, &csv)?))
 }
 
-/// A scene of several contacts rendered by the render's own path (its
-/// engine has one scalar path): the WAV hashed as above, and the trace's
-/// numbers bit for bit (every row's seven columns, then every further
-/// contact's motion, row by row).
-fn render_hashes_several(scene: &Scene, n: usize, switching: Switching) -> Result<(u64, u64)> {
-    let out = Compiled::new(scene, RATE, Some(switching))?.render(n, true);
+/// A scene of several contacts rendered by the render's own path on the
+/// portable kernels or this CPU's fastest: the WAV hashed as above, and
+/// the trace's numbers bit for bit (every row's seven columns, then every
+/// further contact's motion, row by row).
+fn render_hashes_several(
+    scene: &Scene,
+    n: usize,
+    switching: Switching,
+    portable: bool,
+) -> Result<(u64, u64)> {
+    let Compiled::Several(c) = Compiled::new(scene, RATE, Some(switching))? else {
+        bail!("not a scene of several contacts");
+    };
+    let out = render_several_on(&c, n, true, portable);
     let rows = out.trace.as_deref().context("no trace")?;
     let mut bits = Vec::with_capacity(rows.len() * 7 * 8 * 4);
     for r in rows {
@@ -188,18 +196,13 @@ fn compute(root: &Path) -> Result<BTreeMap<String, String>> {
     let mut out = BTreeMap::new();
     for (name, scene, n) in cases(root)? {
         for sw in [Switching::Exact, Switching::OffsetRod] {
-            if scene.several_contacts() {
-                let (w, t) = render_hashes_several(&scene, n, sw)
-                    .with_context(|| format!("{name} ({})", sw.as_str()))?;
-                out.insert(
-                    format!("{name} | {} | scalar", sw.as_str()),
-                    format!("wav {w:016x} trace {t:016x}"),
-                );
-                continue;
-            }
             for &portable in &paths {
-                let (w, t) = render_hashes(&scene, n, sw, portable)
-                    .with_context(|| format!("{name} ({})", sw.as_str()))?;
+                let (w, t) = if scene.several_contacts() {
+                    render_hashes_several(&scene, n, sw, portable)
+                } else {
+                    render_hashes(&scene, n, sw, portable)
+                }
+                .with_context(|| format!("{name} ({})", sw.as_str()))?;
                 let kernels = if portable { "portable" } else { "avx2+fma" };
                 out.insert(
                     format!("{name} | {} | {kernels}", sw.as_str()),

@@ -206,17 +206,6 @@ fn contact_rows_z(m: &MultiModel, lay: &Layout, members: &[usize]) -> Vec<(Vec<f
     members.iter().map(|&c| contact_z(c)).collect()
 }
 
-impl MultiPhase {
-    /// Block `k`'s `exp(G_k t)` (what [`exp2`] gives, its split made once).
-    #[inline]
-    pub(super) fn exp_block(&self, k: usize, t: f64) -> Mat2 {
-        match &self.forms[k] {
-            Some(f) => f.exp(t),
-            None => exp2(&self.gens[k], t),
-        }
-    }
-}
-
 impl CompiledMulti {
     /// Compile every phase (`2^K` of them) at `rate_hz`.
     pub fn new(model: &MultiModel, rate_hz: f64) -> Result<Self, MultiError> {
