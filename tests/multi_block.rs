@@ -31,7 +31,9 @@ fn bits(o: &MultiObservation) -> Vec<u64> {
 }
 
 /// On the four several-contact presets (half a second each, blocks of 1 to
-/// 200 samples at random): after every block, every contact's motion and
+/// 200 samples at random), on the portable kernels and on this CPU's
+/// fastest (each path's block kernel against its own per-sample step):
+/// after every block, every contact's motion and
 /// the energy are the per-sample search's bit for bit, and so are the
 /// switches and the search's evaluations (the block path clears a sample
 /// only where the search's first test would); the outputs, summed in the
@@ -40,16 +42,19 @@ fn bits(o: &MultiObservation) -> Vec<u64> {
 #[test]
 fn the_block_path_moves_as_the_search_does_bit_for_bit() {
     let mut rng = TestRng(0xb10c);
-    for name in [
+    let names = [
         "ball-between-plates",
         "marimba-two-mallets",
         "snare-pair",
         "wind-chimes",
-    ] {
+    ];
+    for (name, portable) in names.iter().flat_map(|&n| [(n, true), (n, false)]) {
         let sc = compiled(name);
         let mut search = MultiState::new(&sc);
         search.set_block_path(false);
+        search.set_portable_kernels(portable);
         let mut block = MultiState::new(&sc);
+        block.set_portable_kernels(portable);
         let n = (0.5 * RATE) as usize;
         let (mut l, mut r) = (vec![0.0; 200], vec![0.0; 200]);
         let (mut done, mut peak, mut worst) = (0, 0.0f64, 0.0f64);
@@ -70,8 +75,9 @@ fn the_block_path_moves_as_the_search_does_bit_for_bit() {
         }
         let (a, b) = (&search.stats, &block.stats);
         println!(
-            "{name}: {} switches, {} evaluations; block path {} of {n} samples ({} discarded); \
-             outputs within {:.1e} of the peak",
+            "{name} ({}): {} switches, {} evaluations; block path {} of {n} samples ({} \
+             discarded); outputs within {:.1e} of the peak",
+            if portable { "portable" } else { "fastest" },
             b.switches,
             b.evaluations,
             b.kernel_samples,

@@ -6,14 +6,26 @@
 //! fails it, and the run's samples after it, are stepped again by the
 //! search (docs/numerics.md section 14, "The block path").
 //!
-//! The kernel runs on its portable path, whose state update and row sums
-//! are the step's and [`rows_of`]'s arithmetic bit for bit (no fused
-//! multiply-add): so a run of `k` samples, `k` runs of one and the traced
-//! render give the same samples, on every CPU.
+//! The kernel runs on the state's kernel path (this CPU's fastest or the
+//! portable one), and a whole sample the search's way is stepped in the
+//! kernel's arithmetic on that path (`step_blocks`: the same fused or
+//! unfused products), its rows summed by [`rows_of`] as the kernel sums
+//! them: so a run of `k` samples, `k` runs of one and the traced render give
+//! the same samples on each path (the portable one the same on every CPU).
 
 use super::*;
 use crate::engine::kernel::{rows_of, run_block_with, BlockIo, BlockRows, Extras, ObsIo, Rows};
 use crate::engine::kernel::{BlockAcc, EPOCH};
+
+/// The samples a run tries after a sample failed its certificate, doubled
+/// after each run that passes whole (up to [`EPOCH`]): a run that fails
+/// costs its samples past the failure and a re-run of those before it, so
+/// near a crossing (a contact's every sample while a law's breakpoint or
+/// another contact is close) short runs waste less. Speed only: which
+/// samples the block path takes and their sums do not depend on a run's
+/// length, so the output is the same bit for bit (the one-contact engine's
+/// speculation, `engine/fast_path.rs`).
+pub(super) const SPEC_RESTART: usize = 16;
 
 /// The kernel's scratch, one per state (about 30 KB: kept off the state's
 /// own size by a box).
@@ -83,14 +95,14 @@ impl MultiState {
         self.block_path = on;
     }
 
-    /// Run the batched `exp`, `sin` and `cos` of the search's nodes and of
-    /// partial steps on the portable kernels (`true`, the baseline target)
-    /// or this CPU's fastest (`false`, the default). The two round
-    /// differently (fused multiply-adds), each deterministically, as the
-    /// one-contact engine's (`EngineState::set_portable_kernels`). The
-    /// block kernel stays on its portable path on both: its state is the
-    /// per-sample step's bit for bit (docs/numerics.md section 14).
-    /// \[any-thread\]
+    /// Run the portable kernels (`true`, the baseline target: the block
+    /// kernel, the whole-sample step in its arithmetic, the batched `exp`,
+    /// `sin` and `cos` of the search's nodes and partial steps) or this
+    /// CPU's fastest (`false`, the default). The two round differently
+    /// (fused multiply-adds), each deterministically, as the one-contact
+    /// engine's (`EngineState::set_portable_kernels`); on each, the block
+    /// path is the per-sample step bit for bit (docs/numerics.md section
+    /// 14). \[any-thread\]
     pub fn set_portable_kernels(&mut self, portable: bool) {
         self.simd = if portable {
             SimdPath::Generic
@@ -110,12 +122,25 @@ impl MultiState {
         right: &mut [f64],
     ) -> Run {
         let left_in_epoch = (64 - self.clock % 64) as usize;
-        let k = left.len().min(right.len()).min(EPOCH).min(left_in_epoch);
+        let k = left
+            .len()
+            .min(right.len())
+            .min(EPOCH)
+            .min(left_in_epoch)
+            .min(self.spec_len);
         self.ensure_margins(sc);
         let start = self.rows_now(sc);
-        self.kernel(sc, k, true);
         let m = self.mask as usize;
         let (out0, nc) = (self.tables[m].out0, sc.contacts());
+        if !self.may_pass(sc, &start, nc) {
+            // the first sample fails whatever its end: no run to throw away
+            self.spec_len = SPEC_RESTART;
+            return Run {
+                done: 0,
+                failed: true,
+            };
+        }
+        self.kernel(sc, k, true);
         let mut done = 0;
         while done < k {
             let i = done;
@@ -133,6 +158,11 @@ impl MultiState {
             self.fly(sc, self.step_h);
             self.clock += 1;
             done += 1;
+        }
+        if done < k {
+            self.spec_len = SPEC_RESTART;
+        } else {
+            self.spec_len = (2 * self.spec_len).min(EPOCH);
         }
         if done < k && done > 0 {
             // the run went past a sample that failed: step again to it
@@ -177,7 +207,7 @@ impl MultiState {
             obs,
             ..Extras::default()
         };
-        run_block_with(SimdPath::Generic, io, extras, k);
+        run_block_with(self.simd, io, extras, k);
     }
 
     /// The rows of the state after the run's step `i`: every contact's
@@ -194,13 +224,24 @@ impl MultiState {
         let ph = &sc.phases[m];
         let tb = &self.tables[m];
         let [rows, obs_rows] = kernel_rows_of(ph, tb, &self.kern.zero[..ph.dim]);
-        let [e0, l, r] = rows_of(SimdPath::Generic, &self.s, &rows);
+        let [e0, l, r] = rows_of(self.simd, &self.s, &rows);
         let [e1, e2, e3] = if sc.contacts() > 1 {
-            rows_of(SimdPath::Generic, &self.s, &obs_rows)
+            rows_of(self.simd, &self.s, &obs_rows)
         } else {
             [0.0; 3]
         };
         [e0, e1, e2, e3, l, r]
+    }
+
+    /// Whether the sample from rows `beg` may pass
+    /// [`certified`](Self::certified): every contact's `psi` at its start
+    /// clears its epoch's margin (the test's half that needs no run).
+    fn may_pass(&self, sc: &CompiledMulti, beg: &[f64; 6], nc: usize) -> bool {
+        let ph = &sc.phases[self.mask as usize];
+        (0..nc).all(|j| {
+            let f = self.event_fn(sc, j);
+            f.psi(beg[j] + ph.ev0[j], 0.0) > self.cached[j].1
+        })
     }
 
     /// Whether no contact crosses in the sample from rows `beg` to rows
