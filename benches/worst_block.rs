@@ -561,8 +561,100 @@ fn preset_chords(_: &mut Criterion) {
     println!("| preset | 64 samples |");
     println!("|---|---|");
     let total = (SECONDS * RATE) as usize;
+    let evs = chord_events(total);
+    for (i, p) in modal_contact::presets::PRESETS.iter().enumerate() {
+        let sp = SceneParams {
+            preset: i,
+            ..SceneParams::default()
+        };
+        let prepared = prepare(&sp, RATE, 0).expect("compile");
+        let times = least_of_runs(|| run_blocks(&prepared, &evs, total, 64, 0));
+        println!("| {} | {} |", p.name, cell(times, 64));
+    }
+}
+
+/// The 16-note chord of [`preset_chords`] on presets whose mallet is made
+/// a stiffening law in place of its linear spring (docs/design.md,
+/// "Stiffening contacts"): the glockenspiel's brass head and the wood
+/// block's hickory tip by Hertz's contact, `F = (4/3) E* sqrt(R) p^1.5`
+/// (E* and R as the presets' headers derive them), in three pieces over
+/// the penetrations of MIDI velocities 20 to 127 (`((1 + power) m v^2 /
+/// (2 K))^(1 / (1 + power))`, the hammer's mass); the piano's felt by
+/// Chaigne and Askenfelt's C4 hammer, `F = 4.5e9 p^2.5`, four pieces from
+/// 0.05 to 1 mm; every piece with the spring's relaxation time `c / k`.
+/// A law makes a scene of several contacts, played as a kit: the table
+/// says what that costs beside the spring. The preset rows' method.
+fn law_chords(_: &mut Criterion) {
+    /// A preset, its law's `K` \[N/m^power\], power and pieces, and the
+    /// range of penetrations it follows \[m\] (`None`: velocities 20 to 127).
+    type LawCase = (&'static str, f64, f64, usize, Option<(f64, f64)>);
+    use modal_contact::instrument::SceneParams;
+    use modal_contact::scene::LawSpec;
+    println!("\npresets with a stiffening law in place of their spring, the same 16-note chord struck again every {CHORD_EVERY_S} s on its ringing voices, 64-sample blocks at 48 kHz, {SECONDS} s, each block the least of {RUNS} runs: worst block, % of the budget (max / 99.9th percentile):");
+    println!("| preset | law | with the law | with its spring |");
+    println!("|---|---|---|---|");
+    let total = (SECONDS * RATE) as usize;
+    let evs = chord_events(total);
+    let cases: [LawCase; 3] = [
+        (
+            "glockenspiel-bar",
+            4.0 / 3.0 * 74.7e9 * 7.5e-3f64.sqrt(),
+            1.5,
+            3,
+            None,
+        ),
+        (
+            "wood-block",
+            4.0 / 3.0 * 6.6e9 * 5e-3f64.sqrt(),
+            1.5,
+            3,
+            None,
+        ),
+        ("piano-string", 4.5e9, 2.5, 4, Some((5e-5, 1e-3))),
+    ];
+    for (name, k, power, pieces, range) in cases {
+        let index = modal_contact::presets::index_of(name).expect("preset");
+        let spring = modal_contact::presets::scene(index).expect("preset");
+        let mut scene = spring.clone();
+        let m = scene.hammer.mass_kg;
+        // the deepest penetration of a mass m at v on F = K p^power alone
+        let travel = |v: f64| ((power + 1.0) * m * v * v / (2.0 * k)).powf(1.0 / (power + 1.0));
+        let (from, up_to) = range.unwrap_or((travel(0.12), travel(3.0)));
+        let law = LawSpec {
+            power: Some(power),
+            force_n_at: Some([up_to, k * up_to.powf(power)]),
+            pieces: Some(pieces),
+            from_m: Some(from),
+            up_to_m: Some(up_to),
+            ..LawSpec::default()
+        };
+        let first = law.pieces("contact.law").expect("law").stiffness[0];
+        let tau = spring.contact.damping_n_s_per_m / spring.contact.stiffness_n_per_m;
+        scene.contact.stiffness_n_per_m = 0.0;
+        scene.contact.damping_n_s_per_m = tau * first;
+        scene.contact.law = Some(law);
+        let mut cells = Vec::new();
+        for sc in [&scene, &spring] {
+            let sp = SceneParams {
+                preset: index,
+                ..SceneParams::default()
+            };
+            let prepared = prepare_scene(sc, &sp, RATE, 0).expect("compile");
+            let times = least_of_runs(|| run_blocks(&prepared, &evs, total, 64, 0));
+            cells.push(cell(times, 64));
+        }
+        println!(
+            "| {name} | F ~ p^{power}, {pieces} pieces, {:.2e} to {:.2e} m | {} | {} |",
+            from, up_to, cells[0], cells[1]
+        );
+    }
+}
+
+/// The same 16-note chord (keys 48 to 78, every other key, velocity 100)
+/// every [`CHORD_EVERY_S`] over `total` samples.
+fn chord_events(total: usize) -> Vec<TimedEvent> {
     let every = (CHORD_EVERY_S * RATE) as usize;
-    let evs: Vec<TimedEvent> = (0..total)
+    (0..total)
         .step_by(every)
         .flat_map(|at| {
             (0..16u8).map(move |k| TimedEvent {
@@ -573,16 +665,7 @@ fn preset_chords(_: &mut Criterion) {
                 },
             })
         })
-        .collect();
-    for (i, p) in modal_contact::presets::PRESETS.iter().enumerate() {
-        let sp = SceneParams {
-            preset: i,
-            ..SceneParams::default()
-        };
-        let prepared = prepare(&sp, RATE, 0).expect("compile");
-        let times = least_of_runs(|| run_blocks(&prepared, &evs, total, 64, 0));
-        println!("| {} | {} |", p.name, cell(times, 64));
-    }
+        .collect()
 }
 
 /// A 16-note chord struck in one 64-sample block at 48 kHz on presets,
@@ -693,6 +776,7 @@ criterion_group!(
     pitch_bend,
     brightness_chord,
     preset_chords,
+    law_chords,
     worst_block,
     lookahead
 );
