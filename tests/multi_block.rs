@@ -31,8 +31,8 @@ fn bits(o: &MultiObservation) -> Vec<u64> {
 }
 
 /// On the four several-contact presets (half a second each, blocks of 1 to
-/// 200 samples at random), on the portable kernels and on this CPU's
-/// fastest (each path's block kernel against its own per-sample step):
+/// 200 samples at random), with the search's exponentials on the portable
+/// kernels and on this CPU's fastest (the block kernel portable on both):
 /// after every block, every contact's motion and
 /// the energy are the per-sample search's bit for bit, and so are the
 /// switches and the search's evaluations (the block path clears a sample

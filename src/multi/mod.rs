@@ -59,7 +59,7 @@
 use crate::compile::{pan_gains, CompileBudget};
 use crate::engine::kernel::BlockProps;
 use crate::engine::search::STACK;
-use crate::engine::vmath::{self, madd, SimdPath};
+use crate::engine::vmath::{self, SimdPath};
 use crate::engine::TimeScaleError;
 use crate::physics::block::{exp2, mul2, sym_growth, Mat2, OscForm};
 use crate::physics::decomp::{decompose_via, Form};
@@ -818,33 +818,12 @@ fn mat_vec_idx(m: &DMatrix<f64>, (cols, x): (&[usize], &[f64]), rows: &[usize], 
     }
 }
 
-/// `out = P s` with one-sample block propagators, in the block kernel's
-/// arithmetic on `simd` (`x0 = p00 a + (p01 b)`, the first product fused on
-/// the FMA path, as `engine/kernel/block.rs` steps a block): a whole sample
-/// stepped here is the block path's bit for bit on either path.
-/// \[audio-thread\]
-fn step_blocks(simd: SimdPath, props: &[Mat2], s: &[f64], out: &mut [f64], nb: usize) {
-    match simd {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `SimdPath::detect()`
-        // makes, after `is_x86_feature_detected!` confirmed AVX2 and FMA on this CPU.
-        SimdPath::Avx2Fma(_) => unsafe { step_blocks_fma(props, s, out, nb) },
-        _ => step_blocks_body::<false>(props, s, out, nb),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn step_blocks_fma(props: &[Mat2], s: &[f64], out: &mut [f64], nb: usize) {
-    step_blocks_body::<true>(props, s, out, nb);
-}
-
-#[inline(always)]
-fn step_blocks_body<const FMA: bool>(props: &[Mat2], s: &[f64], out: &mut [f64], nb: usize) {
+/// `out = P s` with one-sample block propagators.
+fn step_blocks(props: &[Mat2], s: &[f64], out: &mut [f64], nb: usize) {
     for (k, p) in props.iter().enumerate() {
-        let (a, b) = (s[k], s[nb + k]);
-        out[k] = madd::<FMA>(p[0], a, p[1] * b);
-        out[nb + k] = madd::<FMA>(p[2], a, p[3] * b);
+        let (x0, x1) = mul2(p, s[k], s[nb + k]);
+        out[k] = x0;
+        out[nb + k] = x1;
     }
 }
 
