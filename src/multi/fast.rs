@@ -95,6 +95,14 @@ impl MultiState {
         self.block_path = on;
     }
 
+    /// TEST ONLY: turn the Hermite certificates off (`false`: every sample
+    /// the chord's margin leaves goes to the search, as a check of the
+    /// certificates against it) or on.
+    #[doc(hidden)]
+    pub fn set_hermite(&mut self, on: bool) {
+        self.hermite = on;
+    }
+
     /// Run the batched `exp`, `sin` and `cos` of the search's nodes and of
     /// partial steps on the portable kernels (`true`, the baseline target)
     /// or this CPU's fastest (`false`, the default). The two round

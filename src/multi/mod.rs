@@ -415,6 +415,9 @@ struct SearchRows {
     ev_dd: Vec<Vec<f64>>,
     c1: Vec<Vec<f64>>,
     c3: Vec<Vec<f64>>,
+    /// `|(r G^4)_k|`: the fourth derivative's weights (the Hermite
+    /// certificates' remainder, docs/numerics.md section 14).
+    c4: Vec<Vec<f64>>,
     rho: Vec<f64>,
 }
 
@@ -473,6 +476,9 @@ pub struct MultiStats {
     /// Samples the block path stepped past one that failed its
     /// certificate, thrown away (stepped again by the search).
     pub kernel_discarded: u64,
+    /// Contacts' samples (or rests of a sample) the Hermite certificates
+    /// cleared without a search, where the chord's margin did not.
+    pub hermite_cleared: u64,
 }
 
 /// A located switch: contact `contact` entered (`entered`) or left
@@ -614,6 +620,7 @@ struct PhaseTables {
     /// weights ([`SearchRows`]) times the block's growth.
     ev_c1: Vec<Vec<f64>>,
     ev_c3: Vec<Vec<f64>>,
+    ev_c4: Vec<Vec<f64>>,
     /// Output rows and constants: displacement plus `scale` times
     /// velocity, less the modes above the output band.
     out: [Vec<f64>; 2],
@@ -672,6 +679,10 @@ pub struct MultiState {
     /// every sample takes the search's way).
     kern: Box<fast::Kern>,
     block_path: bool,
+    /// Whether a sample the chord's margin leaves is tried by the Hermite
+    /// certificates before the search (a test knob: off, the search
+    /// decides every such sample).
+    hermite: bool,
     /// How many samples the block path tries at once (`fast::SPEC_RESTART`
     /// after a sample failed, doubled after each whole run).
     spec_len: usize,
@@ -730,6 +741,7 @@ impl Clone for MultiState {
             simd: self.simd,
             kern: self.kern.clone(),
             block_path: self.block_path,
+            hermite: self.hermite,
             spec_len: self.spec_len,
             rod: self.rod,
             shift: self.shift.clone(),

@@ -145,6 +145,10 @@ impl MultiState {
             }
             open = psi0 == 0.0;
         }
+        if self.hermite && self.hermite_clears(ph, j, &f, rem, (psi0, psi_end), open) {
+            self.stats.hermite_cleared += 1;
+            return None;
+        }
         let mut model = ContactModel {
             ph,
             tb: &self.tables[self.mask as usize],
@@ -165,6 +169,84 @@ impl MultiState {
             Found::At(t) => Some(t),
             Found::None => None,
         }
+    }
+
+    /// The one-contact engine's Hermite certificates (docs/numerics.md
+    /// section 6.2) on contact `j`'s `psi` over the step's `(0, w]`, from
+    /// its values `psi` at both ends (the state `s` and `end`), its slopes
+    /// there and each block's `|s_k|` (`norms`). Every block is a
+    /// contraction up to its growth, so `|d^n/dt^n psi_k| <= c_n,k |s_k|`
+    /// over the step.
+    ///
+    /// - A step that starts with `psi > 0` (`open` false): the cubic
+    ///   Hermite interpolant `H` of the two ends is bounded below by its
+    ///   Bernstein coefficients; `|psi - H| <= sum_k min(c4_k w^4 / 384,
+    ///   2 e_k + 8/27 w c1_k) |s_k|`. The least coefficient less that
+    ///   and a rounding allowance above 0: no root.
+    /// - The rest of a sample after this contact switched (`open`): `psi`
+    ///   starts at 0 to rounding (or below it) and must not come down
+    ///   through 0 in it: `psi >= psi_0 + u k` with `u = t / w` and `k`
+    ///   the least of the quadratic `K`'s Bernstein coefficients (`w
+    ///   psi'_0`, `1.5 psi_1 - 0.5 w psi'_1`, `psi_1`) less `M4 w^4 / 162`
+    ///   and the allowance; below 0 at the start, `psi' >= psi'_0 - t M2`
+    ///   keeps it rising until `u_1 = 2 |psi_0| / k`.
+    ///
+    /// The flights' parabolas are interpolated exactly (their fourth
+    /// derivative is 0; their curvature `g` joins `M2`). `true`: the
+    /// search would find no crossing there, and the step's end state
+    /// stands as its "no root" leaves it. O(blocks the row touches), no
+    /// transcendental function.
+    fn hermite_clears(
+        &self,
+        ph: &MultiPhase,
+        j: usize,
+        f: &EventFn,
+        w: f64,
+        (psi0, psi1): (f64, f64),
+        open: bool,
+    ) -> bool {
+        let tb = &self.tables[self.mask as usize];
+        let d0 = f.dpsi(dot_at(&ph.ev_d[j], &self.s, &ph.evd_nz[j]), 0.0);
+        let d1 = f.dpsi(dot_at(&ph.ev_d[j], &self.end, &ph.evd_nz[j]), w);
+        let (c1, c2, c4, e) = (&tb.ev_c1[j], &tb.ev_c2[j], &tb.ev_c4[j], &tb.ev_e[j]);
+        let w4 = w * w * w * w;
+        let tail = 8.0 / 27.0 * w;
+        let (xs, vs, gs) = f.scale;
+        let mut mag = ph.ev0[j].abs() + xs + vs * w + gs * w * w;
+        let mut mag_d = vs + gs * w;
+        let (mut rem, mut m4, mut m2) = (0.0, 0.0, f.g.abs());
+        for &k in &ph.ev_blocks[j] {
+            let n = self.norms[k];
+            mag += e[k] * n;
+            mag_d += c1[k] * n;
+            rem += (c4[k] * w4 / 384.0).min(2.0 * e[k] + tail * c1[k]) * n;
+            m4 += c4[k] * n;
+            m2 += c2[k] * n;
+        }
+        // each sum of 2 per block plus a few terms rounds within that
+        // many u of the magnitudes summed; the coefficients and the
+        // comparison a few u more (the slopes enter times w)
+        let units = (2 * ph.ev_blocks[j].len() + 16) as f64 * f64::EPSILON;
+        let allowance = units * (mag + w * mag_d);
+        if !open {
+            let low = psi0
+                .min(psi1)
+                .min(psi0 + d0 * w / 3.0)
+                .min(psi1 - d1 * w / 3.0);
+            return low - rem * (1.0 + 1e-12) - allowance > 0.0;
+        }
+        let k_low = (w * d0).min(1.5 * psi1 - 0.5 * w * d1).min(psi1);
+        let k = k_low - m4 * w4 / 162.0 * (1.0 + 1e-12) - 2.0 * allowance;
+        if !(k > 0.0) {
+            return false;
+        }
+        let f0_low = psi0 - allowance;
+        if f0_low >= 0.0 {
+            return true;
+        }
+        let u1 = 2.0 * -f0_low / k;
+        let d_allow = 2.0 * units * mag_d;
+        u1 < 1.0 && d0 - u1 * w * m2 * (1.0 + 1e-12) - d_allow > 0.0
     }
 
     /// Contact `j`'s whole-sample margin for `epoch` from the current

@@ -41,6 +41,7 @@ impl MultiState {
             simd: SimdPath::detect(),
             kern: Box::new(fast::Kern::new(dim)),
             block_path: true,
+            hermite: true,
             spec_len: crate::engine::kernel::EPOCH,
             rod: [0.0; MAX_CONTACTS],
             shift: vec![0.0; dim],

@@ -271,6 +271,7 @@ impl PhaseTables {
             ev_e: ph.ev_e.clone(),
             ev_c1: ph.search.c1.clone(),
             ev_c3: ph.search.c3.clone(),
+            ev_c4: ph.search.c4.clone(),
             out: [vec![0.0; ph.dim], vec![0.0; ph.dim]],
             out0: [0.0; 2],
             at: f64::NAN,
@@ -308,6 +309,7 @@ impl PhaseTables {
                 self.ev_e[j][k] = ph.ev_e[j][k] * g;
                 self.ev_c1[j][k] = ph.search.c1[j][k] * g;
                 self.ev_c3[j][k] = ph.search.c3[j][k] * g;
+                self.ev_c4[j][k] = ph.search.c4[j][k] * g;
             }
         }
         for c in 0..2 {

@@ -153,6 +153,7 @@ impl PhaseRows<'_> {
             ev_e.push(norms(&r));
             search.c1.push(norms(&rd));
             search.c3.push(norms(&rddd));
+            search.c4.push(norms(&row_times_gens(&rddd, gens)));
             search.ev_dd.push(rdd);
             ev.push(r);
             ev0.push(r0);
