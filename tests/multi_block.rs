@@ -31,14 +31,14 @@ fn bits(o: &MultiObservation) -> Vec<u64> {
 }
 
 /// On the four several-contact presets (half a second each, blocks of 1 to
-/// 200 samples at random), with the search's exponentials on the portable
-/// kernels and on this CPU's fastest (the block kernel portable on both):
+/// 200 samples at random), on the portable kernels and on this CPU's
+/// fastest (each path's block kernel against its own per-sample step):
 /// after every block, every contact's motion and
 /// the energy are the per-sample search's bit for bit, and so are the
 /// switches and the search's evaluations (the block path clears a sample
-/// only where the search's first test would); the outputs, summed in the
-/// kernel's order, within 1e-15 of the peak; and the block path took most
-/// samples.
+/// only where the search's first test would); the outputs too (a sample
+/// the search takes sums its output as the kernel does); and the block
+/// path took most samples.
 #[test]
 fn the_block_path_moves_as_the_search_does_bit_for_bit() {
     let mut rng = TestRng(0xb10c);
@@ -88,10 +88,7 @@ fn the_block_path_moves_as_the_search_does_bit_for_bit() {
         assert_eq!(a.contacts_started, b.contacts_started);
         assert_eq!(a.kernel_samples, 0);
         assert!(b.kernel_samples as f64 > 0.9 * n as f64, "{name}");
-        assert!(
-            peak > 0.0 && worst <= 1e-15 * peak,
-            "{name}: {worst:e} of {peak:e}"
-        );
+        assert!(peak > 0.0 && worst == 0.0, "{name}: {worst:e} of {peak:e}");
     }
 }
 

@@ -36,7 +36,8 @@ mod sums;
 pub(crate) use block::{run_block_with, BlockIo, Extras, ObsIo, QuadAcc, QuadIo, SlopeIo};
 pub(crate) use matvec::{change_of_basis_add, hodlr_mat_vec_add};
 pub(crate) use sums::{
-    event_rows, hermite_step_sums, hermite_sums, margin_sums, rows_of, step_blocks, HermiteRows,
+    event_rows, hermite_step_sums, hermite_sums, margin_sums, rows_as_kernel, rows_of, step_blocks,
+    HermiteRows,
 };
 
 use super::vmath::SimdPath;

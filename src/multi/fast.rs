@@ -6,15 +6,17 @@
 //! fails it, and the run's samples after it, are stepped again by the
 //! search (docs/numerics.md section 14, "The block path").
 //!
-//! The kernel runs on its portable path, whose state update and row sums
-//! are the step's and [`rows_of`]'s arithmetic bit for bit (no fused
-//! multiply-add): so a run of `k` samples, `k` runs of one and the traced
-//! render give the same samples, on every CPU (on the FMA path the
-//! kernel's output sums differ from [`rows_of`]'s in the last bits, which
-//! a traced render, a run of one per sample, would show).
+//! The kernel runs on the state's kernel path (this CPU's fastest or the
+//! portable one), and a whole sample the search's way is stepped in the
+//! kernel's arithmetic on that path (`step_blocks`: the same fused or
+//! unfused products), its rows summed by [`rows_as_kernel`] as the kernel
+//! sums them: so a run of `k` samples, `k` runs of one and the traced render give
+//! the same samples on each path (the portable one the same on every CPU).
 
 use super::*;
-use crate::engine::kernel::{rows_of, run_block_with, BlockIo, BlockRows, Extras, ObsIo, Rows};
+use crate::engine::kernel::{
+    rows_as_kernel, run_block_with, BlockIo, BlockRows, Extras, ObsIo, Rows,
+};
 use crate::engine::kernel::{BlockAcc, EPOCH};
 
 /// The samples a run tries after a sample failed its certificate, doubled
@@ -37,7 +39,7 @@ pub(super) struct Kern {
     obs: BlockRows,
     next: Vec<f64>,
     /// A row of zeros (a contact the scene does not have).
-    zero: Vec<f64>,
+    pub(super) zero: Vec<f64>,
 }
 
 impl Kern {
@@ -103,14 +105,14 @@ impl MultiState {
         self.hermite = on;
     }
 
-    /// Run the batched `exp`, `sin` and `cos` of the search's nodes and of
-    /// partial steps on the portable kernels (`true`, the baseline target)
-    /// or this CPU's fastest (`false`, the default). The two round
-    /// differently (fused multiply-adds), each deterministically, as the
-    /// one-contact engine's (`EngineState::set_portable_kernels`). The
-    /// block kernel stays on its portable path on both: its state is the
-    /// per-sample step's bit for bit (docs/numerics.md section 14).
-    /// \[any-thread\]
+    /// Run the portable kernels (`true`, the baseline target: the block
+    /// kernel, the whole-sample step in its arithmetic, the batched `exp`,
+    /// `sin` and `cos` of the search's nodes and partial steps) or this
+    /// CPU's fastest (`false`, the default). The two round differently
+    /// (fused multiply-adds), each deterministically, as the one-contact
+    /// engine's (`EngineState::set_portable_kernels`); on each, the block
+    /// path is the per-sample step bit for bit (docs/numerics.md section
+    /// 14). \[any-thread\]
     pub fn set_portable_kernels(&mut self, portable: bool) {
         self.simd = if portable {
             SimdPath::Generic
@@ -215,7 +217,7 @@ impl MultiState {
             obs,
             ..Extras::default()
         };
-        run_block_with(SimdPath::Generic, io, extras, k);
+        run_block_with(self.simd, io, extras, k);
     }
 
     /// The rows of the state after the run's step `i`: every contact's
@@ -225,16 +227,16 @@ impl MultiState {
         [r.ev[i], o.ev[i], o.l[i], o.r[i], r.l[i], r.r[i]]
     }
 
-    /// The same rows of the current state ([`rows_of`], the kernel's
-    /// sums).
+    /// The same rows of the current state ([`rows_as_kernel`]: the
+    /// kernel's sums on this path).
     fn rows_now(&self, sc: &CompiledMulti) -> [f64; 6] {
         let m = self.mask as usize;
         let ph = &sc.phases[m];
         let tb = &self.tables[m];
         let [rows, obs_rows] = kernel_rows_of(ph, tb, &self.kern.zero[..ph.dim]);
-        let [e0, l, r] = rows_of(SimdPath::Generic, &self.s, &rows);
+        let [e0, l, r] = rows_as_kernel(self.simd, &self.s, &rows);
         let [e1, e2, e3] = if sc.contacts() > 1 {
-            rows_of(SimdPath::Generic, &self.s, &obs_rows)
+            rows_as_kernel(self.simd, &self.s, &obs_rows)
         } else {
             [0.0; 3]
         };

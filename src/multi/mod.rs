@@ -59,7 +59,7 @@
 use crate::compile::{pan_gains, CompileBudget};
 use crate::engine::kernel::BlockProps;
 use crate::engine::search::STACK;
-use crate::engine::vmath::{self, SimdPath};
+use crate::engine::vmath::{self, madd, SimdPath};
 use crate::engine::TimeScaleError;
 use crate::physics::block::{exp2, mul2, sym_growth, Mat2, OscForm};
 use crate::physics::decomp::{decompose_via, Form};
@@ -543,26 +543,6 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
-/// [`dot`] with four partial sums (the compiler keeps them in vector
-/// registers): the outputs' rows, every sample.
-fn dot4(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len().min(b.len());
-    let (a4, b4) = (a[..n].chunks_exact(4), b[..n].chunks_exact(4));
-    let tail: f64 = a4
-        .remainder()
-        .iter()
-        .zip(b4.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
-    let mut acc = [0.0f64; 4];
-    for (x, y) in a4.zip(b4) {
-        for i in 0..4 {
-            acc[i] += x[i] * y[i];
-        }
-    }
-    (acc[0] + acc[2]) + (acc[1] + acc[3]) + tail
-}
-
 /// [`dot`] over the entries `idx` (increasing) where `a` is not 0: the
 /// same sum, without its zero terms.
 fn dot_at(a: &[f64], b: &[f64], idx: &[usize]) -> f64 {
@@ -830,12 +810,33 @@ fn mat_vec_idx(m: &DMatrix<f64>, (cols, x): (&[usize], &[f64]), rows: &[usize], 
     }
 }
 
-/// `out = P s` with one-sample block propagators.
-fn step_blocks(props: &[Mat2], s: &[f64], out: &mut [f64], nb: usize) {
+/// `out = P s` with one-sample block propagators, in the block kernel's
+/// arithmetic on `simd` (`x0 = p00 a + (p01 b)`, the first product fused on
+/// the FMA path, as `engine/kernel/block.rs` steps a block): a whole sample
+/// stepped here is the block path's bit for bit on either path.
+/// \[audio-thread\]
+fn step_blocks(simd: SimdPath, props: &[Mat2], s: &[f64], out: &mut [f64], nb: usize) {
+    match simd {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `SimdPath::Avx2Fma` holds an `Avx2Fma` token, which only `SimdPath::detect()`
+        // makes, after `is_x86_feature_detected!` confirmed AVX2 and FMA on this CPU.
+        SimdPath::Avx2Fma(_) => unsafe { step_blocks_fma(props, s, out, nb) },
+        _ => step_blocks_body::<false>(props, s, out, nb),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn step_blocks_fma(props: &[Mat2], s: &[f64], out: &mut [f64], nb: usize) {
+    step_blocks_body::<true>(props, s, out, nb);
+}
+
+#[inline(always)]
+fn step_blocks_body<const FMA: bool>(props: &[Mat2], s: &[f64], out: &mut [f64], nb: usize) {
     for (k, p) in props.iter().enumerate() {
-        let (x0, x1) = mul2(p, s[k], s[nb + k]);
-        out[k] = x0;
-        out[nb + k] = x1;
+        let (a, b) = (s[k], s[nb + k]);
+        out[k] = madd::<FMA>(p[0], a, p[1] * b);
+        out[nb + k] = madd::<FMA>(p[2], a, p[3] * b);
     }
 }
 

@@ -330,11 +330,23 @@ impl MultiState {
     }
 
     /// The output `[left, right]` of the current state.
-    pub fn output(&self, _sc: &CompiledMulti) -> [f64; 2] {
-        let tb = &self.tables[self.mask as usize];
+    ///
+    /// Summed as the block kernel sums a sample's output on this state's
+    /// kernel path (`engine/kernel`'s `rows_as_kernel`), so a sample the search takes and one the block path takes give
+    /// their output in the same arithmetic. O(dim).
+    pub fn output(&self, sc: &CompiledMulti) -> [f64; 2] {
+        let m = self.mask as usize;
+        let tb = &self.tables[m];
+        let dim = sc.phases[m].dim;
+        let rows = crate::engine::kernel::Rows {
+            ev: &self.kern.zero[..dim],
+            l: &tb.out[0],
+            r: &tb.out[1],
+        };
+        let [_, l, r] = crate::engine::kernel::rows_as_kernel(self.simd, &self.s, &rows);
         [
-            dot4(&tb.out[0], &self.s) + tb.out0[0] + self.off_out[0],
-            dot4(&tb.out[1], &self.s) + tb.out0[1] + self.off_out[1],
+            l + tb.out0[0] + self.off_out[0],
+            r + tb.out0[1] + self.off_out[1],
         ]
     }
 

@@ -25,7 +25,7 @@ impl MultiState {
             let nb = ph.gens.len();
             if t == 0.0 {
                 let props = &self.tables[self.mask as usize].props;
-                step_blocks(props, &self.s, &mut self.end[..ph.dim], nb);
+                step_blocks(self.simd, props, &self.s, &mut self.end[..ph.dim], nb);
             } else {
                 step_to(
                     ph,
@@ -91,7 +91,13 @@ impl MultiState {
         let ph = &sc.phases[m];
         let dim = ph.dim;
         let props = &self.tables[m].props;
-        step_blocks(props, &self.s, &mut self.end[..dim], ph.gens.len());
+        step_blocks(
+            self.simd,
+            props,
+            &self.s,
+            &mut self.end[..dim],
+            ph.gens.len(),
+        );
         self.s.copy_from_slice(&self.end[..dim]);
         self.fly(sc, self.step_h);
         self.clock += 1;

@@ -61,6 +61,70 @@ fn rows_of_body(s: &[f64], rows: &Rows) -> [f64; 3] {
     [lane_sum(acc[0]), lane_sum(acc[1]), lane_sum(acc[2])]
 }
 
+/// `[ev . s, l . s, r . s]` (no step) summed exactly as
+/// [`run_block_with`](super::run_block_with) sums the rows of a state it
+/// stepped on `path`: the same groups of [`GROUP`](super::GROUP) blocks,
+/// lanes and order as [`rows_of`], and on the FMA path the same fused
+/// multiply-adds (which [`rows_of`] never takes). The rows of the state a
+/// run starts from, bit for bit what the kernel would give for it: the
+/// several-contact engine outputs a sample from the rows before its step,
+/// the first of a run from these and the others from the kernel's. O(N).
+/// \[audio-thread\]
+#[inline]
+pub(crate) fn rows_as_kernel(path: SimdPath, s: &[f64], rows: &Rows) -> [f64; 3] {
+    match path {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as in `run_block`.
+        SimdPath::Avx2Fma(_) => unsafe { rows_as_kernel_fma(s, rows) },
+        _ => rows_as_kernel_body::<false>(s, rows),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn rows_as_kernel_fma(s: &[f64], rows: &Rows) -> [f64; 3] {
+    rows_as_kernel_body::<true>(s, rows)
+}
+
+/// Group by group as the kernel loads them (a short last group padded
+/// with zeros, which add exactly nothing): lane `j` takes block `base + j`
+/// then `base + j + LANES`, each its first coordinate then its second.
+#[inline(always)]
+fn rows_as_kernel_body<const FMA: bool>(s: &[f64], rows: &Rows) -> [f64; 3] {
+    use super::GROUP;
+    let nb = s.len() / 2;
+    let (sa, sb) = (&s[..nb], &s[nb..2 * nb]);
+    let r = [rows.ev, rows.l, rows.r];
+    let mut acc = [[0.0f64; LANES]; 3];
+    let mut base = 0;
+    while base < nb {
+        let width = GROUP.min(nb - base);
+        let at = |v: &[f64], i: usize| if i < width { v[base + i] } else { 0.0 };
+        let (x0, x1): ([f64; GROUP], [f64; GROUP]) = (
+            std::array::from_fn(|i| at(sa, i)),
+            std::array::from_fn(|i| at(sb, i)),
+        );
+        for (q, acc_q) in acc.iter_mut().enumerate() {
+            let (ra, rb) = r[q].split_at(nb);
+            let (ra, rb): ([f64; GROUP], [f64; GROUP]) = (
+                std::array::from_fn(|i| at(ra, i)),
+                std::array::from_fn(|i| at(&rb[..nb], i)),
+            );
+            for j in 0..LANES {
+                let h = j + LANES;
+                let mut v = acc_q[j];
+                v = madd::<FMA>(ra[j], x0[j], v);
+                v = madd::<FMA>(rb[j], x1[j], v);
+                v = madd::<FMA>(ra[h], x0[h], v);
+                v = madd::<FMA>(rb[h], x1[h], v);
+                acc_q[j] = v;
+            }
+        }
+        base += width;
+    }
+    [lane_sum(acc[0]), lane_sum(acc[1]), lane_sum(acc[2])]
+}
+
 /// `LANES` consecutive values from `k`.
 #[inline(always)]
 fn lanes(v: &[f64], k: usize) -> [f64; LANES] {
