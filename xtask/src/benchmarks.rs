@@ -130,7 +130,7 @@ docs/plugin.md, \"Lookahead\".",
 object and the same sample with that hammer far away (criterion's estimates, the \
 same run; docs/numerics.md section 14), the compile of every phase, and each kit \
 preset played through the instrument at 48 kHz for 4 s with notes every 125 ms, 1, \
-4 or 16 keys at an instant \
+4 or 16 keys at an instant, each block the least of three runs of the same work \
 (docs/design.md, \"Played as a kit\").",
         source: Source::Stdout,
     },
