@@ -9,6 +9,7 @@ use super::kernel::{
     self, rows_of, run_block_with, BlockIo, Extras, ObsIo, QuadIo, Rows, SlopeIo, EPOCH,
 };
 use super::observe::{obs_rows, ObsOut};
+use super::search::hermite_low;
 use super::{current_phase, EngineState, Phase, SlopeScratch};
 use crate::compile::{CompiledPhase, CompiledScene};
 use crate::scene::Switching;
@@ -272,10 +273,7 @@ impl EngineState {
                             dot(&ph.ev_d, &self.phases[phase.index()].s)
                                 + if in_contact { 0.0 } else { self.v_h }
                         });
-                        let low = phi0
-                            .min(phi1)
-                            .min(phi0 + d0 * dt / 3.0)
-                            .min(phi1 - d1 * dt / 3.0);
+                        let low = hermite_low([phi0, d0, phi1, d1], dt);
                         let hammer = if in_contact {
                             off.abs()
                         } else {

@@ -70,6 +70,48 @@ pub(crate) struct Tally {
     pub(crate) root_evals: u64,
 }
 
+/// The least Bernstein coefficient of the cubic Hermite interpolant of an
+/// event function's values `f0`, `f1` and slopes `d0`, `d1` at the two ends
+/// of a step of `w`: a lower bound of the interpolant on the step (a cubic
+/// lies in the convex hull of its control points). Both engines' Hermite
+/// certificates of a whole step take it (docs/numerics.md section 6.2).
+#[inline]
+pub(crate) fn hermite_low([f0, d0, f1, d1]: [f64; 4], w: f64) -> f64 {
+    f0.min(f1).min(f0 + d0 * w / 3.0).min(f1 - d1 * w / 3.0)
+}
+
+/// The Hermite certificate of the rest `w` of a step right after its
+/// contact switched (docs/numerics.md section 6.2, "After a switch"), from
+/// the event function's values and slopes at both ends, the bounds `m4` on
+/// its fourth derivative and `m2` on its second over the rest, and the
+/// rounding allowances of the values (`allow`) and of the slope (`allow_d`):
+/// with `u = t / w`, `phi >= phi_0 + u k` where `k` is the least of the
+/// quadratic `K`'s Bernstein coefficients (`w phi'_0`, `1.5 phi_1 - 0.5 w
+/// phi'_1`, `phi_1`) less `m4 w^4 / 162` and twice the allowance; where
+/// `phi_0` is below 0, `phi' >= phi'_0 - t m2` keeps it rising until `u_1 =
+/// 2 |phi_0| / k`. `true`: no crossing downwards in the rest. Both engines
+/// take it.
+#[inline]
+pub(crate) fn hermite_rest_clears(
+    [f0, d0, f1, d1]: [f64; 4],
+    w: f64,
+    (m4, m2): (f64, f64),
+    (allow, allow_d): (f64, f64),
+) -> bool {
+    let w4 = w * w * w * w;
+    let k_low = (w * d0).min(1.5 * f1 - 0.5 * w * d1).min(f1);
+    let k = k_low - m4 * w4 / 162.0 * (1.0 + 1e-12) - 2.0 * allow;
+    if !(k > 0.0) {
+        return false;
+    }
+    let f0_low = f0 - allow;
+    if f0_low >= 0.0 {
+        return true;
+    }
+    let u1 = 2.0 * -f0_low / k;
+    u1 < 1.0 && d0 - u1 * w * m2 * (1.0 + 1e-12) - allow_d > 0.0
+}
+
 /// `(min, max)` of `q0 + q1 t + q2 t^2 / 2` on `[0, w]`.
 fn quad_range(q: [f64; 3], w: f64) -> (f64, f64) {
     let end = q[0] + w * (q[1] + 0.5 * q[2] * w);

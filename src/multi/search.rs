@@ -7,7 +7,10 @@
 
 use super::*;
 use crate::compile::event::THETA_RESOLVED;
-use crate::engine::search::{self, EventModel, Found, NodeBounds, Tally, ROUND_UNITS, STACK};
+use crate::engine::search::{
+    self, hermite_low, hermite_rest_clears, EventModel, Found, NodeBounds, Tally, ROUND_UNITS,
+    STACK,
+};
 
 /// `|(a, b)|`: the square root of the sum of squares where the sum can
 /// neither overflow nor lose digits to underflow (a correctly rounded
@@ -228,25 +231,11 @@ impl MultiState {
         // comparison a few u more (the slopes enter times w)
         let units = (2 * ph.ev_blocks[j].len() + 16) as f64 * f64::EPSILON;
         let allowance = units * (mag + w * mag_d);
+        let ends = [psi0, d0, psi1, d1];
         if !open {
-            let low = psi0
-                .min(psi1)
-                .min(psi0 + d0 * w / 3.0)
-                .min(psi1 - d1 * w / 3.0);
-            return low - rem * (1.0 + 1e-12) - allowance > 0.0;
+            return hermite_low(ends, w) - rem * (1.0 + 1e-12) - allowance > 0.0;
         }
-        let k_low = (w * d0).min(1.5 * psi1 - 0.5 * w * d1).min(psi1);
-        let k = k_low - m4 * w4 / 162.0 * (1.0 + 1e-12) - 2.0 * allowance;
-        if !(k > 0.0) {
-            return false;
-        }
-        let f0_low = psi0 - allowance;
-        if f0_low >= 0.0 {
-            return true;
-        }
-        let u1 = 2.0 * -f0_low / k;
-        let d_allow = 2.0 * units * mag_d;
-        u1 < 1.0 && d0 - u1 * w * m2 * (1.0 + 1e-12) - d_allow > 0.0
+        hermite_rest_clears(ends, w, (m4, m2), (allowance, 2.0 * units * mag_d))
     }
 
     /// Contact `j`'s whole-sample margin for `epoch` from the current

@@ -5,6 +5,7 @@
 
 use crate::compile::{CompiledPhase, CompiledScene};
 use crate::engine::kernel;
+use crate::engine::search::{hermite_low, hermite_rest_clears};
 use crate::engine::{current_phase, EngineState, Phase};
 
 /// What [`EngineState::hermite_step`] sums over a step.
@@ -139,10 +140,7 @@ impl EngineState {
             return false;
         };
         // the remainder's contraction (1 + 1e-12) as the fast path's margin
-        let low =
-            h.f0.min(h.f1)
-                .min(h.f0 + h.d0 * dt / 3.0)
-                .min(h.f1 - h.d1 * dt / 3.0);
+        let low = hermite_low([h.f0, h.d0, h.f1, h.d1], dt);
         if !(low - h.rem * (1.0 + 1e-12) - h.allowance > 0.0) {
             return false;
         }
@@ -175,19 +173,10 @@ impl EngineState {
         let Some(h) = self.hermite_step(scene, w, w == self.step_s) else {
             return false;
         };
-        let w4 = w * w * w * w;
-        let k_low = (w * h.d0).min(1.5 * h.f1 - 0.5 * w * h.d1).min(h.f1);
-        let k = k_low - h.m4 * w4 / 162.0 * (1.0 + 1e-12) - 2.0 * h.allowance;
-        if !(k > 0.0) {
+        let ends = [h.f0, h.d0, h.f1, h.d1];
+        let allow = (h.allowance, 2.0 * h.units * h.mag_d);
+        if !hermite_rest_clears(ends, w, (h.m4, h.m2), allow) {
             return false;
-        }
-        let f0_low = h.f0 - h.allowance;
-        if !(f0_low >= 0.0) {
-            let u1 = 2.0 * -f0_low / k;
-            let d_allow = 2.0 * h.units * h.mag_d;
-            if !(u1 < 1.0 && h.d0 - u1 * w * h.m2 * (1.0 + 1e-12) - d_allow > 0.0) {
-                return false;
-            }
         }
         self.hermite_commit(&h);
         self.exact_stats.hermite_after_switch += 1;
