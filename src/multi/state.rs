@@ -332,8 +332,9 @@ impl MultiState {
     /// The output `[left, right]` of the current state.
     ///
     /// Summed as the block kernel sums a sample's output on this state's
-    /// kernel path (`engine/kernel`'s `rows_as_kernel`), so a sample the search takes and one the block path takes give
-    /// their output in the same arithmetic. O(dim).
+    /// kernel path (`engine/kernel`'s `rows_as_kernel`), so a sample the
+    /// search takes and one the block path takes give their output in the
+    /// same arithmetic. O(dim).
     pub fn output(&self, sc: &CompiledMulti) -> [f64; 2] {
         let m = self.mask as usize;
         let tb = &self.tables[m];
