@@ -191,7 +191,7 @@ impl Group {
 /// the lane accumulators `acc` (the one order every row is summed in), or
 /// into 0 for the `first` group.
 #[inline(always)]
-fn rows_into<const FMA: bool, const N: usize>(
+pub(super) fn rows_into<const FMA: bool, const N: usize>(
     first: bool,
     acc: &mut [[f64; LANES]; 3],
     row: &[[f64; GROUP]; 6],

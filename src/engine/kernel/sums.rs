@@ -3,7 +3,8 @@
 //! the Hermite certificates' sums ([`hermite_sums`],
 //! [`hermite_step_sums`]), the event rows of a partially stepped state
 //! ([`event_rows`]) and a plain step ([`step_blocks`]). Each sums in a
-//! fixed order, the same bits on either path.
+//! fixed order, the same bits on either path; [`rows_as_kernel`] alone
+//! sums as the kernel does on each path (fused on the FMA path).
 
 use super::{hermite_block, lane_sum, BlockProps, Rows, LANES};
 use crate::engine::vmath::{madd, SimdPath};
@@ -87,8 +88,8 @@ fn rows_as_kernel_fma(s: &[f64], rows: &Rows) -> [f64; 3] {
 }
 
 /// Group by group as the kernel loads them (a short last group padded
-/// with zeros, which add exactly nothing): lane `j` takes block `base + j`
-/// then `base + j + LANES`, each its first coordinate then its second.
+/// with zeros, which add exactly nothing), each group's share added by the
+/// kernel's own [`rows_into`](super::block::rows_into).
 #[inline(always)]
 fn rows_as_kernel_body<const FMA: bool>(s: &[f64], rows: &Rows) -> [f64; 3] {
     use super::GROUP;
@@ -96,30 +97,19 @@ fn rows_as_kernel_body<const FMA: bool>(s: &[f64], rows: &Rows) -> [f64; 3] {
     let (sa, sb) = (&s[..nb], &s[nb..2 * nb]);
     let r = [rows.ev, rows.l, rows.r];
     let mut acc = [[0.0f64; LANES]; 3];
+    let mut row = [[0.0f64; GROUP]; 6];
     let mut base = 0;
     while base < nb {
         let width = GROUP.min(nb - base);
         let at = |v: &[f64], i: usize| if i < width { v[base + i] } else { 0.0 };
-        let (x0, x1): ([f64; GROUP], [f64; GROUP]) = (
-            std::array::from_fn(|i| at(sa, i)),
-            std::array::from_fn(|i| at(sb, i)),
-        );
-        for (q, acc_q) in acc.iter_mut().enumerate() {
-            let (ra, rb) = r[q].split_at(nb);
-            let (ra, rb): ([f64; GROUP], [f64; GROUP]) = (
-                std::array::from_fn(|i| at(ra, i)),
-                std::array::from_fn(|i| at(&rb[..nb], i)),
-            );
-            for j in 0..LANES {
-                let h = j + LANES;
-                let mut v = acc_q[j];
-                v = madd::<FMA>(ra[j], x0[j], v);
-                v = madd::<FMA>(rb[j], x1[j], v);
-                v = madd::<FMA>(ra[h], x0[h], v);
-                v = madd::<FMA>(rb[h], x1[h], v);
-                acc_q[j] = v;
-            }
+        let x0: [f64; GROUP] = std::array::from_fn(|i| at(sa, i));
+        let x1: [f64; GROUP] = std::array::from_fn(|i| at(sb, i));
+        for (q, rq) in r.iter().enumerate() {
+            let (ra, rb) = rq.split_at(nb);
+            row[2 * q] = std::array::from_fn(|i| at(ra, i));
+            row[2 * q + 1] = std::array::from_fn(|i| at(&rb[..nb], i));
         }
+        super::block::rows_into::<FMA, 3>(base == 0, &mut acc, &row, &x0, &x1);
         base += width;
     }
     [lane_sum(acc[0]), lane_sum(acc[1]), lane_sum(acc[2])]
