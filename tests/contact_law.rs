@@ -544,6 +544,65 @@ law = {law}
     assert!(errors[2] < 1e-3, "{errors:?}");
 }
 
+/// A striker's law on a modal mallet is `[contact]`'s law on the hammer's:
+/// the same strike with the roles swapped (the hammer thrown through its
+/// modal mallet and the law at `other`, a linear mallet parked as a striker
+/// at `contact`; then the striker thrown through the same mallet and law,
+/// the hammer parked) plays the same to rounding, every piece touching. The
+/// striker's pieces press on its struck point less its mallet's face, as
+/// its own contact does; the hammer's mallet joins the bar's modes, the
+/// striker's stays an object of its own, two routes to one model.
+#[test]
+fn a_strikers_law_on_a_modal_mallet_is_the_hammers() {
+    let law = "{ breakpoints_m = [2e-5, 6e-5], stiffness_n_per_m = [2e4, 8e4, 3e5] }";
+    let head = "[[object]]\nname = \"head\"\nkind = \"modal\"\npoints = [\"tip\"]\n\
+                [[object.mode]]\nfreq_hz = 2000.0\nt60_s = 0.2\nweights = [14.0]";
+    let parked = "mass_kg = 0.02\nheight_m = 0.5\nvelocity_m_per_s = 0.0";
+    let thrown = "mass_kg = 0.02\nheight_m = 0.0\nvelocity_m_per_s = -1.0";
+    let on_hammer = bar_scene(
+        &format!(
+            "[hammer]\n{thrown}\nobject = \"head\"\npoint = \"tip\"\n[contact]\n\
+             object = \"bar\"\npoint = \"other\"\ndamping_n_s_per_m = 0.5\nlaw = {law}"
+        ),
+        &format!(
+            "[[striker]]\n{parked}\npoint = \"contact\"\nstiffness_n_per_m = 2e5\n\
+             damping_n_s_per_m = 3.0\n{head}"
+        ),
+    );
+    let on_striker = bar_scene(
+        &format!(
+            "[hammer]\n{parked}\n[contact]\nobject = \"bar\"\npoint = \"contact\"\n\
+             stiffness_n_per_m = 2e5\ndamping_n_s_per_m = 3.0"
+        ),
+        &format!(
+            "[[striker]]\n{thrown}\npoint = \"other\"\ndamping_n_s_per_m = 0.5\n\
+             law = {law}\nmallet = {{ object = \"head\", point = \"tip\" }}\n{head}"
+        ),
+    );
+    let n = (0.02 * RATE) as usize;
+    let (a, started_a) = played(&on_striker, n);
+    let (b, started_b) = played(&on_hammer, n);
+    let peak = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let diff = a
+        .iter()
+        .zip(&b)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    eprintln!(
+        "striker's law on a modal mallet against the hammer's: contacts started \
+         {started_a:?} / {started_b:?}, largest difference {:.1e} of the peak",
+        diff / peak
+    );
+    // contact 0 is [contact], 1 the striker, 2.. the law's further pieces
+    assert_eq!(started_a[0], 0);
+    assert_eq!(started_b[1], 0);
+    assert!(
+        started_a[1] > 0 && started_a[2] > 0 && started_a[3] > 0,
+        "{started_a:?}"
+    );
+    assert_eq!(started_a[1..], [started_b[0], started_b[2], started_b[3]]);
+    assert!(peak > 0.0 && diff <= 1e-12 * peak, "{diff:e} of {peak:e}");
+}
+
 /// A law with a modal mallet on a lumped string is refused by name: the
 /// string meets its mallet in the compiler, after the pieces are laid out.
 #[test]

@@ -661,6 +661,25 @@ impl SceneSides<'_> {
         Ok(())
     }
 
+    /// The face of striker `i`'s modal mallet (`psi` of its tip over the
+    /// model's modes) when touch `t` is a further piece of that striker's
+    /// law (the expansion's touch from its struck point to the striker,
+    /// `End::striker`), else `None`.
+    fn striker_face(&self, t: &crate::scene::TouchSpec) -> Result<Option<Vec<f64>>, SceneError> {
+        let Some(i) = t.upper.striker else {
+            return Ok(None);
+        };
+        let Some(m) = self.scene.striker.get(i).and_then(|st| st.mallet.as_ref()) else {
+            return Ok(None);
+        };
+        let tip = m.point.as_deref().unwrap_or_default();
+        Ok(Some(self.point(
+            &format!("striker[{i}].mallet.point"),
+            &m.object,
+            tip,
+        )?))
+    }
+
     /// Each `[[touch]]`'s contact; a side on the hammer with a modal mallet
     /// (`original_mallet`: the given scene's mallet object and tip point)
     /// touches its face.
@@ -706,6 +725,11 @@ impl SceneSides<'_> {
             } else if lower == MultiEnd::Mass(0) {
                 let psi = psi_of(format!("touch[{i}].lower.point"), &t.lower)?;
                 (upper, gap) = less_face(upper, gap, false, psi);
+            } else if let Some(psi) = self.striker_face(t)? {
+                // a piece of a striker's law presses on its struck point
+                // less its modal mallet's face, as the striker's own
+                // contact does (`push_strikers`)
+                (lower, gap) = less_face(lower, gap, true, Some(psi));
             }
             contacts.push(MultiContact {
                 lower,

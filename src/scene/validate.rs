@@ -269,14 +269,9 @@ impl Scene {
             st.velocity_m_per_s,
             MAX_SPEED_M_PER_S,
         )?;
-        if Self::validate_own_law(&base, st.law.as_ref(), st.stiffness_n_per_m)? {
-            if st.mallet.is_some() {
-                return Err(SceneError::new(
-                    f("law"),
-                    "not with a modal mallet yet: a point-mass striker only",
-                ));
-            }
-        } else {
+        // a law's pieces press on the striker's struck point, less its
+        // modal mallet's face where it has one (`MultiModel`'s touches)
+        if !Self::validate_own_law(&base, st.law.as_ref(), st.stiffness_n_per_m)? {
             check_stiffness(&f("stiffness_n_per_m"), st.stiffness_n_per_m)?;
         }
         check_non_negative(&f("damping_n_s_per_m"), st.damping_n_s_per_m)?;
