@@ -581,13 +581,17 @@ fn preset_chords(_: &mut Criterion) {
 /// the penetrations of MIDI velocities 20 to 127 (`((1 + power) m v^2 /
 /// (2 K))^(1 / (1 + power))`, the hammer's mass); the piano's felt by
 /// Chaigne and Askenfelt's C4 hammer, `F = 4.5e9 p^2.5`, four pieces from
-/// 0.05 to 1 mm; every piece with the spring's relaxation time `c / k`.
+/// 0.05 to 1 mm; marimba-bar's yarn by `F = K p^2` through its spring's
+/// force at the deepest of a 2 m/s strike (`K = k / (2 sqrt(m / k))`), four
+/// pieces over the penetrations of velocities 20 to 127; every piece with
+/// the spring's relaxation time `c / k`.
 /// A law makes a scene of several contacts, played as a kit: the table
 /// says what that costs beside the spring. The preset rows' method.
 fn law_chords(_: &mut Criterion) {
-    /// A preset, its law's `K` \[N/m^power\], power and pieces, and the
+    /// A preset, its law's `K` \[N/m^power\] (`None`: through its spring's
+    /// force at the deepest of a 2 m/s strike), power and pieces, and the
     /// range of penetrations it follows \[m\] (`None`: velocities 20 to 127).
-    type LawCase = (&'static str, f64, f64, usize, Option<(f64, f64)>);
+    type LawCase = (&'static str, Option<f64>, f64, usize, Option<(f64, f64)>);
     use modal_contact::instrument::SceneParams;
     use modal_contact::scene::LawSpec;
     println!("\npresets with a stiffening law in place of their spring, the same 16-note chord struck again every {CHORD_EVERY_S} s on its ringing voices, 64-sample blocks at 48 kHz, {SECONDS} s, each block the least of {RUNS} runs: worst block, % of the budget (max / 99.9th percentile):");
@@ -595,28 +599,32 @@ fn law_chords(_: &mut Criterion) {
     println!("|---|---|---|---|");
     let total = (SECONDS * RATE) as usize;
     let evs = chord_events(total);
-    let cases: [LawCase; 3] = [
+    let cases: [LawCase; 4] = [
         (
             "glockenspiel-bar",
-            4.0 / 3.0 * 74.7e9 * 7.5e-3f64.sqrt(),
+            Some(4.0 / 3.0 * 74.7e9 * 7.5e-3f64.sqrt()),
             1.5,
             3,
             None,
         ),
         (
             "wood-block",
-            4.0 / 3.0 * 6.6e9 * 5e-3f64.sqrt(),
+            Some(4.0 / 3.0 * 6.6e9 * 5e-3f64.sqrt()),
             1.5,
             3,
             None,
         ),
-        ("piano-string", 4.5e9, 2.5, 4, Some((5e-5, 1e-3))),
+        ("piano-string", Some(4.5e9), 2.5, 4, Some((5e-5, 1e-3))),
+        ("marimba-bar", None, 2.0, 4, None),
     ];
     for (name, k, power, pieces, range) in cases {
         let index = modal_contact::presets::index_of(name).expect("preset");
         let spring = modal_contact::presets::scene(index).expect("preset");
         let mut scene = spring.clone();
         let m = scene.hammer.mass_kg;
+        // through the spring's force at its deepest, 2 sqrt(m / k) at 2 m/s
+        let ks = spring.contact.stiffness_n_per_m;
+        let k = k.unwrap_or(ks / (2.0 * (m / ks).sqrt()));
         // the deepest penetration of a mass m at v on F = K p^power alone
         let travel = |v: f64| ((power + 1.0) * m * v * v / (2.0 * k)).powf(1.0 / (power + 1.0));
         let (from, up_to) = range.unwrap_or((travel(0.12), travel(3.0)));

@@ -110,7 +110,7 @@ with its recorded strikes dropped. Beside it: what one strike costs (ringing, at
 rest, played back), one note's first block at three pitches, 64 voices of the \
 heaviest preset with and without the editor's live view, every preset's 16-note \
 chord struck again on its ringing voices (on a driven preset, 16 strokes rolling or \
-scraping at once), three presets with a stiffening law in place of their \
+scraping at once), four presets with a stiffening law in place of their \
 spring beside their spring (a law makes a scene of several contacts), bad input (all 128 keys in one block, a note on every sample), a pitch bend, a 16-note chord with a \
 brightness on every note, and the lookahead table. A largest far above its \
 percentile is one block the machine interrupted; compare rows of one run, not runs \
