@@ -348,6 +348,17 @@ fn played(s: &Scene, n: usize) -> (Vec<f64>, [u64; 4]) {
     (out, started)
 }
 
+/// The largest `|x|` of `reference` and the largest `|x - y|` between it
+/// and `other`, sample by sample.
+fn peak_and_difference(reference: &[f64], other: &[f64]) -> (f64, f64) {
+    let peak = reference.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let diff = reference
+        .iter()
+        .zip(other)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    (peak, diff)
+}
+
 /// A striker's law is `[contact]`'s law on another mass: the same strike
 /// written with the hammer and the striker's roles swapped (the law on
 /// the hammer's contact at `other`, the parked linear mallet a striker at
@@ -380,11 +391,7 @@ fn a_strikers_law_and_a_touchs_law_are_the_contacts_law_elsewhere() {
     let n = (0.02 * RATE) as usize;
     let (a, started_a) = played(&on_striker, n);
     let (b, started_b) = played(&on_hammer, n);
-    let peak = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let diff = a
-        .iter()
-        .zip(&b)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    let (peak, diff) = peak_and_difference(&b, &a);
     eprintln!(
         "striker's law against the hammer's: contacts started {started_a:?} / {started_b:?}, \
          largest difference {:.1e} of the peak",
@@ -582,11 +589,7 @@ fn a_strikers_law_on_a_modal_mallet_is_the_hammers() {
     let n = (0.02 * RATE) as usize;
     let (a, started_a) = played(&on_striker, n);
     let (b, started_b) = played(&on_hammer, n);
-    let peak = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let diff = a
-        .iter()
-        .zip(&b)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    let (peak, diff) = peak_and_difference(&b, &a);
     eprintln!(
         "striker's law on a modal mallet against the hammer's: contacts started \
          {started_a:?} / {started_b:?}, largest difference {:.1e} of the peak",
@@ -658,11 +661,7 @@ fn a_law_on_a_soft_modal_mallet_presses_where_its_spring_does() {
     assert!(law.several_contacts() && !linear.several_contacts());
     let a = modal_contact::render::render(&linear, &opts).unwrap().left;
     let b = modal_contact::render::render(&law, &opts).unwrap().left;
-    let peak = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let diff = a
-        .iter()
-        .zip(&b)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    let (peak, diff) = peak_and_difference(&a, &b);
     eprintln!(
         "law on a 2 kHz mallet against its spring: largest difference {:.2e} of the peak",
         diff / peak

@@ -638,20 +638,13 @@ impl SceneSides<'_> {
                 height_m: st.height_m,
                 velocity_m_per_s: st.velocity_m_per_s,
             });
-            let mut w = self.point(&format!("striker[{i}].point"), &c.object, &st.point)?;
+            let w = self.point(&format!("striker[{i}].point"), &c.object, &st.point)?;
             // a modal mallet's face is `x_j + psi . a` (its own modes, in
             // the list beside the struck object's): the struck point takes
             // `-psi` on them, as `[contact]`'s does for the hammer's mallet
-            if let Some(m) = &st.mallet {
-                let field = format!("striker[{i}].mallet.point");
-                let tip = m.point.as_deref().unwrap_or_default();
-                let psi = self.point(&field, &m.object, tip)?;
-                for (a, b) in w.iter_mut().zip(&psi) {
-                    *a -= b;
-                }
-            }
+            let (lower, _) = less_face(MultiEnd::Point(w), 0.0, true, self.striker_face(i)?);
             contacts.push(MultiContact {
-                lower: MultiEnd::Point(w),
+                lower,
                 upper: MultiEnd::Mass(i + 1),
                 gap_m: 0.0,
                 stiffness_n_per_m: st.stiffness_n_per_m,
@@ -662,13 +655,10 @@ impl SceneSides<'_> {
     }
 
     /// The face of striker `i`'s modal mallet (`psi` of its tip over the
-    /// model's modes) when touch `t` is a further piece of that striker's
-    /// law (the expansion's touch from its struck point to the striker,
-    /// `End::striker`), else `None`.
-    fn striker_face(&self, t: &crate::scene::TouchSpec) -> Result<Option<Vec<f64>>, SceneError> {
-        let Some(i) = t.upper.striker else {
-            return Ok(None);
-        };
+    /// model's modes), `None` for a point-mass striker: its contact and the
+    /// further pieces of its law (the expansion's touches to
+    /// `End::striker`) press on its struck point less this face.
+    fn striker_face(&self, i: usize) -> Result<Option<Vec<f64>>, SceneError> {
         let Some(m) = self.scene.striker.get(i).and_then(|st| st.mallet.as_ref()) else {
             return Ok(None);
         };
@@ -725,11 +715,11 @@ impl SceneSides<'_> {
             } else if lower == MultiEnd::Mass(0) {
                 let psi = psi_of(format!("touch[{i}].lower.point"), &t.lower)?;
                 (upper, gap) = less_face(upper, gap, false, psi);
-            } else if let Some(psi) = self.striker_face(t)? {
-                // a piece of a striker's law presses on its struck point
-                // less its modal mallet's face, as the striker's own
+            } else if let Some(k) = t.upper.striker {
+                // a further piece of striker k's law presses on its struck
+                // point less its modal mallet's face, as the striker's own
                 // contact does (`push_strikers`)
-                (lower, gap) = less_face(lower, gap, true, Some(psi));
+                (lower, gap) = less_face(lower, gap, true, self.striker_face(k)?);
             }
             contacts.push(MultiContact {
                 lower,
