@@ -8,8 +8,10 @@
 //! the instrument playing each kit preset (docs/design.md, "Played as a
 //! kit"), and each several-contact preset's render in blocks on the block
 //! path against the same engine searching every sample (docs/numerics.md
-//! section 14, "The block path"), in the same run. Timing is reported,
-//! never asserted.
+//! section 14, "The block path"), in the same run; and strikes on a
+//! ringing 200-mode object through a law in four pieces with the switches'
+//! products structured and dense (docs/numerics.md section 14,
+//! "Structured switches"). Timing is reported, never asserted.
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use modal_contact::multi::{CompiledMulti, MultiHammer, MultiModel, MultiState};
@@ -249,5 +251,88 @@ fn block_path(_: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench, kits, block_path);
+/// Strikes on the ringing 200-mode object of the worst-block bench
+/// (`modal_testkit::scenes::struck_bar`) through `F = K p^2.5` in four
+/// pieces, K through its spring's force at the deepest of a 2 m/s strike,
+/// the pieces over the penetrations of 0.12 to 3 m/s (the worst-block
+/// bench's table of laws, its last row): 40 strikes at 1 to 1.8 m/s, each
+/// timed with its next eight 64-sample blocks, with the switches' products
+/// in hierarchical form (`CompiledMulti` as compiled) and dense
+/// (`forget_structured`), alternated; printed: the median per strike.
+fn structured(_: &mut Criterion) {
+    use modal_contact::scene::LawSpec;
+    let spring = modal_testkit::scenes::struck_bar(200, 2.0);
+    let mut scene = spring.clone();
+    let (power, pieces) = (2.5, 4);
+    let m = scene.hammer.mass_kg;
+    let ks = spring.contact.stiffness_n_per_m;
+    let k = ks / (2.0 * (m / ks).sqrt());
+    let travel = |v: f64| ((power + 1.0) * m * v * v / (2.0 * k)).powf(1.0 / (power + 1.0));
+    let (from, up_to) = (travel(0.12), travel(3.0));
+    let law = LawSpec {
+        power: Some(power),
+        force_n_at: Some([up_to, k * up_to.powf(power)]),
+        pieces: Some(pieces),
+        from_m: Some(from),
+        up_to_m: Some(up_to),
+        ..LawSpec::default()
+    };
+    let first = law.pieces("contact.law").unwrap().stiffness[0];
+    let tau = spring.contact.damping_n_s_per_m / spring.contact.stiffness_n_per_m;
+    scene.contact.stiffness_n_per_m = 0.0;
+    scene.contact.damping_n_s_per_m = tau * first;
+    scene.contact.law = Some(law);
+    let model = MultiModel::from_scene(&scene, RATE).unwrap();
+    let t0 = Instant::now();
+    let sc = CompiledMulti::new(&model, RATE).unwrap();
+    let compile_s = t0.elapsed().as_secs_f64();
+    let mut dense = sc.clone();
+    dense.forget_structured();
+    let (n, all) = sc.structured_products();
+    // each strike with its next eight blocks, median over 40 strikes
+    let run = |sc: &CompiledMulti| {
+        let mut st = MultiState::new(sc);
+        let (mut l, mut r) = ([0.0; 64], [0.0; 64]);
+        st.strike(sc, 0, 0.0, -2.0).unwrap();
+        for _ in 0..200 {
+            st.process_block(sc, &mut l, &mut r);
+        }
+        let sw0 = st.stats.switches;
+        let mut times = Vec::new();
+        for i in 0..40 {
+            let t = Instant::now();
+            st.strike(sc, 0, 0.0, -(1.0 + 0.02 * f64::from(i))).unwrap();
+            for _ in 0..8 {
+                st.process_block(sc, &mut l, &mut r);
+                black_box(&l);
+            }
+            times.push(t.elapsed().as_secs_f64());
+            for _ in 0..40 {
+                st.process_block(sc, &mut l, &mut r);
+            }
+        }
+        times.sort_by(f64::total_cmp);
+        (times[20], (st.stats.switches - sw0) as f64 / 40.0)
+    };
+    let (mut a, mut b, mut per) = (Vec::new(), Vec::new(), 0.0);
+    for _ in 0..3 {
+        let (t, sw) = run(&sc);
+        a.push(t);
+        per = sw;
+        b.push(run(&dense).0);
+    }
+    a.sort_by(f64::total_cmp);
+    b.sort_by(f64::total_cmp);
+    println!("\nstrikes through a law on a ringing 200-mode object (4 pieces, {} phases of up to {} coordinates compiled in {compile_s:.2} s; {n} of {all} switch products in hierarchical form): a strike and its next eight 64-sample blocks at 48 kHz, median of 40 strikes, the middle of 3 alternated runs:", sc.phases.len(), sc.max_dim());
+    println!("| switches per strike | structured products us | dense products us | ratio |");
+    println!("|---|---|---|---|");
+    println!(
+        "| {per:.1} | {:.0} | {:.0} | {:.2} |",
+        a[1] * 1e6,
+        b[1] * 1e6,
+        b[1] / a[1]
+    );
+}
+
+criterion_group!(benches, bench, kits, block_path, structured);
 criterion_main!(benches);

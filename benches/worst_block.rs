@@ -583,43 +583,77 @@ fn preset_chords(_: &mut Criterion) {
 /// Chaigne and Askenfelt's C4 hammer, `F = 4.5e9 p^2.5`, four pieces from
 /// 0.05 to 1 mm; marimba-bar's yarn by `F = K p^2` through its spring's
 /// force at the deepest of a 2 m/s strike (`K = k / (2 sqrt(m / k))`), four
-/// pieces over the penetrations of velocities 20 to 127; every piece with
-/// the spring's relaxation time `c / k`.
+/// pieces over the penetrations of velocities 20 to 127; and the 200-mode
+/// object of [`worst_block`] (issue 51's chord target) with a felt-like
+/// `F = K p^2.5` through its spring the same way, four pieces; every piece
+/// with the spring's relaxation time `c / k`.
 /// A law makes a scene of several contacts, played as a kit: the table
-/// says what that costs beside the spring. The preset rows' method.
+/// says what that costs beside the spring, with no lookahead and with the
+/// lookahead that spreads a chord's strikes over the blocks after it
+/// (docs/plugin.md, "Lookahead"). The preset rows' method.
 fn law_chords(_: &mut Criterion) {
-    /// A preset, its law's `K` \[N/m^power\] (`None`: through its spring's
-    /// force at the deepest of a 2 m/s strike), power and pieces, and the
-    /// range of penetrations it follows \[m\] (`None`: velocities 20 to 127).
-    type LawCase = (&'static str, Option<f64>, f64, usize, Option<(f64, f64)>);
+    /// A row's label, its scene and preset index (`None`: a scene that is
+    /// no preset), its law's `K` \[N/m^power\] (`None`: through its
+    /// spring's force at the deepest of a 2 m/s strike), power and pieces,
+    /// and the range of penetrations it follows \[m\] (`None`:
+    /// velocities 20 to 127).
+    type LawCase = (
+        String,
+        Scene,
+        Option<usize>,
+        Option<f64>,
+        f64,
+        usize,
+        Option<(f64, f64)>,
+    );
     use modal_contact::instrument::SceneParams;
     use modal_contact::scene::LawSpec;
-    println!("\npresets with a stiffening law in place of their spring, the same 16-note chord struck again every {CHORD_EVERY_S} s on its ringing voices, 64-sample blocks at 48 kHz, {SECONDS} s, each block the least of {RUNS} runs: worst block, % of the budget (max / 99.9th percentile):");
-    println!("| preset | law | with the law | with its spring |");
-    println!("|---|---|---|---|");
+    println!("\npresets with a stiffening law in place of their spring, the same 16-note chord struck again every {CHORD_EVERY_S} s on its ringing voices, 64-sample blocks at 48 kHz, {SECONDS} s, each block the least of {RUNS} runs: worst block, % of the budget (max / 99.9th percentile), with no lookahead and with a lookahead of 256 and 512 samples (5.3 and 10.7 ms):");
+    println!("| preset | law | with the law | with the law, lookahead 256 | with the law, lookahead 512 | with its spring | with its spring, lookahead 256 |");
+    println!("|---|---|---|---|---|---|---|");
     let total = (SECONDS * RATE) as usize;
     let evs = chord_events(total);
-    let cases: [LawCase; 4] = [
+    let preset = |name: &str, k: Option<f64>, power: f64, pieces: usize, range| -> LawCase {
+        let index = modal_contact::presets::index_of(name).expect("preset");
+        let scene = modal_contact::presets::scene(index).expect("preset");
         (
+            name.to_string(),
+            scene,
+            Some(index),
+            k,
+            power,
+            pieces,
+            range,
+        )
+    };
+    let cases: [LawCase; 5] = [
+        preset(
             "glockenspiel-bar",
             Some(4.0 / 3.0 * 74.7e9 * 7.5e-3f64.sqrt()),
             1.5,
             3,
             None,
         ),
-        (
+        preset(
             "wood-block",
             Some(4.0 / 3.0 * 6.6e9 * 5e-3f64.sqrt()),
             1.5,
             3,
             None,
         ),
-        ("piano-string", Some(4.5e9), 2.5, 4, Some((5e-5, 1e-3))),
-        ("marimba-bar", None, 2.0, 4, None),
+        preset("piano-string", Some(4.5e9), 2.5, 4, Some((5e-5, 1e-3))),
+        preset("marimba-bar", None, 2.0, 4, None),
+        (
+            "200 modes".to_string(),
+            object(200),
+            None,
+            None,
+            2.5,
+            4,
+            None,
+        ),
     ];
-    for (name, k, power, pieces, range) in cases {
-        let index = modal_contact::presets::index_of(name).expect("preset");
-        let spring = modal_contact::presets::scene(index).expect("preset");
+    for (name, spring, index, k, power, pieces, range) in cases {
         let mut scene = spring.clone();
         let m = scene.hammer.mass_kg;
         // through the spring's force at its deepest, 2 sqrt(m / k) at 2 m/s
@@ -641,19 +675,26 @@ fn law_chords(_: &mut Criterion) {
         scene.contact.stiffness_n_per_m = 0.0;
         scene.contact.damping_n_s_per_m = tau * first;
         scene.contact.law = Some(law);
+        let sp = SceneParams {
+            preset: index.unwrap_or(SceneParams::default().preset),
+            ..SceneParams::default()
+        };
+        let with_law = prepare_scene(&scene, &sp, RATE, 0).expect("compile");
+        let with_spring = prepare_scene(&spring, &sp, RATE, 0).expect("compile");
         let mut cells = Vec::new();
-        for sc in [&scene, &spring] {
-            let sp = SceneParams {
-                preset: index,
-                ..SceneParams::default()
-            };
-            let prepared = prepare_scene(sc, &sp, RATE, 0).expect("compile");
-            let times = least_of_runs(|| run_blocks(&prepared, &evs, total, 64, 0));
+        for (prepared, ahead) in [
+            (&with_law, 0),
+            (&with_law, 256),
+            (&with_law, 512),
+            (&with_spring, 0),
+            (&with_spring, 256),
+        ] {
+            let times = least_of_runs(|| run_blocks(prepared, &evs, total, 64, ahead));
             cells.push(cell(times, 64));
         }
         println!(
-            "| {name} | F ~ p^{power}, {pieces} pieces, {:.2e} to {:.2e} m | {} | {} |",
-            from, up_to, cells[0], cells[1]
+            "| {name} | F ~ p^{power}, {pieces} pieces, {from:.2e} to {up_to:.2e} m | {} |",
+            cells.join(" | ")
         );
     }
 }

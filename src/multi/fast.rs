@@ -107,7 +107,8 @@ impl MultiState {
 
     /// Run the portable kernels (`true`, the baseline target: the block
     /// kernel, the whole-sample step in its arithmetic, the batched `exp`,
-    /// `sin` and `cos` of the search's nodes and partial steps) or this
+    /// `sin` and `cos` of the search's nodes and partial steps, the
+    /// switches' structured products) or this
     /// CPU's fastest (`false`, the default). The two round differently
     /// (fused multiply-adds), each deterministically, as the one-contact
     /// engine's (`EngineState::set_portable_kernels`); on each, the block
@@ -119,6 +120,7 @@ impl MultiState {
         } else {
             SimdPath::detect()
         };
+        self.sw.path = self.simd;
     }
 
     /// Up to `left.len()` samples (at most to the end of the clock's

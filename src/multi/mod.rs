@@ -66,6 +66,7 @@ use crate::physics::decomp::{decompose_via, Form};
 use crate::physics::model::LN_1000;
 use crate::scene::{End as SceneEnd, ObjectSpec, Quantity, Scene, SceneError, Switching};
 use nalgebra::DMatrix;
+use phase::{StructuredProducts, SwitchScratch};
 
 mod fast;
 mod model;
@@ -348,6 +349,9 @@ pub struct MultiPhase {
     bound_rows: Vec<usize>,
     vq_c: DMatrix<f64>,
     vp_c: DMatrix<f64>,
+    /// The four products above (`qv_c`, `pv_c`, `vq_c`, `vp_c`) in
+    /// hierarchical low-rank form where that pays.
+    structured: StructuredProducts,
     /// The free modes' blocks: the mode and the entries of `s` holding its
     /// `omega q` and `q'`.
     free_blocks: Vec<(usize, usize, usize)>,
@@ -643,6 +647,8 @@ pub struct MultiState {
     zq: Vec<f64>,
     zv: Vec<f64>,
     phys: Physical,
+    /// The structured products' scratch (a box: off the state's own size).
+    sw: Box<SwitchScratch>,
     /// Per contact: a whole-sample margin (`w = h`) and the epoch of the
     /// clock (64 samples) it was taken in, in the current phase (times the
     /// phase's growth over 64 samples, it holds for every later state of
@@ -715,6 +721,7 @@ impl Clone for MultiState {
             zq: self.zq.clone(),
             zv: self.zv.clone(),
             phys: self.phys.clone(),
+            sw: self.sw.clone(),
             cached: self.cached,
             stack: self.stack,
             trig: self.trig.clone(),

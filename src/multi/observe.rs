@@ -72,6 +72,7 @@ impl MultiState {
             (&self.x_f, &self.v_f),
             (&mut zq, &mut zv),
             &mut phys,
+            None,
         );
         let mut o = MultiObservation {
             active: self.mask,

@@ -35,6 +35,11 @@ impl MultiState {
             zq: vec![0.0; nz + MAX_CONTACTS],
             zv: vec![0.0; nz],
             phys: Physical::new(&sc.model),
+            sw: Box::new(SwitchScratch::new(
+                &sc.model,
+                &sc.phases,
+                SimdPath::detect(),
+            )),
             cached: [(u64::MAX, 0.0); MAX_CONTACTS],
             stack: [(0.0, 0.0); STACK],
             trig: Trig::new(dim / 2),
@@ -115,6 +120,7 @@ impl MultiState {
             (&self.x_f, &self.v_f),
             (&mut self.zq, &mut self.zv),
             &mut self.phys,
+            None,
         );
         let new = &to.phases[0];
         self.s.resize(new.dim, 0.0);
@@ -124,6 +130,7 @@ impl MultiState {
             (&mut self.x_f, &mut self.v_f),
             (&mut self.zq, &mut self.zv),
             &mut self.s,
+            None,
         );
         // the tables were the old compile's
         self.forget_tables();

@@ -116,6 +116,20 @@ impl Hodlr {
         row_perm: &[usize],
         col_perm: &[usize],
     ) -> Result<Hodlr, String> {
+        Self::try_build_at(w, row_perm, col_perm, HODLR_TOL_U)
+    }
+
+    /// [`Hodlr::try_build`] truncating at `tol_u u |W|_2` instead of
+    /// [`HODLR_TOL_U`] (a matrix whose entries carry more rounding than
+    /// that, formed by dense products, cannot be truncated below its own
+    /// noise); the check then allows the larger of [`HODLR_CHECK_U`] and
+    /// `16 tol_u` (the truncations of the levels a row crosses).
+    pub fn try_build_at(
+        w: &DMatrix<f64>,
+        row_perm: &[usize],
+        col_perm: &[usize],
+        tol_u: f64,
+    ) -> Result<Hodlr, String> {
         let (rows, cols) = (w.nrows(), w.ncols());
         assert!(row_perm.len() == rows && col_perm.len() == cols);
         if rows <= 2 * HODLR_LEAF || cols <= 2 * HODLR_LEAF {
@@ -141,7 +155,7 @@ impl Hodlr {
             max_block_error: 0.0,
             check_u: 0.0,
         };
-        let tol = HODLR_TOL_U * UNIT_ROUNDOFF * norm2;
+        let tol = tol_u * UNIT_ROUNDOFF * norm2;
         h.split(a.as_ref(), 0, rows, 0, cols, tol)
             .ok_or("a block failed to compress")?;
         let fill = h.data.len() as f64 / (rows * cols) as f64;
@@ -164,7 +178,7 @@ impl Hodlr {
             }
         }
         h.check_u = worst;
-        if worst <= HODLR_CHECK_U {
+        if worst <= HODLR_CHECK_U.max(16.0 * tol_u) {
             Ok(h)
         } else {
             Err(format!(

@@ -110,8 +110,9 @@ with its recorded strikes dropped. Beside it: what one strike costs (ringing, at
 rest, played back), one note's first block at three pitches, 64 voices of the \
 heaviest preset with and without the editor's live view, every preset's 16-note \
 chord struck again on its ringing voices (on a driven preset, 16 strokes rolling or \
-scraping at once), four presets with a stiffening law in place of their \
-spring beside their spring (a law makes a scene of several contacts), bad input (all 128 keys in one block, a note on every sample), a pitch bend, a 16-note chord with a \
+scraping at once), four presets and the 200-mode object with a stiffening law in \
+place of their spring beside their spring, without and with a lookahead (a law makes a \
+scene of several contacts), bad input (all 128 keys in one block, a note on every sample), a pitch bend, a 16-note chord with a \
 brightness on every note, and the lookahead table. A largest far above its \
 percentile is one block the machine interrupted; compare rows of one run, not runs \
 of different days. What the numbers mean for the plugin: \
@@ -131,7 +132,9 @@ object and the same sample with that hammer far away (criterion's estimates, the
 same run; docs/numerics.md section 14), the compile of every phase, and each kit \
 preset played through the instrument at 48 kHz for 4 s with notes every 125 ms, 1, \
 4 or 16 keys at an instant, each block the least of three runs of the same work \
-(docs/design.md, \"Played as a kit\").",
+(docs/design.md, \"Played as a kit\"), and strikes through a law on a ringing \
+200-mode object with the switches' products structured and dense (docs/numerics.md \
+section 14, \"Structured switches\").",
         source: Source::Stdout,
     },
     Bench {

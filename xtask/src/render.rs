@@ -718,6 +718,7 @@ fn several_contacts_report(
                 "phases": compiled.phases.len(),
                 "largest_dim": compiled.max_dim(),
                 "kappa": compiled.kappa(),
+                "structured_products": compiled.structured_products().0,
             },
             "contacts": starts.iter().sum::<u64>(),
             "contacts_per_contact": starts,
@@ -736,7 +737,8 @@ fn several_contacts_report(
     let mut summary = format!(
         "several contacts: {k} contacts ({} strikers, {} touches, {} law pieces) between {} modes \
          and {} masses, {} phases compiled up front (every subset in contact), largest {} \
-         coordinates, condition of the bases at most {:.1}\n",
+         coordinates, condition of the bases at most {:.1}; switch products in hierarchical \
+         low-rank form: {} of {}\n",
         scene.striker.len(),
         scene.touch.len(),
         scene.all_contacts() - scene.striker.len() - scene.touch.len(),
@@ -744,7 +746,9 @@ fn several_contacts_report(
         model.masses.len(),
         compiled.phases.len(),
         compiled.max_dim(),
-        compiled.kappa()
+        compiled.kappa(),
+        compiled.structured_products().0,
+        compiled.structured_products().1
     );
     summary.push_str(&law_line(scene));
     JobReport {

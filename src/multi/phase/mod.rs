@@ -6,10 +6,12 @@ use super::*;
 
 mod coupled;
 mod rows;
+mod structured;
 mod whole;
 
 use coupled::{CoupledBlocks, CoupledForces, CoupledPart, CoupledSystem};
 use rows::{PhaseRows, SwitchProducts};
+pub(super) use structured::{product, StructuredProducts, SwitchScratch};
 use whole::WholePhase;
 
 impl Layout {
@@ -108,6 +110,7 @@ impl MultiPhase {
         // are their own (omega q, q'))
         let coupled: Vec<usize> = (0..cs.dimc).map(|c| w.smap(c)).collect();
         let sp = SwitchProducts::new(m.n(), &lay, &members, &cp.cm, &w, &coupled);
+        let structured = StructuredProducts::new(&m.freq_hz, &cp.cm, &sp, &coupled, &w.gens);
         let mut flyers: Vec<usize> = (0..m.masses.len())
             .filter(|&j| lay.place[j].is_none())
             .collect();
@@ -141,6 +144,7 @@ impl MultiPhase {
             bound_rows: (0..lay.bound.len()).collect(),
             vq_c: sp.vq_c,
             vp_c: sp.vp_c,
+            structured,
             free_blocks,
             s_star: sp.s_star,
             bound: lay.bound,
@@ -258,6 +262,24 @@ impl CompiledMulti {
     pub fn max_dim(&self) -> usize {
         self.phases.iter().map(|p| p.dim).max().unwrap_or(0)
     }
+
+    /// Of the switch products of every phase (four per phase: into and out
+    /// of its coupled part's physical coordinates), how many are in
+    /// hierarchical low-rank form, and how many there are
+    /// (docs/numerics.md section 14, "Structured switches").
+    pub fn structured_products(&self) -> (usize, usize) {
+        let n = self.phases.iter().map(|p| p.structured.count()).sum();
+        (n, 4 * self.phases.len())
+    }
+
+    /// TEST ONLY: drop the structured products (every switch then takes
+    /// the dense ones), as a check of the structured form against them.
+    #[doc(hidden)]
+    pub fn forget_structured(&mut self) {
+        for p in &mut self.phases {
+            p.structured = StructuredProducts::default();
+        }
+    }
 }
 
 impl PhaseTables {
@@ -351,6 +373,9 @@ impl PhaseTables {
 
 impl MultiPhase {
     /// The physical state of the phase's `y` (the flights from `fly`).
+    /// With `scratch` (a switch) the coupled products take their
+    /// hierarchical form where the phase has one; without (a check, a
+    /// carry), the dense products.
     pub(super) fn physical_of(
         &self,
         m: &MultiModel,
@@ -358,6 +383,7 @@ impl MultiPhase {
         (x_f, v_f): (&[f64], &[f64]),
         (zq, zv): (&mut [f64], &mut [f64]),
         out: &mut Physical,
+        mut scratch: Option<&mut SwitchScratch>,
     ) {
         let n = m.n();
         // a free mode's block is its own (omega q, q')
@@ -370,14 +396,29 @@ impl MultiPhase {
         for &r in &self.qv_rows {
             zq[r] = self.qv0[r];
         }
-        mat_vec_idx(&self.qv_c, (&self.coupled, s), &self.qv_rows, zq);
+        let st = &self.structured;
+        product(
+            st.qv.as_ref(),
+            &self.qv_c,
+            (&self.coupled, s),
+            &self.qv_rows,
+            zq,
+            scratch.as_deref_mut(),
+        );
         for &i in &self.coupled_modes {
             out.q[i] = zq[i] / (two_pi() * m.freq_hz[i]);
         }
         for &r in &self.pv_rows {
             zv[r] = self.pv0[r];
         }
-        mat_vec_idx(&self.pv_c, (&self.coupled, s), &self.pv_rows, zv);
+        product(
+            st.pv.as_ref(),
+            &self.pv_c,
+            (&self.coupled, s),
+            &self.pv_rows,
+            zv,
+            scratch,
+        );
         for &i in &self.coupled_modes {
             out.qv[i] = zv[i];
         }
@@ -410,6 +451,7 @@ impl MultiPhase {
     /// y*)`.
     /// The penetrations come apart from the positions: as a difference of
     /// two sides a heavy hammer's would keep `u |x|` of error.
+    /// `scratch` as in [`physical_of`](Self::physical_of).
     pub(super) fn state_of(
         &self,
         m: &MultiModel,
@@ -417,6 +459,7 @@ impl MultiPhase {
         (x_f, v_f): (&mut [f64], &mut [f64]),
         (zq, zv): (&mut [f64], &mut [f64]),
         s: &mut [f64],
+        mut scratch: Option<&mut SwitchScratch>,
     ) {
         let n = m.n();
         for i in 0..n {
@@ -454,7 +497,22 @@ impl MultiPhase {
             s[k1] += zq[i];
             s[k2] += zv[i];
         }
-        mat_vec_idx(&self.vq_c, (&self.qv_rows, zq), &self.coupled, s);
-        mat_vec_idx(&self.vp_c, (&self.pv_rows, zv), &self.coupled, s);
+        let st = &self.structured;
+        product(
+            st.vq.as_ref(),
+            &self.vq_c,
+            (&self.qv_rows, zq),
+            &self.coupled,
+            s,
+            scratch.as_deref_mut(),
+        );
+        product(
+            st.vp.as_ref(),
+            &self.vp_c,
+            (&self.pv_rows, zv),
+            &self.coupled,
+            s,
+            scratch,
+        );
     }
 }
