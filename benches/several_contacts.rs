@@ -260,28 +260,12 @@ fn block_path(_: &mut Criterion) {
 /// in hierarchical form (`CompiledMulti` as compiled) and dense
 /// (`forget_structured`), alternated; printed: the median per strike.
 fn structured(_: &mut Criterion) {
-    use modal_contact::scene::LawSpec;
+    use modal_testkit::scenes::{law_k_through_spring, power_law_travel, with_power_law};
     let spring = modal_testkit::scenes::struck_bar(200, 2.0);
-    let mut scene = spring.clone();
-    let (power, pieces) = (2.5, 4);
-    let m = scene.hammer.mass_kg;
-    let ks = spring.contact.stiffness_n_per_m;
-    let k = ks / (2.0 * (m / ks).sqrt());
-    let travel = |v: f64| ((power + 1.0) * m * v * v / (2.0 * k)).powf(1.0 / (power + 1.0));
-    let (from, up_to) = (travel(0.12), travel(3.0));
-    let law = LawSpec {
-        power: Some(power),
-        force_n_at: Some([up_to, k * up_to.powf(power)]),
-        pieces: Some(pieces),
-        from_m: Some(from),
-        up_to_m: Some(up_to),
-        ..LawSpec::default()
-    };
-    let first = law.pieces("contact.law").unwrap().stiffness[0];
-    let tau = spring.contact.damping_n_s_per_m / spring.contact.stiffness_n_per_m;
-    scene.contact.stiffness_n_per_m = 0.0;
-    scene.contact.damping_n_s_per_m = tau * first;
-    scene.contact.law = Some(law);
+    let power = 2.5;
+    let k = law_k_through_spring(&spring);
+    let travel = |v| power_law_travel(spring.hammer.mass_kg, k, power, v);
+    let scene = with_power_law(&spring, (power, k), 4, (travel(0.12), travel(3.0)));
     let model = MultiModel::from_scene(&scene, RATE).unwrap();
     let t0 = Instant::now();
     let sc = CompiledMulti::new(&model, RATE).unwrap();

@@ -607,7 +607,6 @@ fn law_chords(_: &mut Criterion) {
         Option<(f64, f64)>,
     );
     use modal_contact::instrument::SceneParams;
-    use modal_contact::scene::LawSpec;
     println!("\npresets with a stiffening law in place of their spring, the same 16-note chord struck again every {CHORD_EVERY_S} s on its ringing voices, 64-sample blocks at 48 kHz, {SECONDS} s, each block the least of {RUNS} runs: worst block, % of the budget (max / 99.9th percentile), with no lookahead and with a lookahead of 256 and 512 samples (5.3 and 10.7 ms):");
     println!("| preset | law | with the law | with the law, lookahead 256 | with the law, lookahead 512 | with its spring | with its spring, lookahead 256 |");
     println!("|---|---|---|---|---|---|---|");
@@ -654,27 +653,12 @@ fn law_chords(_: &mut Criterion) {
         ),
     ];
     for (name, spring, index, k, power, pieces, range) in cases {
-        let mut scene = spring.clone();
-        let m = scene.hammer.mass_kg;
-        // through the spring's force at its deepest, 2 sqrt(m / k) at 2 m/s
-        let ks = spring.contact.stiffness_n_per_m;
-        let k = k.unwrap_or(ks / (2.0 * (m / ks).sqrt()));
-        // the deepest penetration of a mass m at v on F = K p^power alone
-        let travel = |v: f64| ((power + 1.0) * m * v * v / (2.0 * k)).powf(1.0 / (power + 1.0));
+        let m = spring.hammer.mass_kg;
+        let k = k.unwrap_or_else(|| modal_testkit::scenes::law_k_through_spring(&spring));
+        let travel = |v| modal_testkit::scenes::power_law_travel(m, k, power, v);
         let (from, up_to) = range.unwrap_or((travel(0.12), travel(3.0)));
-        let law = LawSpec {
-            power: Some(power),
-            force_n_at: Some([up_to, k * up_to.powf(power)]),
-            pieces: Some(pieces),
-            from_m: Some(from),
-            up_to_m: Some(up_to),
-            ..LawSpec::default()
-        };
-        let first = law.pieces("contact.law").expect("law").stiffness[0];
-        let tau = spring.contact.damping_n_s_per_m / spring.contact.stiffness_n_per_m;
-        scene.contact.stiffness_n_per_m = 0.0;
-        scene.contact.damping_n_s_per_m = tau * first;
-        scene.contact.law = Some(law);
+        let scene =
+            modal_testkit::scenes::with_power_law(&spring, (power, k), pieces, (from, up_to));
         let sp = SceneParams {
             preset: index.unwrap_or(SceneParams::default().preset),
             ..SceneParams::default()

@@ -16,7 +16,6 @@ use modal_contact::compile::{compile_one, CompiledScene};
 use modal_contact::engine::EngineState;
 use modal_contact::multi::{CompiledMulti, MultiModel, MultiState};
 use modal_contact::physics::hodlr::Hodlr;
-use modal_contact::scene::LawSpec;
 use modal_testkit::metrics::energy_rounding_bound;
 use modal_testkit::scenes::ModalStrike;
 
@@ -241,24 +240,12 @@ fn law_object(damped: bool) -> (CompiledMulti, CompiledMulti) {
     } else {
         s.contact(1e6, 0.0)
     };
-    let mut scene = s.scene("structured-law");
+    let spring = s.scene("structured-law");
     // F = K p^1.5 through the spring's force at 0.1 mm, in three pieces
     // from 0.01 to 0.3 mm (a 1 m/s strike of the 30 g hammer reaches
     // about 0.2 mm)
     let k = 1e6 * 1e-4 / 1e-4f64.powf(1.5);
-    let law = LawSpec {
-        power: Some(1.5),
-        force_n_at: Some([3e-4, k * 3e-4f64.powf(1.5)]),
-        pieces: Some(3),
-        from_m: Some(1e-5),
-        up_to_m: Some(3e-4),
-        ..LawSpec::default()
-    };
-    let first = law.pieces("contact.law").unwrap().stiffness[0];
-    let tau = scene.contact.damping_n_s_per_m / scene.contact.stiffness_n_per_m;
-    scene.contact.stiffness_n_per_m = 0.0;
-    scene.contact.damping_n_s_per_m = tau * first;
-    scene.contact.law = Some(law);
+    let scene = modal_testkit::scenes::with_power_law(&spring, (1.5, k), 3, (1e-5, 3e-4));
     let model = MultiModel::from_scene(&scene, 48_000.0).unwrap();
     let sc = CompiledMulti::new(&model, 48_000.0).unwrap();
     let mut dense = sc.clone();

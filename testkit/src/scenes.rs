@@ -16,8 +16,9 @@
 //! them from here too, so both measure the same scene.
 
 use modal_contact::scene::{
-    ApproxSpec, ContactSpec, DashpotSpec, HammerSpec, ModalSpec, ModeSpec, ObjectSpec, PickupSpec,
-    Quantity, Scene, SceneError, StrikerSpec, StringSpec, Switching, WallSpec, SCENE_VERSION,
+    ApproxSpec, ContactSpec, DashpotSpec, HammerSpec, LawSpec, ModalSpec, ModeSpec, ObjectSpec,
+    PickupSpec, Quantity, Scene, SceneError, StrikerSpec, StringSpec, Switching, WallSpec,
+    SCENE_VERSION,
 };
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
@@ -668,6 +669,50 @@ pub fn struck_bar(n: usize, seconds: f64) -> Scene {
         .contact(Contact::new("bar", 2e6).point("c").damping(20.0))
         .pickup(Pickup::new("bar", "p"))
         .build()
+}
+
+/// The law `F = k p^power` through `spring`'s linear contact force at the
+/// deepest of a 2 m/s strike of its hammer, `k_s / (2 sqrt(m / k_s))`
+/// \[N/m^power\] (the same force there, whatever the power).
+pub fn law_k_through_spring(spring: &Scene) -> f64 {
+    let (m, ks) = (spring.hammer.mass_kg, spring.contact.stiffness_n_per_m);
+    ks / (2.0 * (m / ks).sqrt())
+}
+
+/// The deepest penetration \[m\] of a mass `m` arriving at `v` on the
+/// contact force `F = k p^power` alone (its kinetic energy all stored).
+pub fn power_law_travel(m: f64, k: f64, power: f64, v: f64) -> f64 {
+    ((power + 1.0) * m * v * v / (2.0 * k)).powf(1.0 / (power + 1.0))
+}
+
+/// `spring` with its contact's linear spring replaced by `F = k p^power`
+/// fitted in `pieces` pieces over the penetrations `from` to `up_to`
+/// \[m\], keeping the spring's relaxation time `c / k` (the first piece's
+/// damper is that time its stiffness: docs/design.md, "A spring made a
+/// law keeps its relaxation time, not its damping"). Panics if the law is
+/// not valid (a test's or bench's own numbers).
+pub fn with_power_law(
+    spring: &Scene,
+    (power, k): (f64, f64),
+    pieces: usize,
+    (from, up_to): (f64, f64),
+) -> Scene {
+    let law = LawSpec {
+        power: Some(power),
+        force_n_at: Some([up_to, k * up_to.powf(power)]),
+        pieces: Some(pieces),
+        from_m: Some(from),
+        up_to_m: Some(up_to),
+        ..LawSpec::default()
+    };
+    let first = law.pieces("contact.law").expect("a valid law").stiffness[0];
+    let tau = spring.contact.damping_n_s_per_m / spring.contact.stiffness_n_per_m;
+    let mut scene = spring.clone();
+    scene.contact.stiffness_n_per_m = 0.0;
+    scene.contact.damping_n_s_per_m = tau * first;
+    scene.contact.law = Some(law);
+    scene.validate().expect("a valid scene with its law");
+    scene
 }
 
 /// The report's rigid-wall accuracy case: 10 g hammer, f_c = 1.59 kHz (k =
