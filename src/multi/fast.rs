@@ -120,7 +120,6 @@ impl MultiState {
         } else {
             SimdPath::detect()
         };
-        self.sw.path = self.simd;
     }
 
     /// Up to `left.len()` samples (at most to the end of the clock's

@@ -35,11 +35,7 @@ impl MultiState {
             zq: vec![0.0; nz + MAX_CONTACTS],
             zv: vec![0.0; nz],
             phys: Physical::new(&sc.model),
-            sw: Box::new(SwitchScratch::new(
-                &sc.model,
-                &sc.phases,
-                SimdPath::detect(),
-            )),
+            sw: Box::new(SwitchScratch::new(&sc.model, &sc.phases)),
             cached: [(u64::MAX, 0.0); MAX_CONTACTS],
             stack: [(0.0, 0.0); STACK],
             trig: Trig::new(dim / 2),

@@ -183,7 +183,7 @@ impl MultiState {
             (&self.x_f, &self.v_f),
             (&mut self.zq, &mut self.zv),
             &mut self.phys,
-            Some(&mut self.sw),
+            Some((&mut self.sw, self.simd)),
         );
         // each closed contact's penetration from its own coordinate
         // (exact); an entering one starts unstretched (its crossing, 0 to
@@ -205,7 +205,7 @@ impl MultiState {
             (&mut self.x_f, &mut self.v_f),
             (&mut self.zq, &mut self.zv),
             &mut self.s,
-            Some(&mut self.sw),
+            Some((&mut self.sw, self.simd)),
         );
         // a mass a leaving contact sets free starts its flight exactly at the
         // penetration the contact left with, the rest of it as the new

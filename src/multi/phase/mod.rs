@@ -383,7 +383,7 @@ impl MultiPhase {
         (x_f, v_f): (&[f64], &[f64]),
         (zq, zv): (&mut [f64], &mut [f64]),
         out: &mut Physical,
-        mut scratch: Option<&mut SwitchScratch>,
+        mut scratch: Option<(&mut SwitchScratch, SimdPath)>,
     ) {
         let n = m.n();
         // a free mode's block is its own (omega q, q')
@@ -403,7 +403,7 @@ impl MultiPhase {
             (&self.coupled, s),
             &self.qv_rows,
             zq,
-            scratch.as_deref_mut(),
+            scratch.as_mut().map(|(sw, path)| (&mut **sw, *path)),
         );
         for &i in &self.coupled_modes {
             out.q[i] = zq[i] / (two_pi() * m.freq_hz[i]);
@@ -459,7 +459,7 @@ impl MultiPhase {
         (x_f, v_f): (&mut [f64], &mut [f64]),
         (zq, zv): (&mut [f64], &mut [f64]),
         s: &mut [f64],
-        mut scratch: Option<&mut SwitchScratch>,
+        mut scratch: Option<(&mut SwitchScratch, SimdPath)>,
     ) {
         let n = m.n();
         for i in 0..n {
@@ -504,7 +504,7 @@ impl MultiPhase {
             (&self.qv_rows, zq),
             &self.coupled,
             s,
-            scratch.as_deref_mut(),
+            scratch.as_mut().map(|(sw, path)| (&mut **sw, *path)),
         );
         product(
             st.vp.as_ref(),

@@ -44,7 +44,11 @@ impl StructuredProducts {
     /// modes' frequencies, the closed contacts' and held masses' rows
     /// after them; the coupled entries of `s` in the order of their
     /// blocks' `|det G_k|` (the one-contact engine's `frequency_order`),
-    /// each block's two coordinates together.
+    /// each block's two coordinates together. Each form's permutations
+    /// are then composed with the rows it reads and writes (`coupled`,
+    /// `qv_rows`, `pv_rows`), so a product reads the state's vector and
+    /// adds into the physical side's (and back) with one gather and one
+    /// scatter.
     pub(super) fn new(
         freq_hz: &[f64],
         cm: &[usize],
@@ -75,11 +79,23 @@ impl StructuredProducts {
             order_of(&row_keys(&sp.qv_rows)),
             order_of(&row_keys(&sp.pv_rows)),
         );
+        let form = |w, rp: &[usize], cp: &[usize], (rows, cols): (&[usize], &[usize])| {
+            Hodlr::try_build_at(w, rp, cp, TOL_U).ok().map(|mut h| {
+                for r in &mut h.row_perm {
+                    *r = rows[*r];
+                }
+                for c in &mut h.col_perm {
+                    *c = cols[*c];
+                }
+                h
+            })
+        };
+        let (qv, pv) = (&sp.qv_rows[..], &sp.pv_rows[..]);
         Self {
-            qv: Hodlr::try_build_at(&sp.qv_c, &qr, &cols, TOL_U).ok(),
-            pv: Hodlr::try_build_at(&sp.pv_c, &pr, &cols, TOL_U).ok(),
-            vq: Hodlr::try_build_at(&sp.vq_c, &cols, &qr, TOL_U).ok(),
-            vp: Hodlr::try_build_at(&sp.vp_c, &cols, &pr, TOL_U).ok(),
+            qv: form(&sp.qv_c, &qr, &cols, (qv, coupled)),
+            pv: form(&sp.pv_c, &pr, &cols, (pv, coupled)),
+            vq: form(&sp.vq_c, &cols, &qr, (coupled, qv)),
+            vp: form(&sp.vp_c, &cols, &pr, (coupled, pv)),
         }
     }
 
@@ -104,12 +120,9 @@ impl StructuredProducts {
 }
 
 /// A state's scratch for the structured products (allocated with the
-/// state, off the audio thread), and the kernel path they run on.
+/// state, off the audio thread).
 #[derive(Debug, Clone)]
 pub(in crate::multi) struct SwitchScratch {
-    pub(in crate::multi) path: SimdPath,
-    xs: Vec<f64>,
-    ys: Vec<f64>,
     tmp: [Vec<f64>; 3],
 }
 
@@ -119,7 +132,7 @@ impl SwitchScratch {
     /// hardness levels, a parameter change): a product's rows and columns
     /// are at most the largest phase's dimension or the object's rows
     /// (`n` modes, the contacts, the masses), its rank at most the smaller.
-    pub(in crate::multi) fn new(m: &MultiModel, phases: &[MultiPhase], path: SimdPath) -> Self {
+    pub(in crate::multi) fn new(m: &MultiModel, phases: &[MultiPhase]) -> Self {
         let dim = phases.iter().map(|p| p.dim).max().unwrap_or(0);
         let (mut rows, mut cols, mut rank) =
             (dim.max(m.n() + m.masses.len() + MAX_CONTACTS), dim, dim);
@@ -130,17 +143,14 @@ impl SwitchScratch {
             rank = rank.max(k);
         }
         Self {
-            path,
-            xs: vec![0.0; cols],
-            ys: vec![0.0; rows],
             tmp: [vec![0.0; cols], vec![0.0; rows], vec![0.0; rank]],
         }
     }
 }
 
 /// `out[rows[r]] += sum_c M[r, c] x[cols[c]]`: through `h` with the
-/// scratch when both are there and the scratch has room for `h`, else the
-/// dense `m`
+/// scratch (on the state's kernel path) when both are there and the
+/// scratch has room for `h`, else the dense `m`
 /// (`mat_vec_idx`, the dense product's order). O(stored entries) or O(entries),
 /// allocation-free. \[audio-thread\]
 pub(in crate::multi) fn product(
@@ -149,31 +159,19 @@ pub(in crate::multi) fn product(
     (cols, x): (&[usize], &[f64]),
     rows: &[usize],
     out: &mut [f64],
-    scratch: Option<&mut SwitchScratch>,
+    scratch: Option<(&mut SwitchScratch, SimdPath)>,
 ) {
     // A state made for another compile of the same layout (a carry to a
     // recompile) may hold less scratch than this compile's forms need:
     // then the dense product, never an index out of its room.
     let fits = |h: &Hodlr, sw: &SwitchScratch| {
-        sw.xs.len() >= h.cols
-            && sw.ys.len() >= h.rows
-            && sw.tmp[0].len() >= h.cols
-            && sw.tmp[1].len() >= h.rows
-            && sw.tmp[2].len() >= h.max_rank
+        sw.tmp[0].len() >= h.cols && sw.tmp[1].len() >= h.rows && sw.tmp[2].len() >= h.max_rank
     };
     match (h, scratch) {
-        (Some(h), Some(sw)) if fits(h, sw) => {
-            let xs = &mut sw.xs[..cols.len()];
-            for (v, &c) in xs.iter_mut().zip(cols) {
-                *v = x[c];
-            }
-            let ys = &mut sw.ys[..rows.len()];
-            ys.fill(0.0);
+        // h's permutations are composed with `cols` and `rows` (`new`)
+        (Some(h), Some((sw, path))) if fits(h, sw) => {
             let [a, b, c] = &mut sw.tmp;
-            hodlr_mat_vec_add(sw.path, h, xs, ys, [a, b, c]);
-            for (&r, v) in rows.iter().zip(ys.iter()) {
-                out[r] += v;
-            }
+            hodlr_mat_vec_add(path, h, x, out, [a, b, c]);
         }
         _ => mat_vec_idx(m, (cols, x), rows, out),
     }
