@@ -141,7 +141,7 @@ impl MultiState {
             .min(self.spec_len);
         self.ensure_margins(sc);
         let start = self.rows_now(sc);
-        let m = self.mask as usize;
+        let m = self.slot;
         let (out0, nc) = (self.tables[m].out0, sc.contacts());
         if !self.may_pass(sc, &start, nc) {
             // the first sample fails whatever its end: no run to throw away
@@ -194,7 +194,7 @@ impl MultiState {
     /// Step `k` samples from `s` into the scratch's `next`, with every
     /// contact's event row (`all`) or only the outputs.
     fn kernel(&mut self, sc: &CompiledMulti, k: usize, all: bool) {
-        let m = self.mask as usize;
+        let m = self.slot;
         let ph = &sc.phases[m];
         let tb = &self.tables[m];
         let dim = ph.dim;
@@ -231,7 +231,7 @@ impl MultiState {
     /// The same rows of the current state ([`rows_as_kernel`]: the
     /// kernel's sums on this path).
     fn rows_now(&self, sc: &CompiledMulti) -> [f64; 6] {
-        let m = self.mask as usize;
+        let m = self.slot;
         let ph = &sc.phases[m];
         let tb = &self.tables[m];
         let [rows, obs_rows] = kernel_rows_of(ph, tb, &self.kern.zero[..ph.dim]);
@@ -248,7 +248,7 @@ impl MultiState {
     /// [`certified`](Self::certified): every contact's `psi` at its start
     /// clears its epoch's margin (the test's half that needs no run).
     fn may_pass(&self, sc: &CompiledMulti, beg: &[f64; 6], nc: usize) -> bool {
-        let ph = &sc.phases[self.mask as usize];
+        let ph = &sc.phases[self.slot];
         (0..nc).all(|j| {
             let f = self.event_fn(sc, j);
             f.psi(beg[j] + ph.ev0[j], 0.0) > self.cached[j].1
@@ -259,7 +259,7 @@ impl MultiState {
     /// `end`: each contact's `psi` at both ends clears its epoch's margin
     /// (the test [`first_crossing`](Self::first_crossing) starts with).
     fn certified(&self, sc: &CompiledMulti, beg: &[f64; 6], end: &[f64; 6], nc: usize) -> bool {
-        let ph = &sc.phases[self.mask as usize];
+        let ph = &sc.phases[self.slot];
         (0..nc).all(|j| {
             let f = self.event_fn(sc, j);
             let (q0, q1) = (beg[j] + ph.ev0[j], end[j] + ph.ev0[j]);

@@ -437,7 +437,8 @@ fn spectral_radius(g: &Mat2) -> f64 {
     }
 }
 
-/// A compiled model: every phase, by its contact bit set.
+/// A compiled model: every phase that can be reached, by its contact bit
+/// set.
 #[derive(Debug, Clone)]
 pub struct CompiledMulti {
     /// The model it was compiled from.
@@ -446,8 +447,16 @@ pub struct CompiledMulti {
     pub h: f64,
     /// Sample rate \[Hz\].
     pub rate_hz: f64,
-    /// `phases[mask]`.
+    /// The phases that can be reached ([`MultiModel::reachable_masks`]),
+    /// in increasing order of their masks: `phases[slot(mask)]`, the
+    /// phase with no contact closed first.
     pub phases: Vec<MultiPhase>,
+    /// Per mask: its phase's index in `phases`, or `u32::MAX` for a mask
+    /// that is never reached.
+    slots: Vec<u32>,
+    /// Per contact: the bit of its stage below, or 0
+    /// ([`MultiModel::stage_below`]).
+    below: [u32; MAX_CONTACTS],
     /// How contacts switch: exactly, where each crosses, or with an
     /// offset rod per contact at sample instants (the paper's method;
     /// docs/numerics.md section 14, "The offset rod per contact").
@@ -464,6 +473,9 @@ pub struct MultiStats {
     pub contacts_started: [u64; MAX_CONTACTS],
     /// Samples that reached [`MAX_SWITCHES_PER_SAMPLE`].
     pub capped: u64,
+    /// Switches whose contacts [`CompiledMulti::staged`] changed (a stage
+    /// taken in or out with the one below it).
+    pub staged: u64,
     /// Neutral and resolution-sized nodes of the certified search that
     /// ended with `psi > 0`: a touch at zero relative speed within
     /// rounding, no switch (the one-contact engine's
@@ -624,6 +636,8 @@ struct PhaseTables {
 #[derive(Debug)]
 pub struct MultiState {
     mask: u32,
+    /// The phase of `mask` in the compile's list (`CompiledMulti::slot`).
+    slot: usize,
     /// Time scale: each sample advances the model's time by `scale h`
     /// (docs/numerics.md section 14, "Time scale").
     scale: f64,
@@ -710,6 +724,7 @@ impl Clone for MultiState {
     fn clone(&self) -> Self {
         Self {
             mask: self.mask,
+            slot: self.slot,
             scale: self.scale,
             step_h: self.step_h,
             tables: self.tables.clone(),

@@ -340,11 +340,47 @@ impl MultiModel {
 }
 
 impl MultiModel {
+    /// Each contact's stage below: the contact with the same sides the
+    /// same way round at the nearest smaller penetration offset (a law's
+    /// previous piece, a touch's nearer stage), `None` for a first stage.
+    /// Its penetration is this one's plus the difference of the offsets,
+    /// so whenever this contact presses, the one below presses too:
+    /// a phase with a contact closed and its stage below open is never
+    /// reached (docs/numerics.md section 14, "Phases that are reached").
+    pub fn stage_below(&self) -> Vec<Option<usize>> {
+        let c = &self.contacts;
+        let off = |i: usize| penetration_offset(&c[i]);
+        (0..c.len())
+            .map(|j| {
+                (0..c.len())
+                    .filter(|&i| same_sides(&c[i], &c[j]) && off(i) < off(j))
+                    .max_by(|&a, &b| off(a).total_cmp(&off(b)))
+            })
+            .collect()
+    }
+
+    /// The phases that can be reached, in increasing order: the masks in
+    /// which every closed contact's stage below is closed too
+    /// ([`stage_below`](Self::stage_below)). All `2^K` when no two
+    /// contacts are stages of one another; `P + 1` for a law of `P`
+    /// pieces.
+    pub fn reachable_masks(&self) -> Vec<u32> {
+        let below = self.stage_below();
+        (0..1u32 << self.contacts.len())
+            .filter(|&mask| {
+                below
+                    .iter()
+                    .enumerate()
+                    .all(|(j, b)| mask & (1 << j) == 0 || b.is_none_or(|i| mask & (1 << i) != 0))
+            })
+            .collect()
+    }
+
     /// Every phase's eigendecomposition and checks (about 40 d^3 flop for
     /// d coordinates) and its two bases (2 d^2 numbers) within the compile
     /// budget: refused before any of it.
     pub(super) fn within_budget(&self) -> Result<(), MultiError> {
-        let phases = 1usize << self.contacts.len();
+        let phases = self.reachable_masks().len();
         let dim = 2 * (self.n() + self.masses.len());
         let d = dim as f64;
         let flops = phases as f64 * 40.0 * d * d * d;
@@ -370,18 +406,28 @@ impl MultiModel {
 /// other way round are two faces (a mass between a floor and a ceiling),
 /// at another gap two stages of a contact: different contacts.
 fn same_penetration(a: &MultiContact, b: &MultiContact) -> bool {
-    let same_side = |x: &MultiEnd, y: &MultiEnd| match (x, y) {
+    same_sides(a, b) && penetration_offset(a) == penetration_offset(b)
+}
+
+/// The same sides the same way round (any two walls alike: a wall is told
+/// by its height, counted in [`penetration_offset`]).
+fn same_sides(a: &MultiContact, b: &MultiContact) -> bool {
+    let same = |x: &MultiEnd, y: &MultiEnd| match (x, y) {
         (MultiEnd::Wall(_), MultiEnd::Wall(_)) => true,
         _ => x == y,
     };
-    let offset = |c: &MultiContact| {
-        let wall = |e: &MultiEnd| match e {
-            MultiEnd::Wall(h) => *h,
-            _ => 0.0,
-        };
-        c.gap_m - wall(&c.lower) + wall(&c.upper)
+    same(&a.lower, &b.lower) && same(&a.upper, &b.upper)
+}
+
+/// What a contact subtracts from `x_lower - x_upper` in its penetration,
+/// a wall's height counted in (`p = x_lower - x_upper - offset` with a
+/// wall's side at 0).
+fn penetration_offset(c: &MultiContact) -> f64 {
+    let wall = |e: &MultiEnd| match e {
+        MultiEnd::Wall(h) => *h,
+        _ => 0.0,
     };
-    same_side(&a.lower, &b.lower) && same_side(&a.upper, &b.upper) && offset(a) == offset(b)
+    c.gap_m - wall(&c.lower) + wall(&c.upper)
 }
 
 /// The scene's objects a side of a contact names, as the model's sides

@@ -11,7 +11,7 @@ impl MultiState {
     /// in flight) and O(d^2) for the `d` coordinates of the coupled part.
     pub fn observe(&self, sc: &CompiledMulti) -> MultiObservation {
         let m = &sc.model;
-        let ph = &sc.phases[self.mask as usize];
+        let ph = &sc.phases[self.slot];
         let g = m.gravity_m_per_s2;
         let s = &self.s;
         let nb = ph.gens.len();
@@ -61,7 +61,7 @@ impl MultiState {
     /// sample, for checks.
     pub fn observe_physical(&self, sc: &CompiledMulti) -> MultiObservation {
         let m = &sc.model;
-        let ph = &sc.phases[self.mask as usize];
+        let ph = &sc.phases[self.slot];
         let nz = m.n() + m.masses.len();
         let (mut zq, mut zv) = (vec![0.0; nz + MAX_CONTACTS], vec![0.0; nz]);
         let mut phys = Physical::new(m);

@@ -117,7 +117,7 @@ impl MultiState {
         rem: f64,
         start: Start,
     ) -> Option<f64> {
-        let ph = &sc.phases[self.mask as usize];
+        let ph = &sc.phases[self.slot];
         let f = self.event_fn(sc, j);
         let q0 = dot_at(&ph.ev[j], &self.s, &ph.ev_nz[j]) + ph.ev0[j];
         let q_end = dot_at(&ph.ev[j], &self.end, &ph.ev_nz[j]) + ph.ev0[j];
@@ -154,7 +154,7 @@ impl MultiState {
         }
         let mut model = ContactModel {
             ph,
-            tb: &self.tables[self.mask as usize],
+            tb: &self.tables[self.slot],
             j,
             s: &self.s,
             f,
@@ -208,7 +208,7 @@ impl MultiState {
         (psi0, psi1): (f64, f64),
         open: bool,
     ) -> bool {
-        let tb = &self.tables[self.mask as usize];
+        let tb = &self.tables[self.slot];
         let d0 = f.dpsi(dot_at(&ph.ev_d[j], &self.s, &ph.evd_nz[j]), 0.0);
         let d1 = f.dpsi(dot_at(&ph.ev_d[j], &self.end, &ph.evd_nz[j]), w);
         let (c1, c2, c4, e) = (&tb.ev_c1[j], &tb.ev_c2[j], &tb.ev_c4[j], &tb.ev_e[j]);
@@ -241,7 +241,7 @@ impl MultiState {
     /// Contact `j`'s whole-sample margin for `epoch` from the current
     /// state ([`whole_margin`](Self::whole_margin)), kept for the epoch.
     pub(super) fn cache_margin(&mut self, sc: &CompiledMulti, j: usize, epoch: u64) {
-        let ph = &sc.phases[self.mask as usize];
+        let ph = &sc.phases[self.slot];
         let f = self.event_fn(sc, j);
         self.take_norms(ph, j);
         self.cached[j] = (epoch, self.whole_margin(ph, j, &f));
@@ -251,7 +251,7 @@ impl MultiState {
     /// phase's growth over 64 samples: it holds for every later state of
     /// the clock's 64-sample epoch.
     fn whole_margin(&self, ph: &MultiPhase, j: usize, f: &EventFn) -> f64 {
-        let later = self.tables[self.mask as usize].growth_max.powi(64);
+        let later = self.tables[self.slot].growth_max.powi(64);
         self.margin(ph, j, self.step_h, f.g.abs()) * later
     }
 
@@ -269,7 +269,7 @@ impl MultiState {
     /// Contact `j`'s event function in the current phase: its sign and the
     /// flights of its free sides (the lower side's less the upper's).
     pub(super) fn event_fn(&self, sc: &CompiledMulti, j: usize) -> EventFn {
-        let ph = &sc.phases[self.mask as usize];
+        let ph = &sc.phases[self.slot];
         let inside = self.mask & (1 << j) != 0;
         let g = sc.model.gravity_m_per_s2;
         let (lo, up) = ph.ev_fly[j];
@@ -291,7 +291,7 @@ impl MultiState {
     /// [`take_norms`](Self::take_norms), the constant, the flights'
     /// heights, speeds and travel). O(blocks the row touches).
     fn tolerances(&self, ph: &MultiPhase, j: usize, f: &EventFn, rem: f64) -> (f64, f64) {
-        let tb = &self.tables[self.mask as usize];
+        let tb = &self.tables[self.slot];
         let (xs, vs, gs) = f.scale;
         let mut mag = ph.ev0[j].abs() + xs + vs * rem + gs * rem * rem;
         let mut mag_d = vs + gs * rem;
@@ -314,7 +314,7 @@ impl MultiState {
     fn margin(&self, ph: &MultiPhase, j: usize, w: f64, g_curv: f64) -> f64 {
         let h = w * w / 8.0;
         let mut acc = g_curv * h;
-        let tb = &self.tables[self.mask as usize];
+        let tb = &self.tables[self.slot];
         let (c2, e) = (&tb.ev_c2[j], &tb.ev_e[j]);
         for k in 0..ph.gens.len() {
             acc += (c2[k] * h).min(2.0 * e[k]) * self.norms[k];

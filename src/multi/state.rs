@@ -20,6 +20,7 @@ impl MultiState {
         }
         Self {
             mask: 0,
+            slot: 0,
             scale: 1.0,
             step_h: sc.h,
             tables,
@@ -65,6 +66,7 @@ impl MultiState {
     /// \[audio-thread\]
     pub fn rest(&mut self, sc: &CompiledMulti) {
         self.mask = 0;
+        self.slot = 0;
         self.tables[0].make(
             &sc.phases[0],
             &sc.model,
@@ -174,7 +176,7 @@ impl MultiState {
         }
         // the bounds its contacts put on its height, from the other sides
         // where they are now (a switch does not move them)
-        let ph = &sc.phases[self.mask as usize];
+        let ph = &sc.phases[self.slot];
         let (mut lo, mut hi, mut want) = (f64::NEG_INFINITY, f64::INFINITY, 0.0);
         let mut who = 0u32;
         for (j, ct) in m.contacts.iter().enumerate() {
@@ -202,7 +204,7 @@ impl MultiState {
             self.switch(sc, closed, time_s, &[0.0; MAX_CONTACTS]);
         }
         // every contact of the mass is open: it flies alone, in its slot
-        debug_assert!(sc.phases[self.mask as usize].place[k].is_none());
+        debug_assert!(sc.phases[self.slot].place[k].is_none());
         self.x_f[k] = x;
         self.v_f[k] = velocity_m_per_s;
         self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
@@ -217,7 +219,7 @@ impl MultiState {
     /// O(masses dim).
     pub fn masses_to_land(&self, sc: &CompiledMulti) -> f64 {
         let m = &sc.model;
-        let ph = &sc.phases[self.mask as usize];
+        let ph = &sc.phases[self.slot];
         let mut e = 0.0;
         for (k, ms) in m.masses.iter().enumerate() {
             let v = self.mass_at(sc, k).1;
@@ -266,7 +268,7 @@ impl MultiState {
     /// Mass `j`'s height and velocity: its flight when free, else its
     /// coordinate's rows (plus its group's flight).
     pub(super) fn mass_at(&self, sc: &CompiledMulti, j: usize) -> (f64, f64) {
-        let ph = &sc.phases[self.mask as usize];
+        let ph = &sc.phases[self.slot];
         let Some(b) = ph.place[j] else {
             return (self.x_f[j], self.v_f[j]);
         };
@@ -339,7 +341,7 @@ impl MultiState {
     /// search takes and one the block path takes give their output in the
     /// same arithmetic. O(dim).
     pub fn output(&self, sc: &CompiledMulti) -> [f64; 2] {
-        let m = self.mask as usize;
+        let m = self.slot;
         let tb = &self.tables[m];
         let dim = sc.phases[m].dim;
         let rows = crate::engine::kernel::Rows {
@@ -372,7 +374,7 @@ impl MultiState {
         self.scale = scale;
         self.step_h = sc.h * scale;
         self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
-        let m = self.mask as usize;
+        let m = self.slot;
         self.tables[m].make(&sc.phases[m], &sc.model, scale, self.step_h, self.band_hz);
         self.set_shift(sc);
         Ok(())
@@ -401,7 +403,7 @@ impl MultiState {
 
     /// The modes the output band leaves out in the current phase.
     pub fn band_muted_modes(&self) -> usize {
-        self.tables[self.mask as usize].muted
+        self.tables[self.slot].muted
     }
 
     /// Change the time scale to `scale` as a pitch bend does, without
@@ -487,7 +489,7 @@ impl MultiState {
     /// Contact `j`'s penetration now (without its rod) \[m\]: its row,
     /// and the flights of its free sides.
     fn penetration(&self, sc: &CompiledMulti, j: usize) -> f64 {
-        let ph = &sc.phases[self.mask as usize];
+        let ph = &sc.phases[self.slot];
         let (lo, up) = ph.ev_fly[j];
         let at = |slot: Option<usize>| slot.map_or(0.0, |k| self.x_f[k]);
         dot(&ph.ev[j], &self.s) + ph.ev0[j] + self.off_ev[j] + at(lo) - at(up)

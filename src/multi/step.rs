@@ -20,11 +20,11 @@ impl MultiState {
         let mut starts = [Start::Value; MAX_CONTACTS];
         let mut taken: u64 = 0;
         while t < h {
-            let ph = &sc.phases[self.mask as usize];
+            let ph = &sc.phases[self.slot];
             let rem = h - t;
             let nb = ph.gens.len();
             if t == 0.0 {
-                let props = &self.tables[self.mask as usize].props;
+                let props = &self.tables[self.slot].props;
                 step_blocks(self.simd, props, &self.s, &mut self.end[..ph.dim], nb);
             } else {
                 step_to(
@@ -87,7 +87,7 @@ impl MultiState {
     /// One whole sample in the current phase with its rods (the state is
     /// held about the equilibrium they shift). O(dim).
     fn step_rod(&mut self, sc: &CompiledMulti) {
-        let m = self.mask as usize;
+        let m = self.slot;
         let ph = &sc.phases[m];
         let dim = ph.dim;
         let props = &self.tables[m].props;
@@ -106,7 +106,7 @@ impl MultiState {
     /// The current phase's equilibrium shift of the rods, and the rows'
     /// constants it makes. O(K dim).
     pub(super) fn set_shift(&mut self, sc: &CompiledMulti) {
-        let ph = &sc.phases[self.mask as usize];
+        let ph = &sc.phases[self.slot];
         let shift = &mut self.shift[..ph.dim];
         shift.fill(0.0);
         self.rods_on = false;
@@ -133,7 +133,7 @@ impl MultiState {
                 *o = (dot(&r.pos, shift), dot(&r.vel, shift));
             }
         }
-        let tb = &self.tables[self.mask as usize];
+        let tb = &self.tables[self.slot];
         for (o, row) in self.off_out.iter_mut().zip(&tb.out) {
             *o = dot(&row[..ph.dim], shift);
         }
@@ -150,10 +150,20 @@ impl MultiState {
         }
     }
 
+    /// `who` as [`CompiledMulti::staged`] takes it from the current mask,
+    /// counted in [`MultiStats::staged`] when it changed.
+    fn staged(&mut self, sc: &CompiledMulti, who: u32) -> u32 {
+        let staged = sc.staged(self.mask, who);
+        if staged != who {
+            self.stats.staged += 1;
+        }
+        staged
+    }
+
     /// The flights (free masses, centres of free groups) go `dt` on.
     pub(super) fn fly(&mut self, sc: &CompiledMulti, dt: f64) {
         let g = sc.model.gravity_m_per_s2;
-        for &j in &sc.phases[self.mask as usize].flyers {
+        for &j in &sc.phases[self.slot].flyers {
             self.x_f[j] += self.v_f[j] * dt - 0.5 * g * dt * dt;
             self.v_f[j] -= g * dt;
         }
@@ -173,8 +183,9 @@ impl MultiState {
         time_s: f64,
         enter: &[f64; MAX_CONTACTS],
     ) -> [Start; MAX_CONTACTS] {
+        let who = self.staged(sc, who);
         let m = &sc.model;
-        let old = &sc.phases[self.mask as usize];
+        let old = &sc.phases[self.slot];
         self.unshift(1.0);
         // every q, q', x, v
         old.physical_of(
@@ -196,8 +207,9 @@ impl MultiState {
         }
         let p_left = pen;
         let new_mask = self.mask ^ who;
-        let new = &sc.phases[new_mask as usize];
-        self.tables[new_mask as usize].make(new, m, self.scale, self.step_h, self.band_hz);
+        let new_slot = sc.slot(new_mask);
+        let new = &sc.phases[new_slot];
+        self.tables[new_slot].make(new, m, self.scale, self.step_h, self.band_hz);
         self.s.resize(new.dim, 0.0);
         new.state_of(
             m,
@@ -266,6 +278,7 @@ impl MultiState {
             }
         }
         self.mask = new_mask;
+        self.slot = new_slot;
         self.set_shift(sc);
         self.unshift(-1.0);
         self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];

@@ -134,7 +134,8 @@ preset played through the instrument at 48 kHz for 4 s with notes every 125 ms, 
 4 or 16 keys at an instant, each block the least of three runs of the same work \
 (docs/design.md, \"Played as a kit\"), and strikes through a law on a ringing \
 200-mode object with the switches' products structured and dense (docs/numerics.md \
-section 14, \"Structured switches\").",
+section 14, \"Structured switches\"), its phases that can be reached compiled beside \
+every combination of its pieces (\"Phases that are reached\").",
         source: Source::Stdout,
     },
     Bench {

@@ -211,23 +211,93 @@ fn contact_rows_z(m: &MultiModel, lay: &Layout, members: &[usize]) -> Vec<(Vec<f
 }
 
 impl CompiledMulti {
-    /// Compile every phase (`2^K` of them) at `rate_hz`.
+    /// Compile every phase that can be reached
+    /// ([`MultiModel::reachable_masks`]: `2^K` of them for `K` contacts
+    /// of which none is a stage of another, `P + 1` for a law of `P`
+    /// pieces) at `rate_hz`.
     pub fn new(model: &MultiModel, rate_hz: f64) -> Result<Self, MultiError> {
+        Self::compile(model, rate_hz, false)
+    }
+
+    /// TEST ONLY: [`new`](Self::new) with all `2^K` phases, the ones
+    /// never reached too, as a check that leaving them out changes
+    /// nothing.
+    #[doc(hidden)]
+    pub fn with_every_phase(model: &MultiModel, rate_hz: f64) -> Result<Self, MultiError> {
+        Self::compile(model, rate_hz, true)
+    }
+
+    fn compile(model: &MultiModel, rate_hz: f64, every: bool) -> Result<Self, MultiError> {
         model.validate()?;
         check_value("rate_hz", rate_hz, rate_hz > 0.0)?;
         model.within_budget()?;
         let k = model.contacts.len();
         let h = 1.0 / rate_hz;
-        let phases = (0..1u32 << k)
-            .map(|mask| MultiPhase::new(model, mask, h))
+        let masks = if every {
+            (0..1u32 << k).collect()
+        } else {
+            model.reachable_masks()
+        };
+        let phases = masks
+            .iter()
+            .map(|&mask| MultiPhase::new(model, mask, h))
             .collect::<Result<Vec<_>, _>>()?;
+        let mut slots = vec![u32::MAX; 1 << k];
+        for (i, &mask) in masks.iter().enumerate() {
+            slots[mask as usize] = i as u32;
+        }
+        let mut below = [0u32; MAX_CONTACTS];
+        for (b, s) in below.iter_mut().zip(model.stage_below()) {
+            *b = s.map_or(0, |i| 1 << i);
+        }
         Ok(Self {
             model: model.clone(),
             h,
             rate_hz,
             phases,
+            slots,
+            below,
             switching: Switching::Exact,
         })
+    }
+
+    /// The index in [`phases`](Self::phases) of the phase of `mask`, a
+    /// mask that is reached (the switch keeps every state's mask so:
+    /// [`staged`](Self::staged)). O(1). \[audio-thread\]
+    pub fn slot(&self, mask: u32) -> usize {
+        self.slots[mask as usize] as usize
+    }
+
+    /// The contacts that switch when `who` would from `mask`, so that the
+    /// new mask is one that is reached: a contact whose stage below
+    /// leaves leaves with it, and a contact that enters takes its stage
+    /// below in with it if that one is open (each stage's penetration is
+    /// the one below's less the difference of their offsets, so in exact
+    /// arithmetic neither happens; with the offset rod, stages that
+    /// entered at one sample instant leave at one, which their rods'
+    /// rounding may split). Both are passive: a contact that leaves
+    /// takes its spring's energy out, one that enters starts at its rod
+    /// or unstretched. O(K^2). \[audio-thread\]
+    pub fn staged(&self, mask: u32, who: u32) -> u32 {
+        let k = self.contacts();
+        let mut new = mask ^ who;
+        // a stage leaves when the one below it leaves (up the chain)
+        for _ in 0..k {
+            for (j, &b) in self.below.iter().enumerate().take(k) {
+                if new & (1 << j) != 0 && new & b == 0 && mask & b != 0 {
+                    new &= !(1 << j);
+                }
+            }
+        }
+        // an entering stage takes the one below in (down the chain)
+        for _ in 0..k {
+            for (j, &b) in self.below.iter().enumerate().take(k) {
+                if new & (1 << j) != 0 {
+                    new |= b;
+                }
+            }
+        }
+        mask ^ new
     }
 
     /// [`new`](Self::new) with the given switching method (the scene's
