@@ -253,7 +253,7 @@ fn block_path(_: &mut Criterion) {
 
 /// Strikes on the ringing 200-mode object of the worst-block bench
 /// (`modal_testkit::scenes::struck_bar`) through `F = K p^2.5` in four
-/// pieces, K through its spring's force at the deepest of a 2 m/s strike,
+/// and in eight pieces, K through its spring's force at the deepest of a 2 m/s strike,
 /// the pieces over the penetrations of 0.12 to 3 m/s (the worst-block
 /// bench's table of laws, its last row): 40 strikes at 1 to 1.8 m/s, each
 /// timed with its next eight 64-sample blocks, with the switches' products
@@ -265,62 +265,80 @@ fn structured(_: &mut Criterion) {
     let power = 2.5;
     let k = law_k_through_spring(&spring);
     let travel = |v| power_law_travel(spring.hammer.mass_kg, k, power, v);
-    let scene = with_power_law(&spring, (power, k), 4, (travel(0.12), travel(3.0)));
-    let model = MultiModel::from_scene(&scene, RATE).unwrap();
-    let t0 = Instant::now();
-    let sc = CompiledMulti::new(&model, RATE).unwrap();
-    let compile_s = t0.elapsed().as_secs_f64();
-    // the same law with every combination of its pieces compiled, the ones
-    // never reached too
-    let t0 = Instant::now();
-    let every = CompiledMulti::with_every_phase(&model, RATE).unwrap();
-    let every_s = t0.elapsed().as_secs_f64();
-    let mut dense = sc.clone();
-    dense.forget_structured();
-    let (n, all) = sc.structured_products();
-    // each strike with its next eight blocks, median over 40 strikes
-    let run = |sc: &CompiledMulti| {
-        let mut st = MultiState::new(sc);
-        let (mut l, mut r) = ([0.0; 64], [0.0; 64]);
-        st.strike(sc, 0, 0.0, -2.0).unwrap();
-        for _ in 0..200 {
+    let mut rows = Vec::new();
+    let (mut notes, mut dim) = (Vec::new(), 0);
+    for pieces in [4, 8] {
+        let scene = with_power_law(&spring, (power, k), pieces, (travel(0.12), travel(3.0)));
+        let model = MultiModel::from_scene(&scene, RATE).unwrap();
+        let t0 = Instant::now();
+        let sc = CompiledMulti::new(&model, RATE).unwrap();
+        let compile_s = t0.elapsed().as_secs_f64();
+        dim = dim.max(sc.max_dim());
+        let mut dense = sc.clone();
+        dense.forget_structured();
+        let (n, all) = sc.structured_products();
+        if pieces == 4 {
+            // the same law with every combination of its pieces compiled,
+            // the ones never reached too
+            let t0 = Instant::now();
+            let every = CompiledMulti::with_every_phase(&model, RATE).unwrap();
+            let every_s = t0.elapsed().as_secs_f64();
+            notes.push(format!(
+                "4 pieces: {every_s:.2} s for all {} combinations of the pieces",
+                every.phases.len()
+            ));
+        }
+        let (mut a, mut b, mut per) = (Vec::new(), Vec::new(), 0.0);
+        for _ in 0..3 {
+            let (t, sw) = strikes_on_ringing(&sc);
+            a.push(t);
+            per = sw;
+            b.push(strikes_on_ringing(&dense).0);
+        }
+        a.sort_by(f64::total_cmp);
+        b.sort_by(f64::total_cmp);
+        rows.push(format!(
+            "| {pieces} | {} | {compile_s:.2} | {n} of {all} | {per:.1} | {:.0} | {:.0} | {:.2} |",
+            sc.phases.len(),
+            a[1] * 1e6,
+            b[1] * 1e6,
+            b[1] / a[1]
+        ));
+    }
+    println!("\nstrikes through a law on a ringing 200-mode object (phases: those that can be reached, of up to {dim} coordinates; {}): a strike and its next eight 64-sample blocks at 48 kHz, median of 40 strikes, the middle of 3 alternated runs (more than four pieces: every sample through the search, docs/numerics.md section 14, \"The block path\"):", notes.join("; "));
+    println!("| pieces | phases | compile s | switch products in hierarchical form | switches per strike | structured products us | dense products us | ratio |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for r in rows {
+        println!("{r}");
+    }
+}
+
+/// 40 strikes on the ringing object of `sc` at 1 to 1.8 m/s, each timed
+/// with its next eight 64-sample blocks: the median time \[s\] and the
+/// switches per strike.
+fn strikes_on_ringing(sc: &CompiledMulti) -> (f64, f64) {
+    let mut st = MultiState::new(sc);
+    let (mut l, mut r) = ([0.0; 64], [0.0; 64]);
+    st.strike(sc, 0, 0.0, -2.0).unwrap();
+    for _ in 0..200 {
+        st.process_block(sc, &mut l, &mut r);
+    }
+    let sw0 = st.stats.switches;
+    let mut times = Vec::new();
+    for i in 0..40 {
+        let t = Instant::now();
+        st.strike(sc, 0, 0.0, -(1.0 + 0.02 * f64::from(i))).unwrap();
+        for _ in 0..8 {
+            st.process_block(sc, &mut l, &mut r);
+            black_box(&l);
+        }
+        times.push(t.elapsed().as_secs_f64());
+        for _ in 0..40 {
             st.process_block(sc, &mut l, &mut r);
         }
-        let sw0 = st.stats.switches;
-        let mut times = Vec::new();
-        for i in 0..40 {
-            let t = Instant::now();
-            st.strike(sc, 0, 0.0, -(1.0 + 0.02 * f64::from(i))).unwrap();
-            for _ in 0..8 {
-                st.process_block(sc, &mut l, &mut r);
-                black_box(&l);
-            }
-            times.push(t.elapsed().as_secs_f64());
-            for _ in 0..40 {
-                st.process_block(sc, &mut l, &mut r);
-            }
-        }
-        times.sort_by(f64::total_cmp);
-        (times[20], (st.stats.switches - sw0) as f64 / 40.0)
-    };
-    let (mut a, mut b, mut per) = (Vec::new(), Vec::new(), 0.0);
-    for _ in 0..3 {
-        let (t, sw) = run(&sc);
-        a.push(t);
-        per = sw;
-        b.push(run(&dense).0);
     }
-    a.sort_by(f64::total_cmp);
-    b.sort_by(f64::total_cmp);
-    println!("\nstrikes through a law on a ringing 200-mode object (4 pieces: the {} phases that can be reached, of up to {} coordinates, compiled in {compile_s:.2} s, against {every_s:.2} s for all {} combinations of the pieces; {n} of {all} switch products in hierarchical form): a strike and its next eight 64-sample blocks at 48 kHz, median of 40 strikes, the middle of 3 alternated runs:", sc.phases.len(), sc.max_dim(), every.phases.len());
-    println!("| switches per strike | structured products us | dense products us | ratio |");
-    println!("|---|---|---|---|");
-    println!(
-        "| {per:.1} | {:.0} | {:.0} | {:.2} |",
-        a[1] * 1e6,
-        b[1] * 1e6,
-        b[1] / a[1]
-    );
+    times.sort_by(f64::total_cmp);
+    (times[20], (st.stats.switches - sw0) as f64 / 40.0)
 }
 
 criterion_group!(benches, bench, kits, block_path, structured);

@@ -278,3 +278,52 @@ fn pressing_a_driven_stroke_allocates_nothing() {
         assert!(inst.active_voices() > 0, "{preset}: the strokes go on");
     }
 }
+
+/// A law of eight pieces (more springs than the block kernel sums: every
+/// sample through the search) plays through the instrument without
+/// allocating: marimba-bar's yarn as `F = K p^2` in eight pieces, chords
+/// struck again on ringing voices at every velocity, with exact switching
+/// and with the offset rod; the output audible and finite.
+#[test]
+fn a_law_of_eight_pieces_plays_without_allocating() {
+    use modal_contact::instrument::prepare_scene;
+    use modal_testkit::scenes::{law_k_through_spring, power_law_travel, with_power_law};
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    const RATE: f64 = 48_000.0;
+    let bar = presets::index_of("marimba-bar").unwrap();
+    let spring = presets::scene(bar).unwrap();
+    let k = law_k_through_spring(&spring);
+    let travel = |v| power_law_travel(spring.hammer.mass_kg, k, 2.0, v);
+    let scene = with_power_law(&spring, (2.0, k), 8, (travel(0.12), travel(3.0)));
+    assert_eq!(scene.all_contacts(), 8);
+    let mut rng = TestRng(0x8a1);
+    for switching in [Switching::Exact, Switching::OffsetRod] {
+        let sp = SceneParams {
+            preset: bar,
+            switching,
+            ..SceneParams::default()
+        };
+        let mut inst = Instrument::new(
+            prepare_scene(&scene, &sp, RATE, 0).unwrap(),
+            PlayParams::default(),
+        );
+        let (mut l, mut r) = (vec![0.0f32; 1024], vec![0.0f32; 1024]);
+        let mut peak = 0.0f32;
+        for round in 0..48 {
+            let events: Vec<TimedEvent> = (0..if round % 4 == 0 { 6 } else { 0 })
+                .map(|i| TimedEvent {
+                    offset: 37 * i,
+                    event: Event::NoteOn {
+                        key: 48 + rng.below(24) as u8,
+                        velocity_norm: rng.unit().max(0.05),
+                    },
+                })
+                .collect();
+            armed("process", || inst.process(&events, &mut l, &mut r));
+            assert!(l.iter().chain(&r).all(|x| x.is_finite()));
+            peak = l.iter().chain(&r).fold(peak, |m, x| m.max(x.abs()));
+        }
+        println!("{switching:?}: peak {peak:.3}, {:?}", inst.stats);
+        assert!(peak > 1e-3, "{switching:?}: silent ({peak})");
+    }
+}

@@ -447,7 +447,7 @@ fn run_network(
         // the trace's O(N) observation against the physical state's
         let q = st.observe_physical(sc);
         let de = (o.energy - q.energy).abs() / e0.max(scale(&o));
-        let size = |x: &[f64; 4]| x.iter().map(|v| v.abs()).fold(1e-3, f64::max);
+        let size = |x: &[f64]| x.iter().map(|v| v.abs()).fold(1e-3, f64::max);
         let dx = (0..4)
             .map(|j| {
                 let a = (o.x_hammer[j] - q.x_hammer[j]).abs() / size(&q.x_hammer);

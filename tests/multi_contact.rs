@@ -28,7 +28,7 @@ use modal_contact::compile::compile_with;
 use modal_contact::engine::EngineState;
 use modal_contact::multi::{
     CompiledMulti, MultiEnd, MultiError, MultiHammer, MultiModel, MultiState, MultiSwitch,
-    MAX_CONTACTS,
+    MAX_CONTACTS, MAX_SPRINGS,
 };
 use modal_contact::scene::{Scene, Switching};
 use modal_testkit::metrics::{instant_horizon, rel_l2, rod_energy_scale, Interval};
@@ -589,13 +589,13 @@ fn bad_models_are_refused_with_the_field_named() {
     assert_eq!(err(&|m| m.contacts.clear()), MultiError::ContactCount(0));
     let e = err(&|m| {
         let c = m.contacts[0].clone();
-        for j in 0..MAX_CONTACTS {
+        for j in 0..MAX_SPRINGS {
             let mut c = c.clone();
             c.gap_m = j as f64;
             m.contacts.push(c);
         }
     });
-    assert_eq!(e, MultiError::ContactCount(MAX_CONTACTS + 2));
+    assert_eq!(e, MultiError::ContactCount(MAX_SPRINGS + 2));
     let e = err(&|m| {
         m.contacts[1].lower = m.contacts[0].lower.clone();
         m.contacts[1].upper = MultiEnd::Mass(0);

@@ -43,7 +43,7 @@ use super::{
     TIMBRE_LEVEL_MAX,
 };
 use crate::engine::TimeScaleError;
-use crate::multi::{CompiledMulti, MultiEnd, MultiModel, MultiState, MAX_CONTACTS};
+use crate::multi::{CompiledMulti, MultiEnd, MultiModel, MultiState, MAX_SPRINGS};
 use crate::scene::{Scene, SceneError};
 
 /// A kit voice resting with a contact closed (a mass lying on an object
@@ -71,7 +71,7 @@ pub(super) struct KitVoice {
     /// The mallet its next note throws when in turn.
     next: usize,
     /// The last note that threw each mallet (the live view).
-    last_key: [u8; MAX_CONTACTS],
+    last_key: [u8; MAX_SPRINGS],
     /// The loudest output since the last throw, the loudest of the
     /// current check interval, and the throw's energy (the model's units).
     peak: f64,
@@ -166,7 +166,7 @@ impl Kit {
         let voice = KitVoice {
             st,
             next: 0,
-            last_key: [0; MAX_CONTACTS],
+            last_key: [0; MAX_SPRINGS],
             peak: 0.0,
             interval_peak: 0.0,
             strike_energy: 0.0,
@@ -444,8 +444,8 @@ impl Kit {
 
     /// The contacts started by every kit voice (and by the stolen ones
     /// fading out in its spare states), per contact.
-    pub fn contacts_started(&self) -> [u64; MAX_CONTACTS] {
-        let mut out = [0; MAX_CONTACTS];
+    pub fn contacts_started(&self) -> [u64; MAX_SPRINGS] {
+        let mut out = [0; MAX_SPRINGS];
         for st in self.voices.iter().map(|v| &v.st).chain(&self.spares) {
             for (o, c) in out.iter_mut().zip(st.stats.contacts_started) {
                 *o += c;
@@ -1041,9 +1041,10 @@ impl Instrument {
             let sc = compile_for(&kit.sc, &kit.damped, &kit.levels, at);
             let energy_j = kv.st.energy_objects_scaled(sc, pressed) * s * s;
             if let Some(probe) = self.probe.as_deref_mut() {
-                for j in 0..contacts {
+                // a law's further pieces move as its first does: one lane
+                for j in (0..contacts).filter(|&j| !sc.is_stage(j)) {
                     probe.voice_chunk(&super::VoiceChunk {
-                        voice: i * MAX_CONTACTS + j,
+                        voice: i * MAX_SPRINGS + j,
                         key: kv.last_key[j],
                         released: self.voices[i].released,
                         start: t0,

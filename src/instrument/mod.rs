@@ -320,7 +320,7 @@ pub struct Instrument {
     probe_on: bool,
     motion: [Motion; CHECK_INTERVAL_SAMPLES],
     /// A kit's motion per contact for the live view.
-    kit_motion: [[Motion; CHECK_INTERVAL_SAMPLES]; crate::multi::MAX_CONTACTS],
+    kit_motion: [[Motion; CHECK_INTERVAL_SAMPLES]; crate::multi::MAX_SPRINGS],
     /// Each voice's clock and samples, and the output (`mix`).
     lanes: mix::Lanes,
     /// Counters.
@@ -410,7 +410,7 @@ impl Instrument {
             probe: None,
             probe_on: false,
             motion: [Motion::default(); CHECK_INTERVAL_SAMPLES],
-            kit_motion: [[Motion::default(); CHECK_INTERVAL_SAMPLES]; crate::multi::MAX_CONTACTS],
+            kit_motion: [[Motion::default(); CHECK_INTERVAL_SAMPLES]; crate::multi::MAX_SPRINGS],
             lanes: mix::Lanes::new(),
             stats: Stats::default(),
         };

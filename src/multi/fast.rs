@@ -56,6 +56,10 @@ impl Kern {
     }
 }
 
+/// The contacts whose event rows the block kernel sums (contact 0's beside
+/// the outputs, three more in its observation rows).
+pub(super) const KERNEL_CONTACTS: usize = 4;
+
 /// The rows the block path sums: contact 0's event row and the two
 /// outputs, then contacts 1 to 3's event rows (`zero` for a contact the
 /// scene does not have).
@@ -85,9 +89,15 @@ pub(super) struct Run {
 
 impl MultiState {
     /// Whether the block path may run: exact switching (the offset rod
-    /// decides at every sample instant).
+    /// decides at every sample instant) and at most [`KERNEL_CONTACTS`]
+    /// contacts (the kernel sums that many event rows beside the outputs;
+    /// a scene of more springs, a law of many pieces, takes the search's
+    /// way at every sample).
     pub(super) fn fast_ready(&self, sc: &CompiledMulti) -> bool {
-        self.block_path && sc.switching == Switching::Exact && !self.rods_on
+        self.block_path
+            && sc.switching == Switching::Exact
+            && !self.rods_on
+            && sc.contacts() <= KERNEL_CONTACTS
     }
 
     /// TEST ONLY: turn the block path off (`false`: every sample takes the

@@ -1,5 +1,5 @@
 //! Several contacts at once between modal objects, point masses and walls:
-//! up to [`MAX_CONTACTS`] linear spring-dampers, each between two sides
+//! up to [`MAX_SPRINGS`] linear spring-dampers, each between two sides
 //! (a point of a modal object, a point mass, a rigid wall): two mallets of
 //! a roll, a ball between two plates, chimes that touch, a mass on a wall.
 //! Every subset of contacts in contact is a phase (up to 16), compiled up
@@ -77,7 +77,7 @@ mod state;
 mod step;
 
 /// Most contacts of one scene, the scene's.
-pub use crate::scene::MAX_CONTACTS;
+pub use crate::scene::{MAX_CONTACTS, MAX_SPRINGS};
 
 /// Most switches taken within one sample, the engine's; beyond, the rest of
 /// the sample runs in its phase without a search ([`MultiStats::capped`]).
@@ -153,7 +153,7 @@ pub struct MultiModel {
     pub sigma: Vec<f64>,
     /// The point masses.
     pub masses: Vec<MultiMass>,
-    /// The contacts, 1 to [`MAX_CONTACTS`].
+    /// The contacts, 1 to [`MAX_SPRINGS`].
     pub contacts: Vec<MultiContact>,
     /// Gravity pulling the masses \[m/s^2\] (0: none).
     pub gravity_m_per_s2: f64,
@@ -165,7 +165,7 @@ pub struct MultiModel {
 /// Why a model cannot be compiled; each names its field.
 #[derive(Debug, Clone, PartialEq)]
 pub enum MultiError {
-    /// No contact, or more than [`MAX_CONTACTS`].
+    /// No contact, or more than [`MAX_SPRINGS`].
     ContactCount(usize),
     /// A list whose length is not the number of modes.
     Length {
@@ -227,7 +227,7 @@ impl std::fmt::Display for MultiError {
         match self {
             Self::ContactCount(n) => write!(
                 f,
-                "contacts: {n} contacts, a scene of several contacts has 1 to {MAX_CONTACTS}"
+                "contacts: {n} contacts, a scene of several contacts has 1 to {MAX_SPRINGS}"
             ),
             Self::Length { field, got, want } => {
                 write!(f, "{field}: {got} entries for {want} modes")
@@ -456,7 +456,7 @@ pub struct CompiledMulti {
     slots: Vec<u32>,
     /// Per contact: the bit of its stage below, or 0
     /// ([`MultiModel::stage_below`]).
-    below: [u32; MAX_CONTACTS],
+    below: [u32; MAX_SPRINGS],
     /// How contacts switch: exactly, where each crosses, or with an
     /// offset rod per contact at sample instants (the paper's method;
     /// docs/numerics.md section 14, "The offset rod per contact").
@@ -470,7 +470,7 @@ pub struct MultiStats {
     /// once).
     pub switches: u64,
     /// Contacts started, per contact.
-    pub contacts_started: [u64; MAX_CONTACTS],
+    pub contacts_started: [u64; MAX_SPRINGS],
     /// Samples that reached [`MAX_SWITCHES_PER_SAMPLE`].
     pub capped: u64,
     /// Switches whose contacts [`CompiledMulti::staged`] changed (a stage
@@ -527,13 +527,13 @@ pub enum StrikeRefused {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct MultiObservation {
     /// Upper sides' heights \[m\] (a hammer's face).
-    pub x_hammer: [f64; MAX_CONTACTS],
+    pub x_hammer: [f64; MAX_SPRINGS],
     /// Upper sides' velocities \[m/s\].
-    pub v_hammer: [f64; MAX_CONTACTS],
+    pub v_hammer: [f64; MAX_SPRINGS],
     /// Lower sides' displacements \[m\] (the struck point).
-    pub x_contact: [f64; MAX_CONTACTS],
+    pub x_contact: [f64; MAX_SPRINGS],
     /// Lower sides' velocities \[m/s\].
-    pub v_contact: [f64; MAX_CONTACTS],
+    pub v_contact: [f64; MAX_SPRINGS],
     /// The contacts in contact (bit `j`).
     pub active: u32,
     /// Total energy \[J\] (objects, masses, springs in contact, gravity).
@@ -667,7 +667,7 @@ pub struct MultiState {
     /// clock (64 samples) it was taken in, in the current phase (times the
     /// phase's growth over 64 samples, it holds for every later state of
     /// the epoch).
-    cached: [(u64, f64); MAX_CONTACTS],
+    cached: [(u64, f64); MAX_SPRINGS],
     /// The certified search's pending nodes.
     stack: [(f64, f64); STACK],
     /// The blocks' exponentials at a node or a partial step.
@@ -695,11 +695,11 @@ pub struct MultiState {
     /// positions' and velocities', and the outputs' displacement and
     /// velocity parts), and the clock of the last decision (one per
     /// sample instant).
-    rod: [f64; MAX_CONTACTS],
+    rod: [f64; MAX_SPRINGS],
     shift: Vec<f64>,
     rods_on: bool,
-    off_ev: [f64; MAX_CONTACTS],
-    off_sides: [[(f64, f64); 2]; MAX_CONTACTS],
+    off_ev: [f64; MAX_SPRINGS],
+    off_sides: [[(f64, f64); 2]; MAX_SPRINGS],
     off_out: [f64; 2],
     decided: u64,
     /// The output band \[Hz\], physical ([`set_output_band`](Self::set_output_band)).

@@ -91,7 +91,10 @@ impl SceneNames {
         match e {
             MultiError::ContactCount(n) => SceneError::new(
                 self.key,
-                format!("{n} contacts, a scene of several contacts has 1 to {MAX_CONTACTS}"),
+                format!(
+                    "{n} contacts with their laws' pieces, a scene of several contacts has 1 to \
+                     {MAX_SPRINGS}"
+                ),
             ),
             MultiError::Length { field, got, want } => {
                 SceneError::new(self.field(field), format!("{got} entries for {want} modes"))
@@ -131,7 +134,7 @@ impl SceneNames {
                 over_budget(*phases, *dim, *flops, *bytes),
             ),
             MultiError::Phase { mask, why } => {
-                let members: Vec<String> = (0..MAX_CONTACTS)
+                let members: Vec<String> = (0..MAX_SPRINGS)
                     .filter(|j| mask & (1 << j) != 0)
                     .map(name)
                     .collect();
@@ -198,7 +201,7 @@ impl MultiModel {
     /// Check every field (a clear error naming it, never a panic).
     pub fn validate(&self) -> Result<(), MultiError> {
         let k = self.contacts.len();
-        if k == 0 || k > MAX_CONTACTS {
+        if k == 0 || k > MAX_SPRINGS {
             return Err(MultiError::ContactCount(k));
         }
         self.validate_modes_and_pickups()?;

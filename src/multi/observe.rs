@@ -63,7 +63,7 @@ impl MultiState {
         let m = &sc.model;
         let ph = &sc.phases[self.slot];
         let nz = m.n() + m.masses.len();
-        let (mut zq, mut zv) = (vec![0.0; nz + MAX_CONTACTS], vec![0.0; nz]);
+        let (mut zq, mut zv) = (vec![0.0; nz + MAX_SPRINGS], vec![0.0; nz]);
         let mut phys = Physical::new(m);
         let s_own: Vec<f64> = (0..self.s.len()).map(|c| self.s_own(c)).collect();
         ph.physical_of(

@@ -33,11 +33,11 @@ impl MultiState {
             norms: vec![0.0; dim / 2],
             x_f,
             v_f,
-            zq: vec![0.0; nz + MAX_CONTACTS],
+            zq: vec![0.0; nz + MAX_SPRINGS],
             zv: vec![0.0; nz],
             phys: Physical::new(&sc.model),
             sw: Box::new(SwitchScratch::new(&sc.model, &sc.phases)),
-            cached: [(u64::MAX, 0.0); MAX_CONTACTS],
+            cached: [(u64::MAX, 0.0); MAX_SPRINGS],
             stack: [(0.0, 0.0); STACK],
             trig: Trig::new(dim / 2),
             simd: SimdPath::detect(),
@@ -45,11 +45,11 @@ impl MultiState {
             block_path: true,
             hermite: true,
             spec_len: crate::engine::kernel::EPOCH,
-            rod: [0.0; MAX_CONTACTS],
+            rod: [0.0; MAX_SPRINGS],
             shift: vec![0.0; dim],
             rods_on: false,
-            off_ev: [0.0; MAX_CONTACTS],
-            off_sides: [[(0.0, 0.0); 2]; MAX_CONTACTS],
+            off_ev: [0.0; MAX_SPRINGS],
+            off_sides: [[(0.0, 0.0); 2]; MAX_SPRINGS],
             off_out: [0.0; 2],
             band_hz: f64::INFINITY,
             decided: u64::MAX,
@@ -80,8 +80,8 @@ impl MultiState {
             self.x_f[j] = m.height_m;
             self.v_f[j] = 0.0;
         }
-        self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
-        self.rod = [0.0; MAX_CONTACTS];
+        self.cached = [(u64::MAX, 0.0); MAX_SPRINGS];
+        self.rod = [0.0; MAX_SPRINGS];
         self.set_shift(sc);
         self.decided = u64::MAX;
     }
@@ -124,7 +124,7 @@ impl MultiState {
         self.s.resize(new.dim, 0.0);
         new.state_of(
             b,
-            (&self.phys, &[0.0; MAX_CONTACTS]),
+            (&self.phys, &[0.0; MAX_SPRINGS]),
             (&mut self.x_f, &mut self.v_f),
             (&mut self.zq, &mut self.zv),
             &mut self.s,
@@ -145,7 +145,7 @@ impl MultiState {
         for t in &mut self.tables {
             t.at = f64::NAN;
         }
-        self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
+        self.cached = [(u64::MAX, 0.0); MAX_SPRINGS];
     }
 
     /// A strike between two samples: the mass on the upper side of
@@ -201,13 +201,13 @@ impl MultiState {
         let closed = who & self.mask;
         if closed != 0 {
             let time_s = self.clock as f64 * self.step_h;
-            self.switch(sc, closed, time_s, &[0.0; MAX_CONTACTS]);
+            self.switch(sc, closed, time_s, &[0.0; MAX_SPRINGS]);
         }
         // every contact of the mass is open: it flies alone, in its slot
         debug_assert!(sc.phases[self.slot].place[k].is_none());
         self.x_f[k] = x;
         self.v_f[k] = velocity_m_per_s;
-        self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
+        self.cached = [(u64::MAX, 0.0); MAX_SPRINGS];
         Ok(())
     }
 
@@ -373,7 +373,7 @@ impl MultiState {
         }
         self.scale = scale;
         self.step_h = sc.h * scale;
-        self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
+        self.cached = [(u64::MAX, 0.0); MAX_SPRINGS];
         let m = self.slot;
         self.tables[m].make(&sc.phases[m], &sc.model, scale, self.step_h, self.band_hz);
         self.set_shift(sc);
@@ -468,7 +468,7 @@ impl MultiState {
         }
         self.decided = self.clock;
         let mut who = 0u32;
-        let mut enter = [0.0; MAX_CONTACTS];
+        let mut enter = [0.0; MAX_SPRINGS];
         for j in 0..sc.contacts() {
             let p = self.penetration(sc, j);
             if self.mask & (1 << j) != 0 {
@@ -548,7 +548,7 @@ impl MultiState {
             return false;
         }
         self.s.iter_mut().for_each(|x| *x *= factor);
-        self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
+        self.cached = [(u64::MAX, 0.0); MAX_SPRINGS];
         true
     }
 

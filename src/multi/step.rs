@@ -17,7 +17,7 @@ impl MultiState {
         }
         let h = self.step_h;
         let mut t = 0.0;
-        let mut starts = [Start::Value; MAX_CONTACTS];
+        let mut starts = [Start::Value; MAX_SPRINGS];
         let mut taken: u64 = 0;
         while t < h {
             let ph = &sc.phases[self.slot];
@@ -78,7 +78,7 @@ impl MultiState {
             self.s.copy_from_slice(&self.end[..ph.dim]);
             self.fly(sc, tau);
             t = if tau < rem { t + tau } else { h };
-            starts = self.switch(sc, who, self.clock as f64 * h + t, &[0.0; MAX_CONTACTS]);
+            starts = self.switch(sc, who, self.clock as f64 * h + t, &[0.0; MAX_SPRINGS]);
             taken += 1;
         }
         self.clock += 1;
@@ -121,8 +121,8 @@ impl MultiState {
         }
         if !self.rods_on {
             // exact switching, or no rod: nothing to add (and no products)
-            self.off_ev = [0.0; MAX_CONTACTS];
-            self.off_sides = [[(0.0, 0.0); 2]; MAX_CONTACTS];
+            self.off_ev = [0.0; MAX_SPRINGS];
+            self.off_sides = [[(0.0, 0.0); 2]; MAX_SPRINGS];
             self.off_out = [0.0; 2];
             return;
         }
@@ -181,8 +181,8 @@ impl MultiState {
         sc: &CompiledMulti,
         who: u32,
         time_s: f64,
-        enter: &[f64; MAX_CONTACTS],
-    ) -> [Start; MAX_CONTACTS] {
+        enter: &[f64; MAX_SPRINGS],
+    ) -> [Start; MAX_SPRINGS] {
         let who = self.staged(sc, who);
         let m = &sc.model;
         let old = &sc.phases[self.slot];
@@ -281,7 +281,7 @@ impl MultiState {
         self.slot = new_slot;
         self.set_shift(sc);
         self.unshift(-1.0);
-        self.cached = [(u64::MAX, 0.0); MAX_CONTACTS];
+        self.cached = [(u64::MAX, 0.0); MAX_SPRINGS];
         self.stats.switches += 1;
         std::array::from_fn(|j| {
             if who & (1 << j) != 0 {

@@ -6,7 +6,7 @@ use super::numbers::{put_numbers, NUMBER_ROOM};
 use super::trace::{check_contacts, trace_header_with, TraceRow, TraceSink, TRACE_HEADER};
 use super::writer::{join_writer, spawn_ordered_writer, ChunkQueue};
 use crate::engine::Motion;
-use crate::scene::MAX_CONTACTS;
+use crate::scene::MAX_SPRINGS;
 use std::io::Write;
 
 /// Rows per chunk a [`CsvTrace`] hands to its formatting threads.
@@ -78,7 +78,7 @@ impl<W: Write + Send + 'static> CsvTrace<W> {
         driven: bool,
     ) -> std::io::Result<Self> {
         use crossbeam::channel::bounded;
-        let contacts = contacts.clamp(1, MAX_CONTACTS);
+        let contacts = contacts.clamp(1, MAX_SPRINGS);
         let driven = driven && contacts == 1;
         writeln!(out, "{}", trace_header_with(contacts, driven))?;
         let formatters = formatters.max(1);

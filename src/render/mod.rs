@@ -157,7 +157,7 @@ impl From<CompileError> for RenderError {
     }
 }
 
-/// Render a scene of one to [`MAX_CONTACTS`](crate::scene::MAX_CONTACTS)
+/// Render a scene of one to [`MAX_SPRINGS`](crate::scene::MAX_SPRINGS)
 /// contacts offline (in memory; [`Compiled::stream`] for long renders).
 pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<RenderOutput, RenderError> {
     let seconds = opts.seconds.unwrap_or(scene.duration_s);

@@ -6,7 +6,7 @@ use super::csv::{CSV_CHUNKS_IN_FLIGHT, CSV_CHUNK_ROWS};
 use super::trace::{check_contacts, trace_header_with, TraceRow, TraceSink};
 use super::writer::{join_writer, spawn_ordered_writer, ChunkQueue};
 use crate::engine::Motion;
-use crate::scene::MAX_CONTACTS;
+use crate::scene::MAX_SPRINGS;
 use std::io::Write;
 
 /// The NPY header (format 1.0) of `rows` records whose fields are the
@@ -100,7 +100,7 @@ impl<W: Write + Send + 'static> NpyTrace<W> {
         mut out: W,
     ) -> std::io::Result<Self> {
         use crossbeam::channel::bounded;
-        let contacts = contacts.clamp(1, MAX_CONTACTS);
+        let contacts = contacts.clamp(1, MAX_SPRINGS);
         let driven = driven && contacts == 1;
         out.write_all(&npy_header_with(&trace_header_with(contacts, driven), rows))?;
         let chunk = CSV_CHUNK_ROWS

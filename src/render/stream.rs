@@ -6,7 +6,7 @@ use super::trace::TraceSink;
 use crate::compile::CompiledScene;
 use crate::engine::{EngineState, ExactStats, Motion};
 use crate::multi::{CompiledMulti, MultiObservation, MultiState, MultiStats};
-use crate::scene::MAX_CONTACTS;
+use crate::scene::MAX_SPRINGS;
 
 /// Samples per call of the audio callback of [`render_stream`].
 pub const STREAM_CHUNK: usize = 4096;
@@ -157,7 +157,7 @@ pub fn render_stream_several_on(
         vec![0.0; STREAM_CHUNK.min(n)],
         vec![0.0; STREAM_CHUNK.min(n)],
     );
-    let mut motions = [Motion::default(); MAX_CONTACTS];
+    let mut motions = [Motion::default(); MAX_SPRINGS];
     let mut stats = StreamStats::default();
     let mut done = 0;
     while done < n {

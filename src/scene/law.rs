@@ -16,9 +16,9 @@ use super::error::{check_max, check_min, check_positive, SceneError};
 use super::limits::{MAX_STIFFNESS_N_PER_M, MIN_STIFFNESS_N_PER_M};
 use serde::{Deserialize, Serialize};
 
-/// Most pieces of one law (every piece is a contact; a scene holds at most
-/// [`MAX_CONTACTS`](super::MAX_CONTACTS)).
-pub const MAX_LAW_PIECES: usize = super::MAX_CONTACTS;
+/// Most pieces of one law (every piece is a spring; a scene holds at most
+/// [`MAX_SPRINGS`](super::MAX_SPRINGS)).
+pub const MAX_LAW_PIECES: usize = 8;
 
 /// `[contact] law`: either the pieces (`breakpoints_m` and
 /// `stiffness_n_per_m`) or a power law fitted by pieces (`power`,

@@ -74,6 +74,11 @@ pub const MAX_LEVEL_DB: f64 = 40.0;
 /// strikers and touches.
 pub const MAX_CONTACTS: usize = 4;
 
+/// Most springs of one scene once every law is springs side by side (a
+/// contact without a law one, with a law one per piece: docs/design.md,
+/// "Stiffening contacts"); the several-contact engine's contacts.
+pub const MAX_SPRINGS: usize = 12;
+
 /// Farthest listener \[m\].
 pub const MAX_LISTENER_DISTANCE_M: f64 = 1000.0;
 /// Nearest listener \[m\] (closer is not the far field of any object;

@@ -36,7 +36,7 @@ pub use limits::{
     MAX_CONTACTS, MAX_DAMPING_N_S_PER_M, MAX_DURATION_S, MAX_FREQ_HZ, MAX_GAIN,
     MAX_GRAVITY_M_PER_S2, MAX_HEIGHT_M, MAX_LEVEL_DB, MAX_LISTENER_DISTANCE_M, MAX_MASS_KG,
     MAX_MODES_PER_OBJECT, MAX_RAYLEIGH_ALPHA_PER_S, MAX_RAYLEIGH_BETA_S, MAX_SPEED_M_PER_S,
-    MAX_STIFFNESS_N_PER_M, MAX_STRING_MASSES, MAX_WEIGHT, MIN_FREQ_HZ, MIN_LEVEL_DB,
+    MAX_SPRINGS, MAX_STIFFNESS_N_PER_M, MAX_STRING_MASSES, MAX_WEIGHT, MIN_FREQ_HZ, MIN_LEVEL_DB,
     MIN_LISTENER_DISTANCE_M, MIN_MASS_KG, MIN_STIFFNESS_N_PER_M, MIN_T60_S, SCENE_VERSION,
 };
 pub use mallet::{mallet_contact_point, ChainSpec, MAX_CHAIN_MASSES};
@@ -936,8 +936,10 @@ point = "contact"
         bad(
             BAR.replace(
                 "stiffness_n_per_m = 3e5",
-                "law = { breakpoints_m = [1e-4, 2e-4, 3e-4, 4e-4], stiffness_n_per_m = [1, 2, 3, 4, 5] }",
+                "law = { breakpoints_m = [1e-4, 2e-4, 3e-4, 4e-4, 5e-4, 6e-4, 7e-4, 8e-4], \
+                 stiffness_n_per_m = [1e5, 2e5, 3e5, 4e5, 5e5, 6e5, 7e5, 8e5, 9e5] }",
             ),
+            // nine pieces, one more than a law may have
             "contact.law.stiffness_n_per_m",
         );
         bad(
@@ -953,8 +955,10 @@ point = "contact"
     /// expanded into touches after the scene's own (a striker's against
     /// that striker, a touch's between its sides from its own gap), the
     /// contacts counted with every law's pieces; refusals name the field.
-    #[test]
-    fn striker_and_touch_laws_become_touches_and_bad_ones_name_their_field() {
+    /// The bar with points `contact`, `b` and `c`, a striker at `b` and a
+    /// touch from `c` to the hammer, each with a law of two pieces, and
+    /// that law's text.
+    fn law_bar_striker_touch() -> (String, String, String, &'static str) {
         let law = "law = { breakpoints_m = [1e-4], stiffness_n_per_m = [1e5, 3e5] }";
         let bar = BAR
             .replace(
@@ -969,6 +973,12 @@ point = "contact"
             "[[touch]]\nlower = {{ object = \"bar\", point = \"c\" }}\nupper = {{ object = \"hammer\" }}\n\
              gap_m = 0.002\ndamping_n_s_per_m = 1.0\n{law}\n"
         );
+        (bar, striker, touch, law)
+    }
+
+    #[test]
+    fn striker_and_touch_laws_become_touches_and_bad_ones_name_their_field() {
+        let (bar, striker, touch, law) = law_bar_striker_touch();
         let s = Scene::from_toml_str(&format!("{bar}{striker}"))
             .map_err(|e| e.to_string())
             .unwrap();
@@ -1007,8 +1017,6 @@ point = "contact"
             assert_eq!(err.path, field, "{err}");
             err.to_string()
         };
-        let too_many = bad(format!("{bar}{striker}{touch}"), "striker[0].law");
-        assert!(too_many.contains("5 contacts"), "{too_many}");
         bad(
             format!(
                 "{bar}{}",
@@ -1048,6 +1056,35 @@ point = "contact"
         assert_eq!(e.touch.len(), 1);
         assert_eq!(e.touch[0].upper.striker, Some(0));
         assert!(e.striker[0].mallet.is_some());
+    }
+
+    /// A law has at most eight pieces and a scene at most twelve springs
+    /// with every law's pieces (`MAX_SPRINGS`): five are within it,
+    /// thirteen are refused at the first law.
+    #[test]
+    fn laws_make_at_most_twelve_springs() {
+        let (bar, striker, touch, law) = law_bar_striker_touch();
+        let bad = |text: String, field: &str| {
+            let err = Scene::from_toml_str(&text).unwrap_err();
+            assert_eq!(err.path, field, "{err}");
+            err.to_string()
+        };
+        // five springs are within the limit, thirteen are not
+        let five = Scene::from_toml_str(&format!("{bar}{striker}{touch}")).unwrap();
+        assert_eq!(five.all_contacts(), 5);
+        let eight = "law = { breakpoints_m = [1e-4, 2e-4, 3e-4, 4e-4, 5e-4, 6e-4, 7e-4], \
+                     stiffness_n_per_m = [1e5, 2e5, 3e5, 4e5, 5e5, 6e5, 7e5, 8e5] }";
+        let four = "law = { breakpoints_m = [1e-4, 2e-4, 3e-4], \
+                    stiffness_n_per_m = [1e5, 2e5, 3e5, 4e5] }";
+        let too_many = bad(
+            format!(
+                "{bar}{}{}",
+                striker.replace(law, eight),
+                touch.replace(law, four)
+            ),
+            "striker[0].law",
+        );
+        assert!(too_many.contains("13 springs"), "{too_many}");
     }
 
     /// `[play] damper`: absent is today's 0.5, 0 ..= 1 is taken as

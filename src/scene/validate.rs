@@ -9,7 +9,7 @@ use super::limits::{
     MAX_CONTACTS, MAX_DAMPING_N_S_PER_M, MAX_DURATION_S, MAX_FREQ_HZ, MAX_GAIN,
     MAX_GRAVITY_M_PER_S2, MAX_HEIGHT_M, MAX_LEVEL_DB, MAX_LISTENER_DISTANCE_M, MAX_MASS_KG,
     MAX_MODES_PER_OBJECT, MAX_RAYLEIGH_ALPHA_PER_S, MAX_RAYLEIGH_BETA_S, MAX_SPEED_M_PER_S,
-    MAX_STIFFNESS_N_PER_M, MAX_STRING_MASSES, MAX_WEIGHT, MIN_FREQ_HZ, MIN_LEVEL_DB,
+    MAX_SPRINGS, MAX_STIFFNESS_N_PER_M, MAX_STRING_MASSES, MAX_WEIGHT, MIN_FREQ_HZ, MIN_LEVEL_DB,
     MIN_LISTENER_DISTANCE_M, MIN_MASS_KG, MIN_STIFFNESS_N_PER_M, MIN_T60_S, SCENE_VERSION,
 };
 use super::{
@@ -112,7 +112,7 @@ impl Scene {
     }
 
     /// `[contact] law`: instead of `stiffness_n_per_m`, pieces that are a
-    /// law (src/scene/law.rs), one contact each within `MAX_CONTACTS` with
+    /// law (src/scene/law.rs), one spring each within `MAX_SPRINGS` with
     /// the strikers and touches (and their laws' pieces); with a modal
     /// mallet, on an object of modes or a wall.
     fn validate_law(&self) -> Result<(), SceneError> {
@@ -143,12 +143,12 @@ impl Scene {
         Ok(())
     }
 
-    /// Every contact's law's pieces, one contact each, with the strikers
-    /// and touches at most `MAX_CONTACTS` (run after each contact's own
+    /// Every contact's law's pieces, one spring each, with the strikers
+    /// and touches at most `MAX_SPRINGS` (run after each contact's own
     /// checks).
     fn validate_law_total(&self) -> Result<(), SceneError> {
         let total = self.all_contacts();
-        if total <= MAX_CONTACTS {
+        if total <= MAX_SPRINGS {
             return Ok(());
         }
         let field = if self.contact.law.is_some() {
@@ -163,8 +163,8 @@ impl Scene {
         Err(SceneError::new(
             field,
             format!(
-                "[contact], {} strikers and {} touches make {total} contacts with their laws' \
-                 pieces (one contact each), at most {MAX_CONTACTS}",
+                "[contact], {} strikers and {} touches make {total} springs with their laws' \
+                 pieces (one spring each), at most {MAX_SPRINGS}",
                 self.striker.len(),
                 self.touch.len()
             ),

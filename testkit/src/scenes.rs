@@ -688,9 +688,9 @@ pub fn power_law_travel(m: f64, k: f64, power: f64, v: f64) -> f64 {
 /// `spring` with its contact's linear spring replaced by `F = k p^power`
 /// fitted in `pieces` pieces over the penetrations `from` to `up_to`
 /// \[m\], keeping the spring's relaxation time `c / k` (the first piece's
-/// damper is that time its stiffness: docs/design.md, "A spring made a
-/// law keeps its relaxation time, not its damping"). Panics if the law is
-/// not valid (a test's or bench's own numbers).
+/// damper is that time its stiffness, as a spring made a law keeps it:
+/// docs/design.md, "Stiffening contacts"). Panics if the law is not valid
+/// (a test's or bench's own numbers).
 pub fn with_power_law(
     spring: &Scene,
     (power, k): (f64, f64),

@@ -89,7 +89,7 @@ fn kit(inst: &Instrument) -> &Kit {
 }
 
 /// The contacts every kit voice started, per contact.
-fn started(inst: &Instrument) -> [u64; 4] {
+fn started(inst: &Instrument) -> [u64; crate::multi::MAX_SPRINGS] {
     kit(inst).contacts_started()
 }
 

@@ -246,7 +246,7 @@ impl CompiledMulti {
         for (i, &mask) in masks.iter().enumerate() {
             slots[mask as usize] = i as u32;
         }
-        let mut below = [0u32; MAX_CONTACTS];
+        let mut below = [0u32; MAX_SPRINGS];
         for (b, s) in below.iter_mut().zip(model.stage_below()) {
             *b = s.map_or(0, |i| 1 << i);
         }
@@ -259,6 +259,12 @@ impl CompiledMulti {
             below,
             switching: Switching::Exact,
         })
+    }
+
+    /// Whether contact `j` is a stage of another (a law's further piece:
+    /// [`MultiModel::stage_below`]).
+    pub fn is_stage(&self, j: usize) -> bool {
+        self.below.get(j).is_some_and(|&b| b != 0)
     }
 
     /// The index in [`phases`](Self::phases) of the phase of `mask`, a
@@ -525,7 +531,7 @@ impl MultiPhase {
     pub(super) fn state_of(
         &self,
         m: &MultiModel,
-        (ph, pen): (&Physical, &[f64; MAX_CONTACTS]),
+        (ph, pen): (&Physical, &[f64; MAX_SPRINGS]),
         (x_f, v_f): (&mut [f64], &mut [f64]),
         (zq, zv): (&mut [f64], &mut [f64]),
         s: &mut [f64],

@@ -135,7 +135,7 @@ impl SwitchScratch {
     pub(in crate::multi) fn new(m: &MultiModel, phases: &[MultiPhase]) -> Self {
         let dim = phases.iter().map(|p| p.dim).max().unwrap_or(0);
         let (mut rows, mut cols, mut rank) =
-            (dim.max(m.n() + m.masses.len() + MAX_CONTACTS), dim, dim);
+            (dim.max(m.n() + m.masses.len() + MAX_SPRINGS), dim, dim);
         for ph in phases {
             let (r, c, k) = ph.structured.sizes();
             rows = rows.max(r);
