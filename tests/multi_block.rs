@@ -30,8 +30,10 @@ fn bits(o: &MultiObservation) -> Vec<u64> {
     v
 }
 
-/// On the four several-contact presets (half a second each, blocks of 1 to
-/// 200 samples at random), on the portable kernels and on this CPU's
+/// On the four several-contact presets and the piano string with a felt
+/// law in eight pieces (more springs than the kernel sums: its later
+/// pieces read the row of the piece below; half a second each, blocks of 1
+/// to 200 samples at random), on the portable kernels and on this CPU's
 /// fastest (each path's block kernel against its own per-sample step):
 /// after every block, every contact's motion and
 /// the energy are the per-sample search's bit for bit, and so are the
@@ -48,8 +50,13 @@ fn the_block_path_moves_as_the_search_does_bit_for_bit() {
         "snare-pair",
         "wind-chimes",
     ];
-    for (name, portable) in names.iter().flat_map(|&n| [(n, true), (n, false)]) {
-        let sc = compiled(name);
+    let mut cases: Vec<(&str, CompiledMulti)> = names.iter().map(|&n| (n, compiled(n))).collect();
+    cases.push(("piano-string, felt in eight pieces", piano_with_felt_in(8)));
+    for (name, portable, sc) in cases
+        .iter()
+        .flat_map(|(n, sc)| [(*n, true, sc), (*n, false, sc)])
+    {
+        let sc = sc.clone();
         let mut search = MultiState::new(&sc);
         search.set_block_path(false);
         search.set_portable_kernels(portable);
@@ -93,14 +100,16 @@ fn the_block_path_moves_as_the_search_does_bit_for_bit() {
 }
 
 /// The piano string with Chaigne and Askenfelt's felt (`F = 4.5e9 p^2.5`,
-/// four pieces) in place of its spring: a hammer contact and three
-/// touches, each crossing taken by the search.
-fn piano_with_felt() -> CompiledMulti {
+/// `pieces` pieces) in place of its spring: a hammer contact and a touch
+/// per further piece, each crossing taken by the search.
+fn piano_with_felt_in(pieces: usize) -> CompiledMulti {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("presets/piano-string.toml");
     let text = std::fs::read_to_string(path).unwrap().replace(
         "stiffness_n_per_m = 8.6e4",
-        "law = { power = 2.5, force_n_at = [1e-3, 142.3], pieces = 4, from_m = 5e-5, \
-         up_to_m = 1e-3 }",
+        &format!(
+            "law = {{ power = 2.5, force_n_at = [1e-3, 142.3], pieces = {pieces}, \
+             from_m = 5e-5, up_to_m = 1e-3 }}"
+        ),
     );
     let scene = Scene::from_toml_str(&text).unwrap();
     let model = MultiModel::from_scene(&scene, RATE).unwrap();
@@ -126,7 +135,7 @@ fn the_hermite_certificates_clear_only_samples_without_a_crossing() {
     ];
     for name in names {
         let sc = if name == "piano with felt" {
-            piano_with_felt()
+            piano_with_felt_in(4)
         } else {
             compiled(name)
         };

@@ -89,15 +89,17 @@ pub(super) struct Run {
 
 impl MultiState {
     /// Whether the block path may run: exact switching (the offset rod
-    /// decides at every sample instant) and at most [`KERNEL_CONTACTS`]
-    /// contacts (the kernel sums that many event rows beside the outputs;
-    /// a scene of more springs, a law of many pieces, takes the search's
-    /// way at every sample).
+    /// decides at every sample instant) and a kernel row for every contact
+    /// (the kernel sums [`KERNEL_CONTACTS`] event rows beside the outputs;
+    /// a further contact, a law's later piece, is read from the row of the
+    /// open stage below it, the same numbers, while both are open:
+    /// `MultiPhase::kernel_row`; otherwise every sample takes the search's
+    /// way).
     pub(super) fn fast_ready(&self, sc: &CompiledMulti) -> bool {
         self.block_path
             && sc.switching == Switching::Exact
             && !self.rods_on
-            && sc.contacts() <= KERNEL_CONTACTS
+            && sc.phases[self.slot].kernel_row.iter().all(Option::is_some)
     }
 
     /// TEST ONLY: turn the block path off (`false`: every sample takes the
@@ -261,7 +263,8 @@ impl MultiState {
         let ph = &sc.phases[self.slot];
         (0..nc).all(|j| {
             let f = self.event_fn(sc, j);
-            f.psi(beg[j] + ph.ev0[j], 0.0) > self.cached[j].1
+            let q = ph.kernel_row[j].map_or(f64::NAN, |r| beg[r]);
+            f.psi(q + ph.ev0[j], 0.0) > self.cached[j].1
         })
     }
 
@@ -272,7 +275,12 @@ impl MultiState {
         let ph = &sc.phases[self.slot];
         (0..nc).all(|j| {
             let f = self.event_fn(sc, j);
-            let (q0, q1) = (beg[j] + ph.ev0[j], end[j] + ph.ev0[j]);
+            // no row: NaN, which no certificate passes
+            let r = ph.kernel_row[j];
+            let (q0, q1) = (
+                r.map_or(f64::NAN, |r| beg[r]) + ph.ev0[j],
+                r.map_or(f64::NAN, |r| end[r]) + ph.ev0[j],
+            );
             let margin = self.cached[j].1;
             f.psi(q0, 0.0).min(f.psi(q1, self.step_h)) > margin
         })

@@ -377,6 +377,13 @@ pub struct MultiPhase {
     /// Per contact: the flights in its penetration (lower side's adds,
     /// upper side's subtracts; none when both ride the same one).
     ev_fly: Vec<(Option<usize>, Option<usize>)>,
+    /// Per contact: the block kernel's event row that sums its row
+    /// (`multi/fast.rs`): its own for the first `KERNEL_CONTACTS`; for a
+    /// further contact, open, the row of an open stage below it among
+    /// those (down its open stages), whose row and flights are the same
+    /// numbers (the same sides: only the constant differs); `None` where
+    /// there is none, and the block path does not run in this phase.
+    kernel_row: Vec<Option<usize>>,
     /// Per contact: the blocks its row or slope row touches (the others'
     /// weights in its bounds are 0 too: an evaluation skips them), and the
     /// entries where its row and its slope row are not 0 (its dot

@@ -2,6 +2,7 @@
 //! block decomposition and every row the engine reads ([`MultiPhase`]);
 //! the compiled model ([`CompiledMulti`]) and the per-state tables.
 
+use super::fast::KERNEL_CONTACTS;
 use super::*;
 
 mod coupled;
@@ -154,6 +155,7 @@ impl MultiPhase {
             flyers,
             p0,
             rod_s: w.rod_s,
+            kernel_row: kernel_rows(m, mask, &er.ev, &er.ev_fly),
             ev: er.ev,
             ev0: er.ev0,
             ev_d: er.ev_d,
@@ -208,6 +210,33 @@ fn contact_rows_z(m: &MultiModel, lay: &Layout, members: &[usize]) -> Vec<(Vec<f
         (r, cl - cu - ct.gap_m)
     };
     members.iter().map(|&c| contact_z(c)).collect()
+}
+
+/// Each contact's row in the block kernel in the phase of `mask`
+/// ([`MultiPhase::kernel_row`]): its own below `KERNEL_CONTACTS`; beyond,
+/// an open contact's open stage below it among those, reached through open
+/// stages, if its row and flights are bit for bit the contact's own.
+fn kernel_rows(
+    m: &MultiModel,
+    mask: u32,
+    ev: &[Vec<f64>],
+    ev_fly: &[(Option<usize>, Option<usize>)],
+) -> Vec<Option<usize>> {
+    let below = m.stage_below();
+    let open = |i: usize| mask & (1 << i) == 0;
+    let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
+    (0..m.contacts.len())
+        .map(|j| {
+            let mut i = j;
+            while i >= KERNEL_CONTACTS {
+                if !open(i) {
+                    return None;
+                }
+                i = below[i]?;
+            }
+            (i == j || (open(i) && same(&ev[i], &ev[j]) && ev_fly[i] == ev_fly[j])).then_some(i)
+        })
+        .collect()
 }
 
 impl CompiledMulti {
