@@ -45,6 +45,10 @@ use super::vmath::SimdPath;
 /// Most samples one [`run_block_with`] call advances (the engine's epoch: the
 /// curvature bound of exact switching is refreshed at least this often).
 pub(crate) const EPOCH: usize = 64;
+/// Event rows one [`run_block_with`] call can sum per sample: the row in
+/// [`Rows::ev`] beside the outputs and up to three observation rows
+/// ([`ObsIo`]).
+pub(crate) const EVENT_ROWS: usize = 4;
 /// Blocks (modes) processed together in registers: two 4-lane vectors.
 pub(crate) const GROUP: usize = 8;
 const LANES: usize = 4;

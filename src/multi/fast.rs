@@ -56,10 +56,6 @@ impl Kern {
     }
 }
 
-/// The contacts whose event rows the block kernel sums (contact 0's beside
-/// the outputs, three more in its observation rows).
-pub(super) const KERNEL_CONTACTS: usize = 4;
-
 /// The rows the block path sums: contact 0's event row and the two
 /// outputs, then contacts 1 to 3's event rows (`zero` for a contact the
 /// scene does not have).
@@ -90,16 +86,15 @@ pub(super) struct Run {
 impl MultiState {
     /// Whether the block path may run: exact switching (the offset rod
     /// decides at every sample instant) and a kernel row for every contact
-    /// (the kernel sums [`KERNEL_CONTACTS`] event rows beside the outputs;
-    /// a further contact, a law's later piece, is read from the row of the
-    /// open stage below it, the same numbers, while both are open:
-    /// `MultiPhase::kernel_row`; otherwise every sample takes the search's
-    /// way).
+    /// (the kernel sums up to `EVENT_ROWS` event rows beside the outputs;
+    /// an open contact whose open stage below has the same row, a law's
+    /// later piece, is read from that stage's row: `MultiPhase::kernel_row`;
+    /// otherwise every sample takes the search's way).
     pub(super) fn fast_ready(&self, sc: &CompiledMulti) -> bool {
         self.block_path
             && sc.switching == Switching::Exact
             && !self.rods_on
-            && sc.phases[self.slot].kernel_row.iter().all(Option::is_some)
+            && sc.phases[self.slot].kernel_ready
     }
 
     /// TEST ONLY: turn the block path off (`false`: every sample takes the
@@ -212,9 +207,9 @@ impl MultiState {
         let dim = ph.dim;
         let kern = &mut *self.kern;
         let [rows, obs_rows] = kernel_rows_of(ph, tb, &kern.zero[..dim]);
-        let obs = (all && sc.contacts() > 1).then_some(ObsIo {
+        let obs = (all && ph.kernel_obs > 0).then_some(ObsIo {
             rows: obs_rows,
-            all: sc.contacts() > 2,
+            all: ph.kernel_obs > 1,
             acc: &mut kern.acc_obs,
             out: &mut kern.obs,
         });
@@ -233,8 +228,10 @@ impl MultiState {
         run_block_with(self.simd, io, extras, k);
     }
 
-    /// The rows of the state after the run's step `i`: every contact's
-    /// event row (without its constant), then the two outputs.
+    /// The rows of the state after the run's step `i`: the kernel's event
+    /// rows (without their constants; the observation rows the phase's
+    /// `kernel_obs` leaves out hold stale numbers that no contact reads),
+    /// then the two outputs.
     fn kernel_rows(&self, i: usize) -> [f64; 6] {
         let (r, o) = (&self.kern.rows, &self.kern.obs);
         [r.ev[i], o.ev[i], o.l[i], o.r[i], r.l[i], r.r[i]]
@@ -248,7 +245,7 @@ impl MultiState {
         let tb = &self.tables[m];
         let [rows, obs_rows] = kernel_rows_of(ph, tb, &self.kern.zero[..ph.dim]);
         let [e0, l, r] = rows_as_kernel(self.simd, &self.s, &rows);
-        let [e1, e2, e3] = if sc.contacts() > 1 {
+        let [e1, e2, e3] = if ph.kernel_obs > 0 {
             rows_as_kernel(self.simd, &self.s, &obs_rows)
         } else {
             [0.0; 3]

@@ -378,12 +378,18 @@ pub struct MultiPhase {
     /// upper side's subtracts; none when both ride the same one).
     ev_fly: Vec<(Option<usize>, Option<usize>)>,
     /// Per contact: the block kernel's event row that sums its row
-    /// (`multi/fast.rs`): its own for the first `KERNEL_CONTACTS`; for a
-    /// further contact, open, the row of an open stage below it among
-    /// those (down its open stages), whose row and flights are the same
-    /// numbers (the same sides: only the constant differs); `None` where
-    /// there is none, and the block path does not run in this phase.
+    /// (`multi/fast.rs`): an open contact reads the row of the lowest open
+    /// stage below it (down its open stages) whose row and flights are the
+    /// same numbers (the same sides: only the constant differs), any other
+    /// contact its own; `None` for a row beyond the kernel's
+    /// `EVENT_ROWS`, and then the block path does not run in this phase.
     kernel_row: Vec<Option<usize>>,
+    /// Whether every contact has a kernel row.
+    kernel_ready: bool,
+    /// The observation rows the kernel sums beside contact 0's row for
+    /// [`kernel_row`](Self::kernel_row) (0, 1 or 3: a law whose pieces are
+    /// all open reads its first piece's row alone).
+    kernel_obs: usize,
     /// Per contact: the blocks its row or slope row touches (the others'
     /// weights in its bounds are 0 too: an evaluation skips them), and the
     /// entries where its row and its slope row are not 0 (its dot

@@ -368,7 +368,12 @@ impl MultiModel {
     /// contacts are stages of one another; `P + 1` for a law of `P`
     /// pieces.
     pub fn reachable_masks(&self) -> Vec<u32> {
-        let below = self.stage_below();
+        self.reachable_masks_of(&self.stage_below())
+    }
+
+    /// [`reachable_masks`](Self::reachable_masks) with the stages below
+    /// already found.
+    pub(super) fn reachable_masks_of(&self, below: &[Option<usize>]) -> Vec<u32> {
         (0..1u32 << self.contacts.len())
             .filter(|&mask| {
                 below
@@ -383,7 +388,11 @@ impl MultiModel {
     /// d coordinates) and its two bases (2 d^2 numbers) within the compile
     /// budget: refused before any of it.
     pub(super) fn within_budget(&self) -> Result<(), MultiError> {
-        let phases = self.reachable_masks().len();
+        self.within_budget_of(self.reachable_masks().len())
+    }
+
+    /// [`within_budget`](Self::within_budget) for `phases` phases.
+    pub(super) fn within_budget_of(&self, phases: usize) -> Result<(), MultiError> {
         let dim = 2 * (self.n() + self.masses.len());
         let d = dim as f64;
         let flops = phases as f64 * 40.0 * d * d * d;

@@ -2,8 +2,8 @@
 //! block decomposition and every row the engine reads ([`MultiPhase`]);
 //! the compiled model ([`CompiledMulti`]) and the per-state tables.
 
-use super::fast::KERNEL_CONTACTS;
 use super::*;
+use crate::engine::kernel::EVENT_ROWS;
 
 mod coupled;
 mod rows;
@@ -83,7 +83,14 @@ impl Layout {
 }
 
 impl MultiPhase {
-    fn new(m: &MultiModel, mask: u32, h: f64) -> Result<Self, MultiError> {
+    /// The phase of `mask`, each contact's stage below given
+    /// ([`MultiModel::stage_below`]).
+    fn new(
+        m: &MultiModel,
+        mask: u32,
+        h: f64,
+        stage_below: &[Option<usize>],
+    ) -> Result<Self, MultiError> {
         let members: Vec<usize> = (0..m.contacts.len())
             .filter(|j| mask & (1 << j) != 0)
             .collect();
@@ -105,6 +112,7 @@ impl MultiPhase {
             w: &w,
         };
         let er = phase_rows.events(&members, &p0);
+        let (kernel_row, kernel_obs) = kernel_rows(stage_below, mask, &er.ev, &er.ev_fly);
         let sides = phase_rows.sides();
         let out = phase_rows.outputs();
         // the entries of s the coupled part moves (the free modes' blocks
@@ -155,7 +163,9 @@ impl MultiPhase {
             flyers,
             p0,
             rod_s: w.rod_s,
-            kernel_row: kernel_rows(m, mask, &er.ev, &er.ev_fly),
+            kernel_ready: kernel_row.iter().all(Option::is_some),
+            kernel_row,
+            kernel_obs,
             ev: er.ev,
             ev0: er.ev0,
             ev_d: er.ev_d,
@@ -213,30 +223,37 @@ fn contact_rows_z(m: &MultiModel, lay: &Layout, members: &[usize]) -> Vec<(Vec<f
 }
 
 /// Each contact's row in the block kernel in the phase of `mask`
-/// ([`MultiPhase::kernel_row`]): its own below `KERNEL_CONTACTS`; beyond,
-/// an open contact's open stage below it among those, reached through open
-/// stages, if its row and flights are bit for bit the contact's own.
+/// ([`MultiPhase::kernel_row`]): an open contact reads the row of the
+/// lowest open stage below it reached through open stages whose rows and
+/// flights are bit for bit its own (the same sides: only the constant
+/// differs), any other contact its own; `None` for a row at or beyond
+/// [`EVENT_ROWS`]. Then the observation rows the kernel must sum for them
+/// ([`MultiPhase::kernel_obs`]: 0, 1 or 3).
 fn kernel_rows(
-    m: &MultiModel,
+    stage_below: &[Option<usize>],
     mask: u32,
     ev: &[Vec<f64>],
     ev_fly: &[(Option<usize>, Option<usize>)],
-) -> Vec<Option<usize>> {
-    let below = m.stage_below();
+) -> (Vec<Option<usize>>, usize) {
     let open = |i: usize| mask & (1 << i) == 0;
     let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
-    (0..m.contacts.len())
+    let rows: Vec<Option<usize>> = (0..ev.len())
         .map(|j| {
             let mut i = j;
-            while i >= KERNEL_CONTACTS {
-                if !open(i) {
-                    return None;
-                }
-                i = below[i]?;
+            while let Some(b) = stage_below[i]
+                .filter(|&b| open(j) && open(b) && same(&ev[b], &ev[j]) && ev_fly[b] == ev_fly[j])
+            {
+                i = b;
             }
-            (i == j || (open(i) && same(&ev[i], &ev[j]) && ev_fly[i] == ev_fly[j])).then_some(i)
+            (i < EVENT_ROWS).then_some(i)
         })
-        .collect()
+        .collect();
+    let obs = match rows.iter().flatten().max() {
+        None | Some(0) => 0,
+        Some(1) => 1,
+        Some(_) => EVENT_ROWS - 1,
+    };
+    (rows, obs)
 }
 
 impl CompiledMulti {
@@ -259,24 +276,25 @@ impl CompiledMulti {
     fn compile(model: &MultiModel, rate_hz: f64, every: bool) -> Result<Self, MultiError> {
         model.validate()?;
         check_value("rate_hz", rate_hz, rate_hz > 0.0)?;
-        model.within_budget()?;
         let k = model.contacts.len();
-        let h = 1.0 / rate_hz;
-        let masks = if every {
+        let stage_below = model.stage_below();
+        let masks: Vec<u32> = if every {
             (0..1u32 << k).collect()
         } else {
-            model.reachable_masks()
+            model.reachable_masks_of(&stage_below)
         };
+        model.within_budget_of(model.reachable_masks_of(&stage_below).len())?;
+        let h = 1.0 / rate_hz;
         let phases = masks
             .iter()
-            .map(|&mask| MultiPhase::new(model, mask, h))
+            .map(|&mask| MultiPhase::new(model, mask, h, &stage_below))
             .collect::<Result<Vec<_>, _>>()?;
         let mut slots = vec![u32::MAX; 1 << k];
         for (i, &mask) in masks.iter().enumerate() {
             slots[mask as usize] = i as u32;
         }
         let mut below = [0u32; MAX_SPRINGS];
-        for (b, s) in below.iter_mut().zip(model.stage_below()) {
+        for (b, s) in below.iter_mut().zip(stage_below) {
             *b = s.map_or(0, |i| 1 << i);
         }
         Ok(Self {
@@ -312,9 +330,13 @@ impl CompiledMulti {
     /// entered at one sample instant leave at one, which their rods'
     /// rounding may split). Both are passive: a contact that leaves
     /// takes its spring's energy out, one that enters starts at its rod
-    /// or unstretched. O(K^2). \[audio-thread\]
+    /// or unstretched. O(K) without stages, O(K^2) with. \[audio-thread\]
     pub fn staged(&self, mask: u32, who: u32) -> u32 {
         let k = self.contacts();
+        if self.below[..k].iter().all(|&b| b == 0) {
+            // no stages: nothing else switches
+            return who;
+        }
         let mut new = mask ^ who;
         // a stage leaves when the one below it leaves (up the chain)
         for _ in 0..k {
