@@ -104,6 +104,15 @@ impl MultiState {
         self.block_path = on;
     }
 
+    /// TEST ONLY: search and certify every contact (`false`), the stages
+    /// in flight behind their open stage below too, as a check that
+    /// leaving them out ([`MultiPhase::shadow`]) changes nothing; or leave
+    /// them out (`true`, the default).
+    #[doc(hidden)]
+    pub fn set_shadows(&mut self, on: bool) {
+        self.shadows = on;
+    }
+
     /// TEST ONLY: turn the Hermite certificates off (`false`: every sample
     /// the chord's margin leaves goes to the search, as a check of the
     /// certificates against it) or on.
@@ -259,6 +268,9 @@ impl MultiState {
     fn may_pass(&self, sc: &CompiledMulti, beg: &[f64; 6], nc: usize) -> bool {
         let ph = &sc.phases[self.slot];
         (0..nc).all(|j| {
+            if self.implied(ph, j) {
+                return true;
+            }
             let f = self.event_fn(sc, j);
             let q = ph.kernel_row[j].map_or(f64::NAN, |r| beg[r]);
             f.psi(q + ph.ev0[j], 0.0) > self.cached[j].1
@@ -271,6 +283,9 @@ impl MultiState {
     fn certified(&self, sc: &CompiledMulti, beg: &[f64; 6], end: &[f64; 6], nc: usize) -> bool {
         let ph = &sc.phases[self.slot];
         (0..nc).all(|j| {
+            if self.implied(ph, j) {
+                return true;
+            }
             let f = self.event_fn(sc, j);
             // no row: NaN, which no certificate passes
             let r = ph.kernel_row[j];
@@ -281,6 +296,17 @@ impl MultiState {
             let margin = self.cached[j].1;
             f.psi(q0, 0.0).min(f.psi(q1, self.step_h)) > margin
         })
+    }
+
+    /// Whether contact `j`'s certificate follows from its shadowing
+    /// stage's ([`MultiPhase::shadow`]), which the same test checks: its
+    /// `psi` is the stage's plus `d` (up to rounding far below `d`), so it
+    /// clears its own margin wherever the stage clears the stage's and
+    /// its margin is within `d / 2` of the stage's. Then the test's
+    /// outcome is the same with or without it.
+    fn implied(&self, ph: &MultiPhase, j: usize) -> bool {
+        self.shadows
+            && ph.shadow[j].is_some_and(|(i, d)| self.cached[j].1 <= self.cached[i].1 + 0.5 * d)
     }
 
     /// Every contact's margin for the clock's epoch, taken now where it

@@ -390,6 +390,15 @@ pub struct MultiPhase {
     /// [`kernel_row`](Self::kernel_row) (0, 1 or 3: a law whose pieces are
     /// all open reads its first piece's row alone).
     kernel_obs: usize,
+    /// Per contact: the open stage below it whose row and flights are its
+    /// own, and how much deeper it lies (`d > 0`), while both are open
+    /// (a law's further piece in flight); `None` otherwise. Its
+    /// penetration is that stage's less `d` at every instant, so it
+    /// cannot cross before that stage does: the step's search leaves it
+    /// out, and the block path's certificate of that stage implies its own
+    /// where its margin is within `d / 2` of the stage's
+    /// (docs/numerics.md section 14, "Stages in flight").
+    shadow: Vec<Option<(usize, f64)>>,
     /// Per contact: the blocks its row or slope row touches (the others'
     /// weights in its bounds are 0 too: an evaluation skips them), and the
     /// entries where its row and its slope row are not 0 (its dot
@@ -508,6 +517,9 @@ pub struct MultiStats {
     /// Contacts' samples (or rests of a sample) the Hermite certificates
     /// cleared without a search, where the chord's margin did not.
     pub hermite_cleared: u64,
+    /// Contacts' searches left out as stages in flight behind their open
+    /// stage below ([`MultiPhase::shadow`]).
+    pub shadowed: u64,
 }
 
 /// A located switch: contact `contact` entered (`entered`) or left
@@ -696,6 +708,11 @@ pub struct MultiState {
     /// certificates before the search (a test knob: off, the search
     /// decides every such sample).
     hermite: bool,
+    /// Whether a stage in flight behind its open stage below is left out
+    /// of the search and the block path's certificates
+    /// ([`MultiPhase::shadow`]; a test knob: off, every contact is
+    /// searched and certified).
+    shadows: bool,
     /// How many samples the block path tries at once (`fast::SPEC_RESTART`
     /// after a sample failed, doubled after each whole run).
     spec_len: usize,
@@ -757,6 +774,7 @@ impl Clone for MultiState {
             kern: self.kern.clone(),
             block_path: self.block_path,
             hermite: self.hermite,
+            shadows: self.shadows,
             spec_len: self.spec_len,
             rod: self.rod,
             shift: self.shift.clone(),

@@ -44,6 +44,7 @@ impl MultiState {
             kern: Box::new(fast::Kern::new(dim)),
             block_path: true,
             hermite: true,
+            shadows: true,
             spec_len: crate::engine::kernel::EPOCH,
             rod: [0.0; MAX_SPRINGS],
             shift: vec![0.0; dim],

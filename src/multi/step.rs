@@ -46,6 +46,12 @@ impl MultiState {
             let mut first: Option<f64> = None;
             let mut who = 0u32;
             for j in 0..sc.contacts() {
+                if self.shadows && ph.shadow[j].is_some() {
+                    // a stage in flight behind its open stage below: it
+                    // cannot cross first (MultiPhase::shadow)
+                    self.stats.shadowed += 1;
+                    continue;
+                }
                 let Some(tj) = self.first_crossing(sc, j, rem, starts[j]) else {
                     continue;
                 };

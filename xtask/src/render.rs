@@ -726,6 +726,7 @@ fn several_contacts_report(
                 "switches": x.switches, "grazing": x.grazing, "capped": x.capped, "uncertified": x.uncertified,
                 "evaluations": x.evaluations,
                 "kernel_samples": x.kernel_samples, "kernel_discarded": x.kernel_discarded,
+                "shadowed": x.shadowed,
             },
         }),
     );
@@ -736,7 +737,7 @@ fn several_contacts_report(
     );
     let mut summary = format!(
         "several contacts: {k} contacts ({} strikers, {} touches, {} law pieces) between {} modes \
-         and {} masses, {} phases compiled up front (every subset in contact), largest {} \
+         and {} masses, {} phases compiled up front (the sets in contact that can be reached), largest {} \
          coordinates, condition of the bases at most {:.1}; switch products in hierarchical \
          low-rank form: {} of {}\n",
         scene.striker.len(),
@@ -756,8 +757,10 @@ fn several_contacts_report(
         line,
         switching_line: Some(format!(
             "several-contact switching: {} switches, {} grazing touches, {} event evaluations; capped {}, uncertified {}; \
-             {} samples on the block path ({} stepped past a failed certificate and discarded)",
-            x.switches, x.grazing, x.evaluations, x.capped, x.uncertified, x.kernel_samples, x.kernel_discarded
+             {} samples on the block path ({} stepped past a failed certificate and discarded); \
+             {} searches of a law's pieces in flight behind an open piece left out",
+            x.switches, x.grazing, x.evaluations, x.capped, x.uncertified, x.kernel_samples, x.kernel_discarded,
+            x.shadowed
         )),
         summary,
     }

@@ -11,7 +11,7 @@ mod structured;
 mod whole;
 
 use coupled::{CoupledBlocks, CoupledForces, CoupledPart, CoupledSystem};
-use rows::{PhaseRows, SwitchProducts};
+use rows::{EventRows, PhaseRows, SwitchProducts};
 pub(super) use structured::{product, StructuredProducts, SwitchScratch};
 use whole::WholePhase;
 
@@ -113,6 +113,7 @@ impl MultiPhase {
         };
         let er = phase_rows.events(&members, &p0);
         let (kernel_row, kernel_obs) = kernel_rows(stage_below, mask, &er.ev, &er.ev_fly);
+        let shadow = shadows(stage_below, mask, &er);
         let sides = phase_rows.sides();
         let out = phase_rows.outputs();
         // the entries of s the coupled part moves (the free modes' blocks
@@ -166,6 +167,7 @@ impl MultiPhase {
             kernel_ready: kernel_row.iter().all(Option::is_some),
             kernel_row,
             kernel_obs,
+            shadow,
             ev: er.ev,
             ev0: er.ev0,
             ev_d: er.ev_d,
@@ -254,6 +256,28 @@ fn kernel_rows(
         Some(_) => EVENT_ROWS - 1,
     };
     (rows, obs)
+}
+
+/// Each contact's shadowing stage in the phase of `mask`
+/// ([`MultiPhase::shadow`]): for an open contact whose stage below is open
+/// with its row and flights bit for bit (the same sides), that stage and
+/// how much deeper this one lies (`d > 0`: its penetration is the stage's
+/// less `d`); `None` for any other.
+fn shadows(stage_below: &[Option<usize>], mask: u32, er: &EventRows) -> Vec<Option<(usize, f64)>> {
+    let open = |i: usize| mask & (1 << i) == 0;
+    let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
+    (0..er.ev.len())
+        .map(|j| {
+            let i = stage_below[j]?;
+            let d = er.ev0[i] - er.ev0[j];
+            (open(j)
+                && open(i)
+                && same(&er.ev[i], &er.ev[j])
+                && er.ev_fly[i] == er.ev_fly[j]
+                && d > 0.0)
+                .then_some((i, d))
+        })
+        .collect()
 }
 
 impl CompiledMulti {
