@@ -378,11 +378,11 @@ pub struct MultiPhase {
     /// upper side's subtracts; none when both ride the same one).
     ev_fly: Vec<(Option<usize>, Option<usize>)>,
     /// Per contact: the block kernel's event row that sums its row
-    /// (`multi/fast.rs`): an open contact reads the row of the lowest open
-    /// stage below it (down its open stages) whose row and flights are the
-    /// same numbers (the same sides: only the constant differs), any other
-    /// contact its own; `None` for a row beyond the kernel's
-    /// `EVENT_ROWS`, and then the block path does not run in this phase.
+    /// (`multi/fast.rs`): a contact in the shadow of an open stage below
+    /// ([`shadow`](Self::shadow)) reads the row of the lowest stage down
+    /// that chain (the same numbers: only the constant differs), any other
+    /// contact its own; `None` for a row beyond the kernel's `EVENT_ROWS`,
+    /// and then the block path does not run in this phase.
     kernel_row: Vec<Option<usize>>,
     /// Whether every contact has a kernel row.
     kernel_ready: bool,

@@ -112,8 +112,8 @@ impl MultiPhase {
             w: &w,
         };
         let er = phase_rows.events(&members, &p0);
-        let (kernel_row, kernel_obs) = kernel_rows(stage_below, mask, &er.ev, &er.ev_fly);
         let shadow = shadows(stage_below, mask, &er);
+        let (kernel_row, kernel_obs) = kernel_rows(&shadow);
         let sides = phase_rows.sides();
         let out = phase_rows.outputs();
         // the entries of s the coupled part moves (the free modes' blocks
@@ -224,27 +224,17 @@ fn contact_rows_z(m: &MultiModel, lay: &Layout, members: &[usize]) -> Vec<(Vec<f
     members.iter().map(|&c| contact_z(c)).collect()
 }
 
-/// Each contact's row in the block kernel in the phase of `mask`
-/// ([`MultiPhase::kernel_row`]): an open contact reads the row of the
-/// lowest open stage below it reached through open stages whose rows and
-/// flights are bit for bit its own (the same sides: only the constant
-/// differs), any other contact its own; `None` for a row at or beyond
-/// [`EVENT_ROWS`]. Then the observation rows the kernel must sum for them
-/// ([`MultiPhase::kernel_obs`]: 0, 1 or 3).
-fn kernel_rows(
-    stage_below: &[Option<usize>],
-    mask: u32,
-    ev: &[Vec<f64>],
-    ev_fly: &[(Option<usize>, Option<usize>)],
-) -> (Vec<Option<usize>>, usize) {
-    let open = |i: usize| mask & (1 << i) == 0;
-    let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
-    let rows: Vec<Option<usize>> = (0..ev.len())
+/// Each contact's row in the block kernel ([`MultiPhase::kernel_row`]):
+/// a contact in the shadow of an open stage below ([`shadows`]) reads the
+/// row of the lowest stage down that chain (the same numbers: only the
+/// constant differs), any other contact its own; `None` for a row at or
+/// beyond [`EVENT_ROWS`]. Then the observation rows the kernel must sum
+/// for them ([`MultiPhase::kernel_obs`]: 0, 1 or 3).
+fn kernel_rows(shadow: &[Option<(usize, f64)>]) -> (Vec<Option<usize>>, usize) {
+    let rows: Vec<Option<usize>> = (0..shadow.len())
         .map(|j| {
             let mut i = j;
-            while let Some(b) = stage_below[i]
-                .filter(|&b| open(j) && open(b) && same(&ev[b], &ev[j]) && ev_fly[b] == ev_fly[j])
-            {
+            while let Some((b, _)) = shadow[i] {
                 i = b;
             }
             (i < EVENT_ROWS).then_some(i)
