@@ -106,7 +106,7 @@ impl MultiState {
 
     /// TEST ONLY: search and certify every contact (`false`), the stages
     /// in flight behind their open stage below too, as a check that
-    /// leaving them out ([`MultiPhase::shadow`]) changes nothing; or leave
+    /// leaving them out (`MultiPhase::shadow`) changes nothing; or leave
     /// them out (`true`, the default).
     #[doc(hidden)]
     pub fn set_shadows(&mut self, on: bool) {

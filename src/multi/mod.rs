@@ -518,7 +518,7 @@ pub struct MultiStats {
     /// cleared without a search, where the chord's margin did not.
     pub hermite_cleared: u64,
     /// Contacts' searches left out as stages in flight behind their open
-    /// stage below ([`MultiPhase::shadow`]).
+    /// stage below (`MultiPhase::shadow`).
     pub shadowed: u64,
 }
 
