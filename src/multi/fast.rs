@@ -268,7 +268,7 @@ impl MultiState {
     fn may_pass(&self, sc: &CompiledMulti, beg: &[f64; 6], nc: usize) -> bool {
         let ph = &sc.phases[self.slot];
         (0..nc).all(|j| {
-            if self.implied(ph, j) {
+            if self.implied(j) {
                 return true;
             }
             let f = self.event_fn(sc, j);
@@ -283,7 +283,7 @@ impl MultiState {
     fn certified(&self, sc: &CompiledMulti, beg: &[f64; 6], end: &[f64; 6], nc: usize) -> bool {
         let ph = &sc.phases[self.slot];
         (0..nc).all(|j| {
-            if self.implied(ph, j) {
+            if self.implied(j) {
                 return true;
             }
             let f = self.event_fn(sc, j);
@@ -303,20 +303,31 @@ impl MultiState {
     /// `psi` is the stage's plus `d` (up to rounding far below `d`), so it
     /// clears its own margin wherever the stage clears the stage's and
     /// its margin is within `d / 2` of the stage's. Then the test's
-    /// outcome is the same with or without it.
-    fn implied(&self, ph: &MultiPhase, j: usize) -> bool {
-        self.shadows
-            && ph.shadow[j].is_some_and(|(i, d)| self.cached[j].1 <= self.cached[i].1 + 0.5 * d)
+    /// outcome is the same with or without it. Taken once per run, with
+    /// the margins (`ensure_margins`: a run stays in its phase and epoch).
+    fn implied(&self, j: usize) -> bool {
+        self.implied & (1 << j) != 0
     }
 
     /// Every contact's margin for the clock's epoch, taken now where it
     /// is not yet ([`first_crossing`](Self::first_crossing) takes it the
     /// same way).
+    /// Then the contacts whose certificate follows from their shadowing
+    /// stage's at these margins ([`implied`](Self::implied)), once per run.
     fn ensure_margins(&mut self, sc: &CompiledMulti) {
         let epoch = self.clock / 64;
         for j in 0..sc.contacts() {
             if self.cached[j].0 != epoch {
                 self.cache_margin(sc, j, epoch);
+            }
+        }
+        let ph = &sc.phases[self.slot];
+        self.implied = 0;
+        if self.shadows {
+            for (j, sh) in ph.shadow.iter().enumerate() {
+                if sh.is_some_and(|(i, d)| self.cached[j].1 <= self.cached[i].1 + 0.5 * d) {
+                    self.implied |= 1 << j;
+                }
             }
         }
     }

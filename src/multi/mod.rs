@@ -713,6 +713,10 @@ pub struct MultiState {
     /// ([`MultiPhase::shadow`]; a test knob: off, every contact is
     /// searched and certified).
     shadows: bool,
+    /// The contacts whose block-path certificate follows from their
+    /// shadowing stage's at the current margins (`fast.rs`, `implied`),
+    /// set at the start of each run.
+    implied: u32,
     /// How many samples the block path tries at once (`fast::SPEC_RESTART`
     /// after a sample failed, doubled after each whole run).
     spec_len: usize,
@@ -775,6 +779,7 @@ impl Clone for MultiState {
             block_path: self.block_path,
             hermite: self.hermite,
             shadows: self.shadows,
+            implied: self.implied,
             spec_len: self.spec_len,
             rod: self.rod,
             shift: self.shift.clone(),

@@ -45,6 +45,7 @@ impl MultiState {
             block_path: true,
             hermite: true,
             shadows: true,
+            implied: 0,
             spec_len: crate::engine::kernel::EPOCH,
             rod: [0.0; MAX_SPRINGS],
             shift: vec![0.0; dim],

@@ -292,12 +292,13 @@ impl CompiledMulti {
         check_value("rate_hz", rate_hz, rate_hz > 0.0)?;
         let k = model.contacts.len();
         let stage_below = model.stage_below();
+        let reachable = model.reachable_masks_of(&stage_below);
+        model.within_budget_of(reachable.len())?;
         let masks: Vec<u32> = if every {
             (0..1u32 << k).collect()
         } else {
-            model.reachable_masks_of(&stage_below)
+            reachable
         };
-        model.within_budget_of(model.reachable_masks_of(&stage_below).len())?;
         let h = 1.0 / rate_hz;
         let phases = masks
             .iter()
