@@ -145,7 +145,8 @@ struct ParamDocsArgs {
 struct TestArgs {
     /// Passed to `cargo test --workspace --profile test-release
     /// --no-fail-fast` as written (e.g. `--test numerics stability:: --
-    /// --nocapture`).
+    /// --nocapture`); without them, that run leaves xtask's own tests to
+    /// `cargo test --release -p xtask`.
     #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
     cargo_test_args: Vec<String>,
 }
@@ -269,6 +270,10 @@ fn run_tests(extra: &[String]) -> Result<()> {
     // checks): release mode keeps them fast; debug assertions stay on.
     // --no-fail-fast: a failure in one test binary still runs the others
     // (the plugin tests included); the VST3 test runs either way.
+    // The whole suite runs xtask's own tests apart, in the release profile
+    // that `cargo xtask` itself was built in ([`xtask_tests`]); tests named
+    // in `extra` run as written, xtask's among them.
+    let whole = extra.is_empty();
     let mut cmd = std::process::Command::new("cargo");
     cmd.args([
         "test",
@@ -279,6 +284,11 @@ fn run_tests(extra: &[String]) -> Result<()> {
         "--features",
         modal_testkit::bundles::TEST_FEATURES_ARG,
     ])
+    .args(if whole {
+        &["--exclude", "xtask"][..]
+    } else {
+        &[]
+    })
     .args(extra);
     for (b, dir) in &dirs {
         cmd.env(b.env_var(), dir.join(format!("{BUNDLE_NAME}.clap")));
@@ -296,6 +306,7 @@ fn run_tests(extra: &[String]) -> Result<()> {
             .join(modal_testkit::bundles::STANDALONE_BIN),
     );
     let cargo_tests = run(&mut cmd);
+    let xtask_tests = if whole { xtask_tests(&python) } else { Ok(()) };
     let release = &dirs
         .iter()
         .find(|(b, _)| b.name == "release")
@@ -318,11 +329,27 @@ fn run_tests(extra: &[String]) -> Result<()> {
     let vst3_test = host_test("plugin-tests/vst3/test_vst3.py");
     let ardour_test = host_test("plugin-tests/ardour/test_ardour.py");
     cargo_tests?;
+    xtask_tests?;
     for r in unchecked {
         r?;
     }
     vst3_test?;
     ardour_test
+}
+
+/// xtask's own tests (the commands' arguments, batch renders, levels, the
+/// NPY trace read by NumPy from `python`'s venv) in the release profile:
+/// they test the commands as `cargo xtask` builds them and reuse that
+/// build's compilation of the plugin crate and its dependencies instead of
+/// compiling xtask's own (the soundfont parser, plots, cargo's metadata)
+/// once more in `test-release` (docs/design.md, "Builds").
+fn xtask_tests(python: &Path) -> Result<()> {
+    run(std::process::Command::new("cargo")
+        .args(["test", "--release", "-p", "xtask", "--no-fail-fast"])
+        .env(
+            "MODAL_CONTACT_PYTHON",
+            std::env::current_dir()?.join(python),
+        ))
 }
 
 /// The core without the plugin (README, "Embedding"; docs/design.md,
