@@ -342,7 +342,7 @@ fn run_tests(extra: &[String]) -> Result<()> {
 /// they test the commands as `cargo xtask` builds them and reuse that
 /// build's compilation of the plugin crate and its dependencies instead of
 /// compiling xtask's own (the soundfont parser, plots, cargo's metadata)
-/// once more in `test-release` (docs/design.md, "Builds").
+/// once more in `test-release` (docs/design.md, "Tests, checks and measurements").
 fn xtask_tests(python: &Path) -> Result<()> {
     run(std::process::Command::new("cargo")
         .args(["test", "--release", "-p", "xtask", "--no-fail-fast"])
